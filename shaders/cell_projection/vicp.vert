@@ -1,0 +1,35 @@
+#version 450
+// View-independent cell projection (Weiler, Kraus, Ertl): each tet arrives as
+// 12 vertex records (4 faces x 3 vertices) of 11 floats. The vertex stage
+// intersects the view ray with the plane of the face opposite this vertex;
+// the vertex lies on the face's two other planes (distance 0, scalar s_v).
+#include "common/frame.glsl"
+
+layout(location = 0) in vec3 in_pos;     // v
+layout(location = 1) in float in_s;      // s_v
+layout(location = 2) in vec3 in_plane;   // P_v: n' of the plane opposite v
+layout(location = 3) in vec3 in_grad;    // g
+layout(location = 4) in float in_index;  // i: v's index within the face (0..2)
+
+layout(location = 0) out float out_sf;
+layout(location = 1) out vec3 out_d;
+layout(location = 2) out vec3 out_s;
+layout(location = 3) out vec3 out_w;  // barycentric weight of each face vertex (see common/exit.glsl)
+
+void main() {
+    vec3 dir = ray_direction(in_pos);
+    float t = distance_to_opposite_plane(in_plane, dir);
+    float sb = in_s + dot(dir, in_grad) * t;
+    int k = int(in_index + 0.5);
+    vec3 d = vec3(0.0);
+    vec3 s = vec3(in_s);
+    d[k] = t;
+    s[k] = sb;
+    out_sf = in_s;
+    out_d = d;
+    out_s = s;
+    vec3 w = vec3(0.0);
+    w[k] = 1.0;
+    out_w = w;
+    gl_Position = frame.view_proj * vec4(in_pos, 1.0);
+}

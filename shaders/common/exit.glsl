@@ -1,0 +1,35 @@
+// Choosing the exit plane in the fragment stage, shared by VICP (3 planes)
+// and balanced (4 planes). Define EXIT_VEC (vec3/vec4) and EXIT_N first.
+//
+// d[k] interpolates lambda_k * t_k: t_k is the ray-plane distance computed at
+// vertex k for the plane opposite it (0 at the other vertices), lambda_k the
+// fragment's barycentric weight of vertex k. The paper's rule takes the
+// smallest positive d[k]. Near the edge where lambda_k -> 0 the exit through
+// plane k is at distance ~0, and rasterizer rounding (lambda_k = -1e-7) can
+// make d[k] slightly negative: the paper's rule then skips that plane and picks
+// the next one, possibly a whole cell too far (bright specks along edges seen
+// edge-on). The robust rule (default) also interpolates w[k] = lambda_k: the
+// ratio d[k]/w[k] = t_k exactly, so sign(d[k] * w[k]) tells an exit plane
+// (t_k > 0) from an entry plane whatever the rounding, and an exit plane's
+// distance is clamped at 0. Build with PAPER_EXIT_RULE for the paper's rule.
+
+bool exit_point(EXIT_VEC d, EXIT_VEC s, EXIT_VEC w, float s_front, out float len, out float s_back) {
+    len = frame.limits.x;
+    s_back = s_front;
+    bool found = false;
+    for (int k = 0; k < EXIT_N; ++k) {
+#ifdef PAPER_EXIT_RULE
+        bool is_exit = d[k] > 0.0;
+        float dk = d[k];
+#else
+        bool is_exit = d[k] * w[k] > 0.0;
+        float dk = max(d[k], 0.0);
+#endif
+        if (is_exit && dk < len) {
+            len = dk;
+            s_back = s[k];
+            found = true;
+        }
+    }
+    return found;
+}

@@ -1,0 +1,248 @@
+//! Cell projection of tetrahedral meshes: VICP (Weiler, Kraus, Ertl) and
+//! GPU-CPU balanced cell projection (Moreland). Both draw the same sorted cells
+//! with the same fragment integration; they differ in what crosses to the
+//! device per frame (132 vs 28 floats per tet) and where IntersectBackFace runs.
+//!
+//! A frame is: sort (shared, `sort`), `pack` (CPU, into host memory),
+//! `upload` (host memory -> device-visible buffer, counted), `record_draw`.
+
+pub mod balanced;
+pub mod sort;
+pub mod vicp;
+
+use std::sync::Arc;
+
+use ash::vk as raw;
+use serde::Serialize;
+
+use crate::algo::integrate::IntegrationTables;
+use crate::mesh::{TetGeometry, TetMesh};
+use crate::scene::Camera;
+use crate::vk::{
+    compile_glsl, Blend, CommandRecorder, Context, GraphicsPipelineDesc, Pipeline, ShaderModule, ShaderStage,
+    UploadCounter, VertexAttribute, VkResult,
+};
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Method {
+    /// View-independent cell projection: 12 vertices, 132 floats per tet.
+    Vicp,
+    /// GPU-CPU balanced cell projection: 4 vertices, 28 floats per tet.
+    Balanced,
+}
+
+impl Method {
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Vicp => "vicp",
+            Method::Balanced => "balanced",
+        }
+    }
+}
+
+/// With every tet positively oriented (see `mesh`), the faces as drawn
+/// (VICP's face lists, the balanced strip 0,1,2,3,0,1) have right-handed
+/// normals pointing into the tet, so faces the eye looks into (entry faces)
+/// appear clockwise on screen.
+pub const ENTRY_FACE_WINDING: raw::FrontFace = raw::FrontFace::CLOCKWISE;
+
+/// The faces of a tet as drawn, in the balanced strip's triangle order, each
+/// with its vertices in the order that makes it an entry face when seen from
+/// outside: (0,1,2) opposite 3, (1,3,2) opposite 0, (2,3,0) opposite 1,
+/// (3,1,0) opposite 2.
+pub const FACES: [[usize; 3]; 4] = [[0, 1, 2], [1, 3, 2], [2, 3, 0], [3, 1, 0]];
+
+/// Ray-plane distances at the vertices are clamped to this many mesh
+/// diagonals. Only a plane within ~1/CLAMP radians of parallel to the ray gets
+/// there; a real exit is never farther than one diagonal, and across a face
+/// the interpolated distance is lambda * t, so a tighter clamp (a few
+/// diagonals) visibly shortens exits through nearly parallel faces, while an
+/// unbounded one lets f32 rounding of lambda (~1e-7) grow into whole-cell
+/// errors. 1e3 keeps that rounding below 1e-4 diagonals.
+pub const DISTANCE_CLAMP_DIAGONALS: f64 = 1e3;
+
+/// Push constants shared by every cell-projection shader (`common/frame.glsl`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct FrameConstants {
+    pub view_proj: [[f32; 4]; 4],
+    pub eye: [f32; 4],
+    pub view_dir: [f32; 4],
+    pub tf_range: [f32; 4],
+    pub limits: [f32; 4],
+}
+
+/// What every method needs to know about the frame being drawn.
+#[derive(Debug, Clone, Copy)]
+pub struct FrameSetup {
+    pub constants: FrameConstants,
+    pub eye: [f32; 3],
+    pub view_dir: [f32; 3],
+    pub perspective: bool,
+    /// Bound on |ray-plane distance| (see `DISTANCE_CLAMP_DIAGONALS`).
+    pub max_distance: f32,
+}
+
+impl FrameSetup {
+    pub fn new(camera: &Camera, width: u32, height: u32, tables: &IntegrationTables, mesh_diagonal: f64) -> Self {
+        let vp = camera.view_proj(width, height).to_cols_array_2d();
+        let view_proj = vp.map(|c| c.map(|v| v as f32));
+        let f = camera.forward();
+        let eye = camera.eye.map(|v| v as f32);
+        let view_dir = [f.x as f32, f.y as f32, f.z as f32];
+        let perspective = camera.is_perspective();
+        let (lo, hi) = tables.tf_range;
+        let max_distance = (DISTANCE_CLAMP_DIAGONALS * mesh_diagonal).max(1e-30) as f32;
+        FrameSetup {
+            constants: FrameConstants {
+                view_proj,
+                eye: [eye[0], eye[1], eye[2], if perspective { 1.0 } else { 0.0 }],
+                view_dir: [view_dir[0], view_dir[1], view_dir[2], 0.0],
+                tf_range: [lo as f32, (1.0 / (hi - lo)) as f32, tables.tf_size as f32, tables.psi_size as f32],
+                limits: [max_distance, 0.0, 0.0, 0.0],
+            },
+            eye,
+            view_dir,
+            perspective,
+            max_distance,
+        }
+    }
+
+    /// Unit ray direction through world point `p` (same rule as the shaders).
+    #[inline]
+    pub fn ray_direction(&self, p: [f32; 3]) -> [f32; 3] {
+        if self.perspective {
+            let d = [p[0] - self.eye[0], p[1] - self.eye[1], p[2] - self.eye[2]];
+            let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+            if len > 0.0 {
+                [d[0] / len, d[1] / len, d[2] / len]
+            } else {
+                self.view_dir
+            }
+        } else {
+            self.view_dir
+        }
+    }
+
+    /// IntersectBackFace with the 3-float plane (same rule as the shaders).
+    #[inline]
+    pub fn distance_to_opposite_plane(&self, plane3: [f32; 3], dir: [f32; 3]) -> f32 {
+        let nd = plane3[0] * dir[0] + plane3[1] * dir[1] + plane3[2] * dir[2];
+        (-1.0 / nd).clamp(-self.max_distance, self.max_distance)
+    }
+}
+
+/// One cell-projection method's per-frame work on the device side.
+pub trait CellProjector {
+    fn method(&self) -> Method;
+    fn cells(&self) -> usize;
+    /// Vertex records and floats each tet sends per frame, by construction.
+    fn vertices_per_cell(&self) -> usize;
+    fn floats_per_cell(&self) -> usize;
+    /// Write this frame's vertex data in `order` into host memory.
+    fn pack(&mut self, order: &[u32], frame: &FrameSetup);
+    /// Copy the packed data to where the device reads it (counted).
+    fn upload(&mut self, counter: &mut UploadCounter) -> VkResult<()>;
+    /// Bind and draw (inside dynamic rendering).
+    fn record_draw(&self, rec: &CommandRecorder, tables: &IntegrationTables, frame: &FrameSetup, counter: &mut UploadCounter);
+}
+
+/// Build a method by name.
+pub fn create(
+    ctx: &Arc<Context>,
+    method: Method,
+    mesh: &TetMesh,
+    geometry: &TetGeometry,
+    tables: &IntegrationTables,
+    counter: &mut UploadCounter,
+) -> VkResult<Box<dyn CellProjector>> {
+    Ok(match method {
+        Method::Vicp => Box::new(vicp::Vicp::new(ctx, mesh, geometry, tables)?),
+        Method::Balanced => Box::new(balanced::Balanced::new(ctx, mesh, geometry, tables, counter)?),
+    })
+}
+
+/// The pipeline both methods use: premultiplied "over" into RGBA32F, entry
+/// faces only, the integration tables bound at set 0.
+pub(crate) fn build_pipeline(
+    ctx: &Arc<Context>,
+    name: &str,
+    vertex_path: &str,
+    fragment_path: &str,
+    stride: u32,
+    attributes: &[VertexAttribute],
+    topology: raw::PrimitiveTopology,
+    primitive_restart: bool,
+    tables: &IntegrationTables,
+) -> VkResult<Pipeline> {
+    let vs = compile_glsl(vertex_path, ShaderStage::Vertex, &[], &crate::shaders::source)?;
+    let fs = compile_glsl(fragment_path, ShaderStage::Fragment, &[], &crate::shaders::source)?;
+    let vs = ShaderModule::new(ctx, vertex_path, ShaderStage::Vertex, &vs)?;
+    let fs = ShaderModule::new(ctx, fragment_path, ShaderStage::Fragment, &fs)?;
+    Pipeline::graphics(
+        ctx,
+        &GraphicsPipelineDesc {
+            name,
+            vertex: &vs,
+            fragment: &fs,
+            vertex_stride: stride,
+            attributes,
+            topology,
+            primitive_restart,
+            cull: raw::CullModeFlags::BACK,
+            front_face: ENTRY_FACE_WINDING,
+            blend: Blend::PremultipliedOver,
+            push_constant_bytes: std::mem::size_of::<FrameConstants>() as u32,
+            descriptor_layout: Some(tables.set.layout),
+        },
+    )
+}
+
+/// Per-tet f32 data both methods derive from the mesh once: positions,
+/// scalars, the 3-float opposite-face planes n' and the gradient. Degenerate
+/// (zero-volume) tets are collapsed onto their first vertex with zero planes
+/// and gradient, so they draw nothing but still send their full records.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct CellF32 {
+    pub pos: [[f32; 3]; 4],
+    pub scalar: [f32; 4],
+    pub plane3: [[f32; 3]; 4],
+    pub gradient: [f32; 3],
+}
+
+pub fn cells_f32(mesh: &TetMesh, geometry: &TetGeometry) -> Vec<CellF32> {
+    use rayon::prelude::*;
+    mesh.tets
+        .par_iter()
+        .zip(geometry.cells.par_iter())
+        .map(|(tet, g)| {
+            let p = tet.map(|i| mesh.points[i as usize]);
+            let s = tet.map(|i| mesh.scalars[i as usize] as f32);
+            if g.degenerate {
+                let v0 = p[0].map(|x| x as f32);
+                return CellF32 { pos: [v0; 4], scalar: s, plane3: [[0.0; 3]; 4], gradient: [0.0; 3] };
+            }
+            let mut plane3 = [[0f32; 3]; 4];
+            for i in 0..4 {
+                let [nx, ny, nz, a] = g.planes[i];
+                let dist = nx * p[i][0] + ny * p[i][1] + nz * p[i][2] + a;
+                plane3[i] = if dist != 0.0 {
+                    [(nx / dist) as f32, (ny / dist) as f32, (nz / dist) as f32]
+                } else {
+                    [0.0; 3]
+                };
+            }
+            CellF32 {
+                pos: p.map(|v| v.map(|x| x as f32)),
+                scalar: s,
+                plane3,
+                gradient: g.gradient.map(|x| x as f32),
+            }
+        })
+        .collect()
+}
+
+pub fn centroids_f32(geometry: &TetGeometry) -> Vec<[f32; 3]> {
+    geometry.centroids.iter().map(|c| c.map(|x| x as f32)).collect()
+}

@@ -1,0 +1,5 @@
+//! The algorithms. Each owns its pipelines and buffers (through `crate::vk`)
+//! and never writes files or decides what to measure: that is the harness.
+
+pub mod cell_projection;
+pub mod integrate;

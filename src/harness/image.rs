@@ -1,0 +1,115 @@
+//! Images as the harness sees them: premultiplied RGBA f32, row 0 at the top.
+//! PNG output (composited over black) and image comparison.
+
+use std::io::BufWriter;
+use std::path::Path;
+
+use anyhow::{Context as _, Result};
+use serde::Serialize;
+
+#[derive(Debug, Clone)]
+pub struct RgbaImage {
+    pub width: u32,
+    pub height: u32,
+    pub pixels: Vec<[f32; 4]>,
+}
+
+/// Image differences over all four channels.
+#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+pub struct ImageError {
+    pub rmse: f64,
+    pub max_abs: f64,
+    pub psnr_db: f64,
+}
+
+impl RgbaImage {
+    /// Pixels with any coverage (alpha > 0).
+    pub fn covered_pixels(&self) -> usize {
+        self.pixels.iter().filter(|p| p[3] > 0.0).count()
+    }
+
+    pub fn non_finite_pixels(&self) -> usize {
+        self.pixels.iter().filter(|p| p.iter().any(|c| !c.is_finite())).count()
+    }
+
+    /// RMSE, max |difference| and PSNR over RGBA with values clamped to [0, 1].
+    pub fn compare(&self, other: &RgbaImage) -> Result<ImageError> {
+        anyhow::ensure!(
+            self.width == other.width && self.height == other.height,
+            "cannot compare a {}x{} image with a {}x{} one",
+            self.width,
+            self.height,
+            other.width,
+            other.height
+        );
+        let (mut sum, mut max) = (0f64, 0f64);
+        for (a, b) in self.pixels.iter().zip(&other.pixels) {
+            for c in 0..4 {
+                let d = (a[c].clamp(0.0, 1.0) as f64 - b[c].clamp(0.0, 1.0) as f64).abs();
+                sum += d * d;
+                max = max.max(d);
+            }
+        }
+        let n = (self.pixels.len() * 4).max(1) as f64;
+        let rmse = (sum / n).sqrt();
+        let psnr_db = if rmse > 0.0 { -20.0 * rmse.log10() } else { f64::INFINITY };
+        Ok(ImageError { rmse, max_abs: max, psnr_db })
+    }
+
+    /// Write an 8-bit RGB PNG: the premultiplied colour over a black
+    /// background. Written to a temporary name first, so a failure leaves no
+    /// partial file behind.
+    pub fn write_png(&self, path: &Path) -> Result<()> {
+        let tmp = path.with_extension("png.tmp");
+        let result = (|| -> Result<()> {
+            let file = std::fs::File::create(&tmp).with_context(|| format!("creating {}", tmp.display()))?;
+            let mut enc = png::Encoder::new(BufWriter::new(file), self.width, self.height);
+            enc.set_color(png::ColorType::Rgb);
+            enc.set_depth(png::BitDepth::Eight);
+            let mut w = enc.write_header()?;
+            let data: Vec<u8> = self
+                .pixels
+                .iter()
+                .flat_map(|p| [p[0], p[1], p[2]])
+                .map(|c| if c.is_finite() { (c.clamp(0.0, 1.0) * 255.0 + 0.5) as u8 } else { 255 })
+                .collect();
+            w.write_image_data(&data)?;
+            w.finish()?;
+            Ok(())
+        })();
+        match result {
+            Ok(()) => std::fs::rename(&tmp, path).with_context(|| format!("writing {}", path.display())),
+            Err(e) => {
+                let _ = std::fs::remove_file(&tmp);
+                Err(e.context(format!("writing PNG {}", path.display())))
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn compare_counts_all_channels() {
+        let a = RgbaImage { width: 1, height: 2, pixels: vec![[0.0; 4], [1.0, 0.0, 0.0, 1.0]] };
+        let b = RgbaImage { width: 1, height: 2, pixels: vec![[0.0; 4], [0.0, 0.0, 0.0, 1.0]] };
+        let e = a.compare(&b).unwrap();
+        assert!((e.rmse - (1.0f64 / 8.0).sqrt()).abs() < 1e-12);
+        assert_eq!(e.max_abs, 1.0);
+        assert_eq!(a.covered_pixels(), 1);
+    }
+
+    #[test]
+    fn png_roundtrip_size() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("x.png");
+        let img = RgbaImage { width: 3, height: 2, pixels: vec![[0.5, 0.2, 0.1, 1.0]; 6] };
+        img.write_png(&p).unwrap();
+        let dec = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(&p).unwrap()));
+        let reader = dec.read_info().unwrap();
+        assert_eq!((reader.info().width, reader.info().height), (3, 2));
+        assert!(!dir.path().join("x.png.tmp").exists());
+    }
+}

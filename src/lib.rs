@@ -1,0 +1,13 @@
+//! volbench: a Vulkan benchmark harness for GPU volume-rendering algorithms.
+//!
+//! Layers, dependencies pointing one way: `harness` (scenes, runs, reports) ->
+//! `algo` (one module per method, with its shaders) -> `vk` (all `unsafe`
+//! Vulkan). `mesh` and `scene` are plain data shared by all of them.
+
+pub mod algo;
+pub mod harness;
+pub mod mesh;
+pub mod reference;
+pub mod scene;
+pub mod shaders;
+pub mod vk;

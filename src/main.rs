@@ -1,0 +1,215 @@
+//! The volbench command line: `info`, `run` (one method on one mesh) and
+//! `compare` (VICP against balanced cell projection on several meshes).
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::{bail, Context as _, Result};
+use clap::{Args, Parser, Subcommand, ValueEnum};
+
+use volbench::algo::cell_projection::Method;
+use volbench::harness::report::{self, ComparisonRow};
+use volbench::harness::run::{run_cell_projection, RunConfig, Scene};
+use volbench::harness::datasets;
+use volbench::mesh::TetGeometry;
+use volbench::scene::Projection;
+use volbench::vk::{Context, ContextDesc};
+
+#[derive(Parser)]
+#[command(name = "volbench", version, about = "Measure GPU volume-rendering algorithms: bytes moved, frame time, image error")]
+struct Cli {
+    /// Vulkan device: index or name substring (default: lavapipe). Also VOLBENCH_DEVICE.
+    #[arg(long, global = true)]
+    device: Option<String>,
+    /// Enable the Khronos validation layer; any message fails the run. Also VOLBENCH_VALIDATION=1.
+    #[arg(long, global = true)]
+    validation: bool,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// The device, driver, API version and the limits that matter here.
+    Info,
+    /// Render one method on one mesh for N frames and report bytes, times and counts.
+    Run(RunArgs),
+    /// Run VICP and balanced cell projection on each mesh and print the comparison table.
+    Compare(CompareArgs),
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum ProjectionArg {
+    Perspective,
+    Orthographic,
+}
+
+#[derive(Args, Clone)]
+struct FrameArgs {
+    /// Image size, WxH.
+    #[arg(long, default_value = "512x512", value_parser = parse_size)]
+    size: (u32, u32),
+    /// Timed frames.
+    #[arg(long, default_value_t = 10)]
+    frames: usize,
+    /// Untimed warm-up frames (shader compilation happens on the first draw).
+    #[arg(long, default_value_t = 2)]
+    warmup: usize,
+    #[arg(long, value_enum, default_value = "perspective")]
+    projection: ProjectionArg,
+    /// Camera rotation per frame, degrees.
+    #[arg(long, default_value_t = 5.0)]
+    orbit_step: f64,
+}
+
+#[derive(Args)]
+struct RunArgs {
+    /// bluntfin, oxygenpost, post-small, or a path to a mesh file (.vtk).
+    #[arg(long)]
+    mesh: String,
+    #[arg(long, value_enum)]
+    method: Method,
+    #[command(flatten)]
+    frame: FrameArgs,
+    /// Write the reference-view image (angle 0) as PNG.
+    #[arg(long)]
+    png: Option<PathBuf>,
+    /// Write the full result as JSON.
+    #[arg(long)]
+    json: Option<PathBuf>,
+}
+
+#[derive(Args)]
+struct CompareArgs {
+    /// Comma-separated meshes.
+    #[arg(long, default_value = "bluntfin,oxygenpost", value_delimiter = ',')]
+    meshes: Vec<String>,
+    #[command(flatten)]
+    frame: FrameArgs,
+    /// Directory for JSON results, PNGs and the Markdown table.
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
+fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s.split_once(['x', 'X']).ok_or_else(|| format!("'{s}' is not WxH (e.g. 512x512)"))?;
+    let parse = |v: &str| v.trim().parse::<u32>().map_err(|_| format!("'{s}' is not WxH (e.g. 512x512)"));
+    let (w, h) = (parse(w)?, parse(h)?);
+    if w == 0 || h == 0 || w > 16384 || h > 16384 {
+        return Err(format!("size {w}x{h} out of range (1..=16384 per side)"));
+    }
+    Ok((w, h))
+}
+
+impl FrameArgs {
+    fn config(&self, method: Method) -> Result<RunConfig> {
+        if self.frames == 0 {
+            bail!("--frames must be at least 1");
+        }
+        if !self.orbit_step.is_finite() {
+            bail!("--orbit-step must be a finite number of degrees");
+        }
+        let mut cfg = RunConfig::new(method);
+        (cfg.width, cfg.height) = self.size;
+        cfg.frames = self.frames;
+        cfg.warmup = self.warmup;
+        cfg.orbit_step = self.orbit_step.to_radians();
+        cfg.projection = match self.projection {
+            ProjectionArg::Perspective => Projection::Perspective { fovy_deg: 30.0 },
+            ProjectionArg::Orthographic => Projection::Orthographic { height: 1.0 },
+        };
+        Ok(cfg)
+    }
+}
+
+fn context(cli: &Cli) -> Result<std::sync::Arc<Context>> {
+    let mut desc = ContextDesc::from_env();
+    if cli.device.is_some() {
+        desc.device = cli.device.clone();
+    }
+    desc.validation |= cli.validation;
+    Context::new(&desc).context("creating the Vulkan context")
+}
+
+fn info(cli: &Cli) -> Result<()> {
+    for (i, (name, kind)) in volbench::vk::list_devices().context("listing Vulkan devices")?.iter().enumerate() {
+        println!("device [{i}] {name} ({kind})");
+    }
+    let ctx = context(cli)?;
+    println!("selected: {}", serde_json::to_string_pretty(&ctx.info)?);
+    Ok(())
+}
+
+fn run(cli: &Cli, args: &RunArgs) -> Result<()> {
+    let cfg = args.frame.config(args.method)?;
+    let mesh = datasets::load_mesh(&args.mesh)?;
+    let geometry = TetGeometry::compute(&mesh);
+    let tf = datasets::default_transfer_function(&mesh);
+    let ctx = context(cli)?;
+    let out = run_cell_projection(&ctx, &Scene { mesh: &mesh, geometry: &geometry, tf: &tf }, &cfg)
+        .with_context(|| format!("running {} on {}", args.method.name(), args.mesh))?;
+    print!("{}", report::comparison_table(&[ComparisonRow { result: &out.result, rmse_vs_other: None }]));
+    if let Some(p) = &args.png {
+        out.image.write_png(p)?;
+    }
+    if let Some(p) = &args.json {
+        report::write_json(p, &out.result)?;
+    }
+    Ok(())
+}
+
+fn compare(cli: &Cli, args: &CompareArgs) -> Result<()> {
+    let ctx = context(cli)?;
+    if let Some(dir) = &args.out {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    let mut results = Vec::new();
+    let mut rmses = Vec::new();
+    for name in &args.meshes {
+        let mesh = datasets::load_mesh(name)?;
+        let geometry = TetGeometry::compute(&mesh);
+        let tf = datasets::default_transfer_function(&mesh);
+        let scene = Scene { mesh: &mesh, geometry: &geometry, tf: &tf };
+        let mut images = Vec::new();
+        for method in [Method::Vicp, Method::Balanced] {
+            eprintln!("volbench: {} on {} ({} cells)...", method.name(), mesh.name, mesh.tets.len());
+            let out = run_cell_projection(&ctx, &scene, &args.frame.config(method)?)
+                .with_context(|| format!("running {} on {}", method.name(), name))?;
+            if let Some(dir) = &args.out {
+                let stem = format!("{}-{}", mesh.name, method.name());
+                out.image.write_png(&dir.join(format!("{stem}.png")))?;
+                report::write_json(&dir.join(format!("{stem}.json")), &out.result)?;
+            }
+            images.push(out.image);
+            results.push(out.result);
+        }
+        let rmse = images[0].compare(&images[1])?.rmse;
+        rmses.push(Some(rmse));
+        rmses.push(Some(rmse));
+    }
+    let rows: Vec<ComparisonRow> =
+        results.iter().zip(&rmses).map(|(r, &rmse_vs_other)| ComparisonRow { result: r, rmse_vs_other }).collect();
+    let table = report::comparison_table(&rows);
+    println!("device: {} ({}, {})", ctx.info.name, ctx.info.driver_name, ctx.info.driver_info);
+    print!("{table}");
+    if let Some(dir) = &args.out {
+        std::fs::write(dir.join("comparison.md"), &table).with_context(|| format!("writing {}", dir.display()))?;
+    }
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match &cli.command {
+        Command::Info => info(&cli),
+        Command::Run(a) => run(&cli, a),
+        Command::Compare(a) => compare(&cli, a),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("volbench: error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

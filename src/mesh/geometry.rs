@@ -1,0 +1,492 @@
+//! Validation and view-independent per-tet precomputation.
+//!
+//! [`TetMesh::validate`] is the single gate every loader goes through: it
+//! rejects meshes no renderer could use (non-finite values, bad indices,
+//! repeated vertices), reorients inverted cells so that the module-wide
+//! convention (positive signed volume) holds, and counts degenerate cells,
+//! which are kept because real data has them (the blunt fin's collapsed
+//! points) and the renderers must survive them.
+//!
+//! [`TetGeometry::compute`] does once, at load time and in f64, what SPEC §1
+//! calls view-independent: the constant scalar gradient of each tet and its
+//! four outward face planes. Degenerate cells get zeros and a flag, never
+//! NaN/Inf, so they can be packed and drawn as empty.
+
+use super::{Bounds, TetMesh};
+use anyhow::{bail, Result};
+use rayon::prelude::*;
+
+/// Relative threshold for a zero-volume cell: `|det| <= ZERO_VOLUME_REL * L^3`
+/// with `det = det[p1-p0, p2-p0, p3-p0]` (six times the volume) and `L` the
+/// longest edge.
+pub const ZERO_VOLUME_REL: f64 = 1e-10;
+
+#[inline]
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+#[inline]
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+#[inline]
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+#[inline]
+fn len2(a: [f64; 3]) -> f64 {
+    dot(a, a)
+}
+
+/// `det[p1-p0, p2-p0, p3-p0]` (six times the signed volume) and whether the
+/// cell counts as zero-volume under [`ZERO_VOLUME_REL`].
+pub fn tet_det(p: [[f64; 3]; 4]) -> (f64, bool) {
+    let e1 = sub(p[1], p[0]);
+    let e2 = sub(p[2], p[0]);
+    let e3 = sub(p[3], p[0]);
+    let det = dot(e1, cross(e2, e3));
+    let longest2 = [
+        len2(e1),
+        len2(e2),
+        len2(e3),
+        len2(sub(p[2], p[1])),
+        len2(sub(p[3], p[1])),
+        len2(sub(p[3], p[2])),
+    ]
+    .into_iter()
+    .fold(0.0f64, f64::max);
+    let l3 = longest2 * longest2.sqrt();
+    let zero = det == 0.0 || det.abs() <= ZERO_VOLUME_REL * l3;
+    (det, zero)
+}
+
+impl TetMesh {
+    /// Checks the mesh, reorients inverted cells and counts zero-volume ones
+    /// (see module docs). `source` (a file path or dataset name) is quoted in
+    /// every error. `stats.reoriented` is incremented by the number of cells
+    /// swapped now; `stats.zero_volume` is set to the current count, so calling
+    /// this twice is harmless.
+    pub fn validate(&mut self, source: &str) -> Result<()> {
+        if self.points.is_empty() || self.tets.is_empty() {
+            bail!(
+                "{source}: empty mesh ({} points, {} tets)",
+                self.points.len(),
+                self.tets.len()
+            );
+        }
+        if self.points.len() != self.scalars.len() {
+            bail!(
+                "{source}: {} points but {} scalars (one scalar per point is required)",
+                self.points.len(),
+                self.scalars.len()
+            );
+        }
+        if self.points.len() > u32::MAX as usize {
+            bail!("{source}: {} points do not fit 32-bit indices", self.points.len());
+        }
+        if let Some(i) = self.points.par_iter().position_first(|p| !p.iter().all(|c| c.is_finite())) {
+            bail!("{source}: point {i} has a non-finite coordinate {:?}", self.points[i]);
+        }
+        if let Some(i) = self.scalars.par_iter().position_first(|s| !s.is_finite()) {
+            bail!("{source}: point {i} has a non-finite scalar {}", self.scalars[i]);
+        }
+        let np = self.points.len();
+        if let Some(c) = self.tets.par_iter().position_first(|t| t.iter().any(|&v| v as usize >= np)) {
+            bail!(
+                "{source}: tet {c} has vertex index out of range {:?} (mesh has {np} points)",
+                self.tets[c]
+            );
+        }
+        let repeats = |t: &[u32; 4]| (0..4).any(|a| (a + 1..4).any(|b| t[a] == t[b]));
+        if let Some(c) = self.tets.par_iter().position_first(repeats) {
+            bail!("{source}: tet {c} repeats a vertex index {:?}", self.tets[c]);
+        }
+        let points = &self.points;
+        let (reoriented, zero) = self
+            .tets
+            .par_iter_mut()
+            .map(|t| {
+                let (det, zero) = tet_det(t.map(|v| points[v as usize]));
+                let flip = det < 0.0;
+                if flip {
+                    t.swap(2, 3);
+                }
+                (flip as usize, zero as usize)
+            })
+            .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+        self.stats.reoriented += reoriented;
+        self.stats.zero_volume = zero;
+        Ok(())
+    }
+
+    /// Axis-aligned bounds of the points (all zeros for an empty mesh).
+    pub fn bounds(&self) -> Bounds {
+        if self.points.is_empty() {
+            return Bounds { min: [0.0; 3], max: [0.0; 3] };
+        }
+        let mut min = [f64::INFINITY; 3];
+        let mut max = [f64::NEG_INFINITY; 3];
+        for p in &self.points {
+            for c in 0..3 {
+                min[c] = min[c].min(p[c]);
+                max[c] = max[c].max(p[c]);
+            }
+        }
+        Bounds { min, max }
+    }
+
+    /// The four vertex positions of tet `c`.
+    pub fn tet_points(&self, c: usize) -> [[f64; 3]; 4] {
+        self.tets[c].map(|v| self.points[v as usize])
+    }
+
+    /// The four vertex scalars of tet `c`.
+    pub fn tet_scalars(&self, c: usize) -> [f64; 4] {
+        self.tets[c].map(|v| self.scalars[v as usize])
+    }
+
+    /// Scalar range `(min, max)` ((0, 0) for an empty mesh).
+    pub fn scalar_range(&self) -> (f64, f64) {
+        if self.scalars.is_empty() {
+            return (0.0, 0.0);
+        }
+        self.scalars
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &s| (lo.min(s), hi.max(s)))
+    }
+}
+
+/// View-independent data of one tet (SPEC §1).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TetPrecomputed {
+    /// Constant scalar gradient `g` (0 for degenerate cells).
+    pub gradient: [f64; 3],
+    /// Plane of the face opposite vertex `i`: `[n.x, n.y, n.z, a]` with `n` a
+    /// unit outward normal and `n·x + a = 0` on the face (0 for degenerate cells).
+    pub planes: [[f64; 4]; 4],
+    /// Volume (>= 0; the signed volume of the stored, oriented cell).
+    pub volume: f64,
+    /// Zero-volume cell (see [`ZERO_VOLUME_REL`]): gradient and planes are 0.
+    pub degenerate: bool,
+}
+
+impl TetPrecomputed {
+    pub const DEGENERATE: TetPrecomputed = TetPrecomputed {
+        gradient: [0.0; 3],
+        planes: [[0.0; 4]; 4],
+        volume: 0.0,
+        degenerate: true,
+    };
+
+    /// Computes gradient, outward planes and volume of a tet from its vertex
+    /// positions and scalars. Works for either orientation; never yields
+    /// NaN/Inf for finite input.
+    pub fn from_vertices(p: [[f64; 3]; 4], s: [f64; 4]) -> TetPrecomputed {
+        let (det, zero) = tet_det(p);
+        if zero {
+            return TetPrecomputed { volume: (det / 6.0).abs(), ..Self::DEGENERATE };
+        }
+        let e1 = sub(p[1], p[0]);
+        let e2 = sub(p[2], p[0]);
+        let e3 = sub(p[3], p[0]);
+        // Cramer via cross products: g = (ds1 (e2×e3) + ds2 (e3×e1) + ds3 (e1×e2)) / det.
+        let c23 = cross(e2, e3);
+        let c31 = cross(e3, e1);
+        let c12 = cross(e1, e2);
+        let (d1, d2, d3) = (s[1] - s[0], s[2] - s[0], s[3] - s[0]);
+        let inv = 1.0 / det;
+        let gradient: [f64; 3] =
+            std::array::from_fn(|k| (d1 * c23[k] + d2 * c31[k] + d3 * c12[k]) * inv);
+        let mut planes = [[0.0; 4]; 4];
+        for (i, plane) in planes.iter_mut().enumerate() {
+            let f = [(i + 1) % 4, (i + 2) % 4, (i + 3) % 4];
+            let mut n = cross(sub(p[f[1]], p[f[0]]), sub(p[f[2]], p[f[0]]));
+            let len = len2(n).sqrt();
+            if len.is_nan() || len <= 0.0 || len.is_infinite() {
+                return TetPrecomputed { volume: (det / 6.0).abs(), ..Self::DEGENERATE };
+            }
+            n = n.map(|c| c / len);
+            // Offset from the face centroid (symmetric in the three vertices).
+            let fc: [f64; 3] =
+                std::array::from_fn(|k| (p[f[0]][k] + p[f[1]][k] + p[f[2]][k]) / 3.0);
+            let mut a = -dot(n, fc);
+            if dot(n, p[i]) + a > 0.0 {
+                n = n.map(|c| -c);
+                a = -a;
+            }
+            *plane = [n[0], n[1], n[2], a];
+        }
+        let out = TetPrecomputed { gradient, planes, volume: (det / 6.0).abs(), degenerate: false };
+        if out.gradient.iter().chain(out.planes.iter().flatten()).all(|v| v.is_finite()) {
+            out
+        } else {
+            TetPrecomputed { volume: out.volume, ..Self::DEGENERATE }
+        }
+    }
+
+    /// SPEC's 3-float plane for vertex `i` at `cell_vertex_pos`: the plane of
+    /// the opposite face encoded as `n' = n_i / (n_i·v_i + a_i)`, so that a ray
+    /// from the vertex along a unit direction `d` exits through that face at
+    /// `t = -1 / (n'·d)`. Zero for degenerate cells (or a vertex on its
+    /// opposite plane).
+    pub fn opposite_plane_3(&self, cell_vertex_pos: [f64; 3], i: usize) -> [f64; 3] {
+        if self.degenerate {
+            return [0.0; 3];
+        }
+        let [nx, ny, nz, a] = self.planes[i];
+        let dist = nx * cell_vertex_pos[0] + ny * cell_vertex_pos[1] + nz * cell_vertex_pos[2] + a;
+        if dist == 0.0 || !dist.is_finite() {
+            return [0.0; 3];
+        }
+        let r = [nx / dist, ny / dist, nz / dist];
+        if r.iter().all(|v| v.is_finite()) {
+            r
+        } else {
+            [0.0; 3]
+        }
+    }
+}
+
+/// Per-cell precomputation for a whole mesh, indexed like `TetMesh::tets`.
+#[derive(Debug, Clone)]
+pub struct TetGeometry {
+    pub cells: Vec<TetPrecomputed>,
+    /// Cell centroids (mean of the 4 vertices), e.g. for the depth sort.
+    pub centroids: Vec<[f64; 3]>,
+}
+
+impl TetGeometry {
+    /// Computes gradients, planes, volumes and centroids in parallel.
+    /// Expects a validated mesh (indices in range).
+    pub fn compute(mesh: &TetMesh) -> TetGeometry {
+        let (cells, centroids) = mesh
+            .tets
+            .par_iter()
+            .map(|t| {
+                let p = t.map(|v| mesh.points[v as usize]);
+                let s = t.map(|v| mesh.scalars[v as usize]);
+                let c: [f64; 3] =
+                    std::array::from_fn(|k| 0.25 * (p[0][k] + p[1][k] + p[2][k] + p[3][k]));
+                (TetPrecomputed::from_vertices(p, s), c)
+            })
+            .unzip();
+        TetGeometry { cells, centroids }
+    }
+
+    /// Number of degenerate cells.
+    pub fn degenerate_count(&self) -> usize {
+        self.cells.iter().filter(|c| c.degenerate).count()
+    }
+
+    /// Sum of cell volumes.
+    pub fn total_volume(&self) -> f64 {
+        self.cells.iter().map(|c| c.volume).sum()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::MeshStats;
+    use super::*;
+
+    /// Small deterministic PRNG (xorshift64*), values in [-1, 1).
+    struct Rng(u64);
+    impl Rng {
+        fn next(&mut self) -> f64 {
+            self.0 ^= self.0 >> 12;
+            self.0 ^= self.0 << 25;
+            self.0 ^= self.0 >> 27;
+            let v = self.0.wrapping_mul(0x2545F4914F6CDD1D);
+            (v >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        }
+        fn vec3(&mut self) -> [f64; 3] {
+            [self.next(), self.next(), self.next()]
+        }
+    }
+
+    fn random_tet(rng: &mut Rng) -> [[f64; 3]; 4] {
+        loop {
+            let p = [rng.vec3(), rng.vec3(), rng.vec3(), rng.vec3()];
+            let (det, zero) = tet_det(p);
+            if !zero && det.abs() > 1e-3 {
+                return p;
+            }
+        }
+    }
+
+    fn mesh_of(p: [[f64; 3]; 4], s: [f64; 4]) -> TetMesh {
+        TetMesh {
+            name: "t".into(),
+            points: p.to_vec(),
+            scalars: s.to_vec(),
+            tets: vec![[0, 1, 2, 3]],
+            stats: MeshStats::default(),
+        }
+    }
+
+    #[test]
+    fn gradient_exact_for_linear_field() {
+        let mut rng = Rng(0x9E3779B97F4A7C15);
+        for _ in 0..200 {
+            let p = random_tet(&mut rng);
+            let g = rng.vec3().map(|v| v * 10.0);
+            let c = rng.next();
+            let s = p.map(|q| dot(g, q) + c);
+            let t = TetPrecomputed::from_vertices(p, s);
+            assert!(!t.degenerate);
+            for k in 0..3 {
+                assert!((t.gradient[k] - g[k]).abs() < 1e-9 * (1.0 + g[k].abs()), "{t:?} vs {g:?}");
+            }
+            let (det, _) = tet_det(p);
+            assert!((t.volume - det.abs() / 6.0).abs() < 1e-15);
+        }
+    }
+
+    #[test]
+    fn planes_are_unit_and_outward() {
+        let mut rng = Rng(12345);
+        for _ in 0..200 {
+            let p = random_tet(&mut rng);
+            let t = TetPrecomputed::from_vertices(p, [0.0; 4]);
+            for i in 0..4 {
+                let [nx, ny, nz, a] = t.planes[i];
+                assert!(((nx * nx + ny * ny + nz * nz).sqrt() - 1.0).abs() < 1e-12);
+                let eval = |q: [f64; 3]| nx * q[0] + ny * q[1] + nz * q[2] + a;
+                assert!(eval(p[i]) < 0.0, "opposite vertex must be inside");
+                for (j, &q) in p.iter().enumerate() {
+                    if j != i {
+                        assert!(eval(q).abs() < 1e-12, "face vertex on plane");
+                    }
+                }
+                // Outward: a point just beyond the face centroid is outside.
+                let centroid: [f64; 3] = std::array::from_fn(|k| {
+                    (0..4).filter(|&j| j != i).map(|j| p[j][k]).sum::<f64>() / 3.0
+                });
+                assert!(eval([centroid[0] + 1e-3 * nx, centroid[1] + 1e-3 * ny, centroid[2] + 1e-3 * nz]) > 0.0);
+            }
+        }
+    }
+
+    #[test]
+    fn three_float_plane_gives_ray_plane_distance() {
+        let mut rng = Rng(777);
+        let mut checked = 0;
+        for _ in 0..200 {
+            let p = random_tet(&mut rng);
+            let t = TetPrecomputed::from_vertices(p, [0.0; 4]);
+            for (i, &pi) in p.iter().enumerate() {
+                let d = rng.vec3();
+                let l = len2(d).sqrt();
+                let d = d.map(|c| c / l);
+                let [nx, ny, nz, a] = t.planes[i];
+                let n = [nx, ny, nz];
+                if dot(n, d).abs() < 1e-3 {
+                    continue;
+                }
+                let t_ref = -(dot(n, pi) + a) / dot(n, d);
+                let np = t.opposite_plane_3(pi, i);
+                let t3 = -1.0 / dot(np, d);
+                assert!((t3 - t_ref).abs() < 1e-9 * (1.0 + t_ref.abs()), "{t3} vs {t_ref}");
+                // The point reached lies on the opposite plane.
+                let q: [f64; 3] = std::array::from_fn(|k| pi[k] + t3 * d[k]);
+                assert!((dot(n, q) + a).abs() < 1e-9 * (1.0 + t3.abs()));
+                checked += 1;
+            }
+        }
+        assert!(checked > 500);
+    }
+
+    #[test]
+    fn degenerate_cells_are_zero_not_nan() {
+        // Flat tet (all in z = 0) and a collapsed one (two equal points).
+        let flat = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0]];
+        let collapsed = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]];
+        let tiny = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.3, 0.3, 1e-12]];
+        for p in [flat, collapsed, tiny] {
+            let t = TetPrecomputed::from_vertices(p, [1.0, 2.0, 3.0, 4.0]);
+            assert!(t.degenerate);
+            assert_eq!(t.gradient, [0.0; 3]);
+            assert_eq!(t.planes, [[0.0; 4]; 4]);
+            assert_eq!(t.opposite_plane_3(p[0], 0), [0.0; 3]);
+        }
+        let mut m = mesh_of(flat, [0.0; 4]);
+        m.validate("flat").unwrap();
+        assert_eq!(m.stats.zero_volume, 1);
+        let g = TetGeometry::compute(&m);
+        assert_eq!(g.degenerate_count(), 1);
+    }
+
+    #[test]
+    fn reorientation_is_counted() {
+        let mut rng = Rng(4242);
+        let mut points = Vec::new();
+        let mut tets = Vec::new();
+        let mut expected_neg = 0;
+        for c in 0..50u32 {
+            let p = random_tet(&mut rng);
+            if tet_det(p).0 < 0.0 {
+                expected_neg += 1;
+            }
+            points.extend_from_slice(&p);
+            tets.push([4 * c, 4 * c + 1, 4 * c + 2, 4 * c + 3]);
+        }
+        let scalars = points.iter().map(|q| q[0] + 2.0 * q[1]).collect();
+        let mut m = TetMesh { name: "r".into(), points, scalars, tets, stats: MeshStats::default() };
+        let before = m.tets.clone();
+        m.validate("random").unwrap();
+        assert!(expected_neg > 0 && expected_neg < 50);
+        assert_eq!(m.stats.reoriented, expected_neg);
+        assert_eq!(m.stats.zero_volume, 0);
+        for (c, t) in m.tets.iter().enumerate() {
+            assert!(tet_det(m.tet_points(c)).0 > 0.0);
+            let mut a = *t;
+            let mut b = before[c];
+            a.sort();
+            b.sort();
+            assert_eq!(a, b, "same vertex set");
+        }
+        // Idempotent.
+        m.validate("random").unwrap();
+        assert_eq!(m.stats.reoriented, expected_neg);
+        let g = TetGeometry::compute(&m);
+        for (c, cell) in g.cells.iter().enumerate() {
+            assert!((cell.gradient[0] - 1.0).abs() < 1e-9 && (cell.gradient[1] - 2.0).abs() < 1e-9);
+            let p = m.tet_points(c);
+            assert!((g.centroids[c][0] - 0.25 * (p[0][0] + p[1][0] + p[2][0] + p[3][0])).abs() < 1e-15);
+        }
+    }
+
+    #[test]
+    fn validate_rejects_bad_meshes() {
+        let p = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        let check = |mut m: TetMesh, what: &str| {
+            let e = m.validate("SRC").unwrap_err().to_string();
+            assert!(e.contains("SRC") && e.contains(what), "{e}");
+        };
+        let mut m = mesh_of(p, [0.0; 4]);
+        m.tets.clear();
+        check(m, "empty");
+        let mut m = mesh_of(p, [0.0; 4]);
+        m.scalars.pop();
+        check(m, "scalars");
+        let mut m = mesh_of(p, [0.0; 4]);
+        m.points[2][1] = f64::NAN;
+        check(m, "point 2");
+        let mut m = mesh_of(p, [0.0; 4]);
+        m.scalars[3] = f64::INFINITY;
+        check(m, "point 3");
+        let mut m = mesh_of(p, [0.0; 4]);
+        m.tets[0][1] = 4;
+        check(m, "out of range");
+        let mut m = mesh_of(p, [0.0; 4]);
+        m.tets[0][3] = 1;
+        check(m, "repeats");
+        let mut m = mesh_of(p, [0.0; 4]);
+        m.validate("ok").unwrap();
+        assert_eq!(m.bounds(), Bounds { min: [0.0; 3], max: [1.0; 3] });
+    }
+}

@@ -1,0 +1,690 @@
+//! VTK legacy (`.vtk`) reader for tetrahedral `UNSTRUCTURED_GRID` files.
+//!
+//! Both ASCII and BINARY (big-endian) encodings, file versions up to 4.x
+//! (`CELLS n size` with a count before each cell) and 5.x (`OFFSETS` /
+//! `CONNECTIVITY`). Every section of the format is parsed (so unfamiliar but
+//! legal content such as `FIELD` blocks, `METADATA`, vectors or cell data is
+//! skipped correctly); only tetrahedra (cell type 10) are accepted. The
+//! scalar is the first one-component `SCALARS` array of `POINT_DATA`; files
+//! that store their point data only as a `FIELD` (such as VTK's own `post.vtk`,
+//! whose point data is `FIELD FieldData 1` / `Pressure 1 2288 float`) fall back
+//! to the first one-component field array of the right length.
+//!
+//! All errors name the file, the problem and the byte offset.
+
+use super::{MeshStats, TetMesh};
+use anyhow::{anyhow, bail, Context, Result};
+use std::path::Path;
+
+/// VTK cell type of a linear tetrahedron.
+pub const VTK_TETRA: i64 = 10;
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum DType {
+    U8,
+    I8,
+    U16,
+    I16,
+    U32,
+    I32,
+    U64,
+    I64,
+    F32,
+    F64,
+}
+
+impl DType {
+    fn parse(s: &str) -> Option<DType> {
+        Some(match s.to_ascii_lowercase().as_str() {
+            "unsigned_char" => DType::U8,
+            "char" => DType::I8,
+            "unsigned_short" => DType::U16,
+            "short" => DType::I16,
+            "unsigned_int" => DType::U32,
+            "int" => DType::I32,
+            // Legacy binary files store vtkIdType as 32-bit ints.
+            "vtkidtype" => DType::I32,
+            "unsigned_long" | "vtktypeuint64" => DType::U64,
+            "long" | "vtktypeint64" => DType::I64,
+            "float" => DType::F32,
+            "double" => DType::F64,
+            _ => return None,
+        })
+    }
+    fn size(self) -> usize {
+        match self {
+            DType::U8 | DType::I8 => 1,
+            DType::U16 | DType::I16 => 2,
+            DType::U32 | DType::I32 | DType::F32 => 4,
+            DType::U64 | DType::I64 | DType::F64 => 8,
+        }
+    }
+    fn is_float(self) -> bool {
+        matches!(self, DType::F32 | DType::F64)
+    }
+}
+
+fn cell_type_name(t: i64) -> &'static str {
+    match t {
+        1 => "vertex",
+        2 => "poly-vertex",
+        3 => "line",
+        4 => "poly-line",
+        5 => "triangle",
+        6 => "triangle strip",
+        7 => "polygon",
+        8 => "pixel",
+        9 => "quad",
+        10 => "tetra",
+        11 => "voxel",
+        12 => "hexahedron",
+        13 => "wedge",
+        14 => "pyramid",
+        24 => "quadratic tetra",
+        _ => "unknown",
+    }
+}
+
+struct Reader<'a> {
+    path: &'a Path,
+    b: &'a [u8],
+    pos: usize,
+    binary: bool,
+}
+
+impl<'a> Reader<'a> {
+    fn err(&self, msg: impl std::fmt::Display) -> anyhow::Error {
+        anyhow!("{}: {} (at byte {})", self.path.display(), msg, self.pos)
+    }
+
+    fn skip_ws(&mut self) {
+        while self.pos < self.b.len() && self.b[self.pos].is_ascii_whitespace() {
+            self.pos += 1;
+        }
+    }
+
+    fn at_end(&mut self) -> bool {
+        self.skip_ws();
+        self.pos >= self.b.len()
+    }
+
+    /// The rest of the current line (without `\r\n`), consuming the newline.
+    fn raw_line(&mut self, what: &str) -> Result<&'a str> {
+        if self.pos >= self.b.len() {
+            return Err(self.err(format!("truncated file: expected {what}, found end of file")));
+        }
+        let start = self.pos;
+        let end = self.b[start..].iter().position(|&c| c == b'\n').map_or(self.b.len(), |e| start + e);
+        self.pos = (end + 1).min(self.b.len());
+        let line = &self.b[start..end];
+        let line = line.strip_suffix(b"\r").unwrap_or(line);
+        std::str::from_utf8(line).map_err(|_| {
+            self.pos = start;
+            self.err(format!("expected {what}, found non-text bytes"))
+        })
+    }
+
+    /// Next non-blank line split into words.
+    fn keyword_line(&mut self, what: &str) -> Result<Vec<&'a str>> {
+        self.skip_ws();
+        Ok(self.raw_line(what)?.split_whitespace().collect())
+    }
+
+    fn token(&mut self, what: &str) -> Result<&'a str> {
+        self.skip_ws();
+        let start = self.pos;
+        while self.pos < self.b.len() && !self.b[self.pos].is_ascii_whitespace() {
+            self.pos += 1;
+        }
+        if start == self.pos {
+            return Err(self.err(format!("truncated file: expected {what}, found end of file")));
+        }
+        std::str::from_utf8(&self.b[start..self.pos])
+            .map_err(|_| self.err(format!("expected {what}, found non-text bytes")))
+    }
+
+    fn peek_word(&mut self) -> &'a str {
+        self.skip_ws();
+        let start = self.pos;
+        let mut end = start;
+        while end < self.b.len() && !self.b[end].is_ascii_whitespace() {
+            end += 1;
+        }
+        std::str::from_utf8(&self.b[start..end]).unwrap_or("")
+    }
+
+    fn binary_bytes(&mut self, n: usize, dt: DType, what: &str) -> Result<&'a [u8]> {
+        let len = n
+            .checked_mul(dt.size())
+            .filter(|&l| l <= self.b.len() - self.pos)
+            .ok_or_else(|| {
+                self.err(format!(
+                    "truncated file: {what} needs {n} values of {} bytes, only {} bytes remain",
+                    dt.size(),
+                    self.b.len() - self.pos
+                ))
+            })?;
+        let s = &self.b[self.pos..self.pos + len];
+        self.pos += len;
+        Ok(s)
+    }
+
+    fn values_f64(&mut self, n: usize, dt: DType, what: &str) -> Result<Vec<f64>> {
+        if self.binary {
+            let s = self.binary_bytes(n, dt, what)?;
+            let w = dt.size();
+            Ok(s.chunks_exact(w).map(|c| decode_f64(c, dt)).collect())
+        } else {
+            let mut out = Vec::with_capacity(n.min(self.b.len() - self.pos));
+            for i in 0..n {
+                let t = self.token(what)?;
+                let v = t
+                    .parse::<f64>()
+                    .map_err(|_| self.err(format!("bad number '{t}' in {what} (value {i})")))?;
+                out.push(v);
+            }
+            Ok(out)
+        }
+    }
+
+    fn values_i64(&mut self, n: usize, dt: DType, what: &str) -> Result<Vec<i64>> {
+        if dt.is_float() {
+            return Err(self.err(format!("{what} must have an integer type, not a float type")));
+        }
+        if self.binary {
+            let s = self.binary_bytes(n, dt, what)?;
+            let w = dt.size();
+            Ok(s.chunks_exact(w).map(|c| decode_i64(c, dt)).collect())
+        } else {
+            let mut out = Vec::with_capacity(n.min(self.b.len() - self.pos));
+            for i in 0..n {
+                let t = self.token(what)?;
+                let v = t
+                    .parse::<i64>()
+                    .map_err(|_| self.err(format!("bad integer '{t}' in {what} (value {i})")))?;
+                out.push(v);
+            }
+            Ok(out)
+        }
+    }
+
+    /// Skips `n` values (binary: bytes; ASCII: tokens).
+    fn skip_values(&mut self, n: usize, dt: DType, what: &str) -> Result<()> {
+        if self.binary {
+            self.binary_bytes(n, dt, what)?;
+        } else {
+            for _ in 0..n {
+                self.token(what)?;
+            }
+        }
+        Ok(())
+    }
+
+    fn count(&self, s: Option<&&str>, what: &str) -> Result<usize> {
+        let s = s.ok_or_else(|| self.err(format!("missing {what}")))?;
+        s.parse::<usize>().map_err(|_| self.err(format!("bad {what} '{s}'")))
+    }
+
+    fn dtype(&self, s: Option<&&str>, what: &str) -> Result<DType> {
+        let s = s.ok_or_else(|| self.err(format!("missing data type for {what}")))?;
+        DType::parse(s).ok_or_else(|| self.err(format!("unsupported data type '{s}' for {what}")))
+    }
+
+    /// Skips a METADATA block (ends at an empty line or end of file).
+    fn skip_metadata(&mut self) -> Result<()> {
+        while self.pos < self.b.len() {
+            let line = self.raw_line("METADATA")?;
+            if line.trim().is_empty() {
+                break;
+            }
+        }
+        Ok(())
+    }
+}
+
+fn decode_f64(c: &[u8], dt: DType) -> f64 {
+    match dt {
+        DType::F32 => f32::from_be_bytes([c[0], c[1], c[2], c[3]]) as f64,
+        DType::F64 => f64::from_be_bytes(c.try_into().unwrap()),
+        _ => decode_i64(c, dt) as f64,
+    }
+}
+
+fn decode_i64(c: &[u8], dt: DType) -> i64 {
+    match dt {
+        DType::U8 => c[0] as i64,
+        DType::I8 => c[0] as i8 as i64,
+        DType::U16 => u16::from_be_bytes([c[0], c[1]]) as i64,
+        DType::I16 => i16::from_be_bytes([c[0], c[1]]) as i64,
+        DType::U32 => u32::from_be_bytes([c[0], c[1], c[2], c[3]]) as i64,
+        DType::I32 => i32::from_be_bytes([c[0], c[1], c[2], c[3]]) as i64,
+        DType::U64 => u64::from_be_bytes(c.try_into().unwrap()).min(i64::MAX as u64) as i64,
+        DType::I64 => i64::from_be_bytes(c.try_into().unwrap()),
+        DType::F32 => f32::from_be_bytes([c[0], c[1], c[2], c[3]]) as i64,
+        DType::F64 => f64::from_be_bytes(c.try_into().unwrap()) as i64,
+    }
+}
+
+#[derive(Clone, Copy, PartialEq)]
+enum Owner {
+    None,
+    Points,
+    Cells,
+}
+
+/// Reads a VTK legacy `UNSTRUCTURED_GRID` of tetrahedra with point scalars
+/// (ASCII or big-endian BINARY) and validates it. The mesh is named after the
+/// file stem.
+pub fn read_vtk_legacy(path: impl AsRef<Path>) -> Result<TetMesh> {
+    let path = path.as_ref();
+    let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read VTK file", path.display()))?;
+    let mut r = Reader { path, b: &bytes, pos: 0, binary: false };
+
+    // Header: version line, title, encoding, DATASET.
+    let version_line = r.raw_line("the '# vtk DataFile Version' line")?;
+    let version = version_line
+        .strip_prefix("# vtk DataFile Version")
+        .ok_or_else(|| anyhow!("{}: not a VTK legacy file (first line is not '# vtk DataFile Version x.y')", path.display()))?
+        .trim();
+    let major: u32 = version.split('.').next().and_then(|v| v.parse().ok()).unwrap_or(3);
+    r.raw_line("the title line")?;
+    let enc = r.keyword_line("ASCII or BINARY")?;
+    match enc.first().map(|s| s.to_ascii_uppercase()).as_deref() {
+        Some("ASCII") => r.binary = false,
+        Some("BINARY") => r.binary = true,
+        other => bail!(r.err(format!("expected ASCII or BINARY, found {:?}", other.unwrap_or("nothing")))),
+    }
+    let ds = r.keyword_line("DATASET")?;
+    if ds.first().map(|s| s.to_ascii_uppercase()).as_deref() != Some("DATASET") {
+        bail!(r.err(format!("expected DATASET, found '{}'", ds.join(" "))));
+    }
+    match ds.get(1).map(|s| s.to_ascii_uppercase()).as_deref() {
+        Some("UNSTRUCTURED_GRID") => {}
+        other => bail!(r.err(format!(
+            "unsupported DATASET {}: only UNSTRUCTURED_GRID (of tetrahedra) is supported",
+            other.unwrap_or("(missing)")
+        ))),
+    }
+
+    let mut points: Option<Vec<[f64; 3]>> = None;
+    let mut cells: Option<Vec<[u32; 4]>> = None; // only 4-vertex cells survive
+    let mut cell_sizes_bad: Option<(usize, usize)> = None; // (cell, size) of first non-4 cell
+    let mut n_cells: Option<usize> = None;
+    let mut types_seen = false;
+    let mut owner = Owner::None;
+    let mut owner_count = 0usize;
+    let mut scalars: Option<Vec<f64>> = None;
+    let mut field_scalars: Option<Vec<f64>> = None;
+    let mut seen_point_arrays: Vec<String> = Vec::new();
+
+    while !r.at_end() {
+        let line = r.keyword_line("a section keyword")?;
+        let kw = line[0].to_ascii_uppercase();
+        let n_points = points.as_ref().map_or(0, |p| p.len());
+        // Tuples per attribute array in the current POINT_DATA / CELL_DATA.
+        let need_owner = |r: &Reader, kw: &str| -> Result<usize> {
+            if owner == Owner::None {
+                Err(r.err(format!("{kw} outside POINT_DATA / CELL_DATA")))
+            } else {
+                Ok(owner_count)
+            }
+        };
+        match kw.as_str() {
+            "METADATA" => r.skip_metadata()?,
+            "FIELD" => {
+                let n_arrays = r.count(line.get(2), "FIELD array count")?;
+                for _ in 0..n_arrays {
+                    let h = r.keyword_line("a FIELD array header")?;
+                    if h[0] == "NULL_ARRAY" {
+                        continue;
+                    }
+                    let ncomp = r.count(h.get(1), "FIELD array component count")?;
+                    let ntup = r.count(h.get(2), "FIELD array tuple count")?;
+                    let dt = r.dtype(h.get(3), &format!("FIELD array '{}'", h[0]))?;
+                    let n = ncomp
+                        .checked_mul(ntup)
+                        .ok_or_else(|| r.err(format!("FIELD array '{}' size overflows", h[0])))?;
+                    let what = format!("FIELD array '{}'", h[0]);
+                    if owner == Owner::Points && ncomp == 1 && ntup == n_points && field_scalars.is_none() {
+                        field_scalars = Some(r.values_f64(n, dt, &what)?);
+                    } else {
+                        r.skip_values(n, dt, &what)?;
+                    }
+                    if owner == Owner::Points {
+                        seen_point_arrays.push(format!("FIELD {} ({ncomp} components)", h[0]));
+                    }
+                    if r.peek_word().eq_ignore_ascii_case("METADATA") {
+                        r.keyword_line("METADATA")?;
+                        r.skip_metadata()?;
+                    }
+                }
+            }
+            "POINTS" => {
+                if points.is_some() {
+                    bail!(r.err("second POINTS section"));
+                }
+                let n = r.count(line.get(1), "POINTS count")?;
+                let dt = r.dtype(line.get(2), "POINTS")?;
+                let n3 = n.checked_mul(3).ok_or_else(|| r.err("POINTS count overflows"))?;
+                let v = r.values_f64(n3, dt, "POINTS")?;
+                points = Some(v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect());
+            }
+            "CELLS" => {
+                if cells.is_some() {
+                    bail!(r.err("second CELLS section"));
+                }
+                let Some(np) = points.as_ref().map(|p| p.len()) else {
+                    bail!(r.err("CELLS before POINTS"));
+                };
+                let a = r.count(line.get(1), "CELLS count")?;
+                let b = r.count(line.get(2), "CELLS size")?;
+                let (offsets, conn) = if major >= 5 {
+                    let h = r.keyword_line("OFFSETS")?;
+                    if !h[0].eq_ignore_ascii_case("OFFSETS") {
+                        bail!(r.err(format!("expected OFFSETS after CELLS, found '{}'", h[0])));
+                    }
+                    let dt = r.dtype(h.get(1), "OFFSETS")?;
+                    let offsets = r.values_i64(a, dt, "OFFSETS")?;
+                    let h = r.keyword_line("CONNECTIVITY")?;
+                    if !h[0].eq_ignore_ascii_case("CONNECTIVITY") {
+                        bail!(r.err(format!("expected CONNECTIVITY after OFFSETS, found '{}'", h[0])));
+                    }
+                    let dt = r.dtype(h.get(1), "CONNECTIVITY")?;
+                    let conn = r.values_i64(b, dt, "CONNECTIVITY")?;
+                    if offsets.first().is_some_and(|&o| o != 0)
+                        || offsets.last().is_some_and(|&o| o as usize != b)
+                        || offsets.windows(2).any(|w| w[1] < w[0])
+                    {
+                        bail!(r.err(format!(
+                            "count mismatch: OFFSETS must rise from 0 to the CONNECTIVITY size {b}"
+                        )));
+                    }
+                    (offsets, conn)
+                } else {
+                    let flat = r.values_i64(b, DType::I32, "CELLS")?;
+                    let mut offsets = Vec::with_capacity(a + 1);
+                    let mut conn = Vec::with_capacity(b.saturating_sub(a));
+                    let mut i = 0usize;
+                    offsets.push(0);
+                    for c in 0..a {
+                        let Some(&k) = flat.get(i) else {
+                            bail!(r.err(format!(
+                                "count mismatch: CELLS size {b} ends inside cell {c} of {a}"
+                            )));
+                        };
+                        if k < 0 || i + 1 + k as usize > b {
+                            bail!(r.err(format!(
+                                "count mismatch: cell {c} claims {k} vertices, beyond CELLS size {b}"
+                            )));
+                        }
+                        conn.extend_from_slice(&flat[i + 1..i + 1 + k as usize]);
+                        i += 1 + k as usize;
+                        offsets.push(conn.len() as i64);
+                    }
+                    if i != b {
+                        bail!(r.err(format!(
+                            "count mismatch: CELLS declares size {b} but its {a} cells use {i} values"
+                        )));
+                    }
+                    (offsets, conn)
+                };
+                let nc = offsets.len().saturating_sub(1);
+                let mut tets = Vec::with_capacity(nc);
+                for c in 0..nc {
+                    let (s, e) = (offsets[c] as usize, offsets[c + 1] as usize);
+                    for &v in &conn[s..e] {
+                        if v < 0 || v as usize >= np {
+                            bail!(r.err(format!(
+                                "cell {c} has vertex index {v} out of range (file has {np} points)"
+                            )));
+                        }
+                    }
+                    if e - s == 4 {
+                        tets.push([conn[s] as u32, conn[s + 1] as u32, conn[s + 2] as u32, conn[s + 3] as u32]);
+                    } else {
+                        cell_sizes_bad.get_or_insert((c, e - s));
+                        tets.push([0; 4]);
+                    }
+                }
+                n_cells = Some(nc);
+                cells = Some(tets);
+            }
+            "CELL_TYPES" => {
+                let n = r.count(line.get(1), "CELL_TYPES count")?;
+                let Some(nc) = n_cells else { bail!(r.err("CELL_TYPES before CELLS")) };
+                if n != nc {
+                    bail!(r.err(format!("count mismatch: CELL_TYPES has {n} entries but CELLS has {nc} cells")));
+                }
+                let types = r.values_i64(n, DType::I32, "CELL_TYPES")?;
+                if let Some(c) = types.iter().position(|&t| t != VTK_TETRA) {
+                    bail!(r.err(format!(
+                        "unsupported cell type {} ({}) at cell {c}: only tetrahedra (type 10) are supported",
+                        types[c],
+                        cell_type_name(types[c])
+                    )));
+                }
+                if let Some((c, k)) = cell_sizes_bad {
+                    bail!(r.err(format!("cell {c} is a tetra (type 10) but has {k} vertices")));
+                }
+                types_seen = true;
+            }
+            "POINT_DATA" | "CELL_DATA" => {
+                let n = r.count(line.get(1), &format!("{kw} count"))?;
+                let (o, expect, what) = if kw == "POINT_DATA" {
+                    (Owner::Points, points.as_ref().map(|p| p.len()), "POINTS")
+                } else {
+                    (Owner::Cells, n_cells, "CELLS")
+                };
+                match expect {
+                    Some(e) if e == n => {}
+                    Some(e) => bail!(r.err(format!("count mismatch: {kw} {n} but {what} has {e}"))),
+                    None => bail!(r.err(format!("{kw} before {what}"))),
+                }
+                owner = o;
+                owner_count = n;
+            }
+            "SCALARS" => {
+                let n = need_owner(&r, "SCALARS")?;
+                let name = line.get(1).copied().unwrap_or("?");
+                let dt = r.dtype(line.get(2), &format!("SCALARS '{name}'"))?;
+                let ncomp = match line.get(3) {
+                    Some(s) => s.parse::<usize>().ok().filter(|&k| (1..=4).contains(&k)).ok_or_else(|| {
+                        r.err(format!("bad component count '{s}' for SCALARS '{name}'"))
+                    })?,
+                    None => 1,
+                };
+                if r.peek_word().eq_ignore_ascii_case("LOOKUP_TABLE") {
+                    r.keyword_line("LOOKUP_TABLE")?;
+                }
+                let what = format!("SCALARS '{name}'");
+                if owner == Owner::Points {
+                    seen_point_arrays.push(format!("SCALARS {name} ({ncomp} components)"));
+                }
+                if owner == Owner::Points && ncomp == 1 && scalars.is_none() {
+                    scalars = Some(r.values_f64(n, dt, &what)?);
+                } else {
+                    r.skip_values(n * ncomp, dt, &what)?;
+                }
+            }
+            "LOOKUP_TABLE" => {
+                let size = r.count(line.get(2), "LOOKUP_TABLE size")?;
+                let n = size.checked_mul(4).ok_or_else(|| r.err("LOOKUP_TABLE size overflows"))?;
+                let dt = if r.binary { DType::U8 } else { DType::F64 };
+                r.skip_values(n, dt, "LOOKUP_TABLE")?;
+            }
+            "COLOR_SCALARS" => {
+                let n = need_owner(&r, "COLOR_SCALARS")?;
+                let k = r.count(line.get(2), "COLOR_SCALARS component count")?;
+                let dt = if r.binary { DType::U8 } else { DType::F64 };
+                r.skip_values(n * k, dt, "COLOR_SCALARS")?;
+            }
+            "VECTORS" | "NORMALS" | "TENSORS" | "TENSORS6" | "GLOBAL_IDS" | "PEDIGREE_IDS" => {
+                let n = need_owner(&r, &kw)?;
+                let k = match kw.as_str() {
+                    "VECTORS" | "NORMALS" => 3,
+                    "TENSORS" => 9,
+                    "TENSORS6" => 6,
+                    _ => 1,
+                };
+                let dt = r.dtype(line.get(2), &kw)?;
+                r.skip_values(n * k, dt, &kw)?;
+            }
+            "TEXTURE_COORDINATES" => {
+                let n = need_owner(&r, &kw)?;
+                let k = r.count(line.get(2), "TEXTURE_COORDINATES dimension")?;
+                let dt = r.dtype(line.get(3), &kw)?;
+                r.skip_values(n * k, dt, &kw)?;
+            }
+            _ => bail!(r.err(format!("bad keyword '{}'", line[0]))),
+        }
+    }
+
+    let points = points.ok_or_else(|| r.err("no POINTS section"))?;
+    let tets = cells.ok_or_else(|| r.err("no CELLS section"))?;
+    if !types_seen {
+        bail!(r.err("no CELL_TYPES section"));
+    }
+    let scalars = scalars.or(field_scalars).ok_or_else(|| {
+        r.err(format!(
+            "no point scalars: need POINT_DATA with a one-component SCALARS (or FIELD) array; found {}",
+            if seen_point_arrays.is_empty() { "none".to_string() } else { seen_point_arrays.join(", ") }
+        ))
+    })?;
+    let name = path.file_stem().map_or_else(|| "vtk".to_string(), |s| s.to_string_lossy().into_owned());
+    let mut mesh = TetMesh { name, points, scalars, tets, stats: MeshStats::default() };
+    mesh.validate(&path.display().to_string())?;
+    Ok(mesh)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const ASCII: &str = "# vtk DataFile Version 3.0
+two tets
+ASCII
+DATASET UNSTRUCTURED_GRID
+POINTS 5 float
+0 0 0  1 0 0  0 1 0
+0 0 1  1 1 1
+CELLS 2 10
+4 0 1 2 3
+4 1 3 2 4
+CELL_TYPES 2
+10
+10
+CELL_DATA 2
+SCALARS cellid int 1
+LOOKUP_TABLE default
+0 1
+POINT_DATA 5
+VECTORS v float
+0 0 0 0 0 0 0 0 0 0 0 0 0 0 0
+SCALARS temp double
+LOOKUP_TABLE default
+0.5 1.5 2.5 3.5 4.5
+SCALARS other float
+LOOKUP_TABLE default
+9 9 9 9 9
+";
+
+    fn write(dir: &Path, name: &str, bytes: &[u8]) -> std::path::PathBuf {
+        let p = dir.join(name);
+        std::fs::write(&p, bytes).unwrap();
+        p
+    }
+
+    #[test]
+    fn ascii_file() {
+        let tmp = tempfile::tempdir().unwrap();
+        let p = write(tmp.path(), "two.vtk", ASCII.as_bytes());
+        let m = read_vtk_legacy(&p).unwrap();
+        assert_eq!(m.name, "two");
+        assert_eq!(m.points.len(), 5);
+        assert_eq!(m.tets.len(), 2);
+        assert_eq!(m.scalars, vec![0.5, 1.5, 2.5, 3.5, 4.5]);
+        // Second tet (1,2,3,4) is inverted in the file.
+        assert_eq!(m.stats.reoriented, 1);
+    }
+
+    #[test]
+    fn ascii_version5_offsets() {
+        let s = "# vtk DataFile Version 5.1\nv5\nASCII\nDATASET UNSTRUCTURED_GRID\n\
+                 POINTS 4 double\n0 0 0 1 0 0 0 1 0 0 0 1\n\
+                 METADATA\nINFORMATION 0\n\n\
+                 CELLS 2 4\nOFFSETS vtktypeint64\n0 4\nCONNECTIVITY vtktypeint64\n0 1 2 3\n\
+                 CELL_TYPES 1\n10\nPOINT_DATA 4\nSCALARS s float 1\nLOOKUP_TABLE default\n1 2 3 4\n";
+        let tmp = tempfile::tempdir().unwrap();
+        let p = write(tmp.path(), "v5.vtk", s.as_bytes());
+        let m = read_vtk_legacy(&p).unwrap();
+        assert_eq!(m.tets, vec![[0, 1, 2, 3]]);
+        assert_eq!(m.scalars, vec![1.0, 2.0, 3.0, 4.0]);
+    }
+
+    /// A binary file built like VTK's post.vtk: FieldData first, point scalars
+    /// only as a FIELD array.
+    #[test]
+    fn binary_with_field_blocks() {
+        let mut b: Vec<u8> = Vec::new();
+        b.extend_from_slice(b"# vtk DataFile Version 3.0\nvtk output\nBINARY\nDATASET UNSTRUCTURED_GRID\n");
+        b.extend_from_slice(b"FIELD FieldData 1\nProperties 1 2 float\n");
+        for v in [1.0f32, 2.0] {
+            b.extend_from_slice(&v.to_be_bytes());
+        }
+        b.extend_from_slice(b"\nPOINTS 4 double\n");
+        for v in [0.0f64, 0., 0., 1., 0., 0., 0., 1., 0., 0., 0., 1.] {
+            b.extend_from_slice(&v.to_be_bytes());
+        }
+        b.extend_from_slice(b"\nCELLS 1 5\n");
+        for v in [4i32, 0, 2, 1, 3] {
+            b.extend_from_slice(&v.to_be_bytes());
+        }
+        b.extend_from_slice(b"\nCELL_TYPES 1\n");
+        b.extend_from_slice(&10i32.to_be_bytes());
+        b.extend_from_slice(b"\nPOINT_DATA 4\nFIELD FieldData 1\nPressure 1 4 float\n");
+        for v in [0.25f32, 0.5, 0.75, 1.0] {
+            b.extend_from_slice(&v.to_be_bytes());
+        }
+        b.push(b'\n');
+        let tmp = tempfile::tempdir().unwrap();
+        let p = write(tmp.path(), "bin.vtk", &b);
+        let m = read_vtk_legacy(&p).unwrap();
+        assert_eq!(m.tets.len(), 1);
+        assert_eq!(m.stats.reoriented, 1);
+        assert_eq!(m.scalars, vec![0.25, 0.5, 0.75, 1.0]);
+        // Every truncation is an error naming the file, never a panic.
+        for cut in [10, 60, 100, 130, 200, 240, b.len() - 5] {
+            let p = write(tmp.path(), "cut.vtk", &b[..cut]);
+            let e = format!("{:#}", read_vtk_legacy(&p).unwrap_err());
+            assert!(e.contains(&p.display().to_string()), "cut {cut}: {e}");
+        }
+    }
+
+    #[test]
+    fn errors_name_file_and_problem() {
+        let tmp = tempfile::tempdir().unwrap();
+        let cases = [
+            (ASCII.replace("4 1 3 2 4", "4 1 3 2 7"), "out of range"),
+            (ASCII.replace("10\n10\n", "10\n12\n"), "hexahedron"),
+            (ASCII.replace("CELL_TYPES 2", "CELL_TYPES 3"), "count mismatch"),
+            (ASCII.replace("CELLS 2 10", "CELLS 2 11"), "bad integer 'CELL_TYPES'"),
+            (ASCII.replace("POINT_DATA 5", "POINT_DATA 6"), "count mismatch"),
+            (ASCII.replace("VECTORS", "VECTROS"), "bad keyword"),
+            (ASCII.replace("DATASET UNSTRUCTURED_GRID", "DATASET POLYDATA"), "UNSTRUCTURED_GRID"),
+            (ASCII.replace("SCALARS temp double", "SCALARS temp double 3")
+                .replace("0.5 1.5 2.5 3.5 4.5", &"0 ".repeat(15))
+                .replace("SCALARS other float", "NORMALS other float")
+                .replace("LOOKUP_TABLE default\n9 9 9 9 9", &"0 ".repeat(15)), "no point scalars"),
+            (ASCII.replace("1 1 1", "1 nan 1"), "non-finite"),
+            (ASCII.replace("0 0 1  1 1 1", "0 0 1  1 x 1"), "bad number"),
+            (ASCII[..ASCII.len() - 10].to_string(), "truncated"),
+            ("hello\n".to_string(), "not a VTK legacy file"),
+        ];
+        for (i, (text, what)) in cases.iter().enumerate() {
+            let p = write(tmp.path(), &format!("bad{i}.vtk"), text.as_bytes());
+            let e = format!("{:#}", read_vtk_legacy(&p).unwrap_err());
+            assert!(e.contains(&p.display().to_string()), "{e}");
+            assert!(e.contains(what), "case {i}: expected '{what}' in: {e}");
+        }
+    }
+}

@@ -1,0 +1,172 @@
+//! The one camera every method and the CPU reference share. Rays and matrices
+//! are built in f64 from the same parameters so that the GPU rasterizer and the
+//! reference agree on which pixel sees what.
+//!
+//! Pixel convention: pixel (x, y) has its centre at (x + 0.5, y + 0.5); row 0 is
+//! the top of the image. Clip space is Vulkan's: y points down, depth in [0, 1].
+
+use glam::{DMat4, DVec3, DVec4};
+use serde::Serialize;
+
+use crate::mesh::Bounds;
+
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(tag = "kind", rename_all = "lowercase")]
+pub enum Projection {
+    /// Vertical field of view in degrees.
+    Perspective { fovy_deg: f64 },
+    /// Height of the view volume in world units.
+    Orthographic { height: f64 },
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Camera {
+    pub eye: [f64; 3],
+    pub target: [f64; 3],
+    pub up: [f64; 3],
+    pub projection: Projection,
+    pub near: f64,
+    pub far: f64,
+}
+
+impl Camera {
+    /// A camera on a circle around the bounds' centre, `angle` radians around the
+    /// y axis from +z, slightly raised, far enough that the whole box fits.
+    pub fn orbit(bounds: &Bounds, angle: f64, projection: Projection) -> Camera {
+        let c = DVec3::from(bounds.center());
+        let r = 0.5 * bounds.diagonal().max(f64::MIN_POSITIVE);
+        let fovy = match projection {
+            Projection::Perspective { fovy_deg } => fovy_deg.to_radians(),
+            Projection::Orthographic { .. } => 30f64.to_radians(),
+        };
+        let dist = r / (0.5 * fovy).sin() * 1.05;
+        let elevation = 0.35f64;
+        let dir = DVec3::new(
+            angle.sin() * elevation.cos(),
+            elevation.sin(),
+            angle.cos() * elevation.cos(),
+        );
+        let eye = c + dir * dist;
+        let projection = match projection {
+            Projection::Orthographic { .. } => Projection::Orthographic { height: 2.1 * r },
+            p => p,
+        };
+        Camera {
+            eye: eye.into(),
+            target: c.into(),
+            up: [0.0, 1.0, 0.0],
+            projection,
+            near: (dist - r * 1.01).max(dist * 1e-3),
+            far: dist + r * 1.01,
+        }
+    }
+
+    pub fn is_perspective(&self) -> bool {
+        matches!(self.projection, Projection::Perspective { .. })
+    }
+
+    /// Unit vector from the eye towards the target.
+    pub fn forward(&self) -> DVec3 {
+        (DVec3::from(self.target) - DVec3::from(self.eye)).normalize()
+    }
+
+    /// World-to-view transform (right-handed, camera looks down -z).
+    pub fn view(&self) -> DMat4 {
+        let eye = DVec3::from(self.eye);
+        let f = self.forward();
+        let s = f.cross(DVec3::from(self.up)).normalize();
+        let u = s.cross(f);
+        DMat4::from_cols(
+            DVec4::new(s.x, u.x, -f.x, 0.0),
+            DVec4::new(s.y, u.y, -f.y, 0.0),
+            DVec4::new(s.z, u.z, -f.z, 0.0),
+            DVec4::new(-s.dot(eye), -u.dot(eye), f.dot(eye), 1.0),
+        )
+    }
+
+    /// View-to-clip transform for Vulkan (y down, depth 0..1).
+    pub fn proj(&self, aspect: f64) -> DMat4 {
+        let (n, f) = (self.near, self.far);
+        match self.projection {
+            Projection::Perspective { fovy_deg } => {
+                let t = 1.0 / (0.5 * fovy_deg.to_radians()).tan();
+                DMat4::from_cols(
+                    DVec4::new(t / aspect, 0.0, 0.0, 0.0),
+                    DVec4::new(0.0, -t, 0.0, 0.0),
+                    DVec4::new(0.0, 0.0, f / (n - f), -1.0),
+                    DVec4::new(0.0, 0.0, n * f / (n - f), 0.0),
+                )
+            }
+            Projection::Orthographic { height } => {
+                let h = 0.5 * height;
+                let w = h * aspect;
+                DMat4::from_cols(
+                    DVec4::new(1.0 / w, 0.0, 0.0, 0.0),
+                    DVec4::new(0.0, -1.0 / h, 0.0, 0.0),
+                    DVec4::new(0.0, 0.0, 1.0 / (n - f), 0.0),
+                    DVec4::new(0.0, 0.0, n / (n - f), 1.0),
+                )
+            }
+        }
+    }
+
+    pub fn view_proj(&self, width: u32, height: u32) -> DMat4 {
+        self.proj(width as f64 / height as f64) * self.view()
+    }
+
+    /// The ray through the centre of pixel (x, y): origin and unit direction.
+    /// For perspective the origin is the eye; for orthographic it lies on the
+    /// near plane's parallel through the eye.
+    pub fn ray(&self, x: f64, y: f64, width: u32, height: u32) -> (DVec3, DVec3) {
+        let aspect = width as f64 / height as f64;
+        let ndc_x = 2.0 * (x + 0.5) / width as f64 - 1.0;
+        let ndc_y = 2.0 * (y + 0.5) / height as f64 - 1.0;
+        let fwd = self.forward();
+        let right = fwd.cross(DVec3::from(self.up)).normalize();
+        let up = right.cross(fwd);
+        let eye = DVec3::from(self.eye);
+        match self.projection {
+            Projection::Perspective { fovy_deg } => {
+                let t = (0.5 * fovy_deg.to_radians()).tan();
+                let d = fwd + right * (ndc_x * t * aspect) - up * (ndc_y * t);
+                (eye, d.normalize())
+            }
+            Projection::Orthographic { height: h } => {
+                let o = eye + right * (ndc_x * 0.5 * h * aspect) - up * (ndc_y * 0.5 * h);
+                (o, fwd)
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn bounds() -> Bounds {
+        Bounds { min: [-1.0, -2.0, 0.0], max: [3.0, 1.0, 2.0] }
+    }
+
+    /// A point on a pixel's ray must project back to that pixel's centre.
+    #[test]
+    fn rays_project_to_their_pixels() {
+        for projection in [
+            Projection::Perspective { fovy_deg: 40.0 },
+            Projection::Orthographic { height: 1.0 },
+        ] {
+            let cam = Camera::orbit(&bounds(), 0.7, projection);
+            let (w, h) = (64u32, 48u32);
+            let vp = cam.view_proj(w, h);
+            for &(x, y) in &[(0.0, 0.0), (10.0, 40.0), (63.0, 47.0), (31.5, 23.5)] {
+                let (o, d) = cam.ray(x, y, w, h);
+                let p = o + d * (0.5 * (cam.near + cam.far));
+                let c = vp * p.extend(1.0);
+                let ndc = c.truncate() / c.w;
+                let px = (ndc.x + 1.0) * 0.5 * w as f64 - 0.5;
+                let py = (ndc.y + 1.0) * 0.5 * h as f64 - 0.5;
+                assert!((px - x).abs() < 1e-9 && (py - y).abs() < 1e-9, "{projection:?} {x},{y} -> {px},{py}");
+                assert!(ndc.z > 0.0 && ndc.z < 1.0);
+            }
+        }
+    }
+}

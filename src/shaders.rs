@@ -1,0 +1,45 @@
+//! The GLSL sources of `shaders/`, embedded in the binary so that it runs
+//! from anywhere; compiled at run time by `vk::compile_glsl`.
+
+const SOURCES: &[(&str, &str)] = &[
+    ("common/frame.glsl", include_str!("../shaders/common/frame.glsl")),
+    ("common/integrate.glsl", include_str!("../shaders/common/integrate.glsl")),
+    ("common/exit.glsl", include_str!("../shaders/common/exit.glsl")),
+    ("cell_projection/vicp.vert", include_str!("../shaders/cell_projection/vicp.vert")),
+    ("cell_projection/vicp.frag", include_str!("../shaders/cell_projection/vicp.frag")),
+    ("cell_projection/balanced.vert", include_str!("../shaders/cell_projection/balanced.vert")),
+    ("cell_projection/balanced.frag", include_str!("../shaders/cell_projection/balanced.frag")),
+];
+
+/// The text of a shader or include, by its path under `shaders/`.
+pub fn source(path: &str) -> Option<&'static str> {
+    SOURCES.iter().find(|(p, _)| *p == path).map(|(_, s)| *s)
+}
+
+/// Every shader (not include) with its stage, for the compile-everything test.
+pub fn all_entry_points() -> impl Iterator<Item = &'static str> {
+    SOURCES.iter().map(|(p, _)| *p).filter(|p| !p.ends_with(".glsl"))
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::vk::{compile_glsl, ShaderStage};
+
+    #[test]
+    fn every_shader_compiles() {
+        for path in super::all_entry_points() {
+            let stage = if path.ends_with(".vert") { ShaderStage::Vertex } else { ShaderStage::Fragment };
+            compile_glsl(path, stage, &[], &super::source).unwrap_or_else(|e| panic!("{e}"));
+        }
+    }
+
+    #[test]
+    fn compile_errors_name_file_and_line() {
+        let broken = |p: &str| match p {
+            "broken.frag" => Some("#version 450\nvoid main() {\n  undefined_thing = 1;\n}\n"),
+            _ => None,
+        };
+        let err = compile_glsl("broken.frag", ShaderStage::Fragment, &[], &broken).unwrap_err().to_string();
+        assert!(err.contains("shaders/broken.frag:3"), "{err}");
+    }
+}

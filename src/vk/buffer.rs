@@ -1,0 +1,161 @@
+//! Buffers with their memory. Each `Buffer` owns its allocation and frees it
+//! on `Drop` (we wait idle between runs, so no frame can still use it).
+//! Host writes that the device will read go through `write`, which counts
+//! them (see `upload`).
+
+use std::sync::Arc;
+
+use ash::vk;
+use gpu_allocator::vulkan::{Allocation, AllocationCreateDesc, AllocationScheme};
+use gpu_allocator::MemoryLocation;
+
+use super::error::{Check, VkError, VkResult};
+use super::upload::{UploadClass, UploadCounter};
+use super::Context;
+
+/// Where a buffer's memory lives.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum MemoryKind {
+    /// Host-visible, written by the CPU and read by the device.
+    Upload,
+    /// Device-local; filled by transfer commands.
+    DeviceLocal,
+    /// Host-visible, written by the device and read back by the CPU.
+    Readback,
+}
+
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+pub struct BufferDesc {
+    pub name: String,
+    pub size: u64,
+    pub usage: vk::BufferUsageFlags,
+    pub memory: MemoryKind,
+}
+
+impl BufferDesc {
+    pub fn upload(name: &str, size: u64, usage: vk::BufferUsageFlags) -> Self {
+        BufferDesc { name: name.into(), size, usage, memory: MemoryKind::Upload }
+    }
+    pub fn device_local(name: &str, size: u64, usage: vk::BufferUsageFlags) -> Self {
+        BufferDesc { name: name.into(), size, usage: usage | vk::BufferUsageFlags::TRANSFER_DST, memory: MemoryKind::DeviceLocal }
+    }
+    pub fn readback(name: &str, size: u64) -> Self {
+        BufferDesc { name: name.into(), size, usage: vk::BufferUsageFlags::TRANSFER_DST, memory: MemoryKind::Readback }
+    }
+}
+
+pub struct Buffer {
+    pub raw: vk::Buffer,
+    pub desc: BufferDesc,
+    allocation: Option<Allocation>,
+    ctx: Arc<Context>,
+}
+
+impl Buffer {
+    pub fn new(ctx: &Arc<Context>, desc: BufferDesc) -> VkResult<Buffer> {
+        let size = desc.size.max(4);
+        if size > ctx.info.max_memory_allocation_size && ctx.info.max_memory_allocation_size > 0 {
+            return Err(VkError::Unsupported {
+                device: ctx.info.name.clone(),
+                what: format!(
+                    "a {} byte allocation for {} (maxMemoryAllocationSize is {})",
+                    size, desc.name, ctx.info.max_memory_allocation_size
+                ),
+            });
+        }
+        let info = vk::BufferCreateInfo::default().size(size).usage(desc.usage).sharing_mode(vk::SharingMode::EXCLUSIVE);
+        let raw = unsafe { ctx.device.create_buffer(&info, None) }.check("vkCreateBuffer")?;
+        let requirements = unsafe { ctx.device.get_buffer_memory_requirements(raw) };
+        let location = match desc.memory {
+            MemoryKind::Upload => MemoryLocation::CpuToGpu,
+            MemoryKind::DeviceLocal => MemoryLocation::GpuOnly,
+            MemoryKind::Readback => MemoryLocation::GpuToCpu,
+        };
+        let allocation = ctx.allocator().allocate(&AllocationCreateDesc {
+            name: &desc.name,
+            requirements,
+            location,
+            linear: true,
+            allocation_scheme: AllocationScheme::GpuAllocatorManaged,
+        });
+        let allocation = match allocation {
+            Ok(a) => a,
+            Err(source) => {
+                unsafe { ctx.device.destroy_buffer(raw, None) };
+                return Err(VkError::Alloc { name: desc.name.clone(), source });
+            }
+        };
+        let bound = unsafe { ctx.device.bind_buffer_memory(raw, allocation.memory(), allocation.offset()) };
+        if let Err(result) = bound {
+            let _ = ctx.allocator().free(allocation);
+            unsafe { ctx.device.destroy_buffer(raw, None) };
+            return Err(VkError::Call { what: "vkBindBufferMemory", result });
+        }
+        ctx.set_name(raw, &desc.name);
+        Ok(Buffer { raw, desc, allocation: Some(allocation), ctx: ctx.clone() })
+    }
+
+    pub fn size(&self) -> u64 {
+        self.desc.size
+    }
+
+    fn mapped_mut(&mut self) -> VkResult<&mut [u8]> {
+        let name = self.desc.name.clone();
+        let size = self.desc.size as usize;
+        self.allocation
+            .as_mut()
+            .and_then(|a| a.mapped_slice_mut())
+            .map(|s| &mut s[..size])
+            .ok_or(VkError::Unsupported { device: name, what: "host-mapped memory".into() })
+    }
+
+    /// Bytes the device wrote (readback buffers).
+    pub fn read(&self) -> VkResult<&[u8]> {
+        let size = self.desc.size as usize;
+        self.allocation
+            .as_ref()
+            .and_then(|a| a.mapped_slice())
+            .map(|s| &s[..size])
+            .ok_or(VkError::Unsupported { device: self.desc.name.clone(), what: "host-mapped memory".into() })
+    }
+
+    /// Copy `data` into this host-visible buffer at `offset` and count it as
+    /// bytes crossing to the device (the device reads this memory in place).
+    pub fn write(&mut self, offset: usize, data: &[u8], counter: &mut UploadCounter, class: UploadClass) -> VkResult<()> {
+        self.write_uncounted(offset, data)?;
+        counter.add_direct(class, data.len() as u64);
+        Ok(())
+    }
+
+    /// Fill a staging buffer: the bytes cross later, when a transfer command
+    /// copies them (and are counted there).
+    pub fn write_staging(&mut self, offset: usize, data: &[u8]) -> VkResult<()> {
+        self.write_uncounted(offset, data)
+    }
+
+    fn write_uncounted(&mut self, offset: usize, data: &[u8]) -> VkResult<()> {
+        let name = self.desc.name.clone();
+        let dst = self.mapped_mut()?;
+        let end = offset.checked_add(data.len()).filter(|&e| e <= dst.len()).ok_or(VkError::Unsupported {
+            device: name,
+            what: format!("room for {} bytes at offset {} (size {})", data.len(), offset, dst.len()),
+        })?;
+        dst[offset..end].copy_from_slice(data);
+        Ok(())
+    }
+
+    /// Direct mutable access to the mapped memory, for writers that fill it
+    /// in place; the caller counts what it wrote with `UploadCounter::add_direct`.
+    pub fn mapped_for_write(&mut self) -> VkResult<&mut [u8]> {
+        self.mapped_mut()
+    }
+}
+
+impl Drop for Buffer {
+    fn drop(&mut self) {
+        if let Some(a) = self.allocation.take() {
+            let _ = self.ctx.allocator().free(a);
+        }
+        unsafe { self.ctx.device.destroy_buffer(self.raw, None) };
+    }
+}

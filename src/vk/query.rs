@@ -1,0 +1,136 @@
+//! GPU timestamps and pipeline-statistics queries for one frame. Timestamps
+//! give device time; statistics give deterministic work counts (lavapipe
+//! returns them in flag-bit order, as the spec requires).
+
+use std::sync::Arc;
+
+use ash::vk;
+use serde::Serialize;
+
+use super::commands::CommandRecorder;
+use super::error::{Check, VkResult};
+use super::Context;
+
+/// The statistics we collect, in flag-bit order (the order results come back).
+const STATS: [vk::QueryPipelineStatisticFlags; 5] = [
+    vk::QueryPipelineStatisticFlags::INPUT_ASSEMBLY_VERTICES,
+    vk::QueryPipelineStatisticFlags::INPUT_ASSEMBLY_PRIMITIVES,
+    vk::QueryPipelineStatisticFlags::VERTEX_SHADER_INVOCATIONS,
+    vk::QueryPipelineStatisticFlags::CLIPPING_PRIMITIVES,
+    vk::QueryPipelineStatisticFlags::FRAGMENT_SHADER_INVOCATIONS,
+];
+
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct PipelineStats {
+    pub input_vertices: u64,
+    pub input_primitives: u64,
+    pub vertex_invocations: u64,
+    pub clipping_primitives: u64,
+    pub fragment_invocations: u64,
+}
+
+pub struct FrameQueries {
+    timestamps: vk::QueryPool,
+    stats: Option<vk::QueryPool>,
+    period_ns: f64,
+    valid_mask: u64,
+    ctx: Arc<Context>,
+}
+
+impl FrameQueries {
+    pub fn new(ctx: &Arc<Context>) -> VkResult<Self> {
+        let d = &ctx.device;
+        let ts_info = vk::QueryPoolCreateInfo::default().query_type(vk::QueryType::TIMESTAMP).query_count(2);
+        let timestamps = unsafe { d.create_query_pool(&ts_info, None) }.check("vkCreateQueryPool(timestamps)")?;
+        let stats = if ctx.info.pipeline_statistics {
+            let flags = STATS.iter().fold(vk::QueryPipelineStatisticFlags::empty(), |a, &f| a | f);
+            let info = vk::QueryPoolCreateInfo::default()
+                .query_type(vk::QueryType::PIPELINE_STATISTICS)
+                .query_count(1)
+                .pipeline_statistics(flags);
+            match unsafe { d.create_query_pool(&info, None) } {
+                Ok(p) => Some(p),
+                Err(result) => {
+                    unsafe { d.destroy_query_pool(timestamps, None) };
+                    return Err(super::VkError::Call { what: "vkCreateQueryPool(statistics)", result });
+                }
+            }
+        } else {
+            None
+        };
+        let bits = ctx.info.timestamp_valid_bits;
+        let valid_mask = if bits >= 64 { u64::MAX } else { (1u64 << bits) - 1 };
+        Ok(FrameQueries { timestamps, stats, period_ns: ctx.info.timestamp_period_ns as f64, valid_mask, ctx: ctx.clone() })
+    }
+
+    /// Reset both pools; record outside a render pass, before `begin`.
+    pub fn reset(&self, rec: &CommandRecorder) {
+        let cmd = rec.raw;
+        unsafe {
+            self.ctx.device.cmd_reset_query_pool(cmd, self.timestamps, 0, 2);
+            if let Some(p) = self.stats {
+                self.ctx.device.cmd_reset_query_pool(cmd, p, 0, 1);
+            }
+        }
+    }
+
+    pub fn begin(&self, rec: &CommandRecorder) {
+        let cmd = rec.raw;
+        unsafe {
+            self.ctx.device.cmd_write_timestamp2(cmd, vk::PipelineStageFlags2::TOP_OF_PIPE, self.timestamps, 0);
+            if let Some(p) = self.stats {
+                self.ctx.device.cmd_begin_query(cmd, p, 0, vk::QueryControlFlags::empty());
+            }
+        }
+    }
+
+    pub fn end(&self, rec: &CommandRecorder) {
+        let cmd = rec.raw;
+        unsafe {
+            if let Some(p) = self.stats {
+                self.ctx.device.cmd_end_query(cmd, p, 0);
+            }
+            self.ctx.device.cmd_write_timestamp2(cmd, vk::PipelineStageFlags2::BOTTOM_OF_PIPE, self.timestamps, 1);
+        }
+    }
+
+    /// GPU milliseconds between `begin` and `end`, and the statistics, after
+    /// the frame's fence has signalled.
+    pub fn results(&self) -> VkResult<(f64, Option<PipelineStats>)> {
+        let d = &self.ctx.device;
+        let mut ts = [0u64; 2];
+        unsafe { d.get_query_pool_results(self.timestamps, 0, &mut ts, vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT) }
+            .check("vkGetQueryPoolResults(timestamps)")?;
+        let ticks = (ts[1] & self.valid_mask).wrapping_sub(ts[0] & self.valid_mask) & self.valid_mask;
+        let gpu_ms = ticks as f64 * self.period_ns * 1e-6;
+        let stats = match self.stats {
+            Some(p) => {
+                let mut v = [0u64; STATS.len()];
+                unsafe {
+                    d.get_query_pool_results(p, 0, std::slice::from_mut(&mut v), vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT)
+                }
+                .check("vkGetQueryPoolResults(statistics)")?;
+                Some(PipelineStats {
+                    input_vertices: v[0],
+                    input_primitives: v[1],
+                    vertex_invocations: v[2],
+                    clipping_primitives: v[3],
+                    fragment_invocations: v[4],
+                })
+            }
+            None => None,
+        };
+        Ok((gpu_ms, stats))
+    }
+}
+
+impl Drop for FrameQueries {
+    fn drop(&mut self) {
+        unsafe {
+            self.ctx.device.destroy_query_pool(self.timestamps, None);
+            if let Some(p) = self.stats {
+                self.ctx.device.destroy_query_pool(p, None);
+            }
+        }
+    }
+}
