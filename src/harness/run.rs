@@ -14,7 +14,7 @@ use serde::Serialize;
 
 use super::image::RgbaImage;
 use super::stats::Summary;
-use crate::algo::cell_projection::{self, sort::CentroidSort, FrameSetup, Method};
+use crate::algo::cell_projection::{self, sort::CentroidSort, CellProjector, FrameSetup, Method};
 use crate::algo::integrate::IntegrationTables;
 use crate::mesh::{MeshStats, TetGeometry, TetMesh};
 use crate::scene::{Camera, Projection, TransferFunction};
@@ -152,78 +152,154 @@ fn ms(d: std::time::Duration) -> f64 {
     d.as_secs_f64() * 1e3
 }
 
+/// Wall and GPU time of one frame's phases, in milliseconds.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct FrameTiming {
+    pub sort: f64,
+    pub pack: f64,
+    pub upload: f64,
+    pub record: f64,
+    pub submit: f64,
+    pub wait: f64,
+    pub frame: f64,
+    pub gpu: f64,
+}
+
+/// Everything one method needs to draw frames of one scene: tables, the
+/// method's buffers and pipeline, the target, the sort. Built once; `frame`
+/// is the per-frame path that runs and benchmarks time.
+pub struct CellProjectionSession {
+    tables: IntegrationTables,
+    method: Box<dyn CellProjector>,
+    target: Image,
+    recorder: CommandRecorder,
+    queries: FrameQueries,
+    sorter: CentroidSort,
+    diagonal: f64,
+    width: u32,
+    height: u32,
+    /// One-time uploads made while building the session.
+    pub setup_counter: UploadCounter,
+    pub setup_ms: f64,
+}
+
+impl CellProjectionSession {
+    pub fn new(ctx: &Arc<Context>, scene: &Scene, method: Method, width: u32, height: u32) -> Result<Self> {
+        anyhow::ensure!(width > 0 && height > 0, "image size must be positive, got {width}x{height}");
+        let mesh = scene.mesh;
+        let start = Instant::now();
+        let mut setup_counter = UploadCounter::default();
+        let tables = IntegrationTables::new(ctx, scene.tf, mesh.scalar_range(), &mut setup_counter)
+            .context("building the integration tables")?;
+        let method = cell_projection::create(ctx, method, mesh, scene.geometry, &tables, &mut setup_counter)
+            .with_context(|| format!("setting up {} for mesh '{}'", method.name(), mesh.name))?;
+        let target = Image::render_target(ctx, "cell projection target", width, height)?;
+        let recorder = CommandRecorder::new(ctx, "frame")?;
+        let queries = FrameQueries::new(ctx)?;
+        let sorter = CentroidSort::new(cell_projection::centroids_f32(scene.geometry));
+        Ok(CellProjectionSession {
+            tables,
+            method,
+            target,
+            recorder,
+            queries,
+            sorter,
+            diagonal: mesh.bounds().diagonal(),
+            width,
+            height,
+            setup_counter,
+            setup_ms: ms(start.elapsed()),
+        })
+    }
+
+    pub fn method(&self) -> &dyn CellProjector {
+        self.method.as_ref()
+    }
+
+    pub fn table_build_ms(&self) -> f64 {
+        self.tables.build_ms
+    }
+
+    /// Sort, pack, upload, draw and wait for one frame seen by `camera`;
+    /// bytes crossing to the device are added to `counter`.
+    pub fn frame(&mut self, camera: &Camera, counter: &mut UploadCounter) -> Result<(FrameTiming, Option<PipelineStats>)> {
+        let setup = FrameSetup::new(camera, self.width, self.height, &self.tables, self.diagonal);
+        let t0 = Instant::now();
+        let order = self.sorter.sort(camera);
+        let t1 = Instant::now();
+        self.method.pack(order, &setup);
+        let t2 = Instant::now();
+        self.method.upload(counter).context("uploading vertex records")?;
+        let t3 = Instant::now();
+        let rec = &self.recorder;
+        rec.begin()?;
+        self.queries.reset(rec);
+        rec.begin_rendering(&self.target, [0.0; 4]);
+        self.queries.begin(rec);
+        self.method.record_draw(rec, &self.tables, &setup, counter);
+        self.queries.end(rec);
+        rec.end_rendering();
+        let t4 = Instant::now();
+        let submit = rec.submit_and_wait()?;
+        let t5 = Instant::now();
+        let (gpu, stats) = self.queries.results()?;
+        let timing = FrameTiming {
+            sort: ms(t1 - t0),
+            pack: ms(t2 - t1),
+            upload: ms(t3 - t2),
+            record: ms(t4 - t3),
+            submit: ms(submit.submit),
+            wait: ms(submit.wait),
+            frame: ms(t5 - t0),
+            gpu,
+        };
+        Ok((timing, stats))
+    }
+
+    /// The last frame's image.
+    pub fn read_image(&self, ctx: &Arc<Context>) -> Result<RgbaImage> {
+        let pixels = self.target.read_rgba32f(ctx).context("reading back the image")?;
+        Ok(RgbaImage { width: self.width, height: self.height, pixels })
+    }
+}
+
+impl FrameSamples {
+    fn push(&mut self, t: &FrameTiming) {
+        self.sort.push(t.sort);
+        self.pack.push(t.pack);
+        self.upload.push(t.upload);
+        self.record.push(t.record);
+        self.submit.push(t.submit);
+        self.wait.push(t.wait);
+        self.frame.push(t.frame);
+        self.gpu.push(t.gpu);
+    }
+}
+
 pub fn run_cell_projection(ctx: &Arc<Context>, scene: &Scene, cfg: &RunConfig) -> Result<RunOutput> {
-    anyhow::ensure!(cfg.width > 0 && cfg.height > 0, "image size must be positive, got {}x{}", cfg.width, cfg.height);
     anyhow::ensure!(cfg.frames > 0, "--frames must be at least 1");
     let mesh = scene.mesh;
-    let setup_start = Instant::now();
-    let mut setup_counter = UploadCounter::default();
-    let tables = IntegrationTables::new(ctx, scene.tf, mesh.scalar_range(), &mut setup_counter)
-        .context("building the integration tables")?;
-    let mut method = cell_projection::create(ctx, cfg.method, mesh, scene.geometry, &tables, &mut setup_counter)
-        .with_context(|| format!("setting up {} for mesh '{}'", cfg.method.name(), mesh.name))?;
-    let target = Image::render_target(ctx, "cell projection target", cfg.width, cfg.height)?;
-    let recorder = CommandRecorder::new(ctx, "frame")?;
-    let queries = FrameQueries::new(ctx)?;
-    let mut sorter = CentroidSort::new(cell_projection::centroids_f32(scene.geometry));
-    let setup_ms = ms(setup_start.elapsed());
-
+    let mut session = CellProjectionSession::new(ctx, scene, cfg.method, cfg.width, cfg.height)?;
     let bounds = mesh.bounds();
-    let diagonal = bounds.diagonal();
     let mut counter = UploadCounter::default();
     let mut samples = FrameSamples::default();
     let mut last_frame_counters = UploadCounter::default();
 
-    // One frame: returns its pipeline statistics.
-    let mut frame = |camera: &Camera, timed: bool, counter: &mut UploadCounter| -> Result<Option<PipelineStats>> {
-        let before = *counter;
-        let setup = FrameSetup::new(camera, cfg.width, cfg.height, &tables, diagonal);
-        let t0 = Instant::now();
-        let order = sorter.sort(camera);
-        let t1 = Instant::now();
-        method.pack(order, &setup);
-        let t2 = Instant::now();
-        method.upload(counter).context("uploading vertex records")?;
-        let t3 = Instant::now();
-        recorder.begin()?;
-        queries.reset(&recorder);
-        recorder.begin_rendering(&target, [0.0; 4]);
-        queries.begin(&recorder);
-        method.record_draw(&recorder, &tables, &setup, counter);
-        queries.end(&recorder);
-        recorder.end_rendering();
-        let t4 = Instant::now();
-        let submit = recorder.submit_and_wait()?;
-        let t5 = Instant::now();
-        let (gpu_ms, stats) = queries.results()?;
-        if timed {
-            samples.sort.push(ms(t1 - t0));
-            samples.pack.push(ms(t2 - t1));
-            samples.upload.push(ms(t3 - t2));
-            samples.record.push(ms(t4 - t3));
-            samples.submit.push(ms(submit.submit));
-            samples.wait.push(ms(submit.wait));
-            samples.frame.push(ms(t5 - t0));
-            samples.gpu.push(gpu_ms);
+    for f in 0..cfg.warmup + cfg.frames {
+        let before = counter;
+        let (timing, _) = session.frame(&cfg.camera(&bounds, f), &mut counter).with_context(|| format!("frame {f}"))?;
+        if f >= cfg.warmup {
+            samples.push(&timing);
             last_frame_counters = counter.since(&before);
         }
-        Ok(stats)
-    };
-
-    let total = cfg.warmup + cfg.frames;
-    for f in 0..total {
-        let camera = cfg.camera(&bounds, f);
-        frame(&camera, f >= cfg.warmup, &mut counter).with_context(|| format!("frame {f}"))?;
     }
     // The reference view, untimed: its image and statistics are reported.
     let reference_camera = cfg.camera(&bounds, 0);
-    let mut scratch = UploadCounter::default();
-    let stats = frame(&reference_camera, false, &mut scratch).context("reference-view frame")?;
-    drop(frame);
-    let pixels = target.read_rgba32f(ctx).context("reading back the image")?;
+    let (_, stats) = session.frame(&reference_camera, &mut UploadCounter::default()).context("reference-view frame")?;
+    let image = session.read_image(ctx)?;
     ctx.check_validation().context("Vulkan validation")?;
 
-    let image = RgbaImage { width: cfg.width, height: cfg.height, pixels };
+    let method = session.method();
     let cells = method.cells();
     let fc = last_frame_counters;
     let cell_bytes = fc.frame_cell_bytes();
@@ -234,10 +310,10 @@ pub fn run_cell_projection(ctx: &Arc<Context>, scene: &Scene, cfg: &RunConfig) -
         floats_per_cell: bytes_per_cell / 4.0,
         cell_bytes_per_frame: cell_bytes,
         constant_bytes_per_frame: fc.frame_constant_bytes(),
-        static_bytes: setup_counter.static_bytes(),
+        static_bytes: session.setup_counter.static_bytes(),
         vertices_per_cell: method.vertices_per_cell(),
         frame_counters: fc,
-        setup_counters: setup_counter,
+        setup_counters: session.setup_counter,
     };
     let frame_summary = Summary::of(&samples.frame);
     let time_ms = TimeReport {
@@ -249,8 +325,8 @@ pub fn run_cell_projection(ctx: &Arc<Context>, scene: &Scene, cfg: &RunConfig) -
         submit: Summary::of(&samples.submit),
         wait: Summary::of(&samples.wait),
         gpu: Summary::of(&samples.gpu),
-        setup_ms,
-        table_build_ms: tables.build_ms,
+        setup_ms: session.setup_ms,
+        table_build_ms: session.table_build_ms(),
         samples,
     };
     let cells_per_second = if frame_summary.median > 0.0 { cells as f64 / (frame_summary.median * 1e-3) } else { 0.0 };

@@ -66,7 +66,10 @@ pub fn integrate_piece(l_f: [f64; 3], tau_f: f64, l_b: [f64; 3], tau_b: f64, d: 
     }
     let t = psi_terms(a, b);
     let col = |i: usize| l_b[i] * t.psi_minus_zeta + l_f[i] * t.one_minus_psi;
-    Segment { color: [col(0), col(1), col(2)], optical_depth: 0.5 * (a + b) }
+    Segment {
+        color: [col(0), col(1), col(2)],
+        optical_depth: 0.5 * (a + b),
+    }
 }
 
 /// The linear transfer-function interval holding scalar `s` (`i` = index of
@@ -100,7 +103,11 @@ impl TfPiece {
                 let t = (s - p.scalar) / (q.scalar - p.scalar);
                 let lerp = |x: f64, y: f64| x + (y - x) * t;
                 (
-                    [lerp(p.color[0], q.color[0]), lerp(p.color[1], q.color[1]), lerp(p.color[2], q.color[2])],
+                    [
+                        lerp(p.color[0], q.color[0]),
+                        lerp(p.color[1], q.color[1]),
+                        lerp(p.color[2], q.color[2]),
+                    ],
                     lerp(p.attenuation, q.attenuation),
                 )
             }
@@ -111,16 +118,24 @@ impl TfPiece {
 /// The exact integral over a segment of length `length` whose scalar goes
 /// linearly from `s_front` (the end nearer the eye) to `s_back`.
 pub fn integrate_segment(tf: &TransferFunction, s_front: f64, s_back: f64, length: f64) -> Segment {
-    if !(length > 0.0) {
+    if length.is_nan() || length <= 0.0 {
         return Segment::default();
     }
     let pts = &tf.points[..];
     let ds = s_back - s_front;
     // Control points strictly inside the scalar range, in the order the ray meets them.
-    let (lo, hi) = if ds >= 0.0 { (s_front, s_back) } else { (s_back, s_front) };
+    let (lo, hi) = if ds >= 0.0 {
+        (s_front, s_back)
+    } else {
+        (s_back, s_front)
+    };
     let first = pts.partition_point(|p| p.scalar <= lo);
     let last = pts.partition_point(|p| p.scalar < hi);
-    let inner = if first < last { &pts[first..last] } else { &pts[0..0] };
+    let inner = if first < last {
+        &pts[first..last]
+    } else {
+        &pts[0..0]
+    };
     let piece = |sa: f64, sb: f64, ua: f64, ub: f64| -> Segment {
         let tfp = TfPiece::at(pts, 0.5 * (sa + sb));
         let (lf, tf_) = tfp.eval(sa);
@@ -156,7 +171,14 @@ mod tests {
     fn tf(points: &[(f64, [f64; 3], f64)]) -> TransferFunction {
         TransferFunction {
             name: "t".into(),
-            points: points.iter().map(|&(scalar, color, attenuation)| ControlPoint { scalar, color, attenuation }).collect(),
+            points: points
+                .iter()
+                .map(|&(scalar, color, attenuation)| ControlPoint {
+                    scalar,
+                    color,
+                    attenuation,
+                })
+                .collect(),
         }
     }
 
@@ -222,11 +244,23 @@ mod tests {
             (0.5, [0.2, 0.2, 0.2], 0.5), // step
             (0.9, [1.0, 1.0, 0.0], 9.0),
         ]);
-        for &(s0, s1, d) in &[(0.0, 1.0, 0.7), (1.0, 0.0, 0.7), (0.2, 0.45, 1.3), (0.6, 0.35, 0.2), (0.5, 0.8, 1.0), (0.95, 2.0, 1.0)] {
+        for &(s0, s1, d) in &[
+            (0.0, 1.0, 0.7),
+            (1.0, 0.0, 0.7),
+            (0.2, 0.45, 1.3),
+            (0.6, 0.35, 0.2),
+            (0.5, 0.8, 1.0),
+            (0.95, 2.0, 1.0),
+        ] {
             let seg = integrate_segment(&tf, s0, s1, d).rgba();
             let acc = brute(&tf, s0, s1, d, 4000);
             for i in 0..4 {
-                assert!((seg[i] - acc[i]).abs() < 1e-9, "{s0}->{s1} d={d} ch{i}: {} vs {}", seg[i], acc[i]);
+                assert!(
+                    (seg[i] - acc[i]).abs() < 1e-9,
+                    "{s0}->{s1} d={d} ch{i}: {} vs {}",
+                    seg[i],
+                    acc[i]
+                );
             }
         }
     }

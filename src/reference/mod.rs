@@ -104,6 +104,9 @@ pub struct ReferenceStats {
     pub aborted_walks: u64,
     /// Anomaly: boundary entries found before the previous walk's exit.
     pub skipped_entries: u64,
+    /// Walks stopped on finding themselves going backwards (after entering
+    /// through a flat boundary cell that was really an exit; harmless).
+    pub reversed_walks: u64,
     /// Invalid input: faces shared by 3+ cells (treated as boundary).
     pub non_manifold_faces: u64,
     /// Cells ignored because a vertex index repeats.
@@ -119,6 +122,7 @@ impl ReferenceStats {
         self.fallback_exits += o.fallback_exits;
         self.aborted_walks += o.aborted_walks;
         self.skipped_entries += o.skipped_entries;
+        self.reversed_walks += o.reversed_walks;
         self
     }
 }
@@ -171,7 +175,16 @@ pub fn render_reference_with_stats(
                     Projection::Orthographic { .. } => 1.0,
                 };
                 let (t_min, t_max) = (near / cos, far / cos);
-                *px = tracer.trace(x as u32, y as u32, o.into(), d.into(), t_min, t_max, &mut entries, &mut stats);
+                *px = tracer.trace(
+                    x as u32,
+                    y as u32,
+                    o.into(),
+                    d.into(),
+                    t_min,
+                    t_max,
+                    &mut entries,
+                    &mut stats,
+                );
             }
             stats
         })
@@ -182,11 +195,27 @@ pub fn render_reference_with_stats(
         collapsed_tets: topo.collapsed_tets as u64,
         ..stats
     };
-    Ok((ReferenceImage { width, height, pixels }, stats))
+    Ok((
+        ReferenceImage {
+            width,
+            height,
+            pixels,
+        },
+        stats,
+    ))
 }
 
-fn validate(mesh: &TetMesh, camera: &Camera, tf: &TransferFunction, width: u32, height: u32) -> Result<()> {
-    ensure!(width > 0 && height > 0, "reference: empty image {width}x{height}");
+fn validate(
+    mesh: &TetMesh,
+    camera: &Camera,
+    tf: &TransferFunction,
+    width: u32,
+    height: u32,
+) -> Result<()> {
+    ensure!(
+        width > 0 && height > 0,
+        "reference: empty image {width}x{height}"
+    );
     ensure!(
         mesh.scalars.len() == mesh.points.len(),
         "reference: mesh '{}' has {} points but {} scalars",
@@ -201,8 +230,16 @@ fn validate(mesh: &TetMesh, camera: &Camera, tf: &TransferFunction, width: u32, 
         mesh.tets.len()
     );
     let n = mesh.points.len() as u32;
-    if let Some((i, t)) = mesh.tets.iter().enumerate().find(|(_, t)| t.iter().any(|&v| v >= n)) {
-        bail!("reference: mesh '{}' cell {i} {t:?} indexes past its {n} points", mesh.name);
+    if let Some((i, t)) = mesh
+        .tets
+        .iter()
+        .enumerate()
+        .find(|(_, t)| t.iter().any(|&v| v >= n))
+    {
+        bail!(
+            "reference: mesh '{}' cell {i} {t:?} indexes past its {n} points",
+            mesh.name
+        );
     }
     ensure!(
         tf.points.windows(2).all(|w| w[0].scalar <= w[1].scalar),
@@ -210,7 +247,9 @@ fn validate(mesh: &TetMesh, camera: &Camera, tf: &TransferFunction, width: u32, 
         tf.name
     );
     ensure!(
-        tf.points.iter().all(|p| p.scalar.is_finite() && p.attenuation.is_finite() && p.color.iter().all(|c| c.is_finite())),
+        tf.points.iter().all(|p| p.scalar.is_finite()
+            && p.attenuation.is_finite()
+            && p.color.iter().all(|c| c.is_finite())),
         "reference: transfer function '{}' has a non-finite control point",
         tf.name
     );
@@ -219,7 +258,12 @@ fn validate(mesh: &TetMesh, camera: &Camera, tf: &TransferFunction, width: u32, 
         fwd.is_finite() && fwd.cross(glam::DVec3::from(camera.up)).length() > 0.0,
         "reference: degenerate camera (eye = target, or up parallel to the view direction)"
     );
-    ensure!(camera.near < camera.far, "reference: camera near {} >= far {}", camera.near, camera.far);
+    ensure!(
+        camera.near < camera.far,
+        "reference: camera near {} >= far {}",
+        camera.near,
+        camera.far
+    );
     Ok(())
 }
 

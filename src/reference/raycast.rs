@@ -28,7 +28,11 @@ fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
 }
 #[inline]
 fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
 }
 #[inline]
 fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
@@ -148,7 +152,10 @@ impl<'a> Ray<'a> {
             bw[0] * q[0][2] + bw[1] * q[1][2] + bw[2] * q[2][2],
         ];
         let t = dot(x, self.d) * inv;
-        let s = (bw[0] * scalars[v[0] as usize] + bw[1] * scalars[v[1] as usize] + bw[2] * scalars[v[2] as usize]) * inv;
+        let s = (bw[0] * scalars[v[0] as usize]
+            + bw[1] * scalars[v[1] as usize]
+            + bw[2] * scalars[v[2] as usize])
+            * inv;
         if sum != 0.0 && t.is_finite() && s.is_finite() {
             (t, s)
         } else {
@@ -222,7 +229,13 @@ pub(crate) struct Bins {
 }
 
 impl Bins {
-    pub fn build(mesh: &TetMesh, topo: &Topology, camera: &Camera, width: u32, height: u32) -> Bins {
+    pub fn build(
+        mesh: &TetMesh,
+        topo: &Topology,
+        camera: &Camera,
+        width: u32,
+        height: u32,
+    ) -> Bins {
         let vp = camera.view_proj(width, height);
         let tiles_x = width.div_ceil(TILE);
         let tiles_y = height.div_ceil(TILE);
@@ -233,7 +246,12 @@ impl Bins {
         for &id in &topo.boundary {
             let tet = &mesh.tets[(id >> 2) as usize];
             let fv = FACE_VERTS[(id & 3) as usize];
-            let mut bb = [f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY];
+            let mut bb = [
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+            ];
             let (mut wmin, mut wmax) = (f64::INFINITY, f64::NEG_INFINITY);
             for &k in &fv {
                 let p = mesh.points[tet[k] as usize];
@@ -253,7 +271,12 @@ impl Bins {
                 global.push(id);
                 continue;
             }
-            let bb = [bb[0] - BIN_MARGIN, bb[1] + BIN_MARGIN, bb[2] - BIN_MARGIN, bb[3] + BIN_MARGIN];
+            let bb = [
+                bb[0] - BIN_MARGIN,
+                bb[1] + BIN_MARGIN,
+                bb[2] - BIN_MARGIN,
+                bb[3] + BIN_MARGIN,
+            ];
             if bb[1] < 0.0 || bb[0] > wf - 1.0 || bb[3] < 0.0 || bb[2] > hf - 1.0 {
                 continue;
             }
@@ -287,7 +310,13 @@ impl Bins {
                 }
             }
         }
-        Bins { tiles_x, faces, start, items, global }
+        Bins {
+            tiles_x,
+            faces,
+            start,
+            items,
+            global,
+        }
     }
 }
 
@@ -347,10 +376,13 @@ impl Tracer<'_> {
         entries.clear();
         let tile = ((py / TILE) * self.bins.tiles_x + px / TILE) as usize;
         let (x, y) = (px as f64, py as f64);
-        let tiled = self.bins.items[self.bins.start[tile] as usize..self.bins.start[tile + 1] as usize].iter().map(|&fi| {
-            let (id, bb) = self.bins.faces[fi as usize];
-            (id, x >= bb[0] && x <= bb[1] && y >= bb[2] && y <= bb[3])
-        });
+        let tiled = self.bins.items
+            [self.bins.start[tile] as usize..self.bins.start[tile + 1] as usize]
+            .iter()
+            .map(|&fi| {
+                let (id, bb) = self.bins.faces[fi as usize];
+                (id, x >= bb[0] && x <= bb[1] && y >= bb[2] && y <= bb[3])
+            });
         for (id, inside) in tiled.chain(self.bins.global.iter().map(|&id| (id, true))) {
             if !inside {
                 continue;
@@ -361,14 +393,19 @@ impl Tracer<'_> {
             // A boundary face of a flat cell counts whichever way it is
             // crossed (its orientation says nothing); see `walk`.
             let either_way = !self.topo.solid[ti];
-            if let Some((t, s)) = ray.crosses([tet[fv[0]], tet[fv[1]], tet[fv[2]]], either_way, scalars) {
+            if let Some((t, s)) =
+                ray.crosses([tet[fv[0]], tet[fv[1]], tet[fv[2]]], either_way, scalars)
+            {
                 entries.push(Entry { t, s, face: id });
             }
         }
         // Ties in t broken by face id, so the result is deterministic.
         entries.sort_unstable_by(|a, b| a.t.total_cmp(&b.t).then(a.face.cmp(&b.face)));
         stats.rays += 1;
-        let mut acc = Acc { color: [0.0; 3], depth: 0.0 };
+        let mut acc = Acc {
+            color: [0.0; 3],
+            depth: 0.0,
+        };
         let mut t_done = f64::NEG_INFINITY;
         let mut steps = 0u64;
         for e in entries.iter() {
@@ -393,7 +430,12 @@ impl Tracer<'_> {
             stats.rays_hit += 1;
         }
         stats.steps += steps;
-        [acc.color[0], acc.color[1], acc.color[2], -(-acc.depth).exp_m1()]
+        [
+            acc.color[0],
+            acc.color[1],
+            acc.color[2],
+            -(-acc.depth).exp_m1(),
+        ]
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -447,23 +489,38 @@ impl Tracer<'_> {
                     found = (f, found.1 + 1);
                 }
                 // Fallback score: the face whose worst edge is least wrong.
-                let score = bw.iter().fold(f64::INFINITY, |m, &w| m.min(w * target as f64));
+                let score = bw
+                    .iter()
+                    .fold(f64::INFINITY, |m, &w| m.min(w * target as f64));
                 if score > best.1 || best.0 == usize::MAX {
                     best = (f, score);
                 }
             }
             // Exactly one candidate unless rounding made the sign pattern
             // inconsistent (a ray within ~1 ulp of a vertex or edge).
-            let (f_out, fallback) = if found.1 == 1 { (found.0, false) } else { (best.0, true) };
+            let (f_out, fallback) = if found.1 == 1 {
+                (found.0, false)
+            } else {
+                (best.0, true)
+            };
             let mut bw = faces[f_out].1;
             if fallback {
                 stats.fallback_exits += 1;
                 bw = bw.map(|w| if w * target as f64 > 0.0 { w } else { 0.0 });
             }
             let fv = FACE_VERTS[f_out];
-            let (t_c, s_c) = ray.crossing([te.q[fv[0]], te.q[fv[1]], te.q[fv[2]]], bw, [v[fv[0]], v[fv[1]], v[fv[2]]], scalars);
+            let (t_c, s_c) = ray.crossing(
+                [te.q[fv[0]], te.q[fv[1]], te.q[fv[2]]],
+                bw,
+                [v[fv[0]], v[fv[1]], v[fv[2]]],
+                scalars,
+            );
             // Unusable crossing (edge-on face, NaN): zero-length segment.
-            let (t_out, s_out) = if t_c.is_finite() { (t_c.max(t_in), s_c) } else { (t_in, s_in) };
+            let (t_out, s_out) = if t_c.is_finite() {
+                (t_c.max(t_in), s_c)
+            } else {
+                (t_in, s_in)
+            };
             if t_out > t_in {
                 stall = 0;
                 if t_out > t_min && t_in < t_max {

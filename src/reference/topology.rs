@@ -30,12 +30,42 @@ pub(crate) struct Topology {
     pub non_manifold_faces: usize,
     /// Tets left out because a vertex index repeats.
     pub collapsed_tets: usize,
+    /// Per tet: positive volume beyond rounding, `det[p1−p0, p2−p0, p3−p0] >
+    /// 1e-12·L³` (L: longest edge from p0). Flat cells (zero or negligible
+    /// volume, or inverted) are `false`: the walk ignores their orientation.
+    pub solid: Vec<bool>,
+}
+
+/// Relative volume below which a cell counts as flat (see `Topology::solid`).
+const FLAT_REL: f64 = 1e-12;
+
+fn is_solid(p: &[[f64; 3]], t: &[u32; 4]) -> bool {
+    let p0 = p[t[0] as usize];
+    let e = |k: usize| {
+        let q = p[t[k] as usize];
+        [q[0] - p0[0], q[1] - p0[1], q[2] - p0[2]]
+    };
+    let (a, b, c) = (e(1), e(2), e(3));
+    let det = a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
+        + a[2] * (b[0] * c[1] - b[1] * c[0]);
+    let l2 = [a, b, c]
+        .iter()
+        .map(|v| v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+        .fold(0.0, f64::max);
+    det > FLAT_REL * l2 * l2.sqrt()
 }
 
 impl Topology {
     pub fn build(mesh: &TetMesh) -> Topology {
         let n = mesh.tets.len();
-        let collapsed = |t: &[u32; 4]| t[0] == t[1] || t[0] == t[2] || t[0] == t[3] || t[1] == t[2] || t[1] == t[3] || t[2] == t[3];
+        let collapsed = |t: &[u32; 4]| {
+            t[0] == t[1]
+                || t[0] == t[2]
+                || t[0] == t[3]
+                || t[1] == t[2]
+                || t[1] == t[3]
+                || t[2] == t[3]
+        };
         let mut faces: Vec<(u64, u32, u32)> = mesh
             .tets
             .par_iter()
@@ -43,9 +73,17 @@ impl Topology {
             .filter(|(_, t)| !collapsed(t))
             .flat_map_iter(|(ti, t)| {
                 (0..4).map(move |f| {
-                    let mut k = [t[FACE_VERTS[f][0]], t[FACE_VERTS[f][1]], t[FACE_VERTS[f][2]]];
+                    let mut k = [
+                        t[FACE_VERTS[f][0]],
+                        t[FACE_VERTS[f][1]],
+                        t[FACE_VERTS[f][2]],
+                    ];
                     k.sort_unstable();
-                    (((k[0] as u64) << 32) | k[1] as u64, k[2], (4 * ti + f) as u32)
+                    (
+                        ((k[0] as u64) << 32) | k[1] as u64,
+                        k[2],
+                        (4 * ti + f) as u32,
+                    )
                 })
             })
             .collect();
@@ -76,7 +114,18 @@ impl Topology {
             i = j;
         }
         boundary.sort_unstable();
-        Topology { neighbor, boundary, non_manifold_faces, collapsed_tets }
+        let solid = mesh
+            .tets
+            .par_iter()
+            .map(|t| is_solid(&mesh.points, t))
+            .collect();
+        Topology {
+            neighbor,
+            boundary,
+            non_manifold_faces,
+            collapsed_tets,
+            solid,
+        }
     }
 }
 
@@ -88,7 +137,11 @@ mod tests {
         [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
     }
     fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-        [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+        [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ]
     }
     fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
         a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
@@ -96,7 +149,12 @@ mod tests {
 
     #[test]
     fn face_orders_point_outwards() {
-        let p = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.2, 0.3, 1.0]];
+        let p = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.2, 0.3, 1.0],
+        ];
         assert!(dot(cross(sub(p[1], p[0]), sub(p[2], p[0])), sub(p[3], p[0])) > 0.0);
         for (f, fv) in FACE_VERTS.iter().enumerate() {
             assert!(!fv.contains(&f));
@@ -109,7 +167,13 @@ mod tests {
     fn two_tets_share_one_face() {
         let mesh = TetMesh {
             name: "two".into(),
-            points: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 1.0, 1.0]],
+            points: vec![
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [0.0, 0.0, 1.0],
+                [1.0, 1.0, 1.0],
+            ],
             scalars: vec![0.0; 5],
             tets: vec![[0, 1, 2, 3], [1, 2, 3, 4], [1, 1, 2, 3]],
             stats: Default::default(),
@@ -120,5 +184,6 @@ mod tests {
         assert_eq!(t.boundary.len(), 6);
         assert_eq!(t.collapsed_tets, 1);
         assert_eq!(t.non_manifold_faces, 0);
+        assert_eq!(t.solid, vec![true, true, false]); // tet 2 is collapsed
     }
 }

@@ -58,6 +58,15 @@ pub fn cell_records(c: &CellF32, frame: &FrameSetup, out: &mut [f32]) {
     }
 }
 
+/// The per-frame CPU work: records of the cells in `order`, written to `out`
+/// (28 floats per cell), in parallel.
+pub fn pack_records(cells: &[CellF32], order: &[u32], frame: &FrameSetup, out: &mut [f32]) {
+    out.par_chunks_mut(FLOATS_PER_CELL)
+        .zip(order.par_iter())
+        .with_min_len(4096)
+        .for_each(|(dst, &t)| cell_records(&cells[t as usize], frame, dst));
+}
+
 impl Balanced {
     pub fn new(
         ctx: &Arc<Context>,
@@ -116,12 +125,7 @@ impl CellProjector for Balanced {
     }
 
     fn pack(&mut self, order: &[u32], frame: &FrameSetup) {
-        let cells = &self.cells;
-        self.packed
-            .par_chunks_mut(FLOATS_PER_CELL)
-            .zip(order.par_iter())
-            .with_min_len(4096)
-            .for_each(|(dst, &t)| cell_records(&cells[t as usize], frame, dst));
+        pack_records(&self.cells, order, frame, &mut self.packed);
     }
 
     fn upload(&mut self, counter: &mut UploadCounter) -> VkResult<()> {

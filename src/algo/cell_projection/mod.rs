@@ -86,26 +86,30 @@ pub struct FrameSetup {
 
 impl FrameSetup {
     pub fn new(camera: &Camera, width: u32, height: u32, tables: &IntegrationTables, mesh_diagonal: f64) -> Self {
+        let mut setup = Self::for_camera(camera, mesh_diagonal);
         let vp = camera.view_proj(width, height).to_cols_array_2d();
-        let view_proj = vp.map(|c| c.map(|v| v as f32));
-        let f = camera.forward();
-        let eye = camera.eye.map(|v| v as f32);
-        let view_dir = [f.x as f32, f.y as f32, f.z as f32];
-        let perspective = camera.is_perspective();
         let (lo, hi) = tables.tf_range;
-        let max_distance = (DISTANCE_CLAMP_DIAGONALS * mesh_diagonal).max(1e-30) as f32;
+        let (e, v) = (setup.eye, setup.view_dir);
+        setup.constants = FrameConstants {
+            view_proj: vp.map(|c| c.map(|x| x as f32)),
+            eye: [e[0], e[1], e[2], if setup.perspective { 1.0 } else { 0.0 }],
+            view_dir: [v[0], v[1], v[2], 0.0],
+            tf_range: [lo as f32, (1.0 / (hi - lo)) as f32, tables.tf_size as f32, tables.psi_size as f32],
+            limits: [setup.max_distance, 0.0, 0.0, 0.0],
+        };
+        setup
+    }
+
+    /// The CPU side only (what the balanced method's packing reads); the
+    /// shader constants are left zero.
+    pub fn for_camera(camera: &Camera, mesh_diagonal: f64) -> Self {
+        let f = camera.forward();
         FrameSetup {
-            constants: FrameConstants {
-                view_proj,
-                eye: [eye[0], eye[1], eye[2], if perspective { 1.0 } else { 0.0 }],
-                view_dir: [view_dir[0], view_dir[1], view_dir[2], 0.0],
-                tf_range: [lo as f32, (1.0 / (hi - lo)) as f32, tables.tf_size as f32, tables.psi_size as f32],
-                limits: [max_distance, 0.0, 0.0, 0.0],
-            },
-            eye,
-            view_dir,
-            perspective,
-            max_distance,
+            constants: bytemuck::Zeroable::zeroed(),
+            eye: camera.eye.map(|v| v as f32),
+            view_dir: [f.x as f32, f.y as f32, f.z as f32],
+            perspective: camera.is_perspective(),
+            max_distance: (DISTANCE_CLAMP_DIAGONALS * mesh_diagonal).max(1e-30) as f32,
         }
     }
 
