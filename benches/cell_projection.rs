@@ -14,7 +14,7 @@ use std::time::{Duration, Instant};
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 
-use volbench::algo::cell_projection::{balanced, cells_f32, centroids_f32, sort::CentroidSort, FrameSetup, Method};
+use volbench::algo::cell_projection::{balanced, cells_f32, centroids_f32, sort::CentroidSort, FrameSetup, Interpolation, Method};
 use volbench::harness::datasets;
 use volbench::harness::run::{CellProjectionSession, Scene};
 use volbench::mesh::{TetGeometry, TetMesh};
@@ -45,7 +45,7 @@ fn frames(c: &mut Criterion) {
             group.sample_size(10).warm_up_time(Duration::from_secs(2)).measurement_time(Duration::from_secs(8));
             group.throughput(Throughput::Elements(mesh.tets.len() as u64));
             for method in [Method::Vicp, Method::Balanced] {
-                let mut session = CellProjectionSession::new(&ctx, &scene, method, SIZE, SIZE).expect("session");
+                let mut session = CellProjectionSession::new(&ctx, &scene, method, Interpolation::Paper, SIZE, SIZE).expect("session");
                 let mut counter = UploadCounter::default();
                 let mut frame_no = 0u64;
                 group.bench_function(BenchmarkId::from_parameter(method.name()), |b| {
@@ -83,7 +83,7 @@ fn cpu_paths(c: &mut Criterion) {
         group.throughput(Throughput::Bytes((n * balanced::FLOATS_PER_CELL * 4) as u64));
         let cells = cells_f32(&mesh, &geometry);
         let order: Vec<u32> = sorter.sort(&camera).to_vec();
-        let setup = FrameSetup::for_camera(&camera, mesh.bounds().diagonal());
+        let setup = FrameSetup::for_camera(&camera, mesh.bounds().diagonal(), Interpolation::Paper);
         let mut out = vec![0f32; n * balanced::FLOATS_PER_CELL];
         group.bench_function("intersect_back_face", |b| {
             b.iter(|| {

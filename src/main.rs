@@ -7,7 +7,7 @@ use std::process::ExitCode;
 use anyhow::{bail, Context as _, Result};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
-use volbench::algo::cell_projection::Method;
+use volbench::algo::cell_projection::{Interpolation, Method};
 use volbench::harness::report::{self, ComparisonRow};
 use volbench::harness::run::{run_cell_projection, RunConfig, Scene};
 use volbench::harness::datasets;
@@ -60,6 +60,9 @@ struct FrameArgs {
     /// Camera rotation per frame, degrees.
     #[arg(long, default_value_t = 5.0)]
     orbit_step: f64,
+    /// How exit data crosses a face under perspective: as the papers do, or exactly.
+    #[arg(long, value_enum, default_value = "paper")]
+    interpolation: Interpolation,
 }
 
 #[derive(Args)]
@@ -114,6 +117,7 @@ impl FrameArgs {
         cfg.frames = self.frames;
         cfg.warmup = self.warmup;
         cfg.orbit_step = self.orbit_step.to_radians();
+        cfg.interpolation = self.interpolation;
         cfg.projection = match self.projection {
             ProjectionArg::Perspective => Projection::Perspective { fovy_deg: 30.0 },
             ProjectionArg::Orthographic => Projection::Orthographic { height: 1.0 },

@@ -5,7 +5,7 @@
 
 use std::sync::{Arc, Mutex, OnceLock};
 
-use volbench::algo::cell_projection::{balanced, vicp, Method};
+use volbench::algo::cell_projection::{balanced, vicp, Interpolation, Method};
 use volbench::algo::integrate::{PSI_TABLE_SIZE, TF_TABLE_SIZE};
 use volbench::harness::datasets;
 use volbench::harness::run::{run_cell_projection, RunConfig, RunOutput, Scene};
@@ -99,11 +99,12 @@ fn work_counts_per_tet() {
     assert_eq!(v.image.covered_pixels, b.image.covered_pixels);
 }
 
-fn assert_methods_agree(mesh_name: &str, projection: Projection) {
+fn assert_methods_agree(mesh_name: &str, projection: Projection, interpolation: Interpolation) {
     let mesh = datasets::load_mesh(mesh_name).unwrap();
     let tf = datasets::default_transfer_function(&mesh);
     let mut cfg = small_config(Method::Vicp, 128);
     cfg.projection = projection;
+    cfg.interpolation = interpolation;
     let v = run(&mesh, &tf, &cfg);
     cfg.method = Method::Balanced;
     let b = run(&mesh, &tf, &cfg);
@@ -115,13 +116,14 @@ fn assert_methods_agree(mesh_name: &str, projection: Projection) {
 
 #[test]
 fn methods_agree_on_post_small() {
-    assert_methods_agree("post-small", Projection::Perspective { fovy_deg: 30.0 });
-    assert_methods_agree("post-small", Projection::Orthographic { height: 1.0 });
+    assert_methods_agree("post-small", Projection::Perspective { fovy_deg: 30.0 }, Interpolation::Paper);
+    assert_methods_agree("post-small", Projection::Orthographic { height: 1.0 }, Interpolation::Paper);
+    assert_methods_agree("post-small", Projection::Perspective { fovy_deg: 30.0 }, Interpolation::Exact);
 }
 
 #[test]
 fn methods_agree_on_bluntfin() {
-    assert_methods_agree("bluntfin", Projection::Perspective { fovy_deg: 30.0 });
+    assert_methods_agree("bluntfin", Projection::Perspective { fovy_deg: 30.0 }, Interpolation::Paper);
 }
 
 /// A unit cube of constant scalar split into 2x2x2 hexes (40 tets).
@@ -177,11 +179,9 @@ fn homogeneous_cube_matches_the_analytic_answer() {
     }
 }
 
-/// The same medium under perspective: thickness differs per pixel (the exact
-/// ray/box intersection). Interpolating exit distances across faces is an
-/// approximation under perspective (SPEC §1), so the bound is looser.
-#[test]
-fn homogeneous_cube_under_perspective() {
+/// Alpha error against the exact ray/box answer for the unit cube of
+/// homogeneous medium seen in strong perspective: (rmse, max).
+fn perspective_cube_error(method: Method, interpolation: Interpolation) -> (f64, f64) {
     let mesh = unit_cube();
     let tau = 2.0;
     let tf = TransferFunction::constant([1.0, 1.0, 1.0], tau);
@@ -194,37 +194,58 @@ fn homogeneous_cube_under_perspective() {
         far: 10.0,
     };
     let size = 96u32;
-    for method in [Method::Vicp, Method::Balanced] {
-        let mut cfg = small_config(method, size);
-        cfg.fixed_camera = Some(camera);
-        let out = run(&mesh, &tf, &cfg);
-        let (mut max_err, mut sum_sq, mut checked) = (0f64, 0f64, 0);
-        for y in 0..size {
-            for x in 0..size {
-                let (o, d) = camera.ray(x as f64, y as f64, size, size);
-                // Slab intersection with the unit cube.
-                let (mut t0, mut t1) = (f64::NEG_INFINITY, f64::INFINITY);
-                for a in 0..3 {
-                    let (lo, hi) = ((0.0 - o[a]) / d[a], (1.0 - o[a]) / d[a]);
-                    t0 = t0.max(lo.min(hi));
-                    t1 = t1.min(lo.max(hi));
-                }
-                let thickness = (t1 - t0).max(0.0);
-                // Skip pixels whose ray passes within a pixel of the cube's
-                // silhouette, where coverage is decided by rasterization rules.
-                if thickness < 0.05 && thickness > 0.0 {
-                    continue;
-                }
-                let alpha = out.image.pixels[(y * size + x) as usize][3] as f64;
-                let err = (alpha - (1.0 - (-tau * thickness).exp())).abs();
-                max_err = max_err.max(err);
-                sum_sq += err * err;
-                checked += 1;
+    let mut cfg = small_config(method, size);
+    cfg.fixed_camera = Some(camera);
+    cfg.interpolation = interpolation;
+    let out = run(&mesh, &tf, &cfg);
+    let (mut max_err, mut sum_sq, mut checked) = (0f64, 0f64, 0);
+    for y in 0..size {
+        for x in 0..size {
+            let (o, d) = camera.ray(x as f64, y as f64, size, size);
+            // Slab intersection with the unit cube.
+            let (mut t0, mut t1) = (f64::NEG_INFINITY, f64::INFINITY);
+            for a in 0..3 {
+                let (lo, hi) = ((0.0 - o[a]) / d[a], (1.0 - o[a]) / d[a]);
+                t0 = t0.max(lo.min(hi));
+                t1 = t1.min(lo.max(hi));
             }
+            let thickness = (t1 - t0).max(0.0);
+            // Skip rays that graze the cube's silhouette, where coverage is
+            // decided by rasterization rules rather than by the integration.
+            if thickness < 0.05 && thickness > 0.0 {
+                continue;
+            }
+            let alpha = out.image.pixels[(y * size + x) as usize][3] as f64;
+            let err = (alpha - (1.0 - (-tau * thickness).exp())).abs();
+            max_err = max_err.max(err);
+            sum_sq += err * err;
+            checked += 1;
         }
-        assert!(checked > 1000);
-        let rmse = (sum_sq / checked as f64).sqrt();
-        eprintln!("{method:?}: perspective alpha error rmse {rmse:.3e} max {max_err:.3e}");
-        assert!(rmse < 0.05 && max_err < 0.5, "{method:?}: alpha error rmse {rmse} max {max_err}");
+    }
+    assert!(checked > 1000);
+    ((sum_sq / checked as f64).sqrt(), max_err)
+}
+
+/// Under perspective the papers' interpolation of per-vertex distances is an
+/// approximation (SPEC §1): on this close-up cube it is off by several
+/// percent of alpha (measured: RMSE 4.7e-2, max 0.27 for both methods).
+/// The bound only documents that magnitude; the exact interpolation below is
+/// the one held to a tight bound.
+#[test]
+fn homogeneous_cube_under_perspective_paper_interpolation() {
+    for method in [Method::Vicp, Method::Balanced] {
+        let (rmse, max) = perspective_cube_error(method, Interpolation::Paper);
+        assert!(rmse < 0.06 && max < 0.35, "{method:?}: alpha error rmse {rmse} max {max}");
+        assert!(rmse > 1e-3, "{method:?}: the paper's interpolation is not exact under perspective");
+    }
+}
+
+/// Exact interpolation under perspective: every covered pixel's alpha
+/// matches 1 - exp(-tau * thickness) to f32 accuracy.
+#[test]
+fn homogeneous_cube_under_perspective_exact_interpolation() {
+    for method in [Method::Vicp, Method::Balanced] {
+        let (rmse, max) = perspective_cube_error(method, Interpolation::Exact);
+        assert!(max < 1e-4, "{method:?}: alpha error rmse {rmse} max {max}");
     }
 }

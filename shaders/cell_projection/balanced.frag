@@ -11,12 +11,14 @@ layout(location = 0) in float in_sf;
 layout(location = 1) in vec4 in_d;
 layout(location = 2) in vec4 in_s;
 layout(location = 3) in vec4 in_w;
+layout(location = 4) in float in_g;
+layout(location = 5) in vec3 in_rel;
 layout(location = 0) out vec4 out_color;
 
 void main() {
     float len;
     float sb;
-    if (exit_point(in_d, in_s, in_w, in_sf, len, sb)) {
+    if (exit_point(in_d, in_s, in_w, in_sf, in_g, in_rel, len, sb)) {
         out_color = integrate_segment(in_sf, sb, len);
     } else {
         out_color = vec4(0.0);

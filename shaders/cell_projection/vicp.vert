@@ -14,22 +14,33 @@ layout(location = 4) in float in_index;  // i: v's index within the face (0..2)
 layout(location = 0) out float out_sf;
 layout(location = 1) out vec3 out_d;
 layout(location = 2) out vec3 out_s;
-layout(location = 3) out vec3 out_w;  // barycentric weight of each face vertex (see common/exit.glsl)
+layout(location = 3) out vec3 out_w;    // barycentric weight of each face vertex (see common/exit.glsl)
+layout(location = 4) out float out_g;   // exact perspective: g . (v - eye)
+layout(location = 5) out vec3 out_rel;  // exact perspective: v - eye
 
 void main() {
-    vec3 dir = ray_direction(in_pos);
-    float t = distance_to_opposite_plane(in_plane, dir);
-    float sb = in_s + dot(dir, in_grad) * t;
     int k = int(in_index + 0.5);
     vec3 d = vec3(0.0);
     vec3 s = vec3(in_s);
-    d[k] = t;
-    s[k] = sb;
+    vec3 rel = in_pos - frame.eye.xyz;
+#ifdef EXACT_PERSPECTIVE
+    if (frame.eye.w > 0.5) {
+        d[k] = perspective_plane_ratio(in_plane, rel);
+    } else
+#endif
+    {
+        vec3 dir = ray_direction(in_pos);
+        float t = distance_to_opposite_plane(in_plane, dir);
+        d[k] = t;
+        s[k] = in_s + dot(dir, in_grad) * t;
+    }
+    vec3 w = vec3(0.0);
+    w[k] = 1.0;
     out_sf = in_s;
     out_d = d;
     out_s = s;
-    vec3 w = vec3(0.0);
-    w[k] = 1.0;
     out_w = w;
+    out_g = dot(in_grad, rel);
+    out_rel = rel;
     gl_Position = frame.view_proj * vec4(in_pos, 1.0);
 }

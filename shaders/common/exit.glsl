@@ -12,11 +12,36 @@
 // ratio d[k]/w[k] = t_k exactly, so sign(d[k] * w[k]) tells an exit plane
 // (t_k > 0) from an entry plane whatever the rounding, and an exit plane's
 // distance is clamped at 0. Build with PAPER_EXIT_RULE for the paper's rule.
+//
+// With EXACT_PERSPECTIVE under perspective, d[k] interpolates lambda_k * u_k
+// instead (see perspective_plane_ratio): the plane is met at
+// mu = 1 / (1 - d[k]) times the eye-to-fragment vector, an exit when mu > 1,
+// i.e. 0 < d[k] < 1; the exit distance is (mu - 1) |p - eye| and the scalar
+// there s_f + (mu - 1) g.(p - eye), with g.(p - eye) = g_rel interpolated
+// (affine, so exact too).
 
-bool exit_point(EXIT_VEC d, EXIT_VEC s, EXIT_VEC w, float s_front, out float len, out float s_back) {
+bool exit_point(EXIT_VEC d, EXIT_VEC s, EXIT_VEC w, float s_front, float g_rel, vec3 rel,
+                out float len, out float s_back) {
     len = frame.limits.x;
     s_back = s_front;
     bool found = false;
+#ifdef EXACT_PERSPECTIVE
+    if (frame.eye.w > 0.5) {
+        float r = length(rel);
+        for (int k = 0; k < EXIT_N; ++k) {
+            bool is_exit = d[k] * w[k] > 0.0 && d[k] < 1.0;
+            float u = max(d[k], 0.0);
+            float mu_minus_1 = u / (1.0 - u);
+            float dk = mu_minus_1 * r;
+            if (is_exit && dk < len) {
+                len = dk;
+                s_back = s_front + mu_minus_1 * g_rel;
+                found = true;
+            }
+        }
+        return found;
+    }
+#endif
     for (int k = 0; k < EXIT_N; ++k) {
 #ifdef PAPER_EXIT_RULE
         bool is_exit = d[k] > 0.0;

@@ -20,3 +20,14 @@ float distance_to_opposite_plane(vec3 plane3, vec3 dir) {
     float t = -1.0 / dot(plane3, dir);
     return clamp(t, -frame.limits.x, frame.limits.x);
 }
+
+// Exact perspective (EXACT_PERSPECTIVE): u = h/e for the plane opposite v,
+// with h = n.v + a (v's distance to it) and e = n.eye + a (the eye's), from
+// the same 3-float plane: e/h = 1 - n'.(v - eye). Along the ray from the eye
+// through a point p of a face, the plane is met at eye + mu (p - eye) with
+// 1/mu = 1 - lambda_v u, which is affine across the face, so interpolating
+// lambda_v u is exact where interpolating the distance is not. Clamped so that
+// an eye on the plane (u = inf) never makes inf * 0 = NaN in interpolation.
+float perspective_plane_ratio(vec3 plane3, vec3 rel) {
+    return clamp(1.0 / (1.0 - dot(plane3, rel)), -1e30, 1e30);
+}

@@ -14,7 +14,7 @@ use serde::Serialize;
 
 use super::image::RgbaImage;
 use super::stats::Summary;
-use crate::algo::cell_projection::{self, sort::CentroidSort, CellProjector, FrameSetup, Method};
+use crate::algo::cell_projection::{self, sort::CentroidSort, CellProjector, FrameSetup, Interpolation, Method};
 use crate::algo::integrate::IntegrationTables;
 use crate::mesh::{MeshStats, TetGeometry, TetMesh};
 use crate::scene::{Camera, Projection, TransferFunction};
@@ -23,6 +23,7 @@ use crate::vk::{CommandRecorder, Context, DeviceInfo, FrameQueries, Image, Pipel
 #[derive(Debug, Clone)]
 pub struct RunConfig {
     pub method: Method,
+    pub interpolation: Interpolation,
     pub width: u32,
     pub height: u32,
     pub frames: usize,
@@ -38,6 +39,7 @@ impl RunConfig {
     pub fn new(method: Method) -> Self {
         RunConfig {
             method,
+            interpolation: Interpolation::Paper,
             width: 512,
             height: 512,
             frames: 10,
@@ -114,6 +116,7 @@ pub struct ImageReport {
 #[derive(Debug, Clone, Serialize)]
 pub struct RunResult {
     pub method: &'static str,
+    pub interpolation: &'static str,
     pub mesh: String,
     pub cells: usize,
     pub points: usize,
@@ -176,6 +179,7 @@ pub struct CellProjectionSession {
     queries: FrameQueries,
     sorter: CentroidSort,
     diagonal: f64,
+    interpolation: Interpolation,
     width: u32,
     height: u32,
     /// One-time uploads made while building the session.
@@ -184,14 +188,21 @@ pub struct CellProjectionSession {
 }
 
 impl CellProjectionSession {
-    pub fn new(ctx: &Arc<Context>, scene: &Scene, method: Method, width: u32, height: u32) -> Result<Self> {
+    pub fn new(
+        ctx: &Arc<Context>,
+        scene: &Scene,
+        method: Method,
+        interpolation: Interpolation,
+        width: u32,
+        height: u32,
+    ) -> Result<Self> {
         anyhow::ensure!(width > 0 && height > 0, "image size must be positive, got {width}x{height}");
         let mesh = scene.mesh;
         let start = Instant::now();
         let mut setup_counter = UploadCounter::default();
         let tables = IntegrationTables::new(ctx, scene.tf, mesh.scalar_range(), &mut setup_counter)
             .context("building the integration tables")?;
-        let method = cell_projection::create(ctx, method, mesh, scene.geometry, &tables, &mut setup_counter)
+        let method = cell_projection::create(ctx, method, interpolation, mesh, scene.geometry, &tables, &mut setup_counter)
             .with_context(|| format!("setting up {} for mesh '{}'", method.name(), mesh.name))?;
         let target = Image::render_target(ctx, "cell projection target", width, height)?;
         let recorder = CommandRecorder::new(ctx, "frame")?;
@@ -205,6 +216,7 @@ impl CellProjectionSession {
             queries,
             sorter,
             diagonal: mesh.bounds().diagonal(),
+            interpolation,
             width,
             height,
             setup_counter,
@@ -223,7 +235,7 @@ impl CellProjectionSession {
     /// Sort, pack, upload, draw and wait for one frame seen by `camera`;
     /// bytes crossing to the device are added to `counter`.
     pub fn frame(&mut self, camera: &Camera, counter: &mut UploadCounter) -> Result<(FrameTiming, Option<PipelineStats>)> {
-        let setup = FrameSetup::new(camera, self.width, self.height, &self.tables, self.diagonal);
+        let setup = FrameSetup::new(camera, self.width, self.height, &self.tables, self.diagonal, self.interpolation);
         let t0 = Instant::now();
         let order = self.sorter.sort(camera);
         let t1 = Instant::now();
@@ -279,7 +291,7 @@ impl FrameSamples {
 pub fn run_cell_projection(ctx: &Arc<Context>, scene: &Scene, cfg: &RunConfig) -> Result<RunOutput> {
     anyhow::ensure!(cfg.frames > 0, "--frames must be at least 1");
     let mesh = scene.mesh;
-    let mut session = CellProjectionSession::new(ctx, scene, cfg.method, cfg.width, cfg.height)?;
+    let mut session = CellProjectionSession::new(ctx, scene, cfg.method, cfg.interpolation, cfg.width, cfg.height)?;
     let bounds = mesh.bounds();
     let mut counter = UploadCounter::default();
     let mut samples = FrameSamples::default();
@@ -332,6 +344,7 @@ pub fn run_cell_projection(ctx: &Arc<Context>, scene: &Scene, cfg: &RunConfig) -
     let cells_per_second = if frame_summary.median > 0.0 { cells as f64 / (frame_summary.median * 1e-3) } else { 0.0 };
     let result = RunResult {
         method: cfg.method.name(),
+        interpolation: cfg.interpolation.name(),
         mesh: mesh.name.clone(),
         cells,
         points: mesh.points.len(),

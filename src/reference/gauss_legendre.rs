@@ -14,47 +14,18 @@ pub(crate) struct Rule {
 pub(crate) const ORDERS: [usize; 10] = [4, 6, 8, 10, 12, 16, 20, 24, 32, 40];
 
 /// The rule with ORDERS[i] points.
+#[rustfmt::skip]
 pub(crate) const RULES: [Rule; 10] = [
-    Rule {
-        x: &GL4_X,
-        w: &GL4_W,
-    },
-    Rule {
-        x: &GL6_X,
-        w: &GL6_W,
-    },
-    Rule {
-        x: &GL8_X,
-        w: &GL8_W,
-    },
-    Rule {
-        x: &GL10_X,
-        w: &GL10_W,
-    },
-    Rule {
-        x: &GL12_X,
-        w: &GL12_W,
-    },
-    Rule {
-        x: &GL16_X,
-        w: &GL16_W,
-    },
-    Rule {
-        x: &GL20_X,
-        w: &GL20_W,
-    },
-    Rule {
-        x: &GL24_X,
-        w: &GL24_W,
-    },
-    Rule {
-        x: &GL32_X,
-        w: &GL32_W,
-    },
-    Rule {
-        x: &GL40_X,
-        w: &GL40_W,
-    },
+    Rule { x: &GL4_X, w: &GL4_W },
+    Rule { x: &GL6_X, w: &GL6_W },
+    Rule { x: &GL8_X, w: &GL8_W },
+    Rule { x: &GL10_X, w: &GL10_W },
+    Rule { x: &GL12_X, w: &GL12_W },
+    Rule { x: &GL16_X, w: &GL16_W },
+    Rule { x: &GL20_X, w: &GL20_W },
+    Rule { x: &GL24_X, w: &GL24_W },
+    Rule { x: &GL32_X, w: &GL32_W },
+    Rule { x: &GL40_X, w: &GL40_W },
 ];
 
 #[rustfmt::skip]

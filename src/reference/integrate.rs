@@ -4,7 +4,7 @@
 //! Along a segment the scalar is linear (it is linear inside a tet), so it is
 //! split at every transfer-function control point it crosses; on each piece
 //! colour L and attenuation τ are linear in depth and the piece integrates
-//! exactly to `C = L_b·(Ψ − ζ) + L_f·(1 − Ψ)`, `α = 1 − ζ` (see [`super::psi`]).
+//! exactly to `C = L_b·(Ψ − ζ) + L_f·(1 − Ψ)`, `α = 1 − ζ` (see [`mod@super::psi`]).
 //!
 //! Transfer-function conventions (matching `TransferFunction::eval`): linear
 //! between control points, clamped outside them; at a step (two points with

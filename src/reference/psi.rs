@@ -80,16 +80,19 @@ fn rule_for(lambda: f64) -> &'static Rule {
     &RULES[RULES.len() - 1]
 }
 
-/// The u in [0, 1] where φ(u) = a·u + c·u² reaches `level` (0 ≤ level ≤ φ(1)).
+/// The u in [0, 1] where φ(u) = a·u + c·u² reaches `level` (0 < level ≤
+/// φ(1)): the cancellation-free root 2·level / (a + √(a² + 4·c·level)),
+/// evaluated scaled so that nothing overflows even for a, b near f64::MAX.
 #[inline]
 fn u_at(a: f64, c: f64, level: f64) -> f64 {
-    let disc = (a * a + 4.0 * c * level).max(0.0);
-    let den = a + disc.sqrt();
-    if den > 0.0 {
-        (2.0 * level / den).min(1.0)
-    } else {
-        1.0
+    let q = 2.0 * c.abs().sqrt() * level.sqrt(); // √(4·|c|·level)
+    let s = a.max(q);
+    if s.is_nan() || s <= 0.0 {
+        return 1.0;
     }
+    let (x, y) = (a / s, q / s);
+    let disc = (x * x + c.signum() * y * y).max(0.0);
+    (2.0 * level / (a + s * disc.sqrt())).min(1.0)
 }
 
 /// ∫_{u0}^{u1} exp(−φ(u)) du with the given rule.
@@ -574,6 +577,12 @@ mod tests {
         assert!(rel(psi(a, a), 1.0 / a) < 5e-16);
         let b = 1e12;
         assert!(rel(psi(0.0, b), (std::f64::consts::PI / (2.0 * b)).sqrt()) < 5e-16);
+        // Near overflow: no inf/NaN, same asymptotics.
+        assert!(rel(psi(1e300, 1e300), 1e-300) < 5e-16);
+        assert!(rel(psi(1e300, 0.0), 1e-300) < 1e-15);
+        assert!(rel(psi(0.0, 1e300), (std::f64::consts::PI / 2e300).sqrt()) < 5e-16);
+        let p = psi(f64::MAX, f64::MAX); // ≈ 1/MAX, subnormal
+        assert!((0.0..1e-307).contains(&p));
     }
 
     #[test]

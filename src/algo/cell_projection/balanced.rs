@@ -11,7 +11,7 @@ use std::sync::Arc;
 use ash::vk as raw;
 use rayon::prelude::*;
 
-use super::{build_pipeline, cells_f32, CellF32, CellProjector, FrameSetup, Method};
+use super::{build_pipeline, cells_f32, CellF32, CellProjector, FrameSetup, Interpolation, Method};
 use crate::algo::integrate::IntegrationTables;
 use crate::mesh::{TetGeometry, TetMesh};
 use crate::vk::{
@@ -45,9 +45,23 @@ pub fn strip_indices(cells: usize) -> Vec<u32> {
     idx
 }
 
-/// Balanced-ProjectTet's CPU half for one tet: 4 records of 7 floats.
+/// Balanced-ProjectTet's CPU half for one tet: 4 records of 7 floats,
+/// (v, d, s_f, s_b, i); with exact perspective interpolation the two
+/// view-dependent slots hold u and g.(v - eye) instead (see `Interpolation`).
 #[inline]
 pub fn cell_records(c: &CellF32, frame: &FrameSetup, out: &mut [f32]) {
+    if frame.exact_perspective() {
+        let e = frame.eye;
+        for i in 0..4 {
+            let p = c.pos[i];
+            let rel = [p[0] - e[0], p[1] - e[1], p[2] - e[2]];
+            let u = FrameSetup::perspective_plane_ratio(c.plane3[i], rel);
+            let g = c.gradient;
+            let g_rel = g[0] * rel[0] + g[1] * rel[1] + g[2] * rel[2];
+            out[i * 7..i * 7 + 7].copy_from_slice(&[p[0], p[1], p[2], u, c.scalar[i], g_rel, i as f32]);
+        }
+        return;
+    }
     for i in 0..4 {
         let p = c.pos[i];
         let dir = frame.ray_direction(p);
@@ -73,6 +87,7 @@ impl Balanced {
         mesh: &TetMesh,
         geometry: &TetGeometry,
         tables: &IntegrationTables,
+        interpolation: Interpolation,
         counter: &mut UploadCounter,
     ) -> VkResult<Self> {
         let cells = cells_f32(mesh, geometry);
@@ -105,6 +120,7 @@ impl Balanced {
             raw::PrimitiveTopology::TRIANGLE_STRIP,
             true,
             tables,
+            interpolation,
         )?;
         Ok(Balanced { packed: vec![0f32; n * FLOATS_PER_CELL], cells, vertex_buffer, index_buffer, pipeline })
     }

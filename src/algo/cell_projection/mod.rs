@@ -41,6 +41,36 @@ impl Method {
     }
 }
 
+/// How view-dependent exit data is carried across a face under perspective.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, clap::ValueEnum, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum Interpolation {
+    /// As the papers do: ray-plane distance and exit scalar at each vertex,
+    /// interpolated across the face (exact for orthographic views only).
+    #[default]
+    Paper,
+    /// The same records with the plane ratio u = h/e and g.(v - eye) in the
+    /// two view-dependent slots, which interpolate exactly under perspective
+    /// (`shaders/common/exit.glsl`). Identical to `paper` for orthographic views.
+    Exact,
+}
+
+impl Interpolation {
+    pub fn name(self) -> &'static str {
+        match self {
+            Interpolation::Paper => "paper",
+            Interpolation::Exact => "exact",
+        }
+    }
+
+    fn defines(self) -> &'static [(&'static str, &'static str)] {
+        match self {
+            Interpolation::Paper => &[],
+            Interpolation::Exact => &[("EXACT_PERSPECTIVE", "1")],
+        }
+    }
+}
+
 /// With every tet positively oriented (see `mesh`), the faces as drawn
 /// (VICP's face lists, the balanced strip 0,1,2,3,0,1) have right-handed
 /// normals pointing into the tet, so faces the eye looks into (entry faces)
@@ -82,11 +112,19 @@ pub struct FrameSetup {
     pub perspective: bool,
     /// Bound on |ray-plane distance| (see `DISTANCE_CLAMP_DIAGONALS`).
     pub max_distance: f32,
+    pub interpolation: Interpolation,
 }
 
 impl FrameSetup {
-    pub fn new(camera: &Camera, width: u32, height: u32, tables: &IntegrationTables, mesh_diagonal: f64) -> Self {
-        let mut setup = Self::for_camera(camera, mesh_diagonal);
+    pub fn new(
+        camera: &Camera,
+        width: u32,
+        height: u32,
+        tables: &IntegrationTables,
+        mesh_diagonal: f64,
+        interpolation: Interpolation,
+    ) -> Self {
+        let mut setup = Self::for_camera(camera, mesh_diagonal, interpolation);
         let vp = camera.view_proj(width, height).to_cols_array_2d();
         let (lo, hi) = tables.tf_range;
         let (e, v) = (setup.eye, setup.view_dir);
@@ -102,7 +140,7 @@ impl FrameSetup {
 
     /// The CPU side only (what the balanced method's packing reads); the
     /// shader constants are left zero.
-    pub fn for_camera(camera: &Camera, mesh_diagonal: f64) -> Self {
+    pub fn for_camera(camera: &Camera, mesh_diagonal: f64, interpolation: Interpolation) -> Self {
         let f = camera.forward();
         FrameSetup {
             constants: bytemuck::Zeroable::zeroed(),
@@ -110,6 +148,7 @@ impl FrameSetup {
             view_dir: [f.x as f32, f.y as f32, f.z as f32],
             perspective: camera.is_perspective(),
             max_distance: (DISTANCE_CLAMP_DIAGONALS * mesh_diagonal).max(1e-30) as f32,
+            interpolation,
         }
     }
 
@@ -135,6 +174,19 @@ impl FrameSetup {
         let nd = plane3[0] * dir[0] + plane3[1] * dir[1] + plane3[2] * dir[2];
         (-1.0 / nd).clamp(-self.max_distance, self.max_distance)
     }
+
+    /// Exact perspective: the plane ratio u = h/e (same rule as
+    /// `perspective_plane_ratio` in the shaders) for vertex offset `rel` = v - eye.
+    #[inline]
+    pub fn perspective_plane_ratio(plane3: [f32; 3], rel: [f32; 3]) -> f32 {
+        let nr = plane3[0] * rel[0] + plane3[1] * rel[1] + plane3[2] * rel[2];
+        (1.0 / (1.0 - nr)).clamp(-1e30, 1e30)
+    }
+
+    /// Whether vertex records carry the exact-perspective quantities.
+    pub fn exact_perspective(&self) -> bool {
+        self.perspective && self.interpolation == Interpolation::Exact
+    }
 }
 
 /// One cell-projection method's per-frame work on the device side.
@@ -156,14 +208,15 @@ pub trait CellProjector {
 pub fn create(
     ctx: &Arc<Context>,
     method: Method,
+    interpolation: Interpolation,
     mesh: &TetMesh,
     geometry: &TetGeometry,
     tables: &IntegrationTables,
     counter: &mut UploadCounter,
 ) -> VkResult<Box<dyn CellProjector>> {
     Ok(match method {
-        Method::Vicp => Box::new(vicp::Vicp::new(ctx, mesh, geometry, tables)?),
-        Method::Balanced => Box::new(balanced::Balanced::new(ctx, mesh, geometry, tables, counter)?),
+        Method::Vicp => Box::new(vicp::Vicp::new(ctx, mesh, geometry, tables, interpolation)?),
+        Method::Balanced => Box::new(balanced::Balanced::new(ctx, mesh, geometry, tables, interpolation, counter)?),
     })
 }
 
@@ -179,9 +232,11 @@ pub(crate) fn build_pipeline(
     topology: raw::PrimitiveTopology,
     primitive_restart: bool,
     tables: &IntegrationTables,
+    interpolation: Interpolation,
 ) -> VkResult<Pipeline> {
-    let vs = compile_glsl(vertex_path, ShaderStage::Vertex, &[], &crate::shaders::source)?;
-    let fs = compile_glsl(fragment_path, ShaderStage::Fragment, &[], &crate::shaders::source)?;
+    let defines = interpolation.defines();
+    let vs = compile_glsl(vertex_path, ShaderStage::Vertex, defines, &crate::shaders::source)?;
+    let fs = compile_glsl(fragment_path, ShaderStage::Fragment, defines, &crate::shaders::source)?;
     let vs = ShaderModule::new(ctx, vertex_path, ShaderStage::Vertex, &vs)?;
     let fs = ShaderModule::new(ctx, fragment_path, ShaderStage::Fragment, &fs)?;
     Pipeline::graphics(

@@ -9,7 +9,7 @@ use std::sync::Arc;
 use ash::vk as raw;
 use rayon::prelude::*;
 
-use super::{build_pipeline, cells_f32, CellProjector, FrameSetup, Method, FACES};
+use super::{build_pipeline, cells_f32, CellProjector, FrameSetup, Interpolation, Method, FACES};
 use crate::algo::integrate::IntegrationTables;
 use crate::mesh::{TetGeometry, TetMesh};
 use crate::vk::{Buffer, BufferDesc, CommandRecorder, Context, Pipeline, UploadClass, UploadCounter, VertexAttribute, VkResult};
@@ -47,7 +47,13 @@ pub fn cell_records(c: &super::CellF32, out: &mut [f32]) {
 }
 
 impl Vicp {
-    pub fn new(ctx: &Arc<Context>, mesh: &TetMesh, geometry: &TetGeometry, tables: &IntegrationTables) -> VkResult<Self> {
+    pub fn new(
+        ctx: &Arc<Context>,
+        mesh: &TetMesh,
+        geometry: &TetGeometry,
+        tables: &IntegrationTables,
+        interpolation: Interpolation,
+    ) -> VkResult<Self> {
         let cells = cells_f32(mesh, geometry);
         let n = cells.len();
         let mut records = vec![0f32; n * FLOATS_PER_CELL];
@@ -72,6 +78,7 @@ impl Vicp {
             raw::PrimitiveTopology::TRIANGLE_LIST,
             false,
             tables,
+            interpolation,
         )?;
         Ok(Vicp { packed: vec![0f32; records.len()], records, vertex_buffer, pipeline, cells: n })
     }
