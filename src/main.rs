@@ -9,7 +9,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 
 use volbench::algo::cell_projection::{Interpolation, Method};
 use volbench::harness::report::{self, ComparisonRow};
-use volbench::harness::run::{run_cell_projection, RunConfig, Scene};
+use volbench::harness::run::{reference_image, run_cell_projection, RunConfig, Scene};
 use volbench::harness::datasets;
 use volbench::mesh::TetGeometry;
 use volbench::scene::Projection;
@@ -80,6 +80,12 @@ struct RunArgs {
     /// Write the full result as JSON.
     #[arg(long)]
     json: Option<PathBuf>,
+    /// Compare the reference-view image with the f64 CPU reference (adds `error.*`).
+    #[arg(long)]
+    reference: bool,
+    /// Write |image - reference| x10 as PNG (implies --reference).
+    #[arg(long)]
+    diff_png: Option<PathBuf>,
 }
 
 #[derive(Args)]
@@ -150,8 +156,17 @@ fn run(cli: &Cli, args: &RunArgs) -> Result<()> {
     let geometry = TetGeometry::compute(&mesh);
     let tf = datasets::default_transfer_function(&mesh);
     let ctx = context(cli)?;
-    let out = run_cell_projection(&ctx, &Scene { mesh: &mesh, geometry: &geometry, tf: &tf }, &cfg)
+    let scene = Scene { mesh: &mesh, geometry: &geometry, tf: &tf };
+    let mut out = run_cell_projection(&ctx, &scene, &cfg)
         .with_context(|| format!("running {} on {}", args.method.name(), args.mesh))?;
+    if args.reference || args.diff_png.is_some() {
+        let (reference, what, reference_ms) =
+            reference_image(&scene, &out.result.image.camera, cfg.width, cfg.height)?;
+        let diff = out.attach_error(&reference, &what, reference_ms)?;
+        if let Some(p) = &args.diff_png {
+            diff.write_png(p)?;
+        }
+    }
     print!("{}", report::comparison_table(&[ComparisonRow { result: &out.result, rmse_vs_other: None }]));
     if let Some(p) = &args.png {
         out.image.write_png(p)?;
@@ -175,13 +190,26 @@ fn compare(cli: &Cli, args: &CompareArgs) -> Result<()> {
         let tf = datasets::default_transfer_function(&mesh);
         let scene = Scene { mesh: &mesh, geometry: &geometry, tf: &tf };
         let mut images = Vec::new();
+        let mut reference = None;
         for method in [Method::Vicp, Method::Balanced] {
             eprintln!("volbench: {} on {} ({} cells)...", method.name(), mesh.name, mesh.tets.len());
-            let out = run_cell_projection(&ctx, &scene, &args.frame.config(method)?)
+            let cfg = args.frame.config(method)?;
+            let mut out = run_cell_projection(&ctx, &scene, &cfg)
                 .with_context(|| format!("running {} on {}", method.name(), name))?;
+            if reference.is_none() {
+                eprintln!("volbench: f64 reference of {}...", mesh.name);
+                reference = Some(reference_image(&scene, &out.result.image.camera, cfg.width, cfg.height)?);
+            }
+            let diff = match &reference {
+                Some((img, what, ref_ms)) => Some(out.attach_error(img, what, *ref_ms)?),
+                None => None,
+            };
             if let Some(dir) = &args.out {
                 let stem = format!("{}-{}", mesh.name, method.name());
                 out.image.write_png(&dir.join(format!("{stem}.png")))?;
+                if let Some(d) = diff {
+                    d.write_png(&dir.join(format!("{stem}-diff.png")))?;
+                }
                 report::write_json(&dir.join(format!("{stem}.json")), &out.result)?;
             }
             images.push(out.image);

@@ -26,8 +26,14 @@ float distance_to_opposite_plane(vec3 plane3, vec3 dir) {
 // the same 3-float plane: e/h = 1 - n'.(v - eye). Along the ray from the eye
 // through a point p of a face, the plane is met at eye + mu (p - eye) with
 // 1/mu = 1 - lambda_v u, which is affine across the face, so interpolating
-// lambda_v u is exact where interpolating the distance is not. Clamped so that
-// an eye on the plane (u = inf) never makes inf * 0 = NaN in interpolation.
+// lambda_v u is exact where interpolating the distance is not.
+// |u| is large only when the eye is nearly in the plane (seen edge-on); the
+// plane can then be an exit only where lambda_v < 1/u, next to an edge, and
+// rasterizer rounding of lambda_v (~1e-7) times a huge u would turn into
+// whole-cell errors (specks). Clamping |u| at PLANE_RATIO_MAX bounds that
+// noise to ~1e-4 of the eye distance, at the cost of a shortened exit in the
+// sliver lambda_v < 1/u (and no inf * 0 = NaN when the eye is on the plane).
+const float PLANE_RATIO_MAX = 1e3;
 float perspective_plane_ratio(vec3 plane3, vec3 rel) {
-    return clamp(1.0 / (1.0 - dot(plane3, rel)), -1e30, 1e30);
+    return clamp(1.0 / (1.0 - dot(plane3, rel)), -PLANE_RATIO_MAX, PLANE_RATIO_MAX);
 }

@@ -64,7 +64,23 @@ pub fn default_transfer_function(mesh: &TetMesh) -> TransferFunction {
         ],
         // Velocity magnitude: the slow wake behind the post stands out blue,
         // the fast stream around it is faint.
-        "oxygenpost" | "post-small" | "post_small" => &[
+        // Velocity magnitude (flow along +x, freestream ~1.1 = 0.8 of the
+        // range): the no-slip walls (post and floor, ~0) stay clear, the slow
+        // wake behind the post shows blue, the freestream is a faint haze and
+        // the fast flow past the post's flanks (up to 1.39) glows orange.
+        "oxygenpost" => &[
+            (0.00, [0.10, 0.20, 0.60], 0.0),
+            (0.04, [0.10, 0.30, 1.00], 0.0),
+            (0.08, [0.10, 0.40, 1.00], 2.0),
+            (0.30, [0.20, 0.90, 1.00], 8.0),
+            (0.45, [0.30, 1.00, 0.60], 4.0),
+            (0.55, [0.40, 0.80, 0.40], 0.2),
+            (0.91, [0.90, 0.80, 0.30], 0.2),
+            (0.95, [1.00, 0.50, 0.10], 6.0),
+            (1.00, [1.00, 0.20, 0.05], 20.0),
+        ],
+        // Pressure on VTK's small tetrahedral post.
+        "post-small" | "post_small" => &[
             (0.00, [0.10, 0.30, 1.00], 30.0),
             (0.25, [0.20, 0.70, 1.00], 12.0),
             (0.50, [0.30, 0.90, 0.40], 3.0),

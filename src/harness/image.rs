@@ -56,6 +56,21 @@ impl RgbaImage {
         Ok(ImageError { rmse, max_abs: max, psnr_db })
     }
 
+    /// |self - other| per channel, amplified 10x, as an image (alpha = 1).
+    pub fn difference(&self, other: &RgbaImage) -> RgbaImage {
+        let pixels = self
+            .pixels
+            .iter()
+            .zip(&other.pixels)
+            .map(|(a, b)| {
+                let d = |c: usize| (10.0 * (a[c] - b[c]).abs()).min(1.0);
+                let alpha = d(3);
+                [d(0).max(alpha), d(1).max(alpha), d(2).max(alpha), 1.0]
+            })
+            .collect();
+        RgbaImage { width: self.width, height: self.height, pixels }
+    }
+
     /// Write an 8-bit RGB PNG: the premultiplied colour over a black
     /// background. Written to a temporary name first, so a failure leaves no
     /// partial file behind.

@@ -39,17 +39,21 @@ pub fn comparison_table(rows: &[ComparisonRow]) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "| mesh | method | cells | floats/cell | MB/frame | static KB | frame ms median [min, max] | sort | pack | upload | GPU | wait | M cells/s | thesis M tets/s | RMSE vs other |"
+        "| mesh | method | cells | floats/cell | MB/frame | static KB | frame ms median [min, max] | sort | pack | upload | GPU | wait | M cells/s | thesis M tets/s | RMSE vs other | RMSE vs f64 ref | max err |"
     );
-    let _ = writeln!(s, "|---|---|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|");
+    let _ = writeln!(s, "|---|---|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     for row in rows {
         let r = row.result;
         let t = &r.time_ms;
         let published = published_tets_per_second(&r.mesh, r.method).map_or("-".into(), |v| format!("{:.3}", v / 1e6));
         let rmse = row.rmse_vs_other.map_or("-".into(), |v| format!("{v:.2e}"));
+        let (ref_rmse, ref_max) = r
+            .error
+            .as_ref()
+            .map_or(("-".into(), "-".into()), |e| (format!("{:.2e}", e.rmse), format!("{:.2e}", e.max_abs)));
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {:.2} | {:.2} | {:.1} | {:.1} [{:.1}, {:.1}] | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.3} | {} | {} |",
+            "| {} | {} | {} | {:.2} | {:.2} | {:.1} | {:.1} [{:.1}, {:.1}] | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.3} | {} | {} | {} | {} |",
             r.mesh,
             r.method,
             r.cells,
@@ -67,6 +71,8 @@ pub fn comparison_table(rows: &[ComparisonRow]) -> String {
             r.cells_per_second / 1e6,
             published,
             rmse,
+            ref_rmse,
+            ref_max,
         );
     }
     s

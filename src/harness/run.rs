@@ -134,8 +134,45 @@ pub struct RunResult {
     /// Pipeline statistics of the reference-view frame (deterministic).
     pub stats: Option<PipelineStats>,
     pub image: ImageReport,
+    /// The reference-view image against the f64 CPU reference, when asked for.
+    pub error: Option<ErrorReport>,
     pub device: DeviceInfo,
     pub volbench_version: &'static str,
+}
+
+/// Error of an image against the f64 reference (RGBA, values in [0, 1]).
+#[derive(Debug, Clone, Serialize)]
+pub struct ErrorReport {
+    pub rmse: f64,
+    pub max_abs: f64,
+    pub psnr_db: f64,
+    /// What the reference is: renderer, mesh, view, size, transfer function.
+    pub reference: String,
+    /// CPU time the reference took (not part of any frame).
+    pub reference_ms: f64,
+}
+
+/// The f64 reference image of a scene seen by `camera`, as an `RgbaImage`.
+pub fn reference_image(scene: &Scene, camera: &Camera, width: u32, height: u32) -> Result<(RgbaImage, String, f64)> {
+    let start = Instant::now();
+    let r = crate::reference::render_reference(scene.mesh, camera, scene.tf, width, height)
+        .with_context(|| format!("rendering the f64 reference of '{}'", scene.mesh.name))?;
+    let pixels = r.pixels.iter().map(|p| p.map(|c| c as f32)).collect();
+    let what = format!(
+        "f64 CPU ray walk, exact emission-absorption; mesh {}, {}x{}, eye {:?}, tf {}",
+        scene.mesh.name, width, height, camera.eye, scene.tf.name
+    );
+    Ok((RgbaImage { width, height, pixels }, what, ms(start.elapsed())))
+}
+
+impl RunOutput {
+    /// Compare this run's image with a reference image and record the error.
+    pub fn attach_error(&mut self, reference: &RgbaImage, what: &str, reference_ms: f64) -> Result<RgbaImage> {
+        let e = self.image.compare(reference)?;
+        self.result.error =
+            Some(ErrorReport { rmse: e.rmse, max_abs: e.max_abs, psnr_db: e.psnr_db, reference: what.to_string(), reference_ms });
+        Ok(self.image.difference(reference))
+    }
 }
 
 pub struct RunOutput {
@@ -365,6 +402,7 @@ pub fn run_cell_projection(ctx: &Arc<Context>, scene: &Scene, cfg: &RunConfig) -
             non_finite_pixels: image.non_finite_pixels(),
             camera: reference_camera,
         },
+        error: None,
         device: ctx.info.clone(),
         volbench_version: env!("CARGO_PKG_VERSION"),
     };

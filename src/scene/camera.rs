@@ -30,8 +30,11 @@ pub struct Camera {
 }
 
 impl Camera {
-    /// A camera on a circle around the bounds' centre, `angle` radians around the
-    /// y axis from +z, slightly raised, far enough that the whole box fits.
+    /// A camera on a circle around the bounds' centre, `angle` radians around
+    /// the box's thinnest axis (ties: y), raised 25 degrees above the plane of
+    /// the orbit, far enough that the whole box fits. The thinnest axis is
+    /// "up" so that flat domains (the oxygen post's disk, the blunt fin's
+    /// plate) are seen obliquely rather than face-on.
     pub fn orbit(bounds: &Bounds, angle: f64, projection: Projection) -> Camera {
         let c = DVec3::from(bounds.center());
         let r = 0.5 * bounds.diagonal().max(f64::MIN_POSITIVE);
@@ -40,12 +43,21 @@ impl Camera {
             Projection::Orthographic { .. } => 30f64.to_radians(),
         };
         let dist = r / (0.5 * fovy).sin() * 1.05;
-        let elevation = 0.35f64;
-        let dir = DVec3::new(
-            angle.sin() * elevation.cos(),
-            elevation.sin(),
-            angle.cos() * elevation.cos(),
-        );
+        let extent = DVec3::from(bounds.max) - DVec3::from(bounds.min);
+        let up_axis = if extent.x < extent.y && extent.x < extent.z {
+            0
+        } else if extent.z < extent.y {
+            2
+        } else {
+            1
+        };
+        // (up, the orbit's 0-angle direction, the third axis), right-handed.
+        let axes = [DVec3::X, DVec3::Y, DVec3::Z];
+        let up = axes[up_axis];
+        let a0 = axes[(up_axis + 2) % 3];
+        let a1 = axes[(up_axis + 1) % 3];
+        let elevation = 25f64.to_radians();
+        let dir = (a0 * angle.cos() + a1 * angle.sin()) * elevation.cos() + up * elevation.sin();
         let eye = c + dir * dist;
         let projection = match projection {
             Projection::Orthographic { .. } => Projection::Orthographic { height: 2.1 * r },
@@ -54,7 +66,7 @@ impl Camera {
         Camera {
             eye: eye.into(),
             target: c.into(),
-            up: [0.0, 1.0, 0.0],
+            up: up.into(),
             projection,
             near: (dist - r * 1.01).max(dist * 1e-3),
             far: dist + r * 1.01,

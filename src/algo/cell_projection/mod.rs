@@ -92,6 +92,10 @@ pub const FACES: [[usize; 3]; 4] = [[0, 1, 2], [1, 3, 2], [2, 3, 0], [3, 1, 0]];
 /// errors. 1e3 keeps that rounding below 1e-4 diagonals.
 pub const DISTANCE_CLAMP_DIAGONALS: f64 = 1e3;
 
+/// Bound on |u| = |h/e| for exact perspective interpolation (the same
+/// constant as in `shaders/common/frame.glsl`, which explains it).
+pub const PLANE_RATIO_MAX: f32 = 1e3;
+
 /// Push constants shared by every cell-projection shader (`common/frame.glsl`).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -180,7 +184,7 @@ impl FrameSetup {
     #[inline]
     pub fn perspective_plane_ratio(plane3: [f32; 3], rel: [f32; 3]) -> f32 {
         let nr = plane3[0] * rel[0] + plane3[1] * rel[1] + plane3[2] * rel[2];
-        (1.0 / (1.0 - nr)).clamp(-1e30, 1e30)
+        (1.0 / (1.0 - nr)).clamp(-PLANE_RATIO_MAX, PLANE_RATIO_MAX)
     }
 
     /// Whether vertex records carry the exact-perspective quantities.
