@@ -83,7 +83,7 @@ fn cpu_paths(c: &mut Criterion) {
         group.throughput(Throughput::Bytes((n * balanced::FLOATS_PER_CELL * 4) as u64));
         let cells = cells_f32(&mesh, &geometry);
         let order: Vec<u32> = sorter.sort(&camera).to_vec();
-        let setup = FrameSetup::for_camera(&camera, mesh.bounds().diagonal(), Interpolation::Paper);
+        let setup = FrameSetup::for_camera(&camera, mesh.bounds().diagonal(), Interpolation::Paper, &Default::default());
         let mut out = vec![0f32; n * balanced::FLOATS_PER_CELL];
         group.bench_function("intersect_back_face", |b| {
             b.iter(|| {

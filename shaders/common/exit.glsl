@@ -12,6 +12,15 @@
 // ratio d[k]/w[k] = t_k exactly, so sign(d[k] * w[k]) tells an exit plane
 // (t_k > 0) from an entry plane whatever the rounding, and an exit plane's
 // distance is clamped at 0. Build with PAPER_EXIT_RULE for the paper's rule.
+// llvmpipe interpolates each attribute from its own plane equation, so for
+// values within rounding of 0 the signs of d[k] and w[k] can disagree; a plane
+// with |lambda_k| < limits.z (edge epsilon) passes through the fragment's ray to within
+// rounding and counts as an exit at distance 0. Near an edge shared by two
+// entry faces that loses one cell's contribution to a pixel (at most ~1e-5 of
+// a face's area); choosing the next plane instead could add a whole cell, or
+// with a nearly edge-on plane many (bright specks). The plane of the face
+// being drawn (balanced) has w = 0 exactly at all three vertices, hence
+// exactly 0 everywhere, and is never an exit.
 //
 // With EXACT_PERSPECTIVE under perspective, d[k] interpolates lambda_k * u_k
 // instead (see perspective_plane_ratio): the plane is met at
@@ -19,6 +28,11 @@
 // i.e. 0 < d[k] < 1; the exit distance is (mu - 1) |p - eye| and the scalar
 // there s_f + (mu - 1) g.(p - eye), with g.(p - eye) = g_rel interpolated
 // (affine, so exact too).
+
+// Plane k bounds the segment: an exit plane, or one through the fragment.
+bool exit_candidate(float d, float w) {
+    return d * w > 0.0 || (w != 0.0 && abs(w) < frame.limits.z);
+}
 
 bool exit_point(EXIT_VEC d, EXIT_VEC s, EXIT_VEC w, float s_front, float g_rel, vec3 rel,
                 out float len, out float s_back) {
@@ -29,7 +43,7 @@ bool exit_point(EXIT_VEC d, EXIT_VEC s, EXIT_VEC w, float s_front, float g_rel, 
     if (frame.eye.w > 0.5) {
         float r = length(rel);
         for (int k = 0; k < EXIT_N; ++k) {
-            bool is_exit = d[k] * w[k] > 0.0 && d[k] < 1.0;
+            bool is_exit = exit_candidate(d[k], w[k]) && d[k] < 1.0;
             float u = max(d[k], 0.0);
             float mu_minus_1 = u / (1.0 - u);
             float dk = mu_minus_1 * r;
@@ -47,7 +61,7 @@ bool exit_point(EXIT_VEC d, EXIT_VEC s, EXIT_VEC w, float s_front, float g_rel, 
         bool is_exit = d[k] > 0.0;
         float dk = d[k];
 #else
-        bool is_exit = d[k] * w[k] > 0.0;
+        bool is_exit = exit_candidate(d[k], w[k]);
         float dk = max(d[k], 0.0);
 #endif
         if (is_exit && dk < len) {

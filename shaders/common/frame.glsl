@@ -4,7 +4,7 @@ layout(push_constant) uniform Frame {
     vec4 eye;         // xyz: eye position (world); w: 1 perspective, 0 orthographic
     vec4 view_dir;    // xyz: unit viewing direction (orthographic rays)
     vec4 tf_range;    // x: lowest tabulated scalar, y: 1/(highest - lowest), z: TF entries, w: Psi table side
-    vec4 limits;      // x: clamp for ray-plane distances (a few mesh diagonals)
+    vec4 limits;      // x: clamp for ray-plane distances, y: clamp for |u|, z: edge epsilon (ExitTolerances)
 } frame;
 
 // The viewing ray's unit direction through a world-space point.
@@ -30,10 +30,9 @@ float distance_to_opposite_plane(vec3 plane3, vec3 dir) {
 // |u| is large only when the eye is nearly in the plane (seen edge-on); the
 // plane can then be an exit only where lambda_v < 1/u, next to an edge, and
 // rasterizer rounding of lambda_v (~1e-7) times a huge u would turn into
-// whole-cell errors (specks). Clamping |u| at PLANE_RATIO_MAX bounds that
-// noise to ~1e-4 of the eye distance, at the cost of a shortened exit in the
-// sliver lambda_v < 1/u (and no inf * 0 = NaN when the eye is on the plane).
-const float PLANE_RATIO_MAX = 1e3;
+// whole-cell errors (specks). Clamping |u| (limits.y) bounds that noise, at
+// the cost of a shortened exit in the sliver lambda_v < 1/u (and no
+// inf * 0 = NaN when the eye is on the plane).
 float perspective_plane_ratio(vec3 plane3, vec3 rel) {
-    return clamp(1.0 / (1.0 - dot(plane3, rel)), -PLANE_RATIO_MAX, PLANE_RATIO_MAX);
+    return clamp(1.0 / (1.0 - dot(plane3, rel)), -frame.limits.y, frame.limits.y);
 }

@@ -14,7 +14,7 @@ use serde::Serialize;
 
 use super::image::RgbaImage;
 use super::stats::Summary;
-use crate::algo::cell_projection::{self, sort::CentroidSort, CellProjector, FrameSetup, Interpolation, Method};
+use crate::algo::cell_projection::{self, sort::CentroidSort, CellProjector, ExitTolerances, FrameSetup, Interpolation, Method};
 use crate::algo::integrate::IntegrationTables;
 use crate::mesh::{MeshStats, TetGeometry, TetMesh};
 use crate::scene::{Camera, Projection, TransferFunction};
@@ -24,6 +24,7 @@ use crate::vk::{CommandRecorder, Context, DeviceInfo, FrameQueries, Image, Pipel
 pub struct RunConfig {
     pub method: Method,
     pub interpolation: Interpolation,
+    pub tolerances: ExitTolerances,
     pub width: u32,
     pub height: u32,
     pub frames: usize,
@@ -40,6 +41,7 @@ impl RunConfig {
         RunConfig {
             method,
             interpolation: Interpolation::Paper,
+            tolerances: ExitTolerances::default(),
             width: 512,
             height: 512,
             frames: 10,
@@ -117,6 +119,7 @@ pub struct ImageReport {
 pub struct RunResult {
     pub method: &'static str,
     pub interpolation: &'static str,
+    pub tolerances: ExitTolerances,
     pub mesh: String,
     pub cells: usize,
     pub points: usize,
@@ -217,6 +220,7 @@ pub struct CellProjectionSession {
     sorter: CentroidSort,
     diagonal: f64,
     interpolation: Interpolation,
+    pub tolerances: ExitTolerances,
     width: u32,
     height: u32,
     /// One-time uploads made while building the session.
@@ -254,6 +258,7 @@ impl CellProjectionSession {
             sorter,
             diagonal: mesh.bounds().diagonal(),
             interpolation,
+            tolerances: ExitTolerances::default(),
             width,
             height,
             setup_counter,
@@ -272,7 +277,7 @@ impl CellProjectionSession {
     /// Sort, pack, upload, draw and wait for one frame seen by `camera`;
     /// bytes crossing to the device are added to `counter`.
     pub fn frame(&mut self, camera: &Camera, counter: &mut UploadCounter) -> Result<(FrameTiming, Option<PipelineStats>)> {
-        let setup = FrameSetup::new(camera, self.width, self.height, &self.tables, self.diagonal, self.interpolation);
+        let setup = FrameSetup::new(camera, self.width, self.height, &self.tables, self.diagonal, self.interpolation, &self.tolerances);
         let t0 = Instant::now();
         let order = self.sorter.sort(camera);
         let t1 = Instant::now();
@@ -329,6 +334,7 @@ pub fn run_cell_projection(ctx: &Arc<Context>, scene: &Scene, cfg: &RunConfig) -
     anyhow::ensure!(cfg.frames > 0, "--frames must be at least 1");
     let mesh = scene.mesh;
     let mut session = CellProjectionSession::new(ctx, scene, cfg.method, cfg.interpolation, cfg.width, cfg.height)?;
+    session.tolerances = cfg.tolerances;
     let bounds = mesh.bounds();
     let mut counter = UploadCounter::default();
     let mut samples = FrameSamples::default();
@@ -382,6 +388,7 @@ pub fn run_cell_projection(ctx: &Arc<Context>, scene: &Scene, cfg: &RunConfig) -
     let result = RunResult {
         method: cfg.method.name(),
         interpolation: cfg.interpolation.name(),
+        tolerances: cfg.tolerances,
         mesh: mesh.name.clone(),
         cells,
         points: mesh.points.len(),

@@ -55,7 +55,7 @@ pub fn cell_records(c: &CellF32, frame: &FrameSetup, out: &mut [f32]) {
         for i in 0..4 {
             let p = c.pos[i];
             let rel = [p[0] - e[0], p[1] - e[1], p[2] - e[2]];
-            let u = FrameSetup::perspective_plane_ratio(c.plane3[i], rel);
+            let u = frame.perspective_plane_ratio(c.plane3[i], rel);
             let g = c.gradient;
             let g_rel = g[0] * rel[0] + g[1] * rel[1] + g[2] * rel[2];
             out[i * 7..i * 7 + 7].copy_from_slice(&[p[0], p[1], p[2], u, c.scalar[i], g_rel, i as f32]);

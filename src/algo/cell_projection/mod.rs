@@ -83,18 +83,27 @@ pub const ENTRY_FACE_WINDING: raw::FrontFace = raw::FrontFace::CLOCKWISE;
 /// (3,1,0) opposite 2.
 pub const FACES: [[usize; 3]; 4] = [[0, 1, 2], [1, 3, 2], [2, 3, 0], [3, 1, 0]];
 
-/// Ray-plane distances at the vertices are clamped to this many mesh
-/// diagonals. Only a plane within ~1/CLAMP radians of parallel to the ray gets
-/// there; a real exit is never farther than one diagonal, and across a face
-/// the interpolated distance is lambda * t, so a tighter clamp (a few
-/// diagonals) visibly shortens exits through nearly parallel faces, while an
-/// unbounded one lets f32 rounding of lambda (~1e-7) grow into whole-cell
-/// errors. 1e3 keeps that rounding below 1e-4 diagonals.
-pub const DISTANCE_CLAMP_DIAGONALS: f64 = 1e3;
+/// Run-time tolerances of the exit-plane choice (push constants), named and
+/// recorded with results. Why each exists is explained in
+/// `shaders/common/frame.glsl` and `shaders/common/exit.glsl`; the defaults
+/// come from the sweep in the README (error against the f64 reference).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ExitTolerances {
+    /// |ray-plane distance| at a vertex is clamped to this many mesh diagonals
+    /// (`paper` interpolation).
+    pub distance_clamp_diagonals: f64,
+    /// |u| = |h/e| is clamped to this (`exact` interpolation).
+    pub plane_ratio_max: f32,
+    /// A plane whose interpolated barycentric weight is below this counts as
+    /// passing through the fragment (exit at distance 0).
+    pub edge_eps: f32,
+}
 
-/// Bound on |u| = |h/e| for exact perspective interpolation (the same
-/// constant as in `shaders/common/frame.glsl`, which explains it).
-pub const PLANE_RATIO_MAX: f32 = 1e3;
+impl Default for ExitTolerances {
+    fn default() -> Self {
+        ExitTolerances { distance_clamp_diagonals: 1e3, plane_ratio_max: 1e3, edge_eps: 1e-5 }
+    }
+}
 
 /// Push constants shared by every cell-projection shader (`common/frame.glsl`).
 #[repr(C)]
@@ -114,8 +123,10 @@ pub struct FrameSetup {
     pub eye: [f32; 3],
     pub view_dir: [f32; 3],
     pub perspective: bool,
-    /// Bound on |ray-plane distance| (see `DISTANCE_CLAMP_DIAGONALS`).
+    /// Bound on |ray-plane distance| (see `ExitTolerances`).
     pub max_distance: f32,
+    /// Bound on |u| (see `ExitTolerances`).
+    pub plane_ratio_max: f32,
     pub interpolation: Interpolation,
 }
 
@@ -127,8 +138,9 @@ impl FrameSetup {
         tables: &IntegrationTables,
         mesh_diagonal: f64,
         interpolation: Interpolation,
+        tolerances: &ExitTolerances,
     ) -> Self {
-        let mut setup = Self::for_camera(camera, mesh_diagonal, interpolation);
+        let mut setup = Self::for_camera(camera, mesh_diagonal, interpolation, tolerances);
         let vp = camera.view_proj(width, height).to_cols_array_2d();
         let (lo, hi) = tables.tf_range;
         let (e, v) = (setup.eye, setup.view_dir);
@@ -137,21 +149,27 @@ impl FrameSetup {
             eye: [e[0], e[1], e[2], if setup.perspective { 1.0 } else { 0.0 }],
             view_dir: [v[0], v[1], v[2], 0.0],
             tf_range: [lo as f32, (1.0 / (hi - lo)) as f32, tables.tf_size as f32, tables.psi_size as f32],
-            limits: [setup.max_distance, 0.0, 0.0, 0.0],
+            limits: [setup.max_distance, setup.plane_ratio_max, tolerances.edge_eps, 0.0],
         };
         setup
     }
 
     /// The CPU side only (what the balanced method's packing reads); the
     /// shader constants are left zero.
-    pub fn for_camera(camera: &Camera, mesh_diagonal: f64, interpolation: Interpolation) -> Self {
+    pub fn for_camera(
+        camera: &Camera,
+        mesh_diagonal: f64,
+        interpolation: Interpolation,
+        tolerances: &ExitTolerances,
+    ) -> Self {
         let f = camera.forward();
         FrameSetup {
             constants: bytemuck::Zeroable::zeroed(),
             eye: camera.eye.map(|v| v as f32),
             view_dir: [f.x as f32, f.y as f32, f.z as f32],
             perspective: camera.is_perspective(),
-            max_distance: (DISTANCE_CLAMP_DIAGONALS * mesh_diagonal).max(1e-30) as f32,
+            max_distance: (tolerances.distance_clamp_diagonals * mesh_diagonal).max(1e-30) as f32,
+            plane_ratio_max: tolerances.plane_ratio_max,
             interpolation,
         }
     }
@@ -182,9 +200,9 @@ impl FrameSetup {
     /// Exact perspective: the plane ratio u = h/e (same rule as
     /// `perspective_plane_ratio` in the shaders) for vertex offset `rel` = v - eye.
     #[inline]
-    pub fn perspective_plane_ratio(plane3: [f32; 3], rel: [f32; 3]) -> f32 {
+    pub fn perspective_plane_ratio(&self, plane3: [f32; 3], rel: [f32; 3]) -> f32 {
         let nr = plane3[0] * rel[0] + plane3[1] * rel[1] + plane3[2] * rel[2];
-        (1.0 / (1.0 - nr)).clamp(-PLANE_RATIO_MAX, PLANE_RATIO_MAX)
+        (1.0 / (1.0 - nr)).clamp(-self.plane_ratio_max, self.plane_ratio_max)
     }
 
     /// Whether vertex records carry the exact-perspective quantities.
