@@ -63,6 +63,9 @@ struct FrameArgs {
     /// How exit data crosses a face under perspective: as the papers do, or exactly.
     #[arg(long, value_enum, default_value = "paper")]
     interpolation: Interpolation,
+    /// Run each frame's phases strictly one after another (no CPU/device overlap).
+    #[arg(long)]
+    no_overlap: bool,
 }
 
 #[derive(Args)]
@@ -124,6 +127,7 @@ impl FrameArgs {
         cfg.warmup = self.warmup;
         cfg.orbit_step = self.orbit_step.to_radians();
         cfg.interpolation = self.interpolation;
+        cfg.overlap = !self.no_overlap;
         cfg.projection = match self.projection {
             ProjectionArg::Perspective => Projection::Perspective { fovy_deg: 30.0 },
             ProjectionArg::Orthographic => Projection::Orthographic { height: 1.0 },

@@ -34,6 +34,8 @@ pub struct RunConfig {
     pub orbit_step: f64,
     /// A camera used for every frame instead of the orbit (tests, stills).
     pub fixed_camera: Option<Camera>,
+    /// Prepare frame N+1 on the CPU while the device draws frame N.
+    pub overlap: bool,
 }
 
 impl RunConfig {
@@ -49,6 +51,7 @@ impl RunConfig {
             projection: Projection::Perspective { fovy_deg: 30.0 },
             orbit_step: 5f64.to_radians(),
             fixed_camera: None,
+            overlap: true,
         }
     }
 
@@ -130,6 +133,8 @@ pub struct RunResult {
     pub warmup: usize,
     pub projection: Projection,
     pub orbit_step_deg: f64,
+    /// CPU work of frame N+1 overlapped with the device's frame N.
+    pub overlap: bool,
     pub transfer_function: String,
     pub upload: UploadReport,
     pub time_ms: TimeReport,
@@ -221,6 +226,8 @@ pub struct CellProjectionSession {
     diagonal: f64,
     interpolation: Interpolation,
     pub tolerances: ExitTolerances,
+    /// The packed frame waiting for `submit`.
+    prepared: Option<FrameSetup>,
     width: u32,
     height: u32,
     /// One-time uploads made while building the session.
@@ -259,6 +266,7 @@ impl CellProjectionSession {
             diagonal: mesh.bounds().diagonal(),
             interpolation,
             tolerances: ExitTolerances::default(),
+            prepared: None,
             width,
             height,
             setup_counter,
@@ -277,14 +285,42 @@ impl CellProjectionSession {
     /// Sort, pack, upload, draw and wait for one frame seen by `camera`;
     /// bytes crossing to the device are added to `counter`.
     pub fn frame(&mut self, camera: &Camera, counter: &mut UploadCounter) -> Result<(FrameTiming, Option<PipelineStats>)> {
-        let setup = FrameSetup::new(camera, self.width, self.height, &self.tables, self.diagonal, self.interpolation, &self.tolerances);
+        let t0 = Instant::now();
+        let mut timing = self.prepare(camera);
+        self.submit(counter, &mut timing)?;
+        let stats = self.wait(&mut timing)?;
+        timing.frame = ms(t0.elapsed());
+        Ok((timing, stats))
+    }
+
+    /// The CPU half of a frame: sort and pack (the device may still be
+    /// drawing the previous frame: packing writes host memory only).
+    pub fn prepare(&mut self, camera: &Camera) -> FrameTiming {
+        let setup = FrameSetup::new(
+            camera,
+            self.width,
+            self.height,
+            &self.tables,
+            self.diagonal,
+            self.interpolation,
+            &self.tolerances,
+        );
         let t0 = Instant::now();
         let order = self.sorter.sort(camera);
         let t1 = Instant::now();
         self.method.pack(order, &setup);
         let t2 = Instant::now();
+        self.prepared = Some(setup);
+        FrameTiming { sort: ms(t1 - t0), pack: ms(t2 - t1), ..FrameTiming::default() }
+    }
+
+    /// Upload the prepared frame, record and submit it (no wait). The
+    /// previous submission must have been waited for.
+    pub fn submit(&mut self, counter: &mut UploadCounter, timing: &mut FrameTiming) -> Result<()> {
+        let setup = self.prepared.take().context("submit without a prepared frame")?;
+        let t0 = Instant::now();
         self.method.upload(counter).context("uploading vertex records")?;
-        let t3 = Instant::now();
+        let t1 = Instant::now();
         let rec = &self.recorder;
         rec.begin()?;
         self.queries.reset(rec);
@@ -293,21 +329,49 @@ impl CellProjectionSession {
         self.method.record_draw(rec, &self.tables, &setup, counter);
         self.queries.end(rec);
         rec.end_rendering();
-        let t4 = Instant::now();
-        let submit = rec.submit_and_wait()?;
-        let t5 = Instant::now();
+        let t2 = Instant::now();
+        timing.upload = ms(t1 - t0);
+        timing.record = ms(t2 - t1);
+        timing.submit = ms(rec.submit()?);
+        Ok(())
+    }
+
+    /// Wait for the submitted frame and read its GPU time and statistics.
+    pub fn wait(&mut self, timing: &mut FrameTiming) -> Result<Option<PipelineStats>> {
+        timing.wait = ms(self.recorder.wait()?);
         let (gpu, stats) = self.queries.results()?;
-        let timing = FrameTiming {
-            sort: ms(t1 - t0),
-            pack: ms(t2 - t1),
-            upload: ms(t3 - t2),
-            record: ms(t4 - t3),
-            submit: ms(submit.submit),
-            wait: ms(submit.wait),
-            frame: ms(t5 - t0),
-            gpu,
-        };
-        Ok((timing, stats))
+        timing.gpu = gpu;
+        Ok(stats)
+    }
+
+    /// Run `cameras` with the CPU half of each frame overlapping the device's
+    /// work on the previous one (what "balanced" means on a real GPU; on
+    /// lavapipe the device's vertex stage and binning run on one core and
+    /// leave the other free). Each returned `frame` time is the interval
+    /// between consecutive frame completions, i.e. steady-state throughput.
+    pub fn run_overlapped(&mut self, cameras: &[Camera], counter: &mut UploadCounter) -> Result<Vec<(FrameTiming, UploadCounter)>> {
+        let mut out = Vec::with_capacity(cameras.len());
+        let Some(first) = cameras.first() else { return Ok(out) };
+        let mut last_done = Instant::now();
+        let mut current = self.prepare(first);
+        let mut before = *counter;
+        self.submit(counter, &mut current)?;
+        let mut bytes = counter.since(&before);
+        for next in cameras.iter().skip(1).map(Some).chain(std::iter::once(None)) {
+            let prepared = next.map(|c| self.prepare(c));
+            self.wait(&mut current).context("waiting for a frame")?;
+            let done = Instant::now();
+            current.frame = ms(done - last_done);
+            last_done = done;
+            out.push((current, bytes));
+            if let Some(p) = prepared {
+                current = p;
+                before = *counter;
+                self.submit(counter, &mut current)?;
+                bytes = counter.since(&before);
+            }
+        }
+        Ok(out)
     }
 
     /// The last frame's image.
@@ -340,12 +404,22 @@ pub fn run_cell_projection(ctx: &Arc<Context>, scene: &Scene, cfg: &RunConfig) -
     let mut samples = FrameSamples::default();
     let mut last_frame_counters = UploadCounter::default();
 
-    for f in 0..cfg.warmup + cfg.frames {
-        let before = counter;
-        let (timing, _) = session.frame(&cfg.camera(&bounds, f), &mut counter).with_context(|| format!("frame {f}"))?;
-        if f >= cfg.warmup {
-            samples.push(&timing);
-            last_frame_counters = counter.since(&before);
+    if cfg.overlap {
+        let cameras: Vec<Camera> = (0..cfg.warmup + cfg.frames).map(|f| cfg.camera(&bounds, f)).collect();
+        for (f, (timing, bytes)) in session.run_overlapped(&cameras, &mut counter)?.into_iter().enumerate() {
+            if f >= cfg.warmup {
+                samples.push(&timing);
+                last_frame_counters = bytes;
+            }
+        }
+    } else {
+        for f in 0..cfg.warmup + cfg.frames {
+            let before = counter;
+            let (timing, _) = session.frame(&cfg.camera(&bounds, f), &mut counter).with_context(|| format!("frame {f}"))?;
+            if f >= cfg.warmup {
+                samples.push(&timing);
+                last_frame_counters = counter.since(&before);
+            }
         }
     }
     // The reference view, untimed: its image and statistics are reported.
@@ -399,6 +473,7 @@ pub fn run_cell_projection(ctx: &Arc<Context>, scene: &Scene, cfg: &RunConfig) -
         warmup: cfg.warmup,
         projection: reference_camera.projection,
         orbit_step_deg: cfg.orbit_step.to_degrees(),
+        overlap: cfg.overlap,
         transfer_function: scene.tf.name.clone(),
         upload,
         time_ms,

@@ -57,6 +57,14 @@ impl CommandRecorder {
 
     /// End recording, submit, and wait for completion.
     pub fn submit_and_wait(&self) -> VkResult<SubmitTiming> {
+        let submit = self.submit()?;
+        let wait = self.wait()?;
+        Ok(SubmitTiming { submit, wait })
+    }
+
+    /// End recording and submit without waiting; returns the time
+    /// vkQueueSubmit took. Call `wait` before recording again.
+    pub fn submit(&self) -> VkResult<Duration> {
         let d = &self.ctx.device;
         unsafe {
             d.end_command_buffer(self.raw).check("vkEndCommandBuffer")?;
@@ -65,11 +73,15 @@ impl CommandRecorder {
             let submit = [vk::SubmitInfo::default().command_buffers(&cmds)];
             let t0 = Instant::now();
             d.queue_submit(self.ctx.queue, &submit, self.fence).check("vkQueueSubmit")?;
-            let t1 = Instant::now();
-            d.wait_for_fences(&[self.fence], true, u64::MAX).check("vkWaitForFences")?;
-            let t2 = Instant::now();
-            Ok(SubmitTiming { submit: t1 - t0, wait: t2 - t1 })
+            Ok(t0.elapsed())
         }
+    }
+
+    /// Block until the last submission has finished; returns the time blocked.
+    pub fn wait(&self) -> VkResult<Duration> {
+        let t0 = Instant::now();
+        unsafe { self.ctx.device.wait_for_fences(&[self.fence], true, u64::MAX) }.check("vkWaitForFences")?;
+        Ok(t0.elapsed())
     }
 
     /// Record a buffer-to-buffer copy from host-visible `src` and count its
