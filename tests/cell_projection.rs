@@ -43,7 +43,8 @@ fn small_config(method: Method, size: u32) -> RunConfig {
     cfg
 }
 
-const TABLE_BYTES: u64 = (TF_TABLE_SIZE * 16 + PSI_TABLE_SIZE * PSI_TABLE_SIZE * 4) as u64;
+// The TF table (vec4 per entry) and the Psi table as 4-corner quads per cell.
+const TABLE_BYTES: u64 = (TF_TABLE_SIZE * 16 + (PSI_TABLE_SIZE - 1) * (PSI_TABLE_SIZE - 1) * 16) as u64;
 const PUSH_CONSTANT_BYTES: u64 = 128;
 
 #[test]

@@ -8,7 +8,7 @@
 // Output is premultiplied RGBA for back-to-front "over" blending.
 
 layout(std430, set = 0, binding = 0) readonly buffer TransferTable { vec4 tf[]; };   // rgb = L, a = tau
-layout(std430, set = 0, binding = 1) readonly buffer PsiTable { float psi[]; };    // [back][front]
+layout(std430, set = 0, binding = 1) readonly buffer PsiTable { vec4 psi[]; };     // cell corners, [back][front]
 
 vec4 transfer(float s) {
     float n = frame.tf_range.z;
@@ -23,11 +23,9 @@ float psi_lookup(float gamma_f, float gamma_b) {
     vec2 x = clamp(vec2(gamma_f, gamma_b), 0.0, 1.0) * (m - 1.0);
     vec2 i = min(floor(x), vec2(m - 2.0));
     vec2 f = x - i;
-    int row = int(i.y) * int(m) + int(i.x);
-    int next = row + int(m);
-    float lo = mix(psi[row], psi[row + 1], f.x);
-    float hi = mix(psi[next], psi[next + 1], f.x);
-    return mix(lo, hi, f.y);
+    vec4 q = psi[int(i.y) * int(m - 1.0) + int(i.x)];  // (f0b0, f1b0, f0b1, f1b1)
+    vec2 along_f = mix(q.xz, q.yw, f.x);
+    return mix(along_f.x, along_f.y, f.y);
 }
 
 vec4 integrate_segment(float s_front, float s_back, float len) {

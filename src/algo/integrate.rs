@@ -41,6 +41,21 @@ pub fn psi_table(m: usize) -> Vec<f32> {
     out
 }
 
+/// The Psi table as the shader reads it: for each of the (m-1)^2 grid cells
+/// the values at its 4 corners (f0b0, f1b0, f0b1, f1b1) in one vec4, so that a
+/// bilinear lookup is one load instead of four (loads are gathers on a
+/// software rasterizer, the most expensive part of the lookup).
+pub fn psi_quads(table: &[f32], m: usize) -> Vec<[f32; 4]> {
+    let mut out = Vec::with_capacity((m - 1) * (m - 1));
+    for jb in 0..m - 1 {
+        for jf in 0..m - 1 {
+            let at = |b: usize, f: usize| table[b * m + f];
+            out.push([at(jb, jf), at(jb, jf + 1), at(jb + 1, jf), at(jb + 1, jf + 1)]);
+        }
+    }
+    out
+}
+
 /// The integration tables on the device and the descriptor set that binds
 /// them (binding 0: transfer function, binding 1: Psi).
 pub struct IntegrationTables {
@@ -59,7 +74,7 @@ impl IntegrationTables {
         let t0 = std::time::Instant::now();
         let (lo, hi) = if range.1 > range.0 { range } else { (range.0, range.0 + 1.0) };
         let tf_table = tf.table(TF_TABLE_SIZE, lo, hi);
-        let psi = psi_table(PSI_TABLE_SIZE);
+        let psi = psi_quads(&psi_table(PSI_TABLE_SIZE), PSI_TABLE_SIZE);
         let build_ms = t0.elapsed().as_secs_f64() * 1e3;
         let usage = raw::BufferUsageFlags::STORAGE_BUFFER;
         let tf_buf = upload_static(ctx, "transfer function table", bytemuck::cast_slice(&tf_table), usage, counter)?;
@@ -72,6 +87,16 @@ impl IntegrationTables {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn psi_quads_hold_each_cells_corners() {
+        let m = 5;
+        let table: Vec<f32> = (0..m * m).map(|v| v as f32).collect();
+        let q = psi_quads(&table, m);
+        assert_eq!(q.len(), (m - 1) * (m - 1));
+        // cell (back 2, front 1): corners (2,1), (2,2), (3,1), (3,2)
+        assert_eq!(q[2 * (m - 1) + 1], [11.0, 12.0, 16.0, 17.0]);
+    }
 
     #[test]
     fn psi_table_corners() {

@@ -1,0 +1,74 @@
+//! The command line end to end: clear errors and exit codes, and a small run
+//! whose JSON carries the documented fields.
+
+use std::process::Command;
+
+fn volbench() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_volbench"))
+}
+
+#[test]
+fn no_driver_is_a_clear_error() {
+    let out = volbench().arg("info").env("VK_DRIVER_FILES", "/nonexistent").env("VK_ICD_FILENAMES", "/nonexistent").output().unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("no Vulkan driver"), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+}
+
+#[test]
+fn unknown_device_lists_the_available_ones() {
+    let out = volbench().args(["--device", "no-such-gpu", "info"]).output().unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("no Vulkan device matches 'no-such-gpu'") && err.contains("llvmpipe"), "{err}");
+}
+
+#[test]
+fn invalid_arguments_name_the_argument() {
+    for (args, needle) in [
+        (vec!["run", "--mesh", "post-small", "--method", "balanced", "--size", "0x5"], "--size"),
+        (vec!["run", "--mesh", "post-small", "--method", "nope"], "--method"),
+        (vec!["run", "--mesh", "post-small", "--method", "vicp", "--frames", "0"], "--frames"),
+        (vec!["run", "--mesh", "no/such/file.vtk", "--method", "vicp"], "no/such/file.vtk"),
+    ] {
+        let out = volbench().args(&args).output().unwrap();
+        assert_ne!(out.status.code(), Some(0), "{args:?}");
+        assert_ne!(out.status.code(), Some(101), "{args:?} panicked");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(needle), "{args:?}: {err}");
+    }
+}
+
+#[test]
+fn run_writes_the_documented_json() {
+    let dir = tempfile::tempdir().unwrap();
+    let (json, png) = (dir.path().join("r.json"), dir.path().join("r.png"));
+    let out = volbench()
+        .args(["run", "--mesh", "post-small", "--method", "balanced", "--size", "64x48", "--frames", "2", "--warmup", "1"])
+        .arg("--json")
+        .arg(&json)
+        .arg("--png")
+        .arg(&png)
+        .arg("--reference")
+        .env("VOLBENCH_VALIDATION", "1")
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    for path in [
+        "/method", "/mesh", "/cells", "/width", "/height", "/frames",
+        "/upload/bytes_per_frame", "/upload/bytes_per_cell", "/upload/floats_per_cell", "/upload/static_bytes",
+        "/time_ms/frame/median", "/time_ms/frame/min", "/time_ms/frame/max", "/time_ms/gpu/median",
+        "/time_ms/sort/median", "/time_ms/pack/median", "/cells_per_second",
+        "/stats/vertex_invocations", "/stats/fragment_invocations", "/device/name", "/device/driver_info",
+        "/error/rmse", "/error/max_abs", "/error/psnr_db", "/error/reference",
+    ] {
+        assert!(v.pointer(path).is_some(), "missing {path}");
+    }
+    assert_eq!(v["method"], "balanced");
+    assert_eq!(v["mesh"], "post-small");
+    assert_eq!(v["upload"]["floats_per_cell"], 28.0);
+    assert_eq!((v["width"].as_u64(), v["height"].as_u64()), (Some(64), Some(48)));
+    assert!(png.exists());
+}
