@@ -414,3 +414,23 @@ impl Drop for Context {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The validation plumbing itself: an invalid call must be caught and
+    /// turned into an error, or "no validation message" would mean nothing.
+    #[test]
+    fn validation_messages_become_errors() {
+        let ctx = Context::new(&ContextDesc { device: None, validation: true }).expect("a Vulkan device");
+        assert!(ctx.check_validation().is_ok());
+        // A buffer of size 0 violates VUID-VkBufferCreateInfo-size-00912.
+        let info = vk::BufferCreateInfo::default().size(0).usage(vk::BufferUsageFlags::VERTEX_BUFFER);
+        if let Ok(b) = unsafe { ctx.device.create_buffer(&info, None) } {
+            unsafe { ctx.device.destroy_buffer(b, None) };
+        }
+        let err = ctx.check_validation().expect_err("the validation layer must report the zero-sized buffer");
+        assert!(err.to_string().contains("00912") || err.to_string().contains("size"), "{err}");
+    }
+}
