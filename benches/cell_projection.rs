@@ -16,7 +16,7 @@ use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Through
 
 use volbench::algo::cell_projection::{balanced, cells_f32, centroids_f32, sort::CentroidSort, FrameSetup, Interpolation, Method};
 use volbench::harness::datasets;
-use volbench::harness::run::{CellProjectionSession, Scene};
+use volbench::harness::run::{CellProjectionSession, RunConfig, Scene};
 use volbench::mesh::{TetGeometry, TetMesh};
 use volbench::scene::{Camera, Projection};
 use volbench::vk::{Context, ContextDesc, UploadCounter};
@@ -45,7 +45,7 @@ fn frames(c: &mut Criterion) {
             group.sample_size(10).warm_up_time(Duration::from_secs(2)).measurement_time(Duration::from_secs(8));
             group.throughput(Throughput::Elements(mesh.tets.len() as u64));
             for method in [Method::Vicp, Method::Balanced] {
-                let mut session = CellProjectionSession::new(&ctx, &scene, method, Interpolation::Paper, SIZE, SIZE).expect("session");
+                let mut session = CellProjectionSession::new(&ctx, &scene, &{ let mut c = RunConfig::new(method); c.width = SIZE; c.height = SIZE; c }).expect("session");
                 let mut counter = UploadCounter::default();
                 let mut frame_no = 0u64;
                 group.bench_function(BenchmarkId::from_parameter(method.name()), |b| {

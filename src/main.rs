@@ -8,6 +8,7 @@ use anyhow::{bail, Context as _, Result};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
 use volbench::algo::cell_projection::{Interpolation, Method};
+use volbench::algo::integrate::Integrator;
 use volbench::harness::report::{self, ComparisonRow};
 use volbench::harness::run::{reference_image, run_cell_projection, RunConfig, Scene};
 use volbench::harness::datasets;
@@ -66,6 +67,13 @@ struct FrameArgs {
     /// Run each frame's phases strictly one after another (no CPU/device overlap).
     #[arg(long)]
     no_overlap: bool,
+    /// How the fragment stage integrates each cell's segment.
+    #[arg(long, value_enum, default_value = "ppi")]
+    integrator: Integrator,
+    /// Side of the integrator's table (ppi: Psi table, default 512; preint:
+    /// scalar samples per axis, default 128, with a quarter as many lengths).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(2..=4096))]
+    table_size: Option<u32>,
 }
 
 #[derive(Args)]
@@ -128,6 +136,8 @@ impl FrameArgs {
         cfg.orbit_step = self.orbit_step.to_radians();
         cfg.interpolation = self.interpolation;
         cfg.overlap = !self.no_overlap;
+        cfg.integrator = self.integrator;
+        cfg.table_size = self.table_size.unwrap_or(0) as usize;
         cfg.projection = match self.projection {
             ProjectionArg::Perspective => Projection::Perspective { fovy_deg: 30.0 },
             ProjectionArg::Orthographic => Projection::Orthographic { height: 1.0 },

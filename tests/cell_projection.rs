@@ -230,24 +230,21 @@ fn perspective_cube_error(method: Method, interpolation: Interpolation, edge_eps
 
 /// Under perspective the papers' interpolation of per-vertex distances is an
 /// approximation (SPEC §1): on this close-up cube it is off by several
-/// percent of alpha (measured: RMSE 4.7e-2, max 0.27 for both methods).
+/// percent of alpha (measured: RMSE 5.1e-2, max 0.45 for both methods; exits
+/// it puts farther than the longest cell edge are dropped).
 /// The bound only documents that magnitude; the exact interpolation below is
 /// the one held to a tight bound.
 #[test]
 fn homogeneous_cube_under_perspective_paper_interpolation() {
     for method in [Method::Vicp, Method::Balanced] {
         let (rmse, max) = perspective_cube_error(method, Interpolation::Paper, ExitTolerances::default().edge_eps);
-        assert!(rmse < 0.06 && max < 0.35, "{method:?}: alpha error rmse {rmse} max {max}");
+        assert!(rmse < 0.07 && max < 0.6, "{method:?}: alpha error rmse {rmse} max {max}");
         assert!(rmse > 1e-3, "{method:?}: the paper's interpolation is not exact under perspective");
     }
 }
 
 /// Exact interpolation under perspective: every covered pixel's alpha
-/// matches 1 - exp(-tau * thickness) to f32 accuracy. The edge epsilon is off
-/// here: in this symmetric view many pixel centres lie exactly on edges shared
-/// by two entry faces, where the default epsilon (a plane through the
-/// fragment counts as an exit at distance 0) drops that cell from the pixel;
-/// the next test bounds that effect.
+/// matches 1 - exp(-tau * thickness) to f32 accuracy.
 #[test]
 fn homogeneous_cube_under_perspective_exact_interpolation() {
     for method in [Method::Vicp, Method::Balanced] {
@@ -256,12 +253,69 @@ fn homogeneous_cube_under_perspective_exact_interpolation() {
     }
 }
 
-/// The default edge epsilon on the same worst case: a few pixels on edges
-/// lose one of the cube's cells (measured: RMSE 1.9e-3, max 0.18).
+/// What the optional edge epsilon costs: in this symmetric view many pixel
+/// centres lie on edges shared by two entry faces, and counting a plane
+/// through the fragment as an exit at distance 0 drops that cell from the
+/// pixel (measured with 1e-5: RMSE 1.9e-3, max 0.18). Hence off by default.
 #[test]
-fn edge_epsilon_costs_little_even_with_pixels_on_edges() {
+fn edge_epsilon_drops_cells_at_pixels_on_edges() {
+    assert_eq!(ExitTolerances::default().edge_eps, 0.0);
     for method in [Method::Vicp, Method::Balanced] {
-        let (rmse, max) = perspective_cube_error(method, Interpolation::Exact, ExitTolerances::default().edge_eps);
+        let (rmse, max) = perspective_cube_error(method, Interpolation::Exact, 1e-5);
+        assert!(max > 1e-2, "{method:?}: expected dropped cells, max error {max}");
         assert!(rmse < 5e-3 && max < 0.25, "{method:?}: alpha error rmse {rmse} max {max}");
     }
+}
+
+/// A linear field through the cube and a transfer function linear in it (no
+/// control point inside the range): colour and attenuation are then linear
+/// along every segment, the case partial pre-integration and the closed form
+/// are exact for. Each integrator against the f64 reference.
+#[test]
+fn integrators_on_a_linear_ramp_against_the_reference() {
+    use volbench::algo::integrate::Integrator;
+    use volbench::scene::ControlPoint;
+    let mut mesh = unit_cube();
+    mesh.scalars = mesh.points.iter().map(|p| p[2] + 0.5 * p[0]).collect();
+    let tf = TransferFunction {
+        name: "ramp".into(),
+        points: vec![
+            ControlPoint { scalar: 0.0, color: [0.1, 0.3, 1.0], attenuation: 0.2 },
+            ControlPoint { scalar: 1.5, color: [1.0, 0.5, 0.0], attenuation: 6.0 },
+        ],
+    };
+    let camera = Camera {
+        eye: [0.45, 0.55, 5.0],
+        target: [0.5, 0.5, 0.0],
+        up: [0.0, 1.0, 0.0],
+        projection: Projection::Orthographic { height: 1.6 },
+        near: 1.0,
+        far: 10.0,
+    };
+    let size = 64;
+    let reference = volbench::reference::render_reference(&mesh, &camera, &tf, size, size).unwrap();
+    let reference = volbench::harness::image::RgbaImage {
+        width: size,
+        height: size,
+        pixels: reference.pixels.iter().map(|p| p.map(|c| c as f32)).collect(),
+    };
+    let mut errors = Vec::new();
+    for integrator in [Integrator::Average, Integrator::Preint, Integrator::Ppi, Integrator::LinearExact] {
+        let mut cfg = small_config(Method::Balanced, size);
+        cfg.fixed_camera = Some(camera);
+        cfg.integrator = integrator;
+        let out = run(&mesh, &tf, &cfg);
+        let e = out.image.compare(&reference).unwrap();
+        errors.push((integrator, e.rmse, e.max_abs));
+    }
+    eprintln!("{errors:?}");
+    let rmse = |i: Integrator| errors.iter().find(|e| e.0 == i).unwrap().1;
+    // Closed form: f32 arithmetic only.
+    assert!(rmse(Integrator::LinearExact) < 2e-5, "{errors:?}");
+    // A 512^2 Psi table: bilinear lookups, ~1e-4.
+    assert!(rmse(Integrator::Ppi) < 5e-4, "{errors:?}");
+    // 128^2 x 32 table with trilinear interpolation.
+    assert!(rmse(Integrator::Preint) < 5e-3, "{errors:?}");
+    // Averaging colour and attenuation is visibly worse on a steep ramp.
+    assert!(rmse(Integrator::Average) > 5.0 * rmse(Integrator::LinearExact), "{errors:?}");
 }

@@ -14,13 +14,19 @@
 // distance is clamped at 0. Build with PAPER_EXIT_RULE for the paper's rule.
 // llvmpipe interpolates each attribute from its own plane equation, so for
 // values within rounding of 0 the signs of d[k] and w[k] can disagree; a plane
-// with |lambda_k| < limits.z (edge epsilon) passes through the fragment's ray to within
+// with |lambda_k| < limits.z (edge epsilon, off by default) passes through the fragment's ray to within
 // rounding and counts as an exit at distance 0. Near an edge shared by two
 // entry faces that loses one cell's contribution to a pixel (at most ~1e-5 of
 // a face's area); choosing the next plane instead could add a whole cell, or
 // with a nearly edge-on plane many (bright specks). The plane of the face
 // being drawn (balanced) has w = 0 exactly at all three vertices, hence
 // exactly 0 everywhere, and is never an exit.
+//
+// Whatever the rule, the same rounding near a nearly edge-on plane can still
+// reject the true exit and accept one far away. No segment through a cell is
+// longer than the mesh's longest cell edge (view_dir.w), so a longer exit
+// distance can only come from such rounding: that fragment contributes
+// nothing rather than an arbitrarily opaque speck.
 //
 // With EXACT_PERSPECTIVE under perspective, d[k] interpolates lambda_k * u_k
 // instead (see perspective_plane_ratio): the plane is met at
@@ -53,7 +59,7 @@ bool exit_point(EXIT_VEC d, EXIT_VEC s, EXIT_VEC w, float s_front, float g_rel, 
                 found = true;
             }
         }
-        return found;
+        return found && len <= frame.view_dir.w;
     }
 #endif
     for (int k = 0; k < EXIT_N; ++k) {
@@ -70,5 +76,5 @@ bool exit_point(EXIT_VEC d, EXIT_VEC s, EXIT_VEC w, float s_front, float g_rel, 
             found = true;
         }
     }
-    return found;
+    return found && len <= frame.view_dir.w;
 }

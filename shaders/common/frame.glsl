@@ -2,9 +2,10 @@
 layout(push_constant) uniform Frame {
     mat4 view_proj;   // world -> Vulkan clip space
     vec4 eye;         // xyz: eye position (world); w: 1 perspective, 0 orthographic
-    vec4 view_dir;    // xyz: unit viewing direction (orthographic rays)
-    vec4 tf_range;    // x: lowest tabulated scalar, y: 1/(highest - lowest), z: TF entries, w: Psi table side
-    vec4 limits;      // x: clamp for ray-plane distances, y: clamp for |u|, z: edge epsilon (ExitTolerances)
+    vec4 view_dir;    // xyz: unit viewing direction (orthographic rays); w: longest cell edge in the mesh
+    vec4 tf_range;    // x: lowest tabulated scalar, y: 1/(highest - lowest), z: TF entries, w: integration table side
+    vec4 limits;      // x: clamp for ray-plane distances, y: clamp for |u|, z: edge epsilon (ExitTolerances),
+                      // w: length scale of the pre-integration table
 } frame;
 
 // The viewing ray's unit direction through a world-space point.

@@ -1,7 +1,10 @@
-//! Tables for ray integration on the GPU, built once on the CPU in f64:
-//! the transfer function sampled for linear lookup, and the partial
-//! pre-integration table Psi(gamma_f, gamma_b) (Moreland & Angel 2004), which
-//! depends on nothing but its resolution.
+//! Ray integration on the GPU: which integrator the fragment stage compiles
+//! in (a build-time parameter, `shaders/common/integrate.glsl`) and the tables
+//! it reads, built once on the CPU in f64: the transfer function sampled for
+//! linear lookup, plus per integrator the partial pre-integration table
+//! Psi(gamma_f, gamma_b) (Moreland & Angel 2004; independent of the transfer
+//! function) or the classic pre-integration table over (s_f, s_b, D) (rebuilt
+//! whenever the transfer function changes).
 
 use std::sync::Arc;
 
@@ -15,6 +18,79 @@ use crate::vk::{upload_static, Buffer, Context, StorageBufferSet, UploadCounter,
 /// range; a 512^2 Psi table keeps per-lookup error near 1e-3 or below.
 pub const TF_TABLE_SIZE: usize = 1024;
 pub const PSI_TABLE_SIZE: usize = 512;
+/// Classic pre-integration: scalar samples per axis (the length axis has a
+/// quarter as many).
+pub const PREINT_TABLE_SIZE: usize = 128;
+
+/// How the fragment stage integrates a segment.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, clap::ValueEnum, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum Integrator {
+    /// Average colour and attenuation (Shirley-Tuchman style): fast, colour bleeding.
+    Average,
+    /// Classic pre-integration: a table over (front scalar, back scalar, length).
+    Preint,
+    /// Partial pre-integration (Moreland & Angel): a Psi table over gamma.
+    #[default]
+    Ppi,
+    /// Linear colour and attenuation, Psi in closed form (erf, Dawson).
+    LinearExact,
+}
+
+impl Integrator {
+    pub fn name(self) -> &'static str {
+        match self {
+            Integrator::Average => "average",
+            Integrator::Preint => "preint",
+            Integrator::Ppi => "ppi",
+            Integrator::LinearExact => "linear-exact",
+        }
+    }
+
+    /// The shader define selecting it (`ppi` is the default branch).
+    pub fn define(self) -> Option<(&'static str, &'static str)> {
+        match self {
+            Integrator::Average => Some(("INTEGRATOR_AVERAGE", "1")),
+            Integrator::Preint => Some(("INTEGRATOR_PREINT", "1")),
+            Integrator::Ppi => None,
+            Integrator::LinearExact => Some(("INTEGRATOR_LINEAR_EXACT", "1")),
+        }
+    }
+
+    /// The table side used when none is asked for (0: no table).
+    pub fn default_table_size(self) -> usize {
+        match self {
+            Integrator::Preint => PREINT_TABLE_SIZE,
+            Integrator::Ppi => PSI_TABLE_SIZE,
+            Integrator::Average | Integrator::LinearExact => 0,
+        }
+    }
+}
+
+/// Classic pre-integration table: for front scalar index f, back scalar
+/// index b (`n` samples over `range` each) and length index d (`n / 4`
+/// samples of x = D / (D + length_scale) over [0, 1]) the exact integral of
+/// the transfer function's segment in f64, premultiplied RGBA, laid out
+/// [d][b][f].
+pub fn preint_table(tf: &TransferFunction, range: (f64, f64), n: usize, length_scale: f64) -> Vec<[f32; 4]> {
+    let n = n.max(2);
+    let nd = (n / 4).max(2);
+    let mut out = vec![[0f32; 4]; n * n * nd];
+    out.par_chunks_mut(n * n).enumerate().for_each(|(d, slab)| {
+        let x = d as f64 / (nd - 1) as f64;
+        // x = 1 stands for an infinitely long segment.
+        let len = if x >= 1.0 { 1e6 * length_scale } else { length_scale * x / (1.0 - x) };
+        for b in 0..n {
+            let sb = range.0 + (range.1 - range.0) * b as f64 / (n - 1) as f64;
+            for f in 0..n {
+                let sf = range.0 + (range.1 - range.0) * f as f64 / (n - 1) as f64;
+                let seg = crate::reference::integrate::integrate_segment(tf, sf, sb, len);
+                slab[b * n + f] = seg.rgba().map(|v| v as f32);
+            }
+        }
+    });
+    out
+}
 
 /// tau*D from the table coordinate gamma = tau*D / (tau*D + 1).
 fn tau_d(gamma: f64) -> f64 {
@@ -57,30 +133,61 @@ pub fn psi_quads(table: &[f32], m: usize) -> Vec<[f32; 4]> {
 }
 
 /// The integration tables on the device and the descriptor set that binds
-/// them (binding 0: transfer function, binding 1: Psi).
+/// them (binding 0: transfer function, binding 1: the integrator's table).
 pub struct IntegrationTables {
+    pub integrator: Integrator,
     pub tf_range: (f64, f64),
     pub tf_size: usize,
-    pub psi_size: usize,
+    /// Side of the integrator's table (0 when it has none).
+    pub table_size: usize,
+    /// Length scale of the pre-integration table's length axis.
+    pub length_scale: f64,
     pub set: StorageBufferSet,
     _tf: Buffer,
-    _psi: Buffer,
+    _table: Buffer,
     /// CPU time spent building the tables (reported apart from frames).
     pub build_ms: f64,
 }
 
 impl IntegrationTables {
-    pub fn new(ctx: &Arc<Context>, tf: &TransferFunction, range: (f64, f64), counter: &mut UploadCounter) -> VkResult<Self> {
+    /// `table_size` 0 picks the integrator's default; `length_scale` is a
+    /// typical cell size (the pre-integration table's length axis is
+    /// D / (D + length_scale)).
+    pub fn new(
+        ctx: &Arc<Context>,
+        tf: &TransferFunction,
+        range: (f64, f64),
+        integrator: Integrator,
+        table_size: usize,
+        length_scale: f64,
+        counter: &mut UploadCounter,
+    ) -> VkResult<Self> {
         let t0 = std::time::Instant::now();
         let (lo, hi) = if range.1 > range.0 { range } else { (range.0, range.0 + 1.0) };
         let tf_table = tf.table(TF_TABLE_SIZE, lo, hi);
-        let psi = psi_quads(&psi_table(PSI_TABLE_SIZE), PSI_TABLE_SIZE);
+        let size = if table_size == 0 { integrator.default_table_size() } else { table_size.max(2) };
+        let table: Vec<[f32; 4]> = match integrator {
+            Integrator::Ppi => psi_quads(&psi_table(size), size),
+            Integrator::Preint => preint_table(tf, (lo, hi), size, length_scale),
+            // No table: bind a placeholder so every variant has one layout.
+            Integrator::Average | Integrator::LinearExact => vec![[0.0; 4]],
+        };
         let build_ms = t0.elapsed().as_secs_f64() * 1e3;
         let usage = raw::BufferUsageFlags::STORAGE_BUFFER;
         let tf_buf = upload_static(ctx, "transfer function table", bytemuck::cast_slice(&tf_table), usage, counter)?;
-        let psi_buf = upload_static(ctx, "psi table", bytemuck::cast_slice(&psi), usage, counter)?;
-        let set = StorageBufferSet::new(ctx, "integration tables", &[&tf_buf, &psi_buf], raw::ShaderStageFlags::FRAGMENT)?;
-        Ok(IntegrationTables { tf_range: (lo, hi), tf_size: TF_TABLE_SIZE, psi_size: PSI_TABLE_SIZE, set, _tf: tf_buf, _psi: psi_buf, build_ms })
+        let table_buf = upload_static(ctx, "integration table", bytemuck::cast_slice(&table), usage, counter)?;
+        let set = StorageBufferSet::new(ctx, "integration tables", &[&tf_buf, &table_buf], raw::ShaderStageFlags::FRAGMENT)?;
+        Ok(IntegrationTables {
+            integrator,
+            tf_range: (lo, hi),
+            tf_size: TF_TABLE_SIZE,
+            table_size: size,
+            length_scale,
+            set,
+            _tf: tf_buf,
+            _table: table_buf,
+            build_ms,
+        })
     }
 }
 

@@ -14,8 +14,8 @@ use serde::Serialize;
 
 use super::image::RgbaImage;
 use super::stats::Summary;
-use crate::algo::cell_projection::{self, sort::CentroidSort, CellProjector, ExitTolerances, FrameSetup, Interpolation, Method};
-use crate::algo::integrate::IntegrationTables;
+use crate::algo::cell_projection::{self, sort::CentroidSort, CellProjector, ExitTolerances, FrameSetup, Interpolation, MeshScale, Method};
+use crate::algo::integrate::{IntegrationTables, Integrator};
 use crate::mesh::{MeshStats, TetGeometry, TetMesh};
 use crate::scene::{Camera, Projection, TransferFunction};
 use crate::vk::{CommandRecorder, Context, DeviceInfo, FrameQueries, Image, PipelineStats, UploadCounter};
@@ -24,6 +24,9 @@ use crate::vk::{CommandRecorder, Context, DeviceInfo, FrameQueries, Image, Pipel
 pub struct RunConfig {
     pub method: Method,
     pub interpolation: Interpolation,
+    pub integrator: Integrator,
+    /// Side of the integrator's table; 0 = its default.
+    pub table_size: usize,
     pub tolerances: ExitTolerances,
     pub width: u32,
     pub height: u32,
@@ -43,6 +46,8 @@ impl RunConfig {
         RunConfig {
             method,
             interpolation: Interpolation::Paper,
+            integrator: Integrator::Ppi,
+            table_size: 0,
             tolerances: ExitTolerances::default(),
             width: 512,
             height: 512,
@@ -122,6 +127,9 @@ pub struct ImageReport {
 pub struct RunResult {
     pub method: &'static str,
     pub interpolation: &'static str,
+    pub integrator: &'static str,
+    /// Side of the integrator's table (0: none).
+    pub table_size: usize,
     pub tolerances: ExitTolerances,
     pub mesh: String,
     pub cells: usize,
@@ -223,7 +231,7 @@ pub struct CellProjectionSession {
     recorder: CommandRecorder,
     queries: FrameQueries,
     sorter: CentroidSort,
-    diagonal: f64,
+    scale: MeshScale,
     interpolation: Interpolation,
     pub tolerances: ExitTolerances,
     /// The packed frame waiting for `submit`.
@@ -236,20 +244,25 @@ pub struct CellProjectionSession {
 }
 
 impl CellProjectionSession {
-    pub fn new(
-        ctx: &Arc<Context>,
-        scene: &Scene,
-        method: Method,
-        interpolation: Interpolation,
-        width: u32,
-        height: u32,
-    ) -> Result<Self> {
+    pub fn new(ctx: &Arc<Context>, scene: &Scene, cfg: &RunConfig) -> Result<Self> {
+        let (width, height) = (cfg.width, cfg.height);
         anyhow::ensure!(width > 0 && height > 0, "image size must be positive, got {width}x{height}");
+        let (method, interpolation) = (cfg.method, cfg.interpolation);
         let mesh = scene.mesh;
         let start = Instant::now();
         let mut setup_counter = UploadCounter::default();
-        let tables = IntegrationTables::new(ctx, scene.tf, mesh.scalar_range(), &mut setup_counter)
-            .context("building the integration tables")?;
+        // A typical cell size: the bounding box shared out among the cells.
+        let length_scale = mesh.bounds().diagonal() / (mesh.tets.len().max(1) as f64).cbrt();
+        let tables = IntegrationTables::new(
+            ctx,
+            scene.tf,
+            mesh.scalar_range(),
+            cfg.integrator,
+            cfg.table_size,
+            length_scale,
+            &mut setup_counter,
+        )
+        .context("building the integration tables")?;
         let method = cell_projection::create(ctx, method, interpolation, mesh, scene.geometry, &tables, &mut setup_counter)
             .with_context(|| format!("setting up {} for mesh '{}'", method.name(), mesh.name))?;
         let target = Image::render_target(ctx, "cell projection target", width, height)?;
@@ -263,9 +276,9 @@ impl CellProjectionSession {
             recorder,
             queries,
             sorter,
-            diagonal: mesh.bounds().diagonal(),
+            scale: MeshScale::of(mesh),
             interpolation,
-            tolerances: ExitTolerances::default(),
+            tolerances: cfg.tolerances,
             prepared: None,
             width,
             height,
@@ -276,6 +289,10 @@ impl CellProjectionSession {
 
     pub fn method(&self) -> &dyn CellProjector {
         self.method.as_ref()
+    }
+
+    pub fn table_size(&self) -> usize {
+        self.tables.table_size
     }
 
     pub fn table_build_ms(&self) -> f64 {
@@ -301,7 +318,7 @@ impl CellProjectionSession {
             self.width,
             self.height,
             &self.tables,
-            self.diagonal,
+            &self.scale,
             self.interpolation,
             &self.tolerances,
         );
@@ -397,8 +414,7 @@ impl FrameSamples {
 pub fn run_cell_projection(ctx: &Arc<Context>, scene: &Scene, cfg: &RunConfig) -> Result<RunOutput> {
     anyhow::ensure!(cfg.frames > 0, "--frames must be at least 1");
     let mesh = scene.mesh;
-    let mut session = CellProjectionSession::new(ctx, scene, cfg.method, cfg.interpolation, cfg.width, cfg.height)?;
-    session.tolerances = cfg.tolerances;
+    let mut session = CellProjectionSession::new(ctx, scene, cfg)?;
     let bounds = mesh.bounds();
     let mut counter = UploadCounter::default();
     let mut samples = FrameSamples::default();
@@ -462,6 +478,8 @@ pub fn run_cell_projection(ctx: &Arc<Context>, scene: &Scene, cfg: &RunConfig) -
     let result = RunResult {
         method: cfg.method.name(),
         interpolation: cfg.interpolation.name(),
+        integrator: cfg.integrator.name(),
+        table_size: session.table_size(),
         tolerances: cfg.tolerances,
         mesh: mesh.name.clone(),
         cells,

@@ -95,13 +95,46 @@ pub struct ExitTolerances {
     /// |u| = |h/e| is clamped to this (`exact` interpolation).
     pub plane_ratio_max: f32,
     /// A plane whose interpolated barycentric weight is below this counts as
-    /// passing through the fragment (exit at distance 0).
+    /// passing through the fragment (exit at distance 0). Off by default: it
+    /// removes rare specks but drops whole segments of rays grazing a face.
     pub edge_eps: f32,
+}
+
+/// Sizes of a mesh that bound what any ray segment through one of its cells
+/// can be.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct MeshScale {
+    pub diagonal: f64,
+    /// The longest edge of any cell: no segment through a cell is longer.
+    pub max_cell_extent: f64,
+}
+
+impl MeshScale {
+    pub fn of(mesh: &TetMesh) -> Self {
+        use rayon::prelude::*;
+        let max_edge = mesh
+            .tets
+            .par_iter()
+            .map(|t| {
+                let p = t.map(|i| mesh.points[i as usize]);
+                let mut m = 0f64;
+                for a in 0..4 {
+                    for b in a + 1..4 {
+                        let d = [p[a][0] - p[b][0], p[a][1] - p[b][1], p[a][2] - p[b][2]];
+                        m = m.max(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+                    }
+                }
+                m
+            })
+            .reduce(|| 0.0, f64::max)
+            .sqrt();
+        MeshScale { diagonal: mesh.bounds().diagonal(), max_cell_extent: max_edge }
+    }
 }
 
 impl Default for ExitTolerances {
     fn default() -> Self {
-        ExitTolerances { distance_clamp_diagonals: 1e3, plane_ratio_max: 1e3, edge_eps: 1e-5 }
+        ExitTolerances { distance_clamp_diagonals: 1e3, plane_ratio_max: 1e3, edge_eps: 0.0 }
     }
 }
 
@@ -136,20 +169,22 @@ impl FrameSetup {
         width: u32,
         height: u32,
         tables: &IntegrationTables,
-        mesh_diagonal: f64,
+        scale: &MeshScale,
         interpolation: Interpolation,
         tolerances: &ExitTolerances,
     ) -> Self {
-        let mut setup = Self::for_camera(camera, mesh_diagonal, interpolation, tolerances);
+        let mut setup = Self::for_camera(camera, scale.diagonal, interpolation, tolerances);
         let vp = camera.view_proj(width, height).to_cols_array_2d();
         let (lo, hi) = tables.tf_range;
         let (e, v) = (setup.eye, setup.view_dir);
         setup.constants = FrameConstants {
             view_proj: vp.map(|c| c.map(|x| x as f32)),
             eye: [e[0], e[1], e[2], if setup.perspective { 1.0 } else { 0.0 }],
-            view_dir: [v[0], v[1], v[2], 0.0],
-            tf_range: [lo as f32, (1.0 / (hi - lo)) as f32, tables.tf_size as f32, tables.psi_size as f32],
-            limits: [setup.max_distance, setup.plane_ratio_max, tolerances.edge_eps, 0.0],
+            // w: no segment through a cell is longer than its longest edge
+            // (1% margin for f32 rounding); see shaders/common/exit.glsl.
+            view_dir: [v[0], v[1], v[2], (1.01 * scale.max_cell_extent) as f32],
+            tf_range: [lo as f32, (1.0 / (hi - lo)) as f32, tables.tf_size as f32, tables.table_size as f32],
+            limits: [setup.max_distance, setup.plane_ratio_max, tolerances.edge_eps, tables.length_scale as f32],
         };
         setup
     }
@@ -256,9 +291,10 @@ pub(crate) fn build_pipeline(
     tables: &IntegrationTables,
     interpolation: Interpolation,
 ) -> VkResult<Pipeline> {
-    let defines = interpolation.defines();
-    let vs = compile_glsl(vertex_path, ShaderStage::Vertex, defines, &crate::shaders::source)?;
-    let fs = compile_glsl(fragment_path, ShaderStage::Fragment, defines, &crate::shaders::source)?;
+    let defines: Vec<(&str, &str)> =
+        interpolation.defines().iter().copied().chain(tables.integrator.define()).collect();
+    let vs = compile_glsl(vertex_path, ShaderStage::Vertex, &defines, &crate::shaders::source)?;
+    let fs = compile_glsl(fragment_path, ShaderStage::Fragment, &defines, &crate::shaders::source)?;
     let vs = ShaderModule::new(ctx, vertex_path, ShaderStage::Vertex, &vs)?;
     let fs = ShaderModule::new(ctx, fragment_path, ShaderStage::Fragment, &fs)?;
     Pipeline::graphics(
