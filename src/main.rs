@@ -10,7 +10,8 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use volbench::algo::cell_projection::{Interpolation, Method};
 use volbench::algo::integrate::Integrator;
 use volbench::harness::report::{self, ComparisonRow};
-use volbench::harness::run::{reference_image, run_cell_projection, RunConfig, Scene};
+use volbench::harness::reference_cache::reference_image;
+use volbench::harness::run::{run_cell_projection, RunConfig, Scene};
 use volbench::harness::datasets;
 use volbench::mesh::TetGeometry;
 use volbench::scene::Projection;
@@ -174,9 +175,8 @@ fn run(cli: &Cli, args: &RunArgs) -> Result<()> {
     let mut out = run_cell_projection(&ctx, &scene, &cfg)
         .with_context(|| format!("running {} on {}", args.method.name(), args.mesh))?;
     if args.reference || args.diff_png.is_some() {
-        let (reference, what, reference_ms) =
-            reference_image(&scene, &out.result.image.camera, cfg.width, cfg.height)?;
-        let diff = out.attach_error(&reference, &what, reference_ms)?;
+        let reference = reference_image(&scene, &out.result.image.camera, cfg.width, cfg.height)?;
+        let diff = out.attach_error(&reference)?;
         if let Some(p) = &args.diff_png {
             diff.write_png(p)?;
         }
@@ -215,7 +215,7 @@ fn compare(cli: &Cli, args: &CompareArgs) -> Result<()> {
                 reference = Some(reference_image(&scene, &out.result.image.camera, cfg.width, cfg.height)?);
             }
             let diff = match &reference {
-                Some((img, what, ref_ms)) => Some(out.attach_error(img, what, *ref_ms)?),
+                Some(r) => Some(out.attach_error(r)?),
                 None => None,
             };
             if let Some(dir) = &args.out {

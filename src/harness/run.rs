@@ -164,30 +164,24 @@ pub struct ErrorReport {
     pub psnr_db: f64,
     /// What the reference is: renderer, mesh, view, size, transfer function.
     pub reference: String,
-    /// CPU time the reference took (not part of any frame).
+    /// CPU time the reference took (not part of any frame; 0 when cached).
     pub reference_ms: f64,
-}
-
-/// The f64 reference image of a scene seen by `camera`, as an `RgbaImage`.
-pub fn reference_image(scene: &Scene, camera: &Camera, width: u32, height: u32) -> Result<(RgbaImage, String, f64)> {
-    let start = Instant::now();
-    let r = crate::reference::render_reference(scene.mesh, camera, scene.tf, width, height)
-        .with_context(|| format!("rendering the f64 reference of '{}'", scene.mesh.name))?;
-    let pixels = r.pixels.iter().map(|p| p.map(|c| c as f32)).collect();
-    let what = format!(
-        "f64 CPU ray walk, exact emission-absorption; mesh {}, {}x{}, eye {:?}, tf {}",
-        scene.mesh.name, width, height, camera.eye, scene.tf.name
-    );
-    Ok((RgbaImage { width, height, pixels }, what, ms(start.elapsed())))
+    pub reference_cached: bool,
 }
 
 impl RunOutput {
     /// Compare this run's image with a reference image and record the error.
-    pub fn attach_error(&mut self, reference: &RgbaImage, what: &str, reference_ms: f64) -> Result<RgbaImage> {
-        let e = self.image.compare(reference)?;
-        self.result.error =
-            Some(ErrorReport { rmse: e.rmse, max_abs: e.max_abs, psnr_db: e.psnr_db, reference: what.to_string(), reference_ms });
-        Ok(self.image.difference(reference))
+    pub fn attach_error(&mut self, reference: &super::reference_cache::Reference) -> Result<RgbaImage> {
+        let e = self.image.compare(&reference.image)?;
+        self.result.error = Some(ErrorReport {
+            rmse: e.rmse,
+            max_abs: e.max_abs,
+            psnr_db: e.psnr_db,
+            reference: reference.what.clone(),
+            reference_ms: reference.compute_ms,
+            reference_cached: reference.cached,
+        });
+        Ok(self.image.difference(&reference.image))
     }
 }
 
