@@ -38,6 +38,21 @@ enum Command {
     Run(RunArgs),
     /// Run VICP and balanced cell projection on each mesh and print the comparison table.
     Compare(CompareArgs),
+    /// Sweep methods x integrators x table sizes x interpolations on one mesh: run
+    /// time against error (CSV, Markdown, PNG plot with the Pareto front).
+    Pareto(ParetoArgs),
+}
+
+#[derive(Args)]
+struct ParetoArgs {
+    /// bluntfin, oxygenpost, post-small, or a mesh file.
+    #[arg(long)]
+    mesh: String,
+    #[command(flatten)]
+    frame: FrameArgs,
+    /// Output directory (default results/runs/pareto-<mesh>).
+    #[arg(long)]
+    out: Option<PathBuf>,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -244,12 +259,69 @@ fn compare(cli: &Cli, args: &CompareArgs) -> Result<()> {
     Ok(())
 }
 
+fn pareto(cli: &Cli, args: &ParetoArgs) -> Result<()> {
+    use volbench::harness::pareto::{mark_front, markdown, plot_png, write_csv, ParetoPoint};
+    let mesh = datasets::load_mesh(&args.mesh)?;
+    let out_dir = args.out.clone().unwrap_or_else(|| PathBuf::from(format!("results/runs/pareto-{}", mesh.name)));
+    std::fs::create_dir_all(&out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
+    let geometry = TetGeometry::compute(&mesh);
+    let tf = datasets::default_transfer_function(&mesh);
+    let scene = Scene { mesh: &mesh, geometry: &geometry, tf: &tf };
+    let ctx = context(cli)?;
+    let variants: Vec<(Integrator, usize)> = vec![
+        (Integrator::Average, 0),
+        (Integrator::Preint, 64),
+        (Integrator::Preint, 128),
+        (Integrator::Ppi, 128),
+        (Integrator::Ppi, 512),
+        (Integrator::Ppi, 1024),
+        (Integrator::LinearExact, 0),
+    ];
+    let mut points = Vec::new();
+    let mut reference = None;
+    for method in [Method::Vicp, Method::Balanced] {
+        for interpolation in [Interpolation::Paper, Interpolation::Exact] {
+            for &(integrator, table_size) in &variants {
+                let mut cfg = args.frame.config(method)?;
+                cfg.interpolation = interpolation;
+                cfg.integrator = integrator;
+                cfg.table_size = table_size;
+                eprintln!(
+                    "volbench: {} {} {} {}...",
+                    method.name(),
+                    integrator.name(),
+                    if table_size > 0 { table_size.to_string() } else { "-".into() },
+                    interpolation.name()
+                );
+                let mut out = run_cell_projection(&ctx, &scene, &cfg)?;
+                if reference.is_none() {
+                    reference = Some(reference_image(&scene, &out.result.image.camera, cfg.width, cfg.height)?);
+                }
+                if let Some(r) = &reference {
+                    out.attach_error(r)?;
+                }
+                points.extend(ParetoPoint::from_result(&out.result, "centroid"));
+            }
+        }
+    }
+    mark_front(&mut points);
+    let table = markdown(&mesh.name, &points);
+    write_csv(&out_dir.join("pareto.csv"), &points)?;
+    std::fs::write(out_dir.join("pareto.md"), &table).with_context(|| format!("writing {}", out_dir.display()))?;
+    let title = format!("{}: frame time against error ({}x{}, {})", mesh.name, args.frame.size.0, args.frame.size.1, ctx.info.name);
+    plot_png(&out_dir.join("pareto.png"), &title, &points)?;
+    print!("{table}");
+    println!("written: {}/pareto.{{csv,md,png}}", out_dir.display());
+    Ok(())
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match &cli.command {
         Command::Info => info(&cli),
         Command::Run(a) => run(&cli, a),
         Command::Compare(a) => compare(&cli, a),
+        Command::Pareto(a) => pareto(&cli, a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -4,6 +4,7 @@
 
 pub mod datasets;
 pub mod image;
+pub mod pareto;
 pub mod reference_cache;
 pub mod report;
 pub mod run;

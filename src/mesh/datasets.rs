@@ -19,7 +19,7 @@ use super::split::hex_grid_to_tets;
 use super::vtk::read_vtk_legacy;
 use super::TetMesh;
 use anyhow::{bail, Result};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// Names accepted by [`load_builtin`].
 pub const BUILTIN: [&str; 3] = ["bluntfin", "oxygenpost", "post_small"];
@@ -93,23 +93,100 @@ pub fn load_builtin(name: &str, data_dir: &Path) -> Result<TetMesh> {
     }
 }
 
-/// A mesh file chosen by its extension. Supported: `.vtk` (VTK legacy
-/// UNSTRUCTURED_GRID of tetrahedra with point scalars, ASCII or BINARY).
+/// Extensions [`load_path`] reads as one file of a PLOT3D grid + solution pair.
+pub const PLOT3D_EXTENSIONS: [&str; 4] = ["bin", "xyz", "x", "q"];
+
+/// A mesh file chosen by its extension:
+/// - `.vtk`: VTK legacy UNSTRUCTURED_GRID of tetrahedra with point scalars,
+///   ASCII or BINARY;
+/// - a PLOT3D grid or solution file (`.bin`, `.xyz`, `.x`, `.q`): the other
+///   file of the pair is found next to it by name (see [`plot3d_pair`]); the
+///   hexahedra are split into 5 tets each and the scalar is the density, or the
+///   velocity magnitude when the density is constant over the grid (as in the
+///   oxygen post), so that the mesh shows something.
 pub fn load_path(path: impl AsRef<Path>) -> Result<TetMesh> {
     let path = path.as_ref();
     let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase());
     match ext.as_deref() {
         Some("vtk") => read_vtk_legacy(path),
+        Some(e) if PLOT3D_EXTENSIONS.contains(&e) => load_plot3d_path(path),
         _ => bail!(
             "{}: unsupported mesh format (extension {}); supported: .vtk (VTK legacy \
-             UNSTRUCTURED_GRID of tetrahedra with point scalars, ASCII or BINARY). \
-             PLOT3D grids need a grid and a solution file: use the built-in meshes ({}) \
-             or datasets::load_plot3d",
+             UNSTRUCTURED_GRID of tetrahedra with point scalars, ASCII or BINARY) and \
+             PLOT3D grid/solution pairs (NAMExyz.bin + NAMEq.bin, or NAME.xyz / NAME.x + \
+             NAME.q: give either file); built-in meshes: {}",
             path.display(),
             ext.map_or("none".to_string(), |e| format!(".{e}")),
             BUILTIN.join(", ")
         ),
     }
+}
+
+/// The `(grid, solution)` pair a single PLOT3D file belongs to, by name:
+/// `NAMExyz.bin` <-> `NAMEq.bin` (the NASA files' convention, e.g.
+/// `bluntfinxyz.bin` / `bluntfinq.bin`), `NAME.xyz` or `NAME.x` <-> `NAME.q`.
+/// Errors (naming the file and what was looked for) when the name follows
+/// neither convention or the other file does not exist.
+pub fn plot3d_pair(path: &Path) -> Result<(PathBuf, PathBuf)> {
+    let file = path.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default();
+    let lower = file.to_ascii_lowercase();
+    let with_name = |name: String| path.with_file_name(name);
+    // (grid candidates, solution candidates), the given file among them.
+    let (grids, sols): (Vec<PathBuf>, Vec<PathBuf>) = if let Some(stem) = lower.strip_suffix(".bin") {
+        let stem_orig = &file[..stem.len()];
+        if let Some(i) = stem.rfind("xyz") {
+            let q = format!("{}q{}.bin", &stem_orig[..i], &stem_orig[i + 3..]);
+            (vec![path.to_path_buf()], vec![with_name(q)])
+        } else if stem.ends_with('q') {
+            let xyz = format!("{}xyz.bin", &stem_orig[..stem.len() - 1]);
+            (vec![with_name(xyz)], vec![path.to_path_buf()])
+        } else {
+            bail!(
+                "{}: a .bin mesh is read as a PLOT3D grid/solution pair named NAMExyz.bin and \
+                 NAMEq.bin (e.g. bluntfinxyz.bin, bluntfinq.bin), and this name has neither \
+                 'xyz' nor a final 'q'",
+                path.display()
+            );
+        }
+    } else if lower.ends_with(".q") {
+        let stem = &file[..file.len() - 2];
+        (vec![with_name(format!("{stem}.xyz")), with_name(format!("{stem}.x"))], vec![path.to_path_buf()])
+    } else if lower.ends_with(".xyz") || lower.ends_with(".x") {
+        let stem = &file[..file.rfind('.').unwrap_or(file.len())];
+        (vec![path.to_path_buf()], vec![with_name(format!("{stem}.q"))])
+    } else {
+        bail!("{}: not a PLOT3D file name (.bin, .xyz, .x or .q)", path.display());
+    };
+    let pick = |c: &[PathBuf], what: &str| -> Result<PathBuf> {
+        // The file given is read as is (a missing one fails there, with the OS error).
+        match c.iter().find(|p| p.as_path() == path || p.is_file()) {
+            Some(p) => Ok(p.clone()),
+            None => bail!(
+                "{}: PLOT3D {what} file not found: looked for {}",
+                path.display(),
+                c.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(" and ")
+            ),
+        }
+    };
+    Ok((pick(&grids, "grid")?, pick(&sols, "solution")?))
+}
+
+/// Loads the PLOT3D pair `path` belongs to (see [`load_path`], [`plot3d_pair`]);
+/// the mesh is named after the grid file's stem.
+pub fn load_plot3d_path(path: &Path) -> Result<TetMesh> {
+    let (xyz, q) = plot3d_pair(path)?;
+    let grid = read_xyz(&xyz)?;
+    let sol = read_q(&q)?;
+    sol.check_matches(&grid, &q, &xyz)?;
+    let blanked_cells = grid.blanked_cells();
+    let rho = sol.density();
+    let constant = rho.iter().all(|&r| r == rho[0]);
+    let scalars = if constant { sol.velocity_magnitude() } else { rho.to_vec() };
+    let source = format!("{} + {}", xyz.display(), q.display());
+    let mut mesh = hex_grid_to_tets(&source, grid.dims, grid.points, scalars)?;
+    mesh.name = xyz.file_stem().map_or_else(|| "plot3d".into(), |s| s.to_string_lossy().into_owned());
+    mesh.stats.blanked_cells = blanked_cells;
+    Ok(mesh)
 }
 
 #[cfg(test)]
@@ -122,6 +199,30 @@ mod tests {
         assert!(e.contains("/x/mesh.off") && e.contains(".vtk") && e.contains(".off"), "{e}");
         let e = load_path("/x/noext").unwrap_err().to_string();
         assert!(e.contains("none"), "{e}");
+        let e = load_path("/x/mesh.bin").unwrap_err().to_string();
+        assert!(e.contains("/x/mesh.bin") && e.contains("NAMExyz.bin"), "{e}");
+        let e = load_path("/x/gridxyz.bin").unwrap_err().to_string();
+        assert!(e.contains("/x/gridq.bin") && e.contains("not found"), "{e}");
+        let e = load_path("/x/grid.q").unwrap_err().to_string();
+        assert!(e.contains("/x/grid.xyz") && e.contains("/x/grid.x"), "{e}");
         assert!(load_builtin("nope", Path::new("/")).unwrap_err().to_string().contains("bluntfin"));
+    }
+
+    #[test]
+    fn plot3d_pairs_by_name() {
+        let tmp = tempfile::tempdir().unwrap();
+        let d = tmp.path();
+        for f in ["finxyz.bin", "finq.bin", "g.xyz", "g.q", "h.x", "h.q"] {
+            std::fs::write(d.join(f), b"").unwrap();
+        }
+        let pair = |f: &str| plot3d_pair(&d.join(f)).unwrap();
+        assert_eq!(pair("finxyz.bin"), (d.join("finxyz.bin"), d.join("finq.bin")));
+        assert_eq!(pair("finq.bin"), (d.join("finxyz.bin"), d.join("finq.bin")));
+        assert_eq!(pair("g.xyz"), (d.join("g.xyz"), d.join("g.q")));
+        assert_eq!(pair("g.q"), (d.join("g.xyz"), d.join("g.q")));
+        assert_eq!(pair("h.q"), (d.join("h.x"), d.join("h.q")));
+        // Empty files: the error names the grid file and the problem.
+        let e = format!("{:#}", load_path(d.join("finq.bin")).unwrap_err());
+        assert!(e.contains("finxyz.bin") && e.contains("truncated"), "{e}");
     }
 }

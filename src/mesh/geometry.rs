@@ -21,6 +21,11 @@ use rayon::prelude::*;
 /// longest edge.
 pub const ZERO_VOLUME_REL: f64 = 1e-10;
 
+/// Largest magnitude accepted for a coordinate or scalar: `f32::MAX`. Every
+/// GPU path packs f32, where larger values become infinite; and within this
+/// bound the f64 geometry (determinants ~ L^3, gradients) cannot overflow.
+pub const MAX_ABS_VALUE: f64 = f32::MAX as f64;
+
 #[inline]
 fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
@@ -93,6 +98,21 @@ impl TetMesh {
         }
         if let Some(i) = self.scalars.par_iter().position_first(|s| !s.is_finite()) {
             bail!("{source}: point {i} has a non-finite scalar {}", self.scalars[i]);
+        }
+        let huge = |v: &f64| v.abs() > MAX_ABS_VALUE;
+        if let Some(i) = self.points.par_iter().position_first(|p| p.iter().any(huge)) {
+            bail!(
+                "{source}: point {i} has a coordinate beyond the f32 range (|x| > {MAX_ABS_VALUE:e}) {:?}; \
+                 the renderers compute in f32",
+                self.points[i]
+            );
+        }
+        if let Some(i) = self.scalars.par_iter().position_first(huge) {
+            bail!(
+                "{source}: point {i} has a scalar beyond the f32 range (|s| > {MAX_ABS_VALUE:e}): {}; \
+                 the renderers compute in f32",
+                self.scalars[i]
+            );
         }
         let np = self.points.len();
         if let Some(c) = self.tets.par_iter().position_first(|t| t.iter().any(|&v| v as usize >= np)) {
@@ -184,9 +204,15 @@ impl TetPrecomputed {
 
     /// Computes gradient, outward planes and volume of a tet from its vertex
     /// positions and scalars. Works for either orientation; never yields
-    /// NaN/Inf for finite input.
+    /// NaN/Inf for finite input. (Validated meshes keep every value within
+    /// [`MAX_ABS_VALUE`], where nothing overflows; beyond, up to f64::MAX, a
+    /// cell whose determinant overflows is reported degenerate with volume
+    /// `f64::MAX`.)
     pub fn from_vertices(p: [[f64; 3]; 4], s: [f64; 4]) -> TetPrecomputed {
         let (det, zero) = tet_det(p);
+        if !det.is_finite() {
+            return TetPrecomputed { volume: f64::MAX, ..Self::DEGENERATE };
+        }
         if zero {
             return TetPrecomputed { volume: (det / 6.0).abs(), ..Self::DEGENERATE };
         }

@@ -68,3 +68,34 @@ impl Bounds {
         (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
     }
 }
+
+/// Mesh-size guard, to be called before any per-cell allocation on the
+/// device: errors unless `cells * bytes_per_cell` bytes fit in `limit_bytes`
+/// (e.g. the device's largest buffer or heap). The product is computed in
+/// u128, so absurd counts give an error, never an overflow.
+pub fn check_fits(cells: usize, bytes_per_cell: usize, limit_bytes: u64) -> anyhow::Result<()> {
+    let need = cells as u128 * bytes_per_cell as u128;
+    if need > limit_bytes as u128 {
+        anyhow::bail!(
+            "mesh too large for the device: {cells} cells x {bytes_per_cell} bytes per cell = {need} bytes \
+             ({:.1} MiB), more than the limit of {limit_bytes} bytes ({:.1} MiB)",
+            need as f64 / (1u64 << 20) as f64,
+            limit_bytes as f64 / (1u64 << 20) as f64
+        );
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::check_fits;
+
+    #[test]
+    fn check_fits_limits_and_overflow() {
+        check_fits(0, 528, 0).unwrap();
+        check_fits(1000, 112, 112_000).unwrap();
+        let e = check_fits(1001, 112, 112_000).unwrap_err().to_string();
+        assert!(e.contains("1001 cells") && e.contains("112112 bytes") && e.contains("112000"), "{e}");
+        assert!(check_fits(usize::MAX, usize::MAX, u64::MAX).is_err());
+    }
+}

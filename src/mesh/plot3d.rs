@@ -145,11 +145,11 @@ fn be_f32(b: &[u8], off: usize) -> f32 {
 }
 
 /// Reads and checks the `nx ny nz` header; returns dims and point count.
-fn read_dims(path: &Path, bytes: &[u8]) -> Result<([usize; 3], usize)> {
+fn read_dims(path: &str, bytes: &[u8]) -> Result<([usize; 3], usize)> {
     if bytes.len() < 12 {
         bail!(
             "{}: truncated PLOT3D file: {} bytes, shorter than the 12-byte nx ny nz header",
-            path.display(),
+            path,
             bytes.len()
         );
     }
@@ -164,7 +164,7 @@ fn read_dims(path: &Path, bytes: &[u8]) -> Result<([usize; 3], usize)> {
         };
         bail!(
             "{}: invalid PLOT3D dimensions {:?}: each must be in 1..={}{}",
-            path.display(),
+            path,
             raw,
             MAX_DIM,
             hint
@@ -175,12 +175,12 @@ fn read_dims(path: &Path, bytes: &[u8]) -> Result<([usize; 3], usize)> {
         .checked_mul(dims[1])
         .and_then(|v| v.checked_mul(dims[2]))
         .filter(|&n| n <= u32::MAX as usize)
-        .with_context(|| format!("{}: PLOT3D dimensions {:?} overflow the point count", path.display(), dims))?;
+        .with_context(|| format!("{path}: PLOT3D dimensions {dims:?} overflow the point count"))?;
     Ok((dims, n))
 }
 
 /// Decodes `n` big-endian float32 starting at `off`, failing on NaN/Inf.
-fn read_floats(path: &Path, bytes: &[u8], off: usize, n: usize, what: &str) -> Result<Vec<f64>> {
+fn read_floats(path: &str, bytes: &[u8], off: usize, n: usize, what: &str) -> Result<Vec<f64>> {
     let slice = &bytes[off..off + 4 * n];
     let out: Vec<f64> = slice
         .chunks_exact(4)
@@ -189,7 +189,7 @@ fn read_floats(path: &Path, bytes: &[u8], off: usize, n: usize, what: &str) -> R
     if let Some(i) = out.iter().position(|v| !v.is_finite()) {
         bail!(
             "{}: non-finite value {} in {} at point {} (byte offset {})",
-            path.display(),
+            path,
             out[i],
             what,
             i,
@@ -203,8 +203,15 @@ fn read_floats(path: &Path, bytes: &[u8], off: usize, n: usize, what: &str) -> R
 /// without IBLANK (decided by the file size).
 pub fn read_xyz(path: impl AsRef<Path>) -> Result<Plot3dGrid> {
     let path = path.as_ref();
-    let bytes = read_file(path)?;
-    let (dims, n) = read_dims(path, &bytes)?;
+    parse_xyz_bytes(&path.display().to_string(), &read_file(path)?)
+}
+
+/// [`read_xyz`] on the bytes of a file already in memory; `path` (the file
+/// name, or any label) is quoted in every error. Never panics on malformed
+/// input: the file size is checked against the dimensions before anything is
+/// allocated.
+pub fn parse_xyz_bytes(path: &str, bytes: &[u8]) -> Result<Plot3dGrid> {
+    let (dims, n) = read_dims(path, bytes)?;
     let size = bytes.len() as u128;
     let n128 = n as u128;
     let plain = 12 + 12 * n128;
@@ -216,7 +223,7 @@ pub fn read_xyz(path: impl AsRef<Path>) -> Result<Plot3dGrid> {
     } else if size < plain {
         bail!(
             "{}: truncated PLOT3D grid: dimensions {:?} need {} bytes of coordinates, file has {} bytes",
-            path.display(),
+            path,
             dims,
             plain,
             size
@@ -225,18 +232,18 @@ pub fn read_xyz(path: impl AsRef<Path>) -> Result<Plot3dGrid> {
         bail!(
             "{}: unexpected PLOT3D grid size {} bytes for dimensions {:?}: expected {} (no IBLANK) \
              or {} (with IBLANK); multi-grid, 2D and Fortran-record files are not supported",
-            path.display(),
+            path,
             size,
             dims,
             plain,
             with_iblank
         );
     };
-    let x = read_floats(path, &bytes, 12, n, "x")?;
-    let y = read_floats(path, &bytes, 12 + 4 * n, n, "y")?;
-    let z = read_floats(path, &bytes, 12 + 8 * n, n, "z")?;
+    let x = read_floats(path, bytes, 12, n, "x")?;
+    let y = read_floats(path, bytes, 12 + 4 * n, n, "y")?;
+    let z = read_floats(path, bytes, 12 + 8 * n, n, "z")?;
     let points = (0..n).map(|p| [x[p], y[p], z[p]]).collect();
-    let iblank = has_iblank.then(|| (0..n).map(|p| be_i32(&bytes, 12 + 12 * n + 4 * p)).collect());
+    let iblank = has_iblank.then(|| (0..n).map(|p| be_i32(bytes, 12 + 12 * n + 4 * p)).collect());
     Ok(Plot3dGrid { dims, points, iblank })
 }
 
@@ -244,29 +251,35 @@ pub fn read_xyz(path: impl AsRef<Path>) -> Result<Plot3dGrid> {
 /// Bytes after the five fields are ignored.
 pub fn read_q(path: impl AsRef<Path>) -> Result<Plot3dSolution> {
     let path = path.as_ref();
-    let bytes = read_file(path)?;
-    let (dims, n) = read_dims(path, &bytes)?;
+    parse_q_bytes(&path.display().to_string(), &read_file(path)?)
+}
+
+/// [`read_q`] on the bytes of a file already in memory; `path` (the file
+/// name, or any label) is quoted in every error. Never panics on malformed
+/// input (sizes are checked before allocating).
+pub fn parse_q_bytes(path: &str, bytes: &[u8]) -> Result<Plot3dSolution> {
+    let (dims, n) = read_dims(path, bytes)?;
     let need = 28 + 20 * n as u128;
     if (bytes.len() as u128) < need {
         bail!(
             "{}: truncated PLOT3D solution: dimensions {:?} need {} bytes (header + 4 free-stream \
              values + 5 fields), file has {} bytes",
-            path.display(),
+            path,
             dims,
             need,
             bytes.len()
         );
     }
-    let header: Vec<f64> = (0..4).map(|i| be_f32(&bytes, 12 + 4 * i) as f64).collect();
+    let header: Vec<f64> = (0..4).map(|i| be_f32(bytes, 12 + 4 * i) as f64).collect();
     for (name, v) in ["fsmach", "alpha", "re", "time"].iter().zip(&header) {
         if !v.is_finite() {
-            bail!("{}: non-finite free-stream value {name} = {v}", path.display());
+            bail!("{path}: non-finite free-stream value {name} = {v}");
         }
     }
     let names = ["density", "momentum x", "momentum y", "momentum z", "stagnation energy"];
     let mut fields: [Vec<f64>; 5] = Default::default();
     for (f, field) in fields.iter_mut().enumerate() {
-        *field = read_floats(path, &bytes, 28 + 4 * n * f, n, names[f])?;
+        *field = read_floats(path, bytes, 28 + 4 * n * f, n, names[f])?;
     }
     Ok(Plot3dSolution {
         dims,

@@ -86,7 +86,8 @@ fn cell_type_name(t: i64) -> &'static str {
 }
 
 struct Reader<'a> {
-    path: &'a Path,
+    /// File name (or other source label) quoted in every error.
+    name: &'a str,
     b: &'a [u8],
     pos: usize,
     binary: bool,
@@ -94,7 +95,7 @@ struct Reader<'a> {
 
 impl<'a> Reader<'a> {
     fn err(&self, msg: impl std::fmt::Display) -> anyhow::Error {
-        anyhow!("{}: {} (at byte {})", self.path.display(), msg, self.pos)
+        anyhow!("{}: {} (at byte {})", self.name, msg, self.pos)
     }
 
     fn skip_ws(&mut self) {
@@ -124,10 +125,17 @@ impl<'a> Reader<'a> {
         })
     }
 
-    /// Next non-blank line split into words.
+    /// Next non-blank line split into words (never empty). Splits on ASCII
+    /// whitespace only, the same set `skip_ws` skips: Unicode-whitespace
+    /// splitting would turn a line starting with e.g. a vertical tab into no
+    /// words at all.
     fn keyword_line(&mut self, what: &str) -> Result<Vec<&'a str>> {
         self.skip_ws();
-        Ok(self.raw_line(what)?.split_whitespace().collect())
+        let words: Vec<&'a str> = self.raw_line(what)?.split_ascii_whitespace().collect();
+        if words.is_empty() {
+            return Err(self.err(format!("truncated file: expected {what}, found end of file")));
+        }
+        Ok(words)
     }
 
     fn token(&mut self, what: &str) -> Result<&'a str> {
@@ -180,7 +188,7 @@ impl<'a> Reader<'a> {
                 let t = self.token(what)?;
                 let v = t
                     .parse::<f64>()
-                    .map_err(|_| self.err(format!("bad number '{t}' in {what} (value {i})")))?;
+                    .map_err(|_| self.err(format!("bad number '{t}' in {what} (value {i} of {n})")))?;
                 out.push(v);
             }
             Ok(out)
@@ -201,7 +209,7 @@ impl<'a> Reader<'a> {
                 let t = self.token(what)?;
                 let v = t
                     .parse::<i64>()
-                    .map_err(|_| self.err(format!("bad integer '{t}' in {what} (value {i})")))?;
+                    .map_err(|_| self.err(format!("bad integer '{t}' in {what} (value {i} of {n})")))?;
                 out.push(v);
             }
             Ok(out)
@@ -218,6 +226,11 @@ impl<'a> Reader<'a> {
             }
         }
         Ok(())
+    }
+
+    /// `n * k` values, or an error (a header's counts are untrusted).
+    fn product(&self, n: usize, k: usize, what: &str) -> Result<usize> {
+        n.checked_mul(k).ok_or_else(|| self.err(format!("{what} size {n} x {k} overflows")))
     }
 
     fn count(&self, s: Option<&&str>, what: &str) -> Result<usize> {
@@ -278,13 +291,21 @@ enum Owner {
 pub fn read_vtk_legacy(path: impl AsRef<Path>) -> Result<TetMesh> {
     let path = path.as_ref();
     let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read VTK file", path.display()))?;
-    let mut r = Reader { path, b: &bytes, pos: 0, binary: false };
+    parse_vtk_bytes(&path.display().to_string(), &bytes)
+}
+
+/// [`read_vtk_legacy`] on the bytes of a file already in memory. `name` (the
+/// file path, or any label) is quoted in every error, and its file stem names
+/// the mesh. Never panics on malformed input: every count is checked against
+/// the bytes that remain before anything is allocated from it.
+pub fn parse_vtk_bytes(name: &str, bytes: &[u8]) -> Result<TetMesh> {
+    let mut r = Reader { name, b: bytes, pos: 0, binary: false };
 
     // Header: version line, title, encoding, DATASET.
     let version_line = r.raw_line("the '# vtk DataFile Version' line")?;
     let version = version_line
         .strip_prefix("# vtk DataFile Version")
-        .ok_or_else(|| anyhow!("{}: not a VTK legacy file (first line is not '# vtk DataFile Version x.y')", path.display()))?
+        .ok_or_else(|| anyhow!("{name}: not a VTK legacy file (first line is not '# vtk DataFile Version x.y')"))?
         .trim();
     let major: u32 = version.split('.').next().and_then(|v| v.parse().ok()).unwrap_or(3);
     r.raw_line("the title line")?;
@@ -402,8 +423,15 @@ pub fn read_vtk_legacy(path: impl AsRef<Path>) -> Result<TetMesh> {
                     (offsets, conn)
                 } else {
                     let flat = r.values_i64(b, DType::I32, "CELLS")?;
+                    // Each cell takes at least its vertex count, so `a <= b`,
+                    // and `b` values were just read: both bound the allocations.
+                    if a > b {
+                        bail!(r.err(format!(
+                            "count mismatch: CELLS declares {a} cells in only {b} values"
+                        )));
+                    }
                     let mut offsets = Vec::with_capacity(a + 1);
-                    let mut conn = Vec::with_capacity(b.saturating_sub(a));
+                    let mut conn = Vec::with_capacity(b - a);
                     let mut i = 0usize;
                     offsets.push(0);
                     for c in 0..a {
@@ -412,13 +440,16 @@ pub fn read_vtk_legacy(path: impl AsRef<Path>) -> Result<TetMesh> {
                                 "count mismatch: CELLS size {b} ends inside cell {c} of {a}"
                             )));
                         };
-                        if k < 0 || i + 1 + k as usize > b {
+                        // `i < b`, so `b - i - 1` cannot underflow; comparing
+                        // against it cannot overflow whatever `k` is.
+                        if k < 0 || k as u64 > (b - i - 1) as u64 {
                             bail!(r.err(format!(
                                 "count mismatch: cell {c} claims {k} vertices, beyond CELLS size {b}"
                             )));
                         }
-                        conn.extend_from_slice(&flat[i + 1..i + 1 + k as usize]);
-                        i += 1 + k as usize;
+                        let k = k as usize;
+                        conn.extend_from_slice(&flat[i + 1..i + 1 + k]);
+                        i += 1 + k;
                         offsets.push(conn.len() as i64);
                     }
                     if i != b {
@@ -503,7 +534,7 @@ pub fn read_vtk_legacy(path: impl AsRef<Path>) -> Result<TetMesh> {
                 if owner == Owner::Points && ncomp == 1 && scalars.is_none() {
                     scalars = Some(r.values_f64(n, dt, &what)?);
                 } else {
-                    r.skip_values(n * ncomp, dt, &what)?;
+                    r.skip_values(r.product(n, ncomp, &what)?, dt, &what)?;
                 }
             }
             "LOOKUP_TABLE" => {
@@ -516,7 +547,7 @@ pub fn read_vtk_legacy(path: impl AsRef<Path>) -> Result<TetMesh> {
                 let n = need_owner(&r, "COLOR_SCALARS")?;
                 let k = r.count(line.get(2), "COLOR_SCALARS component count")?;
                 let dt = if r.binary { DType::U8 } else { DType::F64 };
-                r.skip_values(n * k, dt, "COLOR_SCALARS")?;
+                r.skip_values(r.product(n, k, "COLOR_SCALARS")?, dt, "COLOR_SCALARS")?;
             }
             "VECTORS" | "NORMALS" | "TENSORS" | "TENSORS6" | "GLOBAL_IDS" | "PEDIGREE_IDS" => {
                 let n = need_owner(&r, &kw)?;
@@ -527,15 +558,15 @@ pub fn read_vtk_legacy(path: impl AsRef<Path>) -> Result<TetMesh> {
                     _ => 1,
                 };
                 let dt = r.dtype(line.get(2), &kw)?;
-                r.skip_values(n * k, dt, &kw)?;
+                r.skip_values(r.product(n, k, &kw)?, dt, &kw)?;
             }
             "TEXTURE_COORDINATES" => {
                 let n = need_owner(&r, &kw)?;
                 let k = r.count(line.get(2), "TEXTURE_COORDINATES dimension")?;
                 let dt = r.dtype(line.get(3), &kw)?;
-                r.skip_values(n * k, dt, &kw)?;
+                r.skip_values(r.product(n, k, &kw)?, dt, &kw)?;
             }
-            _ => bail!(r.err(format!("bad keyword '{}'", line[0]))),
+            _ => bail!(r.err(format!("bad keyword '{}'", line[0].escape_debug()))),
         }
     }
 
@@ -550,9 +581,9 @@ pub fn read_vtk_legacy(path: impl AsRef<Path>) -> Result<TetMesh> {
             if seen_point_arrays.is_empty() { "none".to_string() } else { seen_point_arrays.join(", ") }
         ))
     })?;
-    let name = path.file_stem().map_or_else(|| "vtk".to_string(), |s| s.to_string_lossy().into_owned());
-    let mut mesh = TetMesh { name, points, scalars, tets, stats: MeshStats::default() };
-    mesh.validate(&path.display().to_string())?;
+    let stem = Path::new(name).file_stem().map_or_else(|| "vtk".to_string(), |s| s.to_string_lossy().into_owned());
+    let mut mesh = TetMesh { name: stem, points, scalars, tets, stats: MeshStats::default() };
+    mesh.validate(name)?;
     Ok(mesh)
 }
 

@@ -1,0 +1,252 @@
+//! Run time against error: a sweep over methods, integrators, table sizes,
+//! sorts and interpolations on one mesh, each run compared with the (cached)
+//! f64 reference, written as CSV, a Markdown table and a log-log plot with
+//! the Pareto front (no other run is both faster and more accurate) marked.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use anyhow::{Context as _, Result};
+use serde::Serialize;
+
+use super::run::RunResult;
+
+/// One run of the sweep.
+#[derive(Debug, Clone, Serialize)]
+pub struct ParetoPoint {
+    pub label: String,
+    pub method: String,
+    pub integrator: String,
+    pub table_size: usize,
+    pub sort: String,
+    pub interpolation: String,
+    /// Median frame time (ms).
+    pub frame_ms: f64,
+    pub gpu_ms: f64,
+    pub table_build_ms: f64,
+    pub rmse: f64,
+    pub max_abs: f64,
+    pub psnr_db: f64,
+    pub on_front: bool,
+}
+
+impl ParetoPoint {
+    pub fn from_result(r: &RunResult, sort: &str) -> Option<Self> {
+        let e = r.error.as_ref()?;
+        let table = if r.table_size > 0 { format!("{}", r.table_size) } else { "-".into() };
+        Some(ParetoPoint {
+            label: format!("{} {} {} {} {}", r.method, r.integrator, table, sort, r.interpolation),
+            method: r.method.to_string(),
+            integrator: r.integrator.to_string(),
+            table_size: r.table_size,
+            sort: sort.to_string(),
+            interpolation: r.interpolation.to_string(),
+            frame_ms: r.time_ms.frame.median,
+            gpu_ms: r.time_ms.gpu.median,
+            table_build_ms: r.time_ms.table_build_ms,
+            rmse: e.rmse,
+            max_abs: e.max_abs,
+            psnr_db: e.psnr_db,
+            on_front: false,
+        })
+    }
+}
+
+/// Mark the points no other point dominates (faster or equal and more
+/// accurate or equal, strictly better in one).
+pub fn mark_front(points: &mut [ParetoPoint]) {
+    let snapshot: Vec<(f64, f64)> = points.iter().map(|p| (p.frame_ms, p.rmse)).collect();
+    for (i, p) in points.iter_mut().enumerate() {
+        p.on_front = !snapshot.iter().enumerate().any(|(j, &(t, e))| {
+            j != i && t <= snapshot[i].0 && e <= snapshot[i].1 && (t < snapshot[i].0 || e < snapshot[i].1)
+        });
+    }
+}
+
+pub fn write_csv(path: &Path, points: &[ParetoPoint]) -> Result<()> {
+    let mut s = String::from("method,integrator,table_size,sort,interpolation,frame_ms,gpu_ms,table_build_ms,rmse,max_abs,psnr_db,on_front\n");
+    for p in points {
+        let _ = writeln!(
+            s,
+            "{},{},{},{},{},{:.3},{:.3},{:.3},{:.6e},{:.6e},{:.3},{}",
+            p.method, p.integrator, p.table_size, p.sort, p.interpolation, p.frame_ms, p.gpu_ms, p.table_build_ms, p.rmse, p.max_abs,
+            p.psnr_db, p.on_front
+        );
+    }
+    std::fs::write(path, s).with_context(|| format!("writing {}", path.display()))
+}
+
+pub fn markdown(mesh: &str, points: &[ParetoPoint]) -> String {
+    let mut sorted: Vec<&ParetoPoint> = points.iter().collect();
+    sorted.sort_by(|a, b| a.rmse.total_cmp(&b.rmse));
+    let mut s = format!("### {mesh}: run time against error (sorted by RMSE; * = Pareto front)\n\n");
+    s += "| | method | integrator | table | sort | interpolation | frame ms | GPU ms | table build ms | RMSE | max abs | PSNR dB |\n";
+    s += "|---|---|---|---:|---|---|---:|---:|---:|---:|---:|---:|\n";
+    for p in sorted {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.2e} | {:.2e} | {:.1} |",
+            if p.on_front { "*" } else { "" },
+            p.method,
+            p.integrator,
+            if p.table_size > 0 { p.table_size.to_string() } else { "-".into() },
+            p.sort,
+            p.interpolation,
+            p.frame_ms,
+            p.gpu_ms,
+            p.table_build_ms,
+            p.rmse,
+            p.max_abs,
+            p.psnr_db
+        );
+    }
+    s
+}
+
+const FONT_PATHS: [&str; 2] =
+    ["/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf", "/usr/share/fonts/dejavu/DejaVuSans.ttf"];
+
+fn register_font() -> Result<()> {
+    use std::sync::OnceLock;
+    static REGISTERED: OnceLock<bool> = OnceLock::new();
+    let ok = *REGISTERED.get_or_init(|| {
+        FONT_PATHS.iter().any(|p| {
+            std::fs::read(p)
+                .ok()
+                .map(|bytes| {
+                    let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
+                    plotters::style::register_font("sans-serif", plotters::style::FontStyle::Normal, bytes).is_ok()
+                })
+                .unwrap_or(false)
+        })
+    });
+    anyhow::ensure!(ok, "no font for plot labels: install fonts-dejavu-core (scripts/setup.sh does), looked in {FONT_PATHS:?}");
+    Ok(())
+}
+
+/// Frame time (x) against RMSE (y), both logarithmic; the front is joined
+/// by a line and its points labelled.
+pub fn plot_png(path: &Path, title: &str, points: &[ParetoPoint]) -> Result<()> {
+    use plotters::prelude::*;
+    register_font()?;
+    anyhow::ensure!(!points.is_empty(), "nothing to plot");
+    let (mut t0, mut t1, mut e0, mut e1) = (f64::MAX, 0f64, f64::MAX, 0f64);
+    for p in points {
+        t0 = t0.min(p.frame_ms);
+        t1 = t1.max(p.frame_ms);
+        e0 = e0.min(p.rmse.max(1e-9));
+        e1 = e1.max(p.rmse.max(1e-9));
+    }
+    // Explicit ticks at 1, 2, 5 x 10^k: a sweep often spans less than a
+    // decade, where the log axis would otherwise show no labels at all.
+    let ticks = |lo: f64, hi: f64| -> Vec<f64> {
+        let mut v = Vec::new();
+        let mut decade = 10f64.powf(lo.log10().floor());
+        while decade <= hi {
+            for m in [1.0, 2.0, 3.0, 5.0, 7.0] {
+                let t = m * decade;
+                if t >= lo && t <= hi {
+                    v.push(t);
+                }
+            }
+            decade *= 10.0;
+        }
+        v
+    };
+    let (x_range, y_range) = ((t0 / 1.3, t1 * 1.3), (e0 / 1.5, e1 * 1.5));
+    let root = BitMapBackend::new(path, (1100, 750)).into_drawing_area();
+    let draw = || -> Result<(), Box<dyn std::error::Error>> {
+        root.fill(&WHITE)?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(title, ("sans-serif", 24))
+            .margin(20)
+            .x_label_area_size(50)
+            .y_label_area_size(80)
+            .build_cartesian_2d(
+                (x_range.0..x_range.1).log_scale().with_key_points(ticks(x_range.0, x_range.1)),
+                (y_range.0..y_range.1).log_scale().with_key_points(ticks(y_range.0, y_range.1)),
+            )?;
+        chart
+            .configure_mesh()
+            .x_desc("median frame time (ms)")
+            .y_desc("RMSE against the f64 reference")
+            .label_style(("sans-serif", 15))
+            .axis_desc_style(("sans-serif", 18))
+            .x_label_formatter(&|v| format!("{v:.0}"))
+            .y_label_formatter(&|v| format!("{v:.1e}"))
+            .draw()?;
+        let colour = |p: &ParetoPoint| match p.integrator.as_str() {
+            "average" => RGBColor(200, 60, 60),
+            "preint" => RGBColor(60, 140, 60),
+            "ppi" => RGBColor(40, 90, 200),
+            _ => RGBColor(150, 60, 180),
+        };
+        for p in points {
+            let c = colour(p);
+            let style = if p.method == "vicp" { c.stroke_width(2) } else { c.filled() };
+            chart.draw_series(std::iter::once(Circle::new((p.frame_ms, p.rmse.max(1e-9)), 5, style)))?;
+        }
+        let mut front: Vec<&ParetoPoint> = points.iter().filter(|p| p.on_front).collect();
+        front.sort_by(|a, b| a.frame_ms.total_cmp(&b.frame_ms));
+        chart.draw_series(LineSeries::new(front.iter().map(|p| (p.frame_ms, p.rmse.max(1e-9))), BLACK.stroke_width(1)))?;
+        // Labels stacked upward from each front point so neighbours don't overlap.
+        for (i, p) in front.iter().enumerate() {
+            let anchor = chart.backend_coord(&(p.frame_ms, p.rmse.max(1e-9)));
+            root.draw(&Text::new(
+                p.label.clone(),
+                (anchor.0 + 8, anchor.1 - 16 * (i as i32 % 3) - 4),
+                ("sans-serif", 13).into_font().color(&BLACK),
+            ))?;
+        }
+        // Legend: colours are integrators; filled = balanced, ring = VICP.
+        for (i, (name, c)) in [
+            ("average", RGBColor(200, 60, 60)),
+            ("preint", RGBColor(60, 140, 60)),
+            ("ppi", RGBColor(40, 90, 200)),
+            ("linear-exact", RGBColor(150, 60, 180)),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let y = 560 + 22 * i as i32;
+            root.draw(&Circle::new((900, y), 5, c.filled()))?;
+            root.draw(&Text::new(name, (912, y - 8), ("sans-serif", 15).into_font()))?;
+        }
+        root.draw(&Text::new("filled: balanced, ring: VICP", (850, 650), ("sans-serif", 15).into_font()))?;
+        root.draw(&Text::new("line: Pareto front", (850, 670), ("sans-serif", 15).into_font()))?;
+        root.present()?;
+        Ok(())
+    };
+    draw().map_err(|e| anyhow::anyhow!("drawing {}: {e}", path.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn pt(t: f64, e: f64) -> ParetoPoint {
+        ParetoPoint {
+            label: String::new(),
+            method: "balanced".into(),
+            integrator: "ppi".into(),
+            table_size: 0,
+            sort: "centroid".into(),
+            interpolation: "paper".into(),
+            frame_ms: t,
+            gpu_ms: t,
+            table_build_ms: 0.0,
+            rmse: e,
+            max_abs: e,
+            psnr_db: 0.0,
+            on_front: false,
+        }
+    }
+
+    #[test]
+    fn front_keeps_only_undominated_points() {
+        let mut p = vec![pt(1.0, 5.0), pt(2.0, 2.0), pt(3.0, 3.0), pt(4.0, 1.0), pt(2.0, 2.0)];
+        mark_front(&mut p);
+        let on: Vec<bool> = p.iter().map(|p| p.on_front).collect();
+        assert_eq!(on, vec![true, true, false, true, true]);
+    }
+}
