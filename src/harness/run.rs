@@ -243,6 +243,19 @@ impl CellProjectionSession {
         anyhow::ensure!(width > 0 && height > 0, "image size must be positive, got {width}x{height}");
         let (method, interpolation) = (cfg.method, cfg.interpolation);
         let mesh = scene.mesh;
+        // Refuse meshes the device cannot hold before allocating anything:
+        // the per-frame vertex buffer must fit one allocation, and it plus
+        // the static index data must fit device memory.
+        let (vertex_bytes, static_bytes) = match method {
+            Method::Vicp => (cell_projection::vicp::FLOATS_PER_CELL * 4, 0),
+            Method::Balanced => {
+                (cell_projection::balanced::FLOATS_PER_CELL * 4, cell_projection::balanced::INDICES_PER_CELL * 4)
+            }
+        };
+        let info = &ctx.info;
+        crate::mesh::check_fits(mesh.tets.len(), vertex_bytes, info.max_memory_allocation_size)
+            .and_then(|()| crate::mesh::check_fits(mesh.tets.len(), vertex_bytes + static_bytes, info.device_local_heap_bytes))
+            .with_context(|| format!("mesh '{}' with {} on {}", mesh.name, method.name(), info.name))?;
         let start = Instant::now();
         let mut setup_counter = UploadCounter::default();
         // A typical cell size: the bounding box shared out among the cells.
