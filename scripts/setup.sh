@@ -1,14 +1,15 @@
 #!/usr/bin/env bash
 # Installs what volbench needs on a fresh Debian 12 / Ubuntu machine (run as root),
 # idempotently: the Vulkan loader, Mesa's lavapipe driver, the validation layer and
-# shaderc's libraries, then merges Debian's static shaderc/glslang/SPIRV-Tools
+# shaderc's libraries (and a font for plot labels), then merges Debian's static shaderc/glslang/SPIRV-Tools
 # archives into one (Debian's libshaderc.so does not link as shipped; see
 # ../shared/PLATFORM.md) under .shaderc/, where .cargo/config.toml points shaderc-sys.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 packages=(mesa-vulkan-drivers libvulkan1 libvulkan-dev vulkan-validationlayers
-          libshaderc-dev glslang-dev spirv-tools build-essential pkg-config)
+          libshaderc-dev glslang-dev spirv-tools build-essential pkg-config
+          fonts-dejavu-core)
 
 missing=()
 for p in "${packages[@]}"; do

@@ -243,6 +243,16 @@ mod tests {
     }
 
     #[test]
+    fn plot_is_written() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("p.png");
+        let mut p = vec![pt(100.0, 1e-3), pt(300.0, 5e-4), pt(200.0, 2e-3)];
+        mark_front(&mut p);
+        plot_png(&path, "test", &p).unwrap();
+        assert!(std::fs::metadata(&path).unwrap().len() > 1000);
+    }
+
+    #[test]
     fn front_keeps_only_undominated_points() {
         let mut p = vec![pt(1.0, 5.0), pt(2.0, 2.0), pt(3.0, 3.0), pt(4.0, 1.0), pt(2.0, 2.0)];
         mark_front(&mut p);
