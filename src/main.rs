@@ -207,14 +207,15 @@ fn run(cli: &Cli, args: &RunArgs) -> Result<()> {
 }
 
 fn compare(cli: &Cli, args: &CompareArgs) -> Result<()> {
+    // Load (and so validate) every mesh before any output is written.
+    let meshes = args.meshes.iter().map(|name| datasets::load_mesh(name)).collect::<Result<Vec<_>>>()?;
     let ctx = context(cli)?;
     if let Some(dir) = &args.out {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
     let mut results = Vec::new();
     let mut rmses = Vec::new();
-    for name in &args.meshes {
-        let mesh = datasets::load_mesh(name)?;
+    for (name, mesh) in args.meshes.iter().zip(meshes) {
         let geometry = TetGeometry::compute(&mesh);
         let tf = datasets::default_transfer_function(&mesh);
         let scene = Scene { mesh: &mesh, geometry: &geometry, tf: &tf };
