@@ -1,13 +1,21 @@
 #!/usr/bin/env bash
 # The main job: installs what volbench needs (scripts/setup.sh), builds it,
-# and runs the benchmark suite: VICP against balanced cell projection on the
-# blunt fin and the oxygen post at 512x512, writing JSON, PNGs and a Markdown
-# table to results/runs/<UTC time>/ and printing the table.
-# Extra arguments go to `volbench compare` (e.g. --frames 30).
+# and runs the benchmark suite into results/runs/<UTC time>/:
+#   1. VICP against balanced cell projection on the blunt fin and the oxygen
+#      post at 512x512 (JSON per run, PNGs of the reference view and their
+#      difference from the f64 reference, comparison.md), table printed;
+#   2. run time against error on both meshes (pareto/<mesh>/pareto.{csv,md,png}).
+# Extra arguments go to `volbench compare` (e.g. --frames 30). criterion
+# benches of the hot paths are separate: `cargo bench`.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 cargo build --release --locked
 out="results/runs/$(date -u +%Y%m%dT%H%M%SZ)"
-./target/release/volbench compare --meshes bluntfin,oxygenpost --size 512x512 --frames 20 --warmup 3 --out "$out" "$@"
+bin=./target/release/volbench
+$bin info > /dev/null
+$bin compare --meshes bluntfin,oxygenpost --size 512x512 --frames 20 --warmup 3 --out "$out" "$@"
+for mesh in bluntfin oxygenpost; do
+    $bin pareto --mesh "$mesh" --size 512x512 --frames 5 --warmup 1 --out "$out/pareto/$mesh" > /dev/null
+done
 echo "results: $out"
