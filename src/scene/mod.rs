@@ -2,6 +2,7 @@
 //! method and by the CPU reference.
 
 pub mod camera;
+pub mod tf_file;
 pub mod transfer_function;
 
 pub use camera::{Camera, Projection};

@@ -7,6 +7,7 @@
 //! `upload` (host memory -> device-visible buffer, counted), `record_draw`.
 
 pub mod balanced;
+pub mod mpvo;
 pub mod sort;
 pub mod vicp;
 

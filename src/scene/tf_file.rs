@@ -1,0 +1,260 @@
+//! Transfer functions as JSON files (`--tf FILE`; presets in `data/tf/`).
+//!
+//! # Format
+//!
+//! ```json
+//! {
+//!   "name": "bluntfin-default",
+//!   "scalar_units": "relative",
+//!   "attenuation_units": "per_diagonal",
+//!   "points": [
+//!     { "scalar": 0.0,  "color": [0.1, 0.2, 0.9], "attenuation": 4.0 },
+//!     { "scalar": 0.3,  "color": [0.9, 0.9, 0.2], "opacity": 0.5, "unit_length": 0.05 },
+//!     { "scalar": 1.0,  "color": [1.0, 0.1, 0.05], "attenuation": 40.0 }
+//!   ]
+//! }
+//! ```
+//!
+//! Top level (unknown keys are errors, so typos do not pass silently):
+//! - `name` (string, optional; default: the file stem).
+//! - `scalar_units`: `"absolute"` (default: `scalar` is a value of the mesh's
+//!   scalar field) or `"relative"` (`scalar` in [0, 1] over the mesh's scalar
+//!   range `[lo, hi]`, mapped to `lo + scalar·(hi − lo)`).
+//! - `attenuation_units`: `"per_world_unit"` (default) or `"per_diagonal"`:
+//!   every length in the file (`attenuation`'s unit and `unit_length`) is
+//!   measured in mesh diagonals instead of world units, so `attenuation` is the
+//!   optical depth across one diagonal and the file reads the same whatever
+//!   the mesh's units (the built-in presets are written this way).
+//! - `unit_length` (optional): default `unit_length` for points given by
+//!   `opacity`.
+//! - `points`: at least one control point, scalars non-decreasing (two equal
+//!   scalars make a step).
+//!
+//! Each point:
+//! - `scalar`: finite number (see `scalar_units`).
+//! - `color`: `[r, g, b]`, each in [0, 1]: the emitted colour, linear RGB.
+//! - exactly one of
+//!   - `attenuation`: τ ≥ 0, finite, per unit length (see `attenuation_units`);
+//!   - `opacity` in [0, 1) with `unit_length` > 0 (on the point or at the top
+//!     level): the opacity a homogeneous slab of that thickness has, so
+//!     `τ = −ln(1 − opacity) / unit_length`.
+//!
+//! The result is the [`TransferFunction`] the renderers use: scalars absolute,
+//! τ per world unit, piecewise linear between points, clamped outside them.
+//! Every error names the file and, for a point, its index (from 0).
+//!
+//! [`to_json`] writes the same format (absolute units, or relative to a
+//! mesh), with f64 values printed so that they read back bit for bit.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{anyhow, bail, Context as _, Result};
+use serde::{Deserialize, Serialize};
+
+use super::{ControlPoint, TransferFunction};
+
+/// How scalars are given in a file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ScalarUnits {
+    #[default]
+    Absolute,
+    Relative,
+}
+
+/// How lengths (attenuation's unit, `unit_length`) are given in a file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AttenuationUnits {
+    #[default]
+    PerWorldUnit,
+    PerDiagonal,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileSpec {
+    #[serde(default)]
+    name: Option<String>,
+    #[serde(default)]
+    scalar_units: ScalarUnits,
+    #[serde(default)]
+    attenuation_units: AttenuationUnits,
+    #[serde(default)]
+    unit_length: Option<f64>,
+    points: Vec<serde_json::Value>,
+}
+
+#[derive(Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+struct PointSpec {
+    scalar: f64,
+    color: [f64; 3],
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    attenuation: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    opacity: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    unit_length: Option<f64>,
+}
+
+/// Reads a transfer function file (format: module docs). `scalar_range` is
+/// the mesh's `(min, max)` scalar (used by `"scalar_units": "relative"`),
+/// `mesh_diagonal` its bounding-box diagonal (used by
+/// `"attenuation_units": "per_diagonal"`).
+pub fn load_tf(path: impl AsRef<Path>, scalar_range: (f64, f64), mesh_diagonal: f64) -> Result<TransferFunction> {
+    let path = path.as_ref();
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("{}: cannot read transfer function", path.display()))?;
+    let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "tf".into());
+    parse_tf(&text, &path.display().to_string(), &stem, scalar_range, mesh_diagonal)
+}
+
+/// [`load_tf`] on text already read; `source` names it in errors,
+/// `default_name` is used when the file has no `name`.
+pub fn parse_tf(
+    text: &str,
+    source: &str,
+    default_name: &str,
+    scalar_range: (f64, f64),
+    mesh_diagonal: f64,
+) -> Result<TransferFunction> {
+    let spec: FileSpec =
+        serde_json::from_str(text).map_err(|e| anyhow!("{source}: invalid transfer function JSON: {e}"))?;
+    if spec.points.is_empty() {
+        bail!("{source}: \"points\" is empty (at least one control point is required)");
+    }
+    let (lo, hi) = scalar_range;
+    if spec.scalar_units == ScalarUnits::Relative && !(lo.is_finite() && hi.is_finite() && lo <= hi) {
+        bail!("{source}: relative scalars need a finite mesh scalar range, got [{lo}, {hi}]");
+    }
+    // Lengths in the file are in `unit` world units.
+    let unit = match spec.attenuation_units {
+        AttenuationUnits::PerWorldUnit => 1.0,
+        AttenuationUnits::PerDiagonal => {
+            if !(mesh_diagonal.is_finite() && mesh_diagonal >= 0.0) {
+                bail!("{source}: attenuation per diagonal needs a finite mesh diagonal, got {mesh_diagonal}");
+            }
+            // As `harness::datasets::default_transfer_function` does.
+            mesh_diagonal.max(f64::MIN_POSITIVE)
+        }
+    };
+    if let Some(u) = spec.unit_length {
+        if !(u.is_finite() && u > 0.0) {
+            bail!("{source}: top-level \"unit_length\" must be finite and > 0, got {u}");
+        }
+    }
+    let mut points = Vec::with_capacity(spec.points.len());
+    let mut previous: Option<f64> = None;
+    for (i, value) in spec.points.into_iter().enumerate() {
+        let at = || format!("{source}: point {i}");
+        let p: PointSpec = serde_json::from_value(value).map_err(|e| anyhow!("{}: {e}", at()))?;
+        if !p.scalar.is_finite() {
+            bail!("{}: scalar {} is not finite", at(), p.scalar);
+        }
+        if spec.scalar_units == ScalarUnits::Relative && !(0.0..=1.0).contains(&p.scalar) {
+            bail!("{}: relative scalar {} is outside [0, 1]", at(), p.scalar);
+        }
+        if let Some(prev) = previous {
+            if p.scalar < prev {
+                bail!(
+                    "{}: scalar {} is below the previous point's {prev} (scalars must be non-decreasing)",
+                    at(),
+                    p.scalar
+                );
+            }
+        }
+        previous = Some(p.scalar);
+        for (k, &c) in p.color.iter().enumerate() {
+            if !(c.is_finite() && (0.0..=1.0).contains(&c)) {
+                bail!("{}: color component {k} is {c}, outside [0, 1]", at());
+            }
+        }
+        let tau = match (p.attenuation, p.opacity) {
+            (Some(_), Some(_)) => bail!("{}: give either \"attenuation\" or \"opacity\", not both", at()),
+            (None, None) => bail!("{}: needs \"attenuation\" or \"opacity\" (with \"unit_length\")", at()),
+            (Some(t), None) => {
+                if p.unit_length.is_some() {
+                    bail!("{}: \"unit_length\" only goes with \"opacity\"", at());
+                }
+                if !(t.is_finite() && t >= 0.0) {
+                    bail!("{}: attenuation {t} must be finite and >= 0", at());
+                }
+                t / unit
+            }
+            (None, Some(o)) => {
+                if !(o.is_finite() && (0.0..1.0).contains(&o)) {
+                    bail!("{}: opacity {o} is outside [0, 1)", at());
+                }
+                let len = p.unit_length.or(spec.unit_length).ok_or_else(|| {
+                    anyhow!("{}: \"opacity\" needs \"unit_length\" (on the point or at the top level)", at())
+                })?;
+                if !(len.is_finite() && len > 0.0) {
+                    bail!("{}: unit_length {len} must be finite and > 0", at());
+                }
+                -(-o).ln_1p() / (len * unit)
+            }
+        };
+        let scalar = match spec.scalar_units {
+            ScalarUnits::Absolute => p.scalar,
+            // As `harness::datasets::default_transfer_function` does.
+            ScalarUnits::Relative => lo + p.scalar * (hi - lo),
+        };
+        points.push(ControlPoint { scalar, color: p.color, attenuation: tau });
+    }
+    Ok(TransferFunction { name: spec.name.unwrap_or_else(|| default_name.to_string()), points })
+}
+
+/// Units [`to_json`] writes in.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum JsonUnits {
+    /// Scalars absolute, attenuation per world unit: lossless.
+    Absolute,
+    /// Scalars relative to `scalar_range`, attenuation per `mesh_diagonal`
+    /// (the presets' form; reading back may differ in the last bits).
+    RelativeTo { scalar_range: (f64, f64), mesh_diagonal: f64 },
+}
+
+/// Writes `tf` in the file format (pretty-printed JSON, attenuation form).
+pub fn to_json(tf: &TransferFunction, units: JsonUnits) -> Result<String> {
+    // scalar' = (scalar - lo) / span, tau' = tau · unit (exact for the
+    // absolute form: lo = 0, span = unit = 1).
+    let (scalar_units, attenuation_units, lo, span, unit) = match units {
+        JsonUnits::Absolute => (ScalarUnits::Absolute, AttenuationUnits::PerWorldUnit, 0.0, 1.0, 1.0),
+        JsonUnits::RelativeTo { scalar_range: (lo, hi), mesh_diagonal } => {
+            if !(lo.is_finite() && hi.is_finite() && hi > lo) {
+                bail!("{}: cannot write relative scalars over the range [{lo}, {hi}]", tf.name);
+            }
+            let diag = mesh_diagonal.max(f64::MIN_POSITIVE);
+            (ScalarUnits::Relative, AttenuationUnits::PerDiagonal, lo, hi - lo, diag)
+        }
+    };
+    #[derive(Serialize)]
+    struct Out<'a> {
+        name: &'a str,
+        scalar_units: ScalarUnits,
+        attenuation_units: AttenuationUnits,
+        points: Vec<PointSpec>,
+    }
+    let out = Out {
+        name: &tf.name,
+        scalar_units,
+        attenuation_units,
+        points: tf
+            .points
+            .iter()
+            .map(|p| {
+                let scalar = (p.scalar - lo) / span;
+                let attenuation = Some(p.attenuation * unit);
+                PointSpec { scalar, color: p.color, attenuation, opacity: None, unit_length: None }
+            })
+            .collect(),
+    };
+    Ok(serde_json::to_string_pretty(&out)? + "\n")
+}
+
+/// The preset file of a shipped mesh (`data/tf/<name>.json`), if there is one.
+pub fn preset_path(mesh_name: &str) -> Option<PathBuf> {
+    let p = crate::harness::datasets::data_dir().join("tf").join(format!("{mesh_name}.json"));
+    p.is_file().then_some(p)
+}
