@@ -7,6 +7,7 @@ use std::process::ExitCode;
 use anyhow::{bail, Context as _, Result};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
+use volbench::algo::cell_projection::sort::SortKind;
 use volbench::algo::cell_projection::{Interpolation, Method};
 use volbench::algo::integrate::Integrator;
 use volbench::harness::report::{self, ComparisonRow};
@@ -90,6 +91,13 @@ struct FrameArgs {
     /// scalar samples per axis, default 128, with a quarter as many lengths).
     #[arg(long, value_parser = clap::value_parser!(u32).range(2..=4096))]
     table_size: Option<u32>,
+    /// Visibility order: centroid distance, or MPVO from face adjacency.
+    #[arg(long, value_enum, default_value = "centroid")]
+    sort: SortKind,
+    /// A transfer-function file (JSON, see data/tf/README.md); default: the
+    /// mesh's preset.
+    #[arg(long)]
+    tf: Option<PathBuf>,
 }
 
 #[derive(Args)]
@@ -138,6 +146,14 @@ fn parse_size(s: &str) -> Result<(u32, u32), String> {
 }
 
 impl FrameArgs {
+    /// The transfer function: `--tf FILE`, or the mesh's built-in preset.
+    fn transfer_function(&self, mesh: &volbench::mesh::TetMesh) -> Result<volbench::scene::TransferFunction> {
+        match &self.tf {
+            Some(path) => volbench::scene::tf_file::load_tf(path, mesh.scalar_range(), mesh.bounds().diagonal()),
+            None => Ok(datasets::default_transfer_function(mesh)),
+        }
+    }
+
     fn config(&self, method: Method) -> Result<RunConfig> {
         if self.frames == 0 {
             bail!("--frames must be at least 1");
@@ -154,6 +170,7 @@ impl FrameArgs {
         cfg.overlap = !self.no_overlap;
         cfg.integrator = self.integrator;
         cfg.table_size = self.table_size.unwrap_or(0) as usize;
+        cfg.sort = self.sort;
         cfg.projection = match self.projection {
             ProjectionArg::Perspective => Projection::Perspective { fovy_deg: 30.0 },
             ProjectionArg::Orthographic => Projection::Orthographic { height: 1.0 },
@@ -184,9 +201,11 @@ fn run(cli: &Cli, args: &RunArgs) -> Result<()> {
     let cfg = args.frame.config(args.method)?;
     let mesh = datasets::load_mesh(&args.mesh)?;
     let geometry = TetGeometry::compute(&mesh);
-    let tf = datasets::default_transfer_function(&mesh);
+    let tf = args.frame.transfer_function(&mesh)?;
     let ctx = context(cli)?;
     let scene = Scene { mesh: &mesh, geometry: &geometry, tf: &tf };
+    let mut cfg = cfg;
+    cfg.check_visibility = args.reference || args.diff_png.is_some();
     let mut out = run_cell_projection(&ctx, &scene, &cfg)
         .with_context(|| format!("running {} on {}", args.method.name(), args.mesh))?;
     if args.reference || args.diff_png.is_some() {
@@ -217,13 +236,14 @@ fn compare(cli: &Cli, args: &CompareArgs) -> Result<()> {
     let mut rmses = Vec::new();
     for (name, mesh) in args.meshes.iter().zip(meshes) {
         let geometry = TetGeometry::compute(&mesh);
-        let tf = datasets::default_transfer_function(&mesh);
+        let tf = args.frame.transfer_function(&mesh)?;
         let scene = Scene { mesh: &mesh, geometry: &geometry, tf: &tf };
         let mut images = Vec::new();
         let mut reference = None;
         for method in [Method::Vicp, Method::Balanced] {
             eprintln!("volbench: {} on {} ({} cells)...", method.name(), mesh.name, mesh.tets.len());
-            let cfg = args.frame.config(method)?;
+            let mut cfg = args.frame.config(method)?;
+            cfg.check_visibility = true;
             let mut out = run_cell_projection(&ctx, &scene, &cfg)
                 .with_context(|| format!("running {} on {}", method.name(), name))?;
             if reference.is_none() {
@@ -266,12 +286,11 @@ fn pareto(cli: &Cli, args: &ParetoArgs) -> Result<()> {
     let out_dir = args.out.clone().unwrap_or_else(|| PathBuf::from(format!("results/runs/pareto-{}", mesh.name)));
     std::fs::create_dir_all(&out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
     let geometry = TetGeometry::compute(&mesh);
-    let tf = datasets::default_transfer_function(&mesh);
+    let tf = args.frame.transfer_function(&mesh)?;
     let scene = Scene { mesh: &mesh, geometry: &geometry, tf: &tf };
     let ctx = context(cli)?;
     let variants: Vec<(Integrator, usize)> = vec![
         (Integrator::Average, 0),
-        (Integrator::Preint, 64),
         (Integrator::Preint, 128),
         (Integrator::Ppi, 128),
         (Integrator::Ppi, 512),
@@ -281,18 +300,23 @@ fn pareto(cli: &Cli, args: &ParetoArgs) -> Result<()> {
     let mut points = Vec::new();
     let mut reference = None;
     for method in [Method::Vicp, Method::Balanced] {
-        for interpolation in [Interpolation::Paper, Interpolation::Exact] {
+        for (interpolation, sort) in [Interpolation::Paper, Interpolation::Exact]
+            .into_iter()
+            .flat_map(|i| [SortKind::Centroid, SortKind::Mpvo].map(|s| (i, s)))
+        {
             for &(integrator, table_size) in &variants {
                 let mut cfg = args.frame.config(method)?;
                 cfg.interpolation = interpolation;
                 cfg.integrator = integrator;
                 cfg.table_size = table_size;
+                cfg.sort = sort;
                 eprintln!(
-                    "volbench: {} {} {} {}...",
+                    "volbench: {} {} {} {} {}...",
                     method.name(),
                     integrator.name(),
                     if table_size > 0 { table_size.to_string() } else { "-".into() },
-                    interpolation.name()
+                    interpolation.name(),
+                    sort.name()
                 );
                 let mut out = run_cell_projection(&ctx, &scene, &cfg)?;
                 if reference.is_none() {
@@ -301,7 +325,7 @@ fn pareto(cli: &Cli, args: &ParetoArgs) -> Result<()> {
                 if let Some(r) = &reference {
                     out.attach_error(r)?;
                 }
-                points.extend(ParetoPoint::from_result(&out.result, "centroid"));
+                points.extend(ParetoPoint::from_result(&out.result));
             }
         }
     }

@@ -72,3 +72,44 @@ fn run_writes_the_documented_json() {
     assert_eq!((v["width"].as_u64(), v["height"].as_u64()), (Some(64), Some(48)));
     assert!(png.exists());
 }
+
+#[test]
+fn sort_and_transfer_function_options() {
+    let dir = tempfile::tempdir().unwrap();
+    let json = dir.path().join("r.json");
+    let tf = concat!(env!("CARGO_MANIFEST_DIR"), "/data/tf/post-small.json");
+    let out = volbench()
+        .args(["run", "--mesh", "post-small", "--method", "vicp", "--size", "48x48", "--frames", "1", "--warmup", "0"])
+        .args(["--sort", "mpvo", "--integrator", "linear-exact", "--interpolation", "exact", "--tf", tf, "--reference"])
+        .arg("--json")
+        .arg(&json)
+        .env("VOLBENCH_VALIDATION", "1")
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(v["sort"], "mpvo");
+    assert_eq!(v["integrator"], "linear-exact");
+    assert_eq!(v["interpolation"], "exact");
+    assert_eq!(v["upload"]["floats_per_cell"], 132.0);
+    // The preset file is the built-in preset: same name.
+    assert_eq!(v["transfer_function"], "post-small-default");
+    assert!(v["centroid_order"]["constraints"].as_u64().unwrap() > 0);
+
+    // A bad transfer-function file: a clear error naming it, no output.
+    let bad = dir.path().join("bad.json");
+    std::fs::write(&bad, r#"{"points": [{"scalar": 1, "color": [2, 0, 0], "attenuation": 1}]}"#).unwrap();
+    let json2 = dir.path().join("r2.json");
+    let out = volbench()
+        .args(["run", "--mesh", "post-small", "--method", "vicp", "--size", "8x8", "--frames", "1"])
+        .arg("--tf")
+        .arg(&bad)
+        .arg("--json")
+        .arg(&json2)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("bad.json"), "{err}");
+    assert!(!json2.exists());
+}

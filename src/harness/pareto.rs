@@ -31,7 +31,8 @@ pub struct ParetoPoint {
 }
 
 impl ParetoPoint {
-    pub fn from_result(r: &RunResult, sort: &str) -> Option<Self> {
+    pub fn from_result(r: &RunResult) -> Option<Self> {
+        let sort = r.sort;
         let e = r.error.as_ref()?;
         let table = if r.table_size > 0 { format!("{}", r.table_size) } else { "-".into() };
         Some(ParetoPoint {

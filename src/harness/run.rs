@@ -14,7 +14,9 @@ use serde::Serialize;
 
 use super::image::RgbaImage;
 use super::stats::Summary;
-use crate::algo::cell_projection::{self, sort::CentroidSort, CellProjector, ExitTolerances, FrameSetup, Interpolation, MeshScale, Method};
+use crate::algo::cell_projection::mpvo::{MpvoSort, OrderCheck};
+use crate::algo::cell_projection::sort::{CentroidSort, SortKind, Sorter};
+use crate::algo::cell_projection::{self, CellProjector, ExitTolerances, FrameSetup, Interpolation, MeshScale, Method};
 use crate::algo::integrate::{IntegrationTables, Integrator};
 use crate::mesh::{MeshStats, TetGeometry, TetMesh};
 use crate::scene::{Camera, Projection, TransferFunction};
@@ -27,6 +29,10 @@ pub struct RunConfig {
     pub integrator: Integrator,
     /// Side of the integrator's table; 0 = its default.
     pub table_size: usize,
+    pub sort: SortKind,
+    /// Also check the centroid order of the reference view against MPVO's
+    /// face constraints (costs an MPVO build when sorting by centroid).
+    pub check_visibility: bool,
     pub tolerances: ExitTolerances,
     pub width: u32,
     pub height: u32,
@@ -48,6 +54,8 @@ impl RunConfig {
             interpolation: Interpolation::Paper,
             integrator: Integrator::Ppi,
             table_size: 0,
+            sort: SortKind::Centroid,
+            check_visibility: false,
             tolerances: ExitTolerances::default(),
             width: 512,
             height: 512,
@@ -130,6 +138,10 @@ pub struct RunResult {
     pub integrator: &'static str,
     /// Side of the integrator's table (0: none).
     pub table_size: usize,
+    pub sort: &'static str,
+    /// Centroid order of the reference view checked against MPVO's face
+    /// constraints (`check_visibility`): how many it violates, how many cells.
+    pub centroid_order: Option<OrderCheck>,
     pub tolerances: ExitTolerances,
     pub mesh: String,
     pub cells: usize,
@@ -224,7 +236,7 @@ pub struct CellProjectionSession {
     target: Image,
     recorder: CommandRecorder,
     queries: FrameQueries,
-    sorter: CentroidSort,
+    sorter: Sorter,
     scale: MeshScale,
     interpolation: Interpolation,
     pub tolerances: ExitTolerances,
@@ -275,7 +287,7 @@ impl CellProjectionSession {
         let target = Image::render_target(ctx, "cell projection target", width, height)?;
         let recorder = CommandRecorder::new(ctx, "frame")?;
         let queries = FrameQueries::new(ctx)?;
-        let sorter = CentroidSort::new(cell_projection::centroids_f32(scene.geometry));
+        let sorter = Sorter::new(cfg.sort, mesh, scene.geometry);
         Ok(CellProjectionSession {
             tables,
             method,
@@ -451,6 +463,13 @@ pub fn run_cell_projection(ctx: &Arc<Context>, scene: &Scene, cfg: &RunConfig) -
     let image = session.read_image(ctx)?;
     ctx.check_validation().context("Vulkan validation")?;
 
+    let centroid_order = if cfg.check_visibility {
+        let mut centroid = CentroidSort::new(cell_projection::centroids_f32(scene.geometry));
+        let order = centroid.sort(&reference_camera).to_vec();
+        Some(MpvoSort::new(mesh, scene.geometry).check_order(&order, &reference_camera))
+    } else {
+        None
+    };
     let method = session.method();
     let cells = method.cells();
     let fc = last_frame_counters;
@@ -487,6 +506,8 @@ pub fn run_cell_projection(ctx: &Arc<Context>, scene: &Scene, cfg: &RunConfig) -
         interpolation: cfg.interpolation.name(),
         integrator: cfg.integrator.name(),
         table_size: session.table_size(),
+        sort: cfg.sort.name(),
+        centroid_order,
         tolerances: cfg.tolerances,
         mesh: mesh.name.clone(),
         cells,

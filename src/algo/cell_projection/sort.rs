@@ -154,3 +154,47 @@ mod tests {
         assert_eq!(s.sort(&cam), &[2, 3, 0, 1]);
     }
 }
+
+/// Which visibility order a run draws in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, clap::ValueEnum, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum SortKind {
+    /// Back to front by centroid distance (VTK's default): fast, not exact.
+    #[default]
+    Centroid,
+    /// MPVO from face adjacency (exact for connected convex meshes) with the
+    /// MPVONC heuristic elsewhere; see `mpvo`.
+    Mpvo,
+}
+
+impl SortKind {
+    pub fn name(self) -> &'static str {
+        match self {
+            SortKind::Centroid => "centroid",
+            SortKind::Mpvo => "mpvo",
+        }
+    }
+}
+
+/// A per-frame sort of either kind, built once per mesh.
+pub enum Sorter {
+    Centroid(CentroidSort),
+    Mpvo(Box<super::mpvo::MpvoSort>),
+}
+
+impl Sorter {
+    pub fn new(kind: SortKind, mesh: &crate::mesh::TetMesh, geometry: &crate::mesh::TetGeometry) -> Self {
+        match kind {
+            SortKind::Centroid => Sorter::Centroid(CentroidSort::new(super::centroids_f32(geometry))),
+            SortKind::Mpvo => Sorter::Mpvo(Box::new(super::mpvo::MpvoSort::new(mesh, geometry))),
+        }
+    }
+
+    /// Cell indices, farthest first.
+    pub fn sort(&mut self, camera: &Camera) -> &[u32] {
+        match self {
+            Sorter::Centroid(s) => s.sort(camera),
+            Sorter::Mpvo(s) => s.sort(camera),
+        }
+    }
+}
