@@ -22,22 +22,8 @@ const TILE: u32 = 8;
 /// (projection and `Camera::ray` agree to ~1e-9 px).
 const BIN_MARGIN: f64 = 0.01;
 
-#[inline]
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-#[inline]
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-#[inline]
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
+use crate::mesh::geometry::{cross, dot, sub};
+
 #[inline]
 fn sign(x: f64) -> i8 {
     if x > 0.0 {
