@@ -42,6 +42,23 @@ enum Command {
     /// Sweep methods x integrators x table sizes x interpolations on one mesh: run
     /// time against error (CSV, Markdown, PNG plot with the Pareto front).
     Pareto(ParetoArgs),
+    /// Render adversarial cases (slivers, degenerate cells, grazing rays, far
+    /// from the origin, extreme scalars, steps, opaque media, camera inside)
+    /// with every method and integrator against the f64 reference.
+    Stress(StressArgs),
+}
+
+#[derive(Args)]
+struct StressArgs {
+    /// Image side in pixels (even, >= 16).
+    #[arg(long, default_value_t = 128)]
+    size: u32,
+    /// Write {"cases": [...]} as JSON.
+    #[arg(long)]
+    json: Option<PathBuf>,
+    /// Print what each case is and its error allowances, and exit.
+    #[arg(long)]
+    describe: bool,
 }
 
 #[derive(Args)]
@@ -340,6 +357,36 @@ fn pareto(cli: &Cli, args: &ParetoArgs) -> Result<()> {
     Ok(())
 }
 
+fn stress(cli: &Cli, args: &StressArgs) -> Result<()> {
+    use volbench::harness::stress::{describe_cases, failures, run_stress_with_progress, stress_table, StressReport};
+    if args.size < 16 || args.size % 2 != 0 {
+        bail!("--size must be even and at least 16, got {}", args.size);
+    }
+    if args.describe {
+        print!("{}", describe_cases(args.size));
+        return Ok(());
+    }
+    let ctx = context(cli)?;
+    let mut done = 0usize;
+    let rows = run_stress_with_progress(&ctx, args.size, |row| {
+        done += 1;
+        if done % 50 == 0 {
+            eprintln!("volbench: stress: {done} renders ({} ...)", row.case);
+        }
+    })?;
+    print!("{}", stress_table(&rows));
+    let failed = failures(&rows);
+    let non_finite: usize = rows.iter().map(|r| r.nan_pixels + r.inf_pixels).sum();
+    println!("{} renders, {} NaN/Inf pixels, {} failed", rows.len(), non_finite, failed);
+    if let Some(p) = &args.json {
+        report::write_json(p, &StressReport { cases: rows })?;
+    }
+    if failed > 0 {
+        bail!("{failed} stress renders exceeded their bounds");
+    }
+    Ok(())
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match &cli.command {
@@ -347,6 +394,7 @@ fn main() -> ExitCode {
         Command::Run(a) => run(&cli, a),
         Command::Compare(a) => compare(&cli, a),
         Command::Pareto(a) => pareto(&cli, a),
+        Command::Stress(a) => stress(&cli, a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

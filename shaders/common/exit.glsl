@@ -9,13 +9,13 @@
 // make d[k] slightly negative: the paper's rule then skips that plane and picks
 // the next one, possibly a whole cell too far (bright specks along edges seen
 // edge-on). The robust rule (default) also interpolates w[k] = lambda_k: the
-// ratio d[k]/w[k] = t_k exactly, so sign(d[k] * w[k]) tells an exit plane
-// (t_k > 0) from an entry plane whatever the rounding, and an exit plane's
-// distance is clamped at 0. Build with PAPER_EXIT_RULE for the paper's rule.
-// llvmpipe interpolates each attribute from its own plane equation, so for
-// values within rounding of 0 the signs of d[k] and w[k] can disagree; a plane
-// with |lambda_k| < limits.z (edge epsilon, off by default) passes through the fragment's ray to within
-// rounding and counts as an exit at distance 0. Near an edge shared by two
+// ratio d[k]/w[k] = t_k exactly, so its sign tells an exit plane (t_k > 0)
+// from an entry plane whatever the rounding of d[k], and an exit plane's
+// distance is clamped at 0 (how t_k's sign is found where lambda_k ~ 0:
+// plane_coefficients below). Build with PAPER_EXIT_RULE for the paper's rule.
+// Optionally, a plane with |lambda_k| < limits.z (edge epsilon, off by
+// default) passes through the fragment's ray to within rounding and counts
+// as an exit at distance 0, whatever t_k's sign. Near an edge shared by two
 // entry faces that loses one cell's contribution to a pixel (at most ~1e-5 of
 // a face's area); choosing the next plane instead could add a whole cell, or
 // with a nearly edge-on plane many (bright specks). The plane of the face
@@ -35,9 +35,38 @@
 // there s_f + (mu - 1) g.(p - eye), with g.(p - eye) = g_rel interpolated
 // (affine, so exact too).
 
-// Plane k bounds the segment: an exit plane, or one through the fragment.
-bool exit_candidate(float d, float w) {
-    return d * w > 0.0 || (w != 0.0 && abs(w) < frame.limits.z);
+// Classifying planes through the fragment (stress case "axis-ortho": pixel
+// centres exactly on edges). d[k] and w[k] are both 0 at a fragment on an
+// edge of the face, exactly so when coordinates are exact in binary, and
+// sign(d * w) then says nothing; llvmpipe interpolates each attribute from
+// its own plane equation, so near 0 the two signs can also disagree. Either
+// way an exit plane through the fragment was rejected and the next plane, a
+// cell or more away, taken instead (max error 0.165 in that case).
+// Whether plane k is an exit does not depend on where on the face the
+// fragment lies: it is the sign of the per-vertex value c_k = d[k] / w[k]
+// (t_k, or u_k for exact perspective), since d[k] = c_k w[k] as functions
+// over the face. Where |w[k]| is small that ratio is 0/0, but the screen-space
+// derivatives keep it: grad d[k] = c_k grad w[k], and over a pixel w[k]
+// changes by ~1/(face size in pixels), far above rounding. The plane of the
+// face being drawn (balanced: w = 0 everywhere, grad w = 0) gets c = 0 and is
+// never an exit. A |c| at the clamp (ray parallel to the plane, n.d = 0,
+// or the eye in the plane) is no crossing at all: the ray lies in the plane
+// or never reaches it, so the plane cannot end the segment.
+EXIT_VEC plane_coefficients(EXIT_VEC d, EXIT_VEC w) {
+    EXIT_VEC ddx = dFdx(d), ddy = dFdy(d), wdx = dFdx(w), wdy = dFdy(w);
+    EXIT_VEC c;
+    for (int k = 0; k < EXIT_N; ++k) {
+        float gg = wdx[k] * wdx[k] + wdy[k] * wdy[k];
+        float from_grad = gg > 0.0 ? (ddx[k] * wdx[k] + ddy[k] * wdy[k]) / gg : 0.0;
+        c[k] = abs(w[k]) >= 1e-3 ? d[k] / w[k] : from_grad;
+    }
+    return c;
+}
+
+// Plane k bounds the segment: an exit plane (c > 0, not parallel to the
+// ray), or with the optional edge epsilon any plane through the fragment.
+bool exit_candidate(float c, float w, float parallel) {
+    return (c > 0.0 && c < parallel) || (w != 0.0 && abs(w) < frame.limits.z);
 }
 
 bool exit_point(EXIT_VEC d, EXIT_VEC s, EXIT_VEC w, float s_front, float g_rel, vec3 rel,
@@ -45,11 +74,12 @@ bool exit_point(EXIT_VEC d, EXIT_VEC s, EXIT_VEC w, float s_front, float g_rel, 
     len = frame.limits.x;
     s_back = s_front;
     bool found = false;
+    EXIT_VEC c = plane_coefficients(d, w);
 #ifdef EXACT_PERSPECTIVE
     if (frame.eye.w > 0.5) {
         float r = length(rel);
         for (int k = 0; k < EXIT_N; ++k) {
-            bool is_exit = exit_candidate(d[k], w[k]) && d[k] < 1.0;
+            bool is_exit = exit_candidate(c[k], w[k], 0.5 * frame.limits.y) && d[k] < 1.0;
             float u = max(d[k], 0.0);
             float mu_minus_1 = u / (1.0 - u);
             float dk = mu_minus_1 * r;
@@ -67,7 +97,7 @@ bool exit_point(EXIT_VEC d, EXIT_VEC s, EXIT_VEC w, float s_front, float g_rel, 
         bool is_exit = d[k] > 0.0;
         float dk = d[k];
 #else
-        bool is_exit = exit_candidate(d[k], w[k]);
+        bool is_exit = exit_candidate(c[k], w[k], 0.5 * frame.limits.x);
         float dk = max(d[k], 0.0);
 #endif
         if (is_exit && dk < len) {

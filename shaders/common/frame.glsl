@@ -8,9 +8,14 @@ layout(push_constant) uniform Frame {
                       // w: length scale of the pre-integration table
 } frame;
 
-// The viewing ray's unit direction through a world-space point.
+// The viewing ray's unit direction through a point. A vertex exactly at the
+// eye (stress case "eye-on-vertex") has no direction, normalize(0) = NaN,
+// and NaN attributes would reach fragments through clipping: it takes the
+// view direction instead, as the CPU's FrameSetup::ray_direction does.
 vec3 ray_direction(vec3 p) {
-    return frame.eye.w > 0.5 ? normalize(p - frame.eye.xyz) : frame.view_dir.xyz;
+    vec3 r = p - frame.eye.xyz;
+    float len2 = dot(r, r);
+    return frame.eye.w > 0.5 && len2 > 0.0 ? r * inversesqrt(len2) : frame.view_dir.xyz;
 }
 
 // IntersectBackFace with the 3-float plane encoding n' = n / (n.v + a):

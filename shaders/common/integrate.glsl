@@ -16,12 +16,26 @@
 layout(std430, set = 0, binding = 0) readonly buffer TransferTable { vec4 tf[]; };   // rgb = L, a = tau
 layout(std430, set = 0, binding = 1) readonly buffer IntegrationTable { vec4 table[]; };
 
+// Largest table value used: an attenuation beyond f32's range is Inf in the
+// table, and mix(Inf, Inf, t) = Inf + t (Inf - Inf) = NaN (stress case
+// "opaque-3e38"). 1e30 per unit length is opaque over 1e-28 of a unit.
+const float TF_MAX = 1e30;
+// Largest optical depth integrated: tau * D overflows to Inf for tau near
+// f32's maximum (and Inf * 0 = NaN on a zero-length segment; Inf / Inf = NaN
+// in gamma); beyond 1e4 the transmittance exp(-tau D) is 0 in f32 anyway.
+const float DEPTH_MAX = 1e4;
+
 vec4 transfer(float s) {
     float n = frame.tf_range.z;
     float x = clamp((s - frame.tf_range.x) * frame.tf_range.y, 0.0, 1.0) * (n - 1.0);
     float i = min(floor(x), n - 2.0);
     int k = int(i);
-    return mix(tf[k], tf[k + 1], x - i);
+    return mix(min(tf[k], vec4(TF_MAX)), min(tf[k + 1], vec4(TF_MAX)), x - i);
+}
+
+// Optical depth tau * len, finite and in [0, DEPTH_MAX] (len >= 0, tau <= TF_MAX).
+float optical_depth(float tau, float len) {
+    return min(max(tau, 0.0) * len, DEPTH_MAX);
 }
 
 vec4 linear_segment(vec4 front, vec4 back, float zeta, float psi) {
@@ -37,8 +51,7 @@ vec4 linear_segment(vec4 front, vec4 back, float zeta, float psi) {
 vec4 integrate_segment(float s_front, float s_back, float len) {
     vec4 front = transfer(s_front);
     vec4 back = transfer(s_back);
-    float tau = 0.5 * (max(front.a, 0.0) + max(back.a, 0.0));
-    float alpha = 1.0 - exp(-tau * len);
+    float alpha = 1.0 - exp(-optical_depth(0.5 * (max(front.a, 0.0) + max(back.a, 0.0)), len));
     return vec4(0.5 * (front.rgb + back.rgb) * alpha, alpha);
 }
 
@@ -152,8 +165,8 @@ float psi_exact(float a, float b) {
 vec4 integrate_segment(float s_front, float s_back, float len) {
     vec4 front = transfer(s_front);
     vec4 back = transfer(s_back);
-    float a = max(front.a, 0.0) * len;
-    float b = max(back.a, 0.0) * len;
+    float a = optical_depth(front.a, len);
+    float b = optical_depth(back.a, len);
     float zeta = exp(-0.5 * (a + b));
     return linear_segment(front, back, zeta, psi_exact(a, b));
 }
@@ -173,8 +186,8 @@ float psi_lookup(float gamma_f, float gamma_b) {
 vec4 integrate_segment(float s_front, float s_back, float len) {
     vec4 front = transfer(s_front);
     vec4 back = transfer(s_back);
-    float tf_d = max(front.a, 0.0) * len;
-    float tb_d = max(back.a, 0.0) * len;
+    float tf_d = optical_depth(front.a, len);
+    float tb_d = optical_depth(back.a, len);
     float zeta = exp(-0.5 * (tf_d + tb_d));
     float psi = psi_lookup(tf_d / (tf_d + 1.0), tb_d / (tb_d + 1.0));
     return linear_segment(front, back, zeta, psi);

@@ -9,3 +9,4 @@ pub mod reference_cache;
 pub mod report;
 pub mod run;
 pub mod stats;
+pub mod stress;

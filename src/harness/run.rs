@@ -464,7 +464,9 @@ pub fn run_cell_projection(ctx: &Arc<Context>, scene: &Scene, cfg: &RunConfig) -
     ctx.check_validation().context("Vulkan validation")?;
 
     let centroid_order = if cfg.check_visibility {
-        let mut centroid = CentroidSort::new(cell_projection::centroids_f32(scene.geometry));
+        let origin = cell_projection::render_origin(mesh);
+        let mut centroid =
+            CentroidSort::with_origin(cell_projection::centroids_relative_f32(scene.geometry, origin), origin);
         let order = centroid.sort(&reference_camera).to_vec();
         Some(MpvoSort::new(mesh, scene.geometry).check_order(&order, &reference_camera))
     } else {

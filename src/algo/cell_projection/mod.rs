@@ -102,12 +102,55 @@ pub struct ExitTolerances {
 }
 
 /// Sizes of a mesh that bound what any ray segment through one of its cells
-/// can be.
+/// can be, and the origins its f32 data is expressed relative to.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct MeshScale {
     pub diagonal: f64,
     /// The longest edge of any cell: no segment through a cell is longer.
     pub max_cell_extent: f64,
+    /// `render_origin(mesh)`: positions sent to the device are relative to it.
+    pub origin: [f64; 3],
+    /// `scalar_map(mesh)`: scalars are sent as (s - origin) / scale.
+    pub scalar_origin: f64,
+    pub scalar_scale: f64,
+}
+
+/// The point every f32 position is relative to (stress cases
+/// "translate-1e3/1e5/1e7"). f32 keeps 24 bits: a mesh of size 1 placed 1e5
+/// from the world origin keeps 7 of them for its own extent (0.18 max
+/// error), at 1e7 none (the mesh collapses). Positions are therefore sent
+/// relative to the mesh's bounding-box centre, the subtraction done in f64
+/// before the f32 conversion, and the eye and the view-projection matrix
+/// are moved by the same f64 offset (`FrameSetup::new`). Meshes within one
+/// diagonal of the world origin keep origin 0 (nothing to gain; their data
+/// stays bit-identical to world coordinates, which `FrameSetup::for_camera`
+/// assumes). The origin is per mesh, not per frame, so VICP's records stay
+/// view-independent and both methods see the same numbers.
+pub fn render_origin(mesh: &TetMesh) -> [f64; 3] {
+    let b = mesh.bounds();
+    let c = b.center();
+    let dist = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
+    if dist > b.diagonal() {
+        c
+    } else {
+        [0.0; 3]
+    }
+}
+
+/// How scalars are sent to the device: as (s - origin) / scale with the
+/// mesh's scalar range [origin, origin + scale], mapped in f64 before the
+/// f32 conversion, gradients divided by the same scale and the transfer
+/// function's range mapped alike (`FrameSetup::new`). Only the transfer
+/// function reads scalars, through this same affine map, so nothing changes
+/// but the f32 rounding, which is now relative to the range: scalars in
+/// 1e6 + [0, 1] were 0.0625 apart in f32 (stress case "scalars-offset-1e6",
+/// max error 0.33), and scalars and g.(v - eye) near 1e37 left no headroom
+/// below f32's maximum for the interpolation ("scalars-1e37", max error
+/// 5e-2). Scale 1 for a constant field.
+pub fn scalar_map(mesh: &TetMesh) -> (f64, f64) {
+    let (lo, hi) = mesh.scalar_range();
+    let w = hi - lo;
+    (lo, if w > 0.0 && w.is_finite() { w } else { 1.0 })
 }
 
 impl MeshScale {
@@ -129,7 +172,13 @@ impl MeshScale {
             })
             .reduce(|| 0.0, f64::max)
             .sqrt();
-        MeshScale { diagonal: mesh.bounds().diagonal(), max_cell_extent: max_edge }
+        MeshScale {
+            diagonal: mesh.bounds().diagonal(),
+            max_cell_extent: max_edge,
+            origin: render_origin(mesh),
+            scalar_origin: scalar_map(mesh).0,
+            scalar_scale: scalar_map(mesh).1,
+        }
     }
 }
 
@@ -154,7 +203,10 @@ pub struct FrameConstants {
 #[derive(Debug, Clone, Copy)]
 pub struct FrameSetup {
     pub constants: FrameConstants,
+    /// The eye relative to `origin` (what the f32 positions are relative to).
     pub eye: [f32; 3],
+    /// `render_origin` of the mesh (0 from `for_camera`).
+    pub origin: [f64; 3],
     pub view_dir: [f32; 3],
     pub perspective: bool,
     /// Bound on |ray-plane distance| (see `ExitTolerances`).
@@ -175,8 +227,17 @@ impl FrameSetup {
         tolerances: &ExitTolerances,
     ) -> Self {
         let mut setup = Self::for_camera(camera, scale.diagonal, interpolation, tolerances);
-        let vp = camera.view_proj(width, height).to_cols_array_2d();
+        // Positions are relative to the mesh's render origin (see
+        // `render_origin`): move the eye and the matrix by it in f64, then
+        // convert. (Translating in f32 would cancel 1e7-sized terms.)
+        let o = scale.origin;
+        setup.origin = o;
+        setup.eye = std::array::from_fn(|k| (camera.eye[k] - o[k]) as f32);
+        let vp = (camera.view_proj(width, height) * glam::DMat4::from_translation(glam::DVec3::from(o))).to_cols_array_2d();
+        // Scalars arrive mapped by `scalar_map`: map the table's range alike.
         let (lo, hi) = tables.tf_range;
+        let lo_rel = (lo - scale.scalar_origin) / scale.scalar_scale;
+        let inv_width = scale.scalar_scale / (hi - lo);
         let (e, v) = (setup.eye, setup.view_dir);
         setup.constants = FrameConstants {
             view_proj: vp.map(|c| c.map(|x| x as f32)),
@@ -184,14 +245,16 @@ impl FrameSetup {
             // w: no segment through a cell is longer than its longest edge
             // (1% margin for f32 rounding); see shaders/common/exit.glsl.
             view_dir: [v[0], v[1], v[2], (1.01 * scale.max_cell_extent) as f32],
-            tf_range: [lo as f32, (1.0 / (hi - lo)) as f32, tables.tf_size as f32, tables.table_size as f32],
+            tf_range: [lo_rel as f32, inv_width as f32, tables.tf_size as f32, tables.table_size as f32],
             limits: [setup.max_distance, setup.plane_ratio_max, tolerances.edge_eps, tables.length_scale as f32],
         };
         setup
     }
 
     /// The CPU side only (what the balanced method's packing reads); the
-    /// shader constants are left zero.
+    /// shader constants are left zero. World coordinates: right for meshes
+    /// whose `render_origin` is 0 (within a diagonal of the world origin);
+    /// `new` handles any mesh.
     pub fn for_camera(
         camera: &Camera,
         mesh_diagonal: f64,
@@ -202,6 +265,7 @@ impl FrameSetup {
         FrameSetup {
             constants: bytemuck::Zeroable::zeroed(),
             eye: camera.eye.map(|v| v as f32),
+            origin: [0.0; 3],
             view_dir: [f.x as f32, f.y as f32, f.z as f32],
             perspective: camera.is_perspective(),
             max_distance: (tolerances.distance_clamp_diagonals * mesh_diagonal).max(1e-30) as f32,
@@ -329,16 +393,23 @@ pub struct CellF32 {
     pub gradient: [f32; 3],
 }
 
+/// Positions are relative to `render_origin(mesh)` and scalars mapped by
+/// `scalar_map(mesh)` (gradients scaled alike), both in f64 before the
+/// conversion (far from the origin the f32 values would otherwise have lost
+/// the mesh). Planes do not depend on either.
 pub fn cells_f32(mesh: &TetMesh, geometry: &TetGeometry) -> Vec<CellF32> {
     use rayon::prelude::*;
+    let o = render_origin(mesh);
+    let (so, ss) = scalar_map(mesh);
+    let rel = move |v: [f64; 3]| -> [f32; 3] { std::array::from_fn(|k| (v[k] - o[k]) as f32) };
     mesh.tets
         .par_iter()
         .zip(geometry.cells.par_iter())
         .map(|(tet, g)| {
             let p = tet.map(|i| mesh.points[i as usize]);
-            let s = tet.map(|i| mesh.scalars[i as usize] as f32);
+            let s = tet.map(|i| ((mesh.scalars[i as usize] - so) / ss) as f32);
             if g.degenerate {
-                let v0 = p[0].map(|x| x as f32);
+                let v0 = rel(p[0]);
                 return CellF32 { pos: [v0; 4], scalar: s, plane3: [[0.0; 3]; 4], gradient: [0.0; 3] };
             }
             let mut plane3 = [[0f32; 3]; 4];
@@ -352,10 +423,10 @@ pub fn cells_f32(mesh: &TetMesh, geometry: &TetGeometry) -> Vec<CellF32> {
                 };
             }
             CellF32 {
-                pos: p.map(|v| v.map(|x| x as f32)),
+                pos: p.map(rel),
                 scalar: s,
                 plane3,
-                gradient: g.gradient.map(|x| x as f32),
+                gradient: g.gradient.map(|x| (x / ss) as f32),
             }
         })
         .collect()
@@ -363,4 +434,11 @@ pub fn cells_f32(mesh: &TetMesh, geometry: &TetGeometry) -> Vec<CellF32> {
 
 pub fn centroids_f32(geometry: &TetGeometry) -> Vec<[f32; 3]> {
     geometry.centroids.iter().map(|c| c.map(|x| x as f32)).collect()
+}
+
+/// Centroids relative to `origin` (e.g. `MeshScale::origin`), subtracted in
+/// f64: what the depth sort needs far from the world origin, where world
+/// f32 centroids 1e7 away are 1 unit apart and the order is lost.
+pub fn centroids_relative_f32(geometry: &TetGeometry, origin: [f64; 3]) -> Vec<[f32; 3]> {
+    geometry.centroids.iter().map(|c| std::array::from_fn(|k| (c[k] - origin[k]) as f32)).collect()
 }

@@ -20,6 +20,8 @@ fn float_key(x: f32) -> u32 {
 /// Reusable buffers for the centroid sort of one mesh.
 pub struct CentroidSort {
     centroids: Vec<[f32; 3]>,
+    /// What the centroids are relative to (the eye is moved by it in f64).
+    origin: [f64; 3],
     keys: Vec<u32>,
     scratch_keys: Vec<u32>,
     order: Vec<u32>,
@@ -30,9 +32,17 @@ impl CentroidSort {
     /// `centroids` relative to the same origin as the camera position passed
     /// to `sort` (world space here).
     pub fn new(centroids: Vec<[f32; 3]>) -> Self {
+        Self::with_origin(centroids, [0.0; 3])
+    }
+
+    /// `centroids` relative to `origin` (`centroids_relative_f32`, the
+    /// mesh's `render_origin`): 1e7 from the world origin, f32 world
+    /// centroids are 1 unit apart and a unit mesh's order is lost.
+    pub fn with_origin(centroids: Vec<[f32; 3]>, origin: [f64; 3]) -> Self {
         let n = centroids.len();
         CentroidSort {
             centroids,
+            origin,
             keys: vec![0; n],
             scratch_keys: vec![0; n],
             order: (0..n as u32).collect(),
@@ -50,7 +60,8 @@ impl CentroidSort {
 
     /// Cell indices, farthest first.
     pub fn sort(&mut self, camera: &Camera) -> &[u32] {
-        let eye = camera.eye.map(|v| v as f32);
+        let o = self.origin;
+        let eye: [f32; 3] = std::array::from_fn(|k| (camera.eye[k] - o[k]) as f32);
         let fwd = camera.forward();
         let fwd = [fwd.x as f32, fwd.y as f32, fwd.z as f32];
         let perspective = camera.is_perspective();
@@ -185,7 +196,10 @@ pub enum Sorter {
 impl Sorter {
     pub fn new(kind: SortKind, mesh: &crate::mesh::TetMesh, geometry: &crate::mesh::TetGeometry) -> Self {
         match kind {
-            SortKind::Centroid => Sorter::Centroid(CentroidSort::new(super::centroids_f32(geometry))),
+            SortKind::Centroid => {
+                let origin = super::render_origin(mesh);
+                Sorter::Centroid(CentroidSort::with_origin(super::centroids_relative_f32(geometry, origin), origin))
+            }
             SortKind::Mpvo => Sorter::Mpvo(Box::new(super::mpvo::MpvoSort::new(mesh, geometry))),
         }
     }

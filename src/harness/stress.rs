@@ -1,0 +1,972 @@
+//! `volbench stress`: adversarial meshes, views and transfer functions,
+//! rendered with every method and integrator and compared with the f64 CPU
+//! reference (issue 4). Every mesh is built in code and small (a few hundred
+//! to a few thousand tets), so the whole sweep runs in minutes on lavapipe.
+//!
+//! Each case is a scene (mesh, camera, transfer function) plus its documented
+//! limitations ([`Allowance`]). A row (case x method x integrator x
+//! interpolation x sort) is held to the integrator's accuracy bound
+//! ([`accuracy_bound`], measured on the benign "baseline" case, with margin)
+//! plus the allowances that apply to it. Its `status` is `ok` when the image
+//! has no NaN or Inf pixel and its max |error| against the reference is
+//! within the bound, `documented` for the same with an allowance applied,
+//! `fail` otherwise. [`describe_cases`] lists every case and allowance.
+
+use std::sync::Arc;
+
+use anyhow::{Context as _, Result};
+use serde::Serialize;
+
+use super::image::RgbaImage;
+use super::reference_cache::reference_image;
+use super::run::{run_cell_projection, RunConfig, Scene};
+use crate::algo::cell_projection::sort::SortKind;
+use crate::algo::cell_projection::{Interpolation, Method};
+use crate::algo::integrate::Integrator;
+use crate::mesh::split::hex_grid_to_tets;
+use crate::mesh::{MeshStats, TetGeometry, TetMesh};
+use crate::scene::{Camera, ControlPoint, Projection, TransferFunction};
+use crate::vk::Context;
+
+/// A documented limitation: rows it applies to may exceed the accuracy
+/// bound by `extra` (why, and how `extra` was obtained, in `reason`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Allowance {
+    /// The integrators it applies to (empty: all).
+    pub integrators: Vec<Integrator>,
+    /// The sort it applies to (None: both).
+    pub sort: Option<SortKind>,
+    pub extra: f64,
+    pub reason: String,
+}
+
+impl Allowance {
+    fn all(extra: f64, reason: impl Into<String>) -> Self {
+        Allowance { integrators: Vec::new(), sort: None, extra, reason: reason.into() }
+    }
+
+    fn applies(&self, integrator: Integrator, sort: SortKind) -> bool {
+        (self.integrators.is_empty() || self.integrators.contains(&integrator)) && self.sort.is_none_or(|s| s == sort)
+    }
+}
+
+/// One adversarial scene.
+#[derive(Debug, Clone)]
+pub struct StressCase {
+    pub name: String,
+    pub description: String,
+    pub mesh: TetMesh,
+    pub camera: Camera,
+    pub tf: TransferFunction,
+    /// Known limitations (none: held to the accuracy bound alone).
+    pub allowances: Vec<Allowance>,
+}
+
+/// One (case, method, integrator, interpolation, sort) render against the
+/// reference.
+#[derive(Debug, Clone, Serialize)]
+pub struct StressRow {
+    pub case: String,
+    pub method: &'static str,
+    pub integrator: &'static str,
+    pub interpolation: &'static str,
+    pub sort: &'static str,
+    pub nan_pixels: usize,
+    pub inf_pixels: usize,
+    pub max_abs_error: f64,
+    pub rmse: f64,
+    pub status: &'static str,
+    pub bound: f64,
+}
+
+/// What `volbench stress --json` writes.
+#[derive(Debug, Clone, Serialize)]
+pub struct StressReport {
+    pub cases: Vec<StressRow>,
+}
+
+pub const METHODS: [Method; 2] = [Method::Vicp, Method::Balanced];
+pub const INTEGRATORS: [Integrator; 4] =
+    [Integrator::Average, Integrator::Preint, Integrator::Ppi, Integrator::LinearExact];
+pub const SORTS: [SortKind; 2] = [SortKind::Centroid, SortKind::Mpvo];
+
+// ---------------------------------------------------------------------------
+// Building blocks
+
+/// The smooth field every grid case carries (range about [0, 1]); linear
+/// inside each cell once sampled at the vertices, like any mesh field.
+fn field(p: [f64; 3]) -> f64 {
+    0.55 * p[2] + 0.3 * p[0] + 0.15 * (0.5 + 0.5 * (3.0 * p[1] + 1.0).sin())
+}
+
+/// A structured grid over the given coordinate levels, split into 5 tets
+/// per hex (conforming), scalars from `field`.
+fn grid_mesh(name: &str, xs: &[f64], ys: &[f64], zs: &[f64]) -> TetMesh {
+    let mut points = Vec::with_capacity(xs.len() * ys.len() * zs.len());
+    for &z in zs {
+        for &y in ys {
+            for &x in xs {
+                points.push([x, y, z]);
+            }
+        }
+    }
+    let scalars = points.iter().map(|&p| field(p)).collect();
+    hex_grid_to_tets(name, [xs.len(), ys.len(), zs.len()], points, scalars).expect("stress grid")
+}
+
+fn levels(n: usize) -> Vec<f64> {
+    (0..=n).map(|i| i as f64 / n as f64).collect()
+}
+
+/// The unit cube, 8 hexes a side: 2,560 tets.
+fn unit_grid(name: &str) -> TetMesh {
+    let l = levels(8);
+    grid_mesh(name, &l, &l, &l)
+}
+
+/// The transfer function of every case but the step case: one linear piece
+/// over the mesh's scalar range (no control point inside it), so that the
+/// integrators that assume colour and attenuation linear along a segment
+/// are exact but for their own arithmetic and the stress shows alone.
+/// Attenuation 0.5..4 per unit length (optical depth ~2 across the cube).
+fn ramp_tf(name: &str, lo: f64, hi: f64) -> TransferFunction {
+    TransferFunction {
+        name: name.into(),
+        points: vec![
+            ControlPoint { scalar: lo, color: [0.1, 0.3, 1.0], attenuation: 0.5 },
+            ControlPoint { scalar: hi, color: [1.0, 0.6, 0.1], attenuation: 4.0 },
+        ],
+    }
+}
+
+fn mesh_ramp_tf(mesh: &TetMesh) -> TransferFunction {
+    let (lo, hi) = mesh.scalar_range();
+    ramp_tf(&format!("{}-ramp", mesh.name), lo, hi)
+}
+
+/// A camera at `eye` looking at `target`, near/far bracketing the sphere of
+/// radius `r` around `target` (as `Camera::orbit` does).
+fn look(eye: [f64; 3], target: [f64; 3], up: [f64; 3], projection: Projection, r: f64) -> Camera {
+    let d = ((0..3).map(|k| (eye[k] - target[k]).powi(2)).sum::<f64>()).sqrt();
+    Camera { eye, target, up, projection, near: (d - 1.01 * r).max(1e-3 * d), far: d + 1.01 * r }
+}
+
+/// The oblique perspective view of the unit cube used by most cases.
+fn oblique_camera() -> Camera {
+    look([2.3, 1.7, 2.9], [0.5, 0.5, 0.5], [0.0, 1.0, 0.0], Projection::Perspective { fovy_deg: 30.0 }, 0.9)
+}
+
+fn translated(mut c: Camera, by: [f64; 3]) -> Camera {
+    c.eye = std::array::from_fn(|k| c.eye[k] + by[k]);
+    c.target = std::array::from_fn(|k| c.target[k] + by[k]);
+    c
+}
+
+/// The centroid order is not a visibility order for badly shaped cells:
+/// colour (not alpha, which does not depend on order) is off where two
+/// cells are drawn in the wrong order. MPVO rows are held to accuracy.
+fn centroid_order_allowance(measured: f64) -> Allowance {
+    Allowance {
+        integrators: Vec::new(),
+        sort: Some(SortKind::Centroid),
+        extra: 1e-2,
+        reason: format!(
+            "the centroid sort is not a visibility order for these cells (colour only: alpha, which does not \
+             depend on the order, stays within the accuracy bound; with --sort mpvo the error is within it). \
+             Measured {measured:.1e} at 128x128, allowance rounded up"
+        ),
+    }
+}
+
+fn validated(mut mesh: TetMesh) -> TetMesh {
+    let name = mesh.name.clone();
+    mesh.validate(&name).expect("stress mesh");
+    mesh
+}
+
+// ---------------------------------------------------------------------------
+// The cases
+
+/// Thin hex layers inside a normal grid: every tet in them is a sliver or a
+/// flat wedge (all four vertices within the layer's thickness of one plane).
+fn sliver_mesh() -> TetMesh {
+    // Layer thicknesses 1e-4, 1e-8 and 3.84e-10; the corner tets of the
+    // thinnest layer have volume t/384 = 1e-12 of the unit bounding box
+    // (and |det| = 6e-12 > 1e-10 L^3 = 5.5e-13: still solid, not zero-volume).
+    let mut zs = Vec::new();
+    for (i, z) in levels(8).into_iter().enumerate() {
+        zs.push(z);
+        match i {
+            2 => zs.push(z + 1e-4),
+            4 => zs.push(z + 1e-8),
+            6 => zs.push(z + 3.84e-10),
+            _ => {}
+        }
+    }
+    let l = levels(8);
+    grid_mesh("slivers", &l, &l, &zs)
+}
+
+fn slivers() -> StressCase {
+    let mesh = sliver_mesh();
+    StressCase {
+        name: "slivers".into(),
+        description: "8^3 grid with three extra hex layers 1e-4, 1e-8 and 3.84e-10 thick: slivers and flat \
+                      wedges down to 1e-12 of the bounding box's volume (the two thinnest layers are flat in f32), oblique perspective"
+            .into(),
+        tf: mesh_ramp_tf(&mesh),
+        mesh,
+        camera: oblique_camera(),
+        allowances: Vec::new(),
+    }
+}
+
+/// Every tet of a coarse grid split at an interior point placed within eps of
+/// a face (caps), of a vertex (needles) or of an edge (spindles/wedges).
+fn needles_and_caps() -> StressCase {
+    let l = levels(4);
+    let base = grid_mesh("needles-caps", &l, &l, &l);
+    let mut points = base.points.clone();
+    let mut scalars = base.scalars.clone();
+    let mut tets = Vec::with_capacity(4 * base.tets.len());
+    let eps_list = [1e-2, 1e-4, 1e-6];
+    for (c, t) in base.tets.iter().enumerate() {
+        let p = t.map(|v| base.points[v as usize]);
+        let centroid: [f64; 3] = std::array::from_fn(|k| 0.25 * (p[0][k] + p[1][k] + p[2][k] + p[3][k]));
+        let eps = eps_list[(c / 3) % eps_list.len()];
+        let towards = |from: [f64; 3]| -> [f64; 3] { std::array::from_fn(|k| from[k] + eps * (centroid[k] - from[k])) };
+        let v = c % 4;
+        let anchor: [f64; 3] = match c % 3 {
+            // cap: near the centroid of the face opposite vertex v
+            0 => std::array::from_fn(|k| (0..4).filter(|&i| i != v).map(|i| p[i][k]).sum::<f64>() / 3.0),
+            // needle: near vertex v
+            1 => p[v],
+            // spindle: near the midpoint of edge (v, v+1)
+            _ => std::array::from_fn(|k| 0.5 * (p[v][k] + p[(v + 1) % 4][k])),
+        };
+        let q = towards(anchor);
+        let qi = points.len() as u32;
+        points.push(q);
+        scalars.push(field(q));
+        for i in 0..4 {
+            let mut nt = *t;
+            nt[i] = qi;
+            tets.push(nt);
+        }
+    }
+    let mesh = validated(TetMesh { name: "needles-caps".into(), points, scalars, tets, stats: MeshStats::default() });
+    StressCase {
+        name: "needles-caps".into(),
+        description: "4^3 grid (320 tets), each tet split at an interior point within 1e-2/1e-4/1e-6 of a face \
+                      (caps), a vertex (needles) or an edge (spindles): 1,280 tets, oblique perspective"
+            .into(),
+        tf: mesh_ramp_tf(&mesh),
+        mesh,
+        camera: oblique_camera(),
+        allowances: vec![
+            centroid_order_allowance(4.4e-3),
+            Allowance {
+                integrators: vec![Integrator::Average],
+                sort: None,
+                extra: 1e-2,
+                reason: "model error, not the cell shapes: averaging the two ends' colour and attenuation is off \
+                         by more on longer segments, and this mesh's cells are twice the baseline's (a 4^3 grid; the \
+                         unsplit 4^3 grid measures the same 9.1e-3). Measured 9.0e-3, allowance rounded up"
+                    .into(),
+            },
+        ],
+    }
+}
+
+/// Zero-volume tets mixed into a normal mesh: a hex layer of zero thickness
+/// (exactly coplanar tets) and a grid edge collapsed onto its neighbour
+/// (the blunt fin's kind of degeneracy).
+fn zero_volume() -> StressCase {
+    let l = levels(8);
+    let mut zs = Vec::new();
+    for (i, z) in l.iter().enumerate() {
+        zs.push(*z);
+        if i == 3 {
+            zs.push(*z);
+        }
+    }
+    let (nx, ny) = (l.len(), l.len());
+    let mut points = Vec::new();
+    for &z in &zs {
+        for &y in &l {
+            for &x in &l {
+                points.push([x, y, z]);
+            }
+        }
+    }
+    // Collapse the grid line (i = 4, j = 5) onto (i = 4, j = 4) for every k.
+    for k in 0..zs.len() {
+        let (a, b) = (4 + nx * (5 + ny * k), 4 + nx * (4 + ny * k));
+        points[a] = points[b];
+    }
+    let scalars = points.iter().map(|&p| field(p)).collect();
+    let mesh = hex_grid_to_tets("zero-volume", [nx, ny, zs.len()], points, scalars).expect("zero-volume grid");
+    StressCase {
+        name: "zero-volume".into(),
+        description: format!(
+            "8^3 grid plus a zero-thickness hex layer and a collapsed grid line: {} of {} tets have zero volume, \
+             oblique perspective",
+            mesh.stats.zero_volume,
+            mesh.tets.len()
+        ),
+        tf: mesh_ramp_tf(&mesh),
+        mesh,
+        camera: oblique_camera(),
+        allowances: vec![centroid_order_allowance(2.8e-3)],
+    }
+}
+
+/// The unit grid seen orthographically straight down the z axis with pixel
+/// centres on the grid lines: rays exactly along edges, exactly in faces
+/// (n.d = 0 for every vertical face plane), through vertices.
+/// An orthographic camera looking down -`axis` at the unit cube whose pixel
+/// centres are multiples of a power-of-two pitch p = 1/(8k), so that every
+/// k-th pixel centre lies on a grid line and every coordinate is exact in
+/// binary (the mesh spans about 3/4 of the image).
+fn grid_aligned_orthographic(size: u32, axis: usize) -> Camera {
+    let mut k = 1u32;
+    while 2 * k * 8 <= (3 * size) / 4 {
+        k *= 2;
+    }
+    let p = 1.0 / (8.0 * k as f64);
+    let h = size as f64 * p;
+    // Centres at left + (i + 1/2) p are multiples of p when the view centre is
+    // 0.5 + p/2 (size even).
+    let c = 0.5 + 0.5 * p;
+    let mut eye = [c; 3];
+    let mut target = [c; 3];
+    eye[axis] = 3.0;
+    target[axis] = 0.0;
+    let up = if axis == 2 { [0.0, 1.0, 0.0] } else { [0.0, 0.0, 1.0] };
+    Camera { eye, target, up, projection: Projection::Orthographic { height: h }, near: 1.0, far: 5.0 }
+}
+
+fn axis_orthographic(size: u32) -> StressCase {
+    let mesh = unit_grid("axis-ortho");
+    let camera = grid_aligned_orthographic(size, 2);
+    StressCase {
+        name: "axis-ortho".into(),
+        description: "8^3 grid, orthographic view along -z with pixel centres exactly on grid lines: rays along \
+                      edges, in face planes (n.d = 0) and through vertices"
+            .into(),
+        tf: mesh_ramp_tf(&mesh),
+        mesh,
+        camera,
+        allowances: Vec::new(),
+    }
+}
+
+/// The sliver mesh seen orthographically along -x with pixel rows exactly in
+/// the planes z = 1/4, 1/2, 3/4 where the thin layers start: rays inside the
+/// slivers' faces, the layers seen exactly edge-on (and 1e-8 and 3.84e-10
+/// thick layers have no thickness at all in f32).
+fn slivers_edge_on(size: u32) -> StressCase {
+    let mesh = sliver_mesh();
+    StressCase {
+        name: "slivers-edge-on".into(),
+        description: "the sliver mesh, orthographic view along -x, pixel rows exactly in the thin layers' planes: \
+                      slivers seen edge-on, rays in their faces"
+            .into(),
+        tf: mesh_ramp_tf(&mesh),
+        mesh,
+        camera: grid_aligned_orthographic(size, 0),
+        allowances: Vec::new(),
+    }
+}
+
+/// Perspective with the eye in two of the grid's face planes (y = 0.5 and
+/// z = 0.5): the faces in those planes are seen exactly edge-on (e = 0 in the
+/// exact interpolation's u = h/e, n.d = 0 in IntersectBackFace).
+fn eye_on_face_plane() -> StressCase {
+    let mesh = unit_grid("eye-on-plane");
+    let camera =
+        look([2.25, 0.5, 0.5], [0.5, 0.4375, 0.5625], [0.0, 1.0, 0.0], Projection::Perspective { fovy_deg: 40.0 }, 0.9);
+    StressCase {
+        name: "eye-on-plane".into(),
+        description: "8^3 grid in perspective with the eye exactly in the face planes y = 0.5 and z = 0.5 (rays \
+                      in those faces, faces seen edge-on)"
+            .into(),
+        tf: mesh_ramp_tf(&mesh),
+        mesh,
+        camera,
+        allowances: Vec::new(),
+    }
+}
+
+/// Longest edge of any tet of `mesh`.
+fn longest_edge(mesh: &TetMesh) -> f64 {
+    let mut m = 0f64;
+    for c in 0..mesh.tets.len() {
+        let p = mesh.tet_points(c);
+        for a in 0..4 {
+            for b in a + 1..4 {
+                m = m.max((0..3).map(|k| (p[a][k] - p[b][k]).powi(2)).sum::<f64>().sqrt());
+            }
+        }
+    }
+    m
+}
+
+/// Largest attenuation of a transfer function.
+fn max_attenuation(tf: &TransferFunction) -> f64 {
+    tf.points.iter().map(|p| p.attenuation).fold(0.0, f64::max)
+}
+
+/// What cell projection loses where the near plane cuts cells: a pixel's
+/// fragments come from entry faces, so the cell containing the point where
+/// the pixel's ray crosses the near plane (its entry face is clipped away)
+/// is missing from that pixel. At most one segment per ray is lost, no
+/// longer than the longest cell edge L, so the premultiplied difference is
+/// at most its alpha, 1 - exp(-tau_max L) (colours are <= 1).
+fn near_plane_loss(mesh: &TetMesh, tf: &TransferFunction) -> f64 {
+    1.0 - (-max_attenuation(tf) * longest_edge(mesh)).exp()
+}
+
+const FAR_PLANE_NOTE: &str = "the GPU integrates the cell that the far plane cuts from its entry (in front of \
+    the far plane) to its exit (beyond it), while the f64 reference stops at the far plane. One segment per ray \
+    at most, no longer than the longest cell edge L: the error is bounded by its alpha 1 - exp(-tau_max L) plus \
+    the integrator's accuracy";
+
+const NEAR_PLANE_NOTE: &str = "cell projection draws each cell from its entry faces, so on every pixel whose ray \
+    crosses the near plane inside a cell (the cell around the eye, cells cut by the near plane) that cell's entry \
+    face is clipped and its segment from the near plane to its exit is missing (the f64 reference integrates \
+    from the near plane). One segment per ray at most, no longer than the longest cell edge L: the error is \
+    bounded by its alpha 1 - exp(-tau_max L) plus the integrator's accuracy";
+
+fn near_plane_allowance(mesh: &TetMesh, tf: &TransferFunction) -> Vec<Allowance> {
+    let extra = near_plane_loss(mesh, tf);
+    vec![Allowance::all(extra, format!("{NEAR_PLANE_NOTE}, here {extra:.3}"))]
+}
+
+/// The eye inside the mesh, looking through it.
+fn camera_inside() -> StressCase {
+    let mesh = unit_grid("camera-inside");
+    let tf = mesh_ramp_tf(&mesh);
+    let camera = Camera {
+        eye: [0.53, 0.46, 0.41],
+        target: [1.0, 0.7, 0.9],
+        up: [0.0, 1.0, 0.0],
+        projection: Projection::Perspective { fovy_deg: 60.0 },
+        near: 1e-3,
+        far: 3.0,
+    };
+    StressCase {
+        name: "camera-inside".into(),
+        description: "eye inside the 8^3 grid, near plane 1e-3, 60 degree field of view".into(),
+        allowances: near_plane_allowance(&mesh, &tf),
+        mesh,
+        camera,
+        tf,
+    }
+}
+
+/// The eye outside, the near plane cutting the mesh in the middle.
+fn near_plane_cut() -> StressCase {
+    let mesh = unit_grid("near-cut");
+    let tf = mesh_ramp_tf(&mesh);
+    let mut camera = oblique_camera();
+    let d = ((0..3).map(|k| (camera.eye[k] - camera.target[k]).powi(2)).sum::<f64>()).sqrt();
+    camera.near = d - 0.2;
+    StressCase {
+        name: "near-cut".into(),
+        description: "oblique view of the 8^3 grid with the near plane through its middle".into(),
+        allowances: near_plane_allowance(&mesh, &tf),
+        mesh,
+        camera,
+        tf,
+    }
+}
+
+/// The far plane cutting the mesh in the middle.
+fn far_plane_cut() -> StressCase {
+    let mesh = unit_grid("far-cut");
+    let tf = mesh_ramp_tf(&mesh);
+    let mut camera = oblique_camera();
+    let d = ((0..3).map(|k| (camera.eye[k] - camera.target[k]).powi(2)).sum::<f64>()).sqrt();
+    camera.far = d + 0.1;
+    let extra = near_plane_loss(&mesh, &tf);
+    StressCase {
+        name: "far-cut".into(),
+        description: "oblique view of the 8^3 grid with the far plane through its middle".into(),
+        allowances: vec![Allowance::all(extra, format!("{FAR_PLANE_NOTE}, here {extra:.3}"))],
+        mesh,
+        camera,
+        tf,
+    }
+}
+
+/// The unit grid and its camera translated by `offset` (1, -0.75, 0.5).
+fn far_from_origin(offset: f64) -> StressCase {
+    let by = [offset, -0.75 * offset, 0.5 * offset];
+    let mut mesh = unit_grid(&format!("translate-{offset:e}"));
+    for p in &mut mesh.points {
+        for k in 0..3 {
+            p[k] += by[k];
+        }
+    }
+    // Same scalars, same transfer function as the untranslated grid.
+    let tf = mesh_ramp_tf(&mesh);
+    StressCase {
+        name: format!("translate-{offset:e}"),
+        description: format!(
+            "the 8^3 unit grid and the oblique camera translated by ({offset:e}, {:e}, {:e}): in f32 the \
+             coordinates keep {} of their 24 bits for the mesh's extent",
+            by[1],
+            by[2],
+            (24.0 - offset.log2()).max(0.0).floor()
+        ),
+        mesh,
+        camera: translated(oblique_camera(), by),
+        tf,
+        allowances: Vec::new(),
+    }
+}
+
+/// The unit grid's scalars scaled by `scale` (and shifted by `shift`), the
+/// transfer function scaled alike: the same image as the unscaled grid.
+fn scalar_range(name: &str, scale: f64, shift: f64, what: &str) -> StressCase {
+    let mut mesh = unit_grid(name);
+    for s in &mut mesh.scalars {
+        *s = shift + scale * *s;
+    }
+    let tf = mesh_ramp_tf(&mesh);
+    StressCase {
+        name: name.into(),
+        description: format!(
+            "the 8^3 grid with scalars {what}, the transfer function scaled alike, oblique perspective"
+        ),
+        mesh,
+        camera: oblique_camera(),
+        tf,
+        allowances: Vec::new(),
+    }
+}
+
+/// Steps: coincident control points (a jump in colour and attenuation at one
+/// scalar), twice, plus a narrow spike.
+fn tf_steps() -> StressCase {
+    let mesh = unit_grid("tf-steps");
+    let (lo, hi) = mesh.scalar_range();
+    let at = |t: f64| lo + t * (hi - lo);
+    let cp = |t: f64, color: [f64; 3], attenuation: f64| ControlPoint { scalar: at(t), color, attenuation };
+    let tf = TransferFunction {
+        name: "steps".into(),
+        points: vec![
+            cp(0.0, [0.1, 0.2, 0.8], 0.3),
+            cp(0.35, [0.1, 0.2, 0.8], 0.3),
+            cp(0.35, [1.0, 0.9, 0.2], 5.0),
+            cp(0.6, [1.0, 0.9, 0.2], 5.0),
+            cp(0.6, [0.2, 0.9, 0.3], 0.5),
+            cp(0.8, [0.2, 0.9, 0.3], 0.5),
+            cp(0.8, [1.0, 0.1, 0.1], 8.0),
+            cp(0.82, [1.0, 0.1, 0.1], 8.0),
+            cp(0.82, [0.2, 0.9, 0.3], 0.5),
+            cp(1.0, [0.2, 0.9, 0.3], 0.5),
+        ],
+    };
+    StressCase {
+        name: "tf-steps".into(),
+        description: "8^3 grid, transfer function with three steps (coincident control points) and a spike 0.02 \
+                      of the range wide, attenuation 0.3 to 8"
+            .into(),
+        mesh,
+        camera: oblique_camera(),
+        tf,
+        allowances: vec![
+            Allowance {
+                integrators: vec![Integrator::Average, Integrator::Ppi, Integrator::LinearExact],
+                sort: None,
+                extra: 0.5,
+                reason: "model error, not numerics: these integrators take colour and attenuation at a segment's \
+                         two ends and linear in between, so a step inside a segment is smeared over it (the f64 \
+                         reference splits segments at control points). Measured <= 0.39 at 128x128; the \
+                         allowance is that rounded up, not derived (a ray may cross several steps)"
+                    .into(),
+            },
+            Allowance {
+                integrators: vec![Integrator::Preint],
+                sort: None,
+                extra: 5e-2,
+                reason: "pre-integration integrates steps, but its table samples the scalar range 128 times: a \
+                         step moves by up to 1/127 of the range. Measured <= 2.2e-2 (exact interpolation) at \
+                         128x128, allowance rounded up"
+                    .into(),
+            },
+        ],
+    }
+}
+
+/// The eye exactly on a mesh vertex inside the mesh: the ray direction
+/// through that vertex, normalize(v - eye), is 0/0.
+fn eye_on_vertex() -> StressCase {
+    let mesh = unit_grid("eye-on-vertex");
+    let tf = mesh_ramp_tf(&mesh);
+    let camera = Camera {
+        eye: [0.5, 0.5, 0.375],
+        target: [0.9, 0.75, 0.95],
+        up: [0.0, 1.0, 0.0],
+        projection: Projection::Perspective { fovy_deg: 60.0 },
+        near: 1e-3,
+        far: 3.0,
+    };
+    StressCase {
+        name: "eye-on-vertex".into(),
+        description: "eye exactly on a vertex inside the 8^3 grid (the ray direction through it is 0/0), near \
+                      plane 1e-3"
+            .into(),
+        allowances: near_plane_allowance(&mesh, &tf),
+        mesh,
+        camera,
+        tf,
+    }
+}
+
+/// The unit grid scaled by `scale` (cells 1/8 * scale), the camera and the
+/// attenuation scaled alike: the same image as the baseline.
+fn mesh_scale(scale: f64) -> StressCase {
+    let name = format!("mesh-scale-{scale:e}");
+    let mut mesh = unit_grid(&name);
+    for p in &mut mesh.points {
+        for c in p.iter_mut() {
+            *c *= scale;
+        }
+    }
+    let (lo, hi) = mesh.scalar_range();
+    let mut tf = ramp_tf(&name, lo, hi);
+    for p in &mut tf.points {
+        p.attenuation /= scale;
+    }
+    let mut camera = oblique_camera();
+    for k in 0..3 {
+        camera.eye[k] *= scale;
+        camera.target[k] *= scale;
+    }
+    camera.near *= scale;
+    camera.far *= scale;
+    StressCase {
+        name,
+        description: format!(
+            "the 8^3 grid, its camera and attenuation scaled by {scale:e} (same image as the baseline)"
+        ),
+        mesh,
+        camera,
+        tf,
+        allowances: Vec::new(),
+    }
+}
+
+/// Attenuation rising linearly from 0 to `tau` per unit length over the
+/// scalar range (no control point inside it, so the linear integrators'
+/// model holds): optical depths up to tau per unit, beyond f32's range in
+/// tau * D when tau is near f32::MAX.
+fn opaque(tau: f64) -> StressCase {
+    let name = format!("opaque-{tau:e}");
+    let mesh = unit_grid(&name);
+    let (lo, hi) = mesh.scalar_range();
+    let tf = TransferFunction {
+        name: name.clone(),
+        points: vec![
+            ControlPoint { scalar: lo, color: [0.1, 0.3, 1.0], attenuation: 0.0 },
+            ControlPoint { scalar: hi, color: [1.0, 0.6, 0.1], attenuation: tau },
+        ],
+    };
+    StressCase {
+        name,
+        description: format!(
+            "8^3 grid, attenuation rising linearly from 0 to {tau:e} per unit length over the scalar range: \
+             optical depths far beyond exp's range"
+        ),
+        mesh,
+        camera: oblique_camera(),
+        tf,
+        allowances: vec![
+            Allowance {
+                integrators: vec![Integrator::Preint],
+                sort: None,
+                extra: 1.0,
+                reason: "no useful bound: the pre-integration table (128 x 128 scalars x 32 lengths) cannot \
+                         resolve such a medium: one scalar step is an attenuation step of tau/127 and the first \
+                         length sample is already opaque, so short segments get alpha interpolated between 0 and 1 \
+                         (measured 0.92). Only finiteness is asserted"
+                    .into(),
+            },
+            Allowance {
+                integrators: vec![Integrator::Average],
+                sort: None,
+                extra: 0.1,
+                reason: "model error: averaging the two ends' attenuation (0 at one end, huge at the other) \
+                         misplaces where along the segment the medium turns opaque. Measured 3.7e-2 at 128x128, \
+                         allowance rounded up"
+                    .into(),
+            },
+        ],
+    }
+}
+
+/// The benign control case: the unit grid, oblique perspective, linear
+/// transfer function.
+fn baseline() -> StressCase {
+    let mesh = unit_grid("baseline");
+    StressCase {
+        name: "baseline".into(),
+        description: "control: the 8^3 grid (2,560 tets) in oblique perspective, linear transfer function".into(),
+        tf: mesh_ramp_tf(&mesh),
+        mesh,
+        camera: oblique_camera(),
+        allowances: Vec::new(),
+    }
+}
+
+/// Every stress case, for images of `size` x `size` pixels (the axis-aligned
+/// view places pixel centres on grid lines for that size).
+pub fn stress_cases(size: u32) -> Vec<StressCase> {
+    vec![
+        baseline(),
+        slivers(),
+        needles_and_caps(),
+        zero_volume(),
+        axis_orthographic(size),
+        slivers_edge_on(size),
+        eye_on_face_plane(),
+        camera_inside(),
+        near_plane_cut(),
+        far_plane_cut(),
+        far_from_origin(1e3),
+        far_from_origin(1e5),
+        far_from_origin(1e7),
+        scalar_range("scalars-1e-6", 1e-6, 0.0, "in [0, 1e-6]"),
+        scalar_range("scalars-1e6", 1e6, 0.0, "in [0, 1e6]"),
+        scalar_range("scalars-offset-1e6", 1.0, 1e6, "in 1e6 + [0, 1] (f32 spacing 0.0625 at 1e6)"),
+        tf_steps(),
+        eye_on_vertex(),
+        mesh_scale(1e-12),
+        mesh_scale(1e12),
+        scalar_range("scalars-1e37", 1e37, 0.0, "in [0, 1e37]"),
+        opaque(1e6),
+        opaque(3e38),
+    ]
+}
+
+// ---------------------------------------------------------------------------
+// Bounds
+
+/// The max |error| each integrator is held to where no limitation is
+/// documented. Measured on the control scene ("baseline", exact
+/// interpolation) at 128x128: 2.0e-3 (average: its model error), 6.2e-4
+/// (preint: table interpolation), 3.1e-5 (ppi, linear-exact: f32
+/// arithmetic). One more error shows at single pixels in any case: the
+/// rasterizer snaps vertices to 1/256 pixel, so a ray passing within that of
+/// a cell's silhouette edge (the mesh's outline, a nearly edge-on face) can
+/// gain or miss that cell's corner segment where the f64 reference does not
+/// (measured up to 2.9e-4: baseline at 64x64, needles-caps at 128x128). The
+/// bounds: 5e-3, 2e-3, 1e-3 and 1e-3 (2.5x the measured maximum or more).
+/// The papers' interpolation under perspective is not exact (README:
+/// "Perspective"): measured 0.128 on the baseline and up to 0.221 on the
+/// other perspective views without a documented limitation, bound 0.25.
+/// Orthographic views use the exact bounds (paper = exact there).
+pub fn accuracy_bound(integrator: Integrator, interpolation: Interpolation, perspective: bool) -> f64 {
+    if perspective && interpolation == Interpolation::Paper {
+        return 0.25;
+    }
+    match integrator {
+        Integrator::Average => 5e-3,
+        Integrator::Preint => 2e-3,
+        Integrator::Ppi | Integrator::LinearExact => 1e-3,
+    }
+}
+
+/// The bound a row is held to, and whether a documented limitation applies.
+pub fn bound(case: &StressCase, integrator: Integrator, interpolation: Interpolation, sort: SortKind) -> (f64, bool) {
+    let base = accuracy_bound(integrator, interpolation, case.camera.is_perspective());
+    let applicable: Vec<&Allowance> = case.allowances.iter().filter(|a| a.applies(integrator, sort)).collect();
+    (base + applicable.iter().map(|a| a.extra).sum::<f64>(), !applicable.is_empty())
+}
+
+// ---------------------------------------------------------------------------
+// Running
+
+/// Which combinations to render.
+#[derive(Debug, Clone)]
+pub struct StressConfig {
+    pub size: u32,
+    pub methods: Vec<Method>,
+    pub integrators: Vec<Integrator>,
+    /// Interpolations for perspective cases (orthographic cases use `paper`
+    /// only: `exact` is the same computation there).
+    pub interpolations: Vec<Interpolation>,
+    pub sorts: Vec<SortKind>,
+}
+
+impl StressConfig {
+    /// Every method, integrator, interpolation and sort.
+    pub fn full(size: u32) -> Self {
+        StressConfig {
+            size,
+            methods: METHODS.to_vec(),
+            integrators: INTEGRATORS.to_vec(),
+            interpolations: vec![Interpolation::Paper, Interpolation::Exact],
+            sorts: SORTS.to_vec(),
+        }
+    }
+}
+
+/// Pixels with a NaN component, pixels with an infinite component.
+pub fn non_finite_pixels(image: &RgbaImage) -> (usize, usize) {
+    let nan = image.pixels.iter().filter(|p| p.iter().any(|c| c.is_nan())).count();
+    let inf = image.pixels.iter().filter(|p| p.iter().any(|c| c.is_infinite())).count();
+    (nan, inf)
+}
+
+/// Render `cases` with every combination of `cfg` and compare each image
+/// with the f64 reference (cached on disk, see `reference_cache`).
+pub fn run_cases(ctx: &Arc<Context>, cases: &[StressCase], cfg: &StressConfig) -> Result<Vec<StressRow>> {
+    run_cases_with_progress(ctx, cases, cfg, |_| {})
+}
+
+/// [`run_cases`], calling `progress` with each row as soon as it is measured.
+pub fn run_cases_with_progress(
+    ctx: &Arc<Context>,
+    cases: &[StressCase],
+    cfg: &StressConfig,
+    mut progress: impl FnMut(&StressRow),
+) -> Result<Vec<StressRow>> {
+    let mut rows = Vec::new();
+    for case in cases {
+        let geometry = TetGeometry::compute(&case.mesh);
+        let scene = Scene { mesh: &case.mesh, geometry: &geometry, tf: &case.tf };
+        let reference = reference_image(&scene, &case.camera, cfg.size, cfg.size)
+            .with_context(|| format!("stress case '{}': reference", case.name))?;
+        let interpolations: &[Interpolation] =
+            if case.camera.is_perspective() { &cfg.interpolations } else { &[Interpolation::Paper] };
+        for &method in &cfg.methods {
+            for &integrator in &cfg.integrators {
+                for &interpolation in interpolations {
+                    for &sort in &cfg.sorts {
+                        let mut rc = RunConfig::new(method);
+                        rc.width = cfg.size;
+                        rc.height = cfg.size;
+                        rc.frames = 1;
+                        rc.warmup = 0;
+                        rc.overlap = false;
+                        rc.integrator = integrator;
+                        rc.interpolation = interpolation;
+                        rc.sort = sort;
+                        rc.projection = case.camera.projection;
+                        rc.fixed_camera = Some(case.camera);
+                        let what = || {
+                            format!(
+                                "stress case '{}': {} {} {} {}",
+                                case.name,
+                                method.name(),
+                                integrator.name(),
+                                interpolation.name(),
+                                sort.name()
+                            )
+                        };
+                        let out = run_cell_projection(ctx, &scene, &rc).with_context(what)?;
+                        let (nan_pixels, inf_pixels) = non_finite_pixels(&out.image);
+                        let e = out.image.compare(&reference.image).with_context(what)?;
+                        let (b, documented) = bound(case, integrator, interpolation, sort);
+                        // NaN compares false: a NaN error is never within the bound.
+                        let within = nan_pixels == 0 && inf_pixels == 0 && e.max_abs <= b && e.rmse.is_finite();
+                        let status = match (within, documented) {
+                            (false, _) => "fail",
+                            (true, true) => "documented",
+                            (true, false) => "ok",
+                        };
+                        let row = StressRow {
+                            case: case.name.clone(),
+                            method: method.name(),
+                            integrator: integrator.name(),
+                            interpolation: interpolation.name(),
+                            sort: sort.name(),
+                            nan_pixels,
+                            inf_pixels,
+                            max_abs_error: e.max_abs,
+                            rmse: e.rmse,
+                            status,
+                            bound: b,
+                        };
+                        progress(&row);
+                        rows.push(row);
+                    }
+                }
+            }
+        }
+    }
+    Ok(rows)
+}
+
+/// `volbench stress`: every case with every method, integrator,
+/// interpolation and sort at `size` x `size` pixels, against the f64
+/// reference. About 700 renders; ~2 minutes at 128x128 on 2 cores.
+pub fn run_stress(ctx: &Arc<Context>, size: u32) -> Result<Vec<StressRow>> {
+    run_stress_with_progress(ctx, size, |_| {})
+}
+
+/// [`run_stress`], calling `progress` with each row as soon as it is measured.
+pub fn run_stress_with_progress(
+    ctx: &Arc<Context>,
+    size: u32,
+    progress: impl FnMut(&StressRow),
+) -> Result<Vec<StressRow>> {
+    anyhow::ensure!(
+        size >= 16 && size.is_multiple_of(2),
+        "--size: the stress image side must be even and at least 16, got {size}"
+    );
+    run_cases_with_progress(ctx, &stress_cases(size), &StressConfig::full(size), progress)
+}
+
+/// Rows whose status is "fail" (`volbench stress` exits non-zero if any).
+pub fn failures(rows: &[StressRow]) -> usize {
+    rows.iter().filter(|r| r.status == "fail").count()
+}
+
+/// Every case with its description and documented allowances, as Markdown
+/// (for `volbench stress` to print before its table, and for the README).
+pub fn describe_cases(size: u32) -> String {
+    let mut s = String::new();
+    for c in stress_cases(size) {
+        s.push_str(&format!("- **{}** ({} tets): {}.\n", c.name, c.mesh.tets.len(), c.description));
+        for a in &c.allowances {
+            let which = if a.integrators.is_empty() {
+                "all integrators".to_string()
+            } else {
+                a.integrators.iter().map(|i| i.name()).collect::<Vec<_>>().join(", ")
+            };
+            let sort = a.sort.map_or(String::new(), |s| format!(", {} sort", s.name()));
+            s.push_str(&format!("  - allowance +{:.2e} ({which}{sort}): {}.\n", a.extra, a.reason));
+        }
+    }
+    s
+}
+
+/// The Markdown table `volbench stress` prints: one row per render.
+pub fn stress_table(rows: &[StressRow]) -> String {
+    let mut s = String::from(
+        "| case | method | integrator | interpolation | sort | NaN px | Inf px | max error | RMSE | bound | status |\n\
+         |---|---|---|---|---|---:|---:|---:|---:|---:|---|\n",
+    );
+    for r in rows {
+        s.push_str(&format!(
+            "| {} | {} | {} | {} | {} | {} | {} | {:.2e} | {:.2e} | {:.2e} | {} |\n",
+            r.case,
+            r.method,
+            r.integrator,
+            r.interpolation,
+            r.sort,
+            r.nan_pixels,
+            r.inf_pixels,
+            r.max_abs_error,
+            r.rmse,
+            r.bound,
+            r.status
+        ));
+    }
+    s
+}
