@@ -12,7 +12,7 @@
 // ratio d[k]/w[k] = t_k exactly, so its sign tells an exit plane (t_k > 0)
 // from an entry plane whatever the rounding of d[k], and an exit plane's
 // distance is clamped at 0 (how t_k's sign is found where lambda_k ~ 0:
-// plane_coefficients below). Build with PAPER_EXIT_RULE for the paper's rule.
+// exit_planes below). Build with PAPER_EXIT_RULE for the paper's rule.
 // Optionally, a plane with |lambda_k| < limits.z (edge epsilon, off by
 // default) passes through the fragment's ray to within rounding and counts
 // as an exit at distance 0, whatever t_k's sign. Near an edge shared by two
@@ -52,21 +52,24 @@
 // never an exit. A |c| at the clamp (ray parallel to the plane, n.d = 0,
 // or the eye in the plane) is no crossing at all: the ray lies in the plane
 // or never reaches it, so the plane cannot end the segment.
-EXIT_VEC plane_coefficients(EXIT_VEC d, EXIT_VEC w) {
+// Returns, per plane, +1 for an exit plane (c > 0 and below `parallel`), 0
+// otherwise; computed without divisions (sign(c) = sign(d w), and
+// |c| < parallel <=> |d| < parallel |w|), from the derivatives where w ~ 0.
+EXIT_VEC exit_planes(EXIT_VEC d, EXIT_VEC w, float parallel) {
     EXIT_VEC ddx = dFdx(d), ddy = dFdy(d), wdx = dFdx(w), wdy = dFdy(w);
-    EXIT_VEC c;
-    for (int k = 0; k < EXIT_N; ++k) {
-        float gg = wdx[k] * wdx[k] + wdy[k] * wdy[k];
-        float from_grad = gg > 0.0 ? (ddx[k] * wdx[k] + ddy[k] * wdy[k]) / gg : 0.0;
-        c[k] = abs(w[k]) >= 1e-3 ? d[k] / w[k] : from_grad;
-    }
-    return c;
+    EXIT_VEC near_edge = step(abs(w), EXIT_VEC(1e-3));  // 1 where |w| < 1e-3
+    // Where |w| is small use the gradients: d ~ c w and grad d = c grad w.
+    EXIT_VEC num = mix(d * w, ddx * wdx + ddy * wdy, near_edge);
+    EXIT_VEC den = mix(w * w, wdx * wdx + wdy * wdy, near_edge);  // c = num / den, den >= 0
+    EXIT_VEC is_exit = EXIT_VEC(greaterThan(num, EXIT_VEC(0.0))) * EXIT_VEC(greaterThan(den, EXIT_VEC(0.0)))
+        * EXIT_VEC(lessThan(num, parallel * den));
+    return is_exit;
 }
 
-// Plane k bounds the segment: an exit plane (c > 0, not parallel to the
-// ray), or with the optional edge epsilon any plane through the fragment.
-bool exit_candidate(float c, float w, float parallel) {
-    return (c > 0.0 && c < parallel) || (w != 0.0 && abs(w) < frame.limits.z);
+// Plane k bounds the segment: an exit plane, or with the optional edge
+// epsilon any plane through the fragment.
+bool exit_candidate(float is_exit, float w) {
+    return is_exit > 0.5 || (w != 0.0 && abs(w) < frame.limits.z);
 }
 
 bool exit_point(EXIT_VEC d, EXIT_VEC s, EXIT_VEC w, float s_front, float g_rel, vec3 rel,
@@ -74,12 +77,12 @@ bool exit_point(EXIT_VEC d, EXIT_VEC s, EXIT_VEC w, float s_front, float g_rel, 
     len = frame.limits.x;
     s_back = s_front;
     bool found = false;
-    EXIT_VEC c = plane_coefficients(d, w);
 #ifdef EXACT_PERSPECTIVE
     if (frame.eye.w > 0.5) {
+        EXIT_VEC exits = exit_planes(d, w, 0.5 * frame.limits.y);
         float r = length(rel);
         for (int k = 0; k < EXIT_N; ++k) {
-            bool is_exit = exit_candidate(c[k], w[k], 0.5 * frame.limits.y) && d[k] < 1.0;
+            bool is_exit = exit_candidate(exits[k], w[k]) && d[k] < 1.0;
             float u = max(d[k], 0.0);
             float mu_minus_1 = u / (1.0 - u);
             float dk = mu_minus_1 * r;
@@ -92,12 +95,13 @@ bool exit_point(EXIT_VEC d, EXIT_VEC s, EXIT_VEC w, float s_front, float g_rel, 
         return found && len <= frame.view_dir.w;
     }
 #endif
+    EXIT_VEC exits = exit_planes(d, w, 0.5 * frame.limits.x);
     for (int k = 0; k < EXIT_N; ++k) {
 #ifdef PAPER_EXIT_RULE
         bool is_exit = d[k] > 0.0;
         float dk = d[k];
 #else
-        bool is_exit = exit_candidate(c[k], w[k], 0.5 * frame.limits.x);
+        bool is_exit = exit_candidate(exits[k], w[k]);
         float dk = max(d[k], 0.0);
 #endif
         if (is_exit && dk < len) {

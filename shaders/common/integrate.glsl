@@ -16,10 +16,9 @@
 layout(std430, set = 0, binding = 0) readonly buffer TransferTable { vec4 tf[]; };   // rgb = L, a = tau
 layout(std430, set = 0, binding = 1) readonly buffer IntegrationTable { vec4 table[]; };
 
-// Largest table value used: an attenuation beyond f32's range is Inf in the
-// table, and mix(Inf, Inf, t) = Inf + t (Inf - Inf) = NaN (stress case
-// "opaque-3e38"). 1e30 per unit length is opaque over 1e-28 of a unit.
-const float TF_MAX = 1e30;
+// Transfer-function table entries are clamped to 1e30 when the table is
+// built (TransferFunction::table): an Inf entry would make
+// mix(Inf, Inf, t) = Inf + t (Inf - Inf) = NaN (stress case "opaque-3e38").
 // Largest optical depth integrated: tau * D overflows to Inf for tau near
 // f32's maximum (and Inf * 0 = NaN on a zero-length segment; Inf / Inf = NaN
 // in gamma); beyond 1e4 the transmittance exp(-tau D) is 0 in f32 anyway.
@@ -30,10 +29,10 @@ vec4 transfer(float s) {
     float x = clamp((s - frame.tf_range.x) * frame.tf_range.y, 0.0, 1.0) * (n - 1.0);
     float i = min(floor(x), n - 2.0);
     int k = int(i);
-    return mix(min(tf[k], vec4(TF_MAX)), min(tf[k + 1], vec4(TF_MAX)), x - i);
+    return mix(tf[k], tf[k + 1], x - i);
 }
 
-// Optical depth tau * len, finite and in [0, DEPTH_MAX] (len >= 0, tau <= TF_MAX).
+// Optical depth tau * len, finite and in [0, DEPTH_MAX] (len >= 0, tau <= 1e30).
 float optical_depth(float tau, float len) {
     return min(max(tau, 0.0) * len, DEPTH_MAX);
 }

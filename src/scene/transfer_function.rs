@@ -5,6 +5,9 @@
 
 use serde::{Deserialize, Serialize};
 
+/// Largest magnitude a table entry takes (see `TransferFunction::table`).
+pub const TABLE_MAX: f64 = 1e30;
+
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct ControlPoint {
     pub scalar: f64,
@@ -66,7 +69,11 @@ impl TransferFunction {
             .map(|k| {
                 let s = lo + (hi - lo) * k as f64 / (n - 1) as f64;
                 let (c, tau) = self.eval(s);
-                [c[0] as f32, c[1] as f32, c[2] as f32, tau as f32]
+                // Clamped so that every entry is finite in f32 (the shaders
+                // interpolate entries: Inf + t (Inf - Inf) = NaN); 1e30 per
+                // unit length is opaque over 1e-28 of a unit anyway.
+                let f = |v: f64| v.clamp(-TABLE_MAX, TABLE_MAX) as f32;
+                [f(c[0]), f(c[1]), f(c[2]), f(tau)]
             })
             .collect()
     }
