@@ -12,7 +12,7 @@
 use std::hint::black_box;
 use std::time::{Duration, Instant};
 
-use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use criterion::{criterion_group, BenchmarkId, Criterion, Throughput};
 
 use volbench::algo::cell_projection::{balanced, cells_f32, centroids_f32, sort::CentroidSort, FrameSetup, Interpolation, Method};
 use volbench::harness::datasets;
@@ -96,4 +96,11 @@ fn cpu_paths(c: &mut Criterion) {
 }
 
 criterion_group!(benches, cpu_paths, frames);
-criterion_main!(benches);
+
+// criterion_main!, plus the font criterion's plots need: plotters is built
+// with ab_glyph (for volbench's own plots), which finds no system fonts.
+fn main() {
+    volbench::harness::pareto::register_font().expect("a font for the plots (scripts/setup.sh installs one)");
+    benches();
+    Criterion::default().configure_from_args().final_summary();
+}

@@ -62,7 +62,7 @@ fn run_writes_the_documented_json() {
         "/time_ms/frame/median", "/time_ms/frame/min", "/time_ms/frame/max", "/time_ms/gpu/median",
         "/time_ms/sort/median", "/time_ms/pack/median", "/cells_per_second",
         "/stats/vertex_invocations", "/stats/fragment_invocations", "/device/name", "/device/driver_info",
-        "/error/rmse", "/error/max_abs", "/error/psnr_db", "/error/reference",
+        "/error/rmse", "/error/max_abs", "/error/psnr_db", "/error/reference", "/git_sha",
     ] {
         assert!(v.pointer(path).is_some(), "missing {path}");
     }

@@ -107,7 +107,10 @@ pub fn markdown(mesh: &str, points: &[ParetoPoint]) -> String {
 const FONT_PATHS: [&str; 2] =
     ["/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf", "/usr/share/fonts/dejavu/DejaVuSans.ttf"];
 
-fn register_font() -> Result<()> {
+/// Register a TrueType font for plot labels (plotters is built with
+/// `ab_glyph`, which has no system font lookup; criterion's plots need it
+/// too). Idempotent.
+pub fn register_font() -> Result<()> {
     use std::sync::OnceLock;
     static REGISTERED: OnceLock<bool> = OnceLock::new();
     let ok = *REGISTERED.get_or_init(|| {

@@ -166,6 +166,8 @@ pub struct RunResult {
     pub error: Option<ErrorReport>,
     pub device: DeviceInfo,
     pub volbench_version: &'static str,
+    /// The commit the binary was built from (`-dirty` with local changes).
+    pub git_sha: &'static str,
 }
 
 /// Error of an image against the f64 reference (RGBA, values in [0, 1]).
@@ -535,6 +537,7 @@ pub fn run_cell_projection(ctx: &Arc<Context>, scene: &Scene, cfg: &RunConfig) -
         error: None,
         device: ctx.info.clone(),
         volbench_version: env!("CARGO_PKG_VERSION"),
+        git_sha: env!("VOLBENCH_GIT_SHA"),
     };
     Ok(RunOutput { result, image })
 }
