@@ -91,16 +91,7 @@ const NONE: u32 = u32::MAX;
 /// `remaining` value of a cell already emitted.
 const EMITTED: u8 = u8::MAX;
 
-/// Order-preserving map from f32 to u32 (ascending floats -> ascending keys).
-#[inline]
-fn float_key(x: f32) -> u32 {
-    let b = x.to_bits();
-    if b & 0x8000_0000 != 0 {
-        !b
-    } else {
-        b | 0x8000_0000
-    }
-}
+use super::sort::float_key;
 
 /// What was found while building the adjacency (once per mesh).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]

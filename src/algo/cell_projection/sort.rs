@@ -8,7 +8,7 @@ use crate::scene::Camera;
 
 /// Order-preserving map from f32 to u32 (ascending floats -> ascending keys).
 #[inline]
-fn float_key(x: f32) -> u32 {
+pub(crate) fn float_key(x: f32) -> u32 {
     let b = x.to_bits();
     if b & 0x8000_0000 != 0 {
         !b
