@@ -768,24 +768,9 @@ fn large_mesh_timing() {
         |p| 0.7 + 0.5 * ((6.0 * p[0]).sin() * (5.0 * p[1]).cos() + (4.0 * p[2]).sin() * 0.5),
     ));
     for mesh in &meshes {
-        let b = {
-            let mut lo = [f64::INFINITY; 3];
-            let mut hi = [f64::NEG_INFINITY; 3];
-            for p in &mesh.points {
-                for k in 0..3 {
-                    lo[k] = lo[k].min(p[k]);
-                    hi[k] = hi[k].max(p[k]);
-                }
-            }
-            volbench::mesh::Bounds { min: lo, max: hi }
-        };
+        let b = mesh.bounds();
         // Rescale the transfer function to the mesh's scalar range.
-        let (smin, smax) = mesh
-            .scalars
-            .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &s| {
-                (a.min(s), b.max(s))
-            });
+        let (smin, smax) = mesh.scalar_range();
         let mut tf = tf.clone();
         for p in &mut tf.points {
             p.scalar = smin + (smax - smin) * p.scalar / 1.4;

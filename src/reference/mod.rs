@@ -291,15 +291,7 @@ fn validate(
 }
 
 fn mesh_diagonal(mesh: &TetMesh) -> f64 {
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    for p in &mesh.points {
-        for k in 0..3 {
-            lo[k] = lo[k].min(p[k]);
-            hi[k] = hi[k].max(p[k]);
-        }
-    }
-    let d: f64 = (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum::<f64>().sqrt();
+    let d = mesh.bounds().diagonal();
     if d.is_finite() {
         d
     } else {
