@@ -292,7 +292,7 @@ fn compare(cli: &Cli, args: &CompareArgs) -> Result<()> {
     println!("device: {} ({}, {})", ctx.info.name, ctx.info.driver_name, ctx.info.driver_info);
     print!("{table}");
     if let Some(dir) = &args.out {
-        std::fs::write(dir.join("comparison.md"), &table).with_context(|| format!("writing {}", dir.display()))?;
+        volbench::fsio::write_output(&dir.join("comparison.md"), table.as_bytes())?;
     }
     Ok(())
 }
@@ -349,7 +349,7 @@ fn pareto(cli: &Cli, args: &ParetoArgs) -> Result<()> {
     mark_front(&mut points);
     let table = markdown(&mesh.name, &points);
     write_csv(&out_dir.join("pareto.csv"), &points)?;
-    std::fs::write(out_dir.join("pareto.md"), &table).with_context(|| format!("writing {}", out_dir.display()))?;
+    volbench::fsio::write_output(&out_dir.join("pareto.md"), table.as_bytes())?;
     let title = format!("{}: frame time against error ({}x{}, {})", mesh.name, args.frame.size.0, args.frame.size.1, ctx.info.name);
     plot_png(&out_dir.join("pareto.png"), &title, &points)?;
     print!("{table}");

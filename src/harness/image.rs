@@ -1,7 +1,6 @@
 //! Images as the harness sees them: premultiplied RGBA f32, row 0 at the top.
 //! PNG output (composited over black) and image comparison.
 
-use std::io::BufWriter;
 use std::path::Path;
 
 use anyhow::{Context as _, Result};
@@ -72,13 +71,10 @@ impl RgbaImage {
     }
 
     /// Write an 8-bit RGB PNG: the premultiplied colour over a black
-    /// background. Written to a temporary name first, so a failure leaves no
-    /// partial file behind.
+    /// background. Written all-or-nothing (`fsio::write_output`).
     pub fn write_png(&self, path: &Path) -> Result<()> {
-        let tmp = path.with_extension("png.tmp");
-        let result = (|| -> Result<()> {
-            let file = std::fs::File::create(&tmp).with_context(|| format!("creating {}", tmp.display()))?;
-            let mut enc = png::Encoder::new(BufWriter::new(file), self.width, self.height);
+        crate::fsio::write_output_with(path, |out| {
+            let mut enc = png::Encoder::new(out, self.width, self.height);
             enc.set_color(png::ColorType::Rgb);
             enc.set_depth(png::BitDepth::Eight);
             let mut w = enc.write_header()?;
@@ -91,14 +87,8 @@ impl RgbaImage {
             w.write_image_data(&data)?;
             w.finish()?;
             Ok(())
-        })();
-        match result {
-            Ok(()) => std::fs::rename(&tmp, path).with_context(|| format!("writing {}", path.display())),
-            Err(e) => {
-                let _ = std::fs::remove_file(&tmp);
-                Err(e.context(format!("writing PNG {}", path.display())))
-            }
-        }
+        })
+        .with_context(|| format!("writing PNG {}", path.display()))
     }
 }
 

@@ -6,7 +6,7 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use anyhow::{Context as _, Result};
+use anyhow::Result;
 use serde::Serialize;
 
 use super::run::RunResult;
@@ -74,7 +74,7 @@ pub fn write_csv(path: &Path, points: &[ParetoPoint]) -> Result<()> {
             p.psnr_db, p.on_front
         );
     }
-    std::fs::write(path, s).with_context(|| format!("writing {}", path.display()))
+    crate::fsio::write_output(path, s.as_bytes())
 }
 
 pub fn markdown(mesh: &str, points: &[ParetoPoint]) -> String {

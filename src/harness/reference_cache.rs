@@ -80,9 +80,7 @@ fn write(path: &Path, image: &RgbaImage) -> Result<()> {
             bytes.extend_from_slice(&c.to_le_bytes());
         }
     }
-    let tmp = path.with_extension("tmp");
-    std::fs::write(&tmp, &bytes).with_context(|| format!("writing {}", tmp.display()))?;
-    std::fs::rename(&tmp, path).with_context(|| format!("writing {}", path.display()))
+    crate::fsio::write_output(path, &bytes)
 }
 
 /// The f64 reference image of `scene` seen by `camera`, from the cache when

@@ -12,9 +12,7 @@ use super::run::RunResult;
 /// Write `value` as pretty JSON via a temporary file (no partial output).
 pub fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<()> {
     let text = serde_json::to_string_pretty(value).context("serialising results")?;
-    let tmp = path.with_extension("json.tmp");
-    std::fs::write(&tmp, text + "\n").with_context(|| format!("writing {}", tmp.display()))?;
-    std::fs::rename(&tmp, path).with_context(|| format!("writing {}", path.display()))
+    crate::fsio::write_output(path, (text + "\n").as_bytes())
 }
 
 /// Moreland's thesis Table 6.3 (Quadro FX 3000, 800x800), tets per second.

@@ -133,7 +133,7 @@ impl Plot3dSolution {
 }
 
 fn read_file(path: &Path) -> Result<Vec<u8>> {
-    std::fs::read(path).with_context(|| format!("{}: cannot read PLOT3D file", path.display()))
+    crate::fsio::read_input(path, "PLOT3D file", crate::fsio::MAX_INPUT_BYTES)
 }
 
 fn be_i32(b: &[u8], off: usize) -> i32 {

@@ -13,7 +13,7 @@
 //! All errors name the file, the problem and the byte offset.
 
 use super::{MeshStats, TetMesh};
-use anyhow::{anyhow, bail, Context, Result};
+use anyhow::{anyhow, bail, Result};
 use std::path::Path;
 
 /// VTK cell type of a linear tetrahedron.
@@ -290,7 +290,7 @@ enum Owner {
 /// file stem.
 pub fn read_vtk_legacy(path: impl AsRef<Path>) -> Result<TetMesh> {
     let path = path.as_ref();
-    let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read VTK file", path.display()))?;
+    let bytes = crate::fsio::read_input(path, "VTK file", crate::fsio::MAX_INPUT_BYTES)?;
     parse_vtk_bytes(&path.display().to_string(), &bytes)
 }
 

@@ -48,7 +48,7 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{anyhow, bail, Context as _, Result};
+use anyhow::{anyhow, bail, Result};
 use serde::{Deserialize, Serialize};
 
 use super::{ControlPoint, TransferFunction};
@@ -104,8 +104,8 @@ struct PointSpec {
 /// `"attenuation_units": "per_diagonal"`).
 pub fn load_tf(path: impl AsRef<Path>, scalar_range: (f64, f64), mesh_diagonal: f64) -> Result<TransferFunction> {
     let path = path.as_ref();
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("{}: cannot read transfer function", path.display()))?;
+    // A transfer function is a few control points: 1 MiB is generous.
+    let text = crate::fsio::read_input_text(path, "transfer function", 1 << 20)?;
     let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "tf".into());
     parse_tf(&text, &path.display().to_string(), &stem, scalar_range, mesh_diagonal)
 }

@@ -1,0 +1,292 @@
+//! Every file volbench reads or writes goes through here, so the rules hold
+//! in one place:
+//!
+//! - **Inputs** must be regular files (a FIFO, a device or a directory is
+//!   refused before anything is read: `--mesh fifo.vtk` would block forever,
+//!   `--tf /dev/zero` never end) and no larger than a stated cap, checked
+//!   from the file's metadata before reading (a 2 GiB sparse file is refused,
+//!   not read whole).
+//! - **Outputs** are all-or-nothing: bytes are written to a uniquely named
+//!   temporary file beside the target and renamed over it, so a failure
+//!   leaves the old file (or nothing) and never a partial one or a `*.tmp`.
+//!   A target that exists but is not a regular file (a FIFO, `/dev/null`, a
+//!   symlink to one) is never replaced: it is written through, as a shell
+//!   redirection would. A symlink to a regular file is followed and its
+//!   target replaced. `-` means standard output.
+//! - `OutputSet` checks a run's outputs before any work starts: no two the
+//!   same, each one's directory exists, and none is a directory.
+
+use std::collections::HashSet;
+use std::fs;
+use std::io::{Read as _, Write as _};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use anyhow::{bail, Context as _, Result};
+
+/// Largest input volbench reads by default: 4 GiB (the largest shipped
+/// dataset is 9 MB; the readers' own size checks come after this one).
+pub const MAX_INPUT_BYTES: u64 = 4 << 30;
+
+/// Check that `path` can be read as an input: it exists, is a regular file
+/// (after following symlinks) and holds at most `max_bytes`. Returns its size.
+pub fn check_input(path: &Path, what: &str, max_bytes: u64) -> Result<u64> {
+    let meta = fs::metadata(path).with_context(|| format!("{}: cannot read {what}", path.display()))?;
+    if meta.is_dir() {
+        bail!("{}: is a directory, expected a {what} file", path.display());
+    }
+    if !meta.is_file() {
+        bail!("{}: is not a regular file (a FIFO, socket or device?); {what} must be read from a regular file", path.display());
+    }
+    if meta.len() > max_bytes {
+        bail!(
+            "{}: {} bytes is larger than the {} bytes a {what} may have here",
+            path.display(),
+            meta.len(),
+            max_bytes
+        );
+    }
+    Ok(meta.len())
+}
+
+/// Read a whole input file after `check_input`. The read is bounded by the
+/// size found there (plus one byte, to notice a file that grew meanwhile).
+pub fn read_input(path: &Path, what: &str, max_bytes: u64) -> Result<Vec<u8>> {
+    let len = check_input(path, what, max_bytes)?;
+    let file = fs::File::open(path).with_context(|| format!("{}: cannot open {what}", path.display()))?;
+    let mut bytes = Vec::with_capacity(len as usize);
+    file.take(max_bytes.saturating_add(1))
+        .read_to_end(&mut bytes)
+        .with_context(|| format!("{}: cannot read {what}", path.display()))?;
+    if bytes.len() as u64 > max_bytes {
+        bail!("{}: grew past the {} bytes a {what} may have while being read", path.display(), max_bytes);
+    }
+    Ok(bytes)
+}
+
+/// `read_input` as UTF-8 text.
+pub fn read_input_text(path: &Path, what: &str, max_bytes: u64) -> Result<String> {
+    let bytes = read_input(path, what, max_bytes)?;
+    String::from_utf8(bytes).map_err(|e| {
+        anyhow::anyhow!("{}: {what} is not UTF-8 text (invalid byte at offset {})", path.display(), e.utf8_error().valid_up_to())
+    })
+}
+
+/// Where an output goes.
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+pub enum OutputTarget {
+    Stdout,
+    /// A path that does not exist yet, or a regular file (possibly through a
+    /// symlink): replaced atomically.
+    File(PathBuf),
+    /// Something that exists and is not a regular file: written through.
+    Special(PathBuf),
+}
+
+impl OutputTarget {
+    /// Classify `path` (`-` is standard output). Fails for a directory, a
+    /// path ending in `/`, or a parent directory that does not exist.
+    pub fn of(path: &Path) -> Result<Self> {
+        if path.as_os_str() == "-" {
+            return Ok(OutputTarget::Stdout);
+        }
+        let text = path.as_os_str().to_string_lossy();
+        if text.is_empty() {
+            bail!("an output path is empty");
+        }
+        if text.ends_with('/') {
+            bail!("{}: names a directory, expected a file name", path.display());
+        }
+        match fs::metadata(path) {
+            Ok(m) if m.is_dir() => bail!("{}: is a directory, expected a file name", path.display()),
+            Ok(m) if m.is_file() => Ok(OutputTarget::File(path.to_path_buf())),
+            Ok(_) => Ok(OutputTarget::Special(path.to_path_buf())),
+            Err(_) => {
+                if fs::symlink_metadata(path).is_ok() {
+                    bail!("{}: is a dangling symbolic link; refusing to write through it", path.display());
+                }
+                let parent = parent_dir(path);
+                match fs::metadata(&parent) {
+                    Ok(m) if m.is_dir() => Ok(OutputTarget::File(path.to_path_buf())),
+                    Ok(_) => bail!("{}: {} is not a directory", path.display(), parent.display()),
+                    Err(_) => bail!("{}: directory {} does not exist", path.display(), parent.display()),
+                }
+            }
+        }
+    }
+}
+
+fn parent_dir(path: &Path) -> PathBuf {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    }
+}
+
+/// A unique temporary name beside `target` (process id, a counter and the
+/// time, so two processes or threads writing the same target never collide).
+fn temp_path(target: &Path) -> PathBuf {
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+    let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.subsec_nanos()).unwrap_or(0);
+    let name = target.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
+    parent_dir(target).join(format!(".{name}.{}.{n}.{nanos}.tmp", std::process::id()))
+}
+
+/// Removes the temporary file unless disarmed (any early return or panic).
+struct TempGuard(Option<PathBuf>);
+
+impl Drop for TempGuard {
+    fn drop(&mut self) {
+        if let Some(p) = self.0.take() {
+            let _ = fs::remove_file(p);
+        }
+    }
+}
+
+/// Write `bytes` to `path` all-or-nothing (see the module note).
+pub fn write_output(path: &Path, bytes: &[u8]) -> Result<()> {
+    write_output_with(path, |w| w.write_all(bytes).map_err(Into::into))
+}
+
+/// Write what `fill` produces to `path` all-or-nothing: nothing reaches the
+/// target unless `fill` succeeds.
+pub fn write_output_with(path: &Path, fill: impl FnOnce(&mut dyn std::io::Write) -> Result<()>) -> Result<()> {
+    match OutputTarget::of(path)? {
+        OutputTarget::Stdout => {
+            let mut buf = Vec::new();
+            fill(&mut buf)?;
+            let mut out = std::io::stdout().lock();
+            out.write_all(&buf).and_then(|()| out.flush()).context("writing to standard output")
+        }
+        OutputTarget::Special(p) => {
+            let mut buf = Vec::new();
+            fill(&mut buf)?;
+            let mut f = fs::OpenOptions::new().write(true).open(&p).with_context(|| format!("{}: cannot open for writing", p.display()))?;
+            f.write_all(&buf).with_context(|| format!("{}: write failed", p.display()))
+        }
+        OutputTarget::File(p) => {
+            // Replace what a symlink points to, not the link.
+            let real = fs::canonicalize(&p).unwrap_or_else(|_| p.clone());
+            let tmp = temp_path(&real);
+            let mut guard = TempGuard(Some(tmp.clone()));
+            let file = fs::OpenOptions::new()
+                .write(true)
+                .create_new(true)
+                .open(&tmp)
+                .with_context(|| format!("{}: cannot create a temporary file beside it", p.display()))?;
+            let mut w = std::io::BufWriter::new(file);
+            fill(&mut w).with_context(|| format!("writing {}", p.display()))?;
+            let file = w.into_inner().map_err(|e| anyhow::anyhow!("{}: write failed: {}", p.display(), e.error()))?;
+            file.sync_all().ok();
+            drop(file);
+            fs::rename(&tmp, &real).with_context(|| format!("{}: cannot replace it", p.display()))?;
+            guard.0 = None;
+            Ok(())
+        }
+    }
+}
+
+/// The outputs one command will write, checked together before any work:
+/// each is writable as `OutputTarget::of` says, and no two are the same file.
+#[derive(Default)]
+pub struct OutputSet {
+    seen: HashSet<PathBuf>,
+}
+
+impl OutputSet {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Add an output named by `option` (for the message).
+    pub fn add(&mut self, option: &str, path: &Path) -> Result<()> {
+        let target = OutputTarget::of(path).with_context(|| format!("{option}"))?;
+        let key = match &target {
+            OutputTarget::Stdout => PathBuf::from("-"),
+            OutputTarget::File(p) | OutputTarget::Special(p) => canonical_for_compare(p),
+        };
+        if !self.seen.insert(key) {
+            bail!("{option} {}: another output of this command writes the same file", path.display());
+        }
+        Ok(())
+    }
+}
+
+/// A path's identity: canonical parent joined with the file name (the file
+/// itself may not exist yet); a symlink resolves to its target.
+fn canonical_for_compare(p: &Path) -> PathBuf {
+    if let Ok(c) = fs::canonicalize(p) {
+        return c;
+    }
+    let parent = fs::canonicalize(parent_dir(p)).unwrap_or_else(|_| parent_dir(p));
+    match p.file_name() {
+        Some(n) => parent.join(n),
+        None => parent,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn replaces_regular_files_atomically_and_leaves_no_temp() {
+        let d = tempfile::tempdir().unwrap();
+        let p = d.path().join("a.json");
+        write_output(&p, b"one").unwrap();
+        write_output(&p, b"two").unwrap();
+        assert_eq!(fs::read(&p).unwrap(), b"two");
+        let err = write_output_with(&p, |_| bail!("boom")).unwrap_err();
+        assert!(format!("{err:#}").contains("boom"));
+        assert_eq!(fs::read(&p).unwrap(), b"two", "a failed write keeps the old file");
+        let names: Vec<_> = fs::read_dir(d.path()).unwrap().map(|e| e.unwrap().file_name()).collect();
+        assert_eq!(names.len(), 1, "{names:?}");
+    }
+
+    #[test]
+    fn never_replaces_what_is_not_a_regular_file() {
+        let d = tempfile::tempdir().unwrap();
+        // /dev/null is written through, not replaced by a regular file.
+        write_output(Path::new("/dev/null"), b"x").unwrap();
+        assert!(!fs::metadata("/dev/null").unwrap().is_file());
+        // A symlink to a regular file: the target is replaced, the link stays.
+        let target = d.path().join("t.txt");
+        fs::write(&target, b"old").unwrap();
+        let link = d.path().join("l.txt");
+        std::os::unix::fs::symlink(&target, &link).unwrap();
+        write_output(&link, b"new").unwrap();
+        assert!(fs::symlink_metadata(&link).unwrap().file_type().is_symlink());
+        assert_eq!(fs::read(&target).unwrap(), b"new");
+        // A directory, a trailing slash, a missing parent: clear errors.
+        for bad in [d.path().to_path_buf(), d.path().join("x/"), d.path().join("nope/x.png")] {
+            let e = write_output(&bad, b"x").unwrap_err().to_string();
+            assert!(e.contains(&*bad.to_string_lossy().trim_end_matches('/')), "{e}");
+        }
+        assert_eq!(fs::read_dir(d.path()).unwrap().count(), 2);
+    }
+
+    #[test]
+    fn inputs_must_be_regular_and_small_enough() {
+        let d = tempfile::tempdir().unwrap();
+        let p = d.path().join("m.vtk");
+        fs::write(&p, b"0123456789").unwrap();
+        assert_eq!(read_input(&p, "mesh", 10).unwrap().len(), 10);
+        let e = read_input(&p, "mesh", 9).unwrap_err().to_string();
+        assert!(e.contains("m.vtk") && e.contains("10 bytes"), "{e}");
+        let e = read_input(Path::new("/dev/zero"), "transfer function", 100).unwrap_err().to_string();
+        assert!(e.contains("/dev/zero") && e.contains("not a regular file"), "{e}");
+        let e = read_input(d.path(), "mesh", 100).unwrap_err().to_string();
+        assert!(e.contains("directory"), "{e}");
+    }
+
+    #[test]
+    fn an_output_set_refuses_the_same_file_twice() {
+        let d = tempfile::tempdir().unwrap();
+        let mut set = OutputSet::new();
+        set.add("--png", &d.path().join("a.png")).unwrap();
+        set.add("--json", &d.path().join("a.json")).unwrap();
+        let e = set.add("--diff-png", &d.path().join("./a.png")).unwrap_err().to_string();
+        assert!(e.contains("--diff-png") && e.contains("same file"), "{e}");
+    }
+}
