@@ -187,6 +187,52 @@ pub fn write_output_with(path: &Path, fill: impl FnOnce(&mut dyn std::io::Write)
     }
 }
 
+/// Write several outputs all-or-nothing together: every regular-file
+/// target is first written to its own temporary file; only when all of
+/// them are complete are they renamed into place (then the non-regular
+/// targets and standard output are written through, which cannot be undone).
+/// If any write fails, no target is touched and no temporary file is left.
+pub fn write_all(outputs: &[(&Path, &[u8])]) -> Result<()> {
+    let mut staged: Vec<(TempGuard, PathBuf, &Path)> = Vec::new();
+    let mut later: Vec<(OutputTarget, &[u8])> = Vec::new();
+    for &(path, bytes) in outputs {
+        match OutputTarget::of(path)? {
+            OutputTarget::File(p) => {
+                let real = fs::canonicalize(&p).unwrap_or_else(|_| p.clone());
+                let tmp = temp_path(&real);
+                let guard = TempGuard(Some(tmp.clone()));
+                let mut f = fs::OpenOptions::new()
+                    .write(true)
+                    .create_new(true)
+                    .open(&tmp)
+                    .with_context(|| format!("{}: cannot create a temporary file beside it", p.display()))?;
+                f.write_all(bytes).with_context(|| format!("{}: write failed", p.display()))?;
+                staged.push((guard, real, path));
+            }
+            other => later.push((other, bytes)),
+        }
+    }
+    for (mut guard, real, path) in staged {
+        if let Some(tmp) = guard.0.take() {
+            fs::rename(&tmp, &real).with_context(|| format!("{}: cannot replace it", path.display()))?;
+        }
+    }
+    for (target, bytes) in later {
+        match target {
+            OutputTarget::Stdout => {
+                let mut out = std::io::stdout().lock();
+                out.write_all(bytes).and_then(|()| out.flush()).context("writing to standard output")?;
+            }
+            OutputTarget::Special(p) => {
+                let mut f = fs::OpenOptions::new().write(true).open(&p).with_context(|| format!("{}: cannot open for writing", p.display()))?;
+                f.write_all(bytes).with_context(|| format!("{}: write failed", p.display()))?;
+            }
+            OutputTarget::File(_) => {}
+        }
+    }
+    Ok(())
+}
+
 /// The outputs one command will write, checked together before any work:
 /// each is writable as `OutputTarget::of` says, and no two are the same file.
 #[derive(Default)]
@@ -278,6 +324,21 @@ mod tests {
         assert!(e.contains("/dev/zero") && e.contains("not a regular file"), "{e}");
         let e = read_input(d.path(), "mesh", 100).unwrap_err().to_string();
         assert!(e.contains("directory"), "{e}");
+    }
+
+    #[test]
+    fn write_all_is_all_or_nothing() {
+        let d = tempfile::tempdir().unwrap();
+        let (a, b) = (d.path().join("a.png"), d.path().join("b.json"));
+        fs::write(&a, b"old").unwrap();
+        // The second target's directory does not exist: nothing is written.
+        let bad = d.path().join("missing/c.json");
+        assert!(write_all(&[(&a, b"new"), (&bad, b"x")]).is_err());
+        assert_eq!(fs::read(&a).unwrap(), b"old");
+        assert_eq!(fs::read_dir(d.path()).unwrap().count(), 1, "no temporary file left");
+        write_all(&[(&a, b"new"), (&b, b"{}"), (Path::new("/dev/null"), b"x")]).unwrap();
+        assert_eq!(fs::read(&a).unwrap(), b"new");
+        assert_eq!(fs::read(&b).unwrap(), b"{}");
     }
 
     #[test]

@@ -1,21 +1,24 @@
-//! The volbench command line: `info`, `run` (one method on one mesh) and
-//! `compare` (VICP against balanced cell projection on several meshes).
+//! The volbench command line: `info`, `list`, `run` (one method on one
+//! dataset), `compare` (every method side by side), `pareto` (run time
+//! against error) and `stress` (adversarial cases). Methods are named by
+//! vkmark-style specs (`balanced:integrator=ppi,sort=mpvo`) resolved through
+//! the registry; this file never names a method. Every argument and input is
+//! checked before Vulkan starts or any output is created.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::{bail, Context as _, Result};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
-use volbench::algo::cell_projection::sort::SortKind;
-use volbench::algo::cell_projection::{Interpolation, Method};
-use volbench::algo::integrate::Integrator;
-use volbench::harness::report::{self, ComparisonRow};
+use volbench::algo::registry::{self, Registry};
+use volbench::fsio::{self, OutputSet};
+use volbench::harness::datasets::{self, Dataset};
 use volbench::harness::reference_cache::reference_image;
-use volbench::harness::run::{run_cell_projection, RunConfig, Scene};
-use volbench::harness::datasets;
-use volbench::mesh::TetGeometry;
-use volbench::scene::Projection;
+use volbench::harness::report::{self, ComparisonRow};
+use volbench::harness::run::{run as run_method, RunConfig};
+use volbench::harness::sweep;
+use volbench::scene::{Projection, TransferFunction};
 use volbench::vk::{Context, ContextDesc};
 
 #[derive(Parser)]
@@ -35,42 +38,51 @@ struct Cli {
 enum Command {
     /// The device, driver, API version and the limits that matter here.
     Info,
-    /// Render one method on one mesh for N frames and report bytes, times and counts.
+    /// Every method with its options and defaults, and every shipped dataset.
+    List,
+    /// Render one method on one dataset for N frames and report bytes, times and counts.
     Run(RunArgs),
-    /// Run VICP and balanced cell projection on each mesh and print the comparison table.
+    /// Run every method (or the given specs) on each dataset: the comparison table.
     Compare(CompareArgs),
-    /// Sweep methods x integrators x table sizes x interpolations on one mesh: run
-    /// time against error (CSV, Markdown, PNG plot with the Pareto front).
+    /// Sweep each method's option sets on one dataset: run time against error
+    /// (CSV, Markdown, PNG plot with the Pareto front).
     Pareto(ParetoArgs),
     /// Render adversarial cases (slivers, degenerate cells, grazing rays, far
     /// from the origin, extreme scalars, steps, opaque media, camera inside)
-    /// with every method and integrator against the f64 reference.
+    /// with every tetrahedral method and option set against the f64 reference.
     Stress(StressArgs),
 }
 
-#[derive(Args)]
-struct StressArgs {
-    /// Image side in pixels (even, >= 16).
-    #[arg(long, default_value_t = 128)]
-    size: u32,
-    /// Write {"cases": [...]} as JSON.
+/// Options of a method given as flags: shorthands for `method:key=value`.
+/// Each applies only where given; a method without that option is an error.
+#[derive(Args, Clone, Default)]
+struct MethodFlags {
+    /// Shorthand for the `integrator` option (average, preint, ppi, linear-exact).
     #[arg(long)]
-    json: Option<PathBuf>,
-    /// Print what each case is and its error allowances, and exit.
+    integrator: Option<String>,
+    /// Shorthand for the `table_size` option.
     #[arg(long)]
-    describe: bool,
+    table_size: Option<String>,
+    /// Shorthand for the `sort` option (centroid, mpvo).
+    #[arg(long)]
+    sort: Option<String>,
+    /// Shorthand for the `interpolation` option (exact, paper).
+    #[arg(long)]
+    interpolation: Option<String>,
 }
 
-#[derive(Args)]
-struct ParetoArgs {
-    /// bluntfin, oxygenpost, post-small, or a mesh file.
-    #[arg(long)]
-    mesh: String,
-    #[command(flatten)]
-    frame: FrameArgs,
-    /// Output directory (default results/runs/pareto-<mesh>).
-    #[arg(long)]
-    out: Option<PathBuf>,
+impl MethodFlags {
+    fn pairs(&self) -> Vec<(&'static str, String)> {
+        [
+            ("integrator", &self.integrator),
+            ("table_size", &self.table_size),
+            ("sort", &self.sort),
+            ("interpolation", &self.interpolation),
+        ]
+        .into_iter()
+        .filter_map(|(k, v)| v.clone().map(|v| (k, v)))
+        .collect()
+    }
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -95,41 +107,31 @@ struct FrameArgs {
     /// Camera rotation per frame, degrees.
     #[arg(long, default_value_t = 5.0)]
     orbit_step: f64,
-    /// How exit data crosses a face under perspective: as the papers do, or exactly.
-    #[arg(long, value_enum, default_value = "paper")]
-    interpolation: Interpolation,
     /// Run each frame's phases strictly one after another (no CPU/device overlap).
     #[arg(long)]
     no_overlap: bool,
-    /// How the fragment stage integrates each cell's segment.
-    #[arg(long, value_enum, default_value = "ppi")]
-    integrator: Integrator,
-    /// Side of the integrator's table (ppi: Psi table, default 512; preint:
-    /// scalar samples per axis, default 128, with a quarter as many lengths).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(2..=4096))]
-    table_size: Option<u32>,
-    /// Visibility order: centroid distance, or MPVO from face adjacency.
-    #[arg(long, value_enum, default_value = "centroid")]
-    sort: SortKind,
     /// A transfer-function file (JSON, see data/tf/README.md); default: the
-    /// mesh's preset.
+    /// dataset's preset.
     #[arg(long)]
     tf: Option<PathBuf>,
+    #[command(flatten)]
+    method: MethodFlags,
 }
 
 #[derive(Args)]
 struct RunArgs {
-    /// bluntfin, oxygenpost, post-small, or a path to a mesh file (.vtk).
-    #[arg(long)]
-    mesh: String,
-    #[arg(long, value_enum)]
-    method: Method,
+    /// A shipped dataset (`volbench list`) or a file path.
+    #[arg(long, alias = "mesh", value_name = "NAME|PATH")]
+    data: String,
+    /// The method: `name` or `name:key=value,...` (`volbench list`).
+    #[arg(long, value_name = "SPEC")]
+    method: String,
     #[command(flatten)]
     frame: FrameArgs,
     /// Write the reference-view image (angle 0) as PNG.
     #[arg(long)]
     png: Option<PathBuf>,
-    /// Write the full result as JSON.
+    /// Write the full result as JSON (`-`: standard output).
     #[arg(long)]
     json: Option<PathBuf>,
     /// Compare the reference-view image with the f64 CPU reference (adds `error.*`).
@@ -142,14 +144,51 @@ struct RunArgs {
 
 #[derive(Args)]
 struct CompareArgs {
-    /// Comma-separated meshes.
-    #[arg(long, default_value = "bluntfin,oxygenpost", value_delimiter = ',')]
-    meshes: Vec<String>,
+    /// Comma-separated datasets (names or paths).
+    #[arg(long, alias = "meshes", default_value = "bluntfin,oxygenpost", value_delimiter = ',', value_name = "NAMES")]
+    data: Vec<String>,
+    /// A method spec to run (repeat for several); default: every method for
+    /// the dataset's kind with the option sets it registers for comparison.
+    #[arg(long = "method", value_name = "SPEC")]
+    methods: Vec<String>,
     #[command(flatten)]
     frame: FrameArgs,
     /// Directory for JSON results, PNGs and the Markdown table.
     #[arg(long)]
     out: Option<PathBuf>,
+}
+
+#[derive(Args)]
+struct ParetoArgs {
+    /// A shipped dataset or a file path.
+    #[arg(long, alias = "mesh", value_name = "NAME|PATH")]
+    data: String,
+    /// A method spec to sweep (repeat for several); default: every method for
+    /// the dataset's kind. Each is swept over its registered option sets, with
+    /// the spec's own options and the shorthand flags held fixed.
+    #[arg(long = "method", value_name = "SPEC")]
+    methods: Vec<String>,
+    #[command(flatten)]
+    frame: FrameArgs,
+    /// Output directory (default results/runs/pareto-<dataset>).
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
+#[derive(Args)]
+struct StressArgs {
+    /// Image side in pixels (even, 16..=2048).
+    #[arg(long, default_value_t = 128)]
+    size: u32,
+    /// Only these methods (repeat; default every tetrahedral method).
+    #[arg(long = "method", value_name = "NAME")]
+    methods: Vec<String>,
+    /// Write {"cases": [...]} as JSON (rewritten as each row completes).
+    #[arg(long)]
+    json: Option<PathBuf>,
+    /// Print what each case is and its error allowances, and exit.
+    #[arg(long)]
+    describe: bool,
 }
 
 fn parse_size(s: &str) -> Result<(u32, u32), String> {
@@ -163,35 +202,29 @@ fn parse_size(s: &str) -> Result<(u32, u32), String> {
 }
 
 impl FrameArgs {
-    /// The transfer function: `--tf FILE`, or the mesh's built-in preset.
-    fn transfer_function(&self, mesh: &volbench::mesh::TetMesh) -> Result<volbench::scene::TransferFunction> {
+    /// The transfer function: `--tf FILE`, or the dataset's preset.
+    fn transfer_function(&self, dataset: &Dataset) -> Result<TransferFunction> {
         match &self.tf {
-            Some(path) => volbench::scene::tf_file::load_tf(path, mesh.scalar_range(), mesh.bounds().diagonal()),
-            None => Ok(datasets::default_transfer_function(mesh)),
+            Some(path) => dataset.load_transfer_function(path),
+            None => Ok(dataset.default_transfer_function()),
         }
     }
 
-    fn config(&self, method: Method) -> Result<RunConfig> {
-        if self.frames == 0 {
-            bail!("--frames must be at least 1");
-        }
-        if !self.orbit_step.is_finite() {
-            bail!("--orbit-step must be a finite number of degrees");
-        }
-        let mut cfg = RunConfig::new(method);
-        (cfg.width, cfg.height) = self.size;
-        cfg.frames = self.frames;
-        cfg.warmup = self.warmup;
-        cfg.orbit_step = self.orbit_step.to_radians();
-        cfg.interpolation = self.interpolation;
-        cfg.overlap = !self.no_overlap;
-        cfg.integrator = self.integrator;
-        cfg.table_size = self.table_size.unwrap_or(0) as usize;
-        cfg.sort = self.sort;
-        cfg.projection = match self.projection {
-            ProjectionArg::Perspective => Projection::Perspective { fovy_deg: 30.0 },
-            ProjectionArg::Orthographic => Projection::Orthographic { height: 1.0 },
+    fn config(&self) -> Result<RunConfig> {
+        let cfg = RunConfig {
+            width: self.size.0,
+            height: self.size.1,
+            frames: self.frames,
+            warmup: self.warmup,
+            orbit_step: self.orbit_step.to_radians(),
+            overlap: !self.no_overlap,
+            projection: match self.projection {
+                ProjectionArg::Perspective => Projection::Perspective { fovy_deg: 30.0 },
+                ProjectionArg::Orthographic => Projection::Orthographic { height: 1.0 },
+            },
+            ..RunConfig::default()
         };
+        cfg.validate()?;
         Ok(cfg)
     }
 }
@@ -214,187 +247,188 @@ fn info(cli: &Cli) -> Result<()> {
     Ok(())
 }
 
-fn run(cli: &Cli, args: &RunArgs) -> Result<()> {
-    let cfg = args.frame.config(args.method)?;
-    let mesh = datasets::load_mesh(&args.mesh)?;
-    let geometry = TetGeometry::compute(&mesh);
-    let tf = args.frame.transfer_function(&mesh)?;
-    let ctx = context(cli)?;
-    let scene = Scene { mesh: &mesh, geometry: &geometry, tf: &tf };
-    let mut cfg = cfg;
-    cfg.check_visibility = args.reference || args.diff_png.is_some();
-    let mut out = run_cell_projection(&ctx, &scene, &cfg)
-        .with_context(|| format!("running {} on {}", args.method.name(), args.mesh))?;
-    if args.reference || args.diff_png.is_some() {
-        let reference = reference_image(&scene, &out.result.image.camera, cfg.width, cfg.height)?;
-        let diff = out.attach_error(&reference)?;
-        if let Some(p) = &args.diff_png {
-            diff.write_png(p)?;
+fn list(registry: &Registry) -> Result<()> {
+    println!("Methods (spec: name:key=value,...; [b] = changes shader code, [r] = run-time parameter):");
+    for m in registry.methods() {
+        println!("\n  {} ({} datasets): {}", m.name, m.data.name(), m.summary);
+        if !m.features.is_empty() {
+            let f: Vec<&str> = m.features.iter().map(|f| f.name()).collect();
+            println!("    needs: {}", f.join(", "));
+        }
+        for o in m.options {
+            let unit = if o.unit.is_empty() { String::new() } else { format!(" ({})", o.unit) };
+            println!(
+                "    {}={} [{}] {}{unit}: {}",
+                o.name,
+                o.default,
+                if o.build_time { "b" } else { "r" },
+                o.allowed(),
+                o.help
+            );
         }
     }
-    print!("{}", report::comparison_table(&[ComparisonRow { result: &out.result, rmse_vs_other: None }]));
-    if let Some(p) = &args.png {
-        out.image.write_png(p)?;
-    }
-    if let Some(p) = &args.json {
-        report::write_json(p, &out.result)?;
+    println!("\nDatasets (--data NAME, or a file path):");
+    for d in datasets::NAMED {
+        println!("  {:<12} {:<9} {}", d.name, d.kind.name(), d.description);
     }
     Ok(())
 }
 
-fn compare(cli: &Cli, args: &CompareArgs) -> Result<()> {
-    // Load (and so validate) every mesh before any output is written.
-    let meshes = args.meshes.iter().map(|name| datasets::load_mesh(name)).collect::<Result<Vec<_>>>()?;
+fn run(cli: &Cli, registry: &Registry, args: &RunArgs) -> Result<()> {
+    let cfg = args.frame.config()?;
+    let spec = registry.parse_spec(&args.method, &args.frame.method.pairs())?;
+    let mut outputs = OutputSet::new();
+    for (option, path) in [("--png", &args.png), ("--json", &args.json), ("--diff-png", &args.diff_png)] {
+        if let Some(p) = path {
+            outputs.add(option, p)?;
+        }
+    }
+    let dataset = datasets::load(&args.data)?;
+    anyhow::ensure!(
+        spec.info.data == dataset.kind(),
+        "method '{}' renders {} datasets; '{}' is a {}",
+        spec.info.name,
+        spec.info.data.name(),
+        args.data,
+        dataset.kind().name()
+    );
+    let tf = args.frame.transfer_function(&dataset)?;
     let ctx = context(cli)?;
+    cfg.check_device(&ctx.info)?;
+    let with_reference = args.reference || args.diff_png.is_some();
+    let cfg = RunConfig { diagnostics: with_reference, ..cfg };
+    let mut out = run_method(&ctx, &spec, &dataset, &tf, &cfg)
+        .with_context(|| format!("running {} on {}", spec.canonical(), args.data))?;
+    let mut diff = None;
+    if with_reference {
+        let reference = reference_image(&dataset, &tf, &out.result.image.camera, cfg.width, cfg.height)?;
+        diff = Some(out.attach_error(&reference)?);
+    }
+    let row = ComparisonRow { label: spec.label(), dataset: dataset.name.clone(), outcome: Ok(&out.result), rmse_vs_first: None };
+    // The table goes to stderr when the JSON goes to stdout.
+    let table = report::comparison_table(&[row], &registry.published());
+    if args.json.as_deref() == Some(Path::new("-")) {
+        eprint!("{table}");
+    } else {
+        print!("{table}");
+    }
+    // All outputs or none.
+    let mut files: Vec<(&Path, Vec<u8>)> = Vec::new();
+    if let Some(p) = &args.png {
+        files.push((p, out.image.png_bytes()?));
+    }
+    if let (Some(p), Some(d)) = (&args.diff_png, &diff) {
+        files.push((p, d.png_bytes()?));
+    }
+    if let Some(p) = &args.json {
+        files.push((p, report::json_bytes(&out.result)?));
+    }
+    fsio::write_all(&files.iter().map(|(p, b)| (*p, b.as_slice())).collect::<Vec<_>>())
+}
+
+fn compare(cli: &Cli, registry: &Registry, args: &CompareArgs) -> Result<()> {
+    let cfg = RunConfig { diagnostics: true, ..args.frame.config()? };
+    // Load (and so validate) every dataset, transfer function and spec
+    // before any output is written or Vulkan starts.
+    let mut jobs = Vec::new();
+    for name in &args.data {
+        let dataset = datasets::load(name)?;
+        let tf = args.frame.transfer_function(&dataset)?;
+        let specs = sweep::specs_for(registry, &args.methods, dataset.kind(), &args.frame.method.pairs(), |m| m.compare)?;
+        jobs.push(sweep::CompareJob { dataset, tf, specs });
+    }
+    sweep::check_compare_outputs(&jobs)?;
     if let Some(dir) = &args.out {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
-    let mut results = Vec::new();
-    let mut rmses = Vec::new();
-    for (name, mesh) in args.meshes.iter().zip(meshes) {
-        let geometry = TetGeometry::compute(&mesh);
-        let tf = args.frame.transfer_function(&mesh)?;
-        let scene = Scene { mesh: &mesh, geometry: &geometry, tf: &tf };
-        let mut images = Vec::new();
-        let mut reference = None;
-        for method in [Method::Vicp, Method::Balanced] {
-            eprintln!("volbench: {} on {} ({} cells)...", method.name(), mesh.name, mesh.tets.len());
-            let mut cfg = args.frame.config(method)?;
-            cfg.check_visibility = true;
-            let mut out = run_cell_projection(&ctx, &scene, &cfg)
-                .with_context(|| format!("running {} on {}", method.name(), name))?;
-            if reference.is_none() {
-                eprintln!("volbench: f64 reference of {}...", mesh.name);
-                reference = Some(reference_image(&scene, &out.result.image.camera, cfg.width, cfg.height)?);
-            }
-            let diff = match &reference {
-                Some(r) => Some(out.attach_error(r)?),
-                None => None,
-            };
-            if let Some(dir) = &args.out {
-                let stem = format!("{}-{}", mesh.name, method.name());
-                out.image.write_png(&dir.join(format!("{stem}.png")))?;
-                if let Some(d) = diff {
-                    d.write_png(&dir.join(format!("{stem}-diff.png")))?;
-                }
-                report::write_json(&dir.join(format!("{stem}.json")), &out.result)?;
-            }
-            images.push(out.image);
-            results.push(out.result);
-        }
-        let rmse = images[0].compare(&images[1])?.rmse;
-        rmses.push(Some(rmse));
-        rmses.push(Some(rmse));
-    }
-    let rows: Vec<ComparisonRow> =
-        results.iter().zip(&rmses).map(|(r, &rmse_vs_other)| ComparisonRow { result: r, rmse_vs_other }).collect();
-    let table = report::comparison_table(&rows);
-    println!("device: {} ({}, {})", ctx.info.name, ctx.info.driver_name, ctx.info.driver_info);
-    print!("{table}");
-    if let Some(dir) = &args.out {
-        volbench::fsio::write_output(&dir.join("comparison.md"), table.as_bytes())?;
-    }
-    Ok(())
-}
-
-fn pareto(cli: &Cli, args: &ParetoArgs) -> Result<()> {
-    use volbench::harness::pareto::{mark_front, markdown, plot_png, write_csv, ParetoPoint};
-    let mesh = datasets::load_mesh(&args.mesh)?;
-    let out_dir = args.out.clone().unwrap_or_else(|| PathBuf::from(format!("results/runs/pareto-{}", mesh.name)));
-    std::fs::create_dir_all(&out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
-    let geometry = TetGeometry::compute(&mesh);
-    let tf = args.frame.transfer_function(&mesh)?;
-    let scene = Scene { mesh: &mesh, geometry: &geometry, tf: &tf };
     let ctx = context(cli)?;
-    let variants: Vec<(Integrator, usize)> = vec![
-        (Integrator::Average, 0),
-        (Integrator::Preint, 128),
-        (Integrator::Ppi, 128),
-        (Integrator::Ppi, 512),
-        (Integrator::Ppi, 1024),
-        (Integrator::LinearExact, 0),
-    ];
-    let mut points = Vec::new();
-    let mut reference = None;
-    for method in [Method::Vicp, Method::Balanced] {
-        for (interpolation, sort) in [Interpolation::Paper, Interpolation::Exact]
-            .into_iter()
-            .flat_map(|i| [SortKind::Centroid, SortKind::Mpvo].map(|s| (i, s)))
-        {
-            for &(integrator, table_size) in &variants {
-                let mut cfg = args.frame.config(method)?;
-                cfg.interpolation = interpolation;
-                cfg.integrator = integrator;
-                cfg.table_size = table_size;
-                cfg.sort = sort;
-                eprintln!(
-                    "volbench: {} {} {} {} {}...",
-                    method.name(),
-                    integrator.name(),
-                    if table_size > 0 { table_size.to_string() } else { "-".into() },
-                    interpolation.name(),
-                    sort.name()
-                );
-                let mut out = run_cell_projection(&ctx, &scene, &cfg)?;
-                if reference.is_none() {
-                    reference = Some(reference_image(&scene, &out.result.image.camera, cfg.width, cfg.height)?);
-                }
-                if let Some(r) = &reference {
-                    out.attach_error(r)?;
-                }
-                points.extend(ParetoPoint::from_result(&out.result));
-            }
-        }
+    cfg.check_device(&ctx.info)?;
+    let rows = sweep::compare(&ctx, registry, &jobs, &cfg, args.out.as_deref())?;
+    println!("device: {} ({}, {})", ctx.info.name, ctx.info.driver_name, ctx.info.driver_info);
+    print!("{}", sweep::comparison_markdown(&rows, registry)?);
+    let failed = rows.iter().filter(|r| r.outcome.is_err()).count();
+    if failed > 0 {
+        bail!("{failed} of {} runs failed (see the table)", rows.len());
     }
-    mark_front(&mut points);
-    let table = markdown(&mesh.name, &points);
-    write_csv(&out_dir.join("pareto.csv"), &points)?;
-    volbench::fsio::write_output(&out_dir.join("pareto.md"), table.as_bytes())?;
-    let title = format!("{}: frame time against error ({}x{}, {})", mesh.name, args.frame.size.0, args.frame.size.1, ctx.info.name);
-    plot_png(&out_dir.join("pareto.png"), &title, &points)?;
-    print!("{table}");
-    println!("written: {}/pareto.{{csv,md,png}}", out_dir.display());
     Ok(())
 }
 
-fn stress(cli: &Cli, args: &StressArgs) -> Result<()> {
-    use volbench::harness::stress::{describe_cases, failures, run_stress_with_progress, stress_table, StressReport};
-    if args.size < 16 || args.size % 2 != 0 {
-        bail!("--size must be even and at least 16, got {}", args.size);
+fn pareto(cli: &Cli, registry: &Registry, args: &ParetoArgs) -> Result<()> {
+    let cfg = args.frame.config()?;
+    let dataset = datasets::load(&args.data)?;
+    let tf = args.frame.transfer_function(&dataset)?;
+    let specs = sweep::pareto_specs(registry, &args.methods, dataset.kind(), &args.frame.method.pairs())?;
+    let out_dir = args.out.clone().unwrap_or_else(|| PathBuf::from(format!("results/runs/pareto-{}", dataset.name)));
+    let ctx = context(cli)?;
+    cfg.check_device(&ctx.info)?;
+    std::fs::create_dir_all(&out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
+    let points = sweep::pareto(&ctx, &dataset, &tf, &specs, &cfg, &out_dir)?;
+    print!("{}", volbench::harness::pareto::markdown(&dataset.name, &points));
+    println!("written: {}/pareto.{{csv,md,png}}", out_dir.display());
+    let failed = points.iter().filter(|p| p.error.is_some()).count();
+    if failed > 0 {
+        bail!("{failed} of {} sweep runs failed (see pareto.md)", points.len());
+    }
+    Ok(())
+}
+
+fn stress(cli: &Cli, registry: &Registry, args: &StressArgs) -> Result<()> {
+    use volbench::harness::stress::{describe_cases, failures, run_cases_with_progress, stress_cases, stress_table, StressConfig, StressReport};
+    if !(16..=2048).contains(&args.size) || args.size % 2 != 0 {
+        bail!("--size must be even and within 16..=2048 (the f64 reference renders every pixel on the CPU), got {}", args.size);
     }
     if args.describe {
         print!("{}", describe_cases(args.size));
         return Ok(());
     }
+    if let Some(p) = &args.json {
+        OutputSet::new().add("--json", p)?;
+    }
+    let mut cfg = StressConfig::full(registry, args.size)?;
+    if !args.methods.is_empty() {
+        for m in &args.methods {
+            registry.get(m)?;
+        }
+        cfg.specs.retain(|s| args.methods.iter().any(|m| m == s.info.name));
+        anyhow::ensure!(!cfg.specs.is_empty(), "--method: none of {:?} renders tetrahedral meshes", args.methods);
+    }
     let ctx = context(cli)?;
-    let mut done = 0usize;
-    let rows = run_stress_with_progress(&ctx, args.size, |row| {
-        done += 1;
-        if done % 50 == 0 {
-            eprintln!("volbench: stress: {done} renders ({} ...)", row.case);
+    let mut done = Vec::new();
+    let mut write_error = None;
+    let rows = run_cases_with_progress(&ctx, &stress_cases(args.size), &cfg, |row| {
+        done.push(row.clone());
+        if done.len() % 50 == 0 {
+            eprintln!("volbench: stress: {} renders ({} ...)", done.len(), row.case);
+        }
+        if let (Some(p), None) = (&args.json, &write_error) {
+            if let Err(e) = report::write_json(p, &StressReport { cases: done.clone() }) {
+                write_error = Some(e);
+            }
         }
     })?;
+    if let Some(e) = write_error {
+        return Err(e);
+    }
     print!("{}", stress_table(&rows));
     let failed = failures(&rows);
     let non_finite: usize = rows.iter().map(|r| r.nan_pixels + r.inf_pixels).sum();
     println!("{} renders, {} NaN/Inf pixels, {} failed", rows.len(), non_finite, failed);
-    if let Some(p) = &args.json {
-        report::write_json(p, &StressReport { cases: rows })?;
-    }
     if failed > 0 {
-        bail!("{failed} stress renders exceeded their bounds");
+        bail!("{failed} stress renders failed or exceeded their bounds");
     }
     Ok(())
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    let registry = registry::builtin();
     let result = match &cli.command {
         Command::Info => info(&cli),
-        Command::Run(a) => run(&cli, a),
-        Command::Compare(a) => compare(&cli, a),
-        Command::Pareto(a) => pareto(&cli, a),
-        Command::Stress(a) => stress(&cli, a),
+        Command::List => list(&registry),
+        Command::Run(a) => run(&cli, &registry, a),
+        Command::Compare(a) => compare(&cli, &registry, a),
+        Command::Pareto(a) => pareto(&cli, &registry, a),
+        Command::Stress(a) => stress(&cli, &registry, a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -132,6 +132,57 @@ pub fn psi_quads(table: &[f32], m: usize) -> Vec<[f32; 4]> {
     out
 }
 
+/// The largest table volbench builds: the device copy and the f64 build of
+/// a larger one would take gigabytes (preint at 512 is 1.65 GB, at 2048
+/// 274 GB) for no measurable accuracy (the sweep converges by 128).
+pub const MAX_TABLE_BYTES: u64 = 256 << 20;
+
+/// Bytes of the table `integrator` builds at side `table_size` (0: default).
+pub fn table_bytes(integrator: Integrator, table_size: usize) -> u64 {
+    let n = if table_size == 0 { integrator.default_table_size() } else { table_size.max(2) } as u64;
+    match integrator {
+        // (n-1)^2 corner quads of 4 f32 (plus the n^2 f32 grid they come from).
+        Integrator::Ppi => (n - 1) * (n - 1) * 16 + n * n * 4,
+        // n x n scalar pairs x n/4 lengths of RGBA f32.
+        Integrator::Preint => n * n * (n / 4).max(2) * 16,
+        Integrator::Average | Integrator::LinearExact => 0,
+    }
+}
+
+/// Refuse a table size whose memory is beyond `MAX_TABLE_BYTES`, before
+/// anything is allocated or computed.
+pub fn check_table_size(integrator: Integrator, table_size: usize) -> anyhow::Result<()> {
+    let bytes = table_bytes(integrator, table_size);
+    if bytes > MAX_TABLE_BYTES {
+        anyhow::bail!(
+            "--table-size {table_size} for integrator {}: the table would take {bytes} bytes, more than the {} allowed \
+             (at most {} for this integrator)",
+            integrator.name(),
+            MAX_TABLE_BYTES,
+            (2..=4096).rev().find(|&n| table_bytes(integrator, n) <= MAX_TABLE_BYTES).unwrap_or(2)
+        );
+    }
+    Ok(())
+}
+
+/// The Psi corner quads at side `m`, built once per size per process (the
+/// table does not depend on the transfer function; the stress suite and
+/// sweeps would otherwise rebuild it for every run).
+pub fn psi_quads_cached(m: usize) -> Arc<Vec<[f32; 4]>> {
+    use std::collections::HashMap;
+    use std::sync::{Mutex, OnceLock};
+    static CACHE: OnceLock<Mutex<HashMap<usize, Arc<Vec<[f32; 4]>>>>> = OnceLock::new();
+    let cache = CACHE.get_or_init(Default::default);
+    if let Some(t) = cache.lock().ok().and_then(|c| c.get(&m).cloned()) {
+        return t;
+    }
+    let t = Arc::new(psi_quads(&psi_table(m), m));
+    if let Ok(mut c) = cache.lock() {
+        c.insert(m, t.clone());
+    }
+    t
+}
+
 /// The integration tables on the device and the descriptor set that binds
 /// them (binding 0: transfer function, binding 1: the integrator's table).
 pub struct IntegrationTables {
@@ -166,16 +217,16 @@ impl IntegrationTables {
         let (lo, hi) = if range.1 > range.0 { range } else { (range.0, range.0 + 1.0) };
         let tf_table = tf.table(TF_TABLE_SIZE, lo, hi);
         let size = if table_size == 0 { integrator.default_table_size() } else { table_size.max(2) };
-        let table: Vec<[f32; 4]> = match integrator {
-            Integrator::Ppi => psi_quads(&psi_table(size), size),
-            Integrator::Preint => preint_table(tf, (lo, hi), size, length_scale),
+        let table: Arc<Vec<[f32; 4]>> = match integrator {
+            Integrator::Ppi => psi_quads_cached(size),
+            Integrator::Preint => Arc::new(preint_table(tf, (lo, hi), size, length_scale)),
             // No table: bind a placeholder so every variant has one layout.
-            Integrator::Average | Integrator::LinearExact => vec![[0.0; 4]],
+            Integrator::Average | Integrator::LinearExact => Arc::new(vec![[0.0; 4]]),
         };
         let build_ms = t0.elapsed().as_secs_f64() * 1e3;
         let usage = raw::BufferUsageFlags::STORAGE_BUFFER;
         let tf_buf = upload_static(ctx, "transfer function table", bytemuck::cast_slice(&tf_table), usage, counter)?;
-        let table_buf = upload_static(ctx, "integration table", bytemuck::cast_slice(&table), usage, counter)?;
+        let table_buf = upload_static(ctx, "integration table", bytemuck::cast_slice(table.as_slice()), usage, counter)?;
         let set = StorageBufferSet::new(ctx, "integration tables", &[&tf_buf, &table_buf], raw::ShaderStageFlags::FRAGMENT)?;
         Ok(IntegrationTables {
             integrator,

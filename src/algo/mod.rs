@@ -3,3 +3,5 @@
 
 pub mod cell_projection;
 pub mod integrate;
+pub mod method;
+pub mod registry;

@@ -1,14 +1,47 @@
-//! The meshes volbench knows by name, where their files live, and the
-//! transfer function each one is shown with.
+//! Datasets of every kind behind one name space: `--data NAME|PATH`. A
+//! [`Dataset`] is the loaded data plus what results and the reference cache
+//! need to know about it: its name, kind, where it came from and a digest of
+//! its content (SHA-256 of what the images depend on, so a cache entry is
+//! never served for different data under the same name).
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context as _, Result};
+use serde::Serialize;
+use sha2::{Digest as _, Sha256};
 
-use crate::mesh::{self, TetMesh};
-use crate::scene::{ControlPoint, TransferFunction};
+use crate::algo::method::{DataKind, SceneData};
+use crate::mesh::{self, Bounds, TetGeometry, TetMesh};
+use crate::scene::{Camera, ControlPoint, TransferFunction};
 
-/// The named real meshes (files under `data/`, see data/README.md).
+/// A shipped dataset: its name, kind and what it is.
+pub struct NamedDataset {
+    pub name: &'static str,
+    pub kind: DataKind,
+    pub description: &'static str,
+}
+
+/// Every dataset shipped in `data/` (see data/README.md for provenance).
+pub const NAMED: &[NamedDataset] = &[
+    NamedDataset {
+        name: "bluntfin",
+        kind: DataKind::TetMesh,
+        description: "NASA blunt fin, 40x32x32 PLOT3D grid split into 187,395 tets; density",
+    },
+    NamedDataset {
+        name: "oxygenpost",
+        kind: DataKind::TetMesh,
+        description: "NASA liquid-oxygen post, 38x76x38 PLOT3D grid split into 513,375 tets; velocity magnitude",
+    },
+    NamedDataset {
+        name: "post-small",
+        kind: DataKind::TetMesh,
+        description: "VTK's tetrahedral post (8,750 tets); pressure",
+    },
+];
+
+/// The named meshes (kept for callers that only take meshes).
 pub const NAMED_MESHES: [&str; 3] = ["bluntfin", "oxygenpost", "post-small"];
 
 /// `data/` of this checkout, or `VOLBENCH_DATA` when set.
@@ -19,39 +52,185 @@ pub fn data_dir() -> PathBuf {
     }
 }
 
-/// Load a mesh by name (`bluntfin`, `oxygenpost`, `post-small`) or path.
-pub fn load_mesh(spec: &str) -> Result<TetMesh> {
-    let dir = data_dir();
-    let mesh = match spec {
-        "bluntfin" => mesh::datasets::load_bluntfin(&dir),
-        "oxygenpost" => mesh::datasets::load_oxygenpost(&dir),
-        "post-small" => mesh::datasets::load_post_small(&dir),
-        path => {
-            let p = Path::new(path);
-            if !p.exists() {
-                anyhow::bail!(
-                    "mesh '{path}': no such file, and not one of the named meshes ({})",
-                    NAMED_MESHES.join(", ")
-                );
-            }
-            mesh::datasets::load_path(p)
-        }
-    };
-    let mut mesh = mesh.with_context(|| format!("loading mesh '{spec}'"))?;
-    if NAMED_MESHES.contains(&spec) {
-        // Results name a shipped mesh the way the command line does.
-        mesh.name = spec.to_string();
-    }
-    Ok(mesh)
+/// The loaded data, by kind.
+pub enum DatasetData {
+    TetMesh { mesh: TetMesh, geometry: TetGeometry },
 }
 
-/// The transfer function a mesh is shown with. Attenuation is given per mesh
-/// diagonal, so a preset reads the same whatever the mesh's units.
-pub fn default_transfer_function(mesh: &TetMesh) -> TransferFunction {
+/// A loaded dataset (see the module note).
+pub struct Dataset {
+    /// The name it was asked for (named) or the file stem.
+    pub name: String,
+    /// Shipped under this name (its preset transfer function applies).
+    pub named: bool,
+    /// Where it came from (path given, or the shipped file).
+    pub source: String,
+    /// SHA-256 of the content the images depend on, hex.
+    pub digest: String,
+    pub data: DatasetData,
+}
+
+/// What every result records about its dataset.
+#[derive(Debug, Clone, Serialize)]
+pub struct DatasetSummary {
+    pub name: String,
+    pub kind: DataKind,
+    pub source: String,
+    pub digest: String,
+    /// Sizes by unit (`cells`, `points`, `voxels`, ...).
+    pub counts: BTreeMap<&'static str, u64>,
+    /// Kind-specific facts (a mesh's load statistics, ...).
+    pub stats: serde_json::Value,
+}
+
+impl Dataset {
+    pub fn from_mesh(mesh: TetMesh, named: bool, source: String) -> Self {
+        let digest = mesh_digest(&mesh);
+        let geometry = TetGeometry::compute(&mesh);
+        Dataset { name: mesh.name.clone(), named, source, digest, data: DatasetData::TetMesh { mesh, geometry } }
+    }
+
+    pub fn kind(&self) -> DataKind {
+        self.scene().kind()
+    }
+
+    /// What a method is built from.
+    pub fn scene(&self) -> SceneData<'_> {
+        match &self.data {
+            DatasetData::TetMesh { mesh, geometry } => SceneData::TetMesh { mesh, geometry },
+        }
+    }
+
+    pub fn bounds(&self) -> Bounds {
+        match &self.data {
+            DatasetData::TetMesh { mesh, .. } => mesh.bounds(),
+        }
+    }
+
+    pub fn scalar_range(&self) -> (f64, f64) {
+        match &self.data {
+            DatasetData::TetMesh { mesh, .. } => mesh.scalar_range(),
+        }
+    }
+
+    /// The transfer function it is shown with unless `--tf` says otherwise.
+    pub fn default_transfer_function(&self) -> TransferFunction {
+        match &self.data {
+            DatasetData::TetMesh { mesh, .. } => mesh_transfer_function(mesh, self.named.then_some(self.name.as_str())),
+        }
+    }
+
+    /// `--tf FILE` read against this dataset's scalar range and size.
+    pub fn load_transfer_function(&self, path: &Path) -> Result<TransferFunction> {
+        crate::scene::tf_file::load_tf(path, self.scalar_range(), self.bounds().diagonal())
+    }
+
+    /// The camera orbiting the dataset at `angle` radians.
+    pub fn orbit_camera(&self, angle: f64, projection: crate::scene::Projection) -> Camera {
+        Camera::orbit(&self.bounds(), angle, projection)
+    }
+
+    pub fn summary(&self) -> DatasetSummary {
+        match &self.data {
+            DatasetData::TetMesh { mesh, .. } => DatasetSummary {
+                name: self.name.clone(),
+                kind: self.kind(),
+                source: self.source.clone(),
+                digest: self.digest.clone(),
+                counts: BTreeMap::from([("cells", mesh.tets.len() as u64), ("points", mesh.points.len() as u64)]),
+                stats: serde_json::to_value(&mesh.stats).unwrap_or_default(),
+            },
+        }
+    }
+
+    /// The f64 CPU reference image of this dataset, by kind.
+    pub fn reference_image(&self, tf: &TransferFunction, camera: &Camera, width: u32, height: u32) -> Result<Vec<[f32; 4]>> {
+        match &self.data {
+            DatasetData::TetMesh { mesh, .. } => {
+                let r = crate::reference::render_reference(mesh, camera, tf, width, height)
+                    .with_context(|| format!("rendering the f64 reference of '{}'", self.name))?;
+                Ok(r.pixels.iter().map(|p| p.map(|c| c as f32)).collect())
+            }
+        }
+    }
+
+    /// What the reference is, for `error.reference`.
+    pub fn reference_description(&self) -> &'static str {
+        match &self.data {
+            DatasetData::TetMesh { .. } => "f64 CPU ray walk over face adjacency, exact emission-absorption",
+        }
+    }
+}
+
+/// SHA-256 over a mesh's points, scalars and cells (little-endian bytes).
+pub fn mesh_digest(mesh: &TetMesh) -> String {
+    let mut h = Sha256::new();
+    h.update(b"volbench tet mesh v1\0");
+    h.update((mesh.points.len() as u64).to_le_bytes());
+    for p in &mesh.points {
+        for c in p {
+            h.update(c.to_le_bytes());
+        }
+    }
+    for s in &mesh.scalars {
+        h.update(s.to_le_bytes());
+    }
+    h.update((mesh.tets.len() as u64).to_le_bytes());
+    for t in &mesh.tets {
+        for i in t {
+            h.update(i.to_le_bytes());
+        }
+    }
+    hex(&h.finalize())
+}
+
+pub fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// Load a dataset by shipped name or path.
+pub fn load(spec: &str) -> Result<Dataset> {
+    let dir = data_dir();
+    let named = |name: &str, mesh: Result<TetMesh>, source: String| -> Result<Dataset> {
+        let mut mesh = mesh.with_context(|| format!("loading dataset '{name}'"))?;
+        // Results name a shipped dataset the way the command line does.
+        mesh.name = name.to_string();
+        Ok(Dataset::from_mesh(mesh, true, source))
+    };
+    match spec {
+        "bluntfin" => named(spec, mesh::datasets::load_bluntfin(&dir), "data/plot3d/bluntfin{xyz,q}.bin".into()),
+        "oxygenpost" => named(spec, mesh::datasets::load_oxygenpost(&dir), "data/plot3d/post{xyz,q}.bin".into()),
+        "post-small" => named(spec, mesh::datasets::load_post_small(&dir), "data/unstructured/post_tets_vtkdata.vtk".into()),
+        path => {
+            let p = Path::new(path);
+            if std::fs::symlink_metadata(p).is_err() {
+                anyhow::bail!(
+                    "dataset '{path}': no such file, and not one of the shipped datasets ({})",
+                    NAMED.iter().map(|d| d.name).collect::<Vec<_>>().join(", ")
+                );
+            }
+            let mesh = mesh::datasets::load_path(p).with_context(|| format!("loading dataset '{path}'"))?;
+            Ok(Dataset::from_mesh(mesh, false, path.to_string()))
+        }
+    }
+}
+
+/// Load a tetrahedral mesh by name or path (kept for benches and tests).
+pub fn load_mesh(spec: &str) -> Result<TetMesh> {
+    match load(spec)?.data {
+        DatasetData::TetMesh { mesh, .. } => Ok(mesh),
+    }
+}
+
+/// The transfer function a mesh is shown with: the named dataset's preset
+/// (`named`: the name it was asked for), or a generic ramp for any other
+/// mesh (a file called `bluntfin.vtk` is not the blunt fin). Attenuation is
+/// given per mesh diagonal, so a preset reads the same whatever the units.
+pub fn mesh_transfer_function(mesh: &TetMesh, named: Option<&str>) -> TransferFunction {
     let (lo, hi) = mesh.scalar_range();
     let diag = mesh.bounds().diagonal().max(f64::MIN_POSITIVE);
     // (relative scalar in [0,1], colour, optical depth across one diagonal)
-    let stops: &[(f64, [f64; 3], f64)] = match mesh.name.as_str() {
+    let stops: &[(f64, [f64; 3], f64)] = match named.unwrap_or("") {
         // Density: freestream (~1) almost clear; the bow shock and the
         // compression in front of the fin show as warm shells.
         "bluntfin" => &[
@@ -80,7 +259,7 @@ pub fn default_transfer_function(mesh: &TetMesh) -> TransferFunction {
             (1.00, [1.00, 0.20, 0.05], 20.0),
         ],
         // Pressure on VTK's small tetrahedral post.
-        "post-small" | "post_small" => &[
+        "post-small" => &[
             (0.00, [0.10, 0.30, 1.00], 30.0),
             (0.25, [0.20, 0.70, 1.00], 12.0),
             (0.50, [0.30, 0.90, 0.40], 3.0),

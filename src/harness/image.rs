@@ -73,23 +73,40 @@ impl RgbaImage {
     /// Write an 8-bit RGB PNG: the premultiplied colour over a black
     /// background. Written all-or-nothing (`fsio::write_output`).
     pub fn write_png(&self, path: &Path) -> Result<()> {
-        crate::fsio::write_output_with(path, |out| {
-            let mut enc = png::Encoder::new(out, self.width, self.height);
-            enc.set_color(png::ColorType::Rgb);
-            enc.set_depth(png::BitDepth::Eight);
-            let mut w = enc.write_header()?;
-            let data: Vec<u8> = self
-                .pixels
-                .iter()
-                .flat_map(|p| [p[0], p[1], p[2]])
-                .map(|c| if c.is_finite() { (c.clamp(0.0, 1.0) * 255.0 + 0.5) as u8 } else { 255 })
-                .collect();
-            w.write_image_data(&data)?;
-            w.finish()?;
-            Ok(())
-        })
-        .with_context(|| format!("writing PNG {}", path.display()))
+        let bytes = self.png_bytes().with_context(|| format!("encoding PNG {}", path.display()))?;
+        crate::fsio::write_output(path, &bytes)
     }
+
+    /// The PNG file `write_png` writes, in memory (for `fsio::write_all`).
+    pub fn png_bytes(&self) -> Result<Vec<u8>> {
+        let mut out = Vec::new();
+        encode_rgb8_png(&mut out, self.width, self.height, &self.rgb8())?;
+        Ok(out)
+    }
+
+    fn rgb8(&self) -> Vec<u8> {
+        self.pixels
+            .iter()
+            .flat_map(|p| [p[0], p[1], p[2]])
+            .map(|c| if c.is_finite() { (c.clamp(0.0, 1.0) * 255.0 + 0.5) as u8 } else { 255 })
+            .collect()
+    }
+}
+
+/// Write 8-bit RGB rows as a PNG, all-or-nothing (`fsio::write_output`).
+pub fn write_rgb8_png(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<()> {
+    crate::fsio::write_output_with(path, |out| encode_rgb8_png(out, width, height, rgb))
+        .with_context(|| format!("writing PNG {}", path.display()))
+}
+
+fn encode_rgb8_png(out: &mut dyn std::io::Write, width: u32, height: u32, rgb: &[u8]) -> Result<()> {
+    let mut enc = png::Encoder::new(out, width, height);
+    enc.set_color(png::ColorType::Rgb);
+    enc.set_depth(png::BitDepth::Eight);
+    let mut w = enc.write_header()?;
+    w.write_image_data(rgb)?;
+    w.finish()?;
+    Ok(())
 }
 
 #[cfg(test)]

@@ -1,6 +1,7 @@
-//! The harness: which meshes and transfer functions, how frames are run and
-//! timed, and what results and images are written. It drives `algo` and never
-//! calls Vulkan directly beyond creating the context.
+//! The harness: which datasets and transfer functions, how frames are run
+//! and timed, sweeps over the method registry, and what results and images
+//! are written. It drives `algo` through the registry (it never names a
+//! method) and never calls Vulkan directly beyond creating the context.
 
 pub mod datasets;
 pub mod image;
@@ -10,3 +11,4 @@ pub mod report;
 pub mod run;
 pub mod stats;
 pub mod stress;
+pub mod sweep;

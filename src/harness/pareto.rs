@@ -11,15 +11,17 @@ use serde::Serialize;
 
 use super::run::RunResult;
 
-/// One run of the sweep.
+/// One row of the sweep: a view of the run's result record (or of its
+/// failure: `error` set, no numbers).
 #[derive(Debug, Clone, Serialize)]
 pub struct ParetoPoint {
+    /// `method variant` as the sweep names it.
     pub label: String,
     pub method: String,
+    /// The full option set (`key=value,...`).
+    pub options: String,
+    /// The `integrator` option where the method has one (colours the plot).
     pub integrator: String,
-    pub table_size: usize,
-    pub sort: String,
-    pub interpolation: String,
     /// Median frame time (ms).
     pub frame_ms: f64,
     pub gpu_ms: f64,
@@ -28,50 +30,82 @@ pub struct ParetoPoint {
     pub max_abs: f64,
     pub psnr_db: f64,
     pub on_front: bool,
+    /// Why the run failed (the row has no numbers then).
+    pub error: Option<String>,
 }
 
 impl ParetoPoint {
-    pub fn from_result(r: &RunResult) -> Option<Self> {
-        let sort = r.sort;
+    pub fn from_result(label: &str, r: &RunResult) -> Option<Self> {
         let e = r.error.as_ref()?;
-        let table = if r.table_size > 0 { format!("{}", r.table_size) } else { "-".into() };
         Some(ParetoPoint {
-            label: format!("{} {} {} {} {}", r.method, r.integrator, table, sort, r.interpolation),
+            label: label.to_string(),
             method: r.method.to_string(),
-            integrator: r.integrator.to_string(),
-            table_size: r.table_size,
-            sort: sort.to_string(),
-            interpolation: r.interpolation.to_string(),
-            frame_ms: r.time_ms.frame.median,
-            gpu_ms: r.time_ms.gpu.median,
+            options: r.options.to_spec_string(),
+            integrator: r.options.0.get("integrator").map(|v| v.to_string()).unwrap_or_default(),
+            frame_ms: r.time_ms.phase("frame").median,
+            gpu_ms: r.time_ms.phase("gpu").median,
             table_build_ms: r.time_ms.table_build_ms,
             rmse: e.rmse,
             max_abs: e.max_abs,
             psnr_db: e.psnr_db,
             on_front: false,
+            error: None,
         })
+    }
+
+    /// A row whose run failed with `error`.
+    pub fn failed(label: &str, method: &str, options: &str, error: String) -> Self {
+        ParetoPoint {
+            label: label.to_string(),
+            method: method.to_string(),
+            options: options.to_string(),
+            integrator: String::new(),
+            frame_ms: f64::NAN,
+            gpu_ms: f64::NAN,
+            table_build_ms: f64::NAN,
+            rmse: f64::NAN,
+            max_abs: f64::NAN,
+            psnr_db: f64::NAN,
+            on_front: false,
+            error: Some(error),
+        }
+    }
+
+    fn ok(&self) -> bool {
+        self.error.is_none()
     }
 }
 
 /// Mark the points no other point dominates (faster or equal and more
 /// accurate or equal, strictly better in one).
 pub fn mark_front(points: &mut [ParetoPoint]) {
-    let snapshot: Vec<(f64, f64)> = points.iter().map(|p| (p.frame_ms, p.rmse)).collect();
+    let snapshot: Vec<(f64, f64, bool)> = points.iter().map(|p| (p.frame_ms, p.rmse, p.ok())).collect();
     for (i, p) in points.iter_mut().enumerate() {
-        p.on_front = !snapshot.iter().enumerate().any(|(j, &(t, e))| {
-            j != i && t <= snapshot[i].0 && e <= snapshot[i].1 && (t < snapshot[i].0 || e < snapshot[i].1)
-        });
+        p.on_front = p.ok()
+            && !snapshot.iter().enumerate().any(|(j, &(t, e, ok))| {
+                ok && j != i && t <= snapshot[i].0 && e <= snapshot[i].1 && (t < snapshot[i].0 || e < snapshot[i].1)
+            });
     }
 }
 
 pub fn write_csv(path: &Path, points: &[ParetoPoint]) -> Result<()> {
-    let mut s = String::from("method,integrator,table_size,sort,interpolation,frame_ms,gpu_ms,table_build_ms,rmse,max_abs,psnr_db,on_front\n");
+    let mut s = String::from("method,options,frame_ms,gpu_ms,table_build_ms,rmse,max_abs,psnr_db,on_front,error\n");
     for p in points {
+        // Options hold commas: quoted; errors likewise, quotes doubled.
+        let quote = |t: &str| format!("\"{}\"", t.replace('"', "\"\""));
         let _ = writeln!(
             s,
-            "{},{},{},{},{},{:.3},{:.3},{:.3},{:.6e},{:.6e},{:.3},{}",
-            p.method, p.integrator, p.table_size, p.sort, p.interpolation, p.frame_ms, p.gpu_ms, p.table_build_ms, p.rmse, p.max_abs,
-            p.psnr_db, p.on_front
+            "{},{},{:.3},{:.3},{:.3},{:.6e},{:.6e},{:.3},{},{}",
+            p.method,
+            quote(&p.options),
+            p.frame_ms,
+            p.gpu_ms,
+            p.table_build_ms,
+            p.rmse,
+            p.max_abs,
+            p.psnr_db,
+            p.on_front,
+            quote(p.error.as_deref().unwrap_or(""))
         );
     }
     crate::fsio::write_output(path, s.as_bytes())
@@ -81,18 +115,14 @@ pub fn markdown(mesh: &str, points: &[ParetoPoint]) -> String {
     let mut sorted: Vec<&ParetoPoint> = points.iter().collect();
     sorted.sort_by(|a, b| a.rmse.total_cmp(&b.rmse));
     let mut s = format!("### {mesh}: run time against error (sorted by RMSE; * = Pareto front)\n\n");
-    s += "| | method | integrator | table | sort | interpolation | frame ms | GPU ms | table build ms | RMSE | max abs | PSNR dB |\n";
-    s += "|---|---|---|---:|---|---|---:|---:|---:|---:|---:|---:|\n";
-    for p in sorted {
+    s += "| | run | frame ms | GPU ms | table build ms | RMSE | max abs | PSNR dB |\n";
+    s += "|---|---|---:|---:|---:|---:|---:|---:|\n";
+    for p in sorted.iter().filter(|p| p.ok()) {
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.2e} | {:.2e} | {:.1} |",
+            "| {} | {} | {:.1} | {:.1} | {:.1} | {:.2e} | {:.2e} | {:.1} |",
             if p.on_front { "*" } else { "" },
-            p.method,
-            p.integrator,
-            if p.table_size > 0 { p.table_size.to_string() } else { "-".into() },
-            p.sort,
-            p.interpolation,
+            p.label,
             p.frame_ms,
             p.gpu_ms,
             p.table_build_ms,
@@ -100,6 +130,9 @@ pub fn markdown(mesh: &str, points: &[ParetoPoint]) -> String {
             p.max_abs,
             p.psnr_db
         );
+    }
+    for p in sorted.iter().filter(|p| !p.ok()) {
+        let _ = writeln!(s, "| FAILED | {} | | | | | | {} |", p.label, p.error.as_deref().unwrap_or("").replace('|', "/"));
     }
     s
 }
@@ -133,9 +166,14 @@ pub fn register_font() -> Result<()> {
 pub fn plot_png(path: &Path, title: &str, points: &[ParetoPoint]) -> Result<()> {
     use plotters::prelude::*;
     register_font()?;
-    anyhow::ensure!(!points.is_empty(), "nothing to plot");
+    let points: Vec<&ParetoPoint> = points.iter().filter(|p| p.ok()).collect();
+    anyhow::ensure!(!points.is_empty(), "nothing to plot: every run of the sweep failed");
+    let mut methods: Vec<&str> = points.iter().map(|p| p.method.as_str()).collect();
+    methods.dedup();
+    methods.sort();
+    methods.dedup();
     let (mut t0, mut t1, mut e0, mut e1) = (f64::MAX, 0f64, f64::MAX, 0f64);
-    for p in points {
+    for p in &points {
         t0 = t0.min(p.frame_ms);
         t1 = t1.max(p.frame_ms);
         e0 = e0.min(p.rmse.max(1e-9));
@@ -158,7 +196,9 @@ pub fn plot_png(path: &Path, title: &str, points: &[ParetoPoint]) -> Result<()> 
         v
     };
     let (x_range, y_range) = ((t0 / 1.3, t1 * 1.3), (e0 / 1.5, e1 * 1.5));
-    let root = BitMapBackend::new(path, (1100, 750)).into_drawing_area();
+    let (w, h) = (1100u32, 750u32);
+    let mut rgb = vec![0u8; (w * h * 3) as usize];
+    let root = BitMapBackend::with_buffer(&mut rgb, (w, h)).into_drawing_area();
     let draw = || -> Result<(), Box<dyn std::error::Error>> {
         root.fill(&WHITE)?;
         let mut chart = ChartBuilder::on(&root)
@@ -185,12 +225,14 @@ pub fn plot_png(path: &Path, title: &str, points: &[ParetoPoint]) -> Result<()> 
             "ppi" => RGBColor(40, 90, 200),
             _ => RGBColor(150, 60, 180),
         };
-        for p in points {
+        for p in &points {
             let c = colour(p);
-            let style = if p.method == "vicp" { c.stroke_width(2) } else { c.filled() };
+            // Each method its own marker: filled, ring, then larger ring.
+            let m = methods.iter().position(|&n| n == p.method).unwrap_or(0);
+            let style = if m % 2 == 0 { c.filled() } else { c.stroke_width(2) };
             chart.draw_series(std::iter::once(Circle::new((p.frame_ms, p.rmse.max(1e-9)), 5, style)))?;
         }
-        let mut front: Vec<&ParetoPoint> = points.iter().filter(|p| p.on_front).collect();
+        let mut front: Vec<&ParetoPoint> = points.iter().copied().filter(|p| p.on_front).collect();
         front.sort_by(|a, b| a.frame_ms.total_cmp(&b.frame_ms));
         chart.draw_series(LineSeries::new(front.iter().map(|p| (p.frame_ms, p.rmse.max(1e-9))), BLACK.stroke_width(1)))?;
         // Labels stacked upward from each front point so neighbours don't overlap.
@@ -202,7 +244,7 @@ pub fn plot_png(path: &Path, title: &str, points: &[ParetoPoint]) -> Result<()> 
                 ("sans-serif", 13).into_font().color(&BLACK),
             ))?;
         }
-        // Legend: colours are integrators; filled = balanced, ring = VICP.
+        // Legend: colours are integrators; markers are methods.
         for (i, (name, c)) in [
             ("average", RGBColor(200, 60, 60)),
             ("preint", RGBColor(60, 140, 60)),
@@ -216,12 +258,16 @@ pub fn plot_png(path: &Path, title: &str, points: &[ParetoPoint]) -> Result<()> 
             root.draw(&Circle::new((900, y), 5, c.filled()))?;
             root.draw(&Text::new(name, (912, y - 8), ("sans-serif", 15).into_font()))?;
         }
-        root.draw(&Text::new("filled: balanced, ring: VICP", (850, 650), ("sans-serif", 15).into_font()))?;
+        let markers: Vec<String> =
+            methods.iter().enumerate().map(|(i, m)| format!("{}: {m}", if i % 2 == 0 { "filled" } else { "ring" })).collect();
+        root.draw(&Text::new(markers.join(", "), (700, 650), ("sans-serif", 15).into_font()))?;
         root.draw(&Text::new("line: Pareto front", (850, 670), ("sans-serif", 15).into_font()))?;
         root.present()?;
         Ok(())
     };
-    draw().map_err(|e| anyhow::anyhow!("drawing {}: {e}", path.display()))
+    draw().map_err(|e| anyhow::anyhow!("drawing {}: {e}", path.display()))?;
+    drop(root);
+    super::image::write_rgb8_png(path, w, h, &rgb)
 }
 
 #[cfg(test)]
@@ -232,10 +278,9 @@ mod tests {
         ParetoPoint {
             label: String::new(),
             method: "balanced".into(),
+            options: "integrator=ppi".into(),
             integrator: "ppi".into(),
-            table_size: 0,
-            sort: "centroid".into(),
-            interpolation: "paper".into(),
+            error: None,
             frame_ms: t,
             gpu_ms: t,
             table_build_ms: 0.0,
@@ -259,8 +304,9 @@ mod tests {
     #[test]
     fn front_keeps_only_undominated_points() {
         let mut p = vec![pt(1.0, 5.0), pt(2.0, 2.0), pt(3.0, 3.0), pt(4.0, 1.0), pt(2.0, 2.0)];
+        p.push(ParetoPoint::failed("x", "balanced", "", "boom".into()));
         mark_front(&mut p);
         let on: Vec<bool> = p.iter().map(|p| p.on_front).collect();
-        assert_eq!(on, vec![true, true, false, true, true]);
+        assert_eq!(on, vec![true, true, false, true, true, false]);
     }
 }

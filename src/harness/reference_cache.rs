@@ -1,23 +1,27 @@
-//! Reference images, computed once per (mesh, camera, size, transfer
-//! function) and cached on disk: the f64 CPU reference takes seconds, and
-//! sweeps compare dozens of runs with the same view.
+//! Reference images, computed once per (dataset digest, camera, size,
+//! transfer function, reference settings) and cached on disk: the f64 CPU
+//! reference takes seconds, and sweeps compare dozens of runs with the same
+//! view. It serves every dataset kind: what the reference is comes from the
+//! dataset (`Dataset::reference_image`).
 //!
-//! The key hashes everything the image depends on: the mesh's points,
-//! scalars and cells, the camera, the size and the transfer function. Files
+//! Nothing read back is trusted. An entry holds its full key text and a
+//! SHA-256 of the key and pixels; an entry whose magic, size, key or checksum
+//! does not match (a corrupted file, a hash collision of the file name) is
+//! recomputed, rewritten and reported (`error.reference_recomputed`). Files
 //! live in `VOLBENCH_CACHE` (default `target/volbench-cache/` of this
-//! checkout) as a small header plus RGBA f32, written atomically.
+//! checkout), written all-or-nothing through `fsio`.
 
-use std::hash::{Hash, Hasher};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::{Context as _, Result};
+use anyhow::Result;
+use sha2::{Digest as _, Sha256};
 
+use super::datasets::{hex, Dataset};
 use super::image::RgbaImage;
-use super::run::Scene;
-use crate::scene::Camera;
+use crate::scene::{Camera, TransferFunction};
 
-const MAGIC: &[u8; 8] = b"VBREF01\n";
+const MAGIC: &[u8; 8] = b"VBREF02\n";
 
 /// A reference image and where it came from.
 pub struct Reference {
@@ -27,6 +31,8 @@ pub struct Reference {
     /// Time spent computing it (0 when it came from the cache).
     pub compute_ms: f64,
     pub cached: bool,
+    /// Why a cache entry that existed was not used (corrupt, other key).
+    pub recomputed: Option<String>,
 }
 
 pub fn cache_dir() -> PathBuf {
@@ -36,74 +42,119 @@ pub fn cache_dir() -> PathBuf {
     }
 }
 
-fn key(scene: &Scene, camera: &Camera, width: u32, height: u32) -> u64 {
-    let mut h = std::collections::hash_map::DefaultHasher::new();
-    "volbench reference v1".hash(&mut h);
-    for p in &scene.mesh.points {
-        p.map(f64::to_bits).hash(&mut h);
-    }
-    for s in &scene.mesh.scalars {
-        s.to_bits().hash(&mut h);
-    }
-    scene.mesh.tets.hash(&mut h);
-    serde_json::to_string(camera).unwrap_or_default().hash(&mut h);
-    serde_json::to_string(scene.tf).unwrap_or_default().hash(&mut h);
-    (width, height).hash(&mut h);
-    h.finish()
+/// The full key text: everything the reference image depends on.
+fn key_text(dataset: &Dataset, tf: &TransferFunction, camera: &Camera, width: u32, height: u32) -> String {
+    format!(
+        "volbench reference v2\ndataset {} {}\nreference {}\nsize {width}x{height}\ncamera {}\ntf {}\n",
+        dataset.kind().name(),
+        dataset.digest,
+        dataset.reference_description(),
+        serde_json::to_string(camera).unwrap_or_default(),
+        serde_json::to_string(tf).unwrap_or_default(),
+    )
 }
 
-fn read(path: &Path, width: u32, height: u32) -> Option<RgbaImage> {
-    let bytes = std::fs::read(path).ok()?;
-    let n = width as usize * height as usize * 16;
-    if bytes.len() != MAGIC.len() + 8 + n || &bytes[..8] != MAGIC {
-        return None;
-    }
-    let w = u32::from_le_bytes(bytes[8..12].try_into().ok()?);
-    let h = u32::from_le_bytes(bytes[12..16].try_into().ok()?);
-    if (w, h) != (width, height) {
-        return None;
-    }
-    let f = |c: &[u8]| f32::from_le_bytes([c[0], c[1], c[2], c[3]]);
-    let pixels = bytes[16..].chunks_exact(16).map(|c| [f(&c[0..4]), f(&c[4..8]), f(&c[8..12]), f(&c[12..16])]).collect();
-    Some(RgbaImage { width, height, pixels })
+fn checksum(key: &[u8], pixels: &[u8]) -> [u8; 32] {
+    let mut h = Sha256::new();
+    h.update((key.len() as u64).to_le_bytes());
+    h.update(key);
+    h.update(pixels);
+    h.finalize().into()
 }
 
-fn write(path: &Path, image: &RgbaImage) -> Result<()> {
-    let dir = path.parent().unwrap_or(Path::new("."));
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    let mut bytes = Vec::with_capacity(16 + image.pixels.len() * 16);
+fn pixel_bytes(image: &RgbaImage) -> Vec<u8> {
+    image.pixels.iter().flat_map(|p| p.iter().flat_map(|c| c.to_le_bytes())).collect()
+}
+
+/// Layout: MAGIC, u32 width, u32 height, u32 key length, key, 32-byte
+/// checksum, RGBA f32 pixels (little-endian).
+fn encode(key: &str, image: &RgbaImage) -> Vec<u8> {
+    let pixels = pixel_bytes(image);
+    let mut bytes = Vec::with_capacity(MAGIC.len() + 12 + key.len() + 32 + pixels.len());
     bytes.extend_from_slice(MAGIC);
     bytes.extend_from_slice(&image.width.to_le_bytes());
     bytes.extend_from_slice(&image.height.to_le_bytes());
-    for p in &image.pixels {
-        for c in p {
-            bytes.extend_from_slice(&c.to_le_bytes());
-        }
-    }
-    crate::fsio::write_output(path, &bytes)
+    bytes.extend_from_slice(&(key.len() as u32).to_le_bytes());
+    bytes.extend_from_slice(key.as_bytes());
+    bytes.extend_from_slice(&checksum(key.as_bytes(), &pixels));
+    bytes.extend_from_slice(&pixels);
+    bytes
 }
 
-/// The f64 reference image of `scene` seen by `camera`, from the cache when
-/// possible. A cache that cannot be written only costs recomputation.
-pub fn reference_image(scene: &Scene, camera: &Camera, width: u32, height: u32) -> Result<Reference> {
-    let k = key(scene, camera, width, height);
-    let path = cache_dir().join(format!("{}-{}x{}-{:016x}.ref", scene.mesh.name, width, height, k));
+/// The image stored under `key`, or why the entry cannot be used.
+fn decode(bytes: &[u8], key: &str, width: u32, height: u32) -> Result<RgbaImage, String> {
+    let u32_at = |o: usize| bytes.get(o..o + 4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]));
+    if bytes.get(..8) != Some(MAGIC.as_slice()) {
+        return Err("not a volbench reference file (magic)".into());
+    }
+    let (w, h, klen) = match (u32_at(8), u32_at(12), u32_at(16)) {
+        (Some(w), Some(h), Some(k)) => (w, h, k as usize),
+        _ => return Err("truncated header".into()),
+    };
+    if (w, h) != (width, height) {
+        return Err(format!("size {w}x{h}, expected {width}x{height}"));
+    }
+    let key_start = 20;
+    let sum_start = key_start + klen;
+    let pix_start = sum_start + 32;
+    let n = width as usize * height as usize * 16;
+    if bytes.len() != pix_start + n {
+        return Err(format!("{} bytes, expected {}", bytes.len(), pix_start + n));
+    }
+    if &bytes[key_start..sum_start] != key.as_bytes() {
+        return Err("made for another dataset, view or transfer function (key mismatch)".into());
+    }
+    let pixels = &bytes[pix_start..];
+    if bytes[sum_start..pix_start] != checksum(key.as_bytes(), pixels) {
+        return Err("checksum mismatch (corrupted)".into());
+    }
+    let f = |c: &[u8]| f32::from_le_bytes([c[0], c[1], c[2], c[3]]);
+    let pixels = pixels.chunks_exact(16).map(|c| [f(&c[0..4]), f(&c[4..8]), f(&c[8..12]), f(&c[12..16])]).collect();
+    Ok(RgbaImage { width, height, pixels })
+}
+
+/// The reference image of `dataset` under `tf` seen by `camera`, from the
+/// cache when a valid entry exists. A cache that cannot be written only
+/// costs recomputation (a warning says so).
+pub fn reference_image(dataset: &Dataset, tf: &TransferFunction, camera: &Camera, width: u32, height: u32) -> Result<Reference> {
+    let key = key_text(dataset, tf, camera, width, height);
+    let name_hash = hex(&Sha256::digest(key.as_bytes())[..12]);
+    let path = cache_dir().join(format!("{}-{}x{}-{name_hash}.ref", sanitize(&dataset.name), width, height));
     let what = format!(
-        "f64 CPU ray walk, exact emission-absorption; mesh {}, {}x{}, eye {:?}, tf {} (key {:016x})",
-        scene.mesh.name, width, height, camera.eye, scene.tf.name, k
+        "{}; dataset {} (sha256 {}), {}x{}, eye {:?}, tf {}",
+        dataset.reference_description(),
+        dataset.name,
+        &dataset.digest[..16.min(dataset.digest.len())],
+        width,
+        height,
+        camera.eye,
+        tf.name
     );
-    if let Some(image) = read(&path, width, height) {
-        return Ok(Reference { image, what, compute_ms: 0.0, cached: true });
+    let mut recomputed = None;
+    if let Ok(bytes) = crate::fsio::read_input(&path, "reference cache entry", 16 * (width as u64 * height as u64) + (1 << 20)) {
+        match decode(&bytes, &key, width, height) {
+            Ok(image) => return Ok(Reference { image, what, compute_ms: 0.0, cached: true, recomputed: None }),
+            Err(why) => {
+                eprintln!("volbench: reference cache entry {} not used: {why}; recomputing", path.display());
+                recomputed = Some(why);
+            }
+        }
     }
     let start = Instant::now();
-    let r = crate::reference::render_reference(scene.mesh, camera, scene.tf, width, height)
-        .with_context(|| format!("rendering the f64 reference of '{}'", scene.mesh.name))?;
-    let image = RgbaImage { width, height, pixels: r.pixels.iter().map(|p| p.map(|c| c as f32)).collect() };
+    let pixels = dataset.reference_image(tf, camera, width, height)?;
+    let image = RgbaImage { width, height, pixels };
     let compute_ms = start.elapsed().as_secs_f64() * 1e3;
-    if let Err(e) = write(&path, &image) {
+    let written = std::fs::create_dir_all(cache_dir())
+        .map_err(anyhow::Error::from)
+        .and_then(|()| crate::fsio::write_output(&path, &encode(&key, &image)));
+    if let Err(e) = written {
         eprintln!("volbench: warning: reference cache not written: {e:#}");
     }
-    Ok(Reference { image, what, compute_ms, cached: false })
+    Ok(Reference { image, what, compute_ms, cached: false, recomputed })
+}
+
+fn sanitize(name: &str) -> String {
+    name.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '_' { c } else { '_' }).collect()
 }
 
 #[cfg(test)]
@@ -111,15 +162,18 @@ mod tests {
     use super::*;
 
     #[test]
-    fn cache_roundtrip_and_rejects_wrong_size() {
-        let dir = tempfile::tempdir().unwrap();
-        let p = dir.path().join("x.ref");
+    fn entries_roundtrip_and_refuse_corruption_other_keys_and_sizes() {
         let img = RgbaImage { width: 2, height: 1, pixels: vec![[0.25, 0.5, 0.75, 1.0], [0.0, 0.1, 0.2, 0.3]] };
-        write(&p, &img).unwrap();
-        let back = read(&p, 2, 1).unwrap();
-        assert_eq!(back.pixels, img.pixels);
-        assert!(read(&p, 1, 2).is_none());
-        std::fs::write(&p, b"garbage").unwrap();
-        assert!(read(&p, 2, 1).is_none());
+        let bytes = encode("key A", &img);
+        assert_eq!(decode(&bytes, "key A", 2, 1).unwrap().pixels, img.pixels);
+        assert!(decode(&bytes, "key B", 2, 1).unwrap_err().contains("key mismatch"));
+        assert!(decode(&bytes, "key A", 1, 2).unwrap_err().contains("size"));
+        // One flipped bit in the pixels, length unchanged: refused.
+        let mut bad = bytes.clone();
+        let last = bad.len() - 3;
+        bad[last] ^= 0x10;
+        assert!(decode(&bad, "key A", 2, 1).unwrap_err().contains("checksum"));
+        assert!(decode(b"garbage", "key A", 2, 1).is_err());
+        assert!(decode(&bytes[..bytes.len() - 1], "key A", 2, 1).is_err());
     }
 }

@@ -9,63 +9,75 @@ use serde::Serialize;
 
 use super::run::RunResult;
 
-/// Write `value` as pretty JSON via a temporary file (no partial output).
+/// Write `value` as pretty JSON, all-or-nothing (`fsio::write_output`).
 pub fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<()> {
+    crate::fsio::write_output(path, &json_bytes(value)?)
+}
+
+/// `value` as the pretty JSON `write_json` writes.
+pub fn json_bytes<T: Serialize>(value: &T) -> Result<Vec<u8>> {
     let text = serde_json::to_string_pretty(value).context("serialising results")?;
-    crate::fsio::write_output(path, (text + "\n").as_bytes())
+    Ok((text + "\n").into_bytes())
 }
 
-/// Moreland's thesis Table 6.3 (Quadro FX 3000, 800x800), tets per second.
-pub fn published_tets_per_second(mesh: &str, method: &str) -> Option<f64> {
-    match (mesh, method) {
-        ("bluntfin", "vicp") => Some(618e3),
-        ("bluntfin", "balanced") => Some(843e3),
-        ("oxygenpost", "vicp") => Some(690e3),
-        ("oxygenpost", "balanced") => Some(1168e3),
-        _ => None,
-    }
-}
-
-/// One row of the comparison: a run and its image difference from the other
-/// method's image of the same frame.
+/// One row of the comparison: a run (or its failure) and its image
+/// difference from the first run on the same dataset.
 pub struct ComparisonRow<'a> {
-    pub result: &'a RunResult,
-    pub rmse_vs_other: Option<f64>,
+    /// How the row is named (`method` or `method variant`).
+    pub label: String,
+    pub dataset: String,
+    pub outcome: Result<&'a RunResult, String>,
+    pub rmse_vs_first: Option<f64>,
 }
 
-pub fn comparison_table(rows: &[ComparisonRow]) -> String {
+/// A published figure of `result`'s method on its dataset, in cells per
+/// second, if the method registered one.
+fn published_cells_per_second(result: &RunResult, published: &[crate::algo::method::Published]) -> Option<f64> {
+    published.iter().find(|p| p.dataset == result.mesh && p.method == result.method).map(|p| p.cells_per_second)
+}
+
+pub fn comparison_table(rows: &[ComparisonRow], published: &[crate::algo::method::Published]) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "| mesh | method | cells | floats/cell | MB/frame | static KB | frame ms median [min, max] | sort | pack | upload | GPU | wait | M cells/s | thesis M tets/s | RMSE vs other | RMSE vs f64 ref | max err |"
+        "| dataset | run | cells | floats/cell | MB/frame | static KB | frame ms median [min, max] | CPU prep | upload | GPU | wait | M cells/s | published M cells/s | RMSE vs first | RMSE vs f64 ref | max err |"
     );
-    let _ = writeln!(s, "|---|---|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    let _ = writeln!(s, "|---|---|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     for row in rows {
-        let r = row.result;
+        let r = match &row.outcome {
+            Ok(r) => *r,
+            Err(e) => {
+                let _ = writeln!(s, "| {} | {} | FAILED: {} |||||||||||||", row.dataset, row.label, e.replace('|', "/").replace('\n', " "));
+                continue;
+            }
+        };
         let t = &r.time_ms;
-        let published = published_tets_per_second(&r.mesh, r.method).map_or("-".into(), |v| format!("{:.3}", v / 1e6));
-        let rmse = row.rmse_vs_other.map_or("-".into(), |v| format!("{v:.2e}"));
+        let published = published_cells_per_second(r, published).map_or("-".into(), |v| format!("{:.3}", v / 1e6));
+        let rmse = row.rmse_vs_first.map_or("-".into(), |v| format!("{v:.2e}"));
         let (ref_rmse, ref_max) = r
             .error
             .as_ref()
             .map_or(("-".into(), "-".into()), |e| (format!("{:.2e}", e.rmse), format!("{:.2e}", e.max_abs)));
+        // The method's own CPU phases (sort, pack, ...) together.
+        let runner = ["frame", "gpu", "upload", "record", "submit", "wait"];
+        let prep: f64 = t.phases.iter().filter(|(k, _)| !runner.contains(&k.as_str())).map(|(_, v)| v.median).sum();
+        let frame = t.phase("frame");
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {:.2} | {:.2} | {:.1} | {:.1} [{:.1}, {:.1}] | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.3} | {} | {} | {} | {} |",
-            r.mesh,
-            r.method,
-            r.cells,
-            r.upload.floats_per_cell,
+            "| {} | {} | {} | {} | {:.2} | {:.1} | {:.1} [{:.1}, {:.1}] | {:.1} | {:.1} | {:.1} | {:.1} | {:.3} | {} | {} | {} | {} |",
+            row.dataset,
+            row.label,
+            r.work.counts.get("cells").map_or("-".into(), |c| c.to_string()),
+            r.upload.floats_per_cell.map_or("-".into(), |f| format!("{f:.2}")),
             r.upload.bytes_per_frame as f64 / 1e6,
             r.upload.static_bytes as f64 / 1e3,
-            t.frame.median,
-            t.frame.min,
-            t.frame.max,
-            t.sort.median,
-            t.pack.median,
-            t.upload.median,
-            t.gpu.median,
-            t.wait.median,
+            frame.median,
+            frame.min,
+            frame.max,
+            prep,
+            t.phase("upload").median,
+            t.phase("gpu").median,
+            t.phase("wait").median,
             r.cells_per_second / 1e6,
             published,
             rmse,

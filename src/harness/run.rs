@@ -1,39 +1,42 @@
-//! One benchmark run of a cell-projection method: warm-up, N timed frames with
-//! the camera orbiting, then one untimed frame at the reference view (angle 0)
+//! One benchmark run of any registered method: warm-up, N timed frames with
+//! the camera moving, then one untimed frame at the reference view (angle 0)
 //! whose image and pipeline statistics are reported.
 //!
-//! Per frame, host wall time is split into sort, pack, upload, record, submit
-//! and wait; GPU time comes from timestamps. Bytes come from the counters in
-//! `vk::upload`, read before and after each frame.
+//! The runner owns what every method shares: the target image, the command
+//! recorder, timestamp and statistics queries, warm-up, CPU/device overlap,
+//! timing, readback and the result record (`schema/result.schema.json`). A
+//! method (`algo::method::RenderMethod`) owns its passes and per-frame data.
+//!
+//! Per frame, host wall time is split into the method's own CPU phases
+//! (e.g. `sort`, `pack`), `upload`, `record`, `submit` and `wait`; `gpu`
+//! comes from timestamps around everything recorded. By default the CPU half
+//! of frame N+1 runs while the device draws frame N (`overlap`), and `frame`
+//! is then the interval between frame completions; with `overlap` off each
+//! frame's phases run strictly one after another. Bytes come from the
+//! counters in `vk::upload`, read before and after each frame.
 
+use std::collections::BTreeMap;
 use std::sync::Arc;
 use std::time::Instant;
 
 use anyhow::{Context as _, Result};
 use serde::Serialize;
 
+use super::datasets::{Dataset, DatasetSummary};
 use super::image::RgbaImage;
 use super::stats::Summary;
-use crate::algo::cell_projection::mpvo::{MpvoSort, OrderCheck};
-use crate::algo::cell_projection::sort::{CentroidSort, SortKind, Sorter};
-use crate::algo::cell_projection::{self, CellProjector, ExitTolerances, FrameSetup, Interpolation, MeshScale, Method};
-use crate::algo::integrate::{IntegrationTables, Integrator};
-use crate::mesh::{MeshStats, TetGeometry, TetMesh};
+use crate::algo::method::{MethodInputs, Phases, RenderMethod, View};
+use crate::algo::registry::MethodSpec;
 use crate::scene::{Camera, Projection, TransferFunction};
 use crate::vk::{CommandRecorder, Context, DeviceInfo, FrameQueries, Image, PipelineStats, UploadCounter};
 
+/// The version of the result record (`schema/result.schema.json`).
+pub const SCHEMA_VERSION: u32 = 2;
+
+/// How a run is driven: image size, frames, camera. Method options live in
+/// the `MethodSpec`.
 #[derive(Debug, Clone)]
 pub struct RunConfig {
-    pub method: Method,
-    pub interpolation: Interpolation,
-    pub integrator: Integrator,
-    /// Side of the integrator's table; 0 = its default.
-    pub table_size: usize,
-    pub sort: SortKind,
-    /// Also check the centroid order of the reference view against MPVO's
-    /// face constraints (costs an MPVO build when sorting by centroid).
-    pub check_visibility: bool,
-    pub tolerances: ExitTolerances,
     pub width: u32,
     pub height: u32,
     pub frames: usize,
@@ -45,18 +48,17 @@ pub struct RunConfig {
     pub fixed_camera: Option<Camera>,
     /// Prepare frame N+1 on the CPU while the device draws frame N.
     pub overlap: bool,
+    /// Ask the method for its (possibly costly) reference-view diagnostics.
+    pub diagnostics: bool,
 }
 
-impl RunConfig {
-    pub fn new(method: Method) -> Self {
+/// Frames and warm-up together may not exceed this: a run is a benchmark,
+/// not a soak test, and sample vectors are sized from it.
+pub const MAX_FRAMES: usize = 100_000;
+
+impl Default for RunConfig {
+    fn default() -> Self {
         RunConfig {
-            method,
-            interpolation: Interpolation::Paper,
-            integrator: Integrator::Ppi,
-            table_size: 0,
-            sort: SortKind::Centroid,
-            check_visibility: false,
-            tolerances: ExitTolerances::default(),
             width: 512,
             height: 512,
             frames: 10,
@@ -65,14 +67,53 @@ impl RunConfig {
             orbit_step: 5f64.to_radians(),
             fixed_camera: None,
             overlap: true,
+            diagnostics: false,
         }
+    }
+}
+
+impl RunConfig {
+    /// Check every size before anything is allocated.
+    pub fn validate(&self) -> Result<()> {
+        anyhow::ensure!(self.frames >= 1, "--frames must be at least 1");
+        anyhow::ensure!(
+            self.frames.checked_add(self.warmup).is_some_and(|n| n <= MAX_FRAMES),
+            "--frames {} + --warmup {} exceeds the limit of {MAX_FRAMES} frames per run",
+            self.frames,
+            self.warmup
+        );
+        anyhow::ensure!(self.width > 0 && self.height > 0, "--size must be positive, got {}x{}", self.width, self.height);
+        anyhow::ensure!(self.orbit_step.is_finite(), "--orbit-step must be a finite number of degrees");
+        Ok(())
+    }
+
+    /// Check the image size against the device before anything is rendered
+    /// or computed (the CPU reference included).
+    pub fn check_device(&self, info: &DeviceInfo) -> Result<()> {
+        let max = info.max_image_dimension_2d;
+        anyhow::ensure!(
+            self.width <= max && self.height <= max,
+            "--size {}x{}: the device '{}' draws images of at most {max}x{max} (maxImageDimension2D)",
+            self.width,
+            self.height,
+            info.name
+        );
+        let bytes = self.width as u64 * self.height as u64 * 16;
+        anyhow::ensure!(
+            bytes <= info.max_memory_allocation_size,
+            "--size {}x{}: the RGBA32F target takes {bytes} bytes, more than the device's largest allocation ({})",
+            self.width,
+            self.height,
+            info.max_memory_allocation_size
+        );
+        Ok(())
     }
 
     /// The camera of frame `f` (the orbit's angle 0 is the reference view).
-    pub fn camera(&self, bounds: &crate::mesh::Bounds, f: usize) -> Camera {
+    pub fn camera(&self, dataset: &Dataset, f: usize) -> Camera {
         match self.fixed_camera {
             Some(c) => c,
-            None => Camera::orbit(bounds, f as f64 * self.orbit_step, self.projection),
+            None => dataset.orbit_camera(f as f64 * self.orbit_step, self.projection),
         }
     }
 }
@@ -80,90 +121,102 @@ impl RunConfig {
 /// Bytes that crossed to the device, measured by the counters.
 #[derive(Debug, Clone, Serialize)]
 pub struct UploadReport {
-    /// Everything per frame: cell records plus frame constants.
+    /// Everything per frame: per-frame data plus frame constants.
     pub bytes_per_frame: u64,
-    /// Cell records per frame divided by the number of cells.
-    pub bytes_per_cell: f64,
-    pub floats_per_cell: f64,
+    /// Per-frame data that scales with the dataset (cell records, active
+    /// lists), apart from the constants.
     pub cell_bytes_per_frame: u64,
     pub constant_bytes_per_frame: u64,
-    /// One-time uploads (index buffer, tables), not part of any frame.
+    /// Per-frame data divided by the number of cells (methods that process
+    /// cells; absent otherwise).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub bytes_per_cell: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub floats_per_cell: Option<f64>,
+    /// One-time uploads (index buffers, tables, volumes), not part of any frame.
     pub static_bytes: u64,
-    pub vertices_per_cell: usize,
     /// The counters themselves for the last timed frame and for set-up.
     pub frame_counters: UploadCounter,
     pub setup_counters: UploadCounter,
 }
 
+/// Median/min/max per phase (`frame`, `gpu`, the method's own phases,
+/// `upload`, `record`, `submit`, `wait`), set-up times, and every raw sample.
 #[derive(Debug, Clone, Serialize)]
 pub struct TimeReport {
-    pub frame: Summary,
-    pub sort: Summary,
-    pub pack: Summary,
-    pub upload: Summary,
-    pub record: Summary,
-    pub submit: Summary,
-    pub wait: Summary,
-    pub gpu: Summary,
+    #[serde(flatten)]
+    pub phases: BTreeMap<String, Summary>,
     /// Table construction and pipeline creation, apart from frames.
     pub setup_ms: f64,
     pub table_build_ms: f64,
-    /// Raw per-frame samples (ms), in frame order.
-    pub samples: FrameSamples,
+    /// Raw per-frame samples (ms) by phase, in frame order.
+    pub samples: BTreeMap<String, Vec<f64>>,
 }
 
-#[derive(Debug, Clone, Default, Serialize)]
-pub struct FrameSamples {
-    pub frame: Vec<f64>,
-    pub sort: Vec<f64>,
-    pub pack: Vec<f64>,
-    pub upload: Vec<f64>,
-    pub record: Vec<f64>,
-    pub submit: Vec<f64>,
-    pub wait: Vec<f64>,
-    pub gpu: Vec<f64>,
+impl TimeReport {
+    pub fn phase(&self, name: &str) -> Summary {
+        self.phases.get(name).copied().unwrap_or_default()
+    }
+}
+
+/// What a frame processed, and how much per second at the median frame time.
+#[derive(Debug, Clone, Serialize)]
+pub struct WorkReport {
+    #[serde(flatten)]
+    pub counts: BTreeMap<&'static str, u64>,
+    pub per_second: BTreeMap<&'static str, f64>,
 }
 
 #[derive(Debug, Clone, Serialize)]
 pub struct ImageReport {
+    pub width: u32,
+    pub height: u32,
     pub covered_pixels: usize,
     pub non_finite_pixels: usize,
     pub camera: Camera,
 }
 
+/// How frames were driven.
+#[derive(Debug, Clone, Serialize)]
+pub struct ViewReport {
+    pub projection: Projection,
+    pub orbit_step_deg: f64,
+    pub fixed_camera: bool,
+}
+
+/// One run, in the schema every method family shares.
 #[derive(Debug, Clone, Serialize)]
 pub struct RunResult {
+    pub schema_version: u32,
     pub method: &'static str,
-    pub interpolation: &'static str,
-    pub integrator: &'static str,
-    /// Side of the integrator's table (0: none).
-    pub table_size: usize,
-    pub sort: &'static str,
-    /// Centroid order of the reference view checked against MPVO's face
-    /// constraints (`check_visibility`): how many it violates, how many cells.
-    pub centroid_order: Option<OrderCheck>,
-    pub tolerances: ExitTolerances,
+    /// `name:key=value,...` with every option written out.
+    pub spec: String,
+    pub options: crate::algo::method::Options,
+    pub dataset: DatasetSummary,
+    /// The dataset's name (kept from schema 1).
     pub mesh: String,
-    pub cells: usize,
-    pub points: usize,
-    pub mesh_stats: MeshStats,
     pub width: u32,
     pub height: u32,
     pub frames: usize,
     pub warmup: usize,
-    pub projection: Projection,
-    pub orbit_step_deg: f64,
     /// CPU work of frame N+1 overlapped with the device's frame N.
     pub overlap: bool,
+    pub view: ViewReport,
     pub transfer_function: String,
     pub upload: UploadReport,
     pub time_ms: TimeReport,
+    pub work: WorkReport,
+    /// `work.per_second.cells` (kept from schema 1; 0 for methods without cells).
     pub cells_per_second: f64,
     /// Pipeline statistics of the reference-view frame (deterministic).
     pub stats: Option<PipelineStats>,
     pub image: ImageReport,
     /// The reference-view image against the f64 CPU reference, when asked for.
     pub error: Option<ErrorReport>,
+    /// The method family's own section (`family` names it).
+    pub details: serde_json::Value,
+    /// The method's reference-view diagnostics, when asked for.
+    pub diagnostics: Option<serde_json::Value>,
     pub device: DeviceInfo,
     pub volbench_version: &'static str,
     /// The commit the binary was built from (`-dirty` with local changes).
@@ -176,11 +229,18 @@ pub struct ErrorReport {
     pub rmse: f64,
     pub max_abs: f64,
     pub psnr_db: f64,
-    /// What the reference is: renderer, mesh, view, size, transfer function.
+    /// What the reference is: renderer, dataset, view, size, transfer function.
     pub reference: String,
     /// CPU time the reference took (not part of any frame; 0 when cached).
     pub reference_ms: f64,
     pub reference_cached: bool,
+    /// Why a cached reference was not used and was recomputed.
+    pub reference_recomputed: Option<String>,
+}
+
+pub struct RunOutput {
+    pub result: RunResult,
+    pub image: RgbaImage,
 }
 
 impl RunOutput {
@@ -194,22 +254,10 @@ impl RunOutput {
             reference: reference.what.clone(),
             reference_ms: reference.compute_ms,
             reference_cached: reference.cached,
+            reference_recomputed: reference.recomputed.clone(),
         });
         Ok(self.image.difference(&reference.image))
     }
-}
-
-pub struct RunOutput {
-    pub result: RunResult,
-    pub image: RgbaImage,
-}
-
-/// What stays the same across methods for one mesh: its geometry and the
-/// sort, so that both methods draw exactly the same order.
-pub struct Scene<'a> {
-    pub mesh: &'a TetMesh,
-    pub geometry: &'a TetGeometry,
-    pub tf: &'a TransferFunction,
 }
 
 fn ms(d: std::time::Duration) -> f64 {
@@ -217,10 +265,10 @@ fn ms(d: std::time::Duration) -> f64 {
 }
 
 /// Wall and GPU time of one frame's phases, in milliseconds.
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Default)]
 pub struct FrameTiming {
-    pub sort: f64,
-    pub pack: f64,
+    /// The method's CPU phases (`prepare`).
+    pub method: Phases,
     pub upload: f64,
     pub record: f64,
     pub submit: f64,
@@ -229,144 +277,119 @@ pub struct FrameTiming {
     pub gpu: f64,
 }
 
-/// Everything one method needs to draw frames of one scene: tables, the
-/// method's buffers and pipeline, the target, the sort. Built once; `frame`
-/// is the per-frame path that runs and benchmarks time.
-pub struct CellProjectionSession {
-    tables: IntegrationTables,
-    method: Box<dyn CellProjector>,
+/// Everything one method needs to draw frames: the method, the target, the
+/// recorder and the queries. Built once; `frame` is the per-frame path that
+/// runs and benchmarks time.
+pub struct MethodSession {
+    method: Box<dyn RenderMethod>,
     target: Image,
     recorder: CommandRecorder,
     queries: FrameQueries,
-    sorter: Sorter,
-    scale: MeshScale,
-    interpolation: Interpolation,
-    pub tolerances: ExitTolerances,
-    /// The packed frame waiting for `submit`.
-    prepared: Option<FrameSetup>,
     width: u32,
     height: u32,
+    /// The view prepared and waiting for `submit`.
+    prepared: Option<View>,
     /// One-time uploads made while building the session.
     pub setup_counter: UploadCounter,
     pub setup_ms: f64,
 }
 
-impl CellProjectionSession {
-    pub fn new(ctx: &Arc<Context>, scene: &Scene, cfg: &RunConfig) -> Result<Self> {
-        let (width, height) = (cfg.width, cfg.height);
-        anyhow::ensure!(width > 0 && height > 0, "image size must be positive, got {width}x{height}");
-        let (method, interpolation) = (cfg.method, cfg.interpolation);
-        let mesh = scene.mesh;
-        // Refuse meshes the device cannot hold before allocating anything:
-        // the per-frame vertex buffer must fit one allocation, and it plus
-        // the static index data must fit device memory.
-        let (vertex_bytes, static_bytes) = match method {
-            Method::Vicp => (cell_projection::vicp::FLOATS_PER_CELL * 4, 0),
-            Method::Balanced => {
-                (cell_projection::balanced::FLOATS_PER_CELL * 4, cell_projection::balanced::INDICES_PER_CELL * 4)
-            }
-        };
-        let info = &ctx.info;
-        crate::mesh::check_fits(mesh.tets.len(), vertex_bytes, info.max_memory_allocation_size)
-            .and_then(|()| crate::mesh::check_fits(mesh.tets.len(), vertex_bytes + static_bytes, info.device_local_heap_bytes))
-            .with_context(|| format!("mesh '{}' with {} on {}", mesh.name, method.name(), info.name))?;
+impl MethodSession {
+    pub fn new(
+        ctx: &Arc<Context>,
+        spec: &MethodSpec,
+        dataset: &Dataset,
+        tf: &TransferFunction,
+        cfg: &RunConfig,
+    ) -> Result<Self> {
+        cfg.validate()?;
+        cfg.check_device(&ctx.info)?;
+        anyhow::ensure!(
+            spec.info.data == dataset.kind(),
+            "method '{}' renders {} datasets; '{}' is a {}",
+            spec.info.name,
+            spec.info.data.name(),
+            dataset.name,
+            dataset.kind().name()
+        );
+        if let Some(why) = spec.info.unsupported_reason(&ctx.info) {
+            anyhow::bail!("method '{}' cannot run here: {why}", spec.info.name);
+        }
         let start = Instant::now();
         let mut setup_counter = UploadCounter::default();
-        // A typical cell size: the bounding box shared out among the cells.
-        let length_scale = mesh.bounds().diagonal() / (mesh.tets.len().max(1) as f64).cbrt();
-        let tables = IntegrationTables::new(
+        let method = (spec.info.create)(MethodInputs {
             ctx,
-            scene.tf,
-            mesh.scalar_range(),
-            cfg.integrator,
-            cfg.table_size,
-            length_scale,
-            &mut setup_counter,
-        )
-        .context("building the integration tables")?;
-        let method = cell_projection::create(ctx, method, interpolation, mesh, scene.geometry, &tables, &mut setup_counter)
-            .with_context(|| format!("setting up {} for mesh '{}'", method.name(), mesh.name))?;
-        let target = Image::render_target(ctx, "cell projection target", width, height)?;
+            data: dataset.scene(),
+            tf,
+            options: &spec.options,
+            width: cfg.width,
+            height: cfg.height,
+            diagnostics: cfg.diagnostics,
+            counter: &mut setup_counter,
+        })
+        .with_context(|| format!("setting up {} for '{}'", spec.canonical(), dataset.name))?;
+        let target = Image::render_target(ctx, "frame target", cfg.width, cfg.height)?;
         let recorder = CommandRecorder::new(ctx, "frame")?;
         let queries = FrameQueries::new(ctx)?;
-        let sorter = Sorter::new(cfg.sort, mesh, scene.geometry);
-        Ok(CellProjectionSession {
-            tables,
+        Ok(MethodSession {
             method,
             target,
             recorder,
             queries,
-            sorter,
-            scale: MeshScale::of(mesh),
-            interpolation,
-            tolerances: cfg.tolerances,
+            width: cfg.width,
+            height: cfg.height,
             prepared: None,
-            width,
-            height,
             setup_counter,
             setup_ms: ms(start.elapsed()),
         })
     }
 
-    pub fn method(&self) -> &dyn CellProjector {
+    pub fn method(&self) -> &dyn RenderMethod {
         self.method.as_ref()
     }
 
-    pub fn table_size(&self) -> usize {
-        self.tables.table_size
+    pub fn method_mut(&mut self) -> &mut dyn RenderMethod {
+        self.method.as_mut()
     }
 
-    pub fn table_build_ms(&self) -> f64 {
-        self.tables.build_ms
+    fn view(&self, camera: &Camera) -> View {
+        View { camera: *camera, width: self.width, height: self.height }
     }
 
-    /// Sort, pack, upload, draw and wait for one frame seen by `camera`;
-    /// bytes crossing to the device are added to `counter`.
+    /// Prepare, upload, draw and wait for one frame seen by `camera`; bytes
+    /// crossing to the device are added to `counter`.
     pub fn frame(&mut self, camera: &Camera, counter: &mut UploadCounter) -> Result<(FrameTiming, Option<PipelineStats>)> {
         let t0 = Instant::now();
-        let mut timing = self.prepare(camera);
+        let mut timing = self.prepare(camera)?;
         self.submit(counter, &mut timing)?;
         let stats = self.wait(&mut timing)?;
         timing.frame = ms(t0.elapsed());
         Ok((timing, stats))
     }
 
-    /// The CPU half of a frame: sort and pack (the device may still be
-    /// drawing the previous frame: packing writes host memory only).
-    pub fn prepare(&mut self, camera: &Camera) -> FrameTiming {
-        let setup = FrameSetup::new(
-            camera,
-            self.width,
-            self.height,
-            &self.tables,
-            &self.scale,
-            self.interpolation,
-            &self.tolerances,
-        );
-        let t0 = Instant::now();
-        let order = self.sorter.sort(camera);
-        let t1 = Instant::now();
-        self.method.pack(order, &setup);
-        let t2 = Instant::now();
-        self.prepared = Some(setup);
-        FrameTiming { sort: ms(t1 - t0), pack: ms(t2 - t1), ..FrameTiming::default() }
+    /// The CPU half of a frame (the device may still be drawing the
+    /// previous one).
+    pub fn prepare(&mut self, camera: &Camera) -> Result<FrameTiming> {
+        let view = self.view(camera);
+        let mut timing = FrameTiming::default();
+        self.method.prepare(&view, &mut timing.method)?;
+        self.prepared = Some(view);
+        Ok(timing)
     }
 
     /// Upload the prepared frame, record and submit it (no wait). The
     /// previous submission must have been waited for.
     pub fn submit(&mut self, counter: &mut UploadCounter, timing: &mut FrameTiming) -> Result<()> {
-        let setup = self.prepared.take().context("submit without a prepared frame")?;
+        let view = self.prepared.take().context("submit without a prepared frame")?;
         let t0 = Instant::now();
-        self.method.upload(counter).context("uploading vertex records")?;
+        self.method.upload(counter)?;
         let t1 = Instant::now();
         let rec = &self.recorder;
         rec.begin()?;
         self.queries.reset(rec);
-        rec.begin_rendering(&self.target, [0.0; 4]);
         self.queries.begin(rec);
-        self.method.record_draw(rec, &self.tables, &setup, counter);
+        self.method.record(rec, &self.target, &view, counter)?;
         self.queries.end(rec);
-        rec.end_rendering();
         let t2 = Instant::now();
         timing.upload = ms(t1 - t0);
         timing.record = ms(t2 - t1);
@@ -383,25 +406,28 @@ impl CellProjectionSession {
     }
 
     /// Run `cameras` with the CPU half of each frame overlapping the device's
-    /// work on the previous one (what "balanced" means on a real GPU; on
-    /// lavapipe the device's vertex stage and binning run on one core and
-    /// leave the other free). Each returned `frame` time is the interval
-    /// between consecutive frame completions, i.e. steady-state throughput.
+    /// work on the previous one (on lavapipe the device's vertex stage and
+    /// binning run on one core and leave the other free). Each returned
+    /// `frame` time is the interval between consecutive frame completions,
+    /// i.e. steady-state throughput.
     pub fn run_overlapped(&mut self, cameras: &[Camera], counter: &mut UploadCounter) -> Result<Vec<(FrameTiming, UploadCounter)>> {
         let mut out = Vec::with_capacity(cameras.len());
         let Some(first) = cameras.first() else { return Ok(out) };
         let mut last_done = Instant::now();
-        let mut current = self.prepare(first);
+        let mut current = self.prepare(first)?;
         let mut before = *counter;
         self.submit(counter, &mut current)?;
         let mut bytes = counter.since(&before);
         for next in cameras.iter().skip(1).map(Some).chain(std::iter::once(None)) {
-            let prepared = next.map(|c| self.prepare(c));
+            let prepared = next.map(|c| self.prepare(c)).transpose();
+            // Wait for the frame in flight even when preparing the next one
+            // failed: nothing may be left running on the device.
             self.wait(&mut current).context("waiting for a frame")?;
+            let prepared = prepared?;
             let done = Instant::now();
             current.frame = ms(done - last_done);
             last_done = done;
-            out.push((current, bytes));
+            out.push((std::mem::take(&mut current), bytes));
             if let Some(p) = prepared {
                 current = p;
                 before = *counter;
@@ -419,30 +445,52 @@ impl CellProjectionSession {
     }
 }
 
-impl FrameSamples {
+/// Raw samples by phase name.
+#[derive(Default)]
+struct Samples(BTreeMap<String, Vec<f64>>);
+
+impl Samples {
     fn push(&mut self, t: &FrameTiming) {
-        self.sort.push(t.sort);
-        self.pack.push(t.pack);
-        self.upload.push(t.upload);
-        self.record.push(t.record);
-        self.submit.push(t.submit);
-        self.wait.push(t.wait);
-        self.frame.push(t.frame);
-        self.gpu.push(t.gpu);
+        let mut add = |k: &str, v: f64| self.0.entry(k.to_string()).or_default().push(v);
+        for &(name, v) in &t.method.0 {
+            add(name, v);
+        }
+        add("upload", t.upload);
+        add("record", t.record);
+        add("submit", t.submit);
+        add("wait", t.wait);
+        add("frame", t.frame);
+        add("gpu", t.gpu);
     }
 }
 
-pub fn run_cell_projection(ctx: &Arc<Context>, scene: &Scene, cfg: &RunConfig) -> Result<RunOutput> {
-    anyhow::ensure!(cfg.frames > 0, "--frames must be at least 1");
-    let mesh = scene.mesh;
-    let mut session = CellProjectionSession::new(ctx, scene, cfg)?;
-    let bounds = mesh.bounds();
+/// A picture that cannot be right is a failed run, not a result: NaN or Inf
+/// pixels, or nothing drawn although the orbit camera frames the dataset and
+/// the transfer function is not transparent over the dataset's range.
+fn check_image(image: &RgbaImage, dataset: &Dataset, tf: &TransferFunction, cfg: &RunConfig) -> Result<()> {
+    let bad = image.non_finite_pixels();
+    anyhow::ensure!(bad == 0, "'{}': {bad} pixels of the image are NaN or Inf", dataset.name);
+    let (lo, hi) = dataset.scalar_range();
+    if image.covered_pixels() == 0 && cfg.fixed_camera.is_none() && tf.visible_over(lo, hi, dataset.bounds().diagonal()) {
+        anyhow::bail!(
+            "'{}' rendered an empty image although the camera frames it and transfer function '{}' is not \
+             transparent over its scalar range [{lo}, {hi}]",
+            dataset.name,
+            tf.name
+        );
+    }
+    Ok(())
+}
+
+/// Run `spec` on `dataset` as `cfg` says.
+pub fn run(ctx: &Arc<Context>, spec: &MethodSpec, dataset: &Dataset, tf: &TransferFunction, cfg: &RunConfig) -> Result<RunOutput> {
+    let mut session = MethodSession::new(ctx, spec, dataset, tf, cfg)?;
     let mut counter = UploadCounter::default();
-    let mut samples = FrameSamples::default();
+    let mut samples = Samples::default();
     let mut last_frame_counters = UploadCounter::default();
 
     if cfg.overlap {
-        let cameras: Vec<Camera> = (0..cfg.warmup + cfg.frames).map(|f| cfg.camera(&bounds, f)).collect();
+        let cameras: Vec<Camera> = (0..cfg.warmup + cfg.frames).map(|f| cfg.camera(dataset, f)).collect();
         for (f, (timing, bytes)) in session.run_overlapped(&cameras, &mut counter)?.into_iter().enumerate() {
             if f >= cfg.warmup {
                 samples.push(&timing);
@@ -452,7 +500,7 @@ pub fn run_cell_projection(ctx: &Arc<Context>, scene: &Scene, cfg: &RunConfig) -
     } else {
         for f in 0..cfg.warmup + cfg.frames {
             let before = counter;
-            let (timing, _) = session.frame(&cfg.camera(&bounds, f), &mut counter).with_context(|| format!("frame {f}"))?;
+            let (timing, _) = session.frame(&cfg.camera(dataset, f), &mut counter).with_context(|| format!("frame {f}"))?;
             if f >= cfg.warmup {
                 samples.push(&timing);
                 last_frame_counters = counter.since(&before);
@@ -460,81 +508,69 @@ pub fn run_cell_projection(ctx: &Arc<Context>, scene: &Scene, cfg: &RunConfig) -
         }
     }
     // The reference view, untimed: its image and statistics are reported.
-    let reference_camera = cfg.camera(&bounds, 0);
+    let reference_camera = cfg.camera(dataset, 0);
     let (_, stats) = session.frame(&reference_camera, &mut UploadCounter::default()).context("reference-view frame")?;
     let image = session.read_image(ctx)?;
     ctx.check_validation().context("Vulkan validation")?;
+    check_image(&image, dataset, tf, cfg)?;
+    let reference_view = session.view(&reference_camera);
+    let diagnostics = if cfg.diagnostics { session.method_mut().diagnostics(&reference_view)? } else { None };
 
-    let centroid_order = if cfg.check_visibility {
-        let origin = cell_projection::render_origin(mesh);
-        let mut centroid =
-            CentroidSort::with_origin(cell_projection::centroids_relative_f32(scene.geometry, origin), origin);
-        let order = centroid.sort(&reference_camera).to_vec();
-        Some(MpvoSort::new(mesh, scene.geometry).check_order(&order, &reference_camera))
-    } else {
-        None
-    };
     let method = session.method();
-    let cells = method.cells();
+    let work = method.work();
+    let cells = work.0.get("cells").copied();
     let fc = last_frame_counters;
     let cell_bytes = fc.frame_cell_bytes();
-    let bytes_per_cell = if cells > 0 { cell_bytes as f64 / cells as f64 } else { 0.0 };
+    let bytes_per_cell = cells.filter(|&n| n > 0).map(|n| cell_bytes as f64 / n as f64);
     let upload = UploadReport {
         bytes_per_frame: fc.frame_bytes(),
-        bytes_per_cell,
-        floats_per_cell: bytes_per_cell / 4.0,
         cell_bytes_per_frame: cell_bytes,
         constant_bytes_per_frame: fc.frame_constant_bytes(),
+        bytes_per_cell,
+        floats_per_cell: bytes_per_cell.map(|b| b / 4.0),
         static_bytes: session.setup_counter.static_bytes(),
-        vertices_per_cell: method.vertices_per_cell(),
         frame_counters: fc,
         setup_counters: session.setup_counter,
     };
-    let frame_summary = Summary::of(&samples.frame);
-    let time_ms = TimeReport {
-        frame: frame_summary,
-        sort: Summary::of(&samples.sort),
-        pack: Summary::of(&samples.pack),
-        upload: Summary::of(&samples.upload),
-        record: Summary::of(&samples.record),
-        submit: Summary::of(&samples.submit),
-        wait: Summary::of(&samples.wait),
-        gpu: Summary::of(&samples.gpu),
-        setup_ms: session.setup_ms,
-        table_build_ms: session.table_build_ms(),
-        samples,
-    };
-    let cells_per_second = if frame_summary.median > 0.0 { cells as f64 / (frame_summary.median * 1e-3) } else { 0.0 };
+    let phases: BTreeMap<String, Summary> = samples.0.iter().map(|(k, v)| (k.clone(), Summary::of(v))).collect();
+    let median_s = phases.get("frame").map_or(0.0, |s| s.median * 1e-3);
+    let per_second: BTreeMap<&'static str, f64> =
+        work.0.iter().map(|(&k, &n)| (k, if median_s > 0.0 { n as f64 / median_s } else { 0.0 })).collect();
+    let cells_per_second = per_second.get("cells").copied().unwrap_or(0.0);
+    let time_ms = TimeReport { phases, setup_ms: session.setup_ms, table_build_ms: method.table_build_ms(), samples: samples.0 };
     let result = RunResult {
-        method: cfg.method.name(),
-        interpolation: cfg.interpolation.name(),
-        integrator: cfg.integrator.name(),
-        table_size: session.table_size(),
-        sort: cfg.sort.name(),
-        centroid_order,
-        tolerances: cfg.tolerances,
-        mesh: mesh.name.clone(),
-        cells,
-        points: mesh.points.len(),
-        mesh_stats: mesh.stats.clone(),
+        schema_version: SCHEMA_VERSION,
+        method: spec.info.name,
+        spec: spec.canonical(),
+        options: spec.options.clone(),
+        dataset: dataset.summary(),
+        mesh: dataset.name.clone(),
         width: cfg.width,
         height: cfg.height,
         frames: cfg.frames,
         warmup: cfg.warmup,
-        projection: reference_camera.projection,
-        orbit_step_deg: cfg.orbit_step.to_degrees(),
         overlap: cfg.overlap,
-        transfer_function: scene.tf.name.clone(),
+        view: ViewReport {
+            projection: reference_camera.projection,
+            orbit_step_deg: cfg.orbit_step.to_degrees(),
+            fixed_camera: cfg.fixed_camera.is_some(),
+        },
+        transfer_function: tf.name.clone(),
         upload,
         time_ms,
+        work: WorkReport { counts: work.0.clone(), per_second },
         cells_per_second,
         stats,
         image: ImageReport {
+            width: cfg.width,
+            height: cfg.height,
             covered_pixels: image.covered_pixels(),
             non_finite_pixels: image.non_finite_pixels(),
             camera: reference_camera,
         },
         error: None,
+        details: method.details(),
+        diagnostics,
         device: ctx.info.clone(),
         volbench_version: env!("CARGO_PKG_VERSION"),
         git_sha: env!("VOLBENCH_GIT_SHA"),

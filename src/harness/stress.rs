@@ -17,14 +17,14 @@ use std::sync::Arc;
 use anyhow::{Context as _, Result};
 use serde::Serialize;
 
+use super::datasets::Dataset;
 use super::image::RgbaImage;
 use super::reference_cache::reference_image;
-use super::run::{run_cell_projection, RunConfig, Scene};
-use crate::algo::cell_projection::sort::SortKind;
-use crate::algo::cell_projection::{Interpolation, Method};
-use crate::algo::integrate::Integrator;
+use super::run::{run, RunConfig};
+use crate::algo::method::{DataKind, Options};
+use crate::algo::registry::{MethodSpec, Registry};
 use crate::mesh::split::hex_grid_to_tets;
-use crate::mesh::{MeshStats, TetGeometry, TetMesh};
+use crate::mesh::{MeshStats, TetMesh};
 use crate::scene::{Camera, ControlPoint, Projection, TransferFunction};
 use crate::vk::Context;
 
@@ -32,10 +32,10 @@ use crate::vk::Context;
 /// bound by `extra` (why, and how `extra` was obtained, in `reason`).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Allowance {
-    /// The integrators it applies to (empty: all).
-    pub integrators: Vec<Integrator>,
-    /// The sort it applies to (None: both).
-    pub sort: Option<SortKind>,
+    /// The `integrator` options it applies to (empty: all).
+    pub integrators: Vec<&'static str>,
+    /// The `sort` option it applies to (None: any).
+    pub sort: Option<&'static str>,
     pub extra: f64,
     pub reason: String,
 }
@@ -45,8 +45,10 @@ impl Allowance {
         Allowance { integrators: Vec::new(), sort: None, extra, reason: reason.into() }
     }
 
-    fn applies(&self, integrator: Integrator, sort: SortKind) -> bool {
-        (self.integrators.is_empty() || self.integrators.contains(&integrator)) && self.sort.is_none_or(|s| s == sort)
+    fn applies(&self, options: &Options) -> bool {
+        let opt = |k: &str| options.text(k).unwrap_or_default();
+        (self.integrators.is_empty() || self.integrators.contains(&opt("integrator").as_str()))
+            && self.sort.is_none_or(|s| s == opt("sort"))
     }
 }
 
@@ -62,15 +64,20 @@ pub struct StressCase {
     pub allowances: Vec<Allowance>,
 }
 
-/// One (case, method, integrator, interpolation, sort) render against the
-/// reference.
+/// One (case, method with an option set) render against the reference: a
+/// view of the run's result record, or of its failure (`error`).
 #[derive(Debug, Clone, Serialize)]
 pub struct StressRow {
     pub case: String,
     pub method: &'static str,
-    pub integrator: &'static str,
-    pub interpolation: &'static str,
-    pub sort: &'static str,
+    /// The full option set (`key=value,...`).
+    pub options: String,
+    /// These three options where the method has them ("-" otherwise).
+    pub integrator: String,
+    pub interpolation: String,
+    pub sort: String,
+    /// Why the run failed (status `fail`).
+    pub error: Option<String>,
     pub nan_pixels: usize,
     pub inf_pixels: usize,
     pub max_abs_error: f64,
@@ -85,10 +92,6 @@ pub struct StressReport {
     pub cases: Vec<StressRow>,
 }
 
-pub const METHODS: [Method; 2] = [Method::Vicp, Method::Balanced];
-pub const INTEGRATORS: [Integrator; 4] =
-    [Integrator::Average, Integrator::Preint, Integrator::Ppi, Integrator::LinearExact];
-pub const SORTS: [SortKind; 2] = [SortKind::Centroid, SortKind::Mpvo];
 
 // ---------------------------------------------------------------------------
 // Building blocks
@@ -168,7 +171,7 @@ fn translated(mut c: Camera, by: [f64; 3]) -> Camera {
 fn centroid_order_allowance(measured: f64) -> Allowance {
     Allowance {
         integrators: Vec::new(),
-        sort: Some(SortKind::Centroid),
+        sort: Some("centroid"),
         extra: 1e-2,
         reason: format!(
             "the centroid sort is not a visibility order for these cells (colour only: alpha, which does not \
@@ -266,7 +269,7 @@ fn needles_and_caps() -> StressCase {
         allowances: vec![
             centroid_order_allowance(4.4e-3),
             Allowance {
-                integrators: vec![Integrator::Average],
+                integrators: vec!["average"],
                 sort: None,
                 extra: 1e-2,
                 reason: "model error, not the cell shapes: averaging the two ends' colour and attenuation is off \
@@ -579,7 +582,7 @@ fn tf_steps() -> StressCase {
         tf,
         allowances: vec![
             Allowance {
-                integrators: vec![Integrator::Average, Integrator::Ppi, Integrator::LinearExact],
+                integrators: vec!["average", "ppi", "linear-exact"],
                 sort: None,
                 extra: 0.5,
                 reason: "model error, not numerics: these integrators take colour and attenuation at a segment's \
@@ -589,7 +592,7 @@ fn tf_steps() -> StressCase {
                     .into(),
             },
             Allowance {
-                integrators: vec![Integrator::Preint],
+                integrators: vec!["preint"],
                 sort: None,
                 extra: 5e-2,
                 reason: "pre-integration integrates steps, but its table samples the scalar range 128 times: a \
@@ -686,7 +689,7 @@ fn opaque(tau: f64) -> StressCase {
         tf,
         allowances: vec![
             Allowance {
-                integrators: vec![Integrator::Preint],
+                integrators: vec!["preint"],
                 sort: None,
                 extra: 1.0,
                 reason: "no useful bound: the pre-integration table (128 x 128 scalars x 32 lengths) cannot \
@@ -696,7 +699,7 @@ fn opaque(tau: f64) -> StressCase {
                     .into(),
             },
             Allowance {
-                integrators: vec![Integrator::Average],
+                integrators: vec!["average"],
                 sort: None,
                 extra: 0.1,
                 reason: "model error: averaging the two ends' attenuation (0 at one end, huge at the other) \
@@ -769,49 +772,48 @@ pub fn stress_cases(size: u32) -> Vec<StressCase> {
 /// "Perspective"): measured 0.128 on the baseline and up to 0.221 on the
 /// other perspective views without a documented limitation, bound 0.25.
 /// Orthographic views use the exact bounds (paper = exact there).
-pub fn accuracy_bound(integrator: Integrator, interpolation: Interpolation, perspective: bool) -> f64 {
-    if perspective && interpolation == Interpolation::Paper {
+pub fn accuracy_bound(options: &Options, perspective: bool) -> f64 {
+    let opt = |k: &str| options.text(k).unwrap_or_default();
+    if perspective && opt("interpolation") == "paper" {
         return 0.25;
     }
-    match integrator {
-        Integrator::Average => 5e-3,
-        Integrator::Preint => 2e-3,
-        Integrator::Ppi | Integrator::LinearExact => 1e-3,
+    match opt("integrator").as_str() {
+        "average" => 5e-3,
+        "preint" => 2e-3,
+        // ppi, linear-exact, and methods without an integrator option.
+        _ => 1e-3,
     }
 }
 
 /// The bound a row is held to, and whether a documented limitation applies.
-pub fn bound(case: &StressCase, integrator: Integrator, interpolation: Interpolation, sort: SortKind) -> (f64, bool) {
-    let base = accuracy_bound(integrator, interpolation, case.camera.is_perspective());
-    let applicable: Vec<&Allowance> = case.allowances.iter().filter(|a| a.applies(integrator, sort)).collect();
+pub fn bound(case: &StressCase, options: &Options) -> (f64, bool) {
+    let base = accuracy_bound(options, case.camera.is_perspective());
+    let applicable: Vec<&Allowance> = case.allowances.iter().filter(|a| a.applies(options)).collect();
     (base + applicable.iter().map(|a| a.extra).sum::<f64>(), !applicable.is_empty())
 }
 
 // ---------------------------------------------------------------------------
 // Running
 
-/// Which combinations to render.
+/// Which methods and option sets render every case.
 #[derive(Debug, Clone)]
 pub struct StressConfig {
     pub size: u32,
-    pub methods: Vec<Method>,
-    pub integrators: Vec<Integrator>,
-    /// Interpolations for perspective cases (orthographic cases use `paper`
-    /// only: `exact` is the same computation there).
-    pub interpolations: Vec<Interpolation>,
-    pub sorts: Vec<SortKind>,
+    pub specs: Vec<MethodSpec>,
 }
 
 impl StressConfig {
-    /// Every method, integrator, interpolation and sort.
-    pub fn full(size: u32) -> Self {
-        StressConfig {
-            size,
-            methods: METHODS.to_vec(),
-            integrators: INTEGRATORS.to_vec(),
-            interpolations: vec![Interpolation::Paper, Interpolation::Exact],
-            sorts: SORTS.to_vec(),
+    /// Every tetrahedral method of `registry` with each of its stress
+    /// option sets.
+    pub fn full(registry: &Registry, size: u32) -> Result<Self> {
+        let mut specs = Vec::new();
+        for m in registry.for_kind(DataKind::TetMesh) {
+            let base = registry.parse_spec(m.name, &[])?;
+            for v in m.stress {
+                specs.push(registry.variant(&base, v)?);
+            }
         }
+        Ok(StressConfig { size, specs })
     }
 }
 
@@ -822,13 +824,15 @@ pub fn non_finite_pixels(image: &RgbaImage) -> (usize, usize) {
     (nan, inf)
 }
 
-/// Render `cases` with every combination of `cfg` and compare each image
-/// with the f64 reference (cached on disk, see `reference_cache`).
+/// Render `cases` with every spec of `cfg` and compare each image with the
+/// f64 reference (cached on disk, see `reference_cache`).
 pub fn run_cases(ctx: &Arc<Context>, cases: &[StressCase], cfg: &StressConfig) -> Result<Vec<StressRow>> {
     run_cases_with_progress(ctx, cases, cfg, |_| {})
 }
 
-/// [`run_cases`], calling `progress` with each row as soon as it is measured.
+/// [`run_cases`], calling `progress` with each row as soon as it is
+/// measured. A render that fails is a `fail` row with its error; the sweep
+/// goes on. An error of the reference itself ends the sweep.
 pub fn run_cases_with_progress(
     ctx: &Arc<Context>,
     cases: &[StressCase],
@@ -837,66 +841,59 @@ pub fn run_cases_with_progress(
 ) -> Result<Vec<StressRow>> {
     let mut rows = Vec::new();
     for case in cases {
-        let geometry = TetGeometry::compute(&case.mesh);
-        let scene = Scene { mesh: &case.mesh, geometry: &geometry, tf: &case.tf };
-        let reference = reference_image(&scene, &case.camera, cfg.size, cfg.size)
+        let dataset = Dataset::from_mesh(case.mesh.clone(), false, format!("stress case {}", case.name));
+        let reference = reference_image(&dataset, &case.tf, &case.camera, cfg.size, cfg.size)
             .with_context(|| format!("stress case '{}': reference", case.name))?;
-        let interpolations: &[Interpolation] =
-            if case.camera.is_perspective() { &cfg.interpolations } else { &[Interpolation::Paper] };
-        for &method in &cfg.methods {
-            for &integrator in &cfg.integrators {
-                for &interpolation in interpolations {
-                    for &sort in &cfg.sorts {
-                        let mut rc = RunConfig::new(method);
-                        rc.width = cfg.size;
-                        rc.height = cfg.size;
-                        rc.frames = 1;
-                        rc.warmup = 0;
-                        rc.overlap = false;
-                        rc.integrator = integrator;
-                        rc.interpolation = interpolation;
-                        rc.sort = sort;
-                        rc.projection = case.camera.projection;
-                        rc.fixed_camera = Some(case.camera);
-                        let what = || {
-                            format!(
-                                "stress case '{}': {} {} {} {}",
-                                case.name,
-                                method.name(),
-                                integrator.name(),
-                                interpolation.name(),
-                                sort.name()
-                            )
-                        };
-                        let out = run_cell_projection(ctx, &scene, &rc).with_context(what)?;
-                        let (nan_pixels, inf_pixels) = non_finite_pixels(&out.image);
-                        let e = out.image.compare(&reference.image).with_context(what)?;
-                        let (b, documented) = bound(case, integrator, interpolation, sort);
-                        // NaN compares false: a NaN error is never within the bound.
-                        let within = nan_pixels == 0 && inf_pixels == 0 && e.max_abs <= b && e.rmse.is_finite();
-                        let status = match (within, documented) {
-                            (false, _) => "fail",
-                            (true, true) => "documented",
-                            (true, false) => "ok",
-                        };
-                        let row = StressRow {
-                            case: case.name.clone(),
-                            method: method.name(),
-                            integrator: integrator.name(),
-                            interpolation: interpolation.name(),
-                            sort: sort.name(),
-                            nan_pixels,
-                            inf_pixels,
-                            max_abs_error: e.max_abs,
-                            rmse: e.rmse,
-                            status,
-                            bound: b,
-                        };
-                        progress(&row);
-                        rows.push(row);
-                    }
-                }
+        for spec in &cfg.specs {
+            let opt = |k: &str| spec.options.text(k).unwrap_or_else(|_| "-".into());
+            // Orthographic views: `exact` interpolation is the same
+            // computation as `paper`, rendered once.
+            if !case.camera.is_perspective() && opt("interpolation") == "exact" {
+                continue;
             }
+            let rc = RunConfig {
+                width: cfg.size,
+                height: cfg.size,
+                frames: 1,
+                warmup: 0,
+                overlap: false,
+                projection: case.camera.projection,
+                fixed_camera: Some(case.camera),
+                ..RunConfig::default()
+            };
+            let (b, documented) = bound(case, &spec.options);
+            let mut row = StressRow {
+                case: case.name.clone(),
+                method: spec.info.name,
+                options: spec.options.to_spec_string(),
+                integrator: opt("integrator"),
+                interpolation: opt("interpolation"),
+                sort: opt("sort"),
+                error: None,
+                nan_pixels: 0,
+                inf_pixels: 0,
+                max_abs_error: f64::NAN,
+                rmse: f64::NAN,
+                status: "fail",
+                bound: b,
+            };
+            let measured = run(ctx, spec, &dataset, &case.tf, &rc)
+                .and_then(|out| Ok((non_finite_pixels(&out.image), out.image.compare(&reference.image)?)));
+            match measured {
+                Ok(((nan_pixels, inf_pixels), e)) => {
+                    // NaN compares false: a NaN error is never within the bound.
+                    let within = nan_pixels == 0 && inf_pixels == 0 && e.max_abs <= b && e.rmse.is_finite();
+                    row.status = match (within, documented) {
+                        (false, _) => "fail",
+                        (true, true) => "documented",
+                        (true, false) => "ok",
+                    };
+                    (row.nan_pixels, row.inf_pixels, row.max_abs_error, row.rmse) = (nan_pixels, inf_pixels, e.max_abs, e.rmse);
+                }
+                Err(e) => row.error = Some(format!("{e:#}")),
+            }
+            progress(&row);
+            rows.push(row);
         }
     }
     Ok(rows)
@@ -905,13 +902,14 @@ pub fn run_cases_with_progress(
 /// `volbench stress`: every case with every method, integrator,
 /// interpolation and sort at `size` x `size` pixels, against the f64
 /// reference. About 700 renders; ~2 minutes at 128x128 on 2 cores.
-pub fn run_stress(ctx: &Arc<Context>, size: u32) -> Result<Vec<StressRow>> {
-    run_stress_with_progress(ctx, size, |_| {})
+pub fn run_stress(ctx: &Arc<Context>, registry: &Registry, size: u32) -> Result<Vec<StressRow>> {
+    run_stress_with_progress(ctx, registry, size, |_| {})
 }
 
 /// [`run_stress`], calling `progress` with each row as soon as it is measured.
 pub fn run_stress_with_progress(
     ctx: &Arc<Context>,
+    registry: &Registry,
     size: u32,
     progress: impl FnMut(&StressRow),
 ) -> Result<Vec<StressRow>> {
@@ -919,7 +917,7 @@ pub fn run_stress_with_progress(
         size >= 16 && size.is_multiple_of(2),
         "--size: the stress image side must be even and at least 16, got {size}"
     );
-    run_cases_with_progress(ctx, &stress_cases(size), &StressConfig::full(size), progress)
+    run_cases_with_progress(ctx, &stress_cases(size), &StressConfig::full(registry, size)?, progress)
 }
 
 /// Rows whose status is "fail" (`volbench stress` exits non-zero if any).
@@ -937,9 +935,9 @@ pub fn describe_cases(size: u32) -> String {
             let which = if a.integrators.is_empty() {
                 "all integrators".to_string()
             } else {
-                a.integrators.iter().map(|i| i.name()).collect::<Vec<_>>().join(", ")
+                a.integrators.join(", ")
             };
-            let sort = a.sort.map_or(String::new(), |s| format!(", {} sort", s.name()));
+            let sort = a.sort.map_or(String::new(), |s| format!(", {s} sort"));
             s.push_str(&format!("  - allowance +{:.2e} ({which}{sort}): {}.\n", a.extra, a.reason));
         }
     }
@@ -965,7 +963,10 @@ pub fn stress_table(rows: &[StressRow]) -> String {
             r.max_abs_error,
             r.rmse,
             r.bound,
-            r.status
+            match &r.error {
+                Some(e) => format!("fail: {}", e.replace('|', "/").replace('\n', " ")),
+                None => r.status.to_string(),
+            }
         ));
     }
     s

@@ -39,6 +39,17 @@ impl TransferFunction {
         (first, last)
     }
 
+    /// Whether anything over scalars [lo, hi] is visibly opaque across a
+    /// length `length`: the largest attenuation there (piecewise linear, so
+    /// at the ends or a control point) times `length` above 1e-4, well above
+    /// what f32 alpha resolves. Used to tell an empty image that must be a
+    /// failure from one that is right.
+    pub fn visible_over(&self, lo: f64, hi: f64, length: f64) -> bool {
+        let inside = self.points.iter().filter(|p| p.scalar >= lo && p.scalar <= hi).map(|p| p.attenuation);
+        let max = [self.eval(lo).1, self.eval(hi).1].into_iter().chain(inside).fold(0.0, f64::max);
+        max * length > 1e-4
+    }
+
     /// Colour and attenuation at scalar `s`.
     pub fn eval(&self, s: f64) -> ([f64; 3], f64) {
         let pts = &self.points;

@@ -11,7 +11,9 @@ use std::sync::Arc;
 use ash::vk as raw;
 use rayon::prelude::*;
 
-use super::{build_pipeline, cells_f32, CellF32, CellProjector, FrameSetup, Interpolation, Method};
+use super::render;
+use crate::algo::method::{DataKind, MethodInfo, MethodInputs, Published, RenderMethod};
+use super::{build_pipeline, cells_f32, CellF32, CellProjector, FrameSetup, Interpolation};
 use crate::algo::integrate::IntegrationTables;
 use crate::mesh::{TetGeometry, TetMesh};
 use crate::vk::{
@@ -26,6 +28,30 @@ pub const FLOATS_PER_CELL: usize = FLOATS_PER_VERTEX * VERTICES_PER_CELL;
 pub const INDICES_PER_CELL: usize = 7;
 pub const STRIP: [u32; 6] = [0, 1, 2, 3, 0, 1];
 pub const RESTART: u32 = u32::MAX;
+
+/// The registry entry.
+pub const METHOD: MethodInfo = MethodInfo {
+    name: "balanced",
+    data: DataKind::TetMesh,
+    summary: "GPU-CPU balanced cell projection (Moreland 2004): 4 vertices, 28 floats per tet per frame, static strip indices",
+    options: render::OPTIONS,
+    features: &[],
+    sweep: render::SWEEP,
+    compare: render::COMPARE,
+    stress: render::STRESS,
+    published: &[
+        Published { method: "balanced", dataset: "bluntfin", cells_per_second: 843e3, source: render::THESIS_TABLE_6_3 },
+        Published { method: "balanced", dataset: "oxygenpost", cells_per_second: 1168e3, source: render::THESIS_TABLE_6_3 },
+    ],
+    create,
+};
+
+fn create(inputs: MethodInputs) -> anyhow::Result<Box<dyn RenderMethod>> {
+    let bytes = render::DeviceBytesPerCell { frame: FLOATS_PER_CELL * 4, fixed: INDICES_PER_CELL * 4 };
+    render::CellProjection::create(inputs, bytes, |ctx, mesh, geometry, tables, interpolation, counter| {
+        Ok(Box::new(Balanced::new(ctx, mesh, geometry, tables, interpolation, counter)?))
+    })
+}
 
 pub struct Balanced {
     cells: Vec<CellF32>,
@@ -127,9 +153,6 @@ impl Balanced {
 }
 
 impl CellProjector for Balanced {
-    fn method(&self) -> Method {
-        Method::Balanced
-    }
     fn cells(&self) -> usize {
         self.cells.len()
     }

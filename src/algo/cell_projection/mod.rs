@@ -8,6 +8,7 @@
 
 pub mod balanced;
 pub mod mpvo;
+pub mod render;
 pub mod sort;
 pub mod vicp;
 
@@ -24,35 +25,18 @@ use crate::vk::{
     UploadCounter, VertexAttribute, VkResult,
 };
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, clap::ValueEnum)]
-#[serde(rename_all = "lowercase")]
-pub enum Method {
-    /// View-independent cell projection: 12 vertices, 132 floats per tet.
-    Vicp,
-    /// GPU-CPU balanced cell projection: 4 vertices, 28 floats per tet.
-    Balanced,
-}
-
-impl Method {
-    pub fn name(self) -> &'static str {
-        match self {
-            Method::Vicp => "vicp",
-            Method::Balanced => "balanced",
-        }
-    }
-}
-
 /// How view-dependent exit data is carried across a face under perspective.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, clap::ValueEnum, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum Interpolation {
     /// As the papers do: ray-plane distance and exit scalar at each vertex,
     /// interpolated across the face (exact for orthographic views only).
-    #[default]
     Paper,
     /// The same records with the plane ratio u = h/e and g.(v - eye) in the
     /// two view-dependent slots, which interpolate exactly under perspective
-    /// (`shaders/common/exit.glsl`). Identical to `paper` for orthographic views.
+    /// (`shaders/common/exit.glsl`). Identical to `paper` for orthographic
+    /// views. The default: same records and bytes, within the error bar.
+    #[default]
     Exact,
 }
 
@@ -313,7 +297,6 @@ impl FrameSetup {
 
 /// One cell-projection method's per-frame work on the device side.
 pub trait CellProjector {
-    fn method(&self) -> Method;
     fn cells(&self) -> usize;
     /// Vertex records and floats each tet sends per frame, by construction.
     fn vertices_per_cell(&self) -> usize;
@@ -324,22 +307,6 @@ pub trait CellProjector {
     fn upload(&mut self, counter: &mut UploadCounter) -> VkResult<()>;
     /// Bind and draw (inside dynamic rendering).
     fn record_draw(&self, rec: &CommandRecorder, tables: &IntegrationTables, frame: &FrameSetup, counter: &mut UploadCounter);
-}
-
-/// Build a method by name.
-pub fn create(
-    ctx: &Arc<Context>,
-    method: Method,
-    interpolation: Interpolation,
-    mesh: &TetMesh,
-    geometry: &TetGeometry,
-    tables: &IntegrationTables,
-    counter: &mut UploadCounter,
-) -> VkResult<Box<dyn CellProjector>> {
-    Ok(match method {
-        Method::Vicp => Box::new(vicp::Vicp::new(ctx, mesh, geometry, tables, interpolation)?),
-        Method::Balanced => Box::new(balanced::Balanced::new(ctx, mesh, geometry, tables, interpolation, counter)?),
-    })
 }
 
 /// The pipeline both methods use: premultiplied "over" into RGBA32F, entry

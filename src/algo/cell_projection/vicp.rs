@@ -9,7 +9,9 @@ use std::sync::Arc;
 use ash::vk as raw;
 use rayon::prelude::*;
 
-use super::{build_pipeline, cells_f32, CellProjector, FrameSetup, Interpolation, Method, FACES};
+use super::render;
+use crate::algo::method::{DataKind, MethodInfo, MethodInputs, Published, RenderMethod};
+use super::{build_pipeline, cells_f32, CellProjector, FrameSetup, Interpolation, FACES};
 use crate::algo::integrate::IntegrationTables;
 use crate::mesh::{TetGeometry, TetMesh};
 use crate::vk::{Buffer, BufferDesc, CommandRecorder, Context, Pipeline, UploadClass, UploadCounter, VertexAttribute, VkResult};
@@ -17,6 +19,30 @@ use crate::vk::{Buffer, BufferDesc, CommandRecorder, Context, Pipeline, UploadCl
 pub const FLOATS_PER_VERTEX: usize = 11;
 pub const VERTICES_PER_CELL: usize = 12;
 pub const FLOATS_PER_CELL: usize = FLOATS_PER_VERTEX * VERTICES_PER_CELL;
+
+/// The registry entry.
+pub const METHOD: MethodInfo = MethodInfo {
+    name: "vicp",
+    data: DataKind::TetMesh,
+    summary: "view-independent cell projection (Weiler, Kraus, Ertl 2002): 12 vertices, 132 floats per tet per frame",
+    options: render::OPTIONS,
+    features: &[],
+    sweep: render::SWEEP,
+    compare: render::COMPARE,
+    stress: render::STRESS,
+    published: &[
+        Published { method: "vicp", dataset: "bluntfin", cells_per_second: 618e3, source: render::THESIS_TABLE_6_3 },
+        Published { method: "vicp", dataset: "oxygenpost", cells_per_second: 690e3, source: render::THESIS_TABLE_6_3 },
+    ],
+    create,
+};
+
+fn create(inputs: MethodInputs) -> anyhow::Result<Box<dyn RenderMethod>> {
+    let bytes = render::DeviceBytesPerCell { frame: FLOATS_PER_CELL * 4, fixed: 0 };
+    render::CellProjection::create(inputs, bytes, |ctx, mesh, geometry, tables, interpolation, _counter| {
+        Ok(Box::new(Vicp::new(ctx, mesh, geometry, tables, interpolation)?))
+    })
+}
 
 pub struct Vicp {
     /// The view-independent records, FLOATS_PER_CELL per tet, in mesh order.
@@ -85,9 +111,6 @@ impl Vicp {
 }
 
 impl CellProjector for Vicp {
-    fn method(&self) -> Method {
-        Method::Vicp
-    }
     fn cells(&self) -> usize {
         self.cells
     }

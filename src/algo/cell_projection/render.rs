@@ -1,0 +1,316 @@
+//! What VICP and balanced cell projection share as methods of the registry:
+//! their options, the sweeps they take part in, and [`CellProjection`], the
+//! `RenderMethod` that owns the integration tables, the visibility sort and
+//! one [`CellProjector`] (the part that differs: what crosses per frame and
+//! where IntersectBackFace runs). A frame is sort + pack on the CPU
+//! (`prepare`), the counted copy (`upload`) and one draw into the target.
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use anyhow::{Context as _, Result};
+use clap::ValueEnum;
+use serde_json::json;
+
+use super::mpvo::MpvoSort;
+use super::sort::{CentroidSort, SortKind, Sorter};
+use super::{centroids_relative_f32, render_origin, CellProjector, ExitTolerances, FrameSetup, Interpolation, MeshScale};
+use crate::algo::integrate::{IntegrationTables, Integrator};
+use crate::algo::method::{MethodInputs, OptionSpec, OptionValues, Options, Phases, RenderMethod, SceneData, View, Work};
+use crate::mesh::{TetGeometry, TetMesh};
+use crate::vk::{CommandRecorder, Context, Image, UploadCounter, VkResult};
+
+/// The options both cell-projection methods take.
+pub const OPTIONS: &[OptionSpec] = &[
+    OptionSpec {
+        name: "integrator",
+        default: "ppi",
+        unit: "",
+        values: OptionValues::Choice { values: &["average", "preint", "ppi", "linear-exact"] },
+        build_time: true,
+        help: "how the fragment stage integrates a cell's segment (see README: integrators)",
+    },
+    OptionSpec {
+        name: "table_size",
+        default: "0",
+        unit: "samples per side",
+        values: OptionValues::Int { min: 0, max: 4096 },
+        build_time: false,
+        help: "side of the integrator's table; 0 = its default (ppi 512, preint 128 with 32 lengths)",
+    },
+    OptionSpec {
+        name: "sort",
+        default: "centroid",
+        unit: "",
+        values: OptionValues::Choice { values: &["centroid", "mpvo"] },
+        build_time: false,
+        help: "visibility order: centroid distance (radix sort) or MPVO from face adjacency",
+    },
+    OptionSpec {
+        name: "interpolation",
+        default: "exact",
+        unit: "",
+        values: OptionValues::Choice { values: &["exact", "paper"] },
+        build_time: true,
+        help: "exit data across a face under perspective: exact (plane ratio), or as the papers do",
+    },
+    OptionSpec {
+        name: "distance_clamp",
+        default: "1000",
+        unit: "mesh diagonals",
+        values: OptionValues::Float { min: 1.0, max: 1e6 },
+        build_time: false,
+        help: "clamp of vertex ray-plane distances (planes nearly parallel to the ray)",
+    },
+    OptionSpec {
+        name: "plane_ratio_max",
+        default: "1000",
+        unit: "",
+        values: OptionValues::Float { min: 1.0, max: 1e6 },
+        build_time: false,
+        help: "clamp of the plane ratio u = h/e (exact interpolation)",
+    },
+    OptionSpec {
+        name: "edge_eps",
+        default: "0",
+        unit: "barycentric weight",
+        values: OptionValues::Float { min: 0.0, max: 0.1 },
+        build_time: false,
+        help: "a plane whose weight is below this is an exit at distance 0 (off: drops grazing segments)",
+    },
+];
+
+/// The run-time-against-error sweep: every integrator (tables at three
+/// sizes for ppi) under both interpolations and both sorts.
+pub const SWEEP: &[&str] = &[
+    "integrator=average,interpolation=paper,sort=centroid",
+    "integrator=preint,table_size=128,interpolation=paper,sort=centroid",
+    "integrator=ppi,table_size=128,interpolation=paper,sort=centroid",
+    "integrator=ppi,table_size=512,interpolation=paper,sort=centroid",
+    "integrator=ppi,table_size=1024,interpolation=paper,sort=centroid",
+    "integrator=linear-exact,interpolation=paper,sort=centroid",
+    "integrator=average,interpolation=paper,sort=mpvo",
+    "integrator=preint,table_size=128,interpolation=paper,sort=mpvo",
+    "integrator=ppi,table_size=128,interpolation=paper,sort=mpvo",
+    "integrator=ppi,table_size=512,interpolation=paper,sort=mpvo",
+    "integrator=ppi,table_size=1024,interpolation=paper,sort=mpvo",
+    "integrator=linear-exact,interpolation=paper,sort=mpvo",
+    "integrator=average,interpolation=exact,sort=centroid",
+    "integrator=preint,table_size=128,interpolation=exact,sort=centroid",
+    "integrator=ppi,table_size=128,interpolation=exact,sort=centroid",
+    "integrator=ppi,table_size=512,interpolation=exact,sort=centroid",
+    "integrator=ppi,table_size=1024,interpolation=exact,sort=centroid",
+    "integrator=linear-exact,interpolation=exact,sort=centroid",
+    "integrator=average,interpolation=exact,sort=mpvo",
+    "integrator=preint,table_size=128,interpolation=exact,sort=mpvo",
+    "integrator=ppi,table_size=128,interpolation=exact,sort=mpvo",
+    "integrator=ppi,table_size=512,interpolation=exact,sort=mpvo",
+    "integrator=ppi,table_size=1024,interpolation=exact,sort=mpvo",
+    "integrator=linear-exact,interpolation=exact,sort=mpvo",
+];
+
+/// `compare` shows the accurate default beside the papers' interpolation,
+/// so the documented methods are still reproduced side by side.
+pub const COMPARE: &[&str] = &["", "interpolation=paper"];
+
+/// The stress suite: every integrator, interpolation and sort.
+pub const STRESS: &[&str] = &[
+    "integrator=average,interpolation=paper,sort=centroid",
+    "integrator=preint,interpolation=paper,sort=centroid",
+    "integrator=ppi,interpolation=paper,sort=centroid",
+    "integrator=linear-exact,interpolation=paper,sort=centroid",
+    "integrator=average,interpolation=exact,sort=centroid",
+    "integrator=preint,interpolation=exact,sort=centroid",
+    "integrator=ppi,interpolation=exact,sort=centroid",
+    "integrator=linear-exact,interpolation=exact,sort=centroid",
+    "integrator=average,interpolation=paper,sort=mpvo",
+    "integrator=preint,interpolation=paper,sort=mpvo",
+    "integrator=ppi,interpolation=paper,sort=mpvo",
+    "integrator=linear-exact,interpolation=paper,sort=mpvo",
+    "integrator=average,interpolation=exact,sort=mpvo",
+    "integrator=preint,interpolation=exact,sort=mpvo",
+    "integrator=ppi,interpolation=exact,sort=mpvo",
+    "integrator=linear-exact,interpolation=exact,sort=mpvo",
+];
+
+/// Where the published cell-projection figures come from.
+pub const THESIS_TABLE_6_3: &str = "Moreland, PhD thesis 2004, Table 6.3 (Quadro FX 3000, 800x800)";
+
+/// A `ValueEnum` from an option's text (the option was validated against
+/// the same names, so a miss is a programming error reported as such).
+pub fn enum_option<T: ValueEnum>(options: &Options, name: &str) -> Result<T> {
+    let text = options.text(name)?;
+    T::from_str(&text, false).map_err(|_| anyhow::anyhow!("option '{name}': unknown value '{text}'"))
+}
+
+/// The typed settings of a cell-projection run, from its options.
+#[derive(Debug, Clone, Copy)]
+pub struct Settings {
+    pub integrator: Integrator,
+    pub table_size: usize,
+    pub sort: SortKind,
+    pub interpolation: Interpolation,
+    pub tolerances: ExitTolerances,
+}
+
+impl Settings {
+    pub fn from_options(options: &Options) -> Result<Self> {
+        let integrator: Integrator = enum_option(options, "integrator")?;
+        let table_size = options.int("table_size")? as usize;
+        crate::algo::integrate::check_table_size(integrator, table_size)?;
+        Ok(Settings {
+            integrator,
+            table_size,
+            sort: enum_option(options, "sort")?,
+            interpolation: enum_option(options, "interpolation")?,
+            tolerances: ExitTolerances {
+                distance_clamp_diagonals: options.float("distance_clamp")?,
+                plane_ratio_max: options.float("plane_ratio_max")? as f32,
+                edge_eps: options.float("edge_eps")? as f32,
+            },
+        })
+    }
+}
+
+/// Builds one projector; the two methods differ only here.
+pub type ProjectorBuilder = fn(
+    &Arc<Context>,
+    &TetMesh,
+    &TetGeometry,
+    &IntegrationTables,
+    Interpolation,
+    &mut UploadCounter,
+) -> VkResult<Box<dyn CellProjector>>;
+
+/// Bytes a projector needs on the device per cell: per-frame records in one
+/// allocation, plus static data (checked before anything is allocated).
+#[derive(Debug, Clone, Copy)]
+pub struct DeviceBytesPerCell {
+    pub frame: usize,
+    pub fixed: usize,
+}
+
+/// Cell projection as a registry method.
+pub struct CellProjection {
+    tables: IntegrationTables,
+    projector: Box<dyn CellProjector>,
+    sorter: Sorter,
+    scale: MeshScale,
+    settings: Settings,
+    /// A centroid sort and MPVO's constraints for the order diagnostics
+    /// (built only when the run asks for diagnostics).
+    check: Option<(CentroidSort, MpvoSort)>,
+    prepared: Option<FrameSetup>,
+    mesh_stats: crate::mesh::MeshStats,
+}
+
+impl CellProjection {
+    pub fn create(inputs: MethodInputs, bytes: DeviceBytesPerCell, build: ProjectorBuilder) -> Result<Box<dyn RenderMethod>> {
+        let SceneData::TetMesh { mesh, geometry } = inputs.data;
+        let settings = Settings::from_options(inputs.options)?;
+        let ctx = inputs.ctx;
+        // Refuse meshes the device cannot hold before allocating anything.
+        let info = &ctx.info;
+        crate::mesh::check_fits(mesh.tets.len(), bytes.frame, info.max_memory_allocation_size)
+            .and_then(|()| crate::mesh::check_fits(mesh.tets.len(), bytes.frame + bytes.fixed, info.device_local_heap_bytes))
+            .with_context(|| format!("mesh '{}' on {}", mesh.name, info.name))?;
+        // A typical cell size: the bounding box shared out among the cells.
+        let length_scale = mesh.bounds().diagonal() / (mesh.tets.len().max(1) as f64).cbrt();
+        let tables = IntegrationTables::new(
+            ctx,
+            inputs.tf,
+            mesh.scalar_range(),
+            settings.integrator,
+            settings.table_size,
+            length_scale,
+            inputs.counter,
+        )
+        .context("building the integration tables")?;
+        let projector = build(ctx, mesh, geometry, &tables, settings.interpolation, inputs.counter)?;
+        let sorter = Sorter::new(settings.sort, mesh, geometry);
+        let origin = render_origin(mesh);
+        let check = inputs.diagnostics.then(|| {
+            (CentroidSort::with_origin(centroids_relative_f32(geometry, origin), origin), MpvoSort::new(mesh, geometry))
+        });
+        Ok(Box::new(CellProjection {
+            tables,
+            projector,
+            sorter,
+            scale: MeshScale::of(mesh),
+            settings,
+            check,
+            prepared: None,
+            mesh_stats: mesh.stats.clone(),
+        }))
+    }
+
+    fn frame_setup(&self, view: &View) -> FrameSetup {
+        FrameSetup::new(
+            &view.camera,
+            view.width,
+            view.height,
+            &self.tables,
+            &self.scale,
+            self.settings.interpolation,
+            &self.settings.tolerances,
+        )
+    }
+}
+
+fn ms(d: std::time::Duration) -> f64 {
+    d.as_secs_f64() * 1e3
+}
+
+impl RenderMethod for CellProjection {
+    fn prepare(&mut self, view: &View, phases: &mut Phases) -> Result<()> {
+        let setup = self.frame_setup(view);
+        let t0 = Instant::now();
+        let order = self.sorter.sort(&view.camera);
+        let t1 = Instant::now();
+        self.projector.pack(order, &setup);
+        let t2 = Instant::now();
+        phases.add("sort", ms(t1 - t0));
+        phases.add("pack", ms(t2 - t1));
+        self.prepared = Some(setup);
+        Ok(())
+    }
+
+    fn upload(&mut self, counter: &mut UploadCounter) -> Result<()> {
+        self.projector.upload(counter).context("uploading vertex records")
+    }
+
+    fn record(&mut self, rec: &CommandRecorder, target: &Image, _view: &View, counter: &mut UploadCounter) -> Result<()> {
+        let setup = self.prepared.take().context("record without a prepared frame")?;
+        rec.begin_rendering(target, [0.0; 4]);
+        self.projector.record_draw(rec, &self.tables, &setup, counter);
+        rec.end_rendering();
+        Ok(())
+    }
+
+    fn work(&self) -> Work {
+        Work::default().with("cells", self.projector.cells() as u64)
+    }
+
+    fn details(&self) -> serde_json::Value {
+        json!({
+            "family": "cell-projection",
+            "vertices_per_cell": self.projector.vertices_per_cell(),
+            "floats_per_cell_by_construction": self.projector.floats_per_cell(),
+            "table_size": self.tables.table_size,
+            "tolerances": self.settings.tolerances,
+            "mesh_stats": self.mesh_stats,
+        })
+    }
+
+    /// How many of MPVO's face constraints the centroid order of this view
+    /// violates (costs an MPVO build; `volbench compare`, `pareto`).
+    fn diagnostics(&mut self, view: &View) -> Result<Option<serde_json::Value>> {
+        let Some((centroid, mpvo)) = self.check.as_mut() else { return Ok(None) };
+        let order = centroid.sort(&view.camera).to_vec();
+        Ok(Some(json!({ "centroid_order": mpvo.check_order(&order, &view.camera) })))
+    }
+
+    fn table_build_ms(&self) -> f64 {
+        self.tables.build_ms
+    }
+}
