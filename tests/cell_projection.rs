@@ -5,12 +5,13 @@
 
 use std::sync::{Arc, Mutex, OnceLock};
 
-use volbench::algo::cell_projection::{balanced, vicp, ExitTolerances, Interpolation, Method};
+use volbench::algo::cell_projection::{balanced, vicp, ExitTolerances};
 use volbench::algo::integrate::{PSI_TABLE_SIZE, TF_TABLE_SIZE};
-use volbench::harness::datasets;
-use volbench::harness::run::{run_cell_projection, RunConfig, RunOutput, Scene};
+use volbench::algo::registry;
+use volbench::harness::datasets::{self, Dataset};
+use volbench::harness::run::{run as run_method, RunConfig, RunOutput};
 use volbench::mesh::split::hex_grid_to_tets;
-use volbench::mesh::{TetGeometry, TetMesh};
+use volbench::mesh::TetMesh;
 use volbench::scene::{Camera, Projection, TransferFunction};
 use volbench::vk::{Context, ContextDesc};
 
@@ -26,21 +27,22 @@ fn context() -> std::sync::MutexGuard<'static, Arc<Context>> {
     .unwrap_or_else(|p| p.into_inner())
 }
 
-fn run(mesh: &TetMesh, tf: &TransferFunction, cfg: &RunConfig) -> RunOutput {
-    let geometry = TetGeometry::compute(mesh);
+/// Run the method `spec` (`name:key=value,...`) on `mesh`.
+fn run(mesh: &TetMesh, tf: &TransferFunction, spec: &str, cfg: &RunConfig) -> RunOutput {
+    let dataset = Dataset::from_mesh(mesh.clone(), false, "test".into());
+    let spec = registry::builtin().parse_spec(spec, &[]).expect("spec");
     let ctx = context();
-    let out = run_cell_projection(&ctx, &Scene { mesh, geometry: &geometry, tf }, cfg).expect("run");
+    let out = run_method(&ctx, &spec, &dataset, tf, cfg).expect("run");
     assert!(ctx.validation_messages().is_empty(), "{:?}", ctx.validation_messages());
     out
 }
 
-fn small_config(method: Method, size: u32) -> RunConfig {
-    let mut cfg = RunConfig::new(method);
-    cfg.width = size;
-    cfg.height = size;
-    cfg.frames = 2;
-    cfg.warmup = 1;
-    cfg
+fn small_config(size: u32) -> RunConfig {
+    RunConfig { width: size, height: size, frames: 2, warmup: 1, ..RunConfig::default() }
+}
+
+fn preset(mesh: &TetMesh, name: &str) -> TransferFunction {
+    datasets::mesh_transfer_function(mesh, Some(name))
 }
 
 // The TF table (vec4 per entry) and the Psi table as 4-corner quads per cell.
@@ -50,13 +52,13 @@ const PUSH_CONSTANT_BYTES: u64 = 128;
 #[test]
 fn measured_bytes_per_tet_match_the_paper() {
     let mesh = datasets::load_mesh("post-small").unwrap();
-    let tf = datasets::default_transfer_function(&mesh);
+    let tf = preset(&mesh, "post-small");
     let n = mesh.tets.len() as u64;
-    for (method, floats, static_cells) in [(Method::Vicp, 132u64, 0u64), (Method::Balanced, 28, 7 * 4)] {
-        let r = run(&mesh, &tf, &small_config(method, 64)).result;
-        assert_eq!(r.cells as u64, n);
-        assert_eq!(r.upload.floats_per_cell, floats as f64, "{method:?}");
-        assert_eq!(r.upload.bytes_per_cell, 4.0 * floats as f64);
+    for (method, floats, static_cells) in [("vicp", 132u64, 0u64), ("balanced", 28, 7 * 4)] {
+        let r = run(&mesh, &tf, method, &small_config(64)).result;
+        assert_eq!(r.work.counts["cells"], n);
+        assert_eq!(r.upload.floats_per_cell, Some(floats as f64), "{method:?}");
+        assert_eq!(r.upload.bytes_per_cell, Some(4.0 * floats as f64));
         assert_eq!(r.upload.cell_bytes_per_frame, 4 * floats * n);
         // Per frame: the cell records plus the push constants, nothing else;
         // in particular not the balanced index buffer.
@@ -81,10 +83,10 @@ fn layouts_are_as_documented() {
 #[test]
 fn work_counts_per_tet() {
     let mesh = datasets::load_mesh("post-small").unwrap();
-    let tf = datasets::default_transfer_function(&mesh);
+    let tf = preset(&mesh, "post-small");
     let n = mesh.tets.len() as u64;
-    let v = run(&mesh, &tf, &small_config(Method::Vicp, 64)).result;
-    let b = run(&mesh, &tf, &small_config(Method::Balanced, 64)).result;
+    let v = run(&mesh, &tf, "vicp", &small_config(64)).result;
+    let b = run(&mesh, &tf, "balanced", &small_config(64)).result;
     let (vs, bs) = (v.stats.expect("pipeline statistics"), b.stats.expect("pipeline statistics"));
     // 4 triangles per tet either way.
     assert_eq!(vs.input_primitives, 4 * n);
@@ -100,15 +102,12 @@ fn work_counts_per_tet() {
     assert_eq!(v.image.covered_pixels, b.image.covered_pixels);
 }
 
-fn assert_methods_agree(mesh_name: &str, projection: Projection, interpolation: Interpolation) {
+fn assert_methods_agree(mesh_name: &str, projection: Projection, interpolation: &str) {
     let mesh = datasets::load_mesh(mesh_name).unwrap();
-    let tf = datasets::default_transfer_function(&mesh);
-    let mut cfg = small_config(Method::Vicp, 128);
-    cfg.projection = projection;
-    cfg.interpolation = interpolation;
-    let v = run(&mesh, &tf, &cfg);
-    cfg.method = Method::Balanced;
-    let b = run(&mesh, &tf, &cfg);
+    let tf = preset(&mesh, mesh_name);
+    let cfg = RunConfig { projection, ..small_config(128) };
+    let v = run(&mesh, &tf, &format!("vicp:interpolation={interpolation}"), &cfg);
+    let b = run(&mesh, &tf, &format!("balanced:interpolation={interpolation}"), &cfg);
     let e = v.image.compare(&b.image).unwrap();
     assert!(e.rmse <= 1e-3, "{mesh_name}: RMSE {} between VICP and balanced", e.rmse);
     assert!(v.image.covered_pixels() > 1000, "{mesh_name}: the mesh should fill part of the image");
@@ -117,14 +116,14 @@ fn assert_methods_agree(mesh_name: &str, projection: Projection, interpolation: 
 
 #[test]
 fn methods_agree_on_post_small() {
-    assert_methods_agree("post-small", Projection::Perspective { fovy_deg: 30.0 }, Interpolation::Paper);
-    assert_methods_agree("post-small", Projection::Orthographic { height: 1.0 }, Interpolation::Paper);
-    assert_methods_agree("post-small", Projection::Perspective { fovy_deg: 30.0 }, Interpolation::Exact);
+    assert_methods_agree("post-small", Projection::Perspective { fovy_deg: 30.0 }, "paper");
+    assert_methods_agree("post-small", Projection::Orthographic { height: 1.0 }, "paper");
+    assert_methods_agree("post-small", Projection::Perspective { fovy_deg: 30.0 }, "exact");
 }
 
 #[test]
 fn methods_agree_on_bluntfin() {
-    assert_methods_agree("bluntfin", Projection::Perspective { fovy_deg: 30.0 }, Interpolation::Paper);
+    assert_methods_agree("bluntfin", Projection::Perspective { fovy_deg: 30.0 }, "paper");
 }
 
 /// A unit cube of constant scalar split into 2x2x2 hexes (40 tets).
@@ -158,10 +157,9 @@ fn homogeneous_cube_matches_the_analytic_answer() {
         far: 10.0,
     };
     let expected_alpha = 1.0 - (-tau as f64).exp();
-    for method in [Method::Vicp, Method::Balanced] {
-        let mut cfg = small_config(method, 64);
-        cfg.fixed_camera = Some(camera);
-        let out = run(&mesh, &tf, &cfg);
+    for method in ["vicp", "balanced"] {
+        let cfg = RunConfig { fixed_camera: Some(camera), ..small_config(64) };
+        let out = run(&mesh, &tf, method, &cfg);
         // Pixel centres 16..47 on both axes lie inside the cube's image; the
         // cube's edges fall exactly between pixels.
         assert_eq!(out.image.covered_pixels(), 32 * 32, "{method:?}");
@@ -182,7 +180,7 @@ fn homogeneous_cube_matches_the_analytic_answer() {
 
 /// Alpha error against the exact ray/box answer for the unit cube of
 /// homogeneous medium seen in strong perspective: (rmse, max).
-fn perspective_cube_error(method: Method, interpolation: Interpolation, edge_eps: f32) -> (f64, f64) {
+fn perspective_cube_error(method: &str, interpolation: &str, edge_eps: f32) -> (f64, f64) {
     let mesh = unit_cube();
     let tau = 2.0;
     let tf = TransferFunction::constant([1.0, 1.0, 1.0], tau);
@@ -195,11 +193,8 @@ fn perspective_cube_error(method: Method, interpolation: Interpolation, edge_eps
         far: 10.0,
     };
     let size = 96u32;
-    let mut cfg = small_config(method, size);
-    cfg.fixed_camera = Some(camera);
-    cfg.interpolation = interpolation;
-    cfg.tolerances.edge_eps = edge_eps;
-    let out = run(&mesh, &tf, &cfg);
+    let cfg = RunConfig { fixed_camera: Some(camera), ..small_config(size) };
+    let out = run(&mesh, &tf, &format!("{method}:interpolation={interpolation},edge_eps={edge_eps}"), &cfg);
     let (mut max_err, mut sum_sq, mut checked) = (0f64, 0f64, 0);
     for y in 0..size {
         for x in 0..size {
@@ -236,8 +231,8 @@ fn perspective_cube_error(method: Method, interpolation: Interpolation, edge_eps
 /// the one held to a tight bound.
 #[test]
 fn homogeneous_cube_under_perspective_paper_interpolation() {
-    for method in [Method::Vicp, Method::Balanced] {
-        let (rmse, max) = perspective_cube_error(method, Interpolation::Paper, ExitTolerances::default().edge_eps);
+    for method in ["vicp", "balanced"] {
+        let (rmse, max) = perspective_cube_error(method, "paper", ExitTolerances::default().edge_eps);
         assert!(rmse < 0.07 && max < 0.6, "{method:?}: alpha error rmse {rmse} max {max}");
         assert!(rmse > 1e-3, "{method:?}: the paper's interpolation is not exact under perspective");
     }
@@ -247,8 +242,8 @@ fn homogeneous_cube_under_perspective_paper_interpolation() {
 /// matches 1 - exp(-tau * thickness) to f32 accuracy.
 #[test]
 fn homogeneous_cube_under_perspective_exact_interpolation() {
-    for method in [Method::Vicp, Method::Balanced] {
-        let (rmse, max) = perspective_cube_error(method, Interpolation::Exact, 0.0);
+    for method in ["vicp", "balanced"] {
+        let (rmse, max) = perspective_cube_error(method, "exact", 0.0);
         assert!(max < 1e-4, "{method:?}: alpha error rmse {rmse} max {max}");
     }
 }
@@ -260,8 +255,8 @@ fn homogeneous_cube_under_perspective_exact_interpolation() {
 #[test]
 fn edge_epsilon_drops_cells_at_pixels_on_edges() {
     assert_eq!(ExitTolerances::default().edge_eps, 0.0);
-    for method in [Method::Vicp, Method::Balanced] {
-        let (rmse, max) = perspective_cube_error(method, Interpolation::Exact, 1e-5);
+    for method in ["vicp", "balanced"] {
+        let (rmse, max) = perspective_cube_error(method, "exact", 1e-5);
         assert!(max > 1e-2, "{method:?}: expected dropped cells, max error {max}");
         assert!(rmse < 5e-3 && max < 0.25, "{method:?}: alpha error rmse {rmse} max {max}");
     }
@@ -301,10 +296,8 @@ fn integrators_on_a_linear_ramp_against_the_reference() {
     };
     let mut errors = Vec::new();
     for integrator in [Integrator::Average, Integrator::Preint, Integrator::Ppi, Integrator::LinearExact] {
-        let mut cfg = small_config(Method::Balanced, size);
-        cfg.fixed_camera = Some(camera);
-        cfg.integrator = integrator;
-        let out = run(&mesh, &tf, &cfg);
+        let cfg = RunConfig { fixed_camera: Some(camera), ..small_config(size) };
+        let out = run(&mesh, &tf, &format!("balanced:integrator={}", integrator.name()), &cfg);
         let e = out.image.compare(&reference).unwrap();
         errors.push((integrator, e.rmse, e.max_abs));
     }

@@ -7,9 +7,7 @@
 
 use std::sync::{Arc, Mutex, OnceLock};
 
-use volbench::algo::cell_projection::sort::SortKind;
-use volbench::algo::cell_projection::{Interpolation, Method};
-use volbench::algo::integrate::Integrator;
+use volbench::algo::registry;
 use volbench::harness::stress::{self, StressCase, StressConfig, StressReport, StressRow};
 use volbench::mesh::TetGeometry;
 use volbench::vk::{Context, ContextDesc};
@@ -52,20 +50,23 @@ fn assert_all_pass(rows: &[StressRow]) {
     assert!(bad.is_empty(), "{} of {} stress rows fail:\n{}", bad.len(), rows.len(), stress::stress_table(&bad));
 }
 
-fn config(
-    methods: &[Method],
-    integrators: &[Integrator],
-    interpolations: &[Interpolation],
-    sorts: &[SortKind],
-) -> StressConfig {
-    StressConfig {
-        size: SIZE,
-        methods: methods.to_vec(),
-        integrators: integrators.to_vec(),
-        interpolations: interpolations.to_vec(),
-        sorts: sorts.to_vec(),
+/// Every combination of the given methods and option values.
+fn config(methods: &[&str], integrators: &[&str], interpolations: &[&str], sorts: &[&str]) -> StressConfig {
+    let r = registry::builtin();
+    let mut specs = Vec::new();
+    for m in methods {
+        for i in integrators {
+            for p in interpolations {
+                for s in sorts {
+                    specs.push(r.parse_spec(&format!("{m}:integrator={i},interpolation={p},sort={s}"), &[]).unwrap());
+                }
+            }
+        }
     }
+    StressConfig { size: SIZE, specs }
 }
+
+const INTEGRATORS: [&str; 4] = ["average", "preint", "ppi", "linear-exact"];
 
 // ---------------------------------------------------------------------------
 // The generators (no GPU)
@@ -155,9 +156,11 @@ fn report_is_json_with_a_cases_array() {
     let row = StressRow {
         case: "baseline".into(),
         method: "vicp",
-        integrator: "ppi",
-        interpolation: "exact",
-        sort: "centroid",
+        options: "integrator=ppi,interpolation=exact,sort=centroid".into(),
+        integrator: "ppi".into(),
+        interpolation: "exact".into(),
+        sort: "centroid".into(),
+        error: None,
         nan_pixels: 0,
         inf_pixels: 0,
         max_abs_error: 3e-5,
@@ -200,7 +203,7 @@ fn report_is_json_with_a_cases_array() {
 fn every_case_every_integrator_is_finite_and_within_bounds() {
     let rows = run(
         &cases(),
-        &config(&[Method::Balanced], &stress::INTEGRATORS, &[Interpolation::Exact], &[SortKind::Centroid]),
+        &config(&["balanced"], &INTEGRATORS, &["exact"], &["centroid"]),
     );
     assert_all_pass(&rows);
 }
@@ -211,12 +214,7 @@ fn every_case_every_integrator_is_finite_and_within_bounds() {
 fn every_case_vicp_and_paper_interpolation() {
     let rows = run(
         &cases(),
-        &config(
-            &[Method::Vicp],
-            &[Integrator::Ppi],
-            &[Interpolation::Paper, Interpolation::Exact],
-            &[SortKind::Centroid],
-        ),
+        &config(&["vicp"], &["ppi"], &["paper", "exact"], &["centroid"]),
     );
     assert_all_pass(&rows);
     // Both methods compute the same thing: VICP's rows meet the same bounds,
@@ -233,7 +231,7 @@ fn mpvo_order_meets_the_accuracy_bound_where_centroid_does_not() {
     let selected: Vec<StressCase> = cases().into_iter().filter(|c| names.contains(&c.name.as_str())).collect();
     let rows = run(
         &selected,
-        &config(&[Method::Balanced], &[Integrator::LinearExact], &[Interpolation::Exact], &[SortKind::Mpvo]),
+        &config(&["balanced"], &["linear-exact"], &["exact"], &["mpvo"]),
     );
     assert_all_pass(&rows);
     for r in &rows {
@@ -253,7 +251,7 @@ fn full_stress_table() {
     }
     println!("{}", stress::describe_cases(size));
     let t = std::time::Instant::now();
-    let rows = run(&cases, &StressConfig::full(size));
+    let rows = run(&cases, &StressConfig::full(&registry::builtin(), size).unwrap());
     println!("{}", stress::stress_table(&rows));
     println!("{} renders at {size}x{size} in {:.1} s", rows.len(), t.elapsed().as_secs_f64());
     assert_all_pass(&rows);

@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use volbench::harness::datasets::{default_transfer_function, load_mesh};
+use volbench::harness::datasets::{load_mesh, mesh_transfer_function};
 use volbench::mesh::{MeshStats, TetMesh};
 use volbench::scene::tf_file::{load_tf, parse_tf, preset_path, to_json, JsonUnits};
 use volbench::scene::{ControlPoint, TransferFunction};
@@ -51,13 +51,13 @@ fn presets_reproduce_the_builtin_transfer_functions() {
         assert_eq!(path, tf_dir().join(format!("{name}.json")));
         // On the real mesh (scalar range and diagonal as the harness sees them).
         let mesh = load_mesh(name).unwrap();
-        let builtin = default_transfer_function(&mesh);
+        let builtin = mesh_transfer_function(&mesh, Some(&mesh.name));
         let loaded = load_tf(&path, mesh.scalar_range(), mesh.bounds().diagonal()).unwrap();
         assert_tf_close(&loaded, &builtin, 1e-12);
         // And on made-up ranges and sizes.
         for (lo, hi, size) in [(0.0, 1.0, 1.0), (-3.5, 7.25, 1e-3), (100.0, 100.5, 250.0)] {
             let m = fake_mesh(name, lo, hi, size);
-            let builtin = default_transfer_function(&m);
+            let builtin = mesh_transfer_function(&m, Some(&m.name));
             let loaded = load_tf(&path, m.scalar_range(), m.bounds().diagonal()).unwrap();
             assert_tf_close(&loaded, &builtin, 1e-12);
         }
@@ -130,7 +130,7 @@ fn json_round_trips() {
 
     // The presets written back relative to their mesh and read again.
     let mesh = fake_mesh("bluntfin", 0.193, 4.978, 2.0);
-    let builtin = default_transfer_function(&mesh);
+    let builtin = mesh_transfer_function(&mesh, Some(&mesh.name));
     let units = JsonUnits::RelativeTo { scalar_range: mesh.scalar_range(), mesh_diagonal: mesh.bounds().diagonal() };
     let back =
         parse_tf(&to_json(&builtin, units).unwrap(), "mem", "mem", mesh.scalar_range(), mesh.bounds().diagonal())

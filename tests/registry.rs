@@ -1,0 +1,250 @@
+//! The method contract from the outside: a test-only method (a solid-colour
+//! bounding box) registered here, and nowhere in the harness, runs through
+//! the runner, `compare` and a `pareto` sweep; every JSON they write
+//! validates against the committed schema; a failing row does not stop a
+//! sweep; unknown and inapplicable options are errors.
+
+use std::sync::{Arc, Mutex, OnceLock};
+
+use anyhow::Result;
+use ash::vk as raw;
+
+use volbench::algo::method::{
+    DataKind, MethodInfo, MethodInputs, OptionSpec, OptionValues, Phases, RenderMethod, SceneData, View, Work,
+};
+use volbench::algo::registry::{self, Registry};
+use volbench::harness::datasets;
+use volbench::harness::run::{run, RunConfig};
+use volbench::harness::sweep;
+use volbench::vk::{
+    compile_glsl, Blend, CommandRecorder, Context, ContextDesc, GraphicsPipelineDesc, Image, Pipeline, ShaderModule,
+    ShaderStage, UploadCounter,
+};
+
+fn context() -> std::sync::MutexGuard<'static, Arc<Context>> {
+    static CTX: OnceLock<Mutex<Arc<Context>>> = OnceLock::new();
+    CTX.get_or_init(|| Mutex::new(Context::new(&ContextDesc { device: None, validation: true }).expect("a Vulkan device")))
+        .lock()
+        .unwrap_or_else(|p| p.into_inner())
+}
+
+const BOX_VERT: &str = "#version 450
+layout(push_constant) uniform P { mat4 view_proj; vec4 lo; vec4 hi; vec4 color; } pc;
+// 36 vertices: the 12 triangles of the unit cube.
+const int IDX[36] = int[36](0,1,3, 0,3,2, 4,6,7, 4,7,5, 0,4,5, 0,5,1, 2,3,7, 2,7,6, 0,2,6, 0,6,4, 1,5,7, 1,7,3);
+void main() {
+    int c = IDX[gl_VertexIndex];
+    vec3 t = vec3(c & 1, (c >> 1) & 1, (c >> 2) & 1);
+    gl_Position = pc.view_proj * vec4(mix(pc.lo.xyz, pc.hi.xyz, t), 1.0);
+}";
+const BOX_FRAG: &str = "#version 450
+layout(push_constant) uniform P { mat4 view_proj; vec4 lo; vec4 hi; vec4 color; } pc;
+layout(location = 0) out vec4 out_color;
+void main() { out_color = pc.color; }";
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct BoxConstants {
+    view_proj: [[f32; 4]; 4],
+    lo: [f32; 4],
+    hi: [f32; 4],
+    color: [f32; 4],
+}
+
+/// Draws the dataset's bounding box in one colour (the `shade` option).
+struct SolidBox {
+    pipeline: Pipeline,
+    lo: [f64; 3],
+    hi: [f64; 3],
+    shade: f32,
+    prepared: Option<BoxConstants>,
+}
+
+fn create_box(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
+    let SceneData::TetMesh { mesh, .. } = inputs.data;
+    let source = |p: &str| match p {
+        "box.vert" => Some(BOX_VERT),
+        "box.frag" => Some(BOX_FRAG),
+        _ => None,
+    };
+    let vs = compile_glsl("box.vert", ShaderStage::Vertex, &[], &source)?;
+    let fs = compile_glsl("box.frag", ShaderStage::Fragment, &[], &source)?;
+    let vs = ShaderModule::new(inputs.ctx, "box.vert", ShaderStage::Vertex, &vs)?;
+    let fs = ShaderModule::new(inputs.ctx, "box.frag", ShaderStage::Fragment, &fs)?;
+    let pipeline = Pipeline::graphics(
+        inputs.ctx,
+        &GraphicsPipelineDesc {
+            name: "solid box",
+            vertex: &vs,
+            fragment: &fs,
+            vertex_stride: 0,
+            attributes: &[],
+            topology: raw::PrimitiveTopology::TRIANGLE_LIST,
+            primitive_restart: false,
+            cull: raw::CullModeFlags::NONE,
+            front_face: raw::FrontFace::COUNTER_CLOCKWISE,
+            blend: Blend::PremultipliedOver,
+            push_constant_bytes: std::mem::size_of::<BoxConstants>() as u32,
+            descriptor_layout: None,
+        },
+    )?;
+    let b = mesh.bounds();
+    Ok(Box::new(SolidBox { pipeline, lo: b.min, hi: b.max, shade: inputs.options.float("shade")? as f32, prepared: None }))
+}
+
+impl RenderMethod for SolidBox {
+    fn prepare(&mut self, view: &View, phases: &mut Phases) -> Result<()> {
+        let vp = view.camera.view_proj(view.width, view.height).to_cols_array_2d();
+        let f = |v: [f64; 3]| [v[0] as f32, v[1] as f32, v[2] as f32, 1.0];
+        // Drawn once per pixel where front and back faces overlap: alpha
+        // 0.5 twice composites to 0.75.
+        let s = self.shade;
+        self.prepared =
+            Some(BoxConstants { view_proj: vp.map(|c| c.map(|x| x as f32)), lo: f(self.lo), hi: f(self.hi), color: [s * 0.5, 0.0, 0.0, 0.5] });
+        phases.add("box_setup", 0.0);
+        Ok(())
+    }
+    fn upload(&mut self, _counter: &mut UploadCounter) -> Result<()> {
+        Ok(())
+    }
+    fn record(&mut self, rec: &CommandRecorder, target: &Image, _view: &View, counter: &mut UploadCounter) -> Result<()> {
+        let c = self.prepared.take().ok_or_else(|| anyhow::anyhow!("not prepared"))?;
+        rec.begin_rendering(target, [0.0; 4]);
+        rec.bind_pipeline(&self.pipeline, None);
+        rec.push_constants(&self.pipeline, bytemuck::bytes_of(&c), counter);
+        rec.draw(36);
+        rec.end_rendering();
+        Ok(())
+    }
+    fn work(&self) -> Work {
+        Work::default().with("triangles", 12)
+    }
+    fn details(&self) -> serde_json::Value {
+        serde_json::json!({ "family": "test-box" })
+    }
+}
+
+const BOX_OPTIONS: &[OptionSpec] = &[OptionSpec {
+    name: "shade",
+    default: "1",
+    unit: "",
+    values: OptionValues::Float { min: 0.0, max: 1.0 },
+    build_time: false,
+    help: "red intensity",
+}];
+
+const SOLID_BOX: MethodInfo = MethodInfo {
+    name: "test-solid-box",
+    data: DataKind::TetMesh,
+    summary: "test only: the bounding box in one colour",
+    options: BOX_OPTIONS,
+    features: &[],
+    sweep: &["shade=0.25", "shade=1"],
+    compare: &[""],
+    stress: &[],
+    published: &[],
+    create: create_box,
+};
+
+fn registry_with_box() -> Registry {
+    registry::builtin().with(SOLID_BOX)
+}
+
+fn validator(name: &str) -> jsonschema::Validator {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("results/schema").join(name);
+    let schema: serde_json::Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+    jsonschema::validator_for(&schema).expect("a valid JSON Schema")
+}
+
+fn assert_valid(v: &jsonschema::Validator, value: &serde_json::Value, what: &str) {
+    let errors: Vec<String> = v.iter_errors(value).map(|e| format!("{} at {}", e, e.instance_path())).collect();
+    assert!(errors.is_empty(), "{what} does not match the schema:\n{}", errors.join("\n"));
+}
+
+fn small() -> RunConfig {
+    RunConfig { width: 64, height: 64, frames: 2, warmup: 1, ..RunConfig::default() }
+}
+
+#[test]
+fn a_test_only_method_runs_through_the_runner_with_the_common_schema() {
+    let registry = registry_with_box();
+    let dataset = datasets::load("post-small").unwrap();
+    let tf = dataset.default_transfer_function();
+    let spec = registry.parse_spec("test-solid-box:shade=0.5", &[]).unwrap();
+    let ctx = context();
+    let out = run(&ctx, &spec, &dataset, &tf, &small()).unwrap();
+    assert!(ctx.validation_messages().is_empty(), "{:?}", ctx.validation_messages());
+    let r = &out.result;
+    assert_eq!(r.method, "test-solid-box");
+    assert_eq!(r.work.counts["triangles"], 12);
+    assert!(r.upload.bytes_per_cell.is_none(), "no cells, no bytes per cell");
+    assert_eq!(r.upload.constant_bytes_per_frame, std::mem::size_of::<BoxConstants>() as u64);
+    assert!(r.time_ms.phases.contains_key("box_setup"), "the method's own phases are reported");
+    let covered = out.image.covered_pixels();
+    assert!(covered > 200 && covered < 64 * 64, "{covered}");
+    // Over itself: front and back faces, 0.5 + 0.5 * 0.5.
+    let p = out.image.pixels.iter().find(|p| p[3] > 0.0).unwrap();
+    assert!((p[3] - 0.75).abs() < 1e-6 && (p[0] - 0.375).abs() < 1e-6, "{p:?}");
+    assert_valid(&validator("run.schema.json"), &serde_json::to_value(r).unwrap(), "the box's result");
+}
+
+#[test]
+fn sweeps_iterate_over_the_registry_and_survive_a_failing_row() {
+    let registry = registry_with_box();
+    let dataset = datasets::load("post-small").unwrap();
+    let tf = dataset.default_transfer_function();
+    let dir = tempfile::tempdir().unwrap();
+    let ctx = context();
+    // pareto over the box's own sweep, with no harness code naming it.
+    let specs = sweep::pareto_specs(&registry, &["test-solid-box".into()], DataKind::TetMesh, &[]).unwrap();
+    assert_eq!(specs.len(), 2);
+    let points = sweep::pareto(&ctx, &dataset, &tf, &specs, &small(), dir.path()).unwrap();
+    assert_eq!(points.len(), 2);
+    assert!(points.iter().all(|p| p.error.is_none() && p.rmse > 0.0));
+    for f in ["pareto.csv", "pareto.md", "pareto.png"] {
+        assert!(dir.path().join(f).is_file(), "{f}");
+    }
+    // compare: the box and balanced side by side, plus a row that fails
+    // (a table too large for the device's table budget) in the middle.
+    let specs = vec![
+        registry.parse_spec("test-solid-box", &[]).unwrap(),
+        registry.parse_spec("balanced:integrator=preint,table_size=4096", &[]).unwrap(),
+        registry.parse_spec("balanced", &[]).unwrap(),
+    ];
+    let jobs = vec![sweep::CompareJob { dataset, tf, specs }];
+    sweep::check_compare_outputs(&jobs).unwrap();
+    let rows = sweep::compare(&ctx, &registry, &jobs, &small(), Some(dir.path())).unwrap();
+    assert_eq!(rows.len(), 3, "the failing row does not end the sweep");
+    assert!(rows[0].outcome.is_ok() && rows[2].outcome.is_ok());
+    let err = rows[1].outcome.as_ref().err().expect("the oversized table fails");
+    assert!(err.contains("table-size") || err.contains("table_size"), "{err}");
+    let table = sweep::comparison_markdown(&rows, &registry).unwrap();
+    assert!(table.contains("FAILED"), "{table}");
+    // Every JSON written validates against the schema.
+    let v = validator("run.schema.json");
+    let mut n = 0;
+    for e in std::fs::read_dir(dir.path()).unwrap() {
+        let p = e.unwrap().path();
+        if p.extension().is_some_and(|x| x == "json") {
+            let value: serde_json::Value = serde_json::from_slice(&std::fs::read(&p).unwrap()).unwrap();
+            assert_valid(&v, &value, &p.display().to_string());
+            n += 1;
+        }
+    }
+    assert_eq!(n, 2, "one JSON per successful row");
+    assert!(!dir.path().join("post-small-balanced-integrator-preint_table_size-4096.json").exists());
+}
+
+#[test]
+fn options_are_checked_against_the_method() {
+    let registry = registry_with_box();
+    let e = registry.parse_spec("test-solid-box:integrator=ppi", &[]).unwrap_err().to_string();
+    assert!(e.contains("'test-solid-box'") && e.contains("'integrator'"), "{e}");
+    let e = registry.parse_spec("test-solid-box:shade=2", &[]).unwrap_err().to_string();
+    assert!(e.contains("shade") && e.contains("out of range"), "{e}");
+    // A flag shorthand the method lacks is an error naming both.
+    let e = sweep::specs_for(&registry, &["test-solid-box".into()], DataKind::TetMesh, &[("sort", "mpvo".into())], |m| m.compare)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("test-solid-box") && e.contains("sort"), "{e}");
+}
