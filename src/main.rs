@@ -276,7 +276,7 @@ fn list(registry: &Registry) -> Result<()> {
 
 fn run(cli: &Cli, registry: &Registry, args: &RunArgs) -> Result<()> {
     let cfg = args.frame.config()?;
-    let spec = registry.parse_spec(&args.method, &args.frame.method.pairs())?;
+    let spec = registry.parse_spec(&args.method, &args.frame.method.pairs()).with_context(|| format!("--method {}", args.method))?;
     let mut outputs = OutputSet::new();
     for (option, path) in [("--png", &args.png), ("--json", &args.json), ("--diff-png", &args.diff_png)] {
         if let Some(p) = path {

@@ -88,13 +88,13 @@ fn sort_and_transfer_function_options() {
         .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
-    assert_eq!(v["sort"], "mpvo");
-    assert_eq!(v["integrator"], "linear-exact");
-    assert_eq!(v["interpolation"], "exact");
+    assert_eq!(v["options"]["sort"], "mpvo");
+    assert_eq!(v["options"]["integrator"], "linear-exact");
+    assert_eq!(v["options"]["interpolation"], "exact");
     assert_eq!(v["upload"]["floats_per_cell"], 132.0);
     // The preset file is the built-in preset: same name.
     assert_eq!(v["transfer_function"], "post-small-default");
-    assert!(v["centroid_order"]["constraints"].as_u64().unwrap() > 0);
+    assert!(v["diagnostics"]["centroid_order"]["constraints"].as_u64().unwrap() > 0);
 
     // A bad transfer-function file: a clear error naming it, no output.
     let bad = dir.path().join("bad.json");

@@ -193,8 +193,13 @@ pub struct RunResult {
     pub spec: String,
     pub options: crate::algo::method::Options,
     pub dataset: DatasetSummary,
-    /// The dataset's name (kept from schema 1).
+    /// The dataset's name and, for meshes, its cell and point counts
+    /// (kept from schema 1; `dataset` has them all).
     pub mesh: String,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cells: Option<u64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub points: Option<u64>,
     pub width: u32,
     pub height: u32,
     pub frames: usize,
@@ -545,6 +550,8 @@ pub fn run(ctx: &Arc<Context>, spec: &MethodSpec, dataset: &Dataset, tf: &Transf
         options: spec.options.clone(),
         dataset: dataset.summary(),
         mesh: dataset.name.clone(),
+        cells: dataset.summary().counts.get("cells").copied(),
+        points: dataset.summary().counts.get("points").copied(),
         width: cfg.width,
         height: cfg.height,
         frames: cfg.frames,
