@@ -35,7 +35,7 @@ fn orbit(mesh: &TetMesh, frame: u64) -> Camera {
 }
 
 fn frames(c: &mut Criterion) {
-    let ctx = Context::new(&ContextDesc::from_env()).expect("a Vulkan device (run scripts/setup.sh)");
+    let ctx = ContextDesc::from_env().and_then(|d| Context::new(&d)).expect("a Vulkan device (run scripts/setup.sh)");
     for name in MESHES {
         let (mesh, geometry) = load(name);
         let tf = datasets::default_transfer_function(&mesh);

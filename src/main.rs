@@ -197,7 +197,7 @@ impl FrameArgs {
 }
 
 fn context(cli: &Cli) -> Result<std::sync::Arc<Context>> {
-    let mut desc = ContextDesc::from_env();
+    let mut desc = ContextDesc::from_env()?;
     if cli.device.is_some() {
         desc.device = cli.device.clone();
     }
