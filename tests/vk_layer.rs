@@ -668,6 +668,15 @@ fn descriptor_sets_check_their_resources() {
     let desc = DescriptorSetDesc::new(&[(DescriptorKind::StorageImage, COMPUTE)]);
     let err = DescriptorSet::new(&ctx, "img", &desc, &[DescriptorResource::StorageImage(&tex)]).err().unwrap().to_string();
     assert!(err.contains("'tex' lacks STORAGE"), "{err}");
+    // Integer texels cannot be filtered linearly.
+    let ints = Image::texture(&ctx, &TextureDesc::d3("int volume", [2, 2, 2], raw::Format::R16_SINT)).unwrap();
+    let linear = Sampler::linear_clamp(&ctx, "linear").unwrap();
+    let desc = DescriptorSetDesc::new(&[(DescriptorKind::CombinedImageSampler, COMPUTE)]);
+    let err = DescriptorSet::new(&ctx, "vol", &desc, &[DescriptorResource::CombinedImageSampler(&ints, &linear)])
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(err.contains("'int volume'") && err.contains("nearest"), "{err}");
     // A pipeline with two sets wants two sets bound.
     let a = DescriptorSet::new(&ctx, "a", &DescriptorSetDesc::storage_buffers(1, COMPUTE), &[DescriptorResource::StorageBuffer(&storage)]).unwrap();
     let b = DescriptorSet::new(&ctx, "b", &DescriptorSetDesc::storage_buffers(1, COMPUTE), &[DescriptorResource::StorageBuffer(&storage)]).unwrap();

@@ -21,7 +21,7 @@ use ash::vk;
 
 use super::buffer::{Buffer, TexelBuffer};
 use super::error::{Check, VkError, VkResult};
-use super::image::{Image, Sampler};
+use super::image::{Filter, Image, Sampler};
 use super::Context;
 
 /// What a binding holds.
@@ -302,9 +302,18 @@ fn check_resources(ctx: &Context, name: &str, desc: &DescriptorSetDesc, resource
                     return bad(format!("buffer '{}' has {} bytes, more than the device's range limit {max}", buf.desc.name, buf.size()));
                 }
             }
-            DescriptorResource::CombinedImageSampler(img, _) => {
+            DescriptorResource::CombinedImageSampler(img, sampler) => {
                 if !img.usage.contains(vk::ImageUsageFlags::SAMPLED) {
                     return bad(format!("image '{}' is not sampled", img.name()));
+                }
+                if sampler.filter == Filter::Linear
+                    && !ctx.format_supports(img.format, vk::FormatFeatureFlags::SAMPLED_IMAGE_FILTER_LINEAR)
+                {
+                    return bad(format!(
+                        "image '{}' ({:?}) cannot be filtered linearly on this device; use a nearest sampler",
+                        img.name(),
+                        img.format
+                    ));
                 }
             }
             DescriptorResource::StorageImage(img) => {
