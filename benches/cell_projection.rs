@@ -39,7 +39,7 @@ fn throughput(dataset: &Dataset) -> Throughput {
 }
 
 fn frames(c: &mut Criterion) {
-    let ctx = Context::new(&ContextDesc::from_env()).expect("a Vulkan device (run scripts/setup.sh)");
+    let ctx = Context::new(&ContextDesc::from_env().expect("VOLBENCH_* variables")).expect("a Vulkan device (run scripts/setup.sh)");
     let registry = registry::builtin();
     let cfg = RunConfig { width: SIZE, height: SIZE, ..RunConfig::default() };
     for name in DATASETS {

@@ -230,7 +230,7 @@ impl FrameArgs {
 }
 
 fn context(cli: &Cli) -> Result<std::sync::Arc<Context>> {
-    let mut desc = ContextDesc::from_env();
+    let mut desc = ContextDesc::from_env()?;
     if cli.device.is_some() {
         desc.device = cli.device.clone();
     }
@@ -346,7 +346,7 @@ fn compare(cli: &Cli, registry: &Registry, args: &CompareArgs) -> Result<()> {
     let rows = sweep::compare(&ctx, registry, &jobs, &cfg, args.out.as_deref())?;
     println!("device: {} ({}, {})", ctx.info.name, ctx.info.driver_name, ctx.info.driver_info);
     print!("{}", sweep::comparison_markdown(&rows, registry)?);
-    let failed = rows.iter().filter(|r| r.outcome.is_err()).count();
+    let failed = rows.iter().filter(|r| r.outcome.is_err() && !r.skipped).count();
     if failed > 0 {
         bail!("{failed} of {} runs failed (see the table)", rows.len());
     }
@@ -365,7 +365,7 @@ fn pareto(cli: &Cli, registry: &Registry, args: &ParetoArgs) -> Result<()> {
     let points = sweep::pareto(&ctx, &dataset, &tf, &specs, &cfg, &out_dir)?;
     print!("{}", volbench::harness::pareto::markdown(&dataset.name, &points));
     println!("written: {}/pareto.{{csv,md,png}}", out_dir.display());
-    let failed = points.iter().filter(|p| p.error.is_some()).count();
+    let failed = points.iter().filter(|p| p.error.is_some() && !p.skipped).count();
     if failed > 0 {
         bail!("{failed} of {} sweep runs failed (see pareto.md)", points.len());
     }

@@ -5,6 +5,7 @@ const SOURCES: &[(&str, &str)] = &[
     ("common/frame.glsl", include_str!("../shaders/common/frame.glsl")),
     ("common/integrate.glsl", include_str!("../shaders/common/integrate.glsl")),
     ("common/exit.glsl", include_str!("../shaders/common/exit.glsl")),
+    ("common/dispatch.glsl", include_str!("../shaders/common/dispatch.glsl")),
     ("cell_projection/vicp.vert", include_str!("../shaders/cell_projection/vicp.vert")),
     ("cell_projection/vicp.frag", include_str!("../shaders/cell_projection/vicp.frag")),
     ("cell_projection/balanced.vert", include_str!("../shaders/cell_projection/balanced.vert")),
@@ -28,7 +29,7 @@ mod tests {
     #[test]
     fn every_shader_compiles() {
         for path in super::all_entry_points() {
-            let stage = if path.ends_with(".vert") { ShaderStage::Vertex } else { ShaderStage::Fragment };
+            let stage = ShaderStage::from_path(path).unwrap_or_else(|| panic!("{path}: unknown shader stage"));
             compile_glsl(path, stage, &[], &super::source).unwrap_or_else(|e| panic!("{e}"));
         }
     }

@@ -10,14 +10,14 @@ use anyhow::Result;
 use ash::vk as raw;
 
 use volbench::algo::method::{
-    DataKind, MethodInfo, MethodInputs, OptionSpec, OptionValues, Phases, RenderMethod, SceneData, View, Work,
+    DataKind, Feature, MethodInfo, MethodInputs, OptionSpec, OptionValues, Phases, RenderMethod, SceneData, View, Work,
 };
 use volbench::algo::registry::{self, Registry};
 use volbench::harness::datasets;
 use volbench::harness::run::{run, RunConfig};
 use volbench::harness::sweep;
 use volbench::vk::{
-    compile_glsl, Blend, CommandRecorder, Context, ContextDesc, GraphicsPipelineDesc, Image, Pipeline, ShaderModule,
+    compile_glsl, Blend, ColorTarget, CommandRecorder, Context, ContextDesc, GraphicsPipelineDesc, Image, Pipeline, ShaderModule,
     ShaderStage, UploadCounter,
 };
 
@@ -83,9 +83,10 @@ fn create_box(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
             primitive_restart: false,
             cull: raw::CullModeFlags::NONE,
             front_face: raw::FrontFace::COUNTER_CLOCKWISE,
-            blend: Blend::PremultipliedOver,
+            targets: &[ColorTarget::rgba32f(Blend::PremultipliedOver)],
+            geometry: None,
             push_constant_bytes: std::mem::size_of::<BoxConstants>() as u32,
-            descriptor_layout: None,
+            descriptor_layouts: &[],
         },
     )?;
     let b = mesh.bounds();
@@ -233,6 +234,18 @@ fn sweeps_iterate_over_the_registry_and_survive_a_failing_row() {
     }
     assert_eq!(n, 2, "one JSON per successful row");
     assert!(!dir.path().join("post-small-balanced-integrator-preint_table_size-4096.json").exists());
+}
+
+#[test]
+fn a_method_whose_features_are_missing_is_skipped_with_the_reason() {
+    const NEEDS_GS: MethodInfo = MethodInfo { name: "test-needs-gs", features: &[Feature::GeometryShader], ..SOLID_BOX };
+    let registry = registry::builtin().with(NEEDS_GS);
+    let spec = registry.parse_spec("test-needs-gs", &[]).unwrap();
+    let mut info = context().info.clone();
+    assert!(sweep::skip_reason(&spec, &info).is_none(), "lavapipe has geometry shaders");
+    info.features.geometry_shader = false;
+    let why = sweep::skip_reason(&spec, &info).expect("skipped");
+    assert!(why.starts_with("skipped") && why.contains("geometryShader"), "{why}");
 }
 
 #[test]

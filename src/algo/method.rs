@@ -192,6 +192,7 @@ impl Options {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Feature {
+    GeometryShader,
     PipelineStatistics,
 }
 
@@ -199,7 +200,8 @@ impl Feature {
     /// Whether the device has it; `Err` says why not.
     pub fn check(self, info: &DeviceInfo) -> Result<(), String> {
         let ok = match self {
-            Feature::PipelineStatistics => info.pipeline_statistics,
+            Feature::GeometryShader => info.features.geometry_shader,
+            Feature::PipelineStatistics => info.features.pipeline_statistics_query,
         };
         if ok {
             Ok(())
@@ -210,6 +212,7 @@ impl Feature {
 
     pub fn name(self) -> &'static str {
         match self {
+            Feature::GeometryShader => "the geometry-shader stage (geometryShader)",
             Feature::PipelineStatistics => "pipeline-statistics queries (pipelineStatisticsQuery)",
         }
     }

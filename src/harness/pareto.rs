@@ -30,8 +30,10 @@ pub struct ParetoPoint {
     pub max_abs: f64,
     pub psnr_db: f64,
     pub on_front: bool,
-    /// Why the run failed (the row has no numbers then).
+    /// Why the run failed or was skipped (the row has no numbers then).
     pub error: Option<String>,
+    /// Skipped (the device lacks a feature), not failed.
+    pub skipped: bool,
 }
 
 impl ParetoPoint {
@@ -50,6 +52,7 @@ impl ParetoPoint {
             psnr_db: e.psnr_db,
             on_front: false,
             error: None,
+            skipped: false,
         })
     }
 
@@ -68,6 +71,7 @@ impl ParetoPoint {
             psnr_db: f64::NAN,
             on_front: false,
             error: Some(error),
+            skipped: false,
         }
     }
 
@@ -132,7 +136,8 @@ pub fn markdown(mesh: &str, points: &[ParetoPoint]) -> String {
         );
     }
     for p in sorted.iter().filter(|p| !p.ok()) {
-        let _ = writeln!(s, "| FAILED | {} | | | | | | {} |", p.label, p.error.as_deref().unwrap_or("").replace('|', "/"));
+        let status = if p.skipped { "SKIPPED" } else { "FAILED" };
+        let _ = writeln!(s, "| {status} | {} | | | | | | {} |", p.label, p.error.as_deref().unwrap_or("").replace('|', "/"));
     }
     s
 }
@@ -281,6 +286,7 @@ mod tests {
             options: "integrator=ppi".into(),
             integrator: "ppi".into(),
             error: None,
+            skipped: false,
             frame_ms: t,
             gpu_ms: t,
             table_build_ms: 0.0,

@@ -99,7 +99,15 @@ pub struct CompareJob {
 pub struct CompareRow {
     pub dataset: String,
     pub label: String,
+    /// The run, or why it failed or was skipped.
     pub outcome: Result<RunOutput, String>,
+    /// The device lacks a feature the method needs (not a failure).
+    pub skipped: bool,
+}
+
+/// Why `spec` cannot run on this device (a skipped row, not a failure).
+pub fn skip_reason(spec: &MethodSpec, info: &crate::vk::DeviceInfo) -> Option<String> {
+    spec.info.unsupported_reason(info).map(|why| format!("skipped: {why}"))
 }
 
 /// Refuse comparisons whose output files would overwrite each other.
@@ -132,6 +140,11 @@ pub fn compare(ctx: &Arc<Context>, registry: &Registry, jobs: &[CompareJob], cfg
         let dataset = &job.dataset;
         let mut reference = None;
         for spec in &job.specs {
+            if let Some(why) = skip_reason(spec, &ctx.info) {
+                eprintln!("volbench: {} on {}: {why}", spec.label(), dataset.name);
+                rows.push(CompareRow { dataset: dataset.name.clone(), label: spec.label(), outcome: Err(why), skipped: true });
+                continue;
+            }
             eprintln!("volbench: {} on {}...", spec.label(), dataset.name);
             let outcome = (|| -> Result<RunOutput> {
                 let mut result = run(ctx, spec, dataset, &job.tf, cfg)?;
@@ -160,7 +173,8 @@ pub fn compare(ctx: &Arc<Context>, registry: &Registry, jobs: &[CompareJob], cfg
             if let Err(e) = &outcome {
                 eprintln!("volbench: {} on {} failed: {e:#}", spec.label(), dataset.name);
             }
-            rows.push(CompareRow { dataset: dataset.name.clone(), label: spec.label(), outcome: outcome.map_err(|e| format!("{e:#}")) });
+            let outcome = outcome.map_err(|e| format!("{e:#}"));
+            rows.push(CompareRow { dataset: dataset.name.clone(), label: spec.label(), outcome, skipped: false });
             if let Some(dir) = out {
                 fsio::write_output(&dir.join("comparison.md"), comparison_markdown(&rows, registry)?.as_bytes())?;
             }
@@ -204,6 +218,13 @@ pub fn pareto(
     let mut reference = None;
     for spec in specs {
         let label = spec.label();
+        if let Some(why) = skip_reason(spec, &ctx.info) {
+            eprintln!("volbench: {label}: {why}");
+            let mut p = ParetoPoint::failed(&label, spec.info.name, &spec.options.to_spec_string(), why);
+            p.skipped = true;
+            points.push(p);
+            continue;
+        }
         eprintln!("volbench: {label}...");
         let point = (|| -> Result<ParetoPoint> {
             let mut out = run(ctx, spec, dataset, tf, cfg)?;

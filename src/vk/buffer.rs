@@ -1,5 +1,8 @@
-//! Buffers with their memory. Each `Buffer` owns its allocation and frees it
-//! on `Drop` (we wait idle between runs, so no frame can still use it).
+//! Buffers with their memory, and texel buffers (a buffer with a typed view,
+//! `samplerBuffer` / `imageBuffer` in GLSL). Each `Buffer` owns its
+//! allocation and frees it on `Drop` (we wait idle between runs, so no frame
+//! can still use it; after a fence time-out it leaks instead). A
+//! `TexelBuffer` owns its buffer and view and destroys the view first.
 //! Host writes that the device will read go through `write`, which counts
 //! them (see `upload`).
 
@@ -153,9 +156,79 @@ impl Buffer {
 
 impl Drop for Buffer {
     fn drop(&mut self) {
+        if self.ctx.is_hung() {
+            // The device may still access this memory: leak rather than free.
+            return;
+        }
         if let Some(a) = self.allocation.take() {
             let _ = self.ctx.allocator().free(a);
         }
         unsafe { self.ctx.device.destroy_buffer(self.raw, None) };
+    }
+}
+
+/// A buffer seen through a typed view: a uniform texel buffer (read with
+/// filtering-free `texelFetch`) and/or a storage texel buffer (`imageLoad`,
+/// `imageStore`), as the buffer's usage says. The view covers the whole
+/// buffer, whose size must be a whole number of texels.
+pub struct TexelBuffer {
+    pub buffer: Buffer,
+    pub view: vk::BufferView,
+    pub format: vk::Format,
+    /// Number of texels the view covers.
+    pub texels: u64,
+}
+
+impl TexelBuffer {
+    /// `desc.usage` must include UNIFORM_TEXEL_BUFFER and/or
+    /// STORAGE_TEXEL_BUFFER; the format must support them as buffer features.
+    pub fn new(ctx: &Arc<Context>, desc: BufferDesc, format: vk::Format) -> VkResult<TexelBuffer> {
+        let texel = super::image::texel_bytes(format)
+            .ok_or_else(|| VkError::Invalid(format!("texel buffer '{}': format {format:?} is not supported here", desc.name)))?;
+        let mut features = vk::FormatFeatureFlags::empty();
+        if desc.usage.contains(vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER) {
+            features |= vk::FormatFeatureFlags::UNIFORM_TEXEL_BUFFER;
+        }
+        if desc.usage.contains(vk::BufferUsageFlags::STORAGE_TEXEL_BUFFER) {
+            features |= vk::FormatFeatureFlags::STORAGE_TEXEL_BUFFER;
+        }
+        if features.is_empty() {
+            return Err(VkError::Invalid(format!(
+                "texel buffer '{}': usage {:?} has neither UNIFORM_TEXEL_BUFFER nor STORAGE_TEXEL_BUFFER",
+                desc.name, desc.usage
+            )));
+        }
+        if !ctx.format_supports(format, features) {
+            return Err(VkError::Unsupported {
+                device: ctx.info.name.clone(),
+                what: format!("{format:?} as {features:?} for texel buffer '{}'", desc.name),
+            });
+        }
+        if desc.size == 0 || desc.size % texel != 0 {
+            return Err(VkError::Invalid(format!(
+                "texel buffer '{}': {} bytes is not a whole, non-zero number of {texel}-byte texels",
+                desc.name, desc.size
+            )));
+        }
+        let texels = desc.size / texel;
+        let max = ctx.info.max_texel_buffer_elements as u64;
+        if texels > max {
+            return Err(VkError::Unsupported {
+                device: ctx.info.name.clone(),
+                what: format!("{texels} texels in texel buffer '{}' (maxTexelBufferElements is {max})", desc.name),
+            });
+        }
+        let buffer = Buffer::new(ctx, desc)?;
+        let info = vk::BufferViewCreateInfo::default().buffer(buffer.raw).format(format).offset(0).range(buffer.size());
+        let view = unsafe { ctx.device.create_buffer_view(&info, None) }.check("vkCreateBufferView")?;
+        ctx.set_name(view, &buffer.desc.name);
+        Ok(TexelBuffer { buffer, view, format, texels })
+    }
+}
+
+impl Drop for TexelBuffer {
+    fn drop(&mut self) {
+        // The view goes before its buffer (a field, dropped after this).
+        unsafe { self.buffer.ctx.device.destroy_buffer_view(self.view, None) };
     }
 }

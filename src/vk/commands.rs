@@ -1,20 +1,49 @@
-//! Command buffers and submission. One reusable command buffer + fence per
-//! `CommandRecorder`; `submit_and_wait` blocks until the device is done, which
-//! is the whole synchronisation model (one frame in flight).
+//! Command buffers, submission and the safe recording wrappers the algorithms
+//! use (rendering, binding, draws, compute dispatch, barriers, copies).
+//!
+//! One reusable command buffer + fence per `CommandRecorder`;
+//! `submit_and_wait` blocks until the device is done, which is the whole
+//! synchronisation model (one frame in flight).
+//!
+//! Never hang: every fence wait is bounded by `Context::fence_timeout` and a
+//! time-out is a `VkError::Timeout` naming the recorder. A recorder tracks
+//! whether a submission is pending, so one that was never submitted (or
+//! whose submission failed) does not wait at all, in `wait` or in `Drop`. A
+//! time-out marks the context hung: the recorder's command buffer and fence
+//! are then leaked rather than destroyed while the device may still use them.
+//!
+//! Dispatches larger than `maxComputeWorkGroupCount` per dimension go
+//! through `dispatch_groups`, which folds a linear group count into x*y(*z);
+//! shaders recover the linear id with `shaders/common/dispatch.glsl` and skip
+//! the few excess groups (see `fold_groups` for the rule).
 
+use std::sync::atomic::{AtomicU8, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use ash::vk;
 
 use super::buffer::Buffer;
-use super::error::{Check, VkResult};
+use super::descriptors::DescriptorSet;
+use super::error::{Check, VkError, VkResult};
+use super::image::{color_layers, Image, ImageUse};
+use super::pipeline::Pipeline;
 use super::upload::{UploadClass, UploadCounter};
 use super::Context;
+
+/// Nothing recorded or the last submission has been waited for.
+const IDLE: u8 = 0;
+/// Between `begin` and `submit`.
+const RECORDING: u8 = 1;
+/// Submitted; the fence will signal.
+const PENDING: u8 = 2;
 
 pub struct CommandRecorder {
     pub raw: vk::CommandBuffer,
     fence: vk::Fence,
+    name: String,
+    state: AtomicU8,
+    timeout: Duration,
     ctx: Arc<Context>,
 }
 
@@ -38,20 +67,47 @@ impl CommandRecorder {
             Ok(f) => f,
             Err(result) => {
                 unsafe { ctx.device.free_command_buffers(ctx.command_pool, &[raw]) };
-                return Err(super::VkError::Call { what: "vkCreateFence", result });
+                return Err(VkError::Call { what: "vkCreateFence", result });
             }
         };
         ctx.set_name(raw, name);
-        Ok(CommandRecorder { raw, fence, ctx: ctx.clone() })
+        ctx.set_name(fence, name);
+        Ok(CommandRecorder {
+            raw,
+            fence,
+            name: name.to_string(),
+            state: AtomicU8::new(IDLE),
+            timeout: ctx.fence_timeout,
+            ctx: ctx.clone(),
+        })
     }
 
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// Bound this recorder's fence waits by `timeout` instead of the
+    /// context's `fence_timeout`.
+    pub fn set_timeout(&mut self, timeout: Duration) {
+        self.timeout = timeout;
+    }
+
+    /// Whether a submission is in flight (submitted, not yet waited for).
+    pub fn is_pending(&self) -> bool {
+        self.state.load(Ordering::SeqCst) == PENDING
+    }
+
+    /// Start recording. A submission still pending is waited for first
+    /// (bounded): a command buffer must not be reset while in use.
     pub fn begin(&self) -> VkResult<vk::CommandBuffer> {
+        self.wait()?;
         let d = &self.ctx.device;
         unsafe {
             d.reset_command_buffer(self.raw, vk::CommandBufferResetFlags::empty()).check("vkResetCommandBuffer")?;
             let info = vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
             d.begin_command_buffer(self.raw, &info).check("vkBeginCommandBuffer")?;
         }
+        self.state.store(RECORDING, Ordering::SeqCst);
         Ok(self.raw)
     }
 
@@ -65,6 +121,11 @@ impl CommandRecorder {
     /// End recording and submit without waiting; returns the time
     /// vkQueueSubmit took. Call `wait` before recording again.
     pub fn submit(&self) -> VkResult<Duration> {
+        if self.state.load(Ordering::SeqCst) != RECORDING {
+            return Err(VkError::Invalid(format!("command recorder '{}': submit without begin", self.name)));
+        }
+        // Whatever happens below, nothing is pending unless the submit succeeds.
+        self.state.store(IDLE, Ordering::SeqCst);
         let d = &self.ctx.device;
         unsafe {
             d.end_command_buffer(self.raw).check("vkEndCommandBuffer")?;
@@ -73,15 +134,39 @@ impl CommandRecorder {
             let submit = [vk::SubmitInfo::default().command_buffers(&cmds)];
             let t0 = Instant::now();
             d.queue_submit(self.ctx.queue, &submit, self.fence).check("vkQueueSubmit")?;
+            self.state.store(PENDING, Ordering::SeqCst);
             Ok(t0.elapsed())
         }
     }
 
-    /// Block until the last submission has finished; returns the time blocked.
+    /// Block until the last submission has finished; returns the time
+    /// blocked. Returns at once when nothing is pending. Gives up after the
+    /// time-out with `VkError::Timeout` (the submission stays pending).
     pub fn wait(&self) -> VkResult<Duration> {
+        if self.state.load(Ordering::SeqCst) != PENDING {
+            return Ok(Duration::ZERO);
+        }
+        if self.ctx.is_hung() {
+            return Err(VkError::DeviceHung);
+        }
         let t0 = Instant::now();
-        unsafe { self.ctx.device.wait_for_fences(&[self.fence], true, u64::MAX) }.check("vkWaitForFences")?;
-        Ok(t0.elapsed())
+        let nanos = u64::try_from(self.timeout.as_nanos()).unwrap_or(u64::MAX);
+        match unsafe { self.ctx.device.wait_for_fences(&[self.fence], true, nanos) } {
+            Ok(()) => {
+                self.state.store(IDLE, Ordering::SeqCst);
+                Ok(t0.elapsed())
+            }
+            Err(vk::Result::TIMEOUT) => {
+                self.ctx.mark_hung();
+                Err(VkError::Timeout { recorder: self.name.clone(), seconds: self.timeout.as_secs_f64() })
+            }
+            Err(result) => {
+                // Device lost or out of memory: the fence will never signal,
+                // and objects of a lost device may be destroyed.
+                self.state.store(IDLE, Ordering::SeqCst);
+                Err(VkError::Call { what: "vkWaitForFences", result })
+            }
+        }
     }
 
     /// Record a buffer-to-buffer copy from host-visible `src` and count its
@@ -94,16 +179,60 @@ impl CommandRecorder {
         counter: &mut UploadCounter,
         class: UploadClass,
     ) {
+        self.copy_buffer(src, dst, bytes);
+        counter.add_transfer(class, bytes);
+    }
+
+    /// Record a buffer-to-buffer copy that is not an upload (device to
+    /// device, or device to a readback buffer): nothing is counted.
+    pub fn copy_buffer(&self, src: &Buffer, dst: &Buffer, bytes: u64) {
         let region = [vk::BufferCopy { src_offset: 0, dst_offset: 0, size: bytes }];
         unsafe { self.ctx.device.cmd_copy_buffer(self.raw, src.raw, dst.raw, &region) };
+    }
+
+    /// Fill the whole buffer with the 32-bit `value` on the device (a
+    /// transfer write; no bytes cross from the host). The buffer needs
+    /// TRANSFER_DST usage (device-local buffers have it).
+    pub fn fill_buffer(&self, dst: &Buffer, value: u32) {
+        // vkCmdFillBuffer with WHOLE_SIZE rounds down to a multiple of 4.
+        unsafe { self.ctx.device.cmd_fill_buffer(self.raw, dst.raw, 0, vk::WHOLE_SIZE, value) };
+    }
+
+    /// Copy the whole of `dst` from host-visible `src` (texels x fastest,
+    /// tightly packed) and count the bytes. `dst`'s old contents are
+    /// discarded; it is left as a transfer destination (follow with
+    /// `image_barrier(dst, ImageUse::Sampled)` before sampling it).
+    pub fn copy_to_image(&self, src: &Buffer, dst: &Image, counter: &mut UploadCounter, class: UploadClass) -> VkResult<()> {
+        let bytes = dst.byte_size();
+        if src.size() < bytes {
+            return Err(VkError::Invalid(format!(
+                "copy into image '{}' needs {bytes} bytes, buffer '{}' has {}",
+                dst.name(),
+                src.desc.name,
+                src.size()
+            )));
+        }
+        dst.barrier(self.raw, ImageUse::TransferDst, false);
+        let region = [vk::BufferImageCopy::default()
+            .image_subresource(color_layers())
+            .image_extent(vk::Extent3D { width: dst.width, height: dst.height, depth: dst.depth })];
+        unsafe {
+            self.ctx.device.cmd_copy_buffer_to_image(self.raw, src.raw, dst.raw, vk::ImageLayout::TRANSFER_DST_OPTIMAL, &region)
+        };
         counter.add_transfer(class, bytes);
+        Ok(())
     }
 }
 
 impl Drop for CommandRecorder {
     fn drop(&mut self) {
+        // Waits only for a real submission, and only boundedly.
+        if self.wait().is_err() && self.is_pending() {
+            // Timed out: the device may still execute this command buffer
+            // and signal this fence, so neither may be destroyed.
+            return;
+        }
         unsafe {
-            let _ = self.ctx.device.wait_for_fences(&[self.fence], true, u64::MAX);
             self.ctx.device.destroy_fence(self.fence, None);
             self.ctx.device.free_command_buffers(self.ctx.command_pool, &[self.raw]);
         }
@@ -127,49 +256,117 @@ pub fn upload_static(
     let rec = CommandRecorder::new(ctx, &format!("{name} upload"))?;
     rec.begin()?;
     rec.copy_to_device(&staging, &dst, size, counter, UploadClass::Static);
-    let barrier = [vk::MemoryBarrier2::default()
-        .src_stage_mask(vk::PipelineStageFlags2::COPY)
-        .src_access_mask(vk::AccessFlags2::TRANSFER_WRITE)
-        .dst_stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS)
-        .dst_access_mask(vk::AccessFlags2::MEMORY_READ)];
-    unsafe {
-        ctx.device.cmd_pipeline_barrier2(rec.raw, &vk::DependencyInfo::default().memory_barriers(&barrier));
-    }
+    rec.memory_barrier(
+        (vk::PipelineStageFlags2::COPY, vk::AccessFlags2::TRANSFER_WRITE),
+        (vk::PipelineStageFlags2::ALL_COMMANDS, vk::AccessFlags2::MEMORY_READ),
+    );
     rec.submit_and_wait()?;
     Ok(dst)
+}
+
+/// One colour attachment of a dynamic-rendering pass: cleared to `clear`, or
+/// with `None` loaded (previous contents kept).
+#[derive(Clone, Copy)]
+pub struct ColorAttachment<'a> {
+    pub image: &'a Image,
+    pub clear: Option<[f32; 4]>,
+}
+
+/// Split `groups` workgroups into a grid `[x, y, z]` with every dimension
+/// within `max` (maxComputeWorkGroupCount). The rule, which shaders rely on
+/// (`shaders/common/dispatch.glsl`):
+///
+/// - z = ceil(n / (max_x * max_y)), then y = ceil(ceil(n / z) / max_x),
+///   then x = ceil(ceil(n / z) / y); so n <= max_x gives `[n, 1, 1]`;
+/// - a group's linear id is `(gid.z * num.y + gid.y) * num.x + gid.x`;
+/// - x*y*z >= n, the excess is below y*z groups, and groups whose linear id
+///   is >= n must do nothing.
+///
+/// `None` when n exceeds max_x*max_y*max_z. n = 0 gives `[0, 0, 0]`.
+pub fn fold_groups(groups: u64, max: [u32; 3]) -> Option<[u32; 3]> {
+    if groups == 0 {
+        return Some([0, 0, 0]);
+    }
+    let [mx, my, mz] = max.map(|m| m.max(1) as u64);
+    let div_ceil = |a: u64, b: u64| a.div_ceil(b);
+    let plane = mx.checked_mul(my)?;
+    let z = div_ceil(groups, plane);
+    if z > mz {
+        return None;
+    }
+    let per_z = div_ceil(groups, z);
+    let y = div_ceil(per_z, mx);
+    let x = div_ceil(per_z, y);
+    debug_assert!(x <= mx && y <= my && x * y * z >= groups);
+    Some([u32::try_from(x).ok()?, u32::try_from(y).ok()?, u32::try_from(z).ok()?])
 }
 
 /// Thin safe wrappers for the commands the algorithms record, so that no
 /// algorithm needs `unsafe`. All take the recorder's own command buffer.
 impl CommandRecorder {
-    /// Start dynamic rendering into `target`, cleared to `clear`. The image
-    /// goes from UNDEFINED (contents discarded) to COLOR_ATTACHMENT_OPTIMAL.
-    pub fn begin_rendering(&self, target: &super::Image, clear: [f32; 4]) {
-        target.transition(
-            self.raw,
-            (vk::ImageLayout::UNDEFINED, vk::PipelineStageFlags2::TOP_OF_PIPE, vk::AccessFlags2::NONE),
-            (
-                vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL,
-                vk::PipelineStageFlags2::COLOR_ATTACHMENT_OUTPUT,
-                vk::AccessFlags2::COLOR_ATTACHMENT_WRITE | vk::AccessFlags2::COLOR_ATTACHMENT_READ,
-            ),
-        );
-        let attachments = [vk::RenderingAttachmentInfo::default()
-            .image_view(target.view)
-            .image_layout(vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL)
-            .load_op(vk::AttachmentLoadOp::CLEAR)
-            .store_op(vk::AttachmentStoreOp::STORE)
-            .clear_value(vk::ClearValue { color: vk::ClearColorValue { float32: clear } })];
-        let area = vk::Rect2D { offset: vk::Offset2D { x: 0, y: 0 }, extent: vk::Extent2D { width: target.width, height: target.height } };
+    /// Start dynamic rendering into `target`, cleared to `clear` (the old
+    /// contents are discarded).
+    pub fn begin_rendering(&self, target: &Image, clear: [f32; 4]) {
+        self.record_begin_rendering(&[ColorAttachment { image: target, clear: Some(clear) }]);
+    }
+
+    /// Start dynamic rendering into several colour attachments (locations
+    /// 0, 1, ... in the order given); all must have the same size and be
+    /// colour-attachment capable. Viewport and scissor cover the whole target.
+    pub fn begin_rendering_targets(&self, targets: &[ColorAttachment]) -> VkResult<()> {
+        let Some(first) = targets.first() else {
+            return Err(VkError::Invalid(format!("recorder '{}': rendering without a colour attachment", self.name)));
+        };
+        let max = self.ctx.info.max_color_attachments as usize;
+        if targets.len() > max {
+            return Err(VkError::Unsupported {
+                device: self.ctx.info.name.clone(),
+                what: format!("{} colour attachments (maxColorAttachments is {max})", targets.len()),
+            });
+        }
+        for t in targets {
+            if (t.image.width, t.image.height, t.image.depth) != (first.image.width, first.image.height, 1) {
+                return Err(VkError::Invalid(format!(
+                    "colour attachments '{}' ({}x{}x{}) and '{}' ({}x{}) differ in size",
+                    t.image.name(),
+                    t.image.width,
+                    t.image.height,
+                    t.image.depth,
+                    first.image.name(),
+                    first.image.width,
+                    first.image.height
+                )));
+            }
+            if !t.image.usage.contains(vk::ImageUsageFlags::COLOR_ATTACHMENT) {
+                return Err(VkError::Invalid(format!("image '{}' is not a colour attachment", t.image.name())));
+            }
+        }
+        self.record_begin_rendering(targets);
+        Ok(())
+    }
+
+    fn record_begin_rendering(&self, targets: &[ColorAttachment]) {
+        let attachments: Vec<vk::RenderingAttachmentInfo> = targets
+            .iter()
+            .map(|t| {
+                t.image.barrier(self.raw, ImageUse::ColorAttachment, t.clear.is_none());
+                let info = vk::RenderingAttachmentInfo::default()
+                    .image_view(t.image.view)
+                    .image_layout(vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL)
+                    .store_op(vk::AttachmentStoreOp::STORE);
+                match t.clear {
+                    Some(c) => info
+                        .load_op(vk::AttachmentLoadOp::CLEAR)
+                        .clear_value(vk::ClearValue { color: vk::ClearColorValue { float32: c } }),
+                    None => info.load_op(vk::AttachmentLoadOp::LOAD),
+                }
+            })
+            .collect();
+        let (width, height) = targets.first().map(|t| (t.image.width, t.image.height)).unwrap_or((0, 0));
+        let area = vk::Rect2D { offset: vk::Offset2D { x: 0, y: 0 }, extent: vk::Extent2D { width, height } };
         let info = vk::RenderingInfo::default().render_area(area).layer_count(1).color_attachments(&attachments);
-        let viewport = [vk::Viewport {
-            x: 0.0,
-            y: 0.0,
-            width: target.width as f32,
-            height: target.height as f32,
-            min_depth: 0.0,
-            max_depth: 1.0,
-        }];
+        let viewport =
+            [vk::Viewport { x: 0.0, y: 0.0, width: width as f32, height: height as f32, min_depth: 0.0, max_depth: 1.0 }];
         unsafe {
             self.ctx.device.cmd_begin_rendering(self.raw, &info);
             self.ctx.device.cmd_set_viewport(self.raw, 0, &viewport);
@@ -181,7 +378,8 @@ impl CommandRecorder {
         unsafe { self.ctx.device.cmd_end_rendering(self.raw) };
     }
 
-    pub fn bind_pipeline(&self, pipeline: &super::Pipeline, set: Option<&super::StorageBufferSet>) {
+    /// Bind a graphics pipeline and (optionally) one descriptor set at set 0.
+    pub fn bind_pipeline(&self, pipeline: &Pipeline, set: Option<&DescriptorSet>) {
         unsafe {
             self.ctx.device.cmd_bind_pipeline(self.raw, vk::PipelineBindPoint::GRAPHICS, pipeline.raw);
             if let Some(s) = set {
@@ -190,16 +388,51 @@ impl CommandRecorder {
                     vk::PipelineBindPoint::GRAPHICS,
                     pipeline.layout,
                     0,
-                    &[s.set],
+                    &[s.raw],
                     &[],
                 );
             }
         }
     }
 
+    /// Bind a graphics pipeline with its descriptor sets at sets 0, 1, ...
+    pub fn bind_graphics(&self, pipeline: &Pipeline, sets: &[&DescriptorSet]) -> VkResult<()> {
+        self.bind(vk::PipelineBindPoint::GRAPHICS, pipeline, sets)
+    }
+
+    /// Bind a compute pipeline with its descriptor sets at sets 0, 1, ...
+    pub fn bind_compute(&self, pipeline: &Pipeline, sets: &[&DescriptorSet]) -> VkResult<()> {
+        self.bind(vk::PipelineBindPoint::COMPUTE, pipeline, sets)
+    }
+
+    fn bind(&self, point: vk::PipelineBindPoint, pipeline: &Pipeline, sets: &[&DescriptorSet]) -> VkResult<()> {
+        if pipeline.bind_point != point {
+            return Err(VkError::Invalid(format!(
+                "pipeline '{}' is a {:?} pipeline, bound as {point:?}",
+                pipeline.name, pipeline.bind_point
+            )));
+        }
+        if sets.len() != pipeline.set_count as usize {
+            return Err(VkError::Invalid(format!(
+                "pipeline '{}' has {} descriptor set layout(s), {} set(s) bound",
+                pipeline.name,
+                pipeline.set_count,
+                sets.len()
+            )));
+        }
+        let raw: Vec<vk::DescriptorSet> = sets.iter().map(|s| s.raw).collect();
+        unsafe {
+            self.ctx.device.cmd_bind_pipeline(self.raw, point, pipeline.raw);
+            if !raw.is_empty() {
+                self.ctx.device.cmd_bind_descriptor_sets(self.raw, point, pipeline.layout, 0, &raw, &[]);
+            }
+        }
+        Ok(())
+    }
+
     /// Push constants (recorded into the command buffer, so they cross to
     /// the device with it: counted as per-frame constants).
-    pub fn push_constants(&self, pipeline: &super::Pipeline, data: &[u8], counter: &mut UploadCounter) {
+    pub fn push_constants(&self, pipeline: &Pipeline, data: &[u8], counter: &mut UploadCounter) {
         unsafe { self.ctx.device.cmd_push_constants(self.raw, pipeline.layout, pipeline.push_stages, 0, data) };
         counter.add_direct(UploadClass::FrameConstants, data.len() as u64);
     }
@@ -220,14 +453,192 @@ impl CommandRecorder {
         unsafe { self.ctx.device.cmd_draw_indexed(self.raw, indices, 1, 0, 0, 0) };
     }
 
+    /// Dispatch a `[x, y, z]` grid of workgroups of the bound compute
+    /// pipeline; each dimension must be within maxComputeWorkGroupCount.
+    pub fn dispatch(&self, groups: [u32; 3]) -> VkResult<()> {
+        let max = self.ctx.info.max_compute_work_group_count;
+        if groups.iter().zip(max).any(|(&g, m)| g > m) {
+            return Err(VkError::Unsupported {
+                device: self.ctx.info.name.clone(),
+                what: format!("a dispatch of {groups:?} workgroups (maxComputeWorkGroupCount is {max:?}; use dispatch_groups)"),
+            });
+        }
+        unsafe { self.ctx.device.cmd_dispatch(self.raw, groups[0], groups[1], groups[2]) };
+        Ok(())
+    }
+
+    /// Dispatch `groups` workgroups however many that is, folded into a grid
+    /// by [`fold_groups`]; returns the grid. The shader must compute its
+    /// linear group id with `linear_workgroup_id()` from
+    /// `shaders/common/dispatch.glsl` and return when it is >= `groups`.
+    pub fn dispatch_groups(&self, groups: u64) -> VkResult<[u32; 3]> {
+        let max = self.ctx.info.max_compute_work_group_count;
+        let grid = fold_groups(groups, max).ok_or_else(|| VkError::Unsupported {
+            device: self.ctx.info.name.clone(),
+            what: format!("{groups} workgroups in one dispatch (at most {max:?} per dimension)"),
+        })?;
+        if groups > 0 {
+            self.dispatch(grid)?;
+        }
+        Ok(grid)
+    }
+
+    /// A memory barrier between two (stages, accesses) scopes.
+    pub fn memory_barrier(
+        &self,
+        src: (vk::PipelineStageFlags2, vk::AccessFlags2),
+        dst: (vk::PipelineStageFlags2, vk::AccessFlags2),
+    ) {
+        let barrier = [vk::MemoryBarrier2::default()
+            .src_stage_mask(src.0)
+            .src_access_mask(src.1)
+            .dst_stage_mask(dst.0)
+            .dst_access_mask(dst.1)];
+        unsafe { self.ctx.device.cmd_pipeline_barrier2(self.raw, &vk::DependencyInfo::default().memory_barriers(&barrier)) };
+    }
+
     /// Make host writes to mapped buffers visible to vertex input and shaders
     /// (required by the spec even for coherent memory written before submit).
     pub fn host_to_device_barrier(&self) {
-        let barrier = [vk::MemoryBarrier2::default()
-            .src_stage_mask(vk::PipelineStageFlags2::HOST)
-            .src_access_mask(vk::AccessFlags2::HOST_WRITE)
-            .dst_stage_mask(vk::PipelineStageFlags2::VERTEX_INPUT | vk::PipelineStageFlags2::ALL_GRAPHICS)
-            .dst_access_mask(vk::AccessFlags2::VERTEX_ATTRIBUTE_READ | vk::AccessFlags2::SHADER_STORAGE_READ)];
-        unsafe { self.ctx.device.cmd_pipeline_barrier2(self.raw, &vk::DependencyInfo::default().memory_barriers(&barrier)) };
+        self.memory_barrier(
+            (vk::PipelineStageFlags2::HOST, vk::AccessFlags2::HOST_WRITE),
+            (
+                vk::PipelineStageFlags2::VERTEX_INPUT | vk::PipelineStageFlags2::ALL_GRAPHICS,
+                vk::AccessFlags2::VERTEX_ATTRIBUTE_READ | vk::AccessFlags2::SHADER_STORAGE_READ,
+            ),
+        );
+    }
+
+    /// Compute-shader writes (buffers, texel buffers) before a copy reads them.
+    pub fn compute_to_transfer(&self) {
+        self.memory_barrier(
+            (vk::PipelineStageFlags2::COMPUTE_SHADER, vk::AccessFlags2::SHADER_STORAGE_WRITE),
+            (vk::PipelineStageFlags2::COPY, vk::AccessFlags2::TRANSFER_READ),
+        );
+    }
+
+    /// Compute-shader writes before any graphics stage reads them: fragment
+    /// and pre-rasterisation shaders (storage, uniform, sampled reads),
+    /// vertex/index fetch and indirect draws.
+    pub fn compute_to_graphics(&self) {
+        use vk::{AccessFlags2 as A, PipelineStageFlags2 as S};
+        self.memory_barrier(
+            (S::COMPUTE_SHADER, A::SHADER_STORAGE_WRITE),
+            (
+                S::FRAGMENT_SHADER | S::PRE_RASTERIZATION_SHADERS | S::VERTEX_INPUT | S::DRAW_INDIRECT,
+                A::SHADER_READ | A::VERTEX_ATTRIBUTE_READ | A::INDEX_READ | A::INDIRECT_COMMAND_READ,
+            ),
+        );
+    }
+
+    /// Alias of [`compute_to_graphics`](Self::compute_to_graphics) under the
+    /// name of its most common case.
+    pub fn compute_to_fragment(&self) {
+        self.compute_to_graphics();
+    }
+
+    /// Copies (uploads) before compute shaders read or overwrite the data.
+    pub fn transfer_to_compute(&self) {
+        self.memory_barrier(
+            (vk::PipelineStageFlags2::COPY, vk::AccessFlags2::TRANSFER_WRITE),
+            (vk::PipelineStageFlags2::COMPUTE_SHADER, vk::AccessFlags2::SHADER_READ | vk::AccessFlags2::SHADER_STORAGE_WRITE),
+        );
+    }
+
+    /// One compute pass's writes before the next one reads or writes.
+    pub fn compute_to_compute(&self) {
+        self.memory_barrier(
+            (vk::PipelineStageFlags2::COMPUTE_SHADER, vk::AccessFlags2::SHADER_STORAGE_WRITE),
+            (vk::PipelineStageFlags2::COMPUTE_SHADER, vk::AccessFlags2::SHADER_READ | vk::AccessFlags2::SHADER_STORAGE_WRITE),
+        );
+    }
+
+    /// Compute-shader writes into host-visible memory before the host reads
+    /// it (after the fence).
+    pub fn compute_to_host(&self) {
+        self.memory_barrier(
+            (vk::PipelineStageFlags2::COMPUTE_SHADER, vk::AccessFlags2::SHADER_STORAGE_WRITE),
+            (vk::PipelineStageFlags2::HOST, vk::AccessFlags2::HOST_READ),
+        );
+    }
+
+    /// Copies into host-visible memory before the host reads it.
+    pub fn transfer_to_host(&self) {
+        self.memory_barrier(
+            (vk::PipelineStageFlags2::COPY, vk::AccessFlags2::TRANSFER_WRITE),
+            (vk::PipelineStageFlags2::HOST, vk::AccessFlags2::HOST_READ),
+        );
+    }
+
+    /// Move `image` to its next use, keeping its contents (layout
+    /// transitions and hazards handled from the image's tracked state).
+    pub fn image_barrier(&self, image: &Image, to: ImageUse) {
+        image.barrier(self.raw, to, true);
+    }
+
+    /// Like `image_barrier`, discarding the contents (for a pass that
+    /// overwrites every texel).
+    pub fn image_barrier_discard(&self, image: &Image, to: ImageUse) {
+        image.barrier(self.raw, to, false);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fold_groups_follows_the_documented_rule() {
+        let max = [65_535, 65_535, 65_535];
+        assert_eq!(fold_groups(0, max), Some([0, 0, 0]));
+        assert_eq!(fold_groups(1, max), Some([1, 1, 1]));
+        assert_eq!(fold_groups(65_535, max), Some([65_535, 1, 1]));
+        assert_eq!(fold_groups(65_536, max), Some([32_768, 2, 1]));
+        assert_eq!(fold_groups(100_001, max), Some([50_001, 2, 1]));
+        // Beyond one plane of x*y groups, z takes over.
+        let big = 65_535u64 * 65_535 + 1;
+        let [x, y, z] = fold_groups(big, max).unwrap();
+        assert_eq!(z, 2);
+        assert!((x as u64) * (y as u64) * (z as u64) >= big);
+        assert_eq!(fold_groups(65_535u64.pow(3) + 1, max), None);
+        // Small limits: every n fits, the excess stays below y*z groups.
+        for n in 1..2_000u64 {
+            let [x, y, z] = fold_groups(n, [7, 5, 100]).unwrap();
+            let (x, y, z) = (x as u64, y as u64, z as u64);
+            assert!(x <= 7 && y <= 5 && z <= 100, "{n}: {x} {y} {z}");
+            assert!(x * y * z >= n && x * y * z - n < y * z, "{n}: {x} {y} {z}");
+        }
+    }
+
+    /// A submission that never finishes (it waits on an event the host has
+    /// not set) must time out with an error naming the recorder; once the
+    /// event is set the context is marked hung, so nothing waits again.
+    #[test]
+    fn a_fence_wait_times_out_with_the_recorder_name() {
+        let ctx = Context::new(&super::super::ContextDesc { device: None, validation: false }).expect("a Vulkan device");
+        let event = unsafe { ctx.device.create_event(&vk::EventCreateInfo::default(), None) }.expect("event");
+        let mut rec = CommandRecorder::new(&ctx, "stuck on an event").expect("recorder");
+        rec.set_timeout(Duration::from_millis(200));
+        let cmd = rec.begin().expect("begin");
+        unsafe {
+            ctx.device.cmd_wait_events(
+                cmd,
+                &[event],
+                vk::PipelineStageFlags::HOST,
+                vk::PipelineStageFlags::TOP_OF_PIPE,
+                &[],
+                &[],
+                &[],
+            );
+        }
+        rec.submit().expect("submit");
+        let err = rec.wait().expect_err("the wait must time out");
+        assert!(matches!(err, VkError::Timeout { .. }), "{err}");
+        assert!(err.to_string().contains("stuck on an event"), "{err}");
+        assert!(ctx.is_hung());
+        // Let the device finish so the test process does not keep a busy
+        // queue thread; the recorder and context leak by design.
+        unsafe { ctx.device.set_event(event).expect("set event") };
+        assert!(matches!(rec.wait(), Err(VkError::DeviceHung)));
     }
 }

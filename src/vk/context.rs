@@ -5,11 +5,22 @@
 //!
 //! Sync model: one queue, one frame at a time, the host waits on a fence after
 //! each submission. That keeps timings honest (no overlap between frames) and
-//! makes `Drop` of any resource safe after `wait_idle`.
+//! makes `Drop` of any resource safe after `wait_idle`. Fence waits are
+//! bounded (`fence_timeout`, 60 s unless `VOLBENCH_FENCE_TIMEOUT_S` says
+//! otherwise) so a hung device becomes an error, not a hang.
+//!
+//! Optional features (geometry shaders, pipeline statistics, f64 in shaders,
+//! ...) are enabled when the device has them and recorded in
+//! `DeviceInfo::features`, so the harness can skip a method whose features
+//! are missing instead of failing at pipeline creation. Environment switches
+//! are parsed strictly: a value we do not understand is an error naming the
+//! variable, never silently "off".
 
 use std::ffi::{c_void, CStr, CString};
 use std::mem::ManuallyDrop;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
+use std::time::Duration;
 
 use ash::{ext, vk};
 use gpu_allocator::vulkan::{Allocator, AllocatorCreateDesc};
@@ -31,17 +42,153 @@ pub struct ContextDesc {
 }
 
 impl ContextDesc {
-    /// Device from `VOLBENCH_DEVICE`, validation from `VOLBENCH_VALIDATION=1`.
-    pub fn from_env() -> Self {
-        ContextDesc {
-            device: std::env::var("VOLBENCH_DEVICE").ok().filter(|s| !s.is_empty()),
-            validation: validation_requested(),
-        }
+    /// Device from `VOLBENCH_DEVICE`, validation from `VOLBENCH_VALIDATION`
+    /// (see [`parse_env_flag`]); an unusable value is an error.
+    pub fn from_env() -> VkResult<Self> {
+        Self::from_vars(&|name| std::env::var(name).ok())
+    }
+
+    /// `from_env` over any variable lookup (tests pass a map instead of
+    /// mutating the process environment).
+    pub fn from_vars(get: &dyn Fn(&str) -> Option<String>) -> VkResult<Self> {
+        Ok(ContextDesc {
+            device: get("VOLBENCH_DEVICE").filter(|s| !s.is_empty()),
+            validation: match get(VALIDATION_VAR) {
+                Some(v) => parse_env_flag(VALIDATION_VAR, &v)?,
+                None => false,
+            },
+        })
     }
 }
 
-pub fn validation_requested() -> bool {
-    std::env::var("VOLBENCH_VALIDATION").is_ok_and(|v| v == "1" || v.eq_ignore_ascii_case("true"))
+/// The variable that turns the validation layer on.
+pub const VALIDATION_VAR: &str = "VOLBENCH_VALIDATION";
+/// The variable that bounds every fence wait, in seconds.
+pub const FENCE_TIMEOUT_VAR: &str = "VOLBENCH_FENCE_TIMEOUT_S";
+/// Fence waits give up after this long unless `VOLBENCH_FENCE_TIMEOUT_S` says
+/// otherwise: far above any frame we draw, far below "forever".
+pub const DEFAULT_FENCE_TIMEOUT: Duration = Duration::from_secs(60);
+
+/// Whether `VOLBENCH_VALIDATION` asks for the validation layer (unset: no).
+pub fn validation_requested() -> VkResult<bool> {
+    match std::env::var(VALIDATION_VAR) {
+        Ok(v) => parse_env_flag(VALIDATION_VAR, &v),
+        Err(std::env::VarError::NotPresent) => Ok(false),
+        Err(std::env::VarError::NotUnicode(v)) => Err(VkError::Env {
+            var: VALIDATION_VAR,
+            value: v.to_string_lossy().into_owned(),
+            expected: FLAG_VALUES,
+        }),
+    }
+}
+
+const FLAG_VALUES: &str = "one of 1/0, true/false, yes/no, on/off (any case)";
+
+/// A boolean switch from the environment: 1/0, true/false, yes/no, on/off in
+/// any case (surrounding blanks ignored); an empty value means off. Anything
+/// else is an error naming `var` and the value.
+pub fn parse_env_flag(var: &'static str, value: &str) -> VkResult<bool> {
+    match value.trim().to_ascii_lowercase().as_str() {
+        "1" | "true" | "yes" | "on" => Ok(true),
+        "0" | "false" | "no" | "off" | "" => Ok(false),
+        _ => Err(VkError::Env { var, value: value.to_string(), expected: FLAG_VALUES }),
+    }
+}
+
+/// The fence time-out from `VOLBENCH_FENCE_TIMEOUT_S` (unset: 60 s).
+pub fn fence_timeout_from_env() -> VkResult<Duration> {
+    match std::env::var(FENCE_TIMEOUT_VAR) {
+        Ok(v) => parse_fence_timeout(&v),
+        Err(std::env::VarError::NotPresent) => Ok(DEFAULT_FENCE_TIMEOUT),
+        Err(std::env::VarError::NotUnicode(v)) => Err(VkError::Env {
+            var: FENCE_TIMEOUT_VAR,
+            value: v.to_string_lossy().into_owned(),
+            expected: TIMEOUT_VALUES,
+        }),
+    }
+}
+
+const TIMEOUT_VALUES: &str = "a number of seconds > 0 and <= 86400";
+
+/// Seconds (fractions allowed) in (0, 86400]; anything else is an error.
+pub fn parse_fence_timeout(value: &str) -> VkResult<Duration> {
+    let err = || VkError::Env { var: FENCE_TIMEOUT_VAR, value: value.to_string(), expected: TIMEOUT_VALUES };
+    let s: f64 = value.trim().parse().map_err(|_| err())?;
+    if !(s > 0.0 && s <= 86_400.0) {
+        return Err(err());
+    }
+    Ok(Duration::from_secs_f64(s))
+}
+
+/// Optional device features: what the device offers and we enable, recorded
+/// with every result so a method needing a missing one can be skipped.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Serialize)]
+pub struct DeviceFeatures {
+    pub geometry_shader: bool,
+    pub tessellation_shader: bool,
+    pub pipeline_statistics_query: bool,
+    pub shader_float64: bool,
+    pub shader_int64: bool,
+    pub shader_int16: bool,
+    pub fragment_stores_and_atomics: bool,
+    pub vertex_pipeline_stores_and_atomics: bool,
+    /// Storage images declared without a format qualifier can be written.
+    pub shader_storage_image_write_without_format: bool,
+}
+
+impl DeviceFeatures {
+    /// The names of the features `self` requires that `have` lacks (empty:
+    /// the device can run it).
+    pub fn missing_from(&self, have: &DeviceFeatures) -> Vec<&'static str> {
+        let pairs = [
+            (self.geometry_shader, have.geometry_shader, "geometryShader"),
+            (self.tessellation_shader, have.tessellation_shader, "tessellationShader"),
+            (self.pipeline_statistics_query, have.pipeline_statistics_query, "pipelineStatisticsQuery"),
+            (self.shader_float64, have.shader_float64, "shaderFloat64"),
+            (self.shader_int64, have.shader_int64, "shaderInt64"),
+            (self.shader_int16, have.shader_int16, "shaderInt16"),
+            (self.fragment_stores_and_atomics, have.fragment_stores_and_atomics, "fragmentStoresAndAtomics"),
+            (
+                self.vertex_pipeline_stores_and_atomics,
+                have.vertex_pipeline_stores_and_atomics,
+                "vertexPipelineStoresAndAtomics",
+            ),
+            (
+                self.shader_storage_image_write_without_format,
+                have.shader_storage_image_write_without_format,
+                "shaderStorageImageWriteWithoutFormat",
+            ),
+        ];
+        pairs.iter().filter(|(need, has, _)| *need && !*has).map(|(_, _, n)| *n).collect()
+    }
+
+    fn of(f: &vk::PhysicalDeviceFeatures) -> Self {
+        let b = |v: vk::Bool32| v == vk::TRUE;
+        DeviceFeatures {
+            geometry_shader: b(f.geometry_shader),
+            tessellation_shader: b(f.tessellation_shader),
+            pipeline_statistics_query: b(f.pipeline_statistics_query),
+            shader_float64: b(f.shader_float64),
+            shader_int64: b(f.shader_int64),
+            shader_int16: b(f.shader_int16),
+            fragment_stores_and_atomics: b(f.fragment_stores_and_atomics),
+            vertex_pipeline_stores_and_atomics: b(f.vertex_pipeline_stores_and_atomics),
+            shader_storage_image_write_without_format: b(f.shader_storage_image_write_without_format),
+        }
+    }
+
+    fn to_vk(self) -> vk::PhysicalDeviceFeatures {
+        vk::PhysicalDeviceFeatures::default()
+            .geometry_shader(self.geometry_shader)
+            .tessellation_shader(self.tessellation_shader)
+            .pipeline_statistics_query(self.pipeline_statistics_query)
+            .shader_float64(self.shader_float64)
+            .shader_int64(self.shader_int64)
+            .shader_int16(self.shader_int16)
+            .fragment_stores_and_atomics(self.fragment_stores_and_atomics)
+            .vertex_pipeline_stores_and_atomics(self.vertex_pipeline_stores_and_atomics)
+            .shader_storage_image_write_without_format(self.shader_storage_image_write_without_format)
+    }
 }
 
 /// What results record about the device.
@@ -57,6 +204,7 @@ pub struct DeviceInfo {
     pub device_id: u32,
     pub timestamp_period_ns: f32,
     pub timestamp_valid_bits: u32,
+    /// Same as `features.pipeline_statistics_query` (kept for old results).
     pub pipeline_statistics: bool,
     pub max_image_dimension_2d: u32,
     pub max_storage_buffer_range: u32,
@@ -64,6 +212,18 @@ pub struct DeviceInfo {
     pub max_memory_allocation_size: u64,
     pub device_local_heap_bytes: u64,
     pub validation: bool,
+    /// Optional features enabled on the device (all it supports).
+    pub features: DeviceFeatures,
+    pub max_image_dimension_1d: u32,
+    pub max_image_dimension_3d: u32,
+    pub max_uniform_buffer_range: u32,
+    pub max_texel_buffer_elements: u32,
+    pub max_color_attachments: u32,
+    pub max_bound_descriptor_sets: u32,
+    pub max_compute_work_group_count: [u32; 3],
+    pub max_compute_work_group_size: [u32; 3],
+    pub max_compute_work_group_invocations: u32,
+    pub max_geometry_output_vertices: u32,
 }
 
 /// Messages the validation layer reported, shared with its callback.
@@ -83,6 +243,11 @@ pub struct Context {
     pub queue_family: u32,
     pub command_pool: vk::CommandPool,
     pub info: DeviceInfo,
+    /// How long any fence wait may block (see `FENCE_TIMEOUT_VAR`).
+    pub fence_timeout: Duration,
+    /// Set when a fence wait timed out: the device may still use memory, so
+    /// wrappers leak instead of freeing and `Drop` does not wait forever.
+    hung: AtomicBool,
     allocator: ManuallyDrop<Mutex<Allocator>>,
     validation_log: Arc<ValidationLog>,
 }
@@ -142,6 +307,7 @@ impl Context {
         // SAFETY: loading the system loader; failure is an Err, not a crash.
         let entry = unsafe { ash::Entry::load() }.map_err(|e| VkError::Loader(e.to_string()))?;
 
+        let fence_timeout = fence_timeout_from_env()?;
         let validation = desc.validation;
         if validation {
             let layers = unsafe { entry.enumerate_instance_layer_properties() }.check("vkEnumerateInstanceLayerProperties")?;
@@ -225,6 +391,8 @@ impl Context {
                     queue_family,
                     command_pool,
                     info,
+                    fence_timeout,
+                    hung: AtomicBool::new(false),
                     allocator: ManuallyDrop::new(Mutex::new(allocator)),
                     validation_log,
                 }))
@@ -312,13 +480,11 @@ impl Context {
             return Err(VkError::Unsupported { device: name, what: "dynamicRendering and synchronization2".into() });
         }
         let maintenance4 = f13.maintenance4;
-        let pipeline_statistics = supported.pipeline_statistics_query == vk::TRUE;
-
-        let features = vk::PhysicalDeviceFeatures::default()
-            .pipeline_statistics_query(pipeline_statistics)
-            .fragment_stores_and_atomics(supported.fragment_stores_and_atomics == vk::TRUE)
-            .geometry_shader(supported.geometry_shader == vk::TRUE)
-            .shader_float64(supported.shader_float64 == vk::TRUE);
+        // Enable every optional feature we know and the device has: none of
+        // them costs anything unless a shader uses it.
+        let enabled = DeviceFeatures::of(&supported);
+        let pipeline_statistics = enabled.pipeline_statistics_query;
+        let features = enabled.to_vk();
         let mut enable13 = vk::PhysicalDeviceVulkan13Features::default()
             .dynamic_rendering(true)
             .synchronization2(true)
@@ -342,6 +508,7 @@ impl Context {
         let mut p2 = vk::PhysicalDeviceProperties2::default().push_next(&mut m3);
         unsafe { instance.get_physical_device_properties2(physical, &mut p2) };
 
+        let limits = &props.limits;
         let info = DeviceInfo {
             index,
             name,
@@ -360,6 +527,17 @@ impl Context {
             max_memory_allocation_size: m3.max_memory_allocation_size,
             device_local_heap_bytes,
             validation,
+            features: enabled,
+            max_image_dimension_1d: limits.max_image_dimension1_d,
+            max_image_dimension_3d: limits.max_image_dimension3_d,
+            max_uniform_buffer_range: limits.max_uniform_buffer_range,
+            max_texel_buffer_elements: limits.max_texel_buffer_elements,
+            max_color_attachments: limits.max_color_attachments,
+            max_bound_descriptor_sets: limits.max_bound_descriptor_sets,
+            max_compute_work_group_count: limits.max_compute_work_group_count,
+            max_compute_work_group_size: limits.max_compute_work_group_size,
+            max_compute_work_group_invocations: limits.max_compute_work_group_invocations,
+            max_geometry_output_vertices: limits.max_geometry_output_vertices,
         };
         Ok((physical, device, queue_family, info))
     }
@@ -381,7 +559,61 @@ impl Context {
         }
     }
 
+    /// Whether `format` has all of `features` on this device. Image features
+    /// (sampled, linear filter, storage image, colour attachment, transfer)
+    /// are checked for optimal tiling, the tiling every image here uses;
+    /// buffer features (uniform/storage texel buffer, vertex buffer) against
+    /// the format's buffer features. E.g. a volume that is to be sampled with
+    /// trilinear filtering needs `SAMPLED_IMAGE | SAMPLED_IMAGE_FILTER_LINEAR`.
+    pub fn format_supports(&self, format: vk::Format, features: vk::FormatFeatureFlags) -> bool {
+        let props = unsafe { self.instance.get_physical_device_format_properties(self.physical, format) };
+        let buffer_bits = vk::FormatFeatureFlags::UNIFORM_TEXEL_BUFFER
+            | vk::FormatFeatureFlags::STORAGE_TEXEL_BUFFER
+            | vk::FormatFeatureFlags::STORAGE_TEXEL_BUFFER_ATOMIC
+            | vk::FormatFeatureFlags::VERTEX_BUFFER;
+        let want_buffer = features & buffer_bits;
+        let want_image = features & !buffer_bits;
+        props.buffer_features.contains(want_buffer) && props.optimal_tiling_features.contains(want_image)
+    }
+
+    /// The largest extent (and layers, max resource size) an optimal-tiling
+    /// image of this type, format and usage may have, or `None` when the
+    /// combination is not supported at all.
+    pub(crate) fn image_format_limits(
+        &self,
+        format: vk::Format,
+        ty: vk::ImageType,
+        usage: vk::ImageUsageFlags,
+    ) -> Option<vk::ImageFormatProperties> {
+        unsafe {
+            self.instance.get_physical_device_image_format_properties(
+                self.physical,
+                format,
+                ty,
+                vk::ImageTiling::OPTIMAL,
+                usage,
+                vk::ImageCreateFlags::empty(),
+            )
+        }
+        .ok()
+    }
+
+    /// Record that a submission did not finish within `fence_timeout`.
+    pub(crate) fn mark_hung(&self) {
+        self.hung.store(true, Ordering::SeqCst);
+    }
+
+    /// Whether some submission timed out (see `mark_hung`).
+    pub fn is_hung(&self) -> bool {
+        self.hung.load(Ordering::SeqCst)
+    }
+
+    /// Wait for the device to be idle; refused (instead of waiting forever)
+    /// once a submission has timed out.
     pub fn wait_idle(&self) -> VkResult<()> {
+        if self.is_hung() {
+            return Err(VkError::DeviceHung);
+        }
         unsafe { self.device.device_wait_idle() }.check("vkDeviceWaitIdle")
     }
 
@@ -402,6 +634,12 @@ impl Context {
 
 impl Drop for Context {
     fn drop(&mut self) {
+        if self.is_hung() {
+            // vkDeviceWaitIdle could block forever and destroying a busy
+            // device is undefined: leak it; the process is about to report
+            // the time-out anyway.
+            return;
+        }
         unsafe {
             let _ = self.device.device_wait_idle();
             self.device.destroy_command_pool(self.command_pool, None);

@@ -1,5 +1,7 @@
 //! The one error type of the Vulkan layer: every failing call says what it was
-//! doing. Layers above add context (scene, file) with `anyhow::Context`.
+//! doing, every rejected description names the object and the problem, a
+//! bounded wait that ran out names its recorder. Layers above add context
+//! (scene, file) with `anyhow::Context`.
 
 use ash::vk;
 
@@ -25,6 +27,19 @@ pub enum VkError {
     Shader(String),
     #[error("the validation layer reported {count} message(s); first: {first}")]
     Validation { count: usize, first: String },
+    /// An environment variable holds a value we cannot use.
+    #[error("environment variable {var}={value:?} is not valid: expected {expected}")]
+    Env { var: &'static str, value: String, expected: &'static str },
+    /// A bounded fence wait ran out: the device may be hung.
+    #[error("waiting for command recorder '{recorder}' timed out after {seconds} s (VOLBENCH_FENCE_TIMEOUT_S); the device may be hung")]
+    Timeout { recorder: String, seconds: f64 },
+    /// After a time-out nothing waits on the device again.
+    #[error("an earlier submission did not finish in time; the device is treated as hung and not waited for again")]
+    DeviceHung,
+    /// A description or a set of resources that does not fit together
+    /// (wrong descriptor kind, sizes, missing usage); names the object.
+    #[error("{0}")]
+    Invalid(String),
 }
 
 pub type VkResult<T> = Result<T, VkError>;

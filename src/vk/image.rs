@@ -1,6 +1,26 @@
-//! The offscreen render target (RGBA32F colour attachment) and its readback.
+//! Images with their memory and their current layout, samplers, texture
+//! upload and readback.
+//!
+//! One `Image` type covers the offscreen render target (RGBA32F; colour
+//! attachment, storage image and sampled, so a compute pass can write the
+//! final image or a later pass can read it) and sampled textures of one, two
+//! or three dimensions (volumes in R8/R16/R32F, transfer-function tables in
+//! RGBA32F, 2D integration tables in R32F/RG32F). Each image owns its
+//! allocation and view and frees them on `Drop`.
+//!
+//! Layouts are tracked: every barrier recorded through `Image::barrier`
+//! (`CommandRecorder::image_barrier`, `begin_rendering*`, readback, upload)
+//! starts from the state the previous one left, so no caller has to remember
+//! whether a render, a compute pass or a readback touched the image last.
+//! The state is updated when the barrier is recorded; with one queue and
+//! submissions in recording order that is the state the device will see (a
+//! recorded but never submitted barrier would break this, so recorders are
+//! always submitted or dropped with their images' users).
+//!
+//! Texture data is uploaded once through a staging buffer and counted as
+//! static bytes at the copy (see `upload`).
 
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 use ash::vk;
 use gpu_allocator::vulkan::{Allocation, AllocationCreateDesc, AllocationScheme};
@@ -9,22 +29,161 @@ use gpu_allocator::MemoryLocation;
 use super::buffer::{Buffer, BufferDesc};
 use super::commands::CommandRecorder;
 use super::error::{Check, VkError, VkResult};
+use super::upload::{UploadClass, UploadCounter};
 use super::Context;
 
 pub const TARGET_FORMAT: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
+
+/// How many dimensions an image has.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum ImageDim {
+    D1,
+    D2,
+    D3,
+}
+
+impl ImageDim {
+    fn image_type(self) -> vk::ImageType {
+        match self {
+            ImageDim::D1 => vk::ImageType::TYPE_1D,
+            ImageDim::D2 => vk::ImageType::TYPE_2D,
+            ImageDim::D3 => vk::ImageType::TYPE_3D,
+        }
+    }
+    fn view_type(self) -> vk::ImageViewType {
+        match self {
+            ImageDim::D1 => vk::ImageViewType::TYPE_1D,
+            ImageDim::D2 => vk::ImageViewType::TYPE_2D,
+            ImageDim::D3 => vk::ImageViewType::TYPE_3D,
+        }
+    }
+}
+
+/// Bytes per texel of the formats images here may have; `None` for formats
+/// this layer does not handle (creating such an image is an error).
+pub fn texel_bytes(format: vk::Format) -> Option<u64> {
+    Some(match format {
+        vk::Format::R8_UNORM | vk::Format::R8_SNORM | vk::Format::R8_UINT | vk::Format::R8_SINT => 1,
+        vk::Format::R16_UNORM
+        | vk::Format::R16_SNORM
+        | vk::Format::R16_UINT
+        | vk::Format::R16_SINT
+        | vk::Format::R16_SFLOAT => 2,
+        vk::Format::R32_SFLOAT | vk::Format::R32_UINT | vk::Format::R32_SINT | vk::Format::R8G8B8A8_UNORM => 4,
+        vk::Format::R32G32_SFLOAT | vk::Format::R16G16B16A16_SFLOAT => 8,
+        vk::Format::R32G32B32A32_SFLOAT | vk::Format::R32G32B32A32_UINT => 16,
+        _ => return None,
+    })
+}
+
+/// A sampled (optionally also storage) image, as data. Texels are given
+/// x fastest, then y, then z, tightly packed.
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+pub struct TextureDesc {
+    pub name: String,
+    pub dim: ImageDim,
+    pub width: u32,
+    /// 1 for 1D images.
+    pub height: u32,
+    /// 1 for 1D and 2D images.
+    pub depth: u32,
+    pub format: vk::Format,
+    /// Also usable as a storage image (compute writes).
+    pub storage: bool,
+}
+
+impl TextureDesc {
+    pub fn d1(name: &str, width: u32, format: vk::Format) -> Self {
+        TextureDesc { name: name.into(), dim: ImageDim::D1, width, height: 1, depth: 1, format, storage: false }
+    }
+    pub fn d2(name: &str, width: u32, height: u32, format: vk::Format) -> Self {
+        TextureDesc { name: name.into(), dim: ImageDim::D2, width, height, depth: 1, format, storage: false }
+    }
+    pub fn d3(name: &str, [width, height, depth]: [u32; 3], format: vk::Format) -> Self {
+        TextureDesc { name: name.into(), dim: ImageDim::D3, width, height, depth, format, storage: false }
+    }
+
+    /// Bytes of the whole image (checked; `None` on overflow or an unknown format).
+    pub fn byte_size(&self) -> Option<u64> {
+        texel_bytes(self.format)?
+            .checked_mul(self.width as u64)?
+            .checked_mul(self.height as u64)?
+            .checked_mul(self.depth as u64)
+    }
+}
+
+/// What an image is used for next; each maps to one layout and the stages
+/// and accesses a barrier must cover.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum ImageUse {
+    /// Colour attachment of a dynamic-rendering pass (read and write, for blending).
+    ColorAttachment,
+    /// Storage image read and written by compute shaders (layout GENERAL).
+    ComputeStorage,
+    /// Sampled by any shader stage (fragment, compute, pre-rasterisation).
+    Sampled,
+    /// Source of a copy (readback).
+    TransferSrc,
+    /// Destination of a copy (upload).
+    TransferDst,
+}
+
+/// Layout, stages and accesses of the last recorded use.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ImageState {
+    pub layout: vk::ImageLayout,
+    pub stages: vk::PipelineStageFlags2,
+    pub access: vk::AccessFlags2,
+}
+
+impl ImageUse {
+    pub fn state(self) -> ImageState {
+        use vk::{AccessFlags2 as A, ImageLayout as L, PipelineStageFlags2 as S};
+        let (layout, stages, access) = match self {
+            ImageUse::ColorAttachment => (
+                L::COLOR_ATTACHMENT_OPTIMAL,
+                S::COLOR_ATTACHMENT_OUTPUT,
+                A::COLOR_ATTACHMENT_READ | A::COLOR_ATTACHMENT_WRITE,
+            ),
+            ImageUse::ComputeStorage => {
+                (L::GENERAL, S::COMPUTE_SHADER, A::SHADER_STORAGE_READ | A::SHADER_STORAGE_WRITE)
+            }
+            // PRE_RASTERIZATION_SHADERS covers vertex and geometry stages
+            // without naming GEOMETRY_SHADER (invalid when the feature is off).
+            ImageUse::Sampled => (
+                L::SHADER_READ_ONLY_OPTIMAL,
+                S::FRAGMENT_SHADER | S::COMPUTE_SHADER | S::PRE_RASTERIZATION_SHADERS,
+                A::SHADER_SAMPLED_READ,
+            ),
+            ImageUse::TransferSrc => (L::TRANSFER_SRC_OPTIMAL, S::COPY, A::TRANSFER_READ),
+            ImageUse::TransferDst => (L::TRANSFER_DST_OPTIMAL, S::COPY, A::TRANSFER_WRITE),
+        };
+        ImageState { layout, stages, access }
+    }
+}
+
+const UNDEFINED_STATE: ImageState =
+    ImageState { layout: vk::ImageLayout::UNDEFINED, stages: vk::PipelineStageFlags2::NONE, access: vk::AccessFlags2::NONE };
 
 pub struct Image {
     pub raw: vk::Image,
     pub view: vk::ImageView,
     pub width: u32,
     pub height: u32,
+    pub depth: u32,
     pub format: vk::Format,
+    pub dim: ImageDim,
+    pub usage: vk::ImageUsageFlags,
+    name: String,
+    state: Mutex<ImageState>,
     allocation: Option<Allocation>,
     ctx: Arc<Context>,
 }
 
 impl Image {
-    /// A colour target that can also be copied out for readback.
+    /// The RGBA32F target: colour attachment, copy source for readback and,
+    /// where the device allows it for the format, storage image (a compute
+    /// pass writes the final image) and sampled image (a later pass reads it).
     pub fn render_target(ctx: &Arc<Context>, name: &str, width: u32, height: u32) -> VkResult<Image> {
         let max = ctx.info.max_image_dimension_2d;
         if width == 0 || height == 0 || width > max || height > max {
@@ -33,66 +192,180 @@ impl Image {
                 what: format!("a {width}x{height} render target (maxImageDimension2D is {max})"),
             });
         }
-        let info = vk::ImageCreateInfo::default()
-            .image_type(vk::ImageType::TYPE_2D)
-            .format(TARGET_FORMAT)
-            .extent(vk::Extent3D { width, height, depth: 1 })
+        let mut usage = vk::ImageUsageFlags::COLOR_ATTACHMENT | vk::ImageUsageFlags::TRANSFER_SRC;
+        if ctx.format_supports(TARGET_FORMAT, vk::FormatFeatureFlags::STORAGE_IMAGE) {
+            usage |= vk::ImageUsageFlags::STORAGE;
+        }
+        if ctx.format_supports(TARGET_FORMAT, vk::FormatFeatureFlags::SAMPLED_IMAGE) {
+            usage |= vk::ImageUsageFlags::SAMPLED;
+        }
+        Self::create(ctx, name, ImageDim::D2, [width, height, 1], TARGET_FORMAT, usage)
+    }
+
+    /// An empty sampled image (contents undefined until uploaded or written).
+    pub fn texture(ctx: &Arc<Context>, desc: &TextureDesc) -> VkResult<Image> {
+        let mut usage = vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_DST | vk::ImageUsageFlags::TRANSFER_SRC;
+        let mut features = vk::FormatFeatureFlags::SAMPLED_IMAGE | vk::FormatFeatureFlags::TRANSFER_DST;
+        if desc.storage {
+            usage |= vk::ImageUsageFlags::STORAGE;
+            features |= vk::FormatFeatureFlags::STORAGE_IMAGE;
+        }
+        if texel_bytes(desc.format).is_none() || !ctx.format_supports(desc.format, features) {
+            return Err(VkError::Unsupported {
+                device: ctx.info.name.clone(),
+                what: format!("format {:?} with {:?} for image '{}'", desc.format, features, desc.name),
+            });
+        }
+        let extent = match desc.dim {
+            ImageDim::D1 => [desc.width, 1, 1],
+            ImageDim::D2 => [desc.width, desc.height, 1],
+            ImageDim::D3 => [desc.width, desc.height, desc.depth],
+        };
+        if extent != [desc.width, desc.height, desc.depth] {
+            return Err(VkError::Invalid(format!(
+                "image '{}': a {:?} image must have height/depth 1 beyond its dimensions, got {}x{}x{}",
+                desc.name, desc.dim, desc.width, desc.height, desc.depth
+            )));
+        }
+        Self::create(ctx, &desc.name, desc.dim, extent, desc.format, usage)
+    }
+
+    fn create(
+        ctx: &Arc<Context>,
+        name: &str,
+        dim: ImageDim,
+        [width, height, depth]: [u32; 3],
+        format: vk::Format,
+        usage: vk::ImageUsageFlags,
+    ) -> VkResult<Image> {
+        let info = &ctx.info;
+        let max = match dim {
+            ImageDim::D1 => info.max_image_dimension_1d,
+            ImageDim::D2 => info.max_image_dimension_2d,
+            ImageDim::D3 => info.max_image_dimension_3d,
+        };
+        let limits = ctx.image_format_limits(format, dim.image_type(), usage);
+        let fits = |l: &vk::ImageFormatProperties| {
+            let bytes = texel_bytes(format)
+                .and_then(|t| t.checked_mul(width as u64))
+                .and_then(|b| b.checked_mul(height as u64))
+                .and_then(|b| b.checked_mul(depth as u64));
+            width <= l.max_extent.width
+                && height <= l.max_extent.height
+                && depth <= l.max_extent.depth
+                && bytes.is_some_and(|b| b <= l.max_resource_size)
+        };
+        if width == 0 || height == 0 || depth == 0 || width.max(height).max(depth) > max || !limits.as_ref().is_some_and(fits) {
+            return Err(VkError::Unsupported {
+                device: info.name.clone(),
+                what: format!(
+                    "a {width}x{height}x{depth} {dim:?} image '{name}' of {format:?} with usage {usage:?} (max dimension {max}, format limits {:?})",
+                    limits.map(|l| l.max_extent)
+                ),
+            });
+        }
+        let ci = vk::ImageCreateInfo::default()
+            .image_type(dim.image_type())
+            .format(format)
+            .extent(vk::Extent3D { width, height, depth })
             .mip_levels(1)
             .array_layers(1)
             .samples(vk::SampleCountFlags::TYPE_1)
             .tiling(vk::ImageTiling::OPTIMAL)
-            .usage(vk::ImageUsageFlags::COLOR_ATTACHMENT | vk::ImageUsageFlags::TRANSFER_SRC)
+            .usage(usage)
             .initial_layout(vk::ImageLayout::UNDEFINED);
-        let raw = unsafe { ctx.device.create_image(&info, None) }.check("vkCreateImage")?;
-        let requirements = unsafe { ctx.device.get_image_memory_requirements(raw) };
-        let allocation = match ctx.allocator().allocate(&AllocationCreateDesc {
-            name,
-            requirements,
-            location: MemoryLocation::GpuOnly,
-            linear: false,
-            allocation_scheme: AllocationScheme::GpuAllocatorManaged,
-        }) {
-            Ok(a) => a,
-            Err(source) => {
-                unsafe { ctx.device.destroy_image(raw, None) };
-                return Err(VkError::Alloc { name: name.into(), source });
-            }
-        };
+        let raw = unsafe { ctx.device.create_image(&ci, None) }.check("vkCreateImage")?;
+        // From here the image owns `raw`: an early return drops it (and frees
+        // what exists so far).
         let mut image = Image {
             raw,
             view: vk::ImageView::null(),
             width,
             height,
-            format: TARGET_FORMAT,
+            depth,
+            format,
+            dim,
+            usage,
+            name: name.to_string(),
+            state: Mutex::new(UNDEFINED_STATE),
             allocation: None,
             ctx: ctx.clone(),
         };
-        unsafe { ctx.device.bind_image_memory(raw, allocation.memory(), allocation.offset()) }.check("vkBindImageMemory")?;
+        let requirements = unsafe { ctx.device.get_image_memory_requirements(raw) };
+        let allocation = ctx
+            .allocator()
+            .allocate(&AllocationCreateDesc {
+                name,
+                requirements,
+                location: MemoryLocation::GpuOnly,
+                linear: false,
+                allocation_scheme: AllocationScheme::GpuAllocatorManaged,
+            })
+            .map_err(|source| VkError::Alloc { name: name.into(), source })?;
+        let bound = unsafe { ctx.device.bind_image_memory(raw, allocation.memory(), allocation.offset()) };
         image.allocation = Some(allocation);
+        bound.check("vkBindImageMemory")?;
         let view_info = vk::ImageViewCreateInfo::default()
             .image(raw)
-            .view_type(vk::ImageViewType::TYPE_2D)
-            .format(TARGET_FORMAT)
+            .view_type(dim.view_type())
+            .format(format)
             .subresource_range(color_range());
         image.view = unsafe { ctx.device.create_image_view(&view_info, None) }.check("vkCreateImageView")?;
         ctx.set_name(raw, name);
+        ctx.set_name(image.view, name);
         Ok(image)
     }
 
-    /// Barrier moving the whole image between layouts.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// Bytes of the whole image.
+    pub fn byte_size(&self) -> u64 {
+        // Checked at creation (it fitted maxResourceSize).
+        texel_bytes(self.format).unwrap_or(0) * self.width as u64 * self.height as u64 * self.depth as u64
+    }
+
+    /// The last recorded use.
+    pub fn state(&self) -> ImageState {
+        *self.state.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    /// Record a barrier from the last recorded use to `to`. With `keep`
+    /// false the old contents are discarded (layout UNDEFINED as source),
+    /// which is what a pass that overwrites every texel wants.
+    pub fn barrier(&self, cmd: vk::CommandBuffer, to: ImageUse, keep: bool) {
+        let mut state = self.state.lock().unwrap_or_else(|p| p.into_inner());
+        let mut from = *state;
+        if !keep {
+            from.layout = vk::ImageLayout::UNDEFINED;
+        }
+        let to = to.state();
+        self.record_barrier(cmd, from, to);
+        *state = to;
+    }
+
+    /// Barrier moving the whole image between explicit states, given as
+    /// (layout, stages, accesses); the tracked state becomes `to`.
     pub fn transition(
         &self,
         cmd: vk::CommandBuffer,
         from: (vk::ImageLayout, vk::PipelineStageFlags2, vk::AccessFlags2),
         to: (vk::ImageLayout, vk::PipelineStageFlags2, vk::AccessFlags2),
     ) {
+        let to = ImageState { layout: to.0, stages: to.1, access: to.2 };
+        self.record_barrier(cmd, ImageState { layout: from.0, stages: from.1, access: from.2 }, to);
+        *self.state.lock().unwrap_or_else(|p| p.into_inner()) = to;
+    }
+
+    fn record_barrier(&self, cmd: vk::CommandBuffer, from: ImageState, to: ImageState) {
         let barrier = [vk::ImageMemoryBarrier2::default()
-            .src_stage_mask(from.1)
-            .src_access_mask(from.2)
-            .old_layout(from.0)
-            .dst_stage_mask(to.1)
-            .dst_access_mask(to.2)
-            .new_layout(to.0)
+            .src_stage_mask(from.stages)
+            .src_access_mask(from.access)
+            .old_layout(from.layout)
+            .dst_stage_mask(to.stages)
+            .dst_access_mask(to.access)
+            .new_layout(to.layout)
             .image(self.raw)
             .subresource_range(color_range())];
         unsafe {
@@ -100,53 +373,72 @@ impl Image {
         }
     }
 
-    /// Copy the image (left in COLOR_ATTACHMENT_OPTIMAL by a render) to the
-    /// host as RGBA f32, row 0 at the top.
-    pub fn read_rgba32f(&self, ctx: &Arc<Context>) -> VkResult<Vec<[f32; 4]>> {
-        let bytes = self.width as u64 * self.height as u64 * 16;
-        let buf = Buffer::new(ctx, BufferDesc::readback("target readback", bytes))?;
-        let rec = CommandRecorder::new(ctx, "readback")?;
+    /// Copy the whole image to the host: texels x fastest, then y (row 0 at
+    /// the top for a render target), then z, tightly packed.
+    pub fn read_bytes(&self, ctx: &Arc<Context>) -> VkResult<Vec<u8>> {
+        if !self.usage.contains(vk::ImageUsageFlags::TRANSFER_SRC) {
+            return Err(VkError::Invalid(format!("image '{}' cannot be read back (no TRANSFER_SRC usage)", self.name)));
+        }
+        let buf = Buffer::new(ctx, BufferDesc::readback(&format!("{} readback", self.name), self.byte_size()))?;
+        let rec = CommandRecorder::new(ctx, &format!("{} readback", self.name))?;
         let cmd = rec.begin()?;
-        self.transition(
-            cmd,
-            (
-                vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL,
-                vk::PipelineStageFlags2::COLOR_ATTACHMENT_OUTPUT,
-                vk::AccessFlags2::COLOR_ATTACHMENT_WRITE,
-            ),
-            (vk::ImageLayout::TRANSFER_SRC_OPTIMAL, vk::PipelineStageFlags2::COPY, vk::AccessFlags2::TRANSFER_READ),
-        );
+        self.barrier(cmd, ImageUse::TransferSrc, true);
         let region = [vk::BufferImageCopy::default()
-            .image_subresource(vk::ImageSubresourceLayers {
-                aspect_mask: vk::ImageAspectFlags::COLOR,
-                mip_level: 0,
-                base_array_layer: 0,
-                layer_count: 1,
-            })
-            .image_extent(vk::Extent3D { width: self.width, height: self.height, depth: 1 })];
+            .image_subresource(color_layers())
+            .image_extent(vk::Extent3D { width: self.width, height: self.height, depth: self.depth })];
         unsafe {
             ctx.device.cmd_copy_image_to_buffer(cmd, self.raw, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, buf.raw, &region);
         }
-        let to_host = [vk::MemoryBarrier2::default()
-            .src_stage_mask(vk::PipelineStageFlags2::COPY)
-            .src_access_mask(vk::AccessFlags2::TRANSFER_WRITE)
-            .dst_stage_mask(vk::PipelineStageFlags2::HOST)
-            .dst_access_mask(vk::AccessFlags2::HOST_READ)];
-        unsafe { ctx.device.cmd_pipeline_barrier2(cmd, &vk::DependencyInfo::default().memory_barriers(&to_host)) };
-        self.transition(
-            cmd,
-            (vk::ImageLayout::TRANSFER_SRC_OPTIMAL, vk::PipelineStageFlags2::COPY, vk::AccessFlags2::TRANSFER_READ),
-            (
-                vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL,
-                vk::PipelineStageFlags2::COLOR_ATTACHMENT_OUTPUT,
-                vk::AccessFlags2::COLOR_ATTACHMENT_WRITE,
-            ),
-        );
+        rec.transfer_to_host();
         rec.submit_and_wait()?;
-        let data = buf.read()?;
+        Ok(buf.read()?.to_vec())
+    }
+
+    /// The image (RGBA32F) as RGBA f32, row 0 at the top; works after a
+    /// render, a compute write or an upload (the layout is tracked).
+    pub fn read_rgba32f(&self, ctx: &Arc<Context>) -> VkResult<Vec<[f32; 4]>> {
+        if self.format != TARGET_FORMAT {
+            return Err(VkError::Invalid(format!("image '{}' is {:?}, not RGBA32F", self.name, self.format)));
+        }
+        let data = self.read_bytes(ctx)?;
         let f = |b: &[u8]| f32::from_ne_bytes([b[0], b[1], b[2], b[3]]);
         Ok(data.chunks_exact(16).map(|c| [f(&c[0..4]), f(&c[4..8]), f(&c[8..12]), f(&c[12..16])]).collect())
     }
+}
+
+/// Create a sampled image and fill it with `data` through a staging buffer;
+/// the bytes are counted as static at the copy. The image is left ready to
+/// sample (`ImageUse::Sampled`) by any later submission.
+pub fn upload_texture(ctx: &Arc<Context>, desc: &TextureDesc, data: &[u8], counter: &mut UploadCounter) -> VkResult<Image> {
+    let expected = desc.byte_size().ok_or_else(|| {
+        VkError::Invalid(format!(
+            "image '{}': {}x{}x{} texels of {:?} overflow or the format is not supported",
+            desc.name, desc.width, desc.height, desc.depth, desc.format
+        ))
+    })?;
+    if data.len() as u64 != expected {
+        return Err(VkError::Invalid(format!(
+            "image '{}': {} bytes given, {}x{}x{} texels of {:?} need {expected}",
+            desc.name,
+            data.len(),
+            desc.width,
+            desc.height,
+            desc.depth,
+            desc.format
+        )));
+    }
+    let image = Image::texture(ctx, desc)?;
+    let mut staging = Buffer::new(
+        ctx,
+        BufferDesc::upload(&format!("{} (staging)", desc.name), expected, vk::BufferUsageFlags::TRANSFER_SRC),
+    )?;
+    staging.write_staging(0, data)?;
+    let rec = CommandRecorder::new(ctx, &format!("{} upload", desc.name))?;
+    rec.begin()?;
+    rec.copy_to_image(&staging, &image, counter, UploadClass::Static)?;
+    rec.image_barrier(&image, ImageUse::Sampled);
+    rec.submit_and_wait()?;
+    Ok(image)
 }
 
 pub fn color_range() -> vk::ImageSubresourceRange {
@@ -159,8 +451,16 @@ pub fn color_range() -> vk::ImageSubresourceRange {
     }
 }
 
+pub(crate) fn color_layers() -> vk::ImageSubresourceLayers {
+    vk::ImageSubresourceLayers { aspect_mask: vk::ImageAspectFlags::COLOR, mip_level: 0, base_array_layer: 0, layer_count: 1 }
+}
+
 impl Drop for Image {
     fn drop(&mut self) {
+        if self.ctx.is_hung() {
+            // The device may still write this memory: leak rather than free.
+            return;
+        }
         unsafe {
             if self.view != vk::ImageView::null() {
                 self.ctx.device.destroy_image_view(self.view, None);
@@ -170,5 +470,59 @@ impl Drop for Image {
         if let Some(a) = self.allocation.take() {
             let _ = self.ctx.allocator().free(a);
         }
+    }
+}
+
+/// How a sampler filters between texels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Filter {
+    /// Linear (trilinear for 3D images); needs SAMPLED_IMAGE_FILTER_LINEAR.
+    Linear,
+    /// Nearest texel (integer formats, or exact texel values).
+    Nearest,
+}
+
+/// A sampler with clamp-to-edge addressing, normalised coordinates, one mip
+/// level and no anisotropy: texel i's centre is at (i + 0.5) / size.
+pub struct Sampler {
+    pub raw: vk::Sampler,
+    pub filter: Filter,
+    ctx: Arc<Context>,
+}
+
+impl Sampler {
+    pub fn new(ctx: &Arc<Context>, name: &str, filter: Filter) -> VkResult<Sampler> {
+        let f = match filter {
+            Filter::Linear => vk::Filter::LINEAR,
+            Filter::Nearest => vk::Filter::NEAREST,
+        };
+        let clamp = vk::SamplerAddressMode::CLAMP_TO_EDGE;
+        let info = vk::SamplerCreateInfo::default()
+            .mag_filter(f)
+            .min_filter(f)
+            .mipmap_mode(vk::SamplerMipmapMode::NEAREST)
+            .address_mode_u(clamp)
+            .address_mode_v(clamp)
+            .address_mode_w(clamp)
+            .min_lod(0.0)
+            .max_lod(0.0)
+            .unnormalized_coordinates(false);
+        let raw = unsafe { ctx.device.create_sampler(&info, None) }.check("vkCreateSampler")?;
+        ctx.set_name(raw, name);
+        Ok(Sampler { raw, filter, ctx: ctx.clone() })
+    }
+
+    pub fn linear_clamp(ctx: &Arc<Context>, name: &str) -> VkResult<Sampler> {
+        Self::new(ctx, name, Filter::Linear)
+    }
+
+    pub fn nearest_clamp(ctx: &Arc<Context>, name: &str) -> VkResult<Sampler> {
+        Self::new(ctx, name, Filter::Nearest)
+    }
+}
+
+impl Drop for Sampler {
+    fn drop(&mut self) {
+        unsafe { self.ctx.device.destroy_sampler(self.raw, None) };
     }
 }

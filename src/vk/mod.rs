@@ -1,25 +1,47 @@
 //! The Vulkan layer: every `unsafe` ash call of volbench lives under this
 //! module. Code above it passes plain descriptions (`BufferDesc`,
-//! `GraphicsPipelineDesc`) and gets owning wrappers whose `Drop` frees memory
-//! and destroys handles. Errors are `VkError`, naming the failing call.
+//! `TextureDesc`, `DescriptorSetDesc`, `GraphicsPipelineDesc`,
+//! `ComputePipelineDesc`, `PipelineKey`) and gets owning wrappers whose `Drop`
+//! frees memory and destroys handles. Errors are `VkError`, naming the
+//! failing call or the rejected object.
+//!
+//! What is here: device and features (`context`), buffers and texel buffers
+//! (`buffer`), images, samplers, texture upload and readback (`image`),
+//! descriptor sets (`descriptors`), graphics and compute pipelines
+//! (`pipeline`) and their cache (`pipeline_cache`), command recording with
+//! bounded fence waits, dispatch and barriers (`commands`), timestamps and
+//! statistics (`query`), shader compilation (`shader`) and the byte
+//! counters (`upload`).
 
 pub mod buffer;
 pub mod commands;
 pub mod context;
+pub mod descriptors;
 pub mod error;
 pub mod image;
 pub mod pipeline;
+pub mod pipeline_cache;
 pub mod query;
 pub mod shader;
 pub mod upload;
 
 pub use ash::vk as raw;
-pub use buffer::{Buffer, BufferDesc, MemoryKind};
-pub use commands::{upload_static, CommandRecorder, SubmitTiming};
-pub use context::{list_devices, validation_requested, Context, ContextDesc, DeviceInfo};
+pub use buffer::{Buffer, BufferDesc, MemoryKind, TexelBuffer};
+pub use commands::{fold_groups, upload_static, ColorAttachment, CommandRecorder, SubmitTiming};
+pub use context::{
+    fence_timeout_from_env, list_devices, parse_env_flag, parse_fence_timeout, validation_requested, Context, ContextDesc,
+    DeviceFeatures, DeviceInfo, DEFAULT_FENCE_TIMEOUT, FENCE_TIMEOUT_VAR, VALIDATION_VAR,
+};
+pub use descriptors::{
+    DescriptorBinding, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc, DescriptorSetLayout,
+    StorageBufferSet,
+};
 pub use error::{VkError, VkResult};
-pub use image::{Image, TARGET_FORMAT};
-pub use pipeline::{Blend, GraphicsPipelineDesc, Pipeline, StorageBufferSet, VertexAttribute};
+pub use image::{texel_bytes, upload_texture, Filter, Image, ImageDim, ImageState, ImageUse, Sampler, TextureDesc, TARGET_FORMAT};
+pub use pipeline::{Blend, ColorTarget, ComputePipelineDesc, GraphicsPipelineDesc, Pipeline, VertexAttribute};
+pub use pipeline_cache::{
+    fnv1a64, ComputePipelineKey, GraphicsPipelineKey, GraphicsState, PipelineCache, PipelineKey, ShaderKey,
+};
 pub use query::{FrameQueries, PipelineStats};
 pub use shader::{compile_glsl, ShaderModule, ShaderStage};
 pub use upload::{UploadClass, UploadCounter};

@@ -1,15 +1,23 @@
-//! Graphics pipelines for dynamic rendering into the RGBA32F target, and the
-//! storage-buffer descriptor sets they read. A pipeline is described by a
-//! plain `GraphicsPipelineDesc`; the algorithms never touch raw create-infos.
+//! Graphics and compute pipelines, described by plain structs
+//! (`GraphicsPipelineDesc`, `ComputePipelineDesc`); the algorithms never touch
+//! raw create-infos. Graphics pipelines render with dynamic rendering into
+//! one or several colour attachments (a format and a blend per attachment;
+//! the usual case is one RGBA32F target, `ColorTarget::rgba32f`), with an
+//! optional geometry-shader stage (needs `DeviceFeatures::geometry_shader`).
+//! Both kinds take any number of descriptor-set layouts (sets 0, 1, ...) and
+//! one push-constant range visible to all their stages.
+//!
+//! A `Pipeline` owns its pipeline layout, and the set layouts too when the
+//! pipeline cache made them (`pipeline_cache`); `Drop` destroys them.
 
 use std::sync::Arc;
 
 use ash::vk;
 
-use super::buffer::Buffer;
-use super::error::{Check, VkResult};
+use super::descriptors::DescriptorSetLayout;
+use super::error::{Check, VkError, VkResult};
 use super::image::TARGET_FORMAT;
-use super::shader::ShaderModule;
+use super::shader::{ShaderModule, ShaderStage};
 use super::Context;
 
 /// How fragments combine with the target.
@@ -19,6 +27,37 @@ pub enum Blend {
     PremultipliedOver,
     /// Overwrite.
     None,
+    /// dst = src + dst on every channel (accumulation, counting).
+    Additive,
+}
+
+impl Blend {
+    pub(crate) fn code(self) -> u8 {
+        match self {
+            Blend::PremultipliedOver => 0,
+            Blend::None => 1,
+            Blend::Additive => 2,
+        }
+    }
+
+    fn state(self) -> vk::PipelineColorBlendAttachmentState {
+        let blended = |src: vk::BlendFactor, dst: vk::BlendFactor| {
+            vk::PipelineColorBlendAttachmentState::default()
+                .blend_enable(true)
+                .src_color_blend_factor(src)
+                .dst_color_blend_factor(dst)
+                .color_blend_op(vk::BlendOp::ADD)
+                .src_alpha_blend_factor(src)
+                .dst_alpha_blend_factor(dst)
+                .alpha_blend_op(vk::BlendOp::ADD)
+                .color_write_mask(vk::ColorComponentFlags::RGBA)
+        };
+        match self {
+            Blend::PremultipliedOver => blended(vk::BlendFactor::ONE, vk::BlendFactor::ONE_MINUS_SRC_ALPHA),
+            Blend::Additive => blended(vk::BlendFactor::ONE, vk::BlendFactor::ONE),
+            Blend::None => vk::PipelineColorBlendAttachmentState::default().color_write_mask(vk::ColorComponentFlags::RGBA),
+        }
+    }
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -28,9 +67,25 @@ pub struct VertexAttribute {
     pub offset: u32,
 }
 
+/// One colour attachment of a graphics pipeline: its format and blend.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct ColorTarget {
+    pub format: vk::Format,
+    pub blend: Blend,
+}
+
+impl ColorTarget {
+    /// The RGBA32F render target (`Image::render_target`).
+    pub const fn rgba32f(blend: Blend) -> Self {
+        ColorTarget { format: TARGET_FORMAT, blend }
+    }
+}
+
 pub struct GraphicsPipelineDesc<'a> {
     pub name: &'a str,
     pub vertex: &'a ShaderModule,
+    /// Optional geometry stage (needs the geometryShader feature).
+    pub geometry: Option<&'a ShaderModule>,
     pub fragment: &'a ShaderModule,
     /// Bytes per vertex record; 0 for shaders that fetch nothing.
     pub vertex_stride: u32,
@@ -39,40 +94,134 @@ pub struct GraphicsPipelineDesc<'a> {
     pub primitive_restart: bool,
     pub cull: vk::CullModeFlags,
     pub front_face: vk::FrontFace,
-    pub blend: Blend,
+    /// Colour attachments at locations 0, 1, ...: usually
+    /// `&[ColorTarget::rgba32f(blend)]`.
+    pub targets: &'a [ColorTarget],
     pub push_constant_bytes: u32,
-    pub descriptor_layout: Option<vk::DescriptorSetLayout>,
+    /// Set layouts for sets 0, 1, ... (e.g. `&[set.layout]`).
+    pub descriptor_layouts: &'a [vk::DescriptorSetLayout],
+}
+
+pub struct ComputePipelineDesc<'a> {
+    pub name: &'a str,
+    pub shader: &'a ShaderModule,
+    pub push_constant_bytes: u32,
+    /// Set layouts for sets 0, 1, ...
+    pub descriptor_layouts: &'a [vk::DescriptorSetLayout],
 }
 
 pub struct Pipeline {
     pub raw: vk::Pipeline,
     pub layout: vk::PipelineLayout,
     pub push_stages: vk::ShaderStageFlags,
+    pub bind_point: vk::PipelineBindPoint,
+    /// Number of descriptor sets the layout expects.
+    pub set_count: u32,
+    pub name: String,
+    /// Set layouts this pipeline owns (made by the pipeline cache); dropped
+    /// after the pipeline layout.
+    owned_layouts: Vec<DescriptorSetLayout>,
     ctx: Arc<Context>,
+}
+
+fn check_stage(name: &str, module: &ShaderModule, want: ShaderStage) -> VkResult<()> {
+    if module.stage == want {
+        Ok(())
+    } else {
+        Err(VkError::Invalid(format!("pipeline '{name}': a {:?} module given as its {want:?} shader", module.stage)))
+    }
+}
+
+/// The pipeline layout shared by both kinds, after checking the limits.
+fn create_layout(
+    ctx: &Context,
+    name: &str,
+    push_stages: vk::ShaderStageFlags,
+    push_constant_bytes: u32,
+    set_layouts: &[vk::DescriptorSetLayout],
+) -> VkResult<vk::PipelineLayout> {
+    let info = &ctx.info;
+    if push_constant_bytes % 4 != 0 || push_constant_bytes > info.max_push_constants_size {
+        return Err(VkError::Invalid(format!(
+            "pipeline '{name}': {push_constant_bytes} bytes of push constants (a multiple of 4, at most {})",
+            info.max_push_constants_size
+        )));
+    }
+    if set_layouts.len() > info.max_bound_descriptor_sets as usize {
+        return Err(VkError::Unsupported {
+            device: info.name.clone(),
+            what: format!("{} descriptor sets in pipeline '{name}' (maxBoundDescriptorSets is {})", set_layouts.len(), info.max_bound_descriptor_sets),
+        });
+    }
+    let ranges = [vk::PushConstantRange { stage_flags: push_stages, offset: 0, size: push_constant_bytes }];
+    let mut layout_info = vk::PipelineLayoutCreateInfo::default().set_layouts(set_layouts);
+    if push_constant_bytes > 0 {
+        layout_info = layout_info.push_constant_ranges(&ranges);
+    }
+    unsafe { ctx.device.create_pipeline_layout(&layout_info, None) }.check("vkCreatePipelineLayout")
 }
 
 impl Pipeline {
     pub fn graphics(ctx: &Arc<Context>, desc: &GraphicsPipelineDesc) -> VkResult<Pipeline> {
-        let d = &ctx.device;
-        let push_stages = vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT;
-        let ranges = [vk::PushConstantRange { stage_flags: push_stages, offset: 0, size: desc.push_constant_bytes }];
-        let set_layouts: Vec<vk::DescriptorSetLayout> = desc.descriptor_layout.into_iter().collect();
-        let mut layout_info = vk::PipelineLayoutCreateInfo::default().set_layouts(&set_layouts);
-        if desc.push_constant_bytes > 0 {
-            layout_info = layout_info.push_constant_ranges(&ranges);
-        }
-        let layout = unsafe { d.create_pipeline_layout(&layout_info, None) }.check("vkCreatePipelineLayout")?;
+        Self::graphics_in(ctx, desc, vk::PipelineCache::null(), Vec::new())
+    }
 
-        let stages = [
-            vk::PipelineShaderStageCreateInfo::default()
-                .stage(vk::ShaderStageFlags::VERTEX)
-                .module(desc.vertex.raw)
-                .name(c"main"),
-            vk::PipelineShaderStageCreateInfo::default()
-                .stage(vk::ShaderStageFlags::FRAGMENT)
-                .module(desc.fragment.raw)
-                .name(c"main"),
-        ];
+    pub fn compute(ctx: &Arc<Context>, desc: &ComputePipelineDesc) -> VkResult<Pipeline> {
+        Self::compute_in(ctx, desc, vk::PipelineCache::null(), Vec::new())
+    }
+
+    /// `graphics` with a VkPipelineCache and set layouts to own.
+    pub(crate) fn graphics_in(
+        ctx: &Arc<Context>,
+        desc: &GraphicsPipelineDesc,
+        cache: vk::PipelineCache,
+        owned_layouts: Vec<DescriptorSetLayout>,
+    ) -> VkResult<Pipeline> {
+        let d = &ctx.device;
+        check_stage(desc.name, desc.vertex, ShaderStage::Vertex)?;
+        check_stage(desc.name, desc.fragment, ShaderStage::Fragment)?;
+        if let Some(g) = desc.geometry {
+            check_stage(desc.name, g, ShaderStage::Geometry)?;
+            if !ctx.info.features.geometry_shader {
+                return Err(VkError::Unsupported {
+                    device: ctx.info.name.clone(),
+                    what: format!("geometry shaders (pipeline '{}')", desc.name),
+                });
+            }
+        }
+        if desc.targets.is_empty() || desc.targets.len() > ctx.info.max_color_attachments as usize {
+            return Err(VkError::Invalid(format!(
+                "pipeline '{}': {} colour targets (1 to {})",
+                desc.name,
+                desc.targets.len(),
+                ctx.info.max_color_attachments
+            )));
+        }
+        let mut push_stages = vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT;
+        if desc.geometry.is_some() {
+            push_stages |= vk::ShaderStageFlags::GEOMETRY;
+        }
+        let layout = create_layout(ctx, desc.name, push_stages, desc.push_constant_bytes, desc.descriptor_layouts)?;
+        // From here the pipeline value owns `layout`: early returns drop it.
+        let mut pipeline = Pipeline {
+            raw: vk::Pipeline::null(),
+            layout,
+            push_stages,
+            bind_point: vk::PipelineBindPoint::GRAPHICS,
+            set_count: desc.descriptor_layouts.len() as u32,
+            name: desc.name.to_string(),
+            owned_layouts,
+            ctx: ctx.clone(),
+        };
+
+        let stage = |flag, module: &ShaderModule| {
+            vk::PipelineShaderStageCreateInfo::default().stage(flag).module(module.raw).name(c"main")
+        };
+        let mut stages = vec![stage(vk::ShaderStageFlags::VERTEX, desc.vertex)];
+        if let Some(g) = desc.geometry {
+            stages.push(stage(vk::ShaderStageFlags::GEOMETRY, g));
+        }
+        stages.push(stage(vk::ShaderStageFlags::FRAGMENT, desc.fragment));
         let bindings = [vk::VertexInputBindingDescription {
             binding: 0,
             stride: desc.vertex_stride,
@@ -98,23 +247,11 @@ impl Pipeline {
             .line_width(1.0);
         let multisample =
             vk::PipelineMultisampleStateCreateInfo::default().rasterization_samples(vk::SampleCountFlags::TYPE_1);
-        let attachment = match desc.blend {
-            Blend::PremultipliedOver => vk::PipelineColorBlendAttachmentState::default()
-                .blend_enable(true)
-                .src_color_blend_factor(vk::BlendFactor::ONE)
-                .dst_color_blend_factor(vk::BlendFactor::ONE_MINUS_SRC_ALPHA)
-                .color_blend_op(vk::BlendOp::ADD)
-                .src_alpha_blend_factor(vk::BlendFactor::ONE)
-                .dst_alpha_blend_factor(vk::BlendFactor::ONE_MINUS_SRC_ALPHA)
-                .alpha_blend_op(vk::BlendOp::ADD)
-                .color_write_mask(vk::ColorComponentFlags::RGBA),
-            Blend::None => vk::PipelineColorBlendAttachmentState::default().color_write_mask(vk::ColorComponentFlags::RGBA),
-        };
-        let attachments = [attachment];
+        let attachments: Vec<_> = desc.targets.iter().map(|t| t.blend.state()).collect();
         let blend = vk::PipelineColorBlendStateCreateInfo::default().attachments(&attachments);
         let dynamic_states = [vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR];
         let dynamic = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic_states);
-        let formats = [TARGET_FORMAT];
+        let formats: Vec<vk::Format> = desc.targets.iter().map(|t| t.format).collect();
         let mut rendering = vk::PipelineRenderingCreateInfo::default().color_attachment_formats(&formats);
         let depth = vk::PipelineDepthStencilStateCreateInfo::default();
         let info = vk::GraphicsPipelineCreateInfo::default()
@@ -129,90 +266,61 @@ impl Pipeline {
             .dynamic_state(&dynamic)
             .layout(layout)
             .push_next(&mut rendering);
-        let raw = match unsafe { d.create_graphics_pipelines(vk::PipelineCache::null(), &[info], None) } {
+        pipeline.raw = match unsafe { d.create_graphics_pipelines(cache, &[info], None) } {
             Ok(p) => p[0],
-            Err((_, result)) => {
-                unsafe { d.destroy_pipeline_layout(layout, None) };
-                return Err(super::VkError::Call { what: "vkCreateGraphicsPipelines", result });
-            }
+            Err((_, result)) => return Err(VkError::Call { what: "vkCreateGraphicsPipelines", result }),
         };
-        ctx.set_name(raw, desc.name);
-        Ok(Pipeline { raw, layout, push_stages, ctx: ctx.clone() })
+        ctx.set_name(pipeline.raw, desc.name);
+        Ok(pipeline)
+    }
+
+    /// `compute` with a VkPipelineCache and set layouts to own.
+    pub(crate) fn compute_in(
+        ctx: &Arc<Context>,
+        desc: &ComputePipelineDesc,
+        cache: vk::PipelineCache,
+        owned_layouts: Vec<DescriptorSetLayout>,
+    ) -> VkResult<Pipeline> {
+        check_stage(desc.name, desc.shader, ShaderStage::Compute)?;
+        let push_stages = vk::ShaderStageFlags::COMPUTE;
+        let layout = create_layout(ctx, desc.name, push_stages, desc.push_constant_bytes, desc.descriptor_layouts)?;
+        let mut pipeline = Pipeline {
+            raw: vk::Pipeline::null(),
+            layout,
+            push_stages,
+            bind_point: vk::PipelineBindPoint::COMPUTE,
+            set_count: desc.descriptor_layouts.len() as u32,
+            name: desc.name.to_string(),
+            owned_layouts,
+            ctx: ctx.clone(),
+        };
+        let stage = vk::PipelineShaderStageCreateInfo::default()
+            .stage(vk::ShaderStageFlags::COMPUTE)
+            .module(desc.shader.raw)
+            .name(c"main");
+        let info = vk::ComputePipelineCreateInfo::default().stage(stage).layout(layout);
+        pipeline.raw = match unsafe { ctx.device.create_compute_pipelines(cache, &[info], None) } {
+            Ok(p) => p[0],
+            Err((_, result)) => return Err(VkError::Call { what: "vkCreateComputePipelines", result }),
+        };
+        ctx.set_name(pipeline.raw, desc.name);
+        Ok(pipeline)
+    }
+
+    /// The descriptor-set layouts this pipeline owns (cache-made pipelines).
+    pub fn owned_set_layouts(&self) -> &[DescriptorSetLayout] {
+        &self.owned_layouts
     }
 }
 
 impl Drop for Pipeline {
     fn drop(&mut self) {
         unsafe {
-            self.ctx.device.destroy_pipeline(self.raw, None);
+            if self.raw != vk::Pipeline::null() {
+                self.ctx.device.destroy_pipeline(self.raw, None);
+            }
             self.ctx.device.destroy_pipeline_layout(self.layout, None);
         }
-    }
-}
-
-/// One descriptor set of read-only storage buffers at bindings 0..n.
-pub struct StorageBufferSet {
-    pub layout: vk::DescriptorSetLayout,
-    pub set: vk::DescriptorSet,
-    pool: vk::DescriptorPool,
-    ctx: Arc<Context>,
-}
-
-impl StorageBufferSet {
-    pub fn new(ctx: &Arc<Context>, name: &str, buffers: &[&Buffer], stages: vk::ShaderStageFlags) -> VkResult<Self> {
-        let d = &ctx.device;
-        let bindings: Vec<_> = (0..buffers.len() as u32)
-            .map(|b| {
-                vk::DescriptorSetLayoutBinding::default()
-                    .binding(b)
-                    .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
-                    .descriptor_count(1)
-                    .stage_flags(stages)
-            })
-            .collect();
-        let layout = unsafe { d.create_descriptor_set_layout(&vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings), None) }
-            .check("vkCreateDescriptorSetLayout")?;
-        let sizes = [vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_BUFFER, descriptor_count: buffers.len().max(1) as u32 }];
-        let pool = match unsafe { d.create_descriptor_pool(&vk::DescriptorPoolCreateInfo::default().max_sets(1).pool_sizes(&sizes), None) } {
-            Ok(p) => p,
-            Err(result) => {
-                unsafe { d.destroy_descriptor_set_layout(layout, None) };
-                return Err(super::VkError::Call { what: "vkCreateDescriptorPool", result });
-            }
-        };
-        let me = |set| StorageBufferSet { layout, set, pool, ctx: ctx.clone() };
-        let layouts = [layout];
-        let set = match unsafe { d.allocate_descriptor_sets(&vk::DescriptorSetAllocateInfo::default().descriptor_pool(pool).set_layouts(&layouts)) } {
-            Ok(s) => s[0],
-            Err(result) => {
-                drop(me(vk::DescriptorSet::null()));
-                return Err(super::VkError::Call { what: "vkAllocateDescriptorSets", result });
-            }
-        };
-        let infos: Vec<[vk::DescriptorBufferInfo; 1]> =
-            buffers.iter().map(|b| [vk::DescriptorBufferInfo { buffer: b.raw, offset: 0, range: vk::WHOLE_SIZE }]).collect();
-        let writes: Vec<_> = infos
-            .iter()
-            .enumerate()
-            .map(|(i, info)| {
-                vk::WriteDescriptorSet::default()
-                    .dst_set(set)
-                    .dst_binding(i as u32)
-                    .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
-                    .buffer_info(info)
-            })
-            .collect();
-        unsafe { d.update_descriptor_sets(&writes, &[]) };
-        ctx.set_name(set, name);
-        Ok(me(set))
-    }
-}
-
-impl Drop for StorageBufferSet {
-    fn drop(&mut self) {
-        unsafe {
-            self.ctx.device.destroy_descriptor_pool(self.pool, None);
-            self.ctx.device.destroy_descriptor_set_layout(self.layout, None);
-        }
+        // `owned_layouts` drop after this, once the pipeline layout is gone.
     }
 }

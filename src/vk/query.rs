@@ -1,6 +1,8 @@
 //! GPU timestamps and pipeline-statistics queries for one frame. Timestamps
-//! give device time; statistics give deterministic work counts (lavapipe
-//! returns them in flag-bit order, as the spec requires).
+//! give device time; statistics give deterministic work counts: input
+//! assembly, vertex, geometry (when the device has geometry shaders),
+//! clipping, fragment and compute invocations. Results come back in
+//! flag-bit order, as the spec requires, so the flags are kept sorted.
 
 use std::sync::Arc;
 
@@ -8,18 +10,24 @@ use ash::vk;
 use serde::Serialize;
 
 use super::commands::CommandRecorder;
-use super::error::{Check, VkResult};
+use super::error::{Check, VkError, VkResult};
 use super::Context;
 
-/// The statistics we collect, in flag-bit order (the order results come back).
-const STATS: [vk::QueryPipelineStatisticFlags; 5] = [
+/// The statistics we may collect, in flag-bit order (the order results come
+/// back); the geometry ones only when the device has geometry shaders.
+const STATS: [vk::QueryPipelineStatisticFlags; 8] = [
     vk::QueryPipelineStatisticFlags::INPUT_ASSEMBLY_VERTICES,
     vk::QueryPipelineStatisticFlags::INPUT_ASSEMBLY_PRIMITIVES,
     vk::QueryPipelineStatisticFlags::VERTEX_SHADER_INVOCATIONS,
+    vk::QueryPipelineStatisticFlags::GEOMETRY_SHADER_INVOCATIONS,
+    vk::QueryPipelineStatisticFlags::GEOMETRY_SHADER_PRIMITIVES,
     vk::QueryPipelineStatisticFlags::CLIPPING_PRIMITIVES,
     vk::QueryPipelineStatisticFlags::FRAGMENT_SHADER_INVOCATIONS,
+    vk::QueryPipelineStatisticFlags::COMPUTE_SHADER_INVOCATIONS,
 ];
 
+/// Work counts between `FrameQueries::begin` and `end`. Counters the device
+/// cannot collect (geometry ones without geometry shaders) stay 0.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
 pub struct PipelineStats {
     pub input_vertices: u64,
@@ -27,11 +35,34 @@ pub struct PipelineStats {
     pub vertex_invocations: u64,
     pub clipping_primitives: u64,
     pub fragment_invocations: u64,
+    pub geometry_invocations: u64,
+    pub geometry_primitives: u64,
+    pub compute_invocations: u64,
+}
+
+impl PipelineStats {
+    fn set(&mut self, flag: vk::QueryPipelineStatisticFlags, value: u64) {
+        use vk::QueryPipelineStatisticFlags as F;
+        let field = match flag {
+            F::INPUT_ASSEMBLY_VERTICES => &mut self.input_vertices,
+            F::INPUT_ASSEMBLY_PRIMITIVES => &mut self.input_primitives,
+            F::VERTEX_SHADER_INVOCATIONS => &mut self.vertex_invocations,
+            F::GEOMETRY_SHADER_INVOCATIONS => &mut self.geometry_invocations,
+            F::GEOMETRY_SHADER_PRIMITIVES => &mut self.geometry_primitives,
+            F::CLIPPING_PRIMITIVES => &mut self.clipping_primitives,
+            F::FRAGMENT_SHADER_INVOCATIONS => &mut self.fragment_invocations,
+            F::COMPUTE_SHADER_INVOCATIONS => &mut self.compute_invocations,
+            _ => return,
+        };
+        *field = value;
+    }
 }
 
 pub struct FrameQueries {
     timestamps: vk::QueryPool,
     stats: Option<vk::QueryPool>,
+    /// The flags of `stats`, in bit order.
+    stat_flags: Vec<vk::QueryPipelineStatisticFlags>,
     period_ns: f64,
     valid_mask: u64,
     ctx: Arc<Context>,
@@ -42,8 +73,18 @@ impl FrameQueries {
         let d = &ctx.device;
         let ts_info = vk::QueryPoolCreateInfo::default().query_type(vk::QueryType::TIMESTAMP).query_count(2);
         let timestamps = unsafe { d.create_query_pool(&ts_info, None) }.check("vkCreateQueryPool(timestamps)")?;
+        let geometry = ctx.info.features.geometry_shader;
+        let stat_flags: Vec<_> = STATS
+            .iter()
+            .copied()
+            .filter(|&f| {
+                geometry
+                    || !(f == vk::QueryPipelineStatisticFlags::GEOMETRY_SHADER_INVOCATIONS
+                        || f == vk::QueryPipelineStatisticFlags::GEOMETRY_SHADER_PRIMITIVES)
+            })
+            .collect();
         let stats = if ctx.info.pipeline_statistics {
-            let flags = STATS.iter().fold(vk::QueryPipelineStatisticFlags::empty(), |a, &f| a | f);
+            let flags = stat_flags.iter().fold(vk::QueryPipelineStatisticFlags::empty(), |a, &f| a | f);
             let info = vk::QueryPoolCreateInfo::default()
                 .query_type(vk::QueryType::PIPELINE_STATISTICS)
                 .query_count(1)
@@ -60,7 +101,7 @@ impl FrameQueries {
         };
         let bits = ctx.info.timestamp_valid_bits;
         let valid_mask = if bits >= 64 { u64::MAX } else { (1u64 << bits) - 1 };
-        Ok(FrameQueries { timestamps, stats, period_ns: ctx.info.timestamp_period_ns as f64, valid_mask, ctx: ctx.clone() })
+        Ok(FrameQueries { timestamps, stats, stat_flags, period_ns: ctx.info.timestamp_period_ns as f64, valid_mask, ctx: ctx.clone() })
     }
 
     /// Reset both pools; record outside a render pass, before `begin`.
@@ -95,28 +136,39 @@ impl FrameQueries {
     }
 
     /// GPU milliseconds between `begin` and `end`, and the statistics, after
-    /// the frame's fence has signalled.
+    /// the frame's fence has signalled. Results are read without
+    /// VK_QUERY_RESULT_WAIT_BIT, which could block forever on a query that
+    /// was never submitted: called too early, this is an error instead.
     pub fn results(&self) -> VkResult<(f64, Option<PipelineStats>)> {
         let d = &self.ctx.device;
+        let not_ready = |what: &'static str| {
+            move |result| match result {
+                vk::Result::NOT_READY => VkError::Invalid(format!(
+                    "{what}: query results not available (was the frame submitted and its recorder waited for?)"
+                )),
+                result => VkError::Call { what, result },
+            }
+        };
         let mut ts = [0u64; 2];
-        unsafe { d.get_query_pool_results(self.timestamps, 0, &mut ts, vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT) }
-            .check("vkGetQueryPoolResults(timestamps)")?;
+        unsafe { d.get_query_pool_results(self.timestamps, 0, &mut ts, vk::QueryResultFlags::TYPE_64) }
+            .map_err(not_ready("vkGetQueryPoolResults(timestamps)"))?;
         let ticks = (ts[1] & self.valid_mask).wrapping_sub(ts[0] & self.valid_mask) & self.valid_mask;
         let gpu_ms = ticks as f64 * self.period_ns * 1e-6;
         let stats = match self.stats {
             Some(p) => {
                 let mut v = [0u64; STATS.len()];
+                let n = self.stat_flags.len();
+                // One query (a one-element slice of [u64; 8]) whose result is
+                // `n` <= 8 consecutive u64 values.
                 unsafe {
-                    d.get_query_pool_results(p, 0, std::slice::from_mut(&mut v), vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT)
+                    d.get_query_pool_results(p, 0, std::slice::from_mut(&mut v), vk::QueryResultFlags::TYPE_64)
                 }
-                .check("vkGetQueryPoolResults(statistics)")?;
-                Some(PipelineStats {
-                    input_vertices: v[0],
-                    input_primitives: v[1],
-                    vertex_invocations: v[2],
-                    clipping_primitives: v[3],
-                    fragment_invocations: v[4],
-                })
+                .map_err(not_ready("vkGetQueryPoolResults(statistics)"))?;
+                let mut stats = PipelineStats::default();
+                for (&f, &value) in self.stat_flags.iter().zip(&v[..n]) {
+                    stats.set(f, value);
+                }
+                Some(stats)
             }
             None => None,
         };

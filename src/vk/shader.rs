@@ -1,7 +1,9 @@
-//! GLSL -> SPIR-V with shaderc at run time. Sources come from a lookup the
-//! caller provides (volbench embeds `shaders/` in the binary), so `#include`
-//! works the same in tests and installed binaries. Compile errors keep
-//! shaderc's `file:line: error:` form, which names the file and line.
+//! GLSL -> SPIR-V with shaderc at run time, for every stage we use (vertex,
+//! geometry, fragment, compute). Sources come from a lookup the caller
+//! provides (volbench embeds `shaders/` in the binary; tests may pass inline
+//! text), so `#include` works the same in tests and installed binaries.
+//! Compile errors keep shaderc's `file:line: error:` form, which names the
+//! file and line.
 
 use std::sync::Arc;
 
@@ -19,6 +21,27 @@ pub enum ShaderStage {
 }
 
 impl ShaderStage {
+    /// The stage a file name says (`.vert`, `.geom`, `.frag`, `.comp`).
+    pub fn from_path(path: &str) -> Option<ShaderStage> {
+        match path.rsplit_once('.')?.1 {
+            "vert" => Some(ShaderStage::Vertex),
+            "geom" => Some(ShaderStage::Geometry),
+            "frag" => Some(ShaderStage::Fragment),
+            "comp" => Some(ShaderStage::Compute),
+            _ => None,
+        }
+    }
+
+    /// A stable small code for canonical serialisation (pipeline-key ids).
+    pub(crate) fn code(self) -> u8 {
+        match self {
+            ShaderStage::Vertex => 0,
+            ShaderStage::Fragment => 1,
+            ShaderStage::Geometry => 2,
+            ShaderStage::Compute => 3,
+        }
+    }
+
     fn kind(self) -> shaderc::ShaderKind {
         match self {
             ShaderStage::Vertex => shaderc::ShaderKind::Vertex,

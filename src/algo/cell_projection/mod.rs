@@ -21,7 +21,7 @@ use crate::algo::integrate::IntegrationTables;
 use crate::mesh::{TetGeometry, TetMesh};
 use crate::scene::Camera;
 use crate::vk::{
-    compile_glsl, Blend, CommandRecorder, Context, GraphicsPipelineDesc, Pipeline, ShaderModule, ShaderStage,
+    compile_glsl, Blend, ColorTarget, CommandRecorder, Context, GraphicsPipelineDesc, Pipeline, ShaderModule, ShaderStage,
     UploadCounter, VertexAttribute, VkResult,
 };
 
@@ -334,6 +334,7 @@ pub(crate) fn build_pipeline(
         &GraphicsPipelineDesc {
             name,
             vertex: &vs,
+            geometry: None,
             fragment: &fs,
             vertex_stride: stride,
             attributes,
@@ -341,9 +342,9 @@ pub(crate) fn build_pipeline(
             primitive_restart,
             cull: raw::CullModeFlags::BACK,
             front_face: ENTRY_FACE_WINDING,
-            blend: Blend::PremultipliedOver,
+            targets: &[ColorTarget::rgba32f(Blend::PremultipliedOver)],
             push_constant_bytes: std::mem::size_of::<FrameConstants>() as u32,
-            descriptor_layout: Some(tables.set.layout),
+            descriptor_layouts: &[tables.set.layout],
         },
     )
 }
