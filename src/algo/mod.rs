@@ -4,4 +4,5 @@
 pub mod cell_projection;
 pub mod integrate;
 pub mod method;
+pub mod pipelines;
 pub mod registry;

@@ -17,7 +17,7 @@ use super::{build_pipeline, cells_f32, CellF32, CellProjector, FrameSetup, Inter
 use crate::algo::integrate::IntegrationTables;
 use crate::mesh::{TetGeometry, TetMesh};
 use crate::vk::{
-    upload_static, Buffer, BufferDesc, CommandRecorder, Context, Pipeline, UploadClass, UploadCounter, VertexAttribute,
+    upload_static, Buffer, BufferDesc, CommandRecorder, Context, Pipeline, PipelineKey, UploadClass, UploadCounter, VertexAttribute,
     VkResult,
 };
 
@@ -58,7 +58,8 @@ pub struct Balanced {
     packed: Vec<f32>,
     vertex_buffer: Buffer,
     index_buffer: Buffer,
-    pipeline: Pipeline,
+    pipeline: Arc<Pipeline>,
+    pipeline_key: PipelineKey,
 }
 
 /// The static index data: tet slot k's strip over vertices 4k..4k+3.
@@ -136,9 +137,8 @@ impl Balanced {
             f(3, raw::Format::R32_SFLOAT, 5),
             f(4, raw::Format::R32_SFLOAT, 6),
         ];
-        let pipeline = build_pipeline(
+        let (pipeline, pipeline_key) = build_pipeline(
             ctx,
-            "balanced",
             "cell_projection/balanced.vert",
             "cell_projection/balanced.frag",
             (FLOATS_PER_VERTEX * 4) as u32,
@@ -148,7 +148,7 @@ impl Balanced {
             tables,
             interpolation,
         )?;
-        Ok(Balanced { packed: vec![0f32; n * FLOATS_PER_CELL], cells, vertex_buffer, index_buffer, pipeline })
+        Ok(Balanced { packed: vec![0f32; n * FLOATS_PER_CELL], cells, vertex_buffer, index_buffer, pipeline, pipeline_key })
     }
 }
 
@@ -161,6 +161,9 @@ impl CellProjector for Balanced {
     }
     fn floats_per_cell(&self) -> usize {
         FLOATS_PER_CELL
+    }
+    fn pipeline_key(&self) -> &PipelineKey {
+        &self.pipeline_key
     }
 
     fn pack(&mut self, order: &[u32], frame: &FrameSetup) {

@@ -21,8 +21,8 @@ use crate::algo::integrate::IntegrationTables;
 use crate::mesh::{TetGeometry, TetMesh};
 use crate::scene::Camera;
 use crate::vk::{
-    compile_glsl, Blend, ColorTarget, CommandRecorder, Context, GraphicsPipelineDesc, Pipeline, ShaderModule, ShaderStage,
-    UploadCounter, VertexAttribute, VkResult,
+    Blend, ColorTarget, CommandRecorder, Context, GraphicsPipelineKey, GraphicsState, Pipeline, PipelineKey, ShaderKey,
+    ShaderStage, UploadCounter, VertexAttribute, VkResult,
 };
 
 /// How view-dependent exit data is carried across a face under perspective.
@@ -301,6 +301,8 @@ pub trait CellProjector {
     /// Vertex records and floats each tet sends per frame, by construction.
     fn vertices_per_cell(&self) -> usize;
     fn floats_per_cell(&self) -> usize;
+    /// The key of the pipeline it draws with (recorded in results).
+    fn pipeline_key(&self) -> &PipelineKey;
     /// Write this frame's vertex data in `order` into host memory.
     fn pack(&mut self, order: &[u32], frame: &FrameSetup);
     /// Copy the packed data to where the device reads it (counted).
@@ -313,7 +315,6 @@ pub trait CellProjector {
 /// faces only, the integration tables bound at set 0.
 pub(crate) fn build_pipeline(
     ctx: &Arc<Context>,
-    name: &str,
     vertex_path: &str,
     fragment_path: &str,
     stride: u32,
@@ -322,31 +323,26 @@ pub(crate) fn build_pipeline(
     primitive_restart: bool,
     tables: &IntegrationTables,
     interpolation: Interpolation,
-) -> VkResult<Pipeline> {
+) -> VkResult<(Arc<Pipeline>, PipelineKey)> {
     let defines: Vec<(&str, &str)> =
         interpolation.defines().iter().copied().chain(tables.integrator.define()).collect();
-    let vs = compile_glsl(vertex_path, ShaderStage::Vertex, &defines, &crate::shaders::source)?;
-    let fs = compile_glsl(fragment_path, ShaderStage::Fragment, &defines, &crate::shaders::source)?;
-    let vs = ShaderModule::new(ctx, vertex_path, ShaderStage::Vertex, &vs)?;
-    let fs = ShaderModule::new(ctx, fragment_path, ShaderStage::Fragment, &fs)?;
-    Pipeline::graphics(
-        ctx,
-        &GraphicsPipelineDesc {
-            name,
-            vertex: &vs,
-            geometry: None,
-            fragment: &fs,
+    let key = PipelineKey::Graphics(GraphicsPipelineKey {
+        vertex: ShaderKey::new(vertex_path, ShaderStage::Vertex, &defines),
+        geometry: None,
+        fragment: ShaderKey::new(fragment_path, ShaderStage::Fragment, &defines),
+        state: GraphicsState {
             vertex_stride: stride,
-            attributes,
+            attributes: attributes.to_vec(),
             topology,
             primitive_restart,
             cull: raw::CullModeFlags::BACK,
             front_face: ENTRY_FACE_WINDING,
-            targets: &[ColorTarget::rgba32f(Blend::PremultipliedOver)],
-            push_constant_bytes: std::mem::size_of::<FrameConstants>() as u32,
-            descriptor_layouts: &[tables.set.layout],
+            targets: vec![ColorTarget::rgba32f(Blend::PremultipliedOver)],
         },
-    )
+        push_constant_bytes: std::mem::size_of::<FrameConstants>() as u32,
+        sets: vec![tables.set.desc.clone()],
+    });
+    Ok((crate::algo::pipelines::get(ctx, &key)?, key))
 }
 
 /// Per-tet f32 data both methods derive from the mesh once: positions,

@@ -297,6 +297,7 @@ impl RenderMethod for CellProjection {
             "vertices_per_cell": self.projector.vertices_per_cell(),
             "floats_per_cell_by_construction": self.projector.floats_per_cell(),
             "table_size": self.tables.table_size,
+            "pipeline": { "key": self.projector.pipeline_key().id(), "name": self.projector.pipeline_key().name() },
             "tolerances": self.settings.tolerances,
             "mesh_stats": self.mesh_stats,
         })

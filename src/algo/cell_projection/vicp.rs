@@ -14,7 +14,7 @@ use crate::algo::method::{DataKind, MethodInfo, MethodInputs, Published, RenderM
 use super::{build_pipeline, cells_f32, CellProjector, FrameSetup, Interpolation, FACES};
 use crate::algo::integrate::IntegrationTables;
 use crate::mesh::{TetGeometry, TetMesh};
-use crate::vk::{Buffer, BufferDesc, CommandRecorder, Context, Pipeline, UploadClass, UploadCounter, VertexAttribute, VkResult};
+use crate::vk::{Buffer, BufferDesc, CommandRecorder, Context, Pipeline, PipelineKey, UploadClass, UploadCounter, VertexAttribute, VkResult};
 
 pub const FLOATS_PER_VERTEX: usize = 11;
 pub const VERTICES_PER_CELL: usize = 12;
@@ -50,7 +50,8 @@ pub struct Vicp {
     /// This frame's records in draw order.
     packed: Vec<f32>,
     vertex_buffer: Buffer,
-    pipeline: Pipeline,
+    pipeline: Arc<Pipeline>,
+    pipeline_key: PipelineKey,
     cells: usize,
 }
 
@@ -94,9 +95,8 @@ impl Vicp {
             f(3, raw::Format::R32G32B32_SFLOAT, 7),
             f(4, raw::Format::R32_SFLOAT, 10),
         ];
-        let pipeline = build_pipeline(
+        let (pipeline, pipeline_key) = build_pipeline(
             ctx,
-            "vicp",
             "cell_projection/vicp.vert",
             "cell_projection/vicp.frag",
             (FLOATS_PER_VERTEX * 4) as u32,
@@ -106,7 +106,7 @@ impl Vicp {
             tables,
             interpolation,
         )?;
-        Ok(Vicp { packed: vec![0f32; records.len()], records, vertex_buffer, pipeline, cells: n })
+        Ok(Vicp { packed: vec![0f32; records.len()], records, vertex_buffer, pipeline, pipeline_key, cells: n })
     }
 }
 
@@ -119,6 +119,9 @@ impl CellProjector for Vicp {
     }
     fn floats_per_cell(&self) -> usize {
         FLOATS_PER_CELL
+    }
+    fn pipeline_key(&self) -> &PipelineKey {
+        &self.pipeline_key
     }
 
     fn pack(&mut self, order: &[u32], _frame: &FrameSetup) {
