@@ -273,7 +273,10 @@ pub fn mesh_transfer_function(mesh: &TetMesh, named: Option<&str>) -> TransferFu
         ],
     };
     TransferFunction {
-        name: format!("{}-default", mesh.name),
+        name: match named {
+            Some(n) => format!("{n}-default"),
+            None => "generic-ramp".into(),
+        },
         points: stops
             .iter()
             .map(|&(t, color, depth)| ControlPoint { scalar: lo + t * (hi - lo), color, attenuation: depth / diag })
