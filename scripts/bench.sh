@@ -14,8 +14,8 @@ cargo build --release --locked
 out="results/runs/$(date -u +%Y%m%dT%H%M%SZ)"
 bin=./target/release/volbench
 $bin info > /dev/null
-$bin compare --meshes bluntfin,oxygenpost --size 512x512 --frames 20 --warmup 3 --out "$out" "$@"
+$bin compare --data bluntfin,oxygenpost --size 512x512 --frames 20 --warmup 3 --out "$out" "$@"
 for mesh in bluntfin oxygenpost; do
-    $bin pareto --mesh "$mesh" --size 512x512 --frames 5 --warmup 1 --out "$out/pareto/$mesh" > /dev/null
+    $bin pareto --data "$mesh" --size 512x512 --frames 5 --warmup 1 --out "$out/pareto/$mesh" > /dev/null
 done
 echo "results: $out"
