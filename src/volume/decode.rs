@@ -267,7 +267,7 @@ pub(crate) fn gunzip_prefix(source: &str, what: &str, input: &[u8], n: usize) ->
 pub(crate) fn base64_concat(source: &str, what: &str, text: &[u8]) -> Result<Vec<u8>> {
     use base64::Engine as _;
     let clean: Vec<u8> = text.iter().copied().filter(|c| !c.is_ascii_whitespace()).collect();
-    if clean.len() % 4 != 0 {
+    if !clean.len().is_multiple_of(4) {
         bail!("{source}: base64 data in {what} has {} characters, not a multiple of 4", clean.len());
     }
     let mut out = Vec::with_capacity(clean.len() / 4 * 3);

@@ -334,7 +334,7 @@ fn from_steps(
     for a in 0..3 {
         let d = steps[a][a];
         let off = (0..3).filter(|&b| b != a).map(|b| steps[a][b].abs()).fold(0.0, f64::max);
-        if steps[a].iter().any(|s| !s.is_finite()) || d == 0.0 {
+        if steps[a].iter().any(|s| !s.is_finite()) || (d == 0.0 && off == 0.0) {
             bail!(
                 "{source}: index axis {a} steps by ({}, {}, {}) in world space: the spacing along {} must be \
                  finite and non-zero",

@@ -346,7 +346,7 @@ pub fn parse_nrrd_bytes(name: &str, bytes: &[u8], load_data: &mut dyn FnMut(&str
         Enc::Ascii => {
             let text = data.get(skip..).ok_or_else(|| anyhow!("{name}: byte skip {skip} runs past the end of {what}"))?;
             let mut tokens = Tokens::new(text);
-            let s = parse_ascii(name, &what, &mut tokens, ty, &ty.name().to_string(), count, 0)?;
+            let s = parse_ascii(name, &what, &mut tokens, ty, ty.name(), count, 0)?;
             if let Some((t, _)) = tokens.next_token() {
                 bail!(
                     "{name}: header/size mismatch: {what} holds more than the {count} values of {shape} (next: '{}')",

@@ -130,8 +130,8 @@ fn binary_payload(name: &str, what: &str, stream: &[u8], word: usize, endian: En
     };
     if total != Some(expected) {
         bail!(
-            "{name}: header/size mismatch: {what}'s block header ({blocks} blocks of {block} bytes, last {last}) \
-             does not make the {expected} bytes its extent needs"
+            "{name}: header/size mismatch: the block header of {what} ({blocks} blocks of {block} bytes, last \
+             {last}) does not make the {expected} bytes its extent needs"
         );
     }
     let sizes = (0..blocks).map(|_| w.next(name, what)).collect::<Result<Vec<usize>>>()?;
