@@ -12,3 +12,4 @@ pub mod reference;
 pub mod scene;
 pub mod shaders;
 pub mod vk;
+pub mod volume;

@@ -1,0 +1,351 @@
+//! Decoding shared by the volume readers: the sample types files may hold,
+//! byte order, ASCII values (range-checked against the declared type),
+//! base64 and bounded gzip/zlib decompression.
+//!
+//! Files may hold `int8` and `int32` too; they become a [`Samples`] type
+//! without loss (`int8` widens to `i16`; `int32` narrows to `i16` or `u16`
+//! when every value fits, else becomes `f32` when every value is exactly
+//! representable, else is an error).
+
+use std::io::Read;
+
+use anyhow::{anyhow, bail, Result};
+
+use super::Samples;
+
+/// A sample type as stored in a file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum RawType {
+    I8,
+    U8,
+    I16,
+    U16,
+    I32,
+    F32,
+}
+
+impl RawType {
+    pub(crate) fn size(self) -> usize {
+        match self {
+            RawType::I8 | RawType::U8 => 1,
+            RawType::I16 | RawType::U16 => 2,
+            RawType::I32 | RawType::F32 => 4,
+        }
+    }
+
+    pub(crate) fn name(self) -> &'static str {
+        match self {
+            RawType::I8 => "int8",
+            RawType::U8 => "uint8",
+            RawType::I16 => "int16",
+            RawType::U16 => "uint16",
+            RawType::I32 => "int32",
+            RawType::F32 => "float32",
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Endian {
+    Little,
+    Big,
+}
+
+/// `count * ty.size()`, or an error (counts come from headers).
+pub(crate) fn byte_len(source: &str, count: usize, ty: RawType) -> Result<usize> {
+    count
+        .checked_mul(ty.size())
+        .ok_or_else(|| anyhow!("{source}: {count} samples of {} overflow the byte count", ty.name()))
+}
+
+/// Samples from exactly `count` values of `ty` in `bytes` (whose length the
+/// caller has checked to be `count * ty.size()`).
+pub(crate) fn decode_binary(source: &str, bytes: &[u8], ty: RawType, endian: Endian, count: usize) -> Result<Samples> {
+    let need = byte_len(source, count, ty)?;
+    if bytes.len() != need {
+        bail!("{source}: {} bytes of {} data where {count} samples need {need}", bytes.len(), ty.name());
+    }
+    macro_rules! words {
+        ($t:ty, $n:literal) => {
+            bytes
+                .chunks_exact($n)
+                .map(|c| {
+                    let w: [u8; $n] = std::array::from_fn(|i| c[i]);
+                    match endian {
+                        Endian::Little => <$t>::from_le_bytes(w),
+                        Endian::Big => <$t>::from_be_bytes(w),
+                    }
+                })
+                .collect::<Vec<$t>>()
+        };
+    }
+    Ok(match ty {
+        RawType::U8 => Samples::U8(bytes.to_vec()),
+        RawType::I8 => Samples::I16(bytes.iter().map(|&b| b as i8 as i16).collect()),
+        RawType::I16 => Samples::I16(words!(i16, 2)),
+        RawType::U16 => Samples::U16(words!(u16, 2)),
+        RawType::I32 => narrow_i32(source, words!(i32, 4))?,
+        RawType::F32 => Samples::F32(words!(f32, 4)),
+    })
+}
+
+/// `int32` samples as the narrowest [`Samples`] type that holds them exactly.
+pub(crate) fn narrow_i32(source: &str, v: Vec<i32>) -> Result<Samples> {
+    let (lo, hi) = v.iter().fold((i32::MAX, i32::MIN), |(lo, hi), &x| (lo.min(x), hi.max(x)));
+    if lo >= i16::MIN as i32 && hi <= i16::MAX as i32 {
+        return Ok(Samples::I16(v.into_iter().map(|x| x as i16).collect()));
+    }
+    if lo >= 0 && hi <= u16::MAX as i32 {
+        return Ok(Samples::U16(v.into_iter().map(|x| x as u16).collect()));
+    }
+    const EXACT: i32 = 1 << 24;
+    if let Some(i) = v.iter().position(|&x| !(-EXACT..=EXACT).contains(&x)) {
+        bail!(
+            "{source}: int32 sample {i} is {}: int32 data is kept only when it fits int16, uint16 or \
+             (exactly) float32, and this volume's range [{lo}, {hi}] fits none",
+            v[i]
+        );
+    }
+    Ok(Samples::F32(v.into_iter().map(|x| x as f32).collect()))
+}
+
+/// ASCII-whitespace-separated tokens with their byte offsets.
+pub(crate) struct Tokens<'a> {
+    b: &'a [u8],
+    pos: usize,
+}
+
+impl<'a> Tokens<'a> {
+    pub(crate) fn new(b: &'a [u8]) -> Self {
+        Tokens { b, pos: 0 }
+    }
+
+    /// The next token (bytes, not necessarily UTF-8) and its offset.
+    pub(crate) fn next_token(&mut self) -> Option<(&'a [u8], usize)> {
+        while self.pos < self.b.len() && self.b[self.pos].is_ascii_whitespace() {
+            self.pos += 1;
+        }
+        let start = self.pos;
+        while self.pos < self.b.len() && !self.b[self.pos].is_ascii_whitespace() {
+            self.pos += 1;
+        }
+        (start < self.pos).then(|| (&self.b[start..self.pos], start))
+    }
+
+    /// Bytes consumed so far.
+    pub(crate) fn pos(&self) -> usize {
+        self.pos
+    }
+}
+
+/// Exactly `count` ASCII values of `ty` from `tokens`: integers must be
+/// integers within the declared type's range; floats parse as f32 (NaN and
+/// infinities are left for [`super::Volume::new`] to reject by index).
+/// `what` names the data in errors; `base` is added to reported offsets.
+pub(crate) fn parse_ascii<'a>(
+    source: &str,
+    what: &str,
+    tokens: &mut Tokens<'a>,
+    ty: RawType,
+    type_name: &str,
+    count: usize,
+    base: usize,
+) -> Result<Samples> {
+    // At most one value per two bytes remains: bounds the allocation.
+    let cap = count.min(tokens.b.len().saturating_sub(tokens.pos) / 2 + 1);
+    let mut next = |i: usize| -> Result<(&'a str, usize)> {
+        let (t, at) = tokens.next_token().ok_or_else(|| {
+            anyhow!("{source}: truncated {what}: {i} of {count} values, then the end of the data")
+        })?;
+        let t = std::str::from_utf8(t)
+            .map_err(|_| anyhow!("{source}: non-text bytes in {what} at byte {}", base + at))?;
+        Ok((t, at + base))
+    };
+    fn ints<'t, T: TryFrom<i64> + Copy>(
+        source: &str,
+        what: &str,
+        type_name: &str,
+        count: usize,
+        cap: usize,
+        next: &mut dyn FnMut(usize) -> Result<(&'t str, usize)>,
+    ) -> Result<Vec<T>> {
+        let mut out = Vec::with_capacity(cap);
+        for i in 0..count {
+            let (t, at) = next(i)?;
+            let v: i64 = t
+                .parse()
+                .map_err(|_| anyhow!("{source}: bad {type_name} value '{t}' in {what} (value {i}, byte {at})"))?;
+            let x = T::try_from(v).map_err(|_| {
+                anyhow!("{source}: value {v} in {what} (value {i}, byte {at}) is out of range for {type_name}")
+            })?;
+            out.push(x);
+        }
+        Ok(out)
+    }
+    Ok(match ty {
+        RawType::U8 => Samples::U8(ints(source, what, type_name, count, cap, &mut next)?),
+        RawType::I8 => {
+            Samples::I16(ints::<i8>(source, what, type_name, count, cap, &mut next)?.into_iter().map(i16::from).collect())
+        }
+        RawType::I16 => Samples::I16(ints(source, what, type_name, count, cap, &mut next)?),
+        RawType::U16 => Samples::U16(ints(source, what, type_name, count, cap, &mut next)?),
+        RawType::I32 => narrow_i32(source, ints(source, what, type_name, count, cap, &mut next)?)?,
+        RawType::F32 => {
+            let mut out = Vec::with_capacity(cap);
+            for i in 0..count {
+                let (t, at) = next(i)?;
+                let v: f32 = t
+                    .parse()
+                    .map_err(|_| anyhow!("{source}: bad {type_name} value '{t}' in {what} (value {i}, byte {at})"))?;
+                out.push(v);
+            }
+            Samples::F32(out)
+        }
+    })
+}
+
+/// Deflate never expands more than about 1032:1, so no stream of `n` bytes
+/// can need more room than this: caps what a header's promise reserves.
+fn max_inflated(n: usize) -> usize {
+    n.saturating_mul(1032).saturating_add(64)
+}
+
+/// Which wrapper a deflate stream has.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Wrapper {
+    /// gzip (RFC 1952), possibly several members back to back.
+    Gzip,
+    /// zlib (RFC 1950), one stream.
+    Zlib,
+}
+
+/// Decompresses `input` to exactly `expected` bytes (what the header
+/// promises): reading stops one byte past it, so a bomb costs at most that,
+/// and a stream that is corrupt, ends early or holds more is an error.
+pub(crate) fn inflate_exact(source: &str, what: &str, wrapper: Wrapper, input: &[u8], expected: usize) -> Result<Vec<u8>> {
+    let mut out = Vec::with_capacity(expected.min(max_inflated(input.len())));
+    let limit = expected as u64 + 1;
+    let read = match wrapper {
+        Wrapper::Gzip => flate2::read::MultiGzDecoder::new(input).take(limit).read_to_end(&mut out),
+        Wrapper::Zlib => flate2::read::ZlibDecoder::new(input).take(limit).read_to_end(&mut out),
+    };
+    let kind = match wrapper {
+        Wrapper::Gzip => "gzip",
+        Wrapper::Zlib => "zlib",
+    };
+    if let Err(e) = read {
+        bail!("{source}: corrupt {kind} data in {what}: {e}");
+    }
+    if out.len() > expected {
+        bail!("{source}: {kind} data in {what} decompresses to more than the {expected} bytes the header promises");
+    }
+    if out.len() < expected {
+        bail!(
+            "{source}: {kind} data in {what} decompresses to {} bytes, {expected} expected (truncated or corrupt stream)",
+            out.len()
+        );
+    }
+    Ok(out)
+}
+
+/// The first `n` decompressed bytes of a gzip stream (a header inside it).
+pub(crate) fn gunzip_prefix(source: &str, what: &str, input: &[u8], n: usize) -> Result<Vec<u8>> {
+    let mut out = Vec::with_capacity(n.min(max_inflated(input.len())));
+    flate2::read::MultiGzDecoder::new(input)
+        .take(n as u64)
+        .read_to_end(&mut out)
+        .map_err(|e| anyhow!("{source}: corrupt gzip data in {what}: {e}"))?;
+    if out.len() < n {
+        bail!("{source}: gzip data decompresses to only {} bytes, shorter than the {n}-byte {what}", out.len());
+    }
+    Ok(out)
+}
+
+/// Base64 text (ASCII whitespace ignored) as bytes. Padding may end any
+/// 4-character group, not only the last: VTK encodes a data array's header
+/// and its data as two base64 streams written back to back.
+pub(crate) fn base64_concat(source: &str, what: &str, text: &[u8]) -> Result<Vec<u8>> {
+    use base64::Engine as _;
+    let clean: Vec<u8> = text.iter().copied().filter(|c| !c.is_ascii_whitespace()).collect();
+    if !clean.len().is_multiple_of(4) {
+        bail!("{source}: base64 data in {what} has {} characters, not a multiple of 4", clean.len());
+    }
+    let mut out = Vec::with_capacity(clean.len() / 4 * 3);
+    let mut start = 0;
+    for (g, group) in clean.chunks_exact(4).enumerate() {
+        let end = 4 * (g + 1);
+        if group[3] == b'=' || end == clean.len() {
+            base64::engine::general_purpose::STANDARD
+                .decode_vec(&clean[start..end], &mut out)
+                .map_err(|e| anyhow!("{source}: bad base64 data in {what} (characters {start}..{end}): {e}"))?;
+            start = end;
+        }
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::io::Write as _;
+
+    fn zlib(b: &[u8]) -> Vec<u8> {
+        let mut e = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::default());
+        e.write_all(b).unwrap();
+        e.finish().unwrap()
+    }
+
+    #[test]
+    fn binary_both_endians_and_widening() {
+        let s = decode_binary("f", &[1, 2, 3, 4], RawType::I16, Endian::Big, 2).unwrap();
+        assert_eq!(s, Samples::I16(vec![0x0102, 0x0304]));
+        let s = decode_binary("f", &[1, 2, 3, 4], RawType::U16, Endian::Little, 2).unwrap();
+        assert_eq!(s, Samples::U16(vec![0x0201, 0x0403]));
+        assert_eq!(decode_binary("f", &[0xff], RawType::I8, Endian::Big, 1).unwrap(), Samples::I16(vec![-1]));
+        assert!(decode_binary("f", &[1, 2, 3], RawType::I16, Endian::Big, 2).is_err());
+        assert_eq!(narrow_i32("f", vec![-5, 7]).unwrap(), Samples::I16(vec![-5, 7]));
+        assert_eq!(narrow_i32("f", vec![0, 60000]).unwrap(), Samples::U16(vec![0, 60000]));
+        assert_eq!(narrow_i32("f", vec![-1, 70000]).unwrap(), Samples::F32(vec![-1.0, 70000.0]));
+        let e = narrow_i32("f", vec![0, 1 << 25]).unwrap_err().to_string();
+        assert!(e.contains("sample 1 is 33554432"), "{e}");
+    }
+
+    #[test]
+    fn ascii_ranges() {
+        let p = |t: &str, ty, n| parse_ascii("f", "data", &mut Tokens::new(t.as_bytes()), ty, "T", n, 0);
+        assert_eq!(p(" 0 255\n", RawType::U8, 2).unwrap(), Samples::U8(vec![0, 255]));
+        assert!(p("0 256", RawType::U8, 2).unwrap_err().to_string().contains("value 256 in data (value 1, byte 2) is out of range for T"));
+        assert!(p("-129", RawType::I8, 1).unwrap_err().to_string().contains("out of range"));
+        assert!(p("1.5", RawType::I16, 1).unwrap_err().to_string().contains("bad T value '1.5'"));
+        assert!(p("1 2", RawType::F32, 3).unwrap_err().to_string().contains("truncated data: 2 of 3"));
+        assert_eq!(p("1.5 -2e3", RawType::F32, 2).unwrap(), Samples::F32(vec![1.5, -2000.0]));
+        // A huge count costs nothing until values arrive.
+        assert!(p("1", RawType::F32, usize::MAX).is_err());
+    }
+
+    #[test]
+    fn inflate_is_exact_and_bounded() {
+        let data: Vec<u8> = (0..5000u32).map(|i| (i % 251) as u8).collect();
+        let z = zlib(&data);
+        assert_eq!(inflate_exact("f", "b", Wrapper::Zlib, &z, data.len()).unwrap(), data);
+        let e = inflate_exact("f", "b", Wrapper::Zlib, &z, 4999).unwrap_err().to_string();
+        assert!(e.contains("more than the 4999 bytes"), "{e}");
+        let e = inflate_exact("f", "b", Wrapper::Zlib, &z, 5001).unwrap_err().to_string();
+        assert!(e.contains("5000 bytes, 5001 expected"), "{e}");
+        let e = inflate_exact("f", "b", Wrapper::Zlib, &z[..z.len() / 2], data.len()).unwrap_err().to_string();
+        assert!(e.starts_with("f: ") && e.contains("zlib"), "{e}");
+        let mut bad = z.clone();
+        bad[0] ^= 0xff;
+        assert!(inflate_exact("f", "b", Wrapper::Zlib, &bad, data.len()).unwrap_err().to_string().contains("corrupt zlib"));
+        let e = inflate_exact("f", "b", Wrapper::Gzip, &z, data.len()).unwrap_err().to_string();
+        assert!(e.contains("corrupt gzip"), "{e}");
+    }
+
+    #[test]
+    fn base64_back_to_back_streams() {
+        // "AQI=" is [1, 2]; "AwQF" is [3, 4, 5].
+        assert_eq!(base64_concat("f", "a", b" AQI=\n AwQF ").unwrap(), vec![1, 2, 3, 4, 5]);
+        assert!(base64_concat("f", "a", b"AQI").unwrap_err().to_string().contains("multiple of 4"));
+        assert!(base64_concat("f", "a", b"A*I=").unwrap_err().to_string().contains("bad base64"));
+    }
+}

@@ -1,0 +1,375 @@
+//! VTK legacy (`.vtk`) reader for `DATASET STRUCTURED_POINTS` volumes.
+//!
+//! ASCII and BINARY (big-endian) files: `DIMENSIONS`, `SPACING` (or its old
+//! name `ASPECT_RATIO`), `ORIGIN`, then `POINT_DATA` with a one-component
+//! `SCALARS` array (its `LOOKUP_TABLE` line optional) of type unsigned_char,
+//! short, unsigned_short or float (char and int convert, see `decode`). The
+//! first such array is the volume; other attribute arrays, `FIELD` blocks,
+//! lookup tables, `CELL_DATA` and `METADATA` are parsed and skipped, so a
+//! file is read to its end and a malformed tail is still an error. ASCII
+//! values outside the declared type's range are errors.
+//!
+//! This is a separate reader from the tetrahedral one in `mesh::vtk` (the two
+//! datasets share only the file's outer syntax); errors name the file, the
+//! problem and the byte offset.
+
+use anyhow::{anyhow, bail, Result};
+use std::path::Path;
+
+use super::decode::{decode_binary, parse_ascii, Endian, RawType, Tokens};
+use super::{check_dims, from_steps, stem_of, Volume};
+
+/// Reads a VTK legacy `STRUCTURED_POINTS` file.
+pub fn read_structured_points(path: impl AsRef<Path>) -> Result<Volume> {
+    let path = path.as_ref();
+    let bytes = crate::fsio::read_input(path, "VTK legacy file", crate::fsio::MAX_INPUT_BYTES)?;
+    parse_structured_points_bytes(&path.display().to_string(), &bytes)
+}
+
+/// The sample type of a `SCALARS` array that can become a volume.
+fn volume_type(t: &str) -> Option<RawType> {
+    Some(match t.to_ascii_lowercase().as_str() {
+        "unsigned_char" => RawType::U8,
+        "char" => RawType::I8,
+        "short" => RawType::I16,
+        "unsigned_short" => RawType::U16,
+        "int" => RawType::I32,
+        "float" => RawType::F32,
+        _ => return None,
+    })
+}
+
+/// Bytes per value of any legacy data type (to skip arrays that are not read).
+fn type_size(t: &str) -> Option<usize> {
+    Some(match t.to_ascii_lowercase().as_str() {
+        "unsigned_char" | "char" => 1,
+        "unsigned_short" | "short" => 2,
+        "unsigned_int" | "int" | "float" | "vtkidtype" => 4,
+        "unsigned_long" | "long" | "double" | "vtktypeint64" | "vtktypeuint64" => 8,
+        _ => return None,
+    })
+}
+
+#[derive(Clone, Copy, PartialEq)]
+enum Owner {
+    None,
+    Points,
+    Cells,
+}
+
+struct Reader<'a> {
+    name: &'a str,
+    b: &'a [u8],
+    pos: usize,
+    binary: bool,
+}
+
+impl<'a> Reader<'a> {
+    fn err(&self, msg: impl std::fmt::Display) -> anyhow::Error {
+        anyhow!("{}: {} (at byte {})", self.name, msg, self.pos)
+    }
+
+    fn skip_ws(&mut self) {
+        while self.pos < self.b.len() && self.b[self.pos].is_ascii_whitespace() {
+            self.pos += 1;
+        }
+    }
+
+    fn at_end(&mut self) -> bool {
+        self.skip_ws();
+        self.pos >= self.b.len()
+    }
+
+    /// The rest of the current line (without `\r\n`), consuming the newline.
+    fn raw_line(&mut self, what: &str) -> Result<&'a str> {
+        if self.pos >= self.b.len() {
+            return Err(self.err(format!("truncated file: expected {what}, found end of file")));
+        }
+        let start = self.pos;
+        let end = self.b[start..].iter().position(|&c| c == b'\n').map_or(self.b.len(), |e| start + e);
+        self.pos = (end + 1).min(self.b.len());
+        let line = &self.b[start..end];
+        let line = line.strip_suffix(b"\r").unwrap_or(line);
+        std::str::from_utf8(line).map_err(|_| {
+            self.pos = start;
+            self.err(format!("expected {what}, found non-text bytes"))
+        })
+    }
+
+    /// The next non-blank line split into words (never empty).
+    fn keyword_line(&mut self, what: &str) -> Result<Vec<&'a str>> {
+        self.skip_ws();
+        let words: Vec<&'a str> = self.raw_line(what)?.split_ascii_whitespace().collect();
+        if words.is_empty() {
+            return Err(self.err(format!("truncated file: expected {what}, found end of file")));
+        }
+        Ok(words)
+    }
+
+    /// Whether the next word is `kw`, without moving (binary data may start
+    /// with a byte that looks like whitespace).
+    fn next_is(&self, kw: &str) -> bool {
+        let rest = &self.b[self.pos..];
+        let start = rest.iter().position(|c| !c.is_ascii_whitespace()).unwrap_or(rest.len());
+        let rest = &rest[start..];
+        rest.len() >= kw.len()
+            && rest[..kw.len()].eq_ignore_ascii_case(kw.as_bytes())
+            && rest.get(kw.len()).is_none_or(|c| c.is_ascii_whitespace())
+    }
+
+    fn count(&self, s: Option<&&str>, what: &str) -> Result<usize> {
+        let s = s.ok_or_else(|| self.err(format!("missing {what}")))?;
+        s.parse::<usize>().map_err(|_| self.err(format!("bad {what} '{s}'")))
+    }
+
+    fn product(&self, n: usize, k: usize, what: &str) -> Result<usize> {
+        n.checked_mul(k).ok_or_else(|| self.err(format!("{what} size {n} x {k} overflows")))
+    }
+
+    fn numbers3(&self, line: &[&str], what: &str) -> Result<[f64; 3]> {
+        if line.len() != 4 {
+            return Err(self.err(format!("{what} needs 3 numbers, found {}", line.len() - 1)));
+        }
+        let mut v = [0.0; 3];
+        for a in 0..3 {
+            v[a] = line[a + 1].parse().map_err(|_| self.err(format!("bad number '{}' in {what}", line[a + 1])))?;
+        }
+        Ok(v)
+    }
+
+    /// `n` binary values of `size` bytes, checked against what remains.
+    fn binary_bytes(&mut self, n: usize, size: usize, what: &str) -> Result<&'a [u8]> {
+        let remain = self.b.len() - self.pos;
+        let len = n.checked_mul(size).filter(|&l| l <= remain).ok_or_else(|| {
+            self.err(format!("truncated file: {what} needs {n} values of {size} bytes, only {remain} bytes remain"))
+        })?;
+        let s = &self.b[self.pos..self.pos + len];
+        self.pos += len;
+        Ok(s)
+    }
+
+    /// Skips `n` values (binary: of `size` bytes; ASCII: tokens).
+    fn skip_values(&mut self, n: usize, size: usize, what: &str) -> Result<()> {
+        if self.binary {
+            self.binary_bytes(n, size, what)?;
+        } else {
+            let mut t = Tokens::new(&self.b[self.pos..]);
+            for i in 0..n {
+                if t.next_token().is_none() {
+                    self.pos += t.pos();
+                    return Err(self.err(format!("truncated file: {what} has {i} of {n} values")));
+                }
+            }
+            self.pos += t.pos();
+        }
+        Ok(())
+    }
+
+    /// `n` values of a typed array (skipped by its type's size).
+    fn skip_typed(&mut self, n: usize, type_name: Option<&&str>, what: &str) -> Result<()> {
+        let t = type_name.ok_or_else(|| self.err(format!("missing data type for {what}")))?;
+        let size = type_size(t).ok_or_else(|| self.err(format!("unsupported data type '{t}' for {what}")))?;
+        self.skip_values(n, size, what)
+    }
+
+    /// Skips a METADATA block (it ends at an empty line or the end of file).
+    fn skip_metadata(&mut self) -> Result<()> {
+        while self.pos < self.b.len() {
+            if self.raw_line("METADATA")?.trim().is_empty() {
+                break;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Parses a VTK legacy `STRUCTURED_POINTS` file from its bytes. `name` starts
+/// every error and its stem names the volume. Never panics on malformed
+/// input: counts are checked against the bytes that remain before anything is
+/// allocated from them.
+pub fn parse_structured_points_bytes(name: &str, bytes: &[u8]) -> Result<Volume> {
+    let mut r = Reader { name, b: bytes, pos: 0, binary: false };
+    let first = r.raw_line("the '# vtk DataFile Version' line")?;
+    if !first.starts_with("# vtk DataFile Version") {
+        bail!("{name}: not a VTK legacy file (the first line is not '# vtk DataFile Version x.y')");
+    }
+    r.raw_line("the title line")?;
+    let enc = r.keyword_line("ASCII or BINARY")?;
+    match enc[0].to_ascii_uppercase().as_str() {
+        "ASCII" => r.binary = false,
+        "BINARY" => r.binary = true,
+        other => bail!(r.err(format!("expected ASCII or BINARY, found '{}'", other.escape_debug()))),
+    }
+    let ds = r.keyword_line("DATASET")?;
+    if !ds[0].eq_ignore_ascii_case("DATASET") {
+        bail!(r.err(format!("expected DATASET, found '{}'", ds.join(" ").escape_debug())));
+    }
+    match ds.get(1).map(|s| s.to_ascii_uppercase()).as_deref() {
+        Some("STRUCTURED_POINTS") => {}
+        other => bail!(r.err(format!(
+            "unsupported DATASET {}: only STRUCTURED_POINTS is a regular-grid volume",
+            other.unwrap_or("(missing)")
+        ))),
+    }
+
+    let mut dims: Option<[usize; 3]> = None;
+    let mut spacing: Option<[f64; 3]> = None;
+    let mut origin: Option<[f64; 3]> = None;
+    let mut owner = Owner::None;
+    let mut owner_count = 0usize;
+    let mut scalars = None;
+    let mut seen = Vec::new();
+    while !r.at_end() {
+        let line = r.keyword_line("a section keyword")?;
+        let kw = line[0].to_ascii_uppercase();
+        let need_owner = |r: &Reader| -> Result<usize> {
+            if owner == Owner::None {
+                Err(r.err(format!("{kw} outside POINT_DATA / CELL_DATA")))
+            } else {
+                Ok(owner_count)
+            }
+        };
+        match kw.as_str() {
+            "DIMENSIONS" => {
+                if dims.is_some() {
+                    bail!(r.err("second DIMENSIONS line"));
+                }
+                if line.len() != 4 {
+                    bail!(r.err(format!("DIMENSIONS needs 3 numbers, found {}", line.len() - 1)));
+                }
+                let mut d = [0u64; 3];
+                for a in 0..3 {
+                    d[a] = line[a + 1].parse().map_err(|_| r.err(format!("bad DIMENSIONS value '{}'", line[a + 1])))?;
+                }
+                dims = Some(check_dims(name, d)?);
+            }
+            "SPACING" | "ASPECT_RATIO" => {
+                if spacing.is_some() {
+                    bail!(r.err("second SPACING line"));
+                }
+                spacing = Some(r.numbers3(&line, &kw)?);
+            }
+            "ORIGIN" => {
+                if origin.is_some() {
+                    bail!(r.err("second ORIGIN line"));
+                }
+                origin = Some(r.numbers3(&line, "ORIGIN")?);
+            }
+            "METADATA" => r.skip_metadata()?,
+            "FIELD" => {
+                let arrays = r.count(line.get(2), "FIELD array count")?;
+                for _ in 0..arrays {
+                    let h = r.keyword_line("a FIELD array header")?;
+                    if h[0] == "NULL_ARRAY" {
+                        continue;
+                    }
+                    let what = format!("FIELD array '{}'", h[0]);
+                    let comps = r.count(h.get(1), "FIELD array component count")?;
+                    let tuples = r.count(h.get(2), "FIELD array tuple count")?;
+                    let n = r.product(comps, tuples, &what)?;
+                    r.skip_typed(n, h.get(3), &what)?;
+                    if r.next_is("METADATA") {
+                        r.keyword_line("METADATA")?;
+                        r.skip_metadata()?;
+                    }
+                }
+            }
+            "POINT_DATA" => {
+                let n = r.count(line.get(1), "POINT_DATA count")?;
+                let d = dims.ok_or_else(|| r.err("POINT_DATA before DIMENSIONS"))?;
+                let points = d[0] * d[1] * d[2];
+                if n != points {
+                    bail!(r.err(format!(
+                        "count mismatch: POINT_DATA {n} but DIMENSIONS {} {} {} make {points} points",
+                        d[0], d[1], d[2]
+                    )));
+                }
+                owner = Owner::Points;
+                owner_count = n;
+            }
+            "CELL_DATA" => {
+                owner = Owner::Cells;
+                owner_count = r.count(line.get(1), "CELL_DATA count")?;
+            }
+            "SCALARS" => {
+                let n = need_owner(&r)?;
+                let aname = line.get(1).copied().unwrap_or("?");
+                let what = format!("SCALARS '{aname}'");
+                let tname = *line.get(2).ok_or_else(|| r.err(format!("missing data type for {what}")))?;
+                let comps = match line.get(3) {
+                    Some(s) => s
+                        .parse::<usize>()
+                        .ok()
+                        .filter(|k| (1..=4).contains(k))
+                        .ok_or_else(|| r.err(format!("bad component count '{s}' for {what}")))?,
+                    None => 1,
+                };
+                if r.next_is("LOOKUP_TABLE") {
+                    r.keyword_line("LOOKUP_TABLE")?;
+                }
+                if owner == Owner::Points {
+                    seen.push(format!("{what} ({tname}, {comps} components)"));
+                }
+                if owner == Owner::Points && comps == 1 && scalars.is_none() {
+                    let ty = volume_type(tname).ok_or_else(|| {
+                        r.err(format!(
+                            "unsupported type '{tname}' for {what}; supported: unsigned_char, short, \
+                             unsigned_short, float, char, int"
+                        ))
+                    })?;
+                    let s = if r.binary {
+                        let data = r.binary_bytes(n, ty.size(), &what)?;
+                        decode_binary(name, data, ty, Endian::Big, n)?
+                    } else {
+                        let mut t = Tokens::new(&r.b[r.pos..]);
+                        let s = parse_ascii(name, &what, &mut t, ty, tname, n, r.pos)?;
+                        r.pos += t.pos();
+                        s
+                    };
+                    scalars = Some(s);
+                } else {
+                    let k = r.product(n, comps, &what)?;
+                    r.skip_typed(k, Some(&tname), &what)?;
+                }
+            }
+            "LOOKUP_TABLE" => {
+                let size = r.count(line.get(2), "LOOKUP_TABLE size")?;
+                let n = r.product(size, 4, "LOOKUP_TABLE")?;
+                r.skip_values(n, 1, "LOOKUP_TABLE")?;
+            }
+            "COLOR_SCALARS" => {
+                let n = need_owner(&r)?;
+                let k = r.count(line.get(2), "COLOR_SCALARS component count")?;
+                r.skip_values(r.product(n, k, "COLOR_SCALARS")?, 1, "COLOR_SCALARS")?;
+            }
+            "VECTORS" | "NORMALS" | "TENSORS" | "TENSORS6" | "GLOBAL_IDS" | "PEDIGREE_IDS" => {
+                let n = need_owner(&r)?;
+                let k = match kw.as_str() {
+                    "VECTORS" | "NORMALS" => 3,
+                    "TENSORS" => 9,
+                    "TENSORS6" => 6,
+                    _ => 1,
+                };
+                let total = r.product(n, k, &kw)?;
+                r.skip_typed(total, line.get(2), &kw)?;
+            }
+            "TEXTURE_COORDINATES" => {
+                let n = need_owner(&r)?;
+                let k = r.count(line.get(2), "TEXTURE_COORDINATES dimension")?;
+                let total = r.product(n, k, &kw)?;
+                r.skip_typed(total, line.get(3), &kw)?;
+            }
+            _ => bail!(r.err(format!("bad keyword '{}'", line[0].escape_debug()))),
+        }
+    }
+    let dims = dims.ok_or_else(|| r.err("no DIMENSIONS line"))?;
+    let samples = scalars.ok_or_else(|| {
+        r.err(format!(
+            "no point scalars: need POINT_DATA with a one-component SCALARS array; found {}",
+            if seen.is_empty() { "none".to_string() } else { seen.join(", ") }
+        ))
+    })?;
+    let sp = spacing.unwrap_or([1.0; 3]);
+    let steps = [[sp[0], 0.0, 0.0], [0.0, sp[1], 0.0], [0.0, 0.0, sp[2]]];
+    from_steps(name, stem_of(name), dims, steps, origin.unwrap_or([0.0; 3]), samples)
+}
