@@ -20,7 +20,6 @@ use std::time::{Duration, Instant};
 use criterion::{criterion_group, BenchmarkId, Criterion, Throughput};
 
 use volbench::algo::cell_projection::{centroids_f32, sort::CentroidSort};
-use volbench::algo::method::DataKind;
 use volbench::algo::registry;
 use volbench::harness::datasets::{self, Dataset, DatasetData};
 use volbench::harness::run::{MethodSession, RunConfig};
@@ -88,10 +87,7 @@ fn frames(c: &mut Criterion) {
 fn sort(c: &mut Criterion) {
     for name in DATASETS {
         let dataset = datasets::load(name).expect("shipped dataset");
-        if dataset.kind() != DataKind::TetMesh {
-            continue;
-        }
-        let DatasetData::TetMesh { mesh, geometry } = &dataset.data;
+        let DatasetData::TetMesh { mesh, geometry } = &dataset.data else { continue };
         let camera = orbit(&dataset, 3);
         let mut group = c.benchmark_group(format!("sort/{name}"));
         group.throughput(Throughput::Elements(mesh.tets.len() as u64));

@@ -61,7 +61,7 @@ struct SolidBox {
 }
 
 fn create_box(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
-    let SceneData::TetMesh { mesh, .. } = inputs.data;
+    let SceneData::TetMesh { mesh, .. } = inputs.data else { anyhow::bail!("meshes only") };
     let source = |p: &str| match p {
         "box.vert" => Some(BOX_VERT),
         "box.frag" => Some(BOX_FRAG),

@@ -222,12 +222,14 @@ impl Feature {
 #[derive(Clone, Copy)]
 pub enum SceneData<'a> {
     TetMesh { mesh: &'a TetMesh, geometry: &'a TetGeometry },
+    Volume(&'a crate::volume::Volume),
 }
 
 impl SceneData<'_> {
     pub fn kind(&self) -> DataKind {
         match self {
             SceneData::TetMesh { .. } => DataKind::TetMesh,
+            SceneData::Volume(_) => DataKind::Volume,
         }
     }
 }

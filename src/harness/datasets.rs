@@ -13,6 +13,7 @@ use sha2::{Digest as _, Sha256};
 
 use crate::algo::method::{DataKind, SceneData};
 use crate::mesh::{self, Bounds, TetGeometry, TetMesh};
+use crate::volume::Volume;
 use crate::scene::{Camera, ControlPoint, TransferFunction};
 
 /// A shipped dataset: its name, kind and what it is.
@@ -39,6 +40,13 @@ pub const NAMED: &[NamedDataset] = &[
         kind: DataKind::TetMesh,
         description: "VTK's tetrahedral post (8,750 tets); pressure",
     },
+    NamedDataset {
+        name: "chest-ct",
+        kind: DataKind::Volume,
+        description: "LIDC chest CT, 256x256x133 uint8, spacing 1.40625x1.40625x2.5 mm",
+    },
+    NamedDataset { name: "headsq", kind: DataKind::Volume, description: "VTK's headsq MRI, 64x64x93 int16" },
+    NamedDataset { name: "hydrogen", kind: DataKind::Volume, description: "hydrogen atom probability density (VTK XML ImageData)" },
 ];
 
 /// The named meshes (kept for callers that only take meshes).
@@ -55,6 +63,7 @@ pub fn data_dir() -> PathBuf {
 /// The loaded data, by kind.
 pub enum DatasetData {
     TetMesh { mesh: TetMesh, geometry: TetGeometry },
+    Volume(Volume),
 }
 
 /// A loaded dataset (see the module note).
@@ -90,6 +99,11 @@ impl Dataset {
         Dataset { name: mesh.name.clone(), named, source, digest, data: DatasetData::TetMesh { mesh, geometry } }
     }
 
+    pub fn from_volume(volume: Volume, named: bool, source: String) -> Self {
+        let digest = volume_digest(&volume);
+        Dataset { name: volume.name.clone(), named, source, digest, data: DatasetData::Volume(volume) }
+    }
+
     pub fn kind(&self) -> DataKind {
         self.scene().kind()
     }
@@ -98,18 +112,21 @@ impl Dataset {
     pub fn scene(&self) -> SceneData<'_> {
         match &self.data {
             DatasetData::TetMesh { mesh, geometry } => SceneData::TetMesh { mesh, geometry },
+            DatasetData::Volume(v) => SceneData::Volume(v),
         }
     }
 
     pub fn bounds(&self) -> Bounds {
         match &self.data {
             DatasetData::TetMesh { mesh, .. } => mesh.bounds(),
+            DatasetData::Volume(v) => v.bounds(),
         }
     }
 
     pub fn scalar_range(&self) -> (f64, f64) {
         match &self.data {
             DatasetData::TetMesh { mesh, .. } => mesh.scalar_range(),
+            DatasetData::Volume(v) => v.range(),
         }
     }
 
@@ -117,6 +134,7 @@ impl Dataset {
     pub fn default_transfer_function(&self) -> TransferFunction {
         match &self.data {
             DatasetData::TetMesh { mesh, .. } => mesh_transfer_function(mesh, self.named.then_some(self.name.as_str())),
+            DatasetData::Volume(v) => volume_transfer_function(v, self.named.then_some(self.name.as_str())),
         }
     }
 
@@ -140,6 +158,20 @@ impl Dataset {
                 counts: BTreeMap::from([("cells", mesh.tets.len() as u64), ("points", mesh.points.len() as u64)]),
                 stats: serde_json::to_value(&mesh.stats).unwrap_or_default(),
             },
+            DatasetData::Volume(v) => DatasetSummary {
+                name: self.name.clone(),
+                kind: self.kind(),
+                source: self.source.clone(),
+                digest: self.digest.clone(),
+                counts: BTreeMap::from([("voxels", v.len() as u64)]),
+                stats: serde_json::json!({
+                    "dims": v.dims(),
+                    "spacing": v.spacing(),
+                    "origin": v.origin(),
+                    "sample_type": v.sample_type().name(),
+                    "range": [v.range().0, v.range().1],
+                }),
+            },
         }
     }
 
@@ -151,6 +183,7 @@ impl Dataset {
                     .with_context(|| format!("rendering the f64 reference of '{}'", self.name))?;
                 Ok(r.pixels.iter().map(|p| p.map(|c| c as f32)).collect())
             }
+            DatasetData::Volume(_) => anyhow::bail!("'{}': no f64 reference for volumes yet", self.name),
         }
     }
 
@@ -158,6 +191,7 @@ impl Dataset {
     pub fn reference_description(&self) -> &'static str {
         match &self.data {
             DatasetData::TetMesh { .. } => "f64 CPU ray walk over face adjacency, exact emission-absorption",
+            DatasetData::Volume(_) => "f64 CPU ray march of the trilinear field",
         }
     }
 }
@@ -188,6 +222,46 @@ pub fn hex(bytes: &[u8]) -> String {
     bytes.iter().map(|b| format!("{b:02x}")).collect()
 }
 
+/// SHA-256 over a volume's grid (dims, spacing, origin) and samples as f64.
+pub fn volume_digest(v: &Volume) -> String {
+    let mut h = Sha256::new();
+    h.update(b"volbench volume v1\0");
+    for d in v.dims() {
+        h.update((d as u64).to_le_bytes());
+    }
+    for x in v.spacing().into_iter().chain(v.origin()) {
+        h.update(x.to_le_bytes());
+    }
+    h.update(v.sample_type().name().as_bytes());
+    for i in 0..v.len() {
+        h.update(v.samples().get(i).unwrap_or(f64::NAN).to_le_bytes());
+    }
+    hex(&h.finalize())
+}
+
+/// Whether a path names a volume rather than a mesh: by extension, and for
+/// `.vtk` (both kinds use it) by the DATASET line of its header.
+fn is_volume_path(p: &Path) -> bool {
+    use crate::volume::Format;
+    match crate::volume::format_of_extension(p) {
+        Some(Format::VtkLegacy) => {
+            let head = crate::fsio::check_input(p, "VTK file", crate::fsio::MAX_INPUT_BYTES)
+                .ok()
+                .and_then(|_| std::fs::File::open(p).ok())
+                .map(|f| {
+                    use std::io::Read as _;
+                    let mut buf = Vec::new();
+                    let _ = f.take(1024).read_to_end(&mut buf);
+                    String::from_utf8_lossy(&buf).to_ascii_uppercase()
+                })
+                .unwrap_or_default();
+            head.contains("STRUCTURED_POINTS")
+        }
+        Some(_) => true,
+        None => false,
+    }
+}
+
 /// Load a dataset by shipped name or path.
 pub fn load(spec: &str) -> Result<Dataset> {
     let dir = data_dir();
@@ -201,6 +275,12 @@ pub fn load(spec: &str) -> Result<Dataset> {
         "bluntfin" => named(spec, mesh::datasets::load_bluntfin(&dir), "data/plot3d/bluntfin{xyz,q}.bin".into()),
         "oxygenpost" => named(spec, mesh::datasets::load_oxygenpost(&dir), "data/plot3d/post{xyz,q}.bin".into()),
         "post-small" => named(spec, mesh::datasets::load_post_small(&dir), "data/unstructured/post_tets_vtkdata.vtk".into()),
+        name if crate::volume::datasets::NAMES.contains(&name) => {
+            let mut v = crate::volume::datasets::load_named(name, &dir).with_context(|| format!("loading dataset '{name}'"))?;
+            v.name = name.to_string();
+            let file = crate::volume::datasets::file_of(name).unwrap_or_default();
+            Ok(Dataset::from_volume(v, true, format!("data/{file}")))
+        }
         path => {
             let p = Path::new(path);
             if std::fs::symlink_metadata(p).is_err() {
@@ -208,6 +288,10 @@ pub fn load(spec: &str) -> Result<Dataset> {
                     "dataset '{path}': no such file, and not one of the shipped datasets ({})",
                     NAMED.iter().map(|d| d.name).collect::<Vec<_>>().join(", ")
                 );
+            }
+            if is_volume_path(p) {
+                let v = crate::volume::load_volume(p).with_context(|| format!("loading dataset '{path}'"))?;
+                return Ok(Dataset::from_volume(v, false, path.to_string()));
             }
             let mesh = mesh::datasets::load_path(p).with_context(|| format!("loading dataset '{path}'"))?;
             Ok(Dataset::from_mesh(mesh, false, path.to_string()))
@@ -219,6 +303,28 @@ pub fn load(spec: &str) -> Result<Dataset> {
 pub fn load_mesh(spec: &str) -> Result<TetMesh> {
     match load(spec)?.data {
         DatasetData::TetMesh { mesh, .. } => Ok(mesh),
+        DatasetData::Volume(_) => anyhow::bail!("'{spec}' is a volume, not a tetrahedral mesh"),
+    }
+}
+
+/// The transfer function a volume is shown with: the named volume's preset
+/// file (`data/tf/<name>.json`) when there is one, else a generic ramp
+/// over its range (attenuation per diagonal, as for meshes).
+pub fn volume_transfer_function(v: &Volume, named: Option<&str>) -> TransferFunction {
+    let diag = v.bounds().diagonal().max(f64::MIN_POSITIVE);
+    if let Some(path) = named.and_then(crate::scene::tf_file::preset_path) {
+        if let Ok(tf) = crate::scene::tf_file::load_tf(&path, v.range(), diag) {
+            return tf;
+        }
+    }
+    let (lo, hi) = v.range();
+    let stops = [(0.0, [0.2, 0.3, 1.0], 0.0), (0.3, [0.3, 1.0, 0.3], 2.0), (1.0, [1.0, 0.3, 0.1], 8.0)];
+    TransferFunction {
+        name: "generic-ramp".into(),
+        points: stops
+            .iter()
+            .map(|&(t, color, depth)| ControlPoint { scalar: lo + t * (hi - lo), color, attenuation: depth / diag })
+            .collect(),
     }
 }
 

@@ -206,7 +206,9 @@ pub struct CellProjection {
 
 impl CellProjection {
     pub fn create(inputs: MethodInputs, bytes: DeviceBytesPerCell, build: ProjectorBuilder) -> Result<Box<dyn RenderMethod>> {
-        let SceneData::TetMesh { mesh, geometry } = inputs.data;
+        let SceneData::TetMesh { mesh, geometry } = inputs.data else {
+            anyhow::bail!("cell projection renders tetrahedral meshes only");
+        };
         let settings = Settings::from_options(inputs.options)?;
         let ctx = inputs.ctx;
         // Refuse meshes the device cannot hold before allocating anything.
