@@ -12,7 +12,7 @@ use ash::vk as raw;
 use rayon::prelude::*;
 
 use super::render;
-use crate::algo::method::{DataKind, MethodInfo, MethodInputs, Published, RenderMethod};
+use crate::algo::method::{MethodInfo, MethodInputs, Published, RenderMethod};
 use super::{build_pipeline, cells_f32, CellF32, CellProjector, FrameSetup, Interpolation};
 use crate::algo::integrate::IntegrationTables;
 use crate::mesh::{TetGeometry, TetMesh};
@@ -30,21 +30,15 @@ pub const STRIP: [u32; 6] = [0, 1, 2, 3, 0, 1];
 pub const RESTART: u32 = u32::MAX;
 
 /// The registry entry.
-pub const METHOD: MethodInfo = MethodInfo {
-    name: "balanced",
-    data: DataKind::TetMesh,
-    summary: "GPU-CPU balanced cell projection (Moreland 2004): 4 vertices, 28 floats per tet per frame, static strip indices",
-    options: render::OPTIONS,
-    features: &[],
-    sweep: render::SWEEP,
-    compare: render::COMPARE,
-    stress: render::STRESS,
-    published: &[
+pub const METHOD: MethodInfo = render::method_info(
+    "balanced",
+    "GPU-CPU balanced cell projection (Moreland 2004): 4 vertices, 28 floats per tet per frame, static strip indices",
+    &[
         Published { method: "balanced", dataset: "bluntfin", cells_per_second: 843e3, source: render::THESIS_TABLE_6_3 },
         Published { method: "balanced", dataset: "oxygenpost", cells_per_second: 1168e3, source: render::THESIS_TABLE_6_3 },
     ],
     create,
-};
+);
 
 fn create(inputs: MethodInputs) -> anyhow::Result<Box<dyn RenderMethod>> {
     let bytes = render::DeviceBytesPerCell { frame: FLOATS_PER_CELL * 4, fixed: INDICES_PER_CELL * 4 };

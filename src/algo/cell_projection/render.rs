@@ -16,7 +16,9 @@ use super::mpvo::MpvoSort;
 use super::sort::{CentroidSort, SortKind, Sorter};
 use super::{centroids_relative_f32, render_origin, CellProjector, ExitTolerances, FrameSetup, Interpolation, MeshScale};
 use crate::algo::integrate::{IntegrationTables, Integrator};
-use crate::algo::method::{MethodInputs, OptionSpec, OptionValues, Options, Phases, RenderMethod, SceneData, View, Work};
+use crate::algo::method::{
+    DataKind, MethodInfo, MethodInputs, OptionSpec, OptionValues, Options, Phases, Published, RenderMethod, SceneData, View, Work,
+};
 use crate::mesh::{TetGeometry, TetMesh};
 use crate::vk::{CommandRecorder, Context, Image, UploadCounter, VkResult};
 
@@ -132,6 +134,29 @@ pub const STRESS: &[&str] = &[
     "integrator=ppi,interpolation=exact,sort=mpvo",
     "integrator=linear-exact,interpolation=exact,sort=mpvo",
 ];
+
+/// A cell-projection method's registry entry: what the two methods share
+/// (options, sweeps, kind), with the name, summary, published figures and
+/// constructor that differ.
+pub const fn method_info(
+    name: &'static str,
+    summary: &'static str,
+    published: &'static [Published],
+    create: fn(MethodInputs) -> Result<Box<dyn RenderMethod>>,
+) -> MethodInfo {
+    MethodInfo {
+        name,
+        data: DataKind::TetMesh,
+        summary,
+        options: OPTIONS,
+        features: &[],
+        sweep: SWEEP,
+        compare: COMPARE,
+        stress: STRESS,
+        published,
+        create,
+    }
+}
 
 /// Where the published cell-projection figures come from.
 pub const THESIS_TABLE_6_3: &str = "Moreland, PhD thesis 2004, Table 6.3 (Quadro FX 3000, 800x800)";

@@ -10,7 +10,7 @@ use ash::vk as raw;
 use rayon::prelude::*;
 
 use super::render;
-use crate::algo::method::{DataKind, MethodInfo, MethodInputs, Published, RenderMethod};
+use crate::algo::method::{MethodInfo, MethodInputs, Published, RenderMethod};
 use super::{build_pipeline, cells_f32, CellProjector, FrameSetup, Interpolation, FACES};
 use crate::algo::integrate::IntegrationTables;
 use crate::mesh::{TetGeometry, TetMesh};
@@ -21,21 +21,15 @@ pub const VERTICES_PER_CELL: usize = 12;
 pub const FLOATS_PER_CELL: usize = FLOATS_PER_VERTEX * VERTICES_PER_CELL;
 
 /// The registry entry.
-pub const METHOD: MethodInfo = MethodInfo {
-    name: "vicp",
-    data: DataKind::TetMesh,
-    summary: "view-independent cell projection (Weiler, Kraus, Ertl 2002): 12 vertices, 132 floats per tet per frame",
-    options: render::OPTIONS,
-    features: &[],
-    sweep: render::SWEEP,
-    compare: render::COMPARE,
-    stress: render::STRESS,
-    published: &[
+pub const METHOD: MethodInfo = render::method_info(
+    "vicp",
+    "view-independent cell projection (Weiler, Kraus, Ertl 2002): 12 vertices, 132 floats per tet per frame",
+    &[
         Published { method: "vicp", dataset: "bluntfin", cells_per_second: 618e3, source: render::THESIS_TABLE_6_3 },
         Published { method: "vicp", dataset: "oxygenpost", cells_per_second: 690e3, source: render::THESIS_TABLE_6_3 },
     ],
     create,
-};
+);
 
 fn create(inputs: MethodInputs) -> anyhow::Result<Box<dyn RenderMethod>> {
     let bytes = render::DeviceBytesPerCell { frame: FLOATS_PER_CELL * 4, fixed: 0 };
