@@ -11,6 +11,11 @@
 //! calls view-independent: the constant scalar gradient of each tet and its
 //! four outward face planes. Degenerate cells get zeros and a flag, never
 //! NaN/Inf, so they can be packed and drawn as empty.
+//!
+//! [`tet_det`] is volbench's one zero-volume (flatness) test: validation's
+//! `zero_volume` count, `TetPrecomputed::degenerate` (GPU paths, MPVO) and
+//! the CPU reference's solid/flat cells all come from it, so they agree on
+//! which cells are flat.
 
 use super::{Bounds, TetMesh};
 use anyhow::{bail, Result};
@@ -18,7 +23,12 @@ use rayon::prelude::*;
 
 /// Relative threshold for a zero-volume cell: `|det| <= ZERO_VOLUME_REL * L^3`
 /// with `det = det[p1-p0, p2-p0, p3-p0]` (six times the volume) and `L` the
-/// longest edge.
+/// longest of the six edges (see [`tet_det`]). Relative, so the test does not
+/// depend on the mesh's units. 1e-10 is far above f64 rounding of `det`
+/// (~1e-16 L^3), so a cell whose vertices are coplanar up to rounding is
+/// flat, and far below real thin cells: the stress suite's thinnest slivers
+/// (|det| = 6e-12 with L^3 = 5.5e-3) stay solid, the blunt fin's collapsed
+/// cells (det exactly 0) are its 77 zero-volume cells.
 pub const ZERO_VOLUME_REL: f64 = 1e-10;
 
 /// Largest magnitude accepted for a coordinate or scalar: `f32::MAX`. Every
@@ -49,7 +59,9 @@ fn len2(a: [f64; 3]) -> f64 {
 }
 
 /// `det[p1-p0, p2-p0, p3-p0]` (six times the signed volume) and whether the
-/// cell counts as zero-volume under [`ZERO_VOLUME_REL`].
+/// cell counts as zero-volume under [`ZERO_VOLUME_REL`]: the one flatness
+/// test (module docs). The flag ignores orientation; callers that also need
+/// a positive orientation (the reference's "solid") check the sign of `det`.
 pub fn tet_det(p: [[f64; 3]; 4]) -> (f64, bool) {
     let e1 = sub(p[1], p[0]);
     let e2 = sub(p[2], p[0]);
@@ -191,7 +203,9 @@ pub struct TetPrecomputed {
     pub planes: [[f64; 4]; 4],
     /// Volume (>= 0; the signed volume of the stored, oriented cell).
     pub volume: f64,
-    /// Zero-volume cell (see [`ZERO_VOLUME_REL`]): gradient and planes are 0.
+    /// Zero-volume cell by [`tet_det`] (or, only beyond validated input, a
+    /// determinant, plane or gradient that is not finite): gradient and
+    /// planes are 0.
     pub degenerate: bool,
 }
 

@@ -11,6 +11,7 @@
 //!   unit normal `n_i` pointing *out* of the tet.
 //! - Positions and scalars are kept in f64; GPU paths convert to f32 when packing.
 
+pub mod adjacency;
 pub mod datasets;
 pub mod geometry;
 pub mod plot3d;

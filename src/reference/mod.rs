@@ -10,7 +10,8 @@
 //! only error is f64 rounding (≲1e-13 on a pixel).
 //!
 //! **Method: ray walking, not per-pixel cell sorting.** Face adjacency is built
-//! once (`topology.rs`); the boundary faces are binned into 8×8-pixel screen
+//! once (`topology.rs`, on the shared builder `mesh::adjacency`, matching
+//! vertex indices, no welding); the boundary faces are binned into 8×8-pixel screen
 //! tiles by their projected bounding boxes; each ray tests the boundary faces
 //! of its tile for *entry*, sorts the entries by depth and walks from each one,
 //! cell to cell through the exit face, until it leaves through a boundary face;
@@ -42,12 +43,14 @@
 //! meets, flat or not: the walk leaves through "the other crossed face",
 //! i.e. the face whose signs are opposite to those of the face it came in
 //! by. For a solid, positively oriented cell that is the usual exit; a flat
-//! (zero-volume, `det < 1e-12·L³`) cell has no orientation to trust, so it
-//! is crossed whichever way its vertices are ordered, with a zero-length
-//! segment (exit depth is clamped to be ≥ entry depth). For the same reason a
-//! boundary face of a flat cell counts as an entry whichever way it is
-//! crossed; if it was really an exit, the walk meets a solid cell from its
-//! exit side at once and stops there (`reversed_walks`, harmless).
+//! cell (zero-volume by `mesh::geometry::tet_det`, `|det| ≤ 1e-10·L³`, the
+//! test that also makes the GPU paths' cells `degenerate`; or inverted) has
+//! no orientation to trust, so it is crossed whichever way its vertices are
+//! ordered, with a zero-length segment (exit depth is clamped to be ≥ entry
+//! depth). For the same reason a boundary face of a flat cell counts as an
+//! entry whichever way it is crossed; if it was really an exit, the walk
+//! meets a solid cell from its exit side at once and stops there
+//! (`reversed_walks`, harmless).
 //!
 //! **Safety nets** (all counted in [`ReferenceStats`], all 0 in the tests on
 //! exact data and on the blunt fin and oxygen post meshes): sign patterns

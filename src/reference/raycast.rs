@@ -7,7 +7,8 @@ use crate::mesh::TetMesh;
 use crate::scene::{Camera, TransferFunction};
 
 use super::integrate::{integrate_segment, Segment};
-use super::topology::{Topology, FACE_VERTS, NONE};
+use super::topology::Topology;
+use crate::mesh::adjacency::{FACE_VERTS, NONE};
 use super::ReferenceStats;
 
 /// Stop compositing once the optical depth exceeds this: what lies behind is

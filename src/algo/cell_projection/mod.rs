@@ -8,6 +8,7 @@
 
 pub mod balanced;
 pub mod mpvo;
+pub mod radix;
 pub mod render;
 pub mod sort;
 pub mod vicp;

@@ -3,16 +3,19 @@
 //! MPVONC heuristic for non-convex meshes.
 //!
 //! **Once per mesh** ([`MpvoSort::new`]):
-//! - *Face adjacency* by a parallel sort of all `4·n` faces keyed by their
-//!   sorted vertex triple, after *welding* vertices with bit-identical
-//!   coordinates (so two grid blocks whose boundary points coincide without
-//!   sharing indices are joined; `welded_faces` counts what only the weld
-//!   matched). A triple held by two cells is an interior face, by one a
-//!   boundary face. Three or more holders happen when the weld merges a
-//!   collapsed grid point (the blunt fin's): if exactly two holders are solid
-//!   they are paired (the flat ones draw nothing), otherwise all stay
-//!   boundary faces (`flat_shared_faces`, or `non_manifold_faces` if three or
-//!   more are solid: invalid input).
+//! - *Face adjacency* from the shared builder
+//!   ([`crate::mesh::adjacency::FaceAdjacency`]: faces matched by sorted
+//!   vertex triple), after *welding* vertices with bit-identical coordinates
+//!   (`weld_coincident`: two grid blocks whose boundary points coincide
+//!   without sharing indices are joined; `welded_faces` counts what only the
+//!   weld matched). A triple held by two cells is an interior face, by one a
+//!   boundary face. MPVO's policy for triples with three or more holders
+//!   (they happen when the weld merges a collapsed grid point, the blunt
+//!   fin's): if exactly two holders are solid they are paired (the flat ones
+//!   draw nothing), otherwise all stay boundary faces (`flat_shared_faces`,
+//!   or `non_manifold_faces` if three or more are solid: invalid input).
+//!   Solid/flat is `TetGeometry`'s `degenerate` flag, i.e. the one flatness
+//!   test of `mesh::geometry::tet_det` that the CPU reference uses too.
 //! - *One plane per interior face*, from [`TetGeometry`] (unit outward normal
 //!   `n`, offset `a`) of the solid cell (the lower face slot if both are
 //!   solid); the other side stores its exact negation, so the two cells agree
@@ -41,8 +44,8 @@
 //!    cell (faces whose neighbour is behind / in front) and, in the same pass,
 //!    the cell's depth key (squared centroid distance from the eye, or
 //!    centroid depth along `v`). Seam links are tested the same way.
-//! 2. The centroid order (the same keys as [`super::sort::CentroidSort`],
-//!    LSD radix sort), as a rank per cell.
+//! 2. The centroid order (the same keys as `sort::CentroidSort`, the LSD
+//!    radix sort of `radix`), as a rank per cell.
 //! 3. Kahn's topological sort of the "behind" DAG, back to front: a cell
 //!    becomes *ready* once every neighbour behind it has been emitted; the
 //!    initial ready cells are those with nothing behind them (for a convex
@@ -67,7 +70,8 @@
 //!    and the loop ends after exactly `n` emissions.
 //!
 //! The order is reported farthest first, the convention of
-//! [`super::sort::CentroidSort`]. [`MpvoSort::check_order`] (and
+//! `sort::CentroidSort` (this module does not depend on `sort`: `sort::Sorter`
+//! wraps this one). [`MpvoSort::check_order`] (and
 //! [`MpvoSort::count_out_of_order`]) count the face and link constraints that
 //! any given order, e.g. the centroid order, violates, with the same tests.
 //!
@@ -82,16 +86,13 @@
 use rayon::prelude::*;
 use serde::Serialize;
 
-use super::sort::radix_sort_pairs;
+use super::radix::{float_key, radix_sort_pairs};
+use crate::mesh::adjacency::{weld_coincident, FaceAdjacency, FACE_VERTS, NONE};
 use crate::mesh::{TetGeometry, TetMesh};
 use crate::scene::Camera;
 
-/// No neighbour across this face (boundary, non-manifold).
-const NONE: u32 = u32::MAX;
 /// `remaining` value of a cell already emitted.
 const EMITTED: u8 = u8::MAX;
-
-use super::sort::float_key;
 
 /// What was found while building the adjacency (once per mesh).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
@@ -213,106 +214,48 @@ struct Link {
     plane: [f64; 4],
 }
 
-/// Local vertex indices of face `f` (opposite vertex `f`).
-const FACE_VERTS: [[usize; 3]; 4] = [[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]];
-
 impl MpvoSort {
     /// Builds adjacency and per-face planes. `geometry` must be
     /// `TetGeometry::compute(mesh)`.
     pub fn new(mesh: &TetMesh, geometry: &TetGeometry) -> MpvoSort {
         let n = mesh.tets.len();
         assert_eq!(geometry.cells.len(), n, "geometry does not belong to this mesh");
-        assert!(4 * n < NONE as usize, "too many cells for 32-bit face slots");
 
-        // Weld vertices with identical coordinates: canonical id = the
-        // smallest index among the points at the same position.
-        let np = mesh.points.len();
-        let mut by_pos: Vec<u32> = (0..np as u32).collect();
-        // `+ 0.0` makes -0.0 and 0.0 one position.
-        let bits = |i: u32| mesh.points[i as usize].map(|x| (x + 0.0).to_bits());
-        by_pos.par_sort_unstable_by_key(|&i| (bits(i), i));
-        let mut weld: Vec<u32> = (0..np as u32).collect();
-        let mut i = 0;
-        while i < np {
-            let mut j = i + 1;
-            while j < np && bits(by_pos[j]) == bits(by_pos[i]) {
-                weld[by_pos[j] as usize] = by_pos[i];
-                j += 1;
-            }
-            i = j;
-        }
-
-        // Faces keyed by sorted welded triple (and by the original triple, to
-        // tell which matches needed the weld).
-        let mut faces: Vec<(u64, u32, u32)> = mesh
-            .tets
-            .par_iter()
-            .enumerate()
-            .flat_map_iter(|(c, t)| {
-                let weld = &weld;
-                (0..4).map(move |f| {
-                    let mut k = FACE_VERTS[f].map(|l| weld[t[l] as usize]);
-                    k.sort_unstable();
-                    (((k[0] as u64) << 32) | k[1] as u64, k[2], (4 * c + f) as u32)
-                })
-            })
-            .collect();
-        faces.par_sort_unstable();
-
-        // `partner[slot]`: the neighbour's face slot, `NONE` on the boundary.
-        let mut partner = vec![NONE; 4 * n];
-        let mut build = MpvoBuildStats { cells: n, ..Default::default() };
-        let original_key = |slot: u32| {
-            let t = mesh.tets[slot as usize / 4];
-            let mut k = FACE_VERTS[slot as usize % 4].map(|l| t[l]);
-            k.sort_unstable();
-            k
+        // Faces keyed by sorted welded triple; MPVO's policy for triples
+        // with three or more holders on top.
+        let weld = weld_coincident(&mesh.points);
+        let adj = FaceAdjacency::build(&mesh.tets, Some(&weld), |_| true);
+        let mut build = MpvoBuildStats {
+            cells: n,
+            interior_faces: adj.interior_faces(),
+            boundary_faces: adj.boundary.len(),
+            welded_faces: adj.welded_pairs,
+            ..Default::default()
         };
-        let mut i = 0;
-        while i < faces.len() {
-            let key = (faces[i].0, faces[i].1);
-            let mut j = i + 1;
-            while j < faces.len() && (faces[j].0, faces[j].1) == key {
-                j += 1;
-            }
-            match j - i {
-                1 => build.boundary_faces += 1,
-                2 => {
-                    let (a, b) = (faces[i].2, faces[i + 1].2);
-                    partner[a as usize] = b;
-                    partner[b as usize] = a;
-                    build.interior_faces += 1;
-                    if original_key(a) != original_key(b) {
-                        build.welded_faces += 1;
-                    }
+        // `partner[slot]`: the neighbour's face slot, `NONE` on the boundary.
+        let mut partner = adj.partner;
+        for holders in &adj.shared {
+            // Only possible through welding (degenerate cells at collapsed
+            // points) or invalid input. If exactly two of the holders are
+            // solid cells they are the real neighbours (the others are flat
+            // and draw nothing).
+            let m = holders.len();
+            let solid: Vec<u32> =
+                holders.iter().copied().filter(|&s| !geometry.cells[s as usize / 4].degenerate).collect();
+            if let [a, b] = solid[..] {
+                partner[a as usize] = b;
+                partner[b as usize] = a;
+                build.interior_faces += 1;
+                build.welded_faces += 1;
+                build.boundary_faces += m - 2;
+            } else {
+                if solid.len() > 2 {
+                    build.non_manifold_faces += m;
+                } else {
+                    build.flat_shared_faces += m;
                 }
-                m => {
-                    // Only possible through welding (degenerate cells at
-                    // collapsed points) or invalid input. If exactly two of
-                    // the holders are solid cells they are the real
-                    // neighbours (the others are flat and draw nothing).
-                    let solid: Vec<u32> = faces[i..j]
-                        .iter()
-                        .map(|f| f.2)
-                        .filter(|&s| !geometry.cells[s as usize / 4].degenerate)
-                        .collect();
-                    if let [a, b] = solid[..] {
-                        partner[a as usize] = b;
-                        partner[b as usize] = a;
-                        build.interior_faces += 1;
-                        build.welded_faces += 1;
-                        build.boundary_faces += m - 2;
-                    } else {
-                        if solid.len() > 2 {
-                            build.non_manifold_faces += m;
-                        } else {
-                            build.flat_shared_faces += m;
-                        }
-                        build.boundary_faces += m;
-                    }
-                }
+                build.boundary_faces += m;
             }
-            i = j;
         }
 
         let links = seam_links(mesh, geometry, &weld, &partner);
