@@ -77,12 +77,26 @@ fn be<T: Copy, const N: usize>(vals: &[T], f: impl Fn(T) -> [u8; N]) -> Vec<u8> 
 
 /// A binary VTK with `points` (double), one-tet-per-entry cells and scalars.
 fn binary_vtk(points: &[f64], cells: &[[i32; 4]], types: &[i32], scalars: &[f32]) -> Vec<u8> {
+    binary_vtk_ordered(points, cells, types, scalars, false, false)
+}
+
+/// [`binary_vtk`], with the points and/or the cells written little-endian
+/// (wrongly: the format is big-endian).
+fn binary_vtk_ordered(
+    points: &[f64],
+    cells: &[[i32; 4]],
+    types: &[i32],
+    scalars: &[f32],
+    le_points: bool,
+    le_cells: bool,
+) -> Vec<u8> {
     let mut b = b"# vtk DataFile Version 3.0\nbinary\nBINARY\nDATASET UNSTRUCTURED_GRID\n".to_vec();
     b.extend(format!("POINTS {} double\n", points.len() / 3).bytes());
-    b.extend(be(points, f64::to_be_bytes));
+    b.extend(be(points, if le_points { f64::to_le_bytes } else { f64::to_be_bytes }));
     b.extend(format!("\nCELLS {} {}\n", cells.len(), 5 * cells.len()).bytes());
+    let int = if le_cells { i32::to_le_bytes } else { i32::to_be_bytes };
     for c in cells {
-        b.extend(be(&[4, c[0], c[1], c[2], c[3]], i32::to_be_bytes));
+        b.extend(be(&[4, c[0], c[1], c[2], c[3]], int));
     }
     b.extend(format!("\nCELL_TYPES {}\n", types.len()).bytes());
     b.extend(be(types, i32::to_be_bytes));
@@ -215,11 +229,12 @@ fn vtk_corrupt_headers_counts_and_values() {
         (ASCII.replace("POINTS 5 float", "POINTS -5 float"), "bad POINTS count '-5'"),
         (ASCII.replace("POINTS 5 float", "POINTS 99999999999999999999 float"), "bad POINTS count"),
         (ASCII.replace("POINTS 5 float", "POINTS 18446744073709551615 float"), "overflows"),
-        (ASCII.replace("POINTS 5 float", "POINTS 1000000000000 float"), "bad number 'CELLS' in POINTS (value 15 of 3000000000000)"),
+        (ASCII.replace("POINTS 5 float", "POINTS 1000000000000 float"), "count mismatch: POINTS needs 3000000000000 values, found 15 before 'CELLS'"),
         (ASCII.replace("CELLS 2 10", "CELLS 1000000000000000 10"), "count mismatch"),
         (ASCII.replace("CELLS 2 10", "CELLS 18446744073709551615 10"), "count mismatch"),
-        (ASCII.replace("CELLS 2 10", "CELLS 2 1000000000000"), "bad integer 'CELL_TYPES' in CELLS (value 10 of"),
-        (ASCII.replace("4 0 1 2 3", "9223372036854775807 0 1 2 3"), "claims 9223372036854775807 vertices"),
+        (ASCII.replace("CELLS 2 10", "CELLS 2 1000000000000"), "count mismatch: CELLS needs 1000000000000 values, found 10 before 'CELL_TYPES'"),
+        (ASCII.replace("4 0 1 2 3", "9223372036854775807 0 1 2 3"), "value '9223372036854775807' in CELLS (value 0 of 10) does not fit the type int"),
+        (ASCII.replace("4 0 1 2 3", "2147483647 0 1 2 3"), "claims 2147483647 vertices"),
         (ASCII.replace("4 0 1 2 3", "-4 0 1 2 3"), "claims -4 vertices"),
         (ASCII.replace("CELL_TYPES 2", "CELL_TYPES 7"), "count mismatch"),
         (ASCII.replace("POINT_DATA 5", "POINT_DATA 4"), "count mismatch"),
@@ -241,7 +256,7 @@ fn vtk_corrupt_headers_counts_and_values() {
         (ASCII.replace("4 1 3 2 4", "4 1 3 2 5"), "out of range"),
         (ASCII.replace("4 1 3 2 4", "4 1 3 2 -1"), "out of range"),
         (ASCII.replace("4 1 3 2 4", "4 1 3 3 4"), "repeats a vertex"),
-        (ASCII.replace("4 1 3 2 4", "4 1 3 2 x"), "bad integer"),
+        (ASCII.replace("4 1 3 2 4", "4 1 3 2 x"), "value 'x' in CELLS (value 9 of 10) is not an integer"),
         // Cell types and sizes.
         (ASCII.replace("10\n10\n", "10\n12\n"), "unsupported cell type 12 (hexahedron)"),
         (ASCII.replace("10\n10\n", "10\n-3\n"), "unsupported cell type -3"),
@@ -259,7 +274,7 @@ fn vtk_corrupt_headers_counts_and_values() {
         // Version 5 offsets.
         (ASCII5.replace("0 4\nCONN", "0 5\nCONN"), "OFFSETS must rise"),
         (ASCII5.replace("0 4\nCONN", "1 4\nCONN"), "OFFSETS must rise"),
-        (ASCII5.replace("CELLS 2 4", "CELLS 2 99999999999"), "in CONNECTIVITY (value 4 of 99999999999)"),
+        (ASCII5.replace("CELLS 2 4", "CELLS 2 99999999999"), "count mismatch: CONNECTIVITY needs 99999999999 values, found 4 before 'CELL_TYPES'"),
         (ASCII5.replace("0 1 2 3\n", "0 1 2 9\n"), "out of range"),
     ];
     for (i, (text, what)) in cases.iter().enumerate() {
@@ -284,7 +299,7 @@ fn vtk_binary_bad_values() {
     p[4] = f64::INFINITY;
     assert_err(n, parse_vtk_bytes(n, &binary_vtk(&p, &[[0, 1, 2, 3]], &[10], &[0.; 4])), "non-finite coordinate");
     p[4] = 1e300;
-    assert_err(n, parse_vtk_bytes(n, &binary_vtk(&p, &[[0, 1, 2, 3]], &[10], &[0.; 4])), "f32 range");
+    assert_err(n, parse_vtk_bytes(n, &binary_vtk(&p, &[[0, 1, 2, 3]], &[10], &[0.; 4])), "supported coordinate range");
     let s = [0., f32::NAN, 0., 0.];
     assert_err(n, parse_vtk_bytes(n, &binary_vtk(&UNIT_TET, &[[0, 1, 2, 3]], &[10], &s)), "non-finite scalar");
     let s = [0., 0., f32::NEG_INFINITY, 0.];
@@ -390,16 +405,43 @@ fn plot3d_pairs_mismatched_empty_and_by_path() {
     assert!(e.contains("loneq.bin") && e.contains("not found"), "{e}");
     let e = format!("{:#}", load_path(d.join("grid.bin")).unwrap_err());
     assert!(e.contains("grid.bin") && e.contains("NAMExyz.bin"), "{e}");
-    // Collapsed hexes (all points equal) are kept as zero-volume cells.
+    // Collapsed hexes are kept as zero-volume cells beside solid ones...
+    let mut some = xyz_bytes([3, 2, 2], false);
+    let x = |p: usize| 12 + 4 * p; // x of point p (the first coordinate block)
+    for p in [2, 5, 8, 11] {
+        // Move the i = 2 face onto the i = 1 face: the second hex is flat.
+        let v: [u8; 4] = some[x(p - 1)..x(p - 1) + 4].try_into().unwrap();
+        some[x(p)..x(p) + 4].copy_from_slice(&v);
+        for c in [1, 2] {
+            let (a, b) = (x(p - 1) + 48 * c, x(p) + 48 * c);
+            let v: [u8; 4] = some[a..a + 4].try_into().unwrap();
+            some[b..b + 4].copy_from_slice(&v);
+        }
+    }
+    write(d, "somexyz.bin", &some);
+    write(d, "someq.bin", &q_bytes([3, 2, 2]));
+    let m = load_path(d.join("somexyz.bin")).unwrap();
+    // Its four corner tets repeat a point; the central one spans the i = 1
+    // face, planar but for f32 rounding: a sliver, not zero-volume.
+    assert_eq!(m.stats.zero_volume, 4);
+    check_finite(&m);
+    // ...but a mesh with no volume at all is an error: it would render nothing.
     let mut same = xyz_bytes([2, 2, 2], false);
     for v in same[12..].chunks_exact_mut(4) {
         v.copy_from_slice(&1.0f32.to_be_bytes());
     }
     write(d, "samexyz.bin", &same);
     write(d, "sameq.bin", &q_bytes([2, 2, 2]));
-    let m = load_path(d.join("samexyz.bin")).unwrap();
-    assert_eq!(m.stats.zero_volume, 5);
-    check_finite(&m);
+    let e = format!("{:#}", load_path(d.join("samexyz.bin")).unwrap_err());
+    assert!(e.contains("samexyz.bin") && e.contains("zero extent: all 8 points are at (1e0, 1e0, 1e0)"), "{e}");
+    let mut flat = xyz_bytes([2, 2, 2], false);
+    for v in flat[12 + 4 * 16..].chunks_exact_mut(4) {
+        v.copy_from_slice(&2.0f32.to_be_bytes()); // every z the same
+    }
+    write(d, "flatxyz.bin", &flat);
+    write(d, "flatq.bin", &q_bytes([2, 2, 2]));
+    let e = format!("{:#}", load_path(d.join("flatxyz.bin")).unwrap_err());
+    assert!(e.contains("flatxyz.bin") && e.contains("all 5 tets have zero volume"), "{e}");
 }
 
 #[test]
@@ -410,6 +452,196 @@ fn mesh_size_guard() {
     assert!(check_fits(usize::MAX, usize::MAX, u64::MAX).is_err());
 }
 
+// ------------------------------------- messages that say what is wrong (issue 8)
+
+#[test]
+fn vtk_messages_say_what_is_wrong() {
+    let n = "msg.vtk";
+    let cases: Vec<(String, &str)> = vec![
+        // Versions: only 1.0 to 5.x, and the cell layout must match the version.
+        (ASCII.replace("Version 3.0", "Version 6.0"), "unsupported VTK legacy file version '6.0'"),
+        (ASCII.replace("Version 3.0", "Version 0.9"), "unsupported VTK legacy file version '0.9'"),
+        (ASCII.replace("Version 3.0", "Version x"), "unsupported VTK legacy file version 'x'"),
+        (ASCII.replace("Version 3.0", "Version 5.1"), "expected OFFSETS after CELLS, found '4': a version 5.1 file"),
+        (ASCII5.replace("Version 5.1", "Version 4.2"), "OFFSETS after CELLS: that layout needs file version 5.x, but the header says 4.2"),
+        // Line endings.
+        (ASCII.replace('\n', "\r"), "bare carriage return (CR-only line endings"),
+        (ASCII.replacen('\n', "\r", 5), "bare carriage return (CR-only line endings"),
+        // Other formats.
+        (format!("\u{feff}{ASCII}"), "not a VTK legacy file: it starts with a UTF-8 byte-order mark"),
+        ("<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\">\n".into(), "this is an XML VTK file"),
+        // Values that do not fit the declared (or implied) type.
+        (
+            ASCII.replace("SCALARS temp double", "SCALARS temp unsigned_char").replace("0.5 1.5", "0 300"),
+            "value '300' in SCALARS 'temp' (value 1 of 5) does not fit the type unsigned_char (0 to 255)",
+        ),
+        (
+            ASCII.replace("SCALARS temp double", "SCALARS temp unsigned_int").replace("0.5 1.5 2.5", "0 1 -1"),
+            "value '-1' in SCALARS 'temp' (value 2 of 5) does not fit the type unsigned_int (0 to 4294967295)",
+        ),
+        (
+            ASCII.replace("SCALARS temp double", "SCALARS temp int").replace("0.5 1.5", "1 1.5"),
+            "value '1.5' in SCALARS 'temp' (value 1 of 5) is not an integer, as the type int requires",
+        ),
+        (ASCII.replace("POINTS 5 float", "POINTS 5 short").replace("1 1 1", "1 1 1e3"), "value '1e3' in POINTS (value 14 of 15) is not an integer"),
+        (ASCII.replace("POINTS 5 float", "POINTS 5 char").replace("1 1 1", "1 1 128"), "does not fit the type char (-128 to 127)"),
+        (ASCII.replace("1 1 1", "1 -3.5e38 1"), "value '-3.5e38' in POINTS (value 13 of 15) is beyond the f32 range"),
+        (ASCII.replace("4 1 3 2 4", "4 1 3 2 4294967296"), "value '4294967296' in CELLS (value 9 of 10) does not fit the type int"),
+        // ...also in arrays that are skipped.
+        (ASCII.replace("VECTORS v float", "VECTORS v unsigned_char").replacen(" 0 0 0 0", " 0 0 0 256", 1), "does not fit the type unsigned_char"),
+        // An array shorter than its header: the next section is named.
+        (ASCII.replace("POINTS 5 float", "POINTS 6 float"), "count mismatch: POINTS needs 18 values, found 15 before 'CELLS'"),
+        (ASCII.replace("SCALARS temp double", "SCALARS temp double\nLOOKUP_TABLE default\n1 2\nSCALARS t2 double"), "count mismatch: SCALARS 'temp' needs 5 values, found 2 before 'SCALARS'"),
+    ];
+    for (i, (text, what)) in cases.iter().enumerate() {
+        let r = catch_unwind(|| parse_vtk_bytes(n, text.as_bytes()))
+            .unwrap_or_else(|_| panic!("case {i} panicked: {text:?}"));
+        let e = err_of(n, r);
+        assert!(e.contains(what), "case {i}: expected '{what}' in: {e}");
+    }
+    // Every supported version and line ending still loads.
+    for v in ["1.0", "2.0", "3.0", "4.0", "4.2", "3"] {
+        let m = parse_vtk_bytes(n, ASCII.replace("Version 3.0", &format!("Version {v}")).as_bytes());
+        assert_eq!(m.unwrap_or_else(|e| panic!("{v}: {e:#}")).tets.len(), 2);
+    }
+    assert_eq!(parse_vtk_bytes(n, ASCII.replace('\n', "\r\n").as_bytes()).unwrap().tets.len(), 2);
+    let typed = ASCII.replace("SCALARS temp double", "SCALARS temp unsigned_char").replace("0.5 1.5 2.5 3.5 4.5", "0 255 7 8 9");
+    assert_eq!(parse_vtk_bytes(n, typed.as_bytes()).unwrap().scalars, vec![0.0, 255.0, 7.0, 8.0, 9.0]);
+}
+
+#[test]
+fn vtk_little_endian_binary_is_recognised() {
+    let n = "le.vtk";
+    let s = [1.0f32, 2.0, 3.0, 4.0];
+    let e = err_of(n, parse_vtk_bytes(n, &binary_vtk_ordered(&UNIT_TET, &[[0, 1, 2, 3]], &[10], &s, true, false)));
+    assert!(e.contains("POINTS: the values look little-endian") && e.contains("3 of 12 are implausible"), "{e}");
+    assert!(e.contains("write the file big-endian"), "{e}");
+    // Realistic coordinates (no zero low bytes) too.
+    let pts: Vec<f64> = UNIT_TET.iter().enumerate().map(|(i, v)| v * 1.37 + 0.1 * i as f64).collect();
+    let e = err_of(n, parse_vtk_bytes(n, &binary_vtk_ordered(&pts, &[[0, 1, 2, 3]], &[10], &s, true, false)));
+    assert!(e.contains("look little-endian"), "{e}");
+    // Little-endian cells: the count and the cell type say so.
+    let e = err_of(n, parse_vtk_bytes(n, &binary_vtk_ordered(&UNIT_TET, &[[0, 1, 2, 3]], &[10], &s, false, true)));
+    assert!(e.contains("claims 67108864 vertices") && e.contains("the file looks little-endian"), "{e}");
+    let e = err_of(n, parse_vtk_bytes(n, &binary_vtk(&UNIT_TET, &[[0, 1, 2, 3]], &[10i32.swap_bytes()], &s)));
+    assert!(e.contains("unsupported cell type 167772160") && e.contains("the file looks little-endian"), "{e}");
+    // The same mesh big-endian loads, as does the shipped binary file.
+    parse_vtk_bytes(n, &binary_vtk(&pts, &[[0, 1, 2, 3]], &[10], &s)).unwrap();
+    parse_vtk_bytes("post.vtk", &post_vtk()).unwrap();
+}
+
+#[test]
+fn plot3d_messages_say_what_is_wrong() {
+    let grid = xyz_bytes([2, 2, 2], false);
+    let q = q_bytes([2, 2, 2]);
+    let record = |b: &[u8]| [&(b.len() as i32).to_be_bytes()[..], b, &(b.len() as i32).to_be_bytes()[..]].concat();
+    let fortran_xyz = [record(&grid[..12]), record(&grid[12..])].concat();
+    let fortran_q = [record(&q[..12]), record(&q[12..28]), record(&q[28..])].concat();
+    let multi_xyz = [&1i32.to_be_bytes()[..], &grid].concat();
+    let multi_q = [&1i32.to_be_bytes()[..], &q].concat();
+    let two = [&2i32.to_be_bytes()[..], &grid[..12], &grid[..12], &grid[12..], &grid[12..]].concat();
+    let mut le_floats = grid.clone();
+    for c in le_floats[12..].chunks_exact_mut(4) {
+        c.reverse();
+    }
+    let mut le_fields = q.clone();
+    for c in le_fields[28..].chunks_exact_mut(4) {
+        c.reverse();
+    }
+    for (name, r, what) in [
+        ("f.xyz", parse_xyz_bytes("f.xyz", &fortran_xyz).map(drop), "Fortran unformatted PLOT3D file"),
+        ("f.q", parse_q_bytes("f.q", &fortran_q).map(drop), "Fortran unformatted PLOT3D file"),
+        ("m.xyz", parse_xyz_bytes("m.xyz", &multi_xyz).map(drop), "multi-grid PLOT3D file (1 grid,"),
+        ("m.q", parse_q_bytes("m.q", &multi_q).map(drop), "multi-grid PLOT3D file (1 grid,"),
+        ("m2.xyz", parse_xyz_bytes("m2.xyz", &two).map(drop), "multi-grid PLOT3D file (2 grids,"),
+        ("le.xyz", parse_xyz_bytes("le.xyz", &le_floats).map(drop), "x (byte offset 12): the values look little-endian"),
+        ("le.q", parse_q_bytes("le.q", &le_fields).map(drop), "density (byte offset 28): the values look little-endian"),
+    ] {
+        let e = err_of(name, r);
+        assert!(e.contains(what), "{name}: expected '{what}' in: {e}");
+    }
+}
+
+// ------------------------------- no blank or wrong picture accepted (issue 8)
+
+/// An ASCII VTK of the unit tet and a second tet (the ASCII mesh's points)
+/// scaled by `s` and moved by `t`, coordinates written as doubles.
+fn scaled_vtk(s: f64, t: f64) -> String {
+    let pts = [[0., 0., 0.], [1., 0., 0.], [0., 1., 0.], [0., 0., 1.], [1., 1., 1.]];
+    let text: Vec<String> = pts.iter().flatten().map(|c| format!("{:e}", c * s + t)).collect();
+    ASCII.replace("POINTS 5 float\n0 0 0  1 0 0  0 1 0\n0 0 1  1 1 1", &format!("POINTS 5 double\n{}", text.join(" ")))
+}
+
+#[test]
+fn meshes_outside_the_supported_ranges_are_rejected() {
+    let n = "range.vtk";
+    // The stress suite's meshes stay accepted: scaled 1e-12..1e12, moved 1e7.
+    for (s, t) in [(1.0, 0.0), (1e-12, 0.0), (1e12, 0.0), (1.0, 1e7), (1e-6, -1e7), (1e14, 0.0)] {
+        let m = parse_vtk_bytes(n, scaled_vtk(s, t).as_bytes()).unwrap_or_else(|e| panic!("{s:e} {t:e}: {e:#}"));
+        assert_eq!(m.tets.len(), 2);
+        check_finite(&m);
+    }
+    for (s, t, what) in [
+        (1e19, 0.0, "point 1 at (1e19, 0e0, 0e0) is outside the supported coordinate range [-1e15, 1e15]"),
+        (1e-20, 0.0, "the mesh's extent (bounding-box diagonal) 1.73"),
+        (1e-20, 0.0, "e-20 is outside the supported range 1e-15 to 1e15"),
+        (1e-16, 0.0, "extent (bounding-box diagonal) 1.7"),
+        (1.0, 1e16, "is outside the supported coordinate range"),
+        (0.0, 5.0, "the mesh has zero extent: all 5 points are at (5e0, 5e0, 5e0)"),
+    ] {
+        assert_err(n, parse_vtk_bytes(n, scaled_vtk(s, t).as_bytes()), what);
+    }
+    // A mesh of flat cells only renders nothing; one flat cell among others is counted.
+    let flat = ASCII.replace("0 0 1  1 1 1", "1 1 0  2 0 0").replace("4 1 3 2 4", "4 0 1 3 4");
+    assert_err(n, parse_vtk_bytes(n, flat.as_bytes()), "all 2 tets have zero volume");
+    let one_flat = ASCII.replace("0 0 1  1 1 1", "0 0 1  1 1 0").replace("CELLS 2 10", "CELLS 3 15").replace(
+        "4 1 3 2 4\n",
+        "4 1 3 2 4\n4 0 1 2 4\n",
+    );
+    let m = parse_vtk_bytes(n, one_flat.replace("CELL_TYPES 2\n10\n10", "CELL_TYPES 3\n10 10 10").as_bytes()).unwrap();
+    assert_eq!((m.tets.len(), m.stats.zero_volume), (3, 1));
+}
+
+#[test]
+fn duplicate_tets_are_rejected() {
+    let n = "dup.vtk";
+    let dup = |cells: &str, k: usize| {
+        let types = vec!["10"; k].join(" ");
+        ASCII.replace("CELLS 2 10\n4 0 1 2 3\n4 1 3 2 4\n", &format!("CELLS {k} {}\n{cells}", 5 * k))
+            .replace("CELL_TYPES 2\n10\n10", &format!("CELL_TYPES {k}\n{types}"))
+    };
+    // The same four vertices in another order (rotations, reflections).
+    let text = dup("4 0 1 2 3\n4 1 3 2 4\n4 3 2 1 0\n4 4 2 3 1\n4 2 0 3 1\n", 5);
+    assert_err(n, parse_vtk_bytes(n, text.as_bytes()), "3 duplicate tet(s): tet 2 has the same four vertex positions as tet 0");
+    let text = dup("4 1 3 2 4\n4 0 1 2 3\n4 1 2 3 4\n", 3);
+    assert_err(n, parse_vtk_bytes(n, text.as_bytes()), "1 duplicate tet(s): tet 2 has the same four vertex positions as tet 0");
+    // The same positions through a duplicated point (point 5 repeats point 4).
+    let text = ASCII
+        .replace("POINTS 5 float\n0 0 0  1 0 0  0 1 0\n0 0 1  1 1 1", "POINTS 6 float\n0 0 0  1 0 0  0 1 0\n0 0 1  1 1 1  1 1 1")
+        .replace("CELLS 2 10\n4 0 1 2 3\n4 1 3 2 4\n", "CELLS 3 15\n4 0 1 2 3\n4 1 3 2 4\n4 5 3 2 1\n")
+        .replace("CELL_TYPES 2\n10\n10", "CELL_TYPES 3\n10 10 10")
+        .replace("POINT_DATA 5", "POINT_DATA 6")
+        .replace("0 0 0 0 0 0 0 0 0 0 0 0 0 0 0", &"0 ".repeat(18))
+        .replace("0.5 1.5 2.5 3.5 4.5", "0.5 1.5 2.5 3.5 4.5 4.5");
+    assert_err(n, parse_vtk_bytes(n, text.as_bytes()), "1 duplicate tet(s): tet 2 has the same four vertex positions as tet 1");
+    // A PLOT3D grid folded back onto itself (layer k = 2 on layer k = 0):
+    // the second layer of hexes repeats the first one's tets.
+    let mut folded = xyz_bytes([2, 2, 3], false);
+    let np = 12;
+    for c in 0..3 {
+        for p in 0..4 {
+            let (from, to) = (12 + 4 * (c * np + p), 12 + 4 * (c * np + 8 + p));
+            let v: [u8; 4] = folded[from..from + 4].try_into().unwrap();
+            folded[to..to + 4].copy_from_slice(&v);
+        }
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let px = write(tmp.path(), "foldxyz.bin", &folded);
+    let pq = write(tmp.path(), "foldq.bin", &q_bytes([2, 2, 3]));
+    let e = format!("{:#}", load_plot3d("fold", &px, &pq, Plot3dScalar::Density).unwrap_err());
+    assert!(e.contains("foldxyz.bin") && e.contains("duplicate tet(s): tet 5 has the same four vertex positions as tet"), "{e}");
+}
+
 // -------------------------------------------------- regressions, mutation
 
 /// Every file under `tests/regressions/<parser>/` (inputs found by fuzzing
@@ -418,16 +650,34 @@ fn mesh_size_guard() {
 #[test]
 fn regression_inputs() {
     let known: &[(&str, &str)] = &[
-        ("vtk/huge-coordinates-infinite-volume.vtk", "beyond the f32 range"),
+        ("vtk/version-6.vtk", "unsupported VTK legacy file version '6.0'"),
+        ("vtk/cr-only-lines.vtk", "bare carriage return (CR-only line endings"),
+        ("vtk/unsigned-char-300.vtk", "value '300' in SCALARS 's' (value 1 of 4) does not fit the type unsigned_char"),
+        ("vtk/little-endian-floats.vtk", "POINTS: the values look little-endian"),
+        ("vtk/duplicate-tets.vtk", "1 duplicate tet(s): tet 2 has the same four vertex positions as tet 0"),
+        ("vtk/scaled-1e19.vtk", "outside the supported coordinate range [-1e15, 1e15]"),
+        ("vtk/scaled-1e-20.vtk", "is outside the supported range 1e-15 to 1e15"),
+        ("vtk/all-cells-flat.vtk", "all 2 tets have zero volume"),
+        ("plot3d_xyz/fortran-records.xyz", "Fortran unformatted PLOT3D file"),
+        ("plot3d_xyz/multi-grid.xyz", "multi-grid PLOT3D file (1 grid,"),
+        ("plot3d_xyz/little-endian.xyz", "read as little-endian they would be [2, 2, 2]"),
+        ("plot3d_xyz/little-endian-floats.xyz", "x (byte offset 12): the values look little-endian"),
+        ("plot3d_q/fortran-records.q", "Fortran unformatted PLOT3D file"),
+        ("plot3d_q/multi-grid.q", "multi-grid PLOT3D file (1 grid,"),
+        ("plot3d_q/little-endian-fields.q", "density (byte offset 28): the values look little-endian"),
+        ("vtk/huge-coordinates-infinite-volume.vtk", "outside the supported coordinate range"),
         ("vtk/vertical-tab-line.vtk", r"bad keyword '\u{b}'"),
-        ("vtk/cells-vertex-count-huge.vtk", "claims 9223372036854775807 vertices"),
+        ("vtk/cells-vertex-count-huge.vtk", "'9223372036854775807' in CELLS (value 0 of 5) does not fit the type int"),
         ("vtk/cells-count-beyond-size.vtk", "count mismatch: CELLS declares"),
         ("vtk/color-scalars-size-overflow.vtk", "overflows"),
     ];
     let root = repo("tests/regressions");
     let mut seen = 0;
     for dir in ["vtk", "plot3d_xyz", "plot3d_q"] {
-        let Ok(entries) = std::fs::read_dir(root.join(dir)) else { continue };
+        // Every reader's folder is committed (a missing one is a failure,
+        // not a silently skipped reader).
+        let entries = std::fs::read_dir(root.join(dir))
+            .unwrap_or_else(|e| panic!("{}: {e}", root.join(dir).display()));
         for entry in entries {
             let path = entry.unwrap().path();
             let bytes = std::fs::read(&path).unwrap();
@@ -446,6 +696,9 @@ fn regression_inputs() {
         }
     }
     assert!(seen >= known.len(), "regression inputs missing under {}", root.display());
+    for (k, _) in known {
+        assert!(root.join(k).is_file(), "{k} is missing");
+    }
 }
 
 /// xorshift64*: deterministic, so a failure reproduces.
@@ -610,4 +863,7 @@ fn cli_rejects_bad_meshes() {
     cli_fails(&write(d, "mixxyz.bin", &xyz_bytes([3, 2, 2], false)), &["mixq.bin", "do not match"]);
     cli_fails(&write(d, "grid.bin", &xyz_bytes([3, 2, 2], false)), &["NAMExyz.bin"]);
     cli_fails(&d.join("missing.vtk"), &["no such file"]);
+    cli_fails(&write(d, "big.vtk", scaled_vtk(1e19, 0.0).as_bytes()), &["supported coordinate range"]);
+    let le = binary_vtk_ordered(&UNIT_TET, &[[0, 1, 2, 3]], &[10], &[1., 2., 3., 4.], true, false);
+    cli_fails(&write(d, "le.vtk", &le), &["look little-endian"]);
 }

@@ -211,3 +211,190 @@ fn invalid_files_name_the_file_and_point() {
     let msg = format!("{:#}", load_tf(&missing, (0.0, 1.0), 1.0).unwrap_err());
     assert!(msg.contains("missing.json"), "{msg}");
 }
+
+// ---------------------------------------------------------------- issue 8
+
+#[test]
+fn structure_errors_say_what_is_wrong() {
+    let ok_point = r#"{"scalar": 0, "color": [0, 0, 0], "attenuation": 1}"#;
+    let cases: Vec<(&str, String, &str)> = vec![
+        // Not an object at the top level.
+        ("array", format!("[{ok_point}]"), "expected an object at the top level"),
+        ("array", format!("[{ok_point}]"), "found an array"),
+        ("number", "42".into(), "found a number"),
+        ("string", r#""points""#.into(), "found a string"),
+        ("null", "null".into(), "found null"),
+        ("empty", " \n".into(), "the file is empty"),
+        // A key given twice, anywhere (serde_json would keep the last silently).
+        ("dup_top", format!(r#"{{"points": [{ok_point}], "points": []}}"#), r#"duplicate key "points""#),
+        ("dup_name", format!(r#"{{"name": "a", "points": [{ok_point}], "name": "b"}}"#), r#"duplicate key "name""#),
+        (
+            "dup_point",
+            r#"{"points": [{"scalar": 0, "color": [0, 0, 0], "attenuation": 1, "attenuation": 0}]}"#.into(),
+            r#"duplicate key "attenuation""#,
+        ),
+        (
+            "dup_units",
+            format!(r#"{{"scalar_units": "relative", "scalar_units": "absolute", "points": [{ok_point}]}}"#),
+            "line 1 column",
+        ),
+    ];
+    for (name, text, what) in &cases {
+        let e = format!("{:#}", parse_tf(text, "SRC.json", "stem", (0.0, 1.0), 1.0).unwrap_err());
+        assert!(e.starts_with("SRC.json: "), "{name}: {e}");
+        assert!(e.contains(what), "{name}: expected '{what}' in: {e}");
+    }
+    // Equal keys in different objects are fine.
+    parse_tf(&format!(r#"{{"points": [{ok_point}, {ok_point}]}}"#), "SRC.json", "stem", (0.0, 1.0), 1.0).unwrap();
+}
+
+#[test]
+fn attenuation_must_fit_f32_and_not_all_be_zero() {
+    let tf = |body: &str, diag: f64| parse_tf(body, "SRC.json", "stem", (0.0, 1.0), diag);
+    let cases = [
+        (
+            r#"{"points": [{"scalar": 0, "color": [0, 0, 0], "attenuation": 1},
+                           {"scalar": 1, "color": [1, 1, 1], "opacity": 0.5, "unit_length": 1e-320}]}"#,
+            1.0,
+            "SRC.json: point 1: attenuation inf per world unit",
+        ),
+        (r#"{"points": [{"scalar": 0, "color": [0, 0, 0], "attenuation": 1e300}]}"#, 1.0, "point 0: attenuation 1e300"),
+        (r#"{"points": [{"scalar": 0, "color": [0, 0, 0], "attenuation": 3.5e38}]}"#, 1.0, "beyond the f32 range"),
+        (
+            r#"{"attenuation_units": "per_diagonal", "points": [{"scalar": 0, "color": [0, 0, 0], "attenuation": 1e30}]}"#,
+            1e-12,
+            "point 0: attenuation 1e42 per world unit (after the unit conversions) is beyond the f32 range",
+        ),
+        (
+            r#"{"points": [{"scalar": 0, "color": [1, 1, 1], "attenuation": 0}, {"scalar": 1, "color": [1, 0, 0], "opacity": 0, "unit_length": 1}]}"#,
+            1.0,
+            "SRC.json: every control point has attenuation 0, so nothing would be drawn",
+        ),
+        (
+            r#"{"attenuation_units": "per_diagonal", "points": [{"scalar": 0, "color": [0, 0, 0], "attenuation": 1}]}"#,
+            0.0,
+            "the mesh is degenerate (all points at one place), not this file",
+        ),
+    ];
+    for (body, diag, what) in cases {
+        let e = format!("{:#}", tf(body, diag).unwrap_err());
+        assert!(e.contains(what), "expected '{what}' in: {e}");
+    }
+    // The largest f32 attenuation, and zero on some points, are fine.
+    tf(r#"{"points": [{"scalar": 0, "color": [0, 0, 0], "attenuation": 3.4e38}]}"#, 1.0).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let path = write(dir.path(), "ox.json", &std::fs::read_to_string(tf_dir().join("oxygenpost.json")).unwrap());
+    assert_eq!(load_tf(&path, (0.0, 1.0), 1.0).unwrap().points[0].attenuation, 0.0);
+}
+
+/// A constant field (a degenerate scalar range, e.g. PLOT3D density 0
+/// everywhere) must not put a step at the field's value: the GPU table and
+/// the CPU reference could take different sides of it.
+#[test]
+fn constant_field_has_no_step_at_its_value() {
+    let body = r#"{"scalar_units": "relative", "points": [
+        {"scalar": 0, "color": [0, 0, 1], "attenuation": 1},
+        {"scalar": 0.5, "color": [0, 1, 0], "attenuation": 2},
+        {"scalar": 1, "color": [1, 0, 0], "attenuation": 3}]}"#;
+    for v in [0.0, 1.0, -250.0, 1e-9, 7e6] {
+        let tf = parse_tf(body, "SRC.json", "stem", (v, v), 1.0).unwrap();
+        let s: Vec<f64> = tf.points.iter().map(|p| p.scalar).collect();
+        assert!(s[0] < v && v < s[2] && (s[1] - v).abs() <= 1e-15 * v.abs().max(1.0), "{v}: {s:?}");
+        // Continuous at v: the same value on either side and at v.
+        let at = |x: f64| tf.eval(x);
+        let eps = (s[2] - s[0]) * 1e-9;
+        for x in [v - eps, v, v + eps] {
+            let (c, tau) = at(x);
+            assert!((c[1] - 1.0).abs() < 1e-6 && (tau - 2.0).abs() < 1e-6, "{v}: at {x}: {c:?} {tau}");
+        }
+        // The range written back is the one read.
+        let units = JsonUnits::RelativeTo { scalar_range: (v, v), mesh_diagonal: 1.0 };
+        let back = parse_tf(&to_json(&tf, units).unwrap(), "mem", "stem", (v, v), 1.0).unwrap();
+        assert_tf_close(&back, &tf, 1e-12);
+    }
+    // A mesh whose field is constant, through the file loader.
+    let mesh = fake_mesh("const", 4.0, 4.0, 1.0);
+    let dir = tempfile::tempdir().unwrap();
+    let path = write(dir.path(), "const.json", body);
+    let tf = load_tf(&path, mesh.scalar_range(), mesh.bounds().diagonal()).unwrap();
+    assert_eq!(tf.eval(4.0), ([0.0, 1.0, 0.0], 2.0));
+}
+
+/// Every file under `tests/regressions/tf_json/` (inputs that once loaded
+/// wrongly, or found by the `tf_json` fuzz target) is read without a panic;
+/// the expected error is checked where known.
+#[test]
+fn regression_inputs() {
+    let known: &[(&str, &str)] = &[
+        ("top-level-array.json", "expected an object at the top level (a transfer function is a JSON object"),
+        ("duplicate-key-in-point.json", r#"duplicate key "attenuation" at line 1 column"#),
+        ("duplicate-points.json", r#"duplicate key "points" at line 1 column"#),
+        ("unit-length-1e-320.json", "point 1: attenuation inf per world unit (after the unit conversions) is beyond the f32 range"),
+        ("all-attenuation-zero.json", "every control point has attenuation 0"),
+    ];
+    let root = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/regressions/tf_json"));
+    let mut seen = 0;
+    for entry in std::fs::read_dir(&root).unwrap_or_else(|e| panic!("{}: {e}", root.display())) {
+        let path = entry.unwrap().path();
+        let name = path.file_name().unwrap().to_string_lossy().into_owned();
+        let r = std::panic::catch_unwind(|| load_tf(&path, (0.0, 1.0), 1.0)).unwrap_or_else(|_| panic!("{name} panicked"));
+        if let Some((_, what)) = known.iter().find(|(k, _)| *k == name) {
+            let e = format!("{:#}", r.expect_err(&name));
+            assert!(e.starts_with(&format!("{}: ", path.display())) && e.contains(what), "{name}: expected '{what}' in: {e}");
+        }
+        seen += 1;
+    }
+    assert!(seen >= known.len(), "regression inputs missing under {}", root.display());
+}
+
+/// Deterministic mutations of the presets through the parser: no panic, and
+/// every error names the file (the stable-toolchain counterpart of the
+/// `tf_json` fuzz target).
+#[test]
+fn mutated_files_never_panic() {
+    let seeds: Vec<String> = ["bluntfin", "oxygenpost", "post-small"]
+        .iter()
+        .map(|n| std::fs::read_to_string(tf_dir().join(format!("{n}.json"))).unwrap())
+        .collect();
+    let pieces = [
+        "\"points\": []", "\"scalar\": 1e-320", "\"unit_length\": 1e-320", "\"opacity\": 0.5", ", \"scalar\": 2",
+        "[", "]", "{", "}", ",", "\"", "1e400", "-0", "null", "\"relative\"", "\"per_diagonal\"", "0", "9",
+    ];
+    let mut state = 0x7F4A_7C15_9E37_79B9u64;
+    let mut next = |n: usize| {
+        state ^= state >> 12;
+        state ^= state << 25;
+        state ^= state >> 27;
+        (state.wrapping_mul(0x2545F4914F6CDD1D) >> 33) as usize % n.max(1)
+    };
+    let (mut ok, mut total) = (0, 0);
+    for seed in &seeds {
+        for _ in 0..700 {
+            let mut t: Vec<char> = seed.chars().collect();
+            for _ in 0..1 + next(3) {
+                let at = next(t.len() + 1);
+                match next(3) {
+                    0 if at < t.len() => {
+                        t.remove(at);
+                    }
+                    1 => t.splice(at..at, pieces[next(pieces.len())].chars()).for_each(drop),
+                    _ => t.truncate(at),
+                }
+            }
+            let text: String = t.into_iter().collect();
+            for (range, diag) in [((0.0, 1.0), 1.0), ((3.0, 3.0), 1e-6)] {
+                let r = std::panic::catch_unwind(|| parse_tf(&text, "m.json", "m", range, diag))
+                    .unwrap_or_else(|_| panic!("panic on {text:?}"));
+                match r {
+                    Ok(tf) => {
+                        ok += 1;
+                        assert!(tf.points.iter().all(|p| p.attenuation.is_finite() && p.attenuation <= f32::MAX as f64));
+                    }
+                    Err(e) => assert!(format!("{e:#}").starts_with("m.json: "), "{e:#}"),
+                }
+                total += 1;
+            }
+        }
+    }
+    assert!(ok > 0 && ok < total, "{ok} of {total} mutated files loaded");
+}

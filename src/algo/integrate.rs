@@ -12,7 +12,7 @@ use ash::vk as raw;
 use rayon::prelude::*;
 
 use crate::scene::TransferFunction;
-use crate::vk::{upload_static, Buffer, Context, StorageBufferSet, UploadCounter, VkResult};
+use crate::vk::{upload_static, Buffer, Context, StorageBufferSet, UploadCounter};
 
 /// Default sizes: the TF table resolves control points to 1/1023 of the
 /// range; a 512^2 Psi table keeps per-lookup error near 1e-3 or below.
@@ -21,6 +21,79 @@ pub const PSI_TABLE_SIZE: usize = 512;
 /// Classic pre-integration: scalar samples per axis (the length axis has a
 /// quarter as many).
 pub const PREINT_TABLE_SIZE: usize = 128;
+
+/// Largest integration table built: 256 MiB on the device (the host holds
+/// as much again while building and staging it). The defaults take 4 MiB
+/// (ppi, 512) and 8 MiB (preint, 128); the largest accepted sides are 4097
+/// for ppi and 407 for preint. Without the bound `--table-size 2048` made
+/// preint abort on a failed allocation of hundreds of GB, and 512 took
+/// 1.65 GB.
+pub const MAX_TABLE_BYTES: u64 = 256 << 20;
+
+/// Bytes of the table `integrator` uploads for a table side of `size`
+/// (already defaulted and clamped as `IntegrationTables::new` does), with
+/// how it is made up; `None` if it does not even fit in u128.
+fn table_bytes(integrator: Integrator, size: usize) -> Option<(u128, String)> {
+    let n = size as u128;
+    match integrator {
+        // (m-1)^2 cells of 4 corner values (`psi_quads`).
+        Integrator::Ppi => {
+            let cells = (n - 1).checked_mul(n - 1)?;
+            Some((cells.checked_mul(16)?, format!("{} x {} cells x 16 bytes", n - 1, n - 1)))
+        }
+        // n x n scalar pairs x n/4 lengths of RGBA f32 (`preint_table`).
+        Integrator::Preint => {
+            let nd = (n / 4).max(2);
+            let bytes = n.checked_mul(n)?.checked_mul(nd)?.checked_mul(16)?;
+            Some((bytes, format!("{n} x {n} scalar pairs x {nd} lengths x 16 bytes")))
+        }
+        // A one-entry placeholder.
+        Integrator::Average | Integrator::LinearExact => Some((16, "no table".into())),
+    }
+}
+
+/// The table side `IntegrationTables::new` builds for `table_size` (0: the
+/// integrator's default).
+fn table_side(integrator: Integrator, table_size: usize) -> usize {
+    if table_size == 0 {
+        integrator.default_table_size()
+    } else {
+        table_size.max(2)
+    }
+}
+
+/// Refuses a `--table-size` whose table would take more than
+/// [`MAX_TABLE_BYTES`], before anything is allocated (checked arithmetic:
+/// any `usize` gives an answer). `table_size` 0 means the integrator's
+/// default. Called by every table builder here, so no path bypasses it.
+pub fn check_table_size(integrator: Integrator, table_size: usize) -> anyhow::Result<()> {
+    let side = table_side(integrator, table_size);
+    let fits = |s: usize| table_bytes(integrator, s).is_some_and(|(b, _)| b <= MAX_TABLE_BYTES as u128);
+    if fits(side) {
+        return Ok(());
+    }
+    // The largest side that fits (sizes grow with the side): for the message.
+    let (mut ok, mut too_big) = (2usize, side);
+    while too_big - ok > 1 {
+        let mid = ok + (too_big - ok) / 2;
+        if fits(mid) {
+            ok = mid;
+        } else {
+            too_big = mid;
+        }
+    }
+    let implied = match table_bytes(integrator, side) {
+        Some((bytes, how)) => format!("{bytes} bytes ({:.1} MiB: {how})", bytes as f64 / (1u64 << 20) as f64),
+        None => "more bytes than 2^128".to_string(),
+    };
+    anyhow::bail!(
+        "--table-size {table_size} for {}: the table would take {implied}, more than the limit of \
+         {MAX_TABLE_BYTES} bytes ({} MiB); the largest accepted --table-size for {} is {ok}",
+        integrator.name(),
+        MAX_TABLE_BYTES >> 20,
+        integrator.name()
+    )
+}
 
 /// How the fragment stage integrates a segment.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, clap::ValueEnum, Default)]
@@ -72,7 +145,13 @@ impl Integrator {
 /// samples of x = D / (D + length_scale) over [0, 1]) the exact integral of
 /// the transfer function's segment in f64, premultiplied RGBA, laid out
 /// [d][b][f].
-pub fn preint_table(tf: &TransferFunction, range: (f64, f64), n: usize, length_scale: f64) -> Vec<[f32; 4]> {
+pub fn preint_table(
+    tf: &TransferFunction,
+    range: (f64, f64),
+    n: usize,
+    length_scale: f64,
+) -> anyhow::Result<Vec<[f32; 4]>> {
+    check_table_size(Integrator::Preint, n)?;
     let n = n.max(2);
     let nd = (n / 4).max(2);
     let mut out = vec![[0f32; 4]; n * n * nd];
@@ -89,7 +168,7 @@ pub fn preint_table(tf: &TransferFunction, range: (f64, f64), n: usize, length_s
             }
         }
     });
-    out
+    Ok(out)
 }
 
 /// tau*D from the table coordinate gamma = tau*D / (tau*D + 1).
@@ -102,7 +181,8 @@ fn tau_d(gamma: f64) -> f64 {
 }
 
 /// Psi on an `m` x `m` grid over gamma in [0, 1], row = back, column = front.
-pub fn psi_table(m: usize) -> Vec<f32> {
+pub fn psi_table(m: usize) -> anyhow::Result<Vec<f32>> {
+    check_table_size(Integrator::Ppi, m)?;
     let m = m.max(2);
     let mut out = vec![0f32; m * m];
     out.par_chunks_mut(m).enumerate().for_each(|(jb, row)| {
@@ -114,7 +194,7 @@ pub fn psi_table(m: usize) -> Vec<f32> {
             *v = if tf.is_infinite() || tb.is_infinite() { 0.0 } else { crate::reference::psi::psi(tf, tb) as f32 };
         }
     });
-    out
+    Ok(out)
 }
 
 /// The Psi table as the shader reads it: for each of the (m-1)^2 grid cells
@@ -132,55 +212,22 @@ pub fn psi_quads(table: &[f32], m: usize) -> Vec<[f32; 4]> {
     out
 }
 
-/// The largest table volbench builds: the device copy and the f64 build of
-/// a larger one would take gigabytes (preint at 512 is 1.65 GB, at 2048
-/// 274 GB) for no measurable accuracy (the sweep converges by 128).
-pub const MAX_TABLE_BYTES: u64 = 256 << 20;
-
-/// Bytes of the table `integrator` builds at side `table_size` (0: default).
-pub fn table_bytes(integrator: Integrator, table_size: usize) -> u64 {
-    let n = if table_size == 0 { integrator.default_table_size() } else { table_size.max(2) } as u64;
-    match integrator {
-        // (n-1)^2 corner quads of 4 f32 (plus the n^2 f32 grid they come from).
-        Integrator::Ppi => (n - 1) * (n - 1) * 16 + n * n * 4,
-        // n x n scalar pairs x n/4 lengths of RGBA f32.
-        Integrator::Preint => n * n * (n / 4).max(2) * 16,
-        Integrator::Average | Integrator::LinearExact => 0,
-    }
-}
-
-/// Refuse a table size whose memory is beyond `MAX_TABLE_BYTES`, before
-/// anything is allocated or computed.
-pub fn check_table_size(integrator: Integrator, table_size: usize) -> anyhow::Result<()> {
-    let bytes = table_bytes(integrator, table_size);
-    if bytes > MAX_TABLE_BYTES {
-        anyhow::bail!(
-            "--table-size {table_size} for integrator {}: the table would take {bytes} bytes, more than the {} allowed \
-             (at most {} for this integrator)",
-            integrator.name(),
-            MAX_TABLE_BYTES,
-            (2..=4096).rev().find(|&n| table_bytes(integrator, n) <= MAX_TABLE_BYTES).unwrap_or(2)
-        );
-    }
-    Ok(())
-}
-
 /// The Psi corner quads at side `m`, built once per size per process (the
 /// table does not depend on the transfer function; the stress suite and
 /// sweeps would otherwise rebuild it for every run).
-pub fn psi_quads_cached(m: usize) -> Arc<Vec<[f32; 4]>> {
+pub fn psi_quads_cached(m: usize) -> anyhow::Result<Arc<Vec<[f32; 4]>>> {
     use std::collections::HashMap;
     use std::sync::{Mutex, OnceLock};
     static CACHE: OnceLock<Mutex<HashMap<usize, Arc<Vec<[f32; 4]>>>>> = OnceLock::new();
     let cache = CACHE.get_or_init(Default::default);
     if let Some(t) = cache.lock().ok().and_then(|c| c.get(&m).cloned()) {
-        return t;
+        return Ok(t);
     }
-    let t = Arc::new(psi_quads(&psi_table(m), m));
+    let t = Arc::new(psi_quads(&psi_table(m)?, m));
     if let Ok(mut c) = cache.lock() {
         c.insert(m, t.clone());
     }
-    t
+    Ok(t)
 }
 
 /// The integration tables on the device and the descriptor set that binds
@@ -203,7 +250,8 @@ pub struct IntegrationTables {
 impl IntegrationTables {
     /// `table_size` 0 picks the integrator's default; `length_scale` is a
     /// typical cell size (the pre-integration table's length axis is
-    /// D / (D + length_scale)).
+    /// D / (D + length_scale)). Refuses a table larger than
+    /// [`MAX_TABLE_BYTES`] before allocating anything.
     pub fn new(
         ctx: &Arc<Context>,
         tf: &TransferFunction,
@@ -212,14 +260,15 @@ impl IntegrationTables {
         table_size: usize,
         length_scale: f64,
         counter: &mut UploadCounter,
-    ) -> VkResult<Self> {
+    ) -> anyhow::Result<Self> {
+        check_table_size(integrator, table_size)?;
         let t0 = std::time::Instant::now();
         let (lo, hi) = if range.1 > range.0 { range } else { (range.0, range.0 + 1.0) };
         let tf_table = tf.table(TF_TABLE_SIZE, lo, hi);
-        let size = if table_size == 0 { integrator.default_table_size() } else { table_size.max(2) };
+        let size = table_side(integrator, table_size);
         let table: Arc<Vec<[f32; 4]>> = match integrator {
-            Integrator::Ppi => psi_quads_cached(size),
-            Integrator::Preint => Arc::new(preint_table(tf, (lo, hi), size, length_scale)),
+            Integrator::Ppi => psi_quads_cached(size)?,
+            Integrator::Preint => Arc::new(preint_table(tf, (lo, hi), size, length_scale)?),
             // No table: bind a placeholder so every variant has one layout.
             Integrator::Average | Integrator::LinearExact => Arc::new(vec![[0.0; 4]]),
         };
@@ -257,8 +306,43 @@ mod tests {
     }
 
     #[test]
+    fn table_sizes_are_checked_before_allocating() {
+        // Defaults and the sizes the pareto sweep uses fit.
+        for (i, n) in [(Integrator::Ppi, 0), (Integrator::Ppi, 1024), (Integrator::Ppi, 4097), (Integrator::Preint, 0)] {
+            check_table_size(i, n).unwrap_or_else(|e| panic!("{e}"));
+        }
+        check_table_size(Integrator::Preint, 128).unwrap();
+        check_table_size(Integrator::Preint, 407).unwrap();
+        // No table: any size is harmless.
+        check_table_size(Integrator::Average, usize::MAX).unwrap();
+        check_table_size(Integrator::LinearExact, usize::MAX).unwrap();
+        // 512 x 512 x 128 x 16 bytes = 512 MiB; 2048 -> 32 GiB.
+        let e = check_table_size(Integrator::Preint, 512).unwrap_err().to_string();
+        assert!(
+            e.contains("--table-size 512 for preint")
+                && e.contains("536870912 bytes (512.0 MiB: 512 x 512 scalar pairs x 128 lengths x 16 bytes)")
+                && e.contains("limit of 268435456 bytes (256 MiB)")
+                && e.contains("largest accepted --table-size for preint is 407"),
+            "{e}"
+        );
+        let e = check_table_size(Integrator::Preint, 2048).unwrap_err().to_string();
+        assert!(e.contains("34359738368 bytes"), "{e}");
+        let e = check_table_size(Integrator::Ppi, 4098).unwrap_err().to_string();
+        assert!(e.contains("--table-size 4098 for ppi") && e.contains("is 4097"), "{e}");
+        // Absurd sizes: an error, not an overflow.
+        let e = check_table_size(Integrator::Preint, usize::MAX).unwrap_err().to_string();
+        assert!(e.contains("more bytes than 2^128") && e.contains("is 407"), "{e}");
+        let e = check_table_size(Integrator::Ppi, usize::MAX).unwrap_err().to_string();
+        assert!(e.contains(&format!("--table-size {}", usize::MAX)), "{e}");
+        // The builders refuse too (no allocation happens first).
+        assert!(psi_table(1 << 20).is_err());
+        let tf = TransferFunction::constant([1.0; 3], 1.0);
+        assert!(preint_table(&tf, (0.0, 1.0), 1 << 12, 1.0).is_err());
+    }
+
+    #[test]
     fn psi_table_corners() {
-        let t = psi_table(65);
+        let t = psi_table(65).unwrap();
         assert!((t[0] - 1.0).abs() < 1e-6, "no attenuation: full transmittance");
         assert_eq!(t[65 * 65 - 1], 0.0);
         // Symmetric constant attenuation on the diagonal: (1 - e^-x) / x.

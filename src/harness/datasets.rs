@@ -317,7 +317,7 @@ pub fn volume_transfer_function(v: &Volume, named: Option<&str>) -> TransferFunc
             return tf;
         }
     }
-    let (lo, hi) = v.range();
+    let (lo, hi) = crate::scene::effective_scalar_range(v.range().0, v.range().1);
     let stops = [(0.0, [0.2, 0.3, 1.0], 0.0), (0.3, [0.3, 1.0, 0.3], 2.0), (1.0, [1.0, 0.3, 0.1], 8.0)];
     TransferFunction {
         name: "generic-ramp".into(),
@@ -333,7 +333,9 @@ pub fn volume_transfer_function(v: &Volume, named: Option<&str>) -> TransferFunc
 /// mesh (a file called `bluntfin.vtk` is not the blunt fin). Attenuation is
 /// given per mesh diagonal, so a preset reads the same whatever the units.
 pub fn mesh_transfer_function(mesh: &TetMesh, named: Option<&str>) -> TransferFunction {
-    let (lo, hi) = mesh.scalar_range();
+    // A constant field gets a widened range (the one rule `tf_file` uses
+    // too), so the ramp has no step at the field's value.
+    let (lo, hi) = crate::scene::effective_scalar_range(mesh.scalar_range().0, mesh.scalar_range().1);
     let diag = mesh.bounds().diagonal().max(f64::MIN_POSITIVE);
     // (relative scalar in [0,1], colour, optical depth across one diagonal)
     let stops: &[(f64, [f64; 3], f64)] = match named.unwrap_or("") {

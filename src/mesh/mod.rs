@@ -10,8 +10,12 @@
 //! - Face `i` is the face opposite vertex `i`. Its plane `n_i·x + a_i = 0` has a
 //!   unit normal `n_i` pointing *out* of the tet.
 //! - Positions and scalars are kept in f64; GPU paths convert to f32 when packing.
+//! - Every loaded mesh has passed [`TetMesh::validate`], which also enforces
+//!   the supported coordinate and extent ranges (see `geometry`'s module
+//!   docs, "Supported ranges").
 
 pub mod adjacency;
+pub mod byte_order;
 pub mod datasets;
 pub mod geometry;
 pub mod plot3d;

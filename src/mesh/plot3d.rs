@@ -10,6 +10,11 @@
 //! optionally `iblank[nz][ny][nx]` (detected from the file size). `*q`:
 //! `nx ny nz`, `fsmach alpha re time`, then five fields (density, momentum x,
 //! y, z, stagnation energy); trailing bytes are ignored.
+//!
+//! Files in the layouts that are not supported get a message saying which
+//! layout they look like: Fortran unformatted files (record markers around
+//! the dimensions), multi-grid files (a grid count first) and little-endian
+//! files (dimensions or floats that only make sense byte-swapped).
 
 use anyhow::{bail, Context, Result};
 use std::path::Path;
@@ -179,9 +184,69 @@ fn read_dims(path: &str, bytes: &[u8]) -> Result<([usize; 3], usize)> {
     Ok((dims, n))
 }
 
-/// Decodes `n` big-endian float32 starting at `off`, failing on NaN/Inf.
+/// The unsupported layout a file of `kind` is in, when it is recognisably
+/// one: checked before the single-grid reading, because a multi-grid
+/// solution file would otherwise read as a (wrong) single grid with
+/// trailing bytes. A single-grid, whole file cannot pass for either: its
+/// first coordinates or free-stream values would have to be the bits of
+/// small integers (subnormal floats).
+fn other_layout(bytes: &[u8], kind: Kind) -> Option<String> {
+    let int = |o: usize| bytes.get(o..o + 4).map(|b| i32::from_be_bytes([b[0], b[1], b[2], b[3]]));
+    // Fortran unformatted: `12 | nx ny nz | 12` (record length before and after).
+    if int(0) == Some(12) && int(16) == Some(12) {
+        return Some(
+            "this looks like a Fortran unformatted PLOT3D file (the dimensions are wrapped in 4-byte record \
+             markers, 12 ... 12); only 'whole' files without record markers are supported"
+                .into(),
+        );
+    }
+    // Multi-grid: `ngrid | dims of each grid | data of each grid`, sizes adding up.
+    let grids = int(0).filter(|&g| (1..=4096).contains(&g))? as usize;
+    let mut sizes = [4 + 12 * grids as u128; 2];
+    for g in 0..grids {
+        let d = [int(4 + 12 * g)?, int(8 + 12 * g)?, int(12 + 12 * g)?];
+        if !d.iter().all(|&x| x >= 1 && x as usize <= MAX_DIM) {
+            return None;
+        }
+        let n = d.iter().map(|&x| x as u128).product::<u128>();
+        match kind {
+            Kind::Grid => {
+                sizes[0] += 12 * n;
+                sizes[1] += 16 * n;
+            }
+            Kind::Solution => {
+                sizes[0] += 16 + 20 * n;
+                sizes[1] += 16 + 20 * n;
+            }
+        }
+    }
+    let len = bytes.len() as u128;
+    let fits = match kind {
+        Kind::Grid => sizes.contains(&len),
+        Kind::Solution => len >= sizes[0],
+    };
+    fits.then(|| {
+        format!(
+            "this looks like a multi-grid PLOT3D file ({grids} grid{}, the count before the dimensions); only \
+             single-grid files are supported",
+            if grids == 1 { "" } else { "s" }
+        )
+    })
+}
+
+#[derive(Clone, Copy)]
+enum Kind {
+    Grid,
+    Solution,
+}
+
+/// Decodes `n` big-endian float32 starting at `off`, failing on NaN/Inf and
+/// on arrays that look little-endian (`byte_order`).
 fn read_floats(path: &str, bytes: &[u8], off: usize, n: usize, what: &str) -> Result<Vec<f64>> {
     let slice = &bytes[off..off + 4 * n];
+    if let Some(evidence) = super::byte_order::looks_little_endian(slice, 4) {
+        bail!("{path}: {what} (byte offset {off}): {evidence}");
+    }
     let out: Vec<f64> = slice
         .chunks_exact(4)
         .map(|c| f32::from_be_bytes([c[0], c[1], c[2], c[3]]) as f64)
@@ -211,6 +276,9 @@ pub fn read_xyz(path: impl AsRef<Path>) -> Result<Plot3dGrid> {
 /// input: the file size is checked against the dimensions before anything is
 /// allocated.
 pub fn parse_xyz_bytes(path: &str, bytes: &[u8]) -> Result<Plot3dGrid> {
+    if let Some(what) = other_layout(bytes, Kind::Grid) {
+        bail!("{path}: {what}");
+    }
     let (dims, n) = read_dims(path, bytes)?;
     let size = bytes.len() as u128;
     let n128 = n as u128;
@@ -258,6 +326,9 @@ pub fn read_q(path: impl AsRef<Path>) -> Result<Plot3dSolution> {
 /// name, or any label) is quoted in every error. Never panics on malformed
 /// input (sizes are checked before allocating).
 pub fn parse_q_bytes(path: &str, bytes: &[u8]) -> Result<Plot3dSolution> {
+    if let Some(what) = other_layout(bytes, Kind::Solution) {
+        bail!("{path}: {what}");
+    }
     let (dims, n) = read_dims(path, bytes)?;
     let need = 28 + 20 * n as u128;
     if (bytes.len() as u128) < need {

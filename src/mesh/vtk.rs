@@ -10,6 +10,15 @@
 //! whose point data is `FIELD FieldData 1` / `Pressure 1 2288 float`) fall back
 //! to the first one-component field array of the right length.
 //!
+//! Every value must fit the type the file declares for its array (or, for
+//! `CELLS` and `CELL_TYPES` in files before 5.x, the `int` the format
+//! implies): in ASCII `unsigned_char 300`, a negative value for an unsigned
+//! type or `1.5` for an integer type is an error, as is a `float` beyond
+//! f32's range. BINARY files are big-endian; little-endian float arrays are
+//! recognised (`byte_order`) and rejected as such instead of loading as
+//! subnormals and rendering blank. Lines must end in LF or CRLF (CR-only
+//! files are reported as such).
+//!
 //! All errors name the file, the problem and the byte offset.
 
 use super::{MeshStats, TetMesh};
@@ -61,6 +70,83 @@ impl DType {
     }
     fn is_float(self) -> bool {
         matches!(self, DType::F32 | DType::F64)
+    }
+    /// The VTK name of the type, for messages.
+    fn name(self) -> &'static str {
+        match self {
+            DType::U8 => "unsigned_char",
+            DType::I8 => "char",
+            DType::U16 => "unsigned_short",
+            DType::I16 => "short",
+            DType::U32 => "unsigned_int",
+            DType::I32 => "int",
+            DType::U64 => "unsigned_long",
+            DType::I64 => "long",
+            DType::F32 => "float",
+            DType::F64 => "double",
+        }
+    }
+    /// The range of an integer type.
+    fn int_range(self) -> (i128, i128) {
+        match self {
+            DType::U8 => (0, u8::MAX as i128),
+            DType::I8 => (i8::MIN as i128, i8::MAX as i128),
+            DType::U16 => (0, u16::MAX as i128),
+            DType::I16 => (i16::MIN as i128, i16::MAX as i128),
+            DType::U32 => (0, u32::MAX as i128),
+            DType::I32 => (i32::MIN as i128, i32::MAX as i128),
+            DType::U64 => (0, u64::MAX as i128),
+            DType::I64 | DType::F32 | DType::F64 => (i64::MIN as i128, i64::MAX as i128),
+        }
+    }
+}
+
+/// Words that start a section: met where a value was expected, they mean
+/// the array before them is shorter than its header says.
+const SECTION_KEYWORDS: [&str; 21] = [
+    "DATASET", "POINTS", "CELLS", "CELL_TYPES", "OFFSETS", "CONNECTIVITY", "POINT_DATA", "CELL_DATA",
+    "SCALARS", "LOOKUP_TABLE", "COLOR_SCALARS", "VECTORS", "NORMALS", "TENSORS", "TENSORS6",
+    "TEXTURE_COORDINATES", "GLOBAL_IDS", "PEDIGREE_IDS", "FIELD", "METADATA", "INFORMATION",
+];
+
+/// One ASCII value of the integer type `dt`; `Err` says why it does not fit.
+fn parse_ascii_int(t: &str, dt: DType) -> std::result::Result<i64, String> {
+    let name = dt.name();
+    match t.parse::<i128>() {
+        Ok(v) => {
+            let (lo, hi) = dt.int_range();
+            if v < lo || v > hi {
+                return Err(format!("does not fit the type {name} ({lo} to {hi})"));
+            }
+            // unsigned_long values beyond i64 are clamped, as in binary files.
+            Ok(v.min(i64::MAX as i128) as i64)
+        }
+        Err(_) if t.parse::<f64>().is_ok() => Err(format!("is not an integer, as the type {name} requires")),
+        Err(_) => Err("is not an integer".to_string()),
+    }
+}
+
+/// One ASCII value of type `dt` as f64; `Err` says why it does not fit.
+/// NaN and infinities are left to validation, which names the point.
+fn parse_ascii_f64(t: &str, dt: DType) -> std::result::Result<f64, String> {
+    if !dt.is_float() {
+        return parse_ascii_int(t, dt).map(|v| v as f64);
+    }
+    let v: f64 = t.parse().map_err(|_| "is not a number".to_string())?;
+    if dt == DType::F32 && v.is_finite() && v.abs() > f32::MAX as f64 {
+        return Err(format!("is beyond the f32 range (|v| <= {:e}) of the declared type float", f32::MAX));
+    }
+    Ok(v)
+}
+
+/// When a big-endian int read from a BINARY file is wrong but byte-swapped
+/// would be `expected`, say so.
+fn swapped_hint(binary: bool, v: i64, expected: i32) -> &'static str {
+    if binary && i32::try_from(v).is_ok_and(|v| v.swap_bytes() == expected) {
+        " (byte-swapped it would be right: the file looks little-endian, but VTK legacy BINARY files are \
+         big-endian)"
+    } else {
+        ""
     }
 }
 
@@ -119,6 +205,13 @@ impl<'a> Reader<'a> {
         self.pos = (end + 1).min(self.b.len());
         let line = &self.b[start..end];
         let line = line.strip_suffix(b"\r").unwrap_or(line);
+        if line.contains(&b'\r') {
+            self.pos = start;
+            return Err(self.err(format!(
+                "expected {what}, found a line broken by a bare carriage return (CR-only line endings, as \
+                 classic Mac OS wrote them); VTK legacy files need LF or CRLF line endings"
+            )));
+        }
         std::str::from_utf8(line).map_err(|_| {
             self.pos = start;
             self.err(format!("expected {what}, found non-text bytes"))
@@ -177,19 +270,49 @@ impl<'a> Reader<'a> {
         Ok(s)
     }
 
+    /// The next ASCII value of `what` (value `i` of `n`), checked against
+    /// its type `dt` by `parse`.
+    fn ascii_value<T>(
+        &mut self,
+        parse: fn(&str, DType) -> std::result::Result<T, String>,
+        dt: DType,
+        what: &str,
+        i: usize,
+        n: usize,
+    ) -> Result<T> {
+        let t = self.token(what).map_err(|e| {
+            if self.pos >= self.b.len() {
+                self.err(format!("truncated file: {what} needs {n} values, found {i} before the end of the file"))
+            } else {
+                e
+            }
+        })?;
+        parse(t, dt).map_err(|why| {
+            // Point at the value, not past it.
+            self.pos -= t.len();
+            if SECTION_KEYWORDS.iter().any(|k| k.eq_ignore_ascii_case(t)) {
+                self.err(format!("count mismatch: {what} needs {n} values, found {i} before '{t}'"))
+            } else {
+                self.err(format!("value '{t}' in {what} (value {i} of {n}) {why}"))
+            }
+        })
+    }
+
     fn values_f64(&mut self, n: usize, dt: DType, what: &str) -> Result<Vec<f64>> {
         if self.binary {
             let s = self.binary_bytes(n, dt, what)?;
+            if dt.is_float() {
+                if let Some(evidence) = super::byte_order::looks_little_endian(s, dt.size()) {
+                    self.pos -= s.len();
+                    return Err(self.err(format!("{what}: {evidence}")));
+                }
+            }
             let w = dt.size();
             Ok(s.chunks_exact(w).map(|c| decode_f64(c, dt)).collect())
         } else {
             let mut out = Vec::with_capacity(n.min(self.b.len() - self.pos));
             for i in 0..n {
-                let t = self.token(what)?;
-                let v = t
-                    .parse::<f64>()
-                    .map_err(|_| self.err(format!("bad number '{t}' in {what} (value {i} of {n})")))?;
-                out.push(v);
+                out.push(self.ascii_value(parse_ascii_f64, dt, what, i, n)?);
             }
             Ok(out)
         }
@@ -206,23 +329,20 @@ impl<'a> Reader<'a> {
         } else {
             let mut out = Vec::with_capacity(n.min(self.b.len() - self.pos));
             for i in 0..n {
-                let t = self.token(what)?;
-                let v = t
-                    .parse::<i64>()
-                    .map_err(|_| self.err(format!("bad integer '{t}' in {what} (value {i} of {n})")))?;
-                out.push(v);
+                out.push(self.ascii_value(parse_ascii_int, dt, what, i, n)?);
             }
             Ok(out)
         }
     }
 
-    /// Skips `n` values (binary: bytes; ASCII: tokens).
+    /// Skips `n` values (binary: bytes; ASCII: tokens, each checked against
+    /// `dt` like the values that are read).
     fn skip_values(&mut self, n: usize, dt: DType, what: &str) -> Result<()> {
         if self.binary {
             self.binary_bytes(n, dt, what)?;
         } else {
-            for _ in 0..n {
-                self.token(what)?;
+            for i in 0..n {
+                self.ascii_value(parse_ascii_f64, dt, what, i, n)?;
             }
         }
         Ok(())
@@ -278,6 +398,30 @@ fn decode_i64(c: &[u8], dt: DType) -> i64 {
     }
 }
 
+/// Why `bytes`, whose first line is not a legacy VTK header, are not a
+/// legacy VTK file, when they are recognisably something else.
+fn not_legacy_vtk(bytes: &[u8]) -> Option<&'static str> {
+    let head = &bytes[..bytes.len().min(256)];
+    let text = String::from_utf8_lossy(head);
+    if bytes.starts_with(b"\xef\xbb\xbf") {
+        Some("it starts with a UTF-8 byte-order mark; the first line must be '# vtk DataFile Version x.y'")
+    } else if text.trim_start().starts_with("<?xml") || text.contains("<VTKFile") {
+        Some("this is an XML VTK file (.vtu/.vtk in XML); only the legacy format is supported")
+    } else {
+        None
+    }
+}
+
+/// The major version of a legacy file's `x.y`, if this reader supports it
+/// (1 to 5).
+fn legacy_major_version(version: &str) -> Option<u32> {
+    let (major, minor) = version.split_once('.').unwrap_or((version, "0"));
+    if minor.is_empty() || !minor.bytes().all(|c| c.is_ascii_digit()) {
+        return None;
+    }
+    major.parse::<u32>().ok().filter(|m| (1..=5).contains(m))
+}
+
 #[derive(Clone, Copy, PartialEq)]
 enum Owner {
     None,
@@ -302,12 +446,24 @@ pub fn parse_vtk_bytes(name: &str, bytes: &[u8]) -> Result<TetMesh> {
     let mut r = Reader { name, b: bytes, pos: 0, binary: false };
 
     // Header: version line, title, encoding, DATASET.
-    let version_line = r.raw_line("the '# vtk DataFile Version' line")?;
+    let version_line = r.raw_line("the '# vtk DataFile Version' line").map_err(|e| match not_legacy_vtk(bytes) {
+        Some(what) => anyhow!("{name}: not a VTK legacy file: {what}"),
+        None => e,
+    })?;
     let version = version_line
         .strip_prefix("# vtk DataFile Version")
-        .ok_or_else(|| anyhow!("{name}: not a VTK legacy file (first line is not '# vtk DataFile Version x.y')"))?
+        .ok_or_else(|| match not_legacy_vtk(bytes) {
+            Some(what) => anyhow!("{name}: not a VTK legacy file: {what}"),
+            None => anyhow!("{name}: not a VTK legacy file (first line is not '# vtk DataFile Version x.y')"),
+        })?
         .trim();
-    let major: u32 = version.split('.').next().and_then(|v| v.parse().ok()).unwrap_or(3);
+    let major = legacy_major_version(version).ok_or_else(|| {
+        anyhow!(
+            "{name}: unsupported VTK legacy file version '{}': this reader knows versions 1.0 to 4.2 \
+             (CELLS with a vertex count before each cell) and 5.x (CELLS as OFFSETS and CONNECTIVITY arrays)",
+            version.escape_debug()
+        )
+    })?;
     r.raw_line("the title line")?;
     let enc = r.keyword_line("ASCII or BINARY")?;
     match enc.first().map(|s| s.to_ascii_uppercase()).as_deref() {
@@ -402,7 +558,12 @@ pub fn parse_vtk_bytes(name: &str, bytes: &[u8]) -> Result<TetMesh> {
                 let (offsets, conn) = if major >= 5 {
                     let h = r.keyword_line("OFFSETS")?;
                     if !h[0].eq_ignore_ascii_case("OFFSETS") {
-                        bail!(r.err(format!("expected OFFSETS after CELLS, found '{}'", h[0])));
+                        bail!(r.err(format!(
+                            "expected OFFSETS after CELLS, found '{}': a version {version} file lists its cells \
+                             as OFFSETS and CONNECTIVITY arrays (files up to version 4.2 put a vertex count before \
+                             each cell)",
+                            h[0]
+                        )));
                     }
                     let dt = r.dtype(h.get(1), "OFFSETS")?;
                     let offsets = r.values_i64(a, dt, "OFFSETS")?;
@@ -422,6 +583,11 @@ pub fn parse_vtk_bytes(name: &str, bytes: &[u8]) -> Result<TetMesh> {
                     }
                     (offsets, conn)
                 } else {
+                    if r.peek_word().eq_ignore_ascii_case("OFFSETS") {
+                        bail!(r.err(format!(
+                            "OFFSETS after CELLS: that layout needs file version 5.x, but the header says {version}"
+                        )));
+                    }
                     let flat = r.values_i64(b, DType::I32, "CELLS")?;
                     // Each cell takes at least its vertex count, so `a <= b`,
                     // and `b` values were just read: both bound the allocations.
@@ -444,7 +610,8 @@ pub fn parse_vtk_bytes(name: &str, bytes: &[u8]) -> Result<TetMesh> {
                         // against it cannot overflow whatever `k` is.
                         if k < 0 || k as u64 > (b - i - 1) as u64 {
                             bail!(r.err(format!(
-                                "count mismatch: cell {c} claims {k} vertices, beyond CELLS size {b}"
+                                "count mismatch: cell {c} claims {k} vertices, beyond CELLS size {b}{}",
+                                swapped_hint(r.binary, k, 4)
                             )));
                         }
                         let k = k as usize;
@@ -489,9 +656,10 @@ pub fn parse_vtk_bytes(name: &str, bytes: &[u8]) -> Result<TetMesh> {
                 let types = r.values_i64(n, DType::I32, "CELL_TYPES")?;
                 if let Some(c) = types.iter().position(|&t| t != VTK_TETRA) {
                     bail!(r.err(format!(
-                        "unsupported cell type {} ({}) at cell {c}: only tetrahedra (type 10) are supported",
+                        "unsupported cell type {} ({}) at cell {c}: only tetrahedra (type 10) are supported{}",
                         types[c],
-                        cell_type_name(types[c])
+                        cell_type_name(types[c]),
+                        swapped_hint(r.binary, types[c], VTK_TETRA as i32)
                     )));
                 }
                 if let Some((c, k)) = cell_sizes_bad {
@@ -698,7 +866,7 @@ LOOKUP_TABLE default
             (ASCII.replace("4 1 3 2 4", "4 1 3 2 7"), "out of range"),
             (ASCII.replace("10\n10\n", "10\n12\n"), "hexahedron"),
             (ASCII.replace("CELL_TYPES 2", "CELL_TYPES 3"), "count mismatch"),
-            (ASCII.replace("CELLS 2 10", "CELLS 2 11"), "bad integer 'CELL_TYPES'"),
+            (ASCII.replace("CELLS 2 10", "CELLS 2 11"), "count mismatch: CELLS needs 11 values, found 10 before 'CELL_TYPES'"),
             (ASCII.replace("POINT_DATA 5", "POINT_DATA 6"), "count mismatch"),
             (ASCII.replace("VECTORS", "VECTROS"), "bad keyword"),
             (ASCII.replace("DATASET UNSTRUCTURED_GRID", "DATASET POLYDATA"), "UNSTRUCTURED_GRID"),
@@ -707,7 +875,7 @@ LOOKUP_TABLE default
                 .replace("SCALARS other float", "NORMALS other float")
                 .replace("LOOKUP_TABLE default\n9 9 9 9 9", &"0 ".repeat(15)), "no point scalars"),
             (ASCII.replace("1 1 1", "1 nan 1"), "non-finite"),
-            (ASCII.replace("0 0 1  1 1 1", "0 0 1  1 x 1"), "bad number"),
+            (ASCII.replace("0 0 1  1 1 1", "0 0 1  1 x 1"), "value 'x' in POINTS (value 13 of 15) is not a number"),
             (ASCII[..ASCII.len() - 10].to_string(), "truncated"),
             ("hello\n".to_string(), "not a VTK legacy file"),
         ];

@@ -6,4 +6,4 @@ pub mod tf_file;
 pub mod transfer_function;
 
 pub use camera::{Camera, Projection};
-pub use transfer_function::{ControlPoint, TransferFunction};
+pub use transfer_function::{effective_scalar_range, ControlPoint, TransferFunction};

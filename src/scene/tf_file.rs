@@ -41,6 +41,21 @@
 //!
 //! The result is the [`TransferFunction`] the renderers use: scalars absolute,
 //! τ per world unit, piecewise linear between points, clamped outside them.
+//!
+//! Also rejected (a picture that would silently be blank or wrong):
+//! - anything but a JSON object at the top level, and a key given twice in
+//!   any object (JSON parsers differ on which one wins; serde_json keeps the
+//!   last silently);
+//! - τ per world unit, after the unit conversions, that is infinite or
+//!   beyond f32's largest value (e.g. `opacity` over a `unit_length` of
+//!   1e-320): the renderers hold τ in f32;
+//! - a function whose every point has τ = 0: nothing would be drawn;
+//! - `"per_diagonal"` on a mesh of zero extent (the mesh is reported).
+//!
+//! Relative scalars over a constant field (`lo == hi`) use the widened range
+//! of [`effective_scalar_range`], so the field's value sits at relative 0.5
+//! instead of on a step where all the points coincide.
+//!
 //! Every error names the file and, for a point, its index (from 0).
 //!
 //! [`to_json`] writes the same format (absolute units, or relative to a
@@ -51,7 +66,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{anyhow, bail, Result};
 use serde::{Deserialize, Serialize};
 
-use super::{ControlPoint, TransferFunction};
+use super::{effective_scalar_range, ControlPoint, TransferFunction};
 
 /// How scalars are given in a file.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -98,6 +113,78 @@ struct PointSpec {
     unit_length: Option<f64>,
 }
 
+/// A JSON value parsed by a visitor that refuses a key given twice in any
+/// object (serde_json's own `Value` keeps the last one silently).
+struct StrictValue(serde_json::Value);
+
+impl<'de> Deserialize<'de> for StrictValue {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        d.deserialize_any(StrictVisitor)
+    }
+}
+
+struct StrictVisitor;
+
+impl<'de> serde::de::Visitor<'de> for StrictVisitor {
+    type Value = StrictValue;
+
+    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str("a JSON value")
+    }
+    fn visit_bool<E>(self, v: bool) -> std::result::Result<StrictValue, E> {
+        Ok(StrictValue(v.into()))
+    }
+    fn visit_i64<E>(self, v: i64) -> std::result::Result<StrictValue, E> {
+        Ok(StrictValue(v.into()))
+    }
+    fn visit_u64<E>(self, v: u64) -> std::result::Result<StrictValue, E> {
+        Ok(StrictValue(v.into()))
+    }
+    fn visit_f64<E>(self, v: f64) -> std::result::Result<StrictValue, E> {
+        // JSON numbers are finite; `From<f64>` would turn a non-finite one into null.
+        Ok(StrictValue(v.into()))
+    }
+    fn visit_str<E>(self, v: &str) -> std::result::Result<StrictValue, E> {
+        Ok(StrictValue(v.into()))
+    }
+    fn visit_string<E>(self, v: String) -> std::result::Result<StrictValue, E> {
+        Ok(StrictValue(v.into()))
+    }
+    fn visit_unit<E>(self) -> std::result::Result<StrictValue, E> {
+        Ok(StrictValue(serde_json::Value::Null))
+    }
+    fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> std::result::Result<StrictValue, A::Error> {
+        let mut items = Vec::new();
+        while let Some(StrictValue(v)) = seq.next_element()? {
+            items.push(v);
+        }
+        Ok(StrictValue(serde_json::Value::Array(items)))
+    }
+    fn visit_map<A: serde::de::MapAccess<'de>>(self, mut map: A) -> std::result::Result<StrictValue, A::Error> {
+        let mut out = serde_json::Map::new();
+        while let Some(key) = map.next_key::<String>()? {
+            if out.contains_key(&key) {
+                return Err(serde::de::Error::custom(format!("duplicate key \"{key}\"")));
+            }
+            let StrictValue(v) = map.next_value()?;
+            out.insert(key, v);
+        }
+        Ok(StrictValue(serde_json::Value::Object(out)))
+    }
+}
+
+/// The JSON kind of `v`, for messages.
+fn kind(v: &serde_json::Value) -> &'static str {
+    match v {
+        serde_json::Value::Null => "null",
+        serde_json::Value::Bool(_) => "a boolean",
+        serde_json::Value::Number(_) => "a number",
+        serde_json::Value::String(_) => "a string",
+        serde_json::Value::Array(_) => "an array",
+        serde_json::Value::Object(_) => "an object",
+    }
+}
+
 /// Reads a transfer function file (format: module docs). `scalar_range` is
 /// the mesh's `(min, max)` scalar (used by `"scalar_units": "relative"`),
 /// `mesh_diagonal` its bounding-box diagonal (used by
@@ -119,8 +206,20 @@ pub fn parse_tf(
     scalar_range: (f64, f64),
     mesh_diagonal: f64,
 ) -> Result<TransferFunction> {
-    let spec: FileSpec =
+    if text.trim().is_empty() {
+        bail!("{source}: the file is empty; expected a JSON object with \"points\" (see data/tf/README.md)");
+    }
+    let StrictValue(value) =
         serde_json::from_str(text).map_err(|e| anyhow!("{source}: invalid transfer function JSON: {e}"))?;
+    if !value.is_object() {
+        bail!(
+            "{source}: expected an object at the top level (a transfer function is a JSON object with \"points\"), \
+             found {}",
+            kind(&value)
+        );
+    }
+    let spec: FileSpec =
+        serde_json::from_value(value).map_err(|e| anyhow!("{source}: invalid transfer function JSON: {e}"))?;
     if spec.points.is_empty() {
         bail!("{source}: \"points\" is empty (at least one control point is required)");
     }
@@ -128,15 +227,19 @@ pub fn parse_tf(
     if spec.scalar_units == ScalarUnits::Relative && !(lo.is_finite() && hi.is_finite() && lo <= hi) {
         bail!("{source}: relative scalars need a finite mesh scalar range, got [{lo}, {hi}]");
     }
+    let (lo, hi) = effective_scalar_range(lo, hi);
     // Lengths in the file are in `unit` world units.
     let unit = match spec.attenuation_units {
         AttenuationUnits::PerWorldUnit => 1.0,
         AttenuationUnits::PerDiagonal => {
-            if !(mesh_diagonal.is_finite() && mesh_diagonal >= 0.0) {
-                bail!("{source}: attenuation per diagonal needs a finite mesh diagonal, got {mesh_diagonal}");
+            if !(mesh_diagonal.is_finite() && mesh_diagonal > 0.0) {
+                bail!(
+                    "{source}: \"attenuation_units\": \"per_diagonal\" needs a mesh of positive extent, but the \
+                     mesh's bounding-box diagonal is {mesh_diagonal}: the mesh is degenerate (all points at one \
+                     place), not this file"
+                );
             }
-            // As `harness::datasets::default_transfer_function` does.
-            mesh_diagonal.max(f64::MIN_POSITIVE)
+            mesh_diagonal
         }
     };
     if let Some(u) = spec.unit_length {
@@ -195,12 +298,31 @@ pub fn parse_tf(
                 -(-o).ln_1p() / (len * unit)
             }
         };
+        if !(tau.is_finite() && tau <= f32::MAX as f64) {
+            bail!(
+                "{}: attenuation {tau:e} per world unit (after the unit conversions) is beyond the f32 range \
+                 (at most {:e}) the renderers hold it in; check \"attenuation\", \"opacity\" and \"unit_length\"{}",
+                at(),
+                f32::MAX,
+                if spec.attenuation_units == AttenuationUnits::PerDiagonal {
+                    format!(" (lengths in mesh diagonals of {unit:e})")
+                } else {
+                    String::new()
+                }
+            );
+        }
         let scalar = match spec.scalar_units {
             ScalarUnits::Absolute => p.scalar,
             // As `harness::datasets::default_transfer_function` does.
             ScalarUnits::Relative => lo + p.scalar * (hi - lo),
         };
         points.push(ControlPoint { scalar, color: p.color, attenuation: tau });
+    }
+    if points.iter().all(|p| p.attenuation == 0.0) {
+        bail!(
+            "{source}: every control point has attenuation 0, so nothing would be drawn (emission scales with \
+             attenuation in the emission-absorption model)"
+        );
     }
     Ok(TransferFunction { name: spec.name.unwrap_or_else(|| default_name.to_string()), points })
 }
@@ -222,11 +344,15 @@ pub fn to_json(tf: &TransferFunction, units: JsonUnits) -> Result<String> {
     let (scalar_units, attenuation_units, lo, span, unit) = match units {
         JsonUnits::Absolute => (ScalarUnits::Absolute, AttenuationUnits::PerWorldUnit, 0.0, 1.0, 1.0),
         JsonUnits::RelativeTo { scalar_range: (lo, hi), mesh_diagonal } => {
-            if !(lo.is_finite() && hi.is_finite() && hi > lo) {
+            if !(lo.is_finite() && hi.is_finite() && hi >= lo) {
                 bail!("{}: cannot write relative scalars over the range [{lo}, {hi}]", tf.name);
             }
-            let diag = mesh_diagonal.max(f64::MIN_POSITIVE);
-            (ScalarUnits::Relative, AttenuationUnits::PerDiagonal, lo, hi - lo, diag)
+            if !(mesh_diagonal.is_finite() && mesh_diagonal > 0.0) {
+                bail!("{}: cannot write attenuation per diagonal for a mesh diagonal of {mesh_diagonal}", tf.name);
+            }
+            // The same range `parse_tf` maps relative scalars over.
+            let (lo, hi) = effective_scalar_range(lo, hi);
+            (ScalarUnits::Relative, AttenuationUnits::PerDiagonal, lo, hi - lo, mesh_diagonal)
         }
     };
     #[derive(Serialize)]

@@ -8,6 +8,31 @@ use serde::{Deserialize, Serialize};
 /// Largest magnitude a table entry takes (see `TransferFunction::table`).
 pub const TABLE_MAX: f64 = 1e30;
 
+/// Half-width of the range a constant field's transfer function is spread
+/// over, relative to the field's magnitude (at least 1): see
+/// [`effective_scalar_range`].
+pub const DEGENERATE_RANGE_HALF_WIDTH: f64 = 0.5;
+
+/// The scalar range a range-relative transfer function is built over (the
+/// one rule for it: `scene::tf_file`'s relative units, and the built-in
+/// presets). A field's range `[lo, hi]` with `hi > lo` is used as is. A
+/// constant field (`lo == hi == v`) would put every control point at `v`,
+/// a step exactly at the only value the field takes, whose side the GPU
+/// table and the CPU reference may then take differently; instead the range
+/// is widened symmetrically to `[v - w, v + w]` with
+/// `w = DEGENERATE_RANGE_HALF_WIDTH * max(|v|, 1)`, so the field's value
+/// sits at relative 0.5, between control points (wide enough to stay
+/// distinct from `v` in f64 and f32 whatever `v` is). Anything else
+/// (`hi < lo`, non-finite) is returned unchanged for the caller to reject.
+pub fn effective_scalar_range(lo: f64, hi: f64) -> (f64, f64) {
+    if lo == hi && lo.is_finite() {
+        let w = DEGENERATE_RANGE_HALF_WIDTH * lo.abs().max(1.0);
+        (lo - w, lo + w)
+    } else {
+        (lo, hi)
+    }
+}
+
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct ControlPoint {
     pub scalar: f64,
@@ -106,5 +131,20 @@ mod tests {
         assert_eq!(tf.eval(-1.0), ([0.0; 3], 0.0));
         assert_eq!(tf.eval(1.0), ([0.5, 0.25, 0.0], 2.0));
         assert_eq!(tf.eval(5.0), ([1.0, 0.5, 0.0], 4.0));
+    }
+
+    #[test]
+    fn effective_range_widens_only_constant_fields() {
+        assert_eq!(effective_scalar_range(-1.0, 2.0), (-1.0, 2.0));
+        assert_eq!(effective_scalar_range(1.0, 1.0 + f64::EPSILON), (1.0, 1.0 + f64::EPSILON));
+        assert_eq!(effective_scalar_range(0.0, 0.0), (-0.5, 0.5));
+        assert_eq!(effective_scalar_range(3.0, 3.0), (1.5, 4.5));
+        assert_eq!(effective_scalar_range(-1e20, -1e20), (-1.5e20, -0.5e20));
+        assert_eq!(effective_scalar_range(2.0, 1.0), (2.0, 1.0));
+        assert!(effective_scalar_range(f64::NAN, f64::NAN).0.is_nan());
+        for v in [0.0, 1e-30, -7.0, 1e6, 3e38] {
+            let (lo, hi) = effective_scalar_range(v, v);
+            assert!(lo < v && v < hi && (lo as f32) < (v as f32) && (v as f32) < (hi as f32), "{v}");
+        }
     }
 }
