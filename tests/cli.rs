@@ -1,6 +1,8 @@
 //! The command line end to end: clear errors and exit codes, and a small run
 //! whose JSON carries the documented fields.
 
+mod common;
+
 use std::process::Command;
 
 fn volbench() -> Command {
@@ -66,6 +68,7 @@ fn run_writes_the_documented_json() {
     ] {
         assert!(v.pointer(path).is_some(), "missing {path}");
     }
+    common::assert_matches_schema("run.schema.json", &v, "volbench run --json");
     assert_eq!(v["method"], "balanced");
     assert_eq!(v["mesh"], "post-small");
     assert_eq!(v["upload"]["floats_per_cell"], 28.0);

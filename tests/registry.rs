@@ -4,6 +4,8 @@
 //! validates against the committed schema; a failing row does not stop a
 //! sweep; unknown and inapplicable options are errors.
 
+mod common;
+
 use std::sync::{Arc, Mutex, OnceLock};
 
 use anyhow::Result;
@@ -151,17 +153,6 @@ fn registry_with_box() -> Registry {
     registry::builtin().with(SOLID_BOX)
 }
 
-fn validator(name: &str) -> jsonschema::Validator {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("results/schema").join(name);
-    let schema: serde_json::Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
-    jsonschema::validator_for(&schema).expect("a valid JSON Schema")
-}
-
-fn assert_valid(v: &jsonschema::Validator, value: &serde_json::Value, what: &str) {
-    let errors: Vec<String> = v.iter_errors(value).map(|e| format!("{} at {}", e, e.instance_path())).collect();
-    assert!(errors.is_empty(), "{what} does not match the schema:\n{}", errors.join("\n"));
-}
-
 fn small() -> RunConfig {
     RunConfig { width: 64, height: 64, frames: 2, warmup: 1, ..RunConfig::default() }
 }
@@ -186,7 +177,7 @@ fn a_test_only_method_runs_through_the_runner_with_the_common_schema() {
     // Over itself: front and back faces, 0.5 + 0.5 * 0.5.
     let p = out.image.pixels.iter().find(|p| p[3] > 0.0).unwrap();
     assert!((p[3] - 0.75).abs() < 1e-6 && (p[0] - 0.375).abs() < 1e-6, "{p:?}");
-    assert_valid(&validator("run.schema.json"), &serde_json::to_value(r).unwrap(), "the box's result");
+    common::assert_matches_schema("run.schema.json", &serde_json::to_value(r).unwrap(), "the box's result");
 }
 
 #[test]
@@ -222,13 +213,12 @@ fn sweeps_iterate_over_the_registry_and_survive_a_failing_row() {
     let table = sweep::comparison_markdown(&rows, &registry).unwrap();
     assert!(table.contains("FAILED"), "{table}");
     // Every JSON written validates against the schema.
-    let v = validator("run.schema.json");
     let mut n = 0;
     for e in std::fs::read_dir(dir.path()).unwrap() {
         let p = e.unwrap().path();
         if p.extension().is_some_and(|x| x == "json") {
             let value: serde_json::Value = serde_json::from_slice(&std::fs::read(&p).unwrap()).unwrap();
-            assert_valid(&v, &value, &p.display().to_string());
+            common::assert_matches_schema("run.schema.json", &value, &p.display().to_string());
             n += 1;
         }
     }

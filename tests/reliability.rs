@@ -120,6 +120,11 @@ fn special_input_files_are_refused_before_reading() {
     assert_error(&o, &["mesh.vtk", "not a regular file"]);
     let o = run_bounded(small_run(d.path()).args(["--tf", "/dev/zero"]));
     assert_error(&o, &["/dev/zero", "not a regular file"]);
+    // A 2 GiB sparse file is refused from its size, not read.
+    let big = d.path().join("big.vtk");
+    std::fs::File::create(&big).unwrap().set_len(2 << 30).unwrap();
+    let o = run_bounded(volbench().args(["run", "--method", "vicp", "--data"]).arg(&big));
+    assert_error(&o, &["big.vtk", "larger than"]);
 }
 
 #[test]

@@ -5,6 +5,8 @@
 //! documented bound. The full sweep is `volbench stress` (or the ignored
 //! `full_stress_table` below, STRESS_SIZE / STRESS_ONLY=case,case).
 
+mod common;
+
 use std::sync::{Arc, Mutex, OnceLock};
 
 use volbench::algo::registry;
@@ -168,7 +170,9 @@ fn report_is_json_with_a_cases_array() {
         status: "ok",
         bound: 1e-3,
     };
-    let v = serde_json::to_value(StressReport { cases: vec![row.clone()] }).unwrap();
+    let failed = StressRow { error: Some("boom".into()), status: "fail", max_abs_error: f64::NAN, rmse: f64::NAN, ..row.clone() };
+    let v = serde_json::to_value(StressReport { cases: vec![row.clone(), failed] }).unwrap();
+    common::assert_matches_schema("stress.schema.json", &v, "a stress report");
     let r = &v["cases"][0];
     for key in [
         "case",
