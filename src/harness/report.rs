@@ -1,5 +1,6 @@
 //! Result files and the tables printed for people: JSON written atomically,
-//! and the VICP-vs-balanced comparison set beside the published figures.
+//! and the comparison table of any set of runs beside the published figures
+//! their methods registered.
 
 use std::fmt::Write as _;
 use std::path::Path;
