@@ -749,6 +749,10 @@ pub fn stress_cases(size: u32) -> Vec<StressCase> {
         eye_on_vertex(),
         mesh_scale(1e-12),
         mesh_scale(1e12),
+        // The ends of the supported extent (diagonal 1e-15 to 1e15, see
+        // `mesh::geometry`): 1.7e-15 and 8.7e14.
+        mesh_scale(1e-15),
+        mesh_scale(5e14),
         scalar_range("scalars-1e37", 1e37, 0.0, "in [0, 1e37]"),
         opaque(1e6),
         opaque(3e38),
