@@ -284,14 +284,7 @@ fn run(cli: &Cli, registry: &Registry, args: &RunArgs) -> Result<()> {
         }
     }
     let dataset = datasets::load(&args.data)?;
-    anyhow::ensure!(
-        spec.info.data == dataset.kind(),
-        "method '{}' renders {} datasets; '{}' is a {}",
-        spec.info.name,
-        spec.info.data.name(),
-        args.data,
-        dataset.kind().name()
-    );
+    spec.check_renders(dataset.kind(), &args.data)?;
     let tf = args.frame.transfer_function(&dataset)?;
     let ctx = context(cli)?;
     cfg.check_device(&ctx.info)?;

@@ -30,6 +30,18 @@ pub struct MethodSpec {
 }
 
 impl MethodSpec {
+    /// An error unless the method renders `kind` (`what` names the data).
+    pub fn check_renders(&self, kind: DataKind, what: &str) -> Result<()> {
+        anyhow::ensure!(
+            self.info.data == kind,
+            "method '{}' renders {} datasets; '{what}' is a {}",
+            self.info.name,
+            self.info.data.name(),
+            kind.name()
+        );
+        Ok(())
+    }
+
     /// The method and the options that differ from its defaults
     /// (`balanced`, `balanced:interpolation=paper`): how tables name a run.
     pub fn label(&self) -> String {

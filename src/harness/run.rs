@@ -309,14 +309,7 @@ impl MethodSession {
     ) -> Result<Self> {
         cfg.validate()?;
         cfg.check_device(&ctx.info)?;
-        anyhow::ensure!(
-            spec.info.data == dataset.kind(),
-            "method '{}' renders {} datasets; '{}' is a {}",
-            spec.info.name,
-            spec.info.data.name(),
-            dataset.name,
-            dataset.kind().name()
-        );
+        spec.check_renders(dataset.kind(), &dataset.name)?;
         if let Some(why) = spec.info.unsupported_reason(&ctx.info) {
             anyhow::bail!("method '{}' cannot run here: {why}", spec.info.name);
         }

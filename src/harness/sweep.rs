@@ -54,13 +54,7 @@ pub fn specs_for(
     } else {
         for n in names {
             let spec = registry.parse_spec(n, flags)?;
-            anyhow::ensure!(
-                spec.info.data == kind,
-                "method '{}' renders {} datasets, not {}",
-                spec.info.name,
-                spec.info.data.name(),
-                kind.name()
-            );
+            spec.check_renders(kind, "the dataset")?;
             push_unique(&mut specs, spec);
         }
     }
@@ -77,7 +71,7 @@ pub fn pareto_specs(registry: &Registry, names: &[String], kind: DataKind, flags
     let mut specs = Vec::new();
     for n in names {
         let given = registry.parse_spec(n, flags)?;
-        anyhow::ensure!(given.info.data == kind, "method '{}' renders {} datasets, not {}", given.info.name, given.info.data.name(), kind.name());
+        given.check_renders(kind, "the dataset")?;
         let own = n.split_once(':').map_or("", |(_, o)| o);
         let fixed = [own.to_string(), pairs_text(flags)].join(",");
         let variants: &[&str] = if given.info.sweep.is_empty() { &[""] } else { given.info.sweep };
