@@ -4,7 +4,9 @@
 #   1. VICP against balanced cell projection on the blunt fin and the oxygen
 #      post at 512x512 (JSON per run, PNGs of the reference view and their
 #      difference from the f64 reference, comparison.md), table printed;
-#   2. run time against error on both meshes (pareto/<mesh>/pareto.{csv,md,png}).
+#   2. run time against error on both meshes (pareto/<mesh>/pareto.{csv,md,png});
+#   3. the suite: every registered method on every shipped dataset of its kind
+#      (suite/: summary.json, summary.csv, report.md, plots, montage).
 # Extra arguments go to `volbench compare` (e.g. --frames 30). criterion
 # benches of the hot paths are separate: `cargo bench`.
 set -euo pipefail
@@ -18,4 +20,5 @@ $bin compare --data bluntfin,oxygenpost --size 512x512 --frames 20 --warmup 3 --
 for mesh in bluntfin oxygenpost; do
     $bin pareto --data "$mesh" --size 512x512 --frames 5 --warmup 1 --out "$out/pareto/$mesh" > /dev/null
 done
+$bin suite --out "$out/suite"
 echo "results: $out"

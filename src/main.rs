@@ -51,6 +51,23 @@ enum Command {
     /// from the origin, extreme scalars, steps, opaque media, camera inside)
     /// with every tetrahedral method and option set against the f64 reference.
     Stress(StressArgs),
+    /// Every registered method on every shipped dataset of its kind at
+    /// standard settings: results/<run-id>/ with summary.json, summary.csv,
+    /// report.md, plots and a montage.
+    Suite(SuiteArgs),
+}
+
+#[derive(Args)]
+struct SuiteArgs {
+    /// 256x256 and 3 frames instead of 512x512 and 20 (CI, a first look).
+    #[arg(long)]
+    quick: bool,
+    /// Only runs of these methods or datasets (repeat; names from `volbench list`).
+    #[arg(long, value_name = "NAME")]
+    filter: Vec<String>,
+    /// Output directory (default results/<UTC time>/).
+    #[arg(long)]
+    out: Option<PathBuf>,
 }
 
 /// Options of a method given as flags: shorthands for `method:key=value`.
@@ -412,6 +429,40 @@ fn stress(cli: &Cli, registry: &Registry, args: &StressArgs) -> Result<()> {
     Ok(())
 }
 
+fn suite(cli: &Cli, registry: &Registry, args: &SuiteArgs) -> Result<()> {
+    use volbench::harness::suite::{plan, run_suite, utc_now, SuiteSettings};
+    let settings = SuiteSettings::standard(args.quick, args.filter.clone());
+    let plan = plan(registry, &settings)?;
+    let out = args.out.clone().unwrap_or_else(|| PathBuf::from(format!("results/{}", utc_now())));
+    let ctx = context(cli)?;
+    std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+    // A progress bar with ETA on a terminal, plain lines otherwise.
+    let bar = indicatif::ProgressBar::new(plan.len() as u64);
+    let terminal = std::io::IsTerminal::is_terminal(&std::io::stderr());
+    if terminal {
+        bar.set_style(
+            indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} runs, ETA {eta}: {msg}")
+                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+    } else {
+        bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
+    }
+    let summary = run_suite(&ctx, registry, &plan, &settings, &out, |i, label| {
+        bar.set_position(i as u64);
+        bar.set_message(label.to_string());
+        if !terminal {
+            eprintln!("volbench: suite: [{}/{}] {label}", i + 1, plan.len());
+        }
+    })?;
+    bar.finish_and_clear();
+    let failed = summary.runs.iter().filter(|r| r.status == "failed").count();
+    println!("results: {}", out.display());
+    if failed > 0 {
+        bail!("{failed} of {} suite runs failed (see report.md)", summary.runs.len());
+    }
+    Ok(())
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let registry = registry::builtin();
@@ -422,6 +473,7 @@ fn main() -> ExitCode {
         Command::Compare(a) => compare(&cli, &registry, a),
         Command::Pareto(a) => pareto(&cli, &registry, a),
         Command::Stress(a) => stress(&cli, &registry, a),
+        Command::Suite(a) => suite(&cli, &registry, a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

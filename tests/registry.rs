@@ -251,3 +251,27 @@ fn options_are_checked_against_the_method() {
         .to_string();
     assert!(e.contains("test-solid-box") && e.contains("sort"), "{e}");
 }
+
+#[test]
+fn the_suite_runs_every_registered_method_on_the_shipped_datasets_of_its_kind() {
+    use volbench::harness::suite::{plan, run_suite, SuiteSettings};
+    let registry = registry_with_box();
+    let settings = SuiteSettings { width: 48, height: 48, frames: 1, warmup: 0, ..SuiteSettings::standard(true, vec!["post-small".into()]) };
+    let planned = plan(&registry, &settings).unwrap();
+    let names: Vec<&str> = planned.iter().map(|p| p.spec.info.name).collect();
+    assert_eq!(names, ["vicp", "balanced", "test-solid-box"], "the new method is in the suite with no change there");
+    assert!(plan(&registry, &SuiteSettings::standard(true, vec!["nosuch".into()])).unwrap_err().to_string().contains("nosuch"));
+    let dir = tempfile::tempdir().unwrap();
+    let ctx = context();
+    let summary = run_suite(&ctx, &registry, &planned, &settings, dir.path(), |_, _| {}).unwrap();
+    assert!(summary.runs.iter().all(|r| r.status == "ok"), "{:?}", summary.runs.iter().map(|r| &r.message).collect::<Vec<_>>());
+    for f in ["summary.json", "summary.csv", "report.md", "montage.png", "plots/frame_time.png", "plots/frame_time.svg", "plots/bytes_per_frame.svg"] {
+        assert!(dir.path().join(f).is_file(), "{f}");
+    }
+    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.path().join("summary.json")).unwrap()).unwrap();
+    for run in v["runs"].as_array().unwrap() {
+        common::assert_matches_schema("run.schema.json", &run["result"], "a suite row");
+    }
+    let report = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
+    assert!(report.contains("test-solid-box") && report.contains("| post-small | balanced | ok"), "{report}");
+}

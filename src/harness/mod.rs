@@ -6,9 +6,11 @@
 pub mod datasets;
 pub mod image;
 pub mod pareto;
+pub mod plots;
 pub mod reference_cache;
 pub mod report;
 pub mod run;
 pub mod stats;
 pub mod stress;
+pub mod suite;
 pub mod sweep;
