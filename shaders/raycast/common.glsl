@@ -6,7 +6,7 @@
 // is [0, dims - 1]. The 3D texture has its texel centres at the samples:
 // texture coordinate (u + 0.5) / dims.
 //
-// Build-time defines: ERT (early ray termination), SKIP (empty-space
+// Build-time defines: SKIP (empty-space
 // skipping over the brick grid), SHADE (Blinn-Phong), PREINT (pre-integrated
 // segments instead of point samples).
 
@@ -148,9 +148,8 @@ vec4 march(vec3 a, vec3 b, out uint samples) {
 #endif
         acc.rgb += (1.0 - acc.a) * alpha * c;
         acc.a += (1.0 - acc.a) * alpha;
-#ifdef ERT
+        // Early ray termination (run-time threshold; 1 never triggers).
         if (acc.a > params.tf_map.z) break;
-#endif
     }
 #ifdef SKIP
     atomicAdd(counters.skipped_bricks, skipped);
