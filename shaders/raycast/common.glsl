@@ -19,7 +19,7 @@ layout(std140, set = 0, binding = 0) uniform Params {
     vec4 spacing;    // xyz: world units per voxel; w: step in voxels (option `step`)
     vec4 tf_map;     // x, y: normalised texel -> table coordinate t = x * v + y; z: ert threshold; w: table length (world) for PREINT
     vec4 bricks;     // xyz: brick grid size; w: unused
-    vec4 light;      // xyz: light direction (voxel coordinates, unit, towards the light); w: unused
+    vec4 unused;
     vec4 material;   // x: ambient, y: diffuse, z: specular, w: shininess
 } params;
 
@@ -34,7 +34,7 @@ layout(set = 0, binding = 5) uniform sampler2D preint_tex;
 layout(push_constant) uniform Frame {
     mat4 m;          // box pass: voxel -> clip; march: NDC -> voxel (homogeneous)
     vec4 eye;        // xyz: eye in voxel coordinates; w: 1 perspective, 0 orthographic
-    vec4 view_dir;   // xyz: unit view direction in voxel coordinates (orthographic)
+    vec4 light;      // xyz: unit direction towards the light, world axes
 } frame;
 
 float table_coord(vec3 u) {
@@ -53,9 +53,9 @@ vec3 gradient(vec3 u) {
     g.x = table_coord(u + vec3(1, 0, 0)) - table_coord(u - vec3(1, 0, 0));
     g.y = table_coord(u + vec3(0, 1, 0)) - table_coord(u - vec3(0, 1, 0));
     g.z = table_coord(u + vec3(0, 0, 1)) - table_coord(u - vec3(0, 0, 1));
-    // Per world unit (anisotropic spacing): the normal is in world axes scaled
-    // back to voxel axes later by the caller's convention (both in voxel
-    // coordinates divided by spacing).
+    // Differences over 2 voxels; per world unit along world axes (anisotropic
+    // spacing), the frame the light and eye directions are given in. The
+    // common factor 1/2 does not change the normal.
     return g / params.spacing.xyz;
 }
 
@@ -66,7 +66,7 @@ vec3 shade(vec3 color, vec3 u, vec3 to_eye) {
     float len = length(g);
     if (len < 1e-6) return color * (params.material.x + params.material.y);
     vec3 n = -g / len;
-    vec3 l = params.light.xyz;
+    vec3 l = frame.light.xyz;
     vec3 v = normalize(to_eye);
     // Two-sided: a surface seen from behind is lit as well.
     if (dot(n, v) < 0.0) n = -n;

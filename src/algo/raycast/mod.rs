@@ -327,7 +327,7 @@ impl VolumeResources {
             tscale as f32, (-lo / (hi - lo)) as f32, s.ert as f32, d0 as f32,
             grid[0] as f32, grid[1] as f32, grid[2] as f32, 0.0,
             0.0, 0.0, 0.0, 0.0,
-            0.15, 0.75, 0.3, 40.0,
+            0.3, 0.7, 0.25, 30.0,
         ];
         let mut params_buf = Buffer::new(ctx, BufferDesc::upload("raycast parameters", 112, raw::BufferUsageFlags::UNIFORM_BUFFER))?;
         params_buf.write(0, &f32_bytes(&params), counter, UploadClass::Static)?;
