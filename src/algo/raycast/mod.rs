@@ -35,11 +35,22 @@
 //! `ert` (run-time; `ert=1` never triggers). With `skip=on` a grid of
 //! [`BRICK`]³-voxel bricks carries a flag per brick, made on the CPU from
 //! each brick's sample range (its samples and the next layer: the trilinear
-//! neighbourhood) against the transfer function, then dilated by one brick,
-//! so a step (≤ one brick long) whose middle lies in an unflagged brick lies
-//! where the attenuation is zero everywhere and is stepped over without
-//! sampling: the image is unchanged. The flags are rebuilt whenever the
+//! neighbourhood) against the transfer function. A point sample in an
+//! unflagged brick reads only samples whose attenuation is zero: it is
+//! stepped over without sampling and the image is unchanged. For `preint`
+//! the flags are dilated by one brick, so a segment (≤ one brick long)
+//! whose middle lies in an unflagged brick lies where the attenuation is
+//! zero everywhere. The flags are rebuilt whenever the
 //! transfer function changes (a method is built per transfer function).
+//!
+//! **Lighting** (`shade=on`, lab 6): Blinn-Phong with the central-difference
+//! gradient (±1 voxel) as normal, ambient 0.3, diffuse 0.7, specular 0.25,
+//! shininess 30; a headlight raised above the view direction. The lab
+//! transforms eye and light into texture space; with anisotropic spacing
+//! texture space is not isotropic, so here the gradient is converted to world
+//! units (divided by the spacing) and light and eye directions are given in
+//! world axes: the same angles as in world space. Only colour is shaded,
+//! opacity is not.
 //!
 //! **Counts.** Every ray adds its samples to a device counter (atomics; also
 //! the largest per ray, bricks stepped over and rays), read back after the
@@ -274,8 +285,10 @@ impl VolumeResources {
 
         // Brick flags: a brick covers voxel coordinates [8b, 8b + 8]; its
         // samples there (9 per axis, the trilinear neighbourhood) give its
-        // range; flagged when the TF has attenuation anywhere in it; then
-        // dilated by one brick (see the module note).
+        // range; flagged when the TF has attenuation anywhere in it. A point
+        // sample in a brick reads only those samples; a pre-integrated
+        // segment (<= one brick long) may reach into the neighbours, so for
+        // `preint` the flags are dilated by one brick (see the module note).
         let grid = [0, 1, 2].map(|a| (dims[a] - 1).div_ceil(BRICK).max(1));
         let count = grid[0] * grid[1] * grid[2];
         let mut own = vec![false; count];
@@ -308,7 +321,8 @@ impl VolumeResources {
                             }
                         }
                     }
-                    flags[bx + grid[0] * (by + grid[1] * bz)] = any as u32;
+                    let me = bx + grid[0] * (by + grid[1] * bz);
+                    flags[me] = if s.preint { any } else { own[me] } as u32;
                 }
             }
         }
