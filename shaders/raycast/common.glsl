@@ -97,6 +97,7 @@ vec4 march(vec3 a, vec3 b, out uint samples) {
     float bsize = params.box_max.w;
     ivec3 bgrid = ivec3(params.bricks.xyz);
     uint skipped = 0u;
+    int check_at = 0;   // the next step whose brick must be looked up
 #endif
 #ifdef PREINT
     float t_prev = table_coord(a);
@@ -109,30 +110,31 @@ vec4 march(vec3 a, vec3 b, out uint samples) {
         vec3 u = a + dir * (h * (float(k) + 0.5));
 #endif
 #ifdef SKIP
-        // The brick holding the step's middle: an invisible brick's samples
-        // (and its trilinear neighbourhood, included when the flags are made)
-        // have zero attenuation; step over it without sampling.
-        vec3 um = a + dir * (h * (float(k) + 0.5));
-        ivec3 bc = clamp(ivec3(floor(um / bsize)), ivec3(0), bgrid - 1);
-        int bi = bc.x + bgrid.x * (bc.y + bgrid.y * bc.z);
-        if (brick_visible[bi] == 0u) {
-            skipped += 1u;
-#ifdef PREINT
-            t_prev = -1.0;
-#endif
-            // Jump to the first step whose middle lies past the brick's exit
-            // (every middle before it lies in this brick, convex): the same
-            // steps are skipped as one by one, in one iteration.
-            vec3 lo = vec3(bc) * bsize, hi = lo + bsize;
-            vec3 far_face = mix(lo, hi, greaterThan(dir, vec3(0.0)));
-            vec3 s_axis = (far_face - a) / dir;   // +inf or NaN on axes the ray is parallel to
+        // The brick holding the step's middle, looked up once per brick: the
+        // steps up to the first middle past the brick's exit lie in it (a
+        // box is convex). An unflagged brick's samples (its trilinear
+        // neighbourhood, see the flags) have zero attenuation: all its steps
+        // are skipped in one iteration, the same steps as one by one.
+        if (k >= check_at) {
+            vec3 um = a + dir * (h * (float(k) + 0.5));
+            ivec3 bc = clamp(ivec3(floor(um / bsize)), ivec3(0), bgrid - 1);
+            vec3 lo = vec3(bc) * bsize;
+            vec3 far_face = mix(lo, lo + bsize, greaterThan(dir, vec3(0.0)));
+            vec3 s_axis = (far_face - a) / dir;   // inf or NaN on axes the ray is parallel to
             float s_exit = 1e30;
             for (int ax = 0; ax < 3; ++ax) {
                 if (dir[ax] != 0.0) s_exit = min(s_exit, s_axis[ax]);
             }
-            int next = int(floor(s_exit / h - 0.5)) + 1;
-            k = max(k, min(next, steps) - 1);
-            continue;
+            int next = min(int(floor(s_exit / h - 0.5)) + 1, steps);
+            if (brick_visible[bc.x + bgrid.x * (bc.y + bgrid.y * bc.z)] == 0u) {
+                skipped += 1u;
+#ifdef PREINT
+                t_prev = -1.0;
+#endif
+                k = max(k, next - 1);
+                continue;
+            }
+            check_at = max(next, k + 1);
         }
 #endif
         float t = table_coord(u);
