@@ -10,6 +10,12 @@ const SOURCES: &[(&str, &str)] = &[
     ("cell_projection/vicp.frag", include_str!("../shaders/cell_projection/vicp.frag")),
     ("cell_projection/balanced.vert", include_str!("../shaders/cell_projection/balanced.vert")),
     ("cell_projection/balanced.frag", include_str!("../shaders/cell_projection/balanced.frag")),
+    ("raycast/common.glsl", include_str!("../shaders/raycast/common.glsl")),
+    ("raycast/box.vert", include_str!("../shaders/raycast/box.vert")),
+    ("raycast/box.frag", include_str!("../shaders/raycast/box.frag")),
+    ("raycast/fullscreen.vert", include_str!("../shaders/raycast/fullscreen.vert")),
+    ("raycast/march.frag", include_str!("../shaders/raycast/march.frag")),
+    ("raycast/march.comp", include_str!("../shaders/raycast/march.comp")),
 ];
 
 /// The text of a shader or include, by its path under `shaders/`.

@@ -5,4 +5,5 @@ pub mod cell_projection;
 pub mod integrate;
 pub mod method;
 pub mod pipelines;
+pub mod raycast;
 pub mod registry;

@@ -17,6 +17,8 @@ pub fn builtin() -> Registry {
         methods: vec![
             super::cell_projection::vicp::METHOD,
             super::cell_projection::balanced::METHOD,
+            super::raycast::fragment::METHOD,
+            super::raycast::compute::METHOD,
         ],
     }
 }

@@ -183,7 +183,11 @@ impl Dataset {
                     .with_context(|| format!("rendering the f64 reference of '{}'", self.name))?;
                 Ok(r.pixels.iter().map(|p| p.map(|c| c as f32)).collect())
             }
-            DatasetData::Volume(_) => anyhow::bail!("'{}': no f64 reference for volumes yet", self.name),
+            DatasetData::Volume(v) => {
+                let r = crate::reference::render_volume_reference(v, camera, tf, width, height)
+                    .with_context(|| format!("rendering the f64 reference of '{}'", self.name))?;
+                Ok(r.pixels.iter().map(|p| p.map(|c| c as f32)).collect())
+            }
         }
     }
 

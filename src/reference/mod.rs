@@ -84,6 +84,7 @@ pub mod integrate;
 pub mod psi;
 mod raycast;
 mod topology;
+pub mod volume;
 
 use anyhow::{bail, ensure, Result};
 use rayon::prelude::*;
@@ -94,6 +95,7 @@ use crate::scene::{Camera, Projection, TransferFunction};
 
 pub use integrate::{integrate_piece, integrate_segment, Segment};
 pub use psi::{psi, psi_terms, PsiTerms};
+pub use volume::render_volume_reference;
 
 /// A reference image: premultiplied RGBA in f64, row 0 at the top.
 #[derive(Debug, Clone, PartialEq)]

@@ -1,0 +1,205 @@
+// Shared by both ray casters: bindings, frame constants and the march
+// (src/algo/raycast/mod.rs describes the conventions).
+//
+// Coordinates: "voxel coordinates" u = (p - origin) / spacing, sample
+// (i, j, k) at u = (i, j, k) (node-centred, as the f64 reference); the box
+// is [0, dims - 1]. The 3D texture has its texel centres at the samples:
+// texture coordinate (u + 0.5) / dims.
+//
+// Build-time defines: SKIP (empty-space
+// skipping over the brick grid), SHADE (Blinn-Phong), PREINT (pre-integrated
+// segments instead of point samples).
+
+#ifndef RAYCAST_COMMON_GLSL
+#define RAYCAST_COMMON_GLSL
+
+layout(std140, set = 0, binding = 0) uniform Params {
+    vec4 box_max;    // xyz: dims - 1 (the box in voxel coordinates); w: brick size in voxels
+    vec4 inv_dims;   // xyz: 1 / dims; w: table entries
+    vec4 spacing;    // xyz: world units per voxel; w: step in voxels (option `step`)
+    vec4 tf_map;     // x, y: normalised texel -> table coordinate t = x * v + y; z: ert threshold; w: table length (world) for PREINT
+    vec4 bricks;     // xyz: brick grid size; w: unused
+    vec4 unused;
+    vec4 material;   // x: ambient, y: diffuse, z: specular, w: shininess
+} params;
+
+layout(set = 0, binding = 1) uniform sampler3D volume_tex;
+layout(set = 0, binding = 2) uniform sampler1D tf_tex;
+// Per-brick flag: 1 when some sample in it may have attenuation > 0.
+layout(std430, set = 0, binding = 3) readonly buffer Bricks { uint brick_visible[]; };
+// Counters, cleared every frame: samples taken, largest per ray, bricks stepped over, rays.
+layout(std430, set = 0, binding = 4) buffer Counters { uint total_samples; uint max_samples; uint skipped_bricks; uint rays; } counters;
+layout(set = 0, binding = 5) uniform sampler2D preint_tex;
+
+layout(push_constant) uniform Frame {
+    mat4 m;          // box pass: voxel -> clip; march: NDC -> voxel (homogeneous)
+    vec4 eye;        // xyz: eye in voxel coordinates; w: 1 perspective, 0 orthographic
+    vec4 light;      // xyz: unit direction towards the light, world axes
+} frame;
+
+float table_coord(vec3 u) {
+    float v = texture(volume_tex, (u + 0.5) * params.inv_dims.xyz).r;
+    return clamp(params.tf_map.x * v + params.tf_map.y, 0.0, 1.0);
+}
+
+// Table lookup at coordinate t in [0, 1], texel centres at the ends.
+vec4 classify(float t) {
+    float n = params.inv_dims.w;
+    return texture(tf_tex, (t * (n - 1.0) + 0.5) / n);
+}
+
+vec3 gradient(vec3 u) {
+    vec3 g;
+    g.x = table_coord(u + vec3(1, 0, 0)) - table_coord(u - vec3(1, 0, 0));
+    g.y = table_coord(u + vec3(0, 1, 0)) - table_coord(u - vec3(0, 1, 0));
+    g.z = table_coord(u + vec3(0, 0, 1)) - table_coord(u - vec3(0, 0, 1));
+    // Differences over 2 voxels; per world unit along world axes (anisotropic
+    // spacing), the frame the light and eye directions are given in. The
+    // common factor 1/2 does not change the normal.
+    return g / params.spacing.xyz;
+}
+
+// Blinn-Phong with the central-difference gradient as normal; light and eye
+// directions in the same (world-scaled voxel) frame.
+vec3 shade(vec3 color, vec3 u, vec3 to_eye) {
+    vec3 g = gradient(u);
+    float len = length(g);
+    if (len < 1e-6) return color * (params.material.x + params.material.y);
+    vec3 n = -g / len;
+    vec3 l = frame.light.xyz;
+    vec3 v = normalize(to_eye);
+    // Two-sided: a surface seen from behind is lit as well.
+    if (dot(n, v) < 0.0) n = -n;
+    vec3 h = normalize(l + v);
+    float diff = max(dot(n, l), 0.0);
+    float spec = pow(max(dot(n, h), 0.0), params.material.w);
+    return color * (params.material.x + params.material.y * diff) + vec3(params.material.z * spec);
+}
+
+// The segment [a, b] (voxel coordinates, a nearer the eye) marched with a step
+// of at most `step` voxels: n = ceil(L / step) equal steps, one sample at the
+// middle of each, opacity 1 - exp(-tau * world length of the step), i.e. the
+// lab's alpha' = 1 - (1 - alpha)^(ds / ds0) with alpha given by tau. Returns
+// premultiplied RGBA; `samples` counts texture samples of the volume.
+vec4 march(vec3 a, vec3 b, out uint samples) {
+    samples = 0u;
+    vec4 acc = vec4(0.0);
+    vec3 d = b - a;
+    float len = length(d);
+    if (!(len > 0.0)) return acc;
+    vec3 dir = d / len;
+    float n = ceil(len / params.spacing.w);
+    float h = len / n;
+    float world_h = h * length(dir * params.spacing.xyz);
+    vec3 to_eye_world = -dir * params.spacing.xyz;
+    int steps = int(n);
+#ifdef SKIP
+    float bsize = params.box_max.w;
+    ivec3 bgrid = ivec3(params.bricks.xyz);
+    uint skipped = 0u;
+    int check_at = 0;   // the next step whose brick must be looked up
+#endif
+#ifdef PREINT
+    float t_prev = table_coord(a);
+    samples += 1u;
+#endif
+    for (int k = 0; k < steps; ++k) {
+#ifdef PREINT
+        vec3 u = a + dir * (h * float(k + 1));
+#else
+        vec3 u = a + dir * (h * (float(k) + 0.5));
+#endif
+#ifdef SKIP
+        // The brick holding the step's middle, looked up once per brick: the
+        // steps up to the first middle past the brick's exit lie in it (a
+        // box is convex). An unflagged brick's samples (its trilinear
+        // neighbourhood, see the flags) have zero attenuation: all its steps
+        // are skipped in one iteration, the same steps as one by one.
+        if (k >= check_at) {
+            vec3 um = a + dir * (h * (float(k) + 0.5));
+            ivec3 bc = clamp(ivec3(floor(um / bsize)), ivec3(0), bgrid - 1);
+            vec3 lo = vec3(bc) * bsize;
+            vec3 far_face = mix(lo, lo + bsize, greaterThan(dir, vec3(0.0)));
+            vec3 s_axis = (far_face - a) / dir;   // inf or NaN on axes the ray is parallel to
+            float s_exit = 1e30;
+            for (int ax = 0; ax < 3; ++ax) {
+                if (dir[ax] != 0.0) s_exit = min(s_exit, s_axis[ax]);
+            }
+            int next = min(int(floor(s_exit / h - 0.5)) + 1, steps);
+            if (brick_visible[bc.x + bgrid.x * (bc.y + bgrid.y * bc.z)] == 0u) {
+                skipped += 1u;
+#ifdef PREINT
+                t_prev = -1.0;
+#endif
+                k = max(k, next - 1);
+                continue;
+            }
+            check_at = max(next, k + 1);
+        }
+#endif
+        float t = table_coord(u);
+        samples += 1u;
+#ifdef PREINT
+        if (t_prev < 0.0) { t_prev = table_coord(u - dir * h); samples += 1u; }
+        // Table over (front, back) for a segment of params.tf_map.w world
+        // units: colour premultiplied and optical depth, scaled to this step.
+        vec4 seg = texture(preint_tex, vec2(t_prev, t) * (params.inv_dims.w - 1.0) / params.inv_dims.w + 0.5 / params.inv_dims.w);
+        t_prev = t;
+        float scale = world_h / params.tf_map.w;
+        float alpha = 1.0 - exp(-seg.a * scale);
+        // Colour per unit opacity from the table (exact when the step matches the table's length).
+        float table_alpha = 1.0 - exp(-seg.a);
+        vec3 c = table_alpha > 1e-7 ? seg.rgb / table_alpha : vec3(0.0);
+#else
+        vec4 tf = classify(t);
+        float alpha = 1.0 - exp(-max(tf.a, 0.0) * world_h);
+        vec3 c = tf.rgb;
+#endif
+#ifdef SHADE
+        if (alpha > 0.0) c = shade(c, u, to_eye_world);
+#endif
+        acc.rgb += (1.0 - acc.a) * alpha * c;
+        acc.a += (1.0 - acc.a) * alpha;
+        // Early ray termination (run-time threshold; 1 never triggers).
+        if (acc.a > params.tf_map.z) break;
+    }
+#ifdef SKIP
+    atomicAdd(counters.skipped_bricks, skipped);
+#endif
+    atomicAdd(counters.total_samples, samples);
+    atomicMax(counters.max_samples, samples);
+    atomicAdd(counters.rays, 1u);
+    return acc;
+}
+
+// The viewing ray through NDC (x, y): its points on the near and far planes
+// in voxel coordinates (the depth range the reference clips to).
+void ndc_ray(vec2 ndc, out vec3 p_near, out vec3 p_far) {
+    vec4 a = frame.m * vec4(ndc, 0.0, 1.0);
+    vec4 b = frame.m * vec4(ndc, 1.0, 1.0);
+    p_near = a.xyz / a.w;
+    p_far = b.xyz / b.w;
+}
+
+// Clip the segment [p, q] to the box [0, box_max] (slab test); false when it misses.
+bool clip_to_box(inout vec3 p, inout vec3 q) {
+    vec3 d = q - p;
+    float t0 = 0.0, t1 = 1.0;
+    for (int a = 0; a < 3; ++a) {
+        if (d[a] == 0.0) {
+            if (p[a] < 0.0 || p[a] > params.box_max[a]) return false;
+            continue;
+        }
+        float ta = (0.0 - p[a]) / d[a];
+        float tb = (params.box_max[a] - p[a]) / d[a];
+        t0 = max(t0, min(ta, tb));
+        t1 = min(t1, max(ta, tb));
+    }
+    if (t0 >= t1) return false;
+    vec3 p0 = p;
+    p = p0 + d * t0;
+    q = p0 + d * t1;
+    return true;
+}
+
+#endif

@@ -1,0 +1,27 @@
+#version 450
+// The whole integral in one compute pass: per pixel the viewing ray between
+// the near and far planes, clipped analytically to the box, then marched
+// exactly as the fragment variant does. Workgroup WG_X x WG_Y (defines).
+#include "raycast/common.glsl"
+
+#ifndef WG_X
+#define WG_X 8
+#define WG_Y 8
+#endif
+layout(local_size_x = WG_X, local_size_y = WG_Y) in;
+layout(set = 1, binding = 0, rgba32f) uniform writeonly image2D target;
+
+void main() {
+    ivec2 size = imageSize(target);
+    ivec2 px = ivec2(gl_GlobalInvocationID.xy);
+    if (px.x >= size.x || px.y >= size.y) return;
+    vec2 ndc = (vec2(px) + 0.5) / vec2(size) * 2.0 - 1.0;
+    vec3 a, b;
+    ndc_ray(ndc, a, b);
+    vec4 color = vec4(0.0);
+    if (clip_to_box(a, b)) {
+        uint samples;
+        color = march(a, b, samples);
+    }
+    imageStore(target, px, color);
+}

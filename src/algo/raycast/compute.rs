@@ -1,0 +1,120 @@
+//! `raycast-compute`: the whole integral in one compute pass (analytic
+//! ray–box clipping, no entry/exit targets), writing the runner's target as
+//! a storage image. Same march as `raycast-fragment` (see `super`).
+
+use std::sync::Arc;
+
+use anyhow::{bail, Result};
+use serde_json::json;
+use crate::vk::raw::Handle as _;
+
+use super::{set0_desc, Settings, VolumeResources, COMPARE, OPTIONS, PUSH_BYTES, SWEEP};
+use crate::algo::method::{DataKind, MethodInfo, MethodInputs, Phases, RenderMethod, SceneData, View, Work};
+use crate::vk::{
+    raw, CommandRecorder, ComputePipelineKey, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc, Image, ImageUse,
+    Pipeline, PipelineKey, ShaderKey, ShaderStage, UploadCounter,
+};
+
+/// Workgroup shape (pixels).
+pub const WORKGROUP: [u32; 2] = [8, 8];
+
+pub const METHOD: MethodInfo = MethodInfo {
+    name: "raycast-compute",
+    data: DataKind::Volume,
+    summary: "GPU ray casting in one compute pass: analytic ray-box clipping, trilinear samples, 1D TF, front to back",
+    options: OPTIONS,
+    features: &[],
+    sweep: SWEEP,
+    compare: COMPARE,
+    stress: &[],
+    published: &[],
+    create,
+};
+
+fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
+    let SceneData::Volume(vol) = inputs.data else { bail!("raycast-compute renders volumes only") };
+    let settings = Settings::from_options(inputs.options)?;
+    let res = VolumeResources::new(inputs.ctx, vol, inputs.tf, &settings, inputs.counter)?;
+    let defines = settings.defines();
+    let wg = [WORKGROUP[0].to_string(), WORKGROUP[1].to_string()];
+    let mut all: Vec<(&str, &str)> = defines.clone();
+    all.push(("WG_X", &wg[0]));
+    all.push(("WG_Y", &wg[1]));
+    let target_desc = DescriptorSetDesc::new(&[(DescriptorKind::StorageImage, raw::ShaderStageFlags::COMPUTE)]);
+    let key = PipelineKey::Compute(ComputePipelineKey {
+        shader: ShaderKey::new("raycast/march.comp", ShaderStage::Compute, &all),
+        push_constant_bytes: PUSH_BYTES,
+        sets: vec![set0_desc(), target_desc.clone()],
+    });
+    let pipeline = crate::algo::pipelines::get(inputs.ctx, &key)?;
+    Ok(Box::new(RaycastCompute {
+        res,
+        settings,
+        pipeline,
+        key,
+        target_desc,
+        target_set: None,
+        push: Vec::new(),
+        pixels: inputs.width as u64 * inputs.height as u64,
+        ctx: inputs.ctx.clone(),
+    }))
+}
+
+pub struct RaycastCompute {
+    res: VolumeResources,
+    settings: Settings,
+    pipeline: Arc<Pipeline>,
+    key: PipelineKey,
+    target_desc: DescriptorSetDesc,
+    /// Set 1 (the target as a storage image), made for the first target seen.
+    target_set: Option<(u64, DescriptorSet)>,
+    push: Vec<u8>,
+    pixels: u64,
+    ctx: Arc<crate::vk::Context>,
+}
+
+impl RenderMethod for RaycastCompute {
+    fn prepare(&mut self, view: &View, _phases: &mut Phases) -> Result<()> {
+        self.push = self.res.push_constants(view, true);
+        Ok(())
+    }
+
+    fn upload(&mut self, _counter: &mut UploadCounter) -> Result<()> {
+        Ok(())
+    }
+
+    fn record(&mut self, rec: &CommandRecorder, target: &Image, view: &View, counter: &mut UploadCounter) -> Result<()> {
+        let id = target.raw.as_raw();
+        if self.target_set.as_ref().map(|(t, _)| *t) != Some(id) {
+            let set = DescriptorSet::new(&self.ctx, "raycast target", &self.target_desc, &[DescriptorResource::StorageImage(target)])?;
+            self.target_set = Some((id, set));
+        }
+        let Some((_, set)) = &self.target_set else { bail!("no target set") };
+        self.res.record_clear(rec);
+        rec.image_barrier_discard(target, ImageUse::ComputeStorage);
+        rec.bind_compute(&self.pipeline, &[&self.res.set, set])?;
+        rec.push_constants(&self.pipeline, &self.push, counter);
+        rec.dispatch([view.width.div_ceil(WORKGROUP[0]), view.height.div_ceil(WORKGROUP[1]), 1])?;
+        self.res.record_counters_to_host(rec);
+        Ok(())
+    }
+
+    fn work(&self) -> Work {
+        self.res.work(self.pixels)
+    }
+
+    fn details(&self) -> serde_json::Value {
+        self.res.details(
+            &self.settings,
+            json!({
+                "name": "compute",
+                "workgroup": WORKGROUP,
+                "pipeline": { "key": self.key.id(), "name": self.key.name() },
+            }),
+        )
+    }
+
+    fn table_build_ms(&self) -> f64 {
+        self.res.table_build_ms
+    }
+}

@@ -1,0 +1,176 @@
+//! `raycast-fragment`: the lab's three passes (see `super`). Pass 1 draws
+//! the box's front faces into an RGBA32F target (entry points, voxel
+//! coordinates, alpha 1 where covered), pass 2 its back faces into another
+//! (exit points), pass 3 a full-screen triangle whose fragments march from
+//! entry to exit into the runner's target. The box is convex, so culling
+//! alone picks one front and one back face per pixel: no depth buffer.
+
+use std::sync::Arc;
+
+use anyhow::{bail, Result};
+use serde_json::json;
+
+use super::{set0_desc, Settings, VolumeResources, COMPARE, OPTIONS, PUSH_BYTES, SWEEP};
+use crate::algo::method::{DataKind, MethodInfo, MethodInputs, Phases, RenderMethod, SceneData, View, Work};
+use crate::vk::{
+    raw, Blend, ColorAttachment, ColorTarget, CommandRecorder, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc,
+    GraphicsPipelineKey, GraphicsState, Image, ImageUse, Pipeline, PipelineKey, Sampler, ShaderKey, ShaderStage, UploadCounter,
+};
+
+pub const METHOD: MethodInfo = MethodInfo {
+    name: "raycast-fragment",
+    data: DataKind::Volume,
+    summary: "GPU ray casting as in the lab: box front/back faces into entry/exit targets, then a full-screen march",
+    options: OPTIONS,
+    features: &[],
+    sweep: SWEEP,
+    compare: COMPARE,
+    stress: &[],
+    published: &[],
+    create,
+};
+
+/// The box's triangles have outward right-handed normals: faces towards the
+/// eye appear counter-clockwise on screen (Vulkan's y-down framebuffer).
+const FRONT: raw::FrontFace = raw::FrontFace::COUNTER_CLOCKWISE;
+
+fn box_key(cull: raw::CullModeFlags) -> PipelineKey {
+    PipelineKey::Graphics(GraphicsPipelineKey {
+        vertex: ShaderKey::new("raycast/box.vert", ShaderStage::Vertex, &[]),
+        geometry: None,
+        fragment: ShaderKey::new("raycast/box.frag", ShaderStage::Fragment, &[]),
+        state: GraphicsState {
+            vertex_stride: 0,
+            attributes: vec![],
+            topology: raw::PrimitiveTopology::TRIANGLE_LIST,
+            primitive_restart: false,
+            cull,
+            front_face: FRONT,
+            targets: vec![ColorTarget::rgba32f(Blend::None)],
+        },
+        push_constant_bytes: PUSH_BYTES,
+        sets: vec![set0_desc()],
+    })
+}
+
+fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
+    let SceneData::Volume(vol) = inputs.data else { bail!("raycast-fragment renders volumes only") };
+    let ctx = inputs.ctx;
+    let settings = Settings::from_options(inputs.options)?;
+    let res = VolumeResources::new(ctx, vol, inputs.tf, &settings, inputs.counter)?;
+    let entry = Image::render_target(ctx, "ray entry points", inputs.width, inputs.height)?;
+    let exit = Image::render_target(ctx, "ray exit points", inputs.width, inputs.height)?;
+    if !entry.usage.contains(raw::ImageUsageFlags::SAMPLED) {
+        bail!("device '{}' cannot sample RGBA32F render targets (needed for the entry/exit points)", ctx.info.name);
+    }
+    let sampler = Sampler::nearest_clamp(ctx, "entry/exit")?;
+    let fs = raw::ShaderStageFlags::FRAGMENT;
+    let points_desc = DescriptorSetDesc::new(&[(DescriptorKind::CombinedImageSampler, fs), (DescriptorKind::CombinedImageSampler, fs)]);
+    let points_set = DescriptorSet::new(
+        ctx,
+        "entry/exit points",
+        &points_desc,
+        &[DescriptorResource::CombinedImageSampler(&entry, &sampler), DescriptorResource::CombinedImageSampler(&exit, &sampler)],
+    )?;
+    let front_key = box_key(raw::CullModeFlags::BACK);
+    let back_key = box_key(raw::CullModeFlags::FRONT);
+    let defines = settings.defines();
+    let march_key = PipelineKey::Graphics(GraphicsPipelineKey {
+        vertex: ShaderKey::new("raycast/fullscreen.vert", ShaderStage::Vertex, &[]),
+        geometry: None,
+        fragment: ShaderKey::new("raycast/march.frag", ShaderStage::Fragment, &defines),
+        state: GraphicsState {
+            vertex_stride: 0,
+            attributes: vec![],
+            topology: raw::PrimitiveTopology::TRIANGLE_LIST,
+            primitive_restart: false,
+            cull: raw::CullModeFlags::NONE,
+            front_face: FRONT,
+            targets: vec![ColorTarget::rgba32f(Blend::None)],
+        },
+        push_constant_bytes: PUSH_BYTES,
+        sets: vec![set0_desc(), points_desc],
+    });
+    let get = |k: &PipelineKey| crate::algo::pipelines::get(ctx, k);
+    Ok(Box::new(RaycastFragment {
+        front: get(&front_key)?,
+        back: get(&back_key)?,
+        march: get(&march_key)?,
+        march_key,
+        res,
+        settings,
+        entry,
+        exit,
+        _sampler: sampler,
+        points_set,
+        box_push: Vec::new(),
+        march_push: Vec::new(),
+        pixels: inputs.width as u64 * inputs.height as u64,
+    }))
+}
+
+pub struct RaycastFragment {
+    front: Arc<Pipeline>,
+    back: Arc<Pipeline>,
+    march: Arc<Pipeline>,
+    march_key: PipelineKey,
+    res: VolumeResources,
+    settings: Settings,
+    entry: Image,
+    exit: Image,
+    _sampler: Sampler,
+    points_set: DescriptorSet,
+    box_push: Vec<u8>,
+    march_push: Vec<u8>,
+    pixels: u64,
+}
+
+impl RenderMethod for RaycastFragment {
+    fn prepare(&mut self, view: &View, _phases: &mut Phases) -> Result<()> {
+        self.box_push = self.res.push_constants(view, false);
+        self.march_push = self.res.push_constants(view, true);
+        Ok(())
+    }
+
+    fn upload(&mut self, _counter: &mut UploadCounter) -> Result<()> {
+        Ok(())
+    }
+
+    fn record(&mut self, rec: &CommandRecorder, target: &Image, _view: &View, counter: &mut UploadCounter) -> Result<()> {
+        self.res.record_clear(rec);
+        for (image, pipeline) in [(&self.entry, &self.front), (&self.exit, &self.back)] {
+            rec.begin_rendering_targets(&[ColorAttachment { image, clear: Some([0.0; 4]) }])?;
+            rec.bind_graphics(pipeline, &[&self.res.set])?;
+            rec.push_constants(pipeline, &self.box_push, counter);
+            rec.draw(36);
+            rec.end_rendering();
+            rec.image_barrier(image, ImageUse::Sampled);
+        }
+        rec.begin_rendering(target, [0.0; 4]);
+        rec.bind_graphics(&self.march, &[&self.res.set, &self.points_set])?;
+        rec.push_constants(&self.march, &self.march_push, counter);
+        rec.draw(3);
+        rec.end_rendering();
+        self.res.record_counters_to_host(rec);
+        Ok(())
+    }
+
+    fn work(&self) -> Work {
+        self.res.work(self.pixels)
+    }
+
+    fn details(&self) -> serde_json::Value {
+        self.res.details(
+            &self.settings,
+            json!({
+                "name": "fragment",
+                "passes": ["box front faces -> entry (RGBA32F)", "box back faces -> exit (RGBA32F)", "full-screen march"],
+                "pipeline": { "key": self.march_key.id(), "name": self.march_key.name() },
+            }),
+        )
+    }
+
+    fn table_build_ms(&self) -> f64 {
+        self.res.table_build_ms
+    }
+}

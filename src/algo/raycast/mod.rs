@@ -1,0 +1,472 @@
+//! Regular-grid GPU ray casting (SPEC §3, the lab of `seeds/004_*`): two
+//! registered methods sharing one march (`shaders/raycast/common.glsl`).
+//!
+//! - `raycast-fragment` ([`fragment`]): the lab's three passes. The bounding
+//!   box's front faces are drawn into one RGBA32F target and its back faces
+//!   into another (entry and exit points of every pixel's ray, in voxel
+//!   coordinates), then a full-screen pass marches each pixel from entry to
+//!   exit. The eye inside the box clips the front faces away: the ray then
+//!   starts on the near plane.
+//! - `raycast-compute` ([`compute`]): one compute pass; each invocation
+//!   clips its pixel's ray (near to far plane) to the box analytically and
+//!   runs the same march, writing the runner's target as a storage image.
+//!
+//! **Conventions** (the f64 reference's, `reference::volume`): node-centred
+//! samples, sample (i, j, k) at `Volume::position(i, j, k)`; voxel
+//! coordinates u = (p − origin) / spacing, the box is [0, dims − 1]; the 3D
+//! texture has texel centres at the samples (texture coordinate
+//! (u + 0.5) / dims). Anisotropic spacing is honoured by marching in voxel
+//! coordinates and converting each step to its world length for opacity.
+//!
+//! **March.** A segment of L voxels is cut into n = ⌈L / step⌉ equal steps
+//! (so no step exceeds `step` and the last one ends exactly at the exit),
+//! sampled at their middles (`integrator=point`), classified through a 1D
+//! table of colour and attenuation τ (f32, [`TABLE_SIZE`] entries over the
+//! volume's value range), with opacity 1 − exp(−τ·Δs_world): the lab's
+//! α' = 1 − (1 − α)^{Δs/Δs0} with α given per unit length. Front to back,
+//! premultiplied. `integrator=preint` looks segments up in a 2D
+//! pre-integration table over (front, back) scalar (Engel, Kraus, Ertl 2001)
+//! built in f64 with the reference's exact segment integral for a segment of
+//! [`preint_length`] world units; optical depth is scaled to the actual step
+//! (exact), colour per unit opacity is kept (exact when the world step equals
+//! the table's length: along the axis of smallest spacing at the full step).
+//!
+//! **Early termination and skipping.** The ray stops when its opacity passes
+//! `ert` (run-time; `ert=1` never triggers). With `skip=on` a grid of
+//! [`BRICK`]³-voxel bricks carries a flag per brick, made on the CPU from
+//! each brick's sample range (its samples and the next layer: the trilinear
+//! neighbourhood) against the transfer function. A point sample in an
+//! unflagged brick reads only samples whose attenuation is zero: it is
+//! stepped over without sampling and the image is unchanged. For `preint`
+//! the flags are dilated by one brick, so a segment (≤ one brick long)
+//! whose middle lies in an unflagged brick lies where the attenuation is
+//! zero everywhere. The flags are rebuilt whenever the
+//! transfer function changes (a method is built per transfer function).
+//!
+//! **Lighting** (`shade=on`, lab 6): Blinn-Phong with the central-difference
+//! gradient (±1 voxel) as normal, ambient 0.3, diffuse 0.7, specular 0.25,
+//! shininess 30; a headlight raised above the view direction. The lab
+//! transforms eye and light into texture space; with anisotropic spacing
+//! texture space is not isotropic, so here the gradient is converted to world
+//! units (divided by the spacing) and light and eye directions are given in
+//! world axes: the same angles as in world space. Only colour is shaded,
+//! opacity is not.
+//!
+//! **Counts.** Every ray adds its samples to a device counter (atomics; also
+//! the largest per ray, bricks stepped over and rays), read back after the
+//! frame: `work` reports them.
+
+pub mod compute;
+pub mod fragment;
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use anyhow::{bail, Context as _, Result};
+use glam::{DMat4, DVec3};
+use serde_json::json;
+
+use super::method::{OptionSpec, OptionValues, Options, View, Work};
+use crate::reference::integrate::integrate_segment;
+use crate::reference::volume::max_attenuation;
+use crate::scene::TransferFunction;
+use crate::volume::{Samples, Volume};
+use crate::vk::{
+    raw, upload_texture, Buffer, BufferDesc, CommandRecorder, Context, DescriptorKind, DescriptorResource, DescriptorSet,
+    DescriptorSetDesc, MemoryKind, Sampler, TextureDesc, UploadClass, UploadCounter,
+};
+
+/// Transfer-function table entries (1D) and pre-integration table side (2D).
+pub const TABLE_SIZE: usize = 1024;
+pub const PREINT_SIZE: usize = 256;
+/// Brick side in voxels for empty-space skipping.
+pub const BRICK: usize = 8;
+
+/// The options both variants share.
+pub const OPTIONS: &[OptionSpec] = &[
+    OptionSpec {
+        name: "step",
+        default: "0.5",
+        unit: "voxels",
+        values: OptionValues::Float { min: 0.05, max: 8.0 },
+        build_time: false,
+        help: "largest distance between samples along a ray, in voxel units (at most one brick)",
+    },
+    OptionSpec {
+        name: "ert",
+        default: "0.95",
+        unit: "",
+        values: OptionValues::Float { min: 0.5, max: 1.0 },
+        build_time: false,
+        help: "early ray termination: stop once the accumulated opacity passes this (1 = off)",
+    },
+    OptionSpec {
+        name: "shade",
+        default: "off",
+        unit: "",
+        values: OptionValues::Bool,
+        build_time: true,
+        help: "Blinn-Phong lighting from central-difference gradients",
+    },
+    OptionSpec {
+        name: "integrator",
+        default: "point",
+        unit: "",
+        values: OptionValues::Choice { values: &["point", "preint"] },
+        build_time: true,
+        help: "point samples (the lab) or pre-integrated segments (Engel, Kraus, Ertl 2001)",
+    },
+    OptionSpec {
+        name: "skip",
+        default: "on",
+        unit: "",
+        values: OptionValues::Bool,
+        build_time: true,
+        help: "empty-space skipping over 8^3-voxel bricks classified against the transfer function",
+    },
+];
+
+/// Sweep: step size x integrator x skip.
+pub const SWEEP: &[&str] = &[
+    "step=0.25",
+    "step=0.5",
+    "step=1",
+    "step=2",
+    "step=0.5,integrator=preint",
+    "step=1,integrator=preint",
+    "step=2,integrator=preint",
+    "step=0.5,skip=off",
+    "step=1,integrator=preint,skip=off",
+    "step=0.5,ert=1",
+];
+pub const COMPARE: &[&str] = &["", "shade=on", "integrator=preint,step=1"];
+
+/// The options as typed values.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Settings {
+    pub step: f64,
+    pub ert: f64,
+    pub shade: bool,
+    pub preint: bool,
+    pub skip: bool,
+}
+
+impl Settings {
+    pub fn from_options(o: &Options) -> Result<Settings> {
+        Ok(Settings {
+            step: o.float("step")?,
+            ert: o.float("ert")?,
+            shade: o.flag("shade")?,
+            preint: o.text("integrator")? == "preint",
+            skip: o.flag("skip")?,
+        })
+    }
+
+    /// The build-time options as shader defines.
+    pub fn defines(&self) -> Vec<(&'static str, &'static str)> {
+        let mut d = Vec::new();
+        if self.shade {
+            d.push(("SHADE", "1"));
+        }
+        if self.preint {
+            d.push(("PREINT", "1"));
+        }
+        if self.skip {
+            d.push(("SKIP", "1"));
+        }
+        d
+    }
+}
+
+/// World length the pre-integration table is built for: the full step along
+/// the axis of smallest spacing.
+pub fn preint_length(vol: &Volume, step: f64) -> f64 {
+    let s = vol.spacing();
+    step * s[0].min(s[1]).min(s[2])
+}
+
+/// The device-side volume: texture, tables, brick flags, counters and the
+/// static parameters (set 0 of both variants).
+pub struct VolumeResources {
+    pub set: DescriptorSet,
+    _volume: crate::vk::Image,
+    _tf: crate::vk::Image,
+    _preint: crate::vk::Image,
+    _params: Buffer,
+    _bricks: Buffer,
+    counters: Buffer,
+    _sampler: Sampler,
+    pub texture_format: &'static str,
+    pub brick_grid: [usize; 3],
+    pub bricks_visible: usize,
+    pub table_build_ms: f64,
+    pub dims: [usize; 3],
+    origin: DVec3,
+    spacing: DVec3,
+}
+
+/// Set 0's layout (both variants).
+pub fn set0_desc() -> DescriptorSetDesc {
+    let st = raw::ShaderStageFlags::FRAGMENT | raw::ShaderStageFlags::COMPUTE | raw::ShaderStageFlags::VERTEX;
+    DescriptorSetDesc::default()
+        .with(DescriptorKind::UniformBuffer, st)
+        .with(DescriptorKind::CombinedImageSampler, st)
+        .with(DescriptorKind::CombinedImageSampler, st)
+        .with(DescriptorKind::StorageBuffer, st)
+        .with(DescriptorKind::StorageBuffer, st)
+        .with(DescriptorKind::CombinedImageSampler, st)
+}
+
+/// Push constants: mat4 + eye + light.
+pub const PUSH_BYTES: u32 = 96;
+
+/// Counter words read back after every frame.
+const COUNTER_WORDS: usize = 4;
+
+fn f32_bytes(v: &[f32]) -> Vec<u8> {
+    v.iter().flat_map(|x| x.to_ne_bytes()).collect()
+}
+
+impl VolumeResources {
+    pub fn new(ctx: &Arc<Context>, vol: &Volume, tf: &TransferFunction, s: &Settings, counter: &mut UploadCounter) -> Result<Self> {
+        let dims = vol.dims();
+        let dims_u32: [u32; 3] = [0, 1, 2].map(|a| dims[a] as u32);
+        let max3 = ctx.info.max_image_dimension_3d as usize;
+        if dims.iter().any(|&d| d > max3) {
+            bail!("volume '{}': {:?} exceeds the device's 3D image limit {max3}", vol.name, dims);
+        }
+        if dims.iter().any(|&d| d < 2) {
+            bail!("volume '{}': {:?} has no extent along some axis (at least 2 samples per axis are needed)", vol.name, dims);
+        }
+        let linear = raw::FormatFeatureFlags::SAMPLED_IMAGE | raw::FormatFeatureFlags::SAMPLED_IMAGE_FILTER_LINEAR;
+        // Native formats where the device filters them; texel value v maps
+        // back to the sample as value = v * scale.
+        let native: Option<(raw::Format, &'static str, f64, Vec<u8>)> = match vol.samples() {
+            Samples::U8(v) => Some((raw::Format::R8_UNORM, "r8-unorm", 255.0, v.clone())),
+            Samples::U16(v) => Some((raw::Format::R16_UNORM, "r16-unorm", 65535.0, v.iter().flat_map(|x| x.to_ne_bytes()).collect())),
+            Samples::I16(v) if !v.contains(&i16::MIN) => {
+                Some((raw::Format::R16_SNORM, "r16-snorm", 32767.0, v.iter().flat_map(|x| x.to_ne_bytes()).collect()))
+            }
+            _ => None,
+        };
+        let (format, format_name, scale, bytes) = match native {
+            Some(n) if ctx.format_supports(n.0, linear) => n,
+            _ => (raw::Format::R32_SFLOAT, "r32-sfloat", 1.0, f32_bytes(&vol.to_f32())),
+        };
+        if !ctx.format_supports(format, linear) {
+            bail!("device '{}' cannot filter {format_name} 3D textures linearly", ctx.info.name);
+        }
+        let volume = upload_texture(ctx, &TextureDesc::d3(&format!("volume '{}'", vol.name), dims_u32, format), &bytes, counter)
+            .with_context(|| format!("uploading volume '{}'", vol.name))?;
+
+        let (lo, mut hi) = vol.range();
+        if !(hi > lo) {
+            hi = lo + 1.0;
+        }
+        let t0 = Instant::now();
+        let table: Vec<f32> = tf.table(TABLE_SIZE, lo, hi).concat();
+        let tf_img = upload_texture(ctx, &TextureDesc::d1("transfer function", TABLE_SIZE as u32, raw::Format::R32G32B32A32_SFLOAT), &f32_bytes(&table), counter)?;
+        // Pre-integration table over (front, back) in [lo, hi]^2, texel
+        // centres at the ends: premultiplied colour and optical depth of a
+        // segment of `d0` world units, exact (reference integral).
+        let d0 = preint_length(vol, s.step);
+        let n = if s.preint { PREINT_SIZE } else { 2 };
+        let mut pre = Vec::with_capacity(n * n * 4);
+        for b in 0..n {
+            for f in 0..n {
+                let sf = lo + (hi - lo) * f as f64 / (n - 1) as f64;
+                let sb = lo + (hi - lo) * b as f64 / (n - 1) as f64;
+                let seg = integrate_segment(tf, sf, sb, d0);
+                let depth = seg.optical_depth.min(1e30);
+                pre.extend([seg.color[0] as f32, seg.color[1] as f32, seg.color[2] as f32, depth as f32]);
+            }
+        }
+        let preint = upload_texture(ctx, &TextureDesc::d2("pre-integration table", n as u32, n as u32, raw::Format::R32G32B32A32_SFLOAT), &f32_bytes(&pre), counter)?;
+
+        // Brick flags: a brick covers voxel coordinates [8b, 8b + 8]; its
+        // samples there (9 per axis, the trilinear neighbourhood) give its
+        // range; flagged when the TF has attenuation anywhere in it. A point
+        // sample in a brick reads only those samples; a pre-integrated
+        // segment (<= one brick long) may reach into the neighbours, so for
+        // `preint` the flags are dilated by one brick (see the module note).
+        let grid = [0, 1, 2].map(|a| (dims[a] - 1).div_ceil(BRICK).max(1));
+        let count = grid[0] * grid[1] * grid[2];
+        let mut own = vec![false; count];
+        for bz in 0..grid[2] {
+            for by in 0..grid[1] {
+                for bx in 0..grid[0] {
+                    let (mut mn, mut mx) = (f64::INFINITY, f64::NEG_INFINITY);
+                    for k in bz * BRICK..=((bz + 1) * BRICK).min(dims[2] - 1) {
+                        for j in by * BRICK..=((by + 1) * BRICK).min(dims[1] - 1) {
+                            for i in bx * BRICK..=((bx + 1) * BRICK).min(dims[0] - 1) {
+                                let v = vol.value(i, j, k);
+                                mn = mn.min(v);
+                                mx = mx.max(v);
+                            }
+                        }
+                    }
+                    own[bx + grid[0] * (by + grid[1] * bz)] = max_attenuation(tf, mn, mx) > 0.0;
+                }
+            }
+        }
+        let mut flags = vec![0u32; count];
+        for bz in 0..grid[2] {
+            for by in 0..grid[1] {
+                for bx in 0..grid[0] {
+                    let mut any = false;
+                    for z in bz.saturating_sub(1)..=(bz + 1).min(grid[2] - 1) {
+                        for y in by.saturating_sub(1)..=(by + 1).min(grid[1] - 1) {
+                            for x in bx.saturating_sub(1)..=(bx + 1).min(grid[0] - 1) {
+                                any |= own[x + grid[0] * (y + grid[1] * z)];
+                            }
+                        }
+                    }
+                    let me = bx + grid[0] * (by + grid[1] * bz);
+                    flags[me] = if s.preint { any } else { own[me] } as u32;
+                }
+            }
+        }
+        let table_build_ms = t0.elapsed().as_secs_f64() * 1e3;
+        let bricks_visible = flags.iter().filter(|&&f| f != 0).count();
+        let flag_bytes: Vec<u8> = flags.iter().flat_map(|x| x.to_ne_bytes()).collect();
+        let mut bricks = Buffer::new(ctx, BufferDesc::upload("brick flags", flag_bytes.len() as u64, raw::BufferUsageFlags::STORAGE_BUFFER))?;
+        bricks.write(0, &flag_bytes, counter, UploadClass::Static)?;
+
+        let spacing = vol.spacing();
+        let tscale = scale / (hi - lo);
+        let params: [f32; 28] = [
+            (dims[0] - 1) as f32, (dims[1] - 1) as f32, (dims[2] - 1) as f32, BRICK as f32,
+            1.0 / dims[0] as f32, 1.0 / dims[1] as f32, 1.0 / dims[2] as f32, if s.preint { n as f32 } else { TABLE_SIZE as f32 },
+            spacing[0] as f32, spacing[1] as f32, spacing[2] as f32, s.step as f32,
+            tscale as f32, (-lo / (hi - lo)) as f32, s.ert as f32, d0 as f32,
+            grid[0] as f32, grid[1] as f32, grid[2] as f32, 0.0,
+            0.0, 0.0, 0.0, 0.0,
+            0.3, 0.7, 0.25, 30.0,
+        ];
+        let mut params_buf = Buffer::new(ctx, BufferDesc::upload("raycast parameters", 112, raw::BufferUsageFlags::UNIFORM_BUFFER))?;
+        params_buf.write(0, &f32_bytes(&params), counter, UploadClass::Static)?;
+        let counters = Buffer::new(
+            ctx,
+            BufferDesc {
+                name: "raycast counters".into(),
+                size: (COUNTER_WORDS * 4) as u64,
+                usage: raw::BufferUsageFlags::STORAGE_BUFFER | raw::BufferUsageFlags::TRANSFER_DST,
+                memory: MemoryKind::Readback,
+            },
+        )?;
+        let sampler = Sampler::linear_clamp(ctx, "raycast linear")?;
+        let set = DescriptorSet::new(
+            ctx,
+            "raycast volume",
+            &set0_desc(),
+            &[
+                DescriptorResource::UniformBuffer(&params_buf),
+                DescriptorResource::CombinedImageSampler(&volume, &sampler),
+                DescriptorResource::CombinedImageSampler(&tf_img, &sampler),
+                DescriptorResource::StorageBuffer(&bricks),
+                DescriptorResource::StorageBuffer(&counters),
+                DescriptorResource::CombinedImageSampler(&preint, &sampler),
+            ],
+        )?;
+        Ok(VolumeResources {
+            set,
+            _volume: volume,
+            _tf: tf_img,
+            _preint: preint,
+            _params: params_buf,
+            _bricks: bricks,
+            counters,
+            _sampler: sampler,
+            texture_format: format_name,
+            brick_grid: grid,
+            bricks_visible,
+            table_build_ms,
+            dims,
+            origin: vol.origin().into(),
+            spacing: spacing.into(),
+        })
+    }
+
+    /// voxel -> world.
+    fn world_from_voxel(&self) -> DMat4 {
+        DMat4::from_translation(self.origin) * DMat4::from_scale(self.spacing)
+    }
+
+    /// Push constants for the view: `m` (voxel -> clip, or NDC -> voxel),
+    /// the eye in voxel coordinates and the light direction (world axes).
+    pub fn push_constants(&self, view: &View, ndc_to_voxel: bool) -> Vec<u8> {
+        let vp = view.camera.view_proj(view.width, view.height);
+        let w = self.world_from_voxel();
+        let m = if ndc_to_voxel { w.inverse() * vp.inverse() } else { vp * w };
+        let eye = (DVec3::from(view.camera.eye) - self.origin) / self.spacing;
+        // A headlight raised a little above the view direction.
+        let fwd = view.camera.forward();
+        let light = (-fwd + DVec3::from(view.camera.up) * 0.5).normalize();
+        let mut v: Vec<f32> = m.to_cols_array().iter().map(|&x| x as f32).collect();
+        v.extend([eye.x as f32, eye.y as f32, eye.z as f32, view.camera.is_perspective() as u32 as f32]);
+        v.extend([light.x as f32, light.y as f32, light.z as f32, 0.0]);
+        f32_bytes(&v)
+    }
+
+    /// Clear the counters before the frame's passes.
+    pub fn record_clear(&self, rec: &CommandRecorder) {
+        rec.fill_buffer(&self.counters, 0);
+        rec.memory_barrier(
+            (raw::PipelineStageFlags2::CLEAR | raw::PipelineStageFlags2::COPY, raw::AccessFlags2::TRANSFER_WRITE),
+            (
+                raw::PipelineStageFlags2::COMPUTE_SHADER | raw::PipelineStageFlags2::FRAGMENT_SHADER,
+                raw::AccessFlags2::SHADER_STORAGE_READ | raw::AccessFlags2::SHADER_STORAGE_WRITE,
+            ),
+        );
+    }
+
+    /// Make the counters' writes visible to the host after the frame.
+    pub fn record_counters_to_host(&self, rec: &CommandRecorder) {
+        rec.memory_barrier(
+            (
+                raw::PipelineStageFlags2::COMPUTE_SHADER | raw::PipelineStageFlags2::FRAGMENT_SHADER,
+                raw::AccessFlags2::SHADER_STORAGE_WRITE,
+            ),
+            (raw::PipelineStageFlags2::HOST, raw::AccessFlags2::HOST_READ),
+        );
+    }
+
+    /// The last frame's counters: (total samples, max per ray, bricks skipped, rays).
+    pub fn counters(&self) -> [u64; COUNTER_WORDS] {
+        match self.counters.read() {
+            Ok(b) if b.len() >= COUNTER_WORDS * 4 => {
+                std::array::from_fn(|i| u32::from_ne_bytes([b[4 * i], b[4 * i + 1], b[4 * i + 2], b[4 * i + 3]]) as u64)
+            }
+            _ => [0; COUNTER_WORDS],
+        }
+    }
+
+    pub fn work(&self, pixels: u64) -> Work {
+        let [total, max, skipped, rays] = self.counters();
+        Work::default()
+            .with("pixels", pixels)
+            .with("rays", rays)
+            .with("samples", total)
+            .with("max_samples_per_ray", max)
+            .with("bricks_skipped", skipped)
+    }
+
+    pub fn details(&self, s: &Settings, variant: serde_json::Value) -> serde_json::Value {
+        let [total, max, skipped, rays] = self.counters();
+        json!({
+            "family": "raycast",
+            "variant": variant,
+            "texture_format": self.texture_format,
+            "dims": self.dims,
+            "step_voxels": s.step,
+            "ert": s.ert,
+            "table_size": if s.preint { PREINT_SIZE } else { TABLE_SIZE },
+            "brick": BRICK,
+            "brick_grid": self.brick_grid,
+            "bricks_visible": self.bricks_visible,
+            "samples_per_ray_mean": if rays > 0 { total as f64 / rays as f64 } else { 0.0 },
+            "samples_per_ray_max": max,
+            "bricks_skipped": skipped,
+        })
+    }
+}
