@@ -74,6 +74,21 @@ pub fn read_input_text(path: &Path, what: &str, max_bytes: u64) -> Result<String
     })
 }
 
+/// A message about a file's content, shortened to at most 300 bytes (on a
+/// character boundary): a bad token can be gigabytes of one "word", and an
+/// error message must stay readable.
+pub fn clip_message(text: &str) -> String {
+    const MAX: usize = 300;
+    if text.len() <= MAX {
+        return text.to_string();
+    }
+    let mut end = MAX;
+    while !text.is_char_boundary(end) {
+        end -= 1;
+    }
+    format!("{}… ({} more bytes)", &text[..end], text.len() - end)
+}
+
 /// Where an output goes.
 #[derive(Debug, Clone, PartialEq, Eq, Hash)]
 pub enum OutputTarget {
@@ -96,12 +111,26 @@ impl OutputTarget {
         if text.is_empty() {
             bail!("an output path is empty");
         }
-        if text.ends_with('/') {
+        if text.ends_with('/') || text.ends_with("/.") || text.ends_with("/..") || text == "." || text == ".." {
             bail!("{}: names a directory, expected a file name", path.display());
+        }
+        // /dev/stdout, /proc/self/fd/1 and the like name an open file of
+        // this process: written through, never replaced by a rename.
+        if text.starts_with("/dev/") || text.starts_with("/proc/") {
+            return match fs::metadata(path) {
+                Ok(m) if m.is_dir() => bail!("{}: is a directory, expected a file name", path.display()),
+                Ok(m) if is_blocking_special(&m) => bail!("{}: is a FIFO or socket; refusing to block on it", path.display()),
+                Ok(_) => Ok(OutputTarget::Special(path.to_path_buf())),
+                Err(e) => bail!("{}: cannot be written ({e})", path.display()),
+            };
         }
         match fs::metadata(path) {
             Ok(m) if m.is_dir() => bail!("{}: is a directory, expected a file name", path.display()),
             Ok(m) if m.is_file() => Ok(OutputTarget::File(path.to_path_buf())),
+            // A FIFO without a reader would block the process forever.
+            Ok(m) if is_blocking_special(&m) => {
+                bail!("{}: is a FIFO or socket; refusing to block on it (write to a regular file)", path.display())
+            }
             Ok(_) => Ok(OutputTarget::Special(path.to_path_buf())),
             Err(_) => {
                 if fs::symlink_metadata(path).is_ok() {
@@ -116,6 +145,11 @@ impl OutputTarget {
             }
         }
     }
+}
+
+fn is_blocking_special(m: &fs::Metadata) -> bool {
+    use std::os::unix::fs::FileTypeExt as _;
+    m.file_type().is_fifo() || m.file_type().is_socket()
 }
 
 fn parent_dir(path: &Path) -> PathBuf {
@@ -214,11 +248,8 @@ pub fn write_all(outputs: &[(&Path, &[u8])]) -> Result<()> {
             other => later.push((other, bytes)),
         }
     }
-    for (mut guard, real, path) in staged {
-        if let Some(tmp) = guard.0.take() {
-            fs::rename(&tmp, &real).with_context(|| format!("{}: cannot replace it", path.display()))?;
-        }
-    }
+    // What cannot be undone (devices, standard output) first: if it fails,
+    // no regular target has been touched yet.
     for (target, bytes) in later {
         match target {
             OutputTarget::Stdout => {
@@ -230,6 +261,11 @@ pub fn write_all(outputs: &[(&Path, &[u8])]) -> Result<()> {
                 f.write_all(bytes).with_context(|| format!("{}: write failed", p.display()))?;
             }
             OutputTarget::File(_) => {}
+        }
+    }
+    for (mut guard, real, path) in staged {
+        if let Some(tmp) = guard.0.take() {
+            fs::rename(&tmp, &real).with_context(|| format!("{}: cannot replace it", path.display()))?;
         }
     }
     Ok(())
@@ -251,14 +287,26 @@ impl OutputSet {
     pub fn add(&mut self, option: &str, path: &Path) -> Result<()> {
         let target = OutputTarget::of(path).with_context(|| format!("{option}"))?;
         let key = match &target {
-            OutputTarget::Stdout => PathBuf::from("-"),
-            OutputTarget::File(p) | OutputTarget::Special(p) => canonical_for_compare(p),
+            OutputTarget::Stdout => identity(Path::new("/dev/stdout")).unwrap_or_else(|| PathBuf::from("-")),
+            OutputTarget::File(p) | OutputTarget::Special(p) => identity(p).unwrap_or_else(|| canonical_for_compare(p)),
         };
         if !self.seen.insert(key) {
             bail!("{option} {}: another output of this command writes the same file", path.display());
         }
         Ok(())
     }
+}
+
+/// An existing file's identity (device and inode), so that `-`,
+/// `/dev/stdout` and the file standard output goes to are one output.
+fn identity(p: &Path) -> Option<PathBuf> {
+    use std::os::unix::fs::MetadataExt as _;
+    let m = fs::metadata(p).ok()?;
+    // Character devices such as /dev/null may be named twice harmlessly.
+    if !m.is_file() && !is_blocking_special(&m) {
+        return None;
+    }
+    Some(PathBuf::from(format!("inode:{}:{}", m.dev(), m.ino())))
 }
 
 /// A path's identity: canonical parent joined with the file name (the file
@@ -326,6 +374,26 @@ mod tests {
         assert!(e.contains("/dev/zero") && e.contains("not a regular file"), "{e}");
         let e = read_input(d.path(), "mesh", 100).unwrap_err().to_string();
         assert!(e.contains("directory"), "{e}");
+    }
+
+    #[test]
+    fn fifos_dot_paths_and_failing_devices_are_bounded_and_leave_nothing() {
+        let d = tempfile::tempdir().unwrap();
+        let fifo = d.path().join("f");
+        assert!(std::process::Command::new("mkfifo").arg(&fifo).status().unwrap().success());
+        let e = write_output(&fifo, b"x").unwrap_err().to_string();
+        assert!(e.contains("FIFO"), "{e}");
+        let dot = d.path().join("x.json/.");
+        assert!(write_output(&dot, b"x").unwrap_err().to_string().contains("directory"));
+        // A device that fails (/dev/full) is written before any rename.
+        let a = d.path().join("a.png");
+        assert!(write_all(&[(&a, b"png"), (Path::new("/dev/full"), b"json")]).is_err());
+        assert!(!a.exists());
+        assert_eq!(fs::read_dir(d.path()).unwrap().count(), 1, "only the FIFO");
+        // Standard output named twice.
+        let mut set = OutputSet::new();
+        set.add("--json", Path::new("-")).unwrap();
+        assert!(set.add("--png", Path::new("/dev/stdout")).is_err() || identity(Path::new("/dev/stdout")).is_none());
     }
 
     #[test]

@@ -291,6 +291,23 @@ fn list(registry: &Registry) -> Result<()> {
     Ok(())
 }
 
+/// Before any work: `dir` is a directory or can be made one, and the files
+/// a command writes there under fixed names can be written.
+fn check_out_dir(dir: &Path, files: &[&str]) -> Result<()> {
+    match std::fs::metadata(dir) {
+        Ok(m) if !m.is_dir() => bail!("--out {}: exists and is not a directory", dir.display()),
+        Ok(_) => {
+            let mut set = OutputSet::new();
+            for f in files {
+                set.add("--out", &dir.join(f))?;
+            }
+            Ok(())
+        }
+        Err(_) if std::fs::symlink_metadata(dir).is_ok() => bail!("--out {}: is a dangling symbolic link", dir.display()),
+        Err(_) => Ok(()),
+    }
+}
+
 fn run(cli: &Cli, registry: &Registry, args: &RunArgs) -> Result<()> {
     let cfg = args.frame.config()?;
     let spec = registry.parse_spec(&args.method, &args.frame.method.pairs()).with_context(|| format!("--method {}", args.method))?;
@@ -315,9 +332,10 @@ fn run(cli: &Cli, registry: &Registry, args: &RunArgs) -> Result<()> {
         diff = Some(out.attach_error(&reference)?);
     }
     let row = ComparisonRow { label: spec.label(), dataset: dataset.name.clone(), outcome: Ok(&out.result), rmse_vs_first: None };
-    // The table goes to stderr when the JSON goes to stdout.
+    // The table goes to stderr when an output goes to stdout.
     let table = report::comparison_table(&[row], &registry.published());
-    if args.json.as_deref() == Some(Path::new("-")) {
+    let to_stdout = [&args.json, &args.png, &args.diff_png].iter().any(|p| p.as_deref() == Some(Path::new("-")));
+    if to_stdout {
         eprint!("{table}");
     } else {
         print!("{table}");
@@ -349,10 +367,13 @@ fn compare(cli: &Cli, registry: &Registry, args: &CompareArgs) -> Result<()> {
     }
     sweep::check_compare_outputs(&jobs)?;
     if let Some(dir) = &args.out {
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        check_out_dir(dir, &["comparison.md"])?;
     }
     let ctx = context(cli)?;
     cfg.check_device(&ctx.info)?;
+    if let Some(dir) = &args.out {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
     let rows = sweep::compare(&ctx, registry, &jobs, &cfg, args.out.as_deref())?;
     println!("device: {} ({}, {})", ctx.info.name, ctx.info.driver_name, ctx.info.driver_info);
     print!("{}", sweep::comparison_markdown(&rows, registry)?);
@@ -369,6 +390,7 @@ fn pareto(cli: &Cli, registry: &Registry, args: &ParetoArgs) -> Result<()> {
     let tf = args.frame.transfer_function(&dataset)?;
     let specs = sweep::pareto_specs(registry, &args.methods, dataset.kind(), &args.frame.method.pairs())?;
     let out_dir = args.out.clone().unwrap_or_else(|| PathBuf::from(format!("results/runs/pareto-{}", dataset.name)));
+    check_out_dir(&out_dir, &["pareto.csv", "pareto.md", "pareto.png"])?;
     let ctx = context(cli)?;
     cfg.check_device(&ctx.info)?;
     std::fs::create_dir_all(&out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
@@ -416,10 +438,10 @@ fn stress(cli: &Cli, registry: &Registry, args: &StressArgs) -> Result<()> {
             }
         }
     })?;
+    print!("{}", stress_table(&rows));
     if let Some(e) = write_error {
         return Err(e);
     }
-    print!("{}", stress_table(&rows));
     let failed = failures(&rows);
     let non_finite: usize = rows.iter().map(|r| r.nan_pixels + r.inf_pixels).sum();
     println!("{} renders, {} NaN/Inf pixels, {} failed", rows.len(), non_finite, failed);
@@ -434,6 +456,7 @@ fn suite(cli: &Cli, registry: &Registry, args: &SuiteArgs) -> Result<()> {
     let settings = SuiteSettings::standard(args.quick, args.filter.clone());
     let plan = plan(registry, &settings)?;
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from(format!("results/{}", utc_now())));
+    check_out_dir(&out, &["summary.json", "summary.csv", "report.md", "montage.png"])?;
     let ctx = context(cli)?;
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
     // A progress bar with ETA on a terminal, plain lines otherwise.

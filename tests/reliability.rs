@@ -190,3 +190,44 @@ fn options_a_method_does_not_have_are_errors() {
     let o = run_bounded(volbench().args(["pareto", "--data", "post-small", "--integrator", "bogus"]));
     assert_error(&o, &["integrator", "bogus"]);
 }
+
+#[test]
+fn second_red_team_pass() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("o");
+    std::fs::create_dir(&out).unwrap();
+    // A FIFO output is refused up front (it would block without a reader).
+    let fifo = out.join("f.json");
+    assert!(Command::new("mkfifo").arg(&fifo).status().unwrap().success());
+    let o = run_bounded(small_run(d.path()).arg("--png").arg(out.join("a.png")).arg("--json").arg(&fifo));
+    assert_error(&o, &["f.json", "FIFO"]);
+    // `name/.` names a directory.
+    let o = run_bounded(small_run(d.path()).arg("--json").arg(out.join("x.json/.")));
+    assert_error(&o, &["x.json/.", "directory"]);
+    // A device that fails is written before anything is renamed: no PNG.
+    let o = run_bounded(small_run(d.path()).arg("--png").arg(out.join("b.png")).args(["--json", "/dev/full"]));
+    assert_error(&o, &["/dev/full"]);
+    let names = names_in(&out);
+    assert_eq!(names, ["f.json"], "nothing written, no temporary file: {names:?}");
+    // A key given twice in one spec.
+    let o = run_bounded(volbench().args(["run", "--data", "post-small", "--method", "balanced:integrator=ppi,integrator=preint"]));
+    assert_error(&o, &["integrator", "twice"]);
+    // An attenuation that underflows what f32 opacity resolves.
+    let tf = d.path().join("faint.json");
+    std::fs::write(&tf, r#"{"points": [{"scalar": 0, "color": [1, 1, 1], "attenuation": 1e-300}]}"#).unwrap();
+    let o = run_bounded(small_run(d.path()).arg("--tf").arg(&tf));
+    assert_error(&o, &["faint.json", "visible"]);
+    // --out that is a regular file: named, before anything runs.
+    let file = d.path().join("afile");
+    std::fs::write(&file, b"x").unwrap();
+    let o = run_bounded(volbench().args(["compare", "--data", "post-small", "--method", "vicp", "--out"]).arg(&file));
+    assert_error(&o, &["afile", "not a directory"]);
+    // A huge bad token is quoted short.
+    let mut bytes = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/data/unstructured/post_tets_vtkdata.vtk")).unwrap();
+    bytes.extend(std::iter::repeat_n(b'X', 200_000));
+    let big = d.path().join("trail.vtk");
+    std::fs::write(&big, &bytes).unwrap();
+    let o = run_bounded(volbench().args(["run", "--method", "vicp", "--data"]).arg(&big));
+    assert_error(&o, &["trail.vtk"]);
+    assert!(stderr(&o).len() < 2000, "{} bytes of message", stderr(&o).len());
+}

@@ -67,8 +67,14 @@ fn table_side(integrator: Integrator, table_size: usize) -> usize {
 /// any `usize` gives an answer). `table_size` 0 means the integrator's
 /// default. Called by every table builder here, so no path bypasses it.
 pub fn check_table_size(integrator: Integrator, table_size: usize) -> anyhow::Result<()> {
+    check_table_size_within(integrator, table_size, MAX_TABLE_BYTES, "volbench's table limit")
+}
+
+/// [`check_table_size`] against `limit` bytes (`why` names the limit, e.g.
+/// the device's storage-buffer range).
+pub fn check_table_size_within(integrator: Integrator, table_size: usize, limit: u64, why: &str) -> anyhow::Result<()> {
     let side = table_side(integrator, table_size);
-    let fits = |s: usize| table_bytes(integrator, s).is_some_and(|(b, _)| b <= MAX_TABLE_BYTES as u128);
+    let fits = |s: usize| table_bytes(integrator, s).is_some_and(|(b, _)| b <= limit as u128);
     if fits(side) {
         return Ok(());
     }
@@ -87,10 +93,10 @@ pub fn check_table_size(integrator: Integrator, table_size: usize) -> anyhow::Re
         None => "more bytes than 2^128".to_string(),
     };
     anyhow::bail!(
-        "--table-size {table_size} for {}: the table would take {implied}, more than the limit of \
-         {MAX_TABLE_BYTES} bytes ({} MiB); the largest accepted --table-size for {} is {ok}",
+        "--table-size {table_size} for {}: the table would take {implied}, more than {why} of \
+         {limit} bytes ({} MiB); the largest accepted --table-size for {} here is {ok}",
         integrator.name(),
-        MAX_TABLE_BYTES >> 20,
+        limit >> 20,
         integrator.name()
     )
 }
@@ -262,6 +268,9 @@ impl IntegrationTables {
         counter: &mut UploadCounter,
     ) -> anyhow::Result<Self> {
         check_table_size(integrator, table_size)?;
+        // The table is one storage buffer: it must fit the device's range.
+        let range_limit = u64::from(ctx.info.max_storage_buffer_range);
+        check_table_size_within(integrator, table_size, range_limit, "the device's storage-buffer range (maxStorageBufferRange)")?;
         let t0 = std::time::Instant::now();
         let (lo, hi) = if range.1 > range.0 { range } else { (range.0, range.0 + 1.0) };
         let tf_table = tf.table(TF_TABLE_SIZE, lo, hi);

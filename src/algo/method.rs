@@ -380,7 +380,8 @@ impl MethodInfo {
 /// Parse `key=value,key=value` (empty: none) into pairs; a pair without `=`
 /// is an error naming it.
 pub fn parse_pairs(text: &str) -> Result<Vec<(&str, &str)>> {
-    text.split(',')
+    let pairs: Vec<(&str, &str)> = text
+        .split(',')
         .map(str::trim)
         .filter(|p| !p.is_empty())
         .map(|p| {
@@ -389,5 +390,12 @@ pub fn parse_pairs(text: &str) -> Result<Vec<(&str, &str)>> {
                 .filter(|(k, _)| !k.is_empty())
                 .ok_or_else(|| anyhow::anyhow!("'{p}' is not key=value"))
         })
-        .collect()
+        .collect::<Result<_>>()?;
+    // A key given twice in one spec is a typo, not an override.
+    for (i, (k, _)) in pairs.iter().enumerate() {
+        if pairs[..i].iter().any(|(j, _)| j == k) {
+            bail!("option '{k}' is given twice");
+        }
+    }
+    Ok(pairs)
 }

@@ -166,6 +166,8 @@ mod tests {
         assert!(e.contains("unknown method 'nosuch'") && e.contains("balanced"), "{e}");
         let e = r.parse_spec("vicp:ppi", &[]).unwrap_err().to_string();
         assert!(e.contains("not key=value"), "{e}");
+        let e = r.parse_spec("balanced:integrator=ppi,integrator=preint", &[]).unwrap_err().to_string();
+        assert!(e.contains("'integrator' is given twice"), "{e}");
         // Shorthand flags apply, and the spec's own pairs win over them.
         let s = r.parse_spec("vicp:sort=mpvo", &[("sort", "centroid".into()), ("integrator", "average".into())]).unwrap();
         assert_eq!(s.options.text("sort").unwrap(), "mpvo");

@@ -14,7 +14,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::Result;
+use anyhow::{Context as _, Result};
 use sha2::{Digest as _, Sha256};
 
 use super::datasets::{hex, Dataset};
@@ -131,21 +131,25 @@ pub fn reference_image(dataset: &Dataset, tf: &TransferFunction, camera: &Camera
         tf.name
     );
     let mut recomputed = None;
-    if let Ok(bytes) = crate::fsio::read_input(&path, "reference cache entry", 16 * (width as u64 * height as u64) + (1 << 20)) {
-        match decode(&bytes, &key, width, height) {
-            Ok(image) => return Ok(Reference { image, what, compute_ms: 0.0, cached: true, recomputed: None }),
-            Err(why) => {
-                eprintln!("volbench: reference cache entry {} not used: {why}; recomputing", path.display());
-                recomputed = Some(why);
-            }
-        }
+    if std::fs::symlink_metadata(&path).is_ok() {
+        // Something is there: use it only if it is a valid entry for this key.
+        let limit = 16 * (width as u64 * height as u64) + (1 << 20);
+        let why = match crate::fsio::read_input(&path, "reference cache entry", limit) {
+            Ok(bytes) => match decode(&bytes, &key, width, height) {
+                Ok(image) => return Ok(Reference { image, what, compute_ms: 0.0, cached: true, recomputed: None }),
+                Err(why) => why,
+            },
+            Err(e) => format!("{e:#}"),
+        };
+        eprintln!("volbench: reference cache entry {} not used: {why}; recomputing", path.display());
+        recomputed = Some(why);
     }
     let start = Instant::now();
     let pixels = dataset.reference_image(tf, camera, width, height)?;
     let image = RgbaImage { width, height, pixels };
     let compute_ms = start.elapsed().as_secs_f64() * 1e3;
     let written = std::fs::create_dir_all(cache_dir())
-        .map_err(anyhow::Error::from)
+        .with_context(|| format!("creating the cache directory {}", cache_dir().display()))
         .and_then(|()| crate::fsio::write_output(&path, &encode(&key, &image)));
     if let Err(e) = written {
         eprintln!("volbench: warning: reference cache not written: {e:#}");

@@ -469,7 +469,10 @@ fn check_image(image: &RgbaImage, dataset: &Dataset, tf: &TransferFunction, cfg:
     let bad = image.non_finite_pixels();
     anyhow::ensure!(bad == 0, "'{}': {bad} pixels of the image are NaN or Inf", dataset.name);
     let (lo, hi) = dataset.scalar_range();
-    if image.covered_pixels() == 0 && cfg.fixed_camera.is_none() && tf.visible_over(lo, hi, dataset.bounds().diagonal()) {
+    // Images of a few pixels a side may legitimately miss a dataset between
+    // their pixel centres; the check needs at least 8 on each side.
+    let big_enough = image.width >= 8 && image.height >= 8;
+    if image.covered_pixels() == 0 && big_enough && cfg.fixed_camera.is_none() && tf.visible_over(lo, hi, dataset.bounds().diagonal()) {
         anyhow::bail!(
             "'{}' rendered an empty image although the camera frames it and transfer function '{}' is not \
              transparent over its scalar range [{lo}, {hi}]",

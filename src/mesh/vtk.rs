@@ -181,7 +181,7 @@ struct Reader<'a> {
 
 impl<'a> Reader<'a> {
     fn err(&self, msg: impl std::fmt::Display) -> anyhow::Error {
-        anyhow!("{}: {} (at byte {})", self.name, msg, self.pos)
+        anyhow!("{}: {} (at byte {})", self.name, crate::fsio::clip_message(&msg.to_string()), self.pos)
     }
 
     fn skip_ws(&mut self) {

@@ -324,6 +324,17 @@ pub fn parse_tf(
              attenuation in the emission-absorption model)"
         );
     }
+    // Not zero, but too small to show: across the whole mesh no point would
+    // reach an opacity f32 resolves (the same rule the runner uses to tell
+    // a wrong empty image from a right one).
+    let probe = TransferFunction { name: String::new(), points: points.clone() };
+    let (first, last) = probe.scalar_range();
+    if mesh_diagonal.is_finite() && mesh_diagonal > 0.0 && !probe.visible_over(first.min(lo), last.max(hi), mesh_diagonal) {
+        bail!(
+            "{source}: the largest attenuation times the mesh diagonal ({mesh_diagonal:e}) is below 1e-4: nothing \
+             would be visible (attenuation underflows what f32 opacity resolves)"
+        );
+    }
     Ok(TransferFunction { name: spec.name.unwrap_or_else(|| default_name.to_string()), points })
 }
 

@@ -148,7 +148,7 @@ pub fn parse_nrrd_bytes(name: &str, bytes: &[u8], load_data: &mut dyn FnMut(&str
     let magic_end = bytes.iter().position(|&c| c == b'\n').unwrap_or(bytes.len());
     let magic = &bytes[..magic_end];
     let magic = magic.strip_suffix(b"\r").unwrap_or(magic);
-    if !(magic.len() == 8 && magic.starts_with(b"NRRD000") && (b'1'..=b'9').contains(&magic[7])) {
+    if !(magic.len() == 8 && magic.starts_with(b"NRRD000") && (b'1'..=b'5').contains(&magic[7])) {
         bail!(
             "{name}: not a NRRD file: the first line is '{}', expected NRRD0001 to NRRD0005",
             String::from_utf8_lossy(&magic[..magic.len().min(40)]).escape_debug()
