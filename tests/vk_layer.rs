@@ -930,7 +930,10 @@ fn the_pipeline_cache_shares_equal_keys_and_ids_are_stable() {
 
 #[test]
 fn dropping_an_unsubmitted_recorder_returns_promptly() {
-    let ctx = context().clone();
+    // Hold the lock while the worker uses the context: the command pool is
+    // shared, and Vulkan requires it to be used from one thread at a time.
+    let guard = context();
+    let ctx = guard.clone();
     let (tx, rx) = mpsc::channel();
     let worker = std::thread::spawn(move || {
         // Begun, never submitted.
@@ -963,7 +966,7 @@ fn dropping_an_unsubmitted_recorder_returns_promptly() {
     // Watchdog: before the fix each drop waited forever on an unsignalled fence.
     rx.recv_timeout(Duration::from_secs(30)).expect("dropping unsubmitted recorders must not wait");
     worker.join().unwrap();
-    assert_no_validation(&context());
+    assert_no_validation(&guard);
 }
 
 #[test]
