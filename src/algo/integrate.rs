@@ -330,8 +330,8 @@ mod tests {
         assert!(
             e.contains("--table-size 512 for preint")
                 && e.contains("536870912 bytes (512.0 MiB: 512 x 512 scalar pairs x 128 lengths x 16 bytes)")
-                && e.contains("limit of 268435456 bytes (256 MiB)")
-                && e.contains("largest accepted --table-size for preint is 407"),
+                && e.contains("table limit of 268435456 bytes (256 MiB)")
+                && e.contains("largest accepted --table-size for preint here is 407"),
             "{e}"
         );
         let e = check_table_size(Integrator::Preint, 2048).unwrap_err().to_string();
