@@ -63,7 +63,8 @@ pub fn comparison_table(rows: &[ComparisonRow], published: &[crate::algo::method
             .map_or(("-".into(), "-".into()), |e| (format!("{:.2e}", e.rmse), format!("{:.2e}", e.max_abs)));
         // The method's own CPU phases (sort, pack, ...) together.
         let runner = ["frame", "gpu", "upload", "record", "submit", "wait"];
-        let prep: f64 = t.phases.iter().filter(|(k, _)| !runner.contains(&k.as_str())).map(|(_, v)| v.median).sum();
+        // (+ 0.0: an empty float sum is -0.0.)
+        let prep: f64 = t.phases.iter().filter(|(k, _)| !runner.contains(&k.as_str())).map(|(_, v)| v.median).sum::<f64>() + 0.0;
         let frame = t.phase("frame");
         let _ = writeln!(
             s,
