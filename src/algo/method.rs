@@ -194,6 +194,8 @@ impl Options {
 pub enum Feature {
     GeometryShader,
     PipelineStatistics,
+    /// Storage-buffer writes and atomics in the fragment stage.
+    FragmentStoresAndAtomics,
 }
 
 impl Feature {
@@ -202,6 +204,7 @@ impl Feature {
         let ok = match self {
             Feature::GeometryShader => info.features.geometry_shader,
             Feature::PipelineStatistics => info.features.pipeline_statistics_query,
+            Feature::FragmentStoresAndAtomics => info.features.fragment_stores_and_atomics,
         };
         if ok {
             Ok(())
@@ -214,6 +217,7 @@ impl Feature {
         match self {
             Feature::GeometryShader => "the geometry-shader stage (geometryShader)",
             Feature::PipelineStatistics => "pipeline-statistics queries (pipelineStatisticsQuery)",
+            Feature::FragmentStoresAndAtomics => "fragment-stage storage writes and atomics (fragmentStoresAndAtomics)",
         }
     }
 }

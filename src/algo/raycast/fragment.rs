@@ -11,7 +11,7 @@ use anyhow::{bail, Result};
 use serde_json::json;
 
 use super::{set0_desc, Settings, VolumeResources, COMPARE, OPTIONS, PUSH_BYTES, SWEEP};
-use crate::algo::method::{DataKind, MethodInfo, MethodInputs, Phases, RenderMethod, SceneData, View, Work};
+use crate::algo::method::{DataKind, Feature, MethodInfo, MethodInputs, Phases, RenderMethod, SceneData, View, Work};
 use crate::vk::{
     raw, Blend, ColorAttachment, ColorTarget, CommandRecorder, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc,
     GraphicsPipelineKey, GraphicsState, Image, ImageUse, Pipeline, PipelineKey, Sampler, ShaderKey, ShaderStage, UploadCounter,
@@ -22,7 +22,8 @@ pub const METHOD: MethodInfo = MethodInfo {
     data: DataKind::Volume,
     summary: "GPU ray casting as in the lab: box front/back faces into entry/exit targets, then a full-screen march",
     options: OPTIONS,
-    features: &[],
+    // The march counts its samples with storage-buffer atomics.
+    features: &[Feature::FragmentStoresAndAtomics],
     sweep: SWEEP,
     compare: COMPARE,
     stress: &[],
