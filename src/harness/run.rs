@@ -539,15 +539,16 @@ pub fn run(ctx: &Arc<Context>, spec: &MethodSpec, dataset: &Dataset, tf: &Transf
         work.0.iter().map(|(&k, &n)| (k, if median_s > 0.0 { n as f64 / median_s } else { 0.0 })).collect();
     let cells_per_second = per_second.get("cells").copied().unwrap_or(0.0);
     let time_ms = TimeReport { phases, setup_ms: session.setup_ms, table_build_ms: method.table_build_ms(), samples: samples.0 };
+    let summary = dataset.summary();
     let result = RunResult {
         schema_version: SCHEMA_VERSION,
         method: spec.info.name,
         spec: spec.canonical(),
         options: spec.options.clone(),
-        dataset: dataset.summary(),
         mesh: dataset.name.clone(),
-        cells: dataset.summary().counts.get("cells").copied(),
-        points: dataset.summary().counts.get("points").copied(),
+        cells: summary.counts.get("cells").copied(),
+        points: summary.counts.get("points").copied(),
+        dataset: summary,
         width: cfg.width,
         height: cfg.height,
         frames: cfg.frames,
