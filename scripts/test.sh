@@ -1,10 +1,20 @@
 #!/usr/bin/env bash
-# The test command: installs what the tests need (scripts/setup.sh), then runs
+# The test command: installs what the tests need (scripts/setup.sh), runs
 # every test with the Vulkan validation layer on (GPU tests fail on any
-# validation message, including synchronization validation).
+# validation message, including synchronization validation), then the quick
+# suite and `volbench compare` against the committed baseline
+# (results/baseline/quick/): counts must match exactly and errors must not
+# grow; times are not compared (shared runners are noisy).
+# Arguments go to `cargo test` and skip the suite step (a developer's subset).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 export VOLBENCH_VALIDATION=1
 export VK_LAYER_ENABLES=VK_VALIDATION_FEATURE_ENABLE_SYNCHRONIZATION_VALIDATION_EXT
 cargo test --locked "$@"
+if [ $# -eq 0 ]; then
+    # cargo test built target/debug/volbench for the CLI tests: the same binary.
+    out="$(mktemp -d)/quick"
+    ./target/debug/volbench suite --quick --out "$out"
+    ./target/debug/volbench compare results/baseline/quick/summary.json "$out/summary.json" --no-times
+fi

@@ -173,6 +173,25 @@ struct CompareArgs {
     /// Directory for JSON results, PNGs and the Markdown table.
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Benchmark tracking instead: `compare BASELINE NEW`, two suite
+    /// `summary.json` files. Counts must match exactly, errors must not grow
+    /// beyond tolerance, frame-time ratios between methods must stay inside
+    /// their noise bands; exits non-zero on a regression.
+    #[arg(
+        value_name = "SUMMARY",
+        num_args = 2,
+        conflicts_with_all = ["data", "methods", "out", "size", "frames", "warmup", "projection", "orbit_step", "no_overlap", "tf", "integrator", "table_size", "sort", "interpolation"]
+    )]
+    summaries: Vec<PathBuf>,
+    /// Tracking: compare counts and errors only, not times (shared CI runners).
+    #[arg(long, requires = "summaries")]
+    no_times: bool,
+    /// Tracking: write NEW's figures in Bencher Metric Format.
+    #[arg(long, requires = "summaries", value_name = "FILE")]
+    bmf: Option<PathBuf>,
+    /// Tracking: write NEW's figures as github-action-benchmark `customSmallerIsBetter` JSON.
+    #[arg(long, requires = "summaries", value_name = "FILE")]
+    gha: Option<PathBuf>,
 }
 
 #[derive(Args)]
@@ -355,6 +374,9 @@ fn run(cli: &Cli, registry: &Registry, args: &RunArgs) -> Result<()> {
 }
 
 fn compare(cli: &Cli, registry: &Registry, args: &CompareArgs) -> Result<()> {
+    if let [baseline, new] = args.summaries.as_slice() {
+        return track(baseline, new, args);
+    }
     let cfg = RunConfig { diagnostics: true, ..args.frame.config()? };
     // Load (and so validate) every dataset, transfer function and spec
     // before any output is written or Vulkan starts.
@@ -380,6 +402,35 @@ fn compare(cli: &Cli, registry: &Registry, args: &CompareArgs) -> Result<()> {
     let failed = rows.iter().filter(|r| r.outcome.is_err() && !r.skipped).count();
     if failed > 0 {
         bail!("{failed} of {} runs failed (see the table)", rows.len());
+    }
+    Ok(())
+}
+
+/// `compare BASELINE NEW`: benchmark tracking between two suite summaries.
+fn track(baseline: &Path, new: &Path, args: &CompareArgs) -> Result<()> {
+    use volbench::harness::track;
+    let (b, n) = (track::load(baseline)?, track::load(new)?);
+    let mut outputs = OutputSet::new();
+    for (option, p) in [("--bmf", &args.bmf), ("--gha", &args.gha)] {
+        if let Some(p) = p {
+            outputs.add(option, p)?;
+        }
+    }
+    let tol = track::Tolerances { times: !args.no_times, ..track::Tolerances::default() };
+    let c = track::compare(&b, &n, &tol)?;
+    println!("baseline {} ({}), new {} ({})", baseline.display(), b.environment.git_sha, new.display(), n.environment.git_sha);
+    print!("{}", c.table());
+    let mut files: Vec<(&Path, Vec<u8>)> = Vec::new();
+    if let Some(p) = &args.bmf {
+        files.push((p, report::json_bytes(&track::bmf(&n))?));
+    }
+    if let Some(p) = &args.gha {
+        files.push((p, report::json_bytes(&track::gha(&n))?));
+    }
+    fsio::write_all(&files.iter().map(|(p, b)| (*p, b.as_slice())).collect::<Vec<_>>())?;
+    let r = c.regressions();
+    if r > 0 {
+        bail!("{r} regression{} against {}", if r == 1 { "" } else { "s" }, baseline.display());
     }
     Ok(())
 }

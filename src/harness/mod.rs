@@ -14,3 +14,4 @@ pub mod stats;
 pub mod stress;
 pub mod suite;
 pub mod sweep;
+pub mod track;

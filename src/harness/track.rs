@@ -1,0 +1,556 @@
+//! `volbench compare BASELINE NEW`: benchmark tracking between two suite
+//! summaries (`summary.json`), as CI needs it.
+//!
+//! Three kinds of figure, three rules:
+//! - **counts** (bytes uploaded per frame and per cell, static bytes,
+//!   pipeline statistics, work counts such as samples per ray, covered
+//!   pixels) are deterministic on one device and must match exactly. Counts
+//!   that depend on shader arithmetic or rasterisation may differ in the last
+//!   digits on another device (another CPU behind lavapipe); there they get
+//!   [`Tolerances::count_rel_other_device`] and the line says why.
+//! - **errors** (RMSE against the f64 reference) must not grow by more than
+//!   `max(rmse_abs, rmse_rel × baseline)`; non-finite pixels must stay zero.
+//! - **times** are compared as ratios between methods on one dataset inside
+//!   each run (machines differ by 30 % and more; ratios inside a run do not),
+//!   each with a distribution-free 95 % confidence band of its medians, and
+//!   absolute frame times only when the device, driver and CPU match. A time
+//!   regresses when the bands do not overlap and the change exceeds
+//!   `time_margin`.
+//!
+//! It also exports the new summary in Bencher Metric Format and as
+//! github-action-benchmark's `customSmallerIsBetter` JSON.
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::Path;
+
+use anyhow::{bail, ensure, Context as _, Result};
+use serde::Deserialize;
+use serde_json::{json, Value};
+
+use crate::fsio;
+
+/// The thresholds `compare` applies.
+#[derive(Debug, Clone, Copy)]
+pub struct Tolerances {
+    /// An RMSE may grow by this much in absolute terms...
+    pub rmse_abs: f64,
+    /// ...or by this fraction of the baseline's, whichever is larger.
+    pub rmse_rel: f64,
+    /// Relative tolerance of arithmetic-dependent counts across devices.
+    pub count_rel_other_device: f64,
+    /// A time (ratio or absolute) must move by more than this fraction,
+    /// outside both noise bands, to count.
+    pub time_margin: f64,
+    /// Compare times at all (CI on shared runners compares counts and errors only).
+    pub times: bool,
+}
+
+impl Default for Tolerances {
+    fn default() -> Self {
+        Tolerances { rmse_abs: 1e-4, rmse_rel: 0.05, count_rel_other_device: 1e-3, time_margin: 0.10, times: true }
+    }
+}
+
+/// The part of `summary.json` tracking reads (other fields are ignored, so
+/// older and newer summaries of schema 2 both load).
+#[derive(Debug, Deserialize)]
+pub struct SummaryFile {
+    pub environment: EnvironmentFile,
+    pub settings: SettingsFile,
+    pub runs: Vec<RowFile>,
+}
+
+#[derive(Debug, Deserialize)]
+pub struct EnvironmentFile {
+    pub device: DeviceFile,
+    #[serde(default)]
+    pub cpu_model: String,
+    #[serde(default)]
+    pub git_sha: String,
+}
+
+#[derive(Debug, Deserialize)]
+pub struct DeviceFile {
+    pub name: String,
+    pub driver_info: String,
+}
+
+#[derive(Debug, Deserialize, PartialEq)]
+pub struct SettingsFile {
+    pub width: u32,
+    pub height: u32,
+    pub orbit_step_deg: f64,
+    pub quick: bool,
+}
+
+#[derive(Debug, Deserialize)]
+pub struct RowFile {
+    pub dataset: String,
+    pub method: String,
+    pub status: String,
+    #[serde(default)]
+    pub message: Option<String>,
+    #[serde(default)]
+    pub result: Option<ResultFile>,
+}
+
+#[derive(Debug, Deserialize)]
+pub struct ResultFile {
+    pub spec: String,
+    pub upload: UploadFile,
+    #[serde(default)]
+    pub stats: Option<BTreeMap<String, u64>>,
+    pub work: BTreeMap<String, Value>,
+    pub time_ms: TimesFile,
+    pub image: ImageFile,
+    #[serde(default)]
+    pub error: Option<ErrorFile>,
+}
+
+#[derive(Debug, Deserialize)]
+pub struct UploadFile {
+    pub bytes_per_frame: u64,
+    pub cell_bytes_per_frame: u64,
+    pub constant_bytes_per_frame: u64,
+    pub static_bytes: u64,
+    #[serde(default)]
+    pub bytes_per_cell: Option<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+pub struct TimesFile {
+    pub samples: BTreeMap<String, Vec<f64>>,
+}
+
+#[derive(Debug, Deserialize)]
+pub struct ImageFile {
+    pub covered_pixels: u64,
+    pub non_finite_pixels: u64,
+}
+
+#[derive(Debug, Deserialize)]
+pub struct ErrorFile {
+    pub rmse: f64,
+}
+
+/// Read and parse a suite summary, naming the file in every error.
+pub fn load(path: &Path) -> Result<SummaryFile> {
+    let text = fsio::read_input_text(path, "suite summary", 256 << 20)?;
+    let s: SummaryFile = serde_json::from_str(&text)
+        .with_context(|| format!("{}: not a volbench suite summary.json (schema 2)", path.display()))?;
+    let mut seen = std::collections::BTreeSet::new();
+    for r in &s.runs {
+        ensure!(seen.insert(key(r)), "{}: two rows for {}", path.display(), key(r));
+    }
+    Ok(s)
+}
+
+fn key(r: &RowFile) -> String {
+    format!("{}/{}", r.dataset, r.method)
+}
+
+/// What one line of the comparison found.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Verdict {
+    Regression,
+    Improved,
+    Ok,
+    Info,
+}
+
+impl Verdict {
+    fn word(self) -> &'static str {
+        match self {
+            Verdict::Regression => "REGRESSION",
+            Verdict::Improved => "improved",
+            Verdict::Ok => "ok",
+            Verdict::Info => "note",
+        }
+    }
+}
+
+/// One compared figure.
+#[derive(Debug, Clone)]
+pub struct Line {
+    pub verdict: Verdict,
+    pub benchmark: String,
+    pub figure: String,
+    pub baseline: String,
+    pub new: String,
+    pub why: String,
+}
+
+/// Every line of a comparison.
+#[derive(Debug, Default)]
+pub struct Comparison {
+    pub lines: Vec<Line>,
+}
+
+impl Comparison {
+    pub fn regressions(&self) -> usize {
+        self.lines.iter().filter(|l| l.verdict == Verdict::Regression).count()
+    }
+
+    fn push(&mut self, verdict: Verdict, benchmark: &str, figure: &str, baseline: String, new: String, why: impl Into<String>) {
+        self.lines.push(Line { verdict, benchmark: benchmark.into(), figure: figure.into(), baseline, new, why: why.into() });
+    }
+
+    /// The printed table: regressions first, one clear line each; then a
+    /// count of the figures that matched.
+    pub fn table(&self) -> String {
+        let mut lines: Vec<&Line> = self.lines.iter().filter(|l| l.verdict != Verdict::Ok).collect();
+        lines.sort_by_key(|l| l.verdict);
+        let ok = self.lines.len() - lines.len();
+        let mut t = String::from("| verdict | benchmark | figure | baseline | new | why |\n|---|---|---|---:|---:|---|\n");
+        for l in lines {
+            let _ = writeln!(t, "| {} | {} | {} | {} | {} | {} |", l.verdict.word(), l.benchmark, l.figure, l.baseline, l.new, l.why.replace('|', "/"));
+        }
+        let _ = writeln!(t, "\n{} figures compared: {} regressions, {ok} unchanged within tolerance.", self.lines.len(), self.regressions());
+        t
+    }
+}
+
+/// Whether two summaries come from the same device, driver and CPU.
+fn same_device(a: &SummaryFile, b: &SummaryFile) -> bool {
+    let (x, y) = (&a.environment, &b.environment);
+    x.device.name == y.device.name && x.device.driver_info == y.device.driver_info && x.cpu_model == y.cpu_model
+}
+
+/// Compare `new` against `base`.
+pub fn compare(base: &SummaryFile, new: &SummaryFile, tol: &Tolerances) -> Result<Comparison> {
+    if base.settings != new.settings {
+        bail!(
+            "the two summaries were run with different settings (baseline {:?}, new {:?}): their counts and errors are not comparable; \
+             run the suite with the baseline's settings",
+            base.settings,
+            new.settings
+        );
+    }
+    let same = same_device(base, new);
+    let mut c = Comparison::default();
+    if !same {
+        c.push(
+            Verdict::Info,
+            "environment",
+            "device",
+            format!("{} / {} / {}", base.environment.device.name, base.environment.device.driver_info, base.environment.cpu_model),
+            format!("{} / {} / {}", new.environment.device.name, new.environment.device.driver_info, new.environment.cpu_model),
+            format!(
+                "different device: arithmetic-dependent counts within {:e} relative, absolute times not compared",
+                tol.count_rel_other_device
+            ),
+        );
+    }
+    let new_rows: BTreeMap<String, &RowFile> = new.runs.iter().map(|r| (key(r), r)).collect();
+    for b in &base.runs {
+        let k = key(b);
+        let Some(n) = new_rows.get(&k) else {
+            c.push(Verdict::Regression, &k, "row", b.status.clone(), "missing".into(), "the baseline has this run; the new summary does not");
+            continue;
+        };
+        match (&b.result, &n.result) {
+            (Some(br), Some(nr)) => compare_row(&mut c, &k, br, nr, same, tol),
+            (Some(_), None) => c.push(
+                Verdict::Regression,
+                &k,
+                "status",
+                b.status.clone(),
+                n.status.clone(),
+                n.message.clone().unwrap_or_default(),
+            ),
+            (None, Some(_)) => c.push(Verdict::Improved, &k, "status", b.status.clone(), n.status.clone(), "runs now"),
+            (None, None) => c.push(Verdict::Ok, &k, "status", b.status.clone(), n.status.clone(), ""),
+        }
+    }
+    for n in &new.runs {
+        if !base.runs.iter().any(|b| key(b) == key(n)) {
+            c.push(Verdict::Info, &key(n), "row", "absent".into(), n.status.clone(), "new run, not in the baseline");
+        }
+    }
+    if tol.times {
+        compare_ratios(&mut c, base, new, tol);
+    }
+    Ok(c)
+}
+
+/// Counts that depend only on the data and the method (exact on any
+/// device); every other count may move with the device's arithmetic.
+fn device_independent(figure: &str) -> bool {
+    figure.starts_with("upload.")
+        || matches!(figure, "stats.input_vertices" | "stats.input_primitives" | "stats.vertex_invocations" | "work.cells")
+}
+
+fn compare_row(c: &mut Comparison, k: &str, b: &ResultFile, n: &ResultFile, same_device: bool, tol: &Tolerances) {
+    let verdict = |ok: bool| if ok { Verdict::Ok } else { Verdict::Regression };
+    c.push(verdict(b.spec == n.spec), k, "spec", b.spec.clone(), n.spec.clone(), if b.spec == n.spec { "" } else { "the method's default options changed" });
+    for (figure, bv, nv) in counts(b, n) {
+        let exact = same_device || device_independent(&figure);
+        let ok = match (bv, nv) {
+            (Some(x), Some(y)) if exact => x == y,
+            (Some(x), Some(y)) => (x - y).abs() <= tol.count_rel_other_device * x.abs().max(y.abs()),
+            (None, None) => true,
+            _ => false,
+        };
+        let why = if ok {
+            String::new()
+        } else if exact {
+            "a deterministic count changed".into()
+        } else {
+            format!("changed by more than {:e} (relative) on another device", tol.count_rel_other_device)
+        };
+        let show = |v: Option<f64>| v.map_or("-".into(), |v| format!("{v}"));
+        c.push(verdict(ok), k, &figure, show(bv), show(nv), why);
+    }
+    let (be, ne) = (b.error.as_ref().map(|e| e.rmse), n.error.as_ref().map(|e| e.rmse));
+    match (be, ne) {
+        (Some(x), Some(y)) => {
+            let allowed = x + tol.rmse_abs.max(tol.rmse_rel * x);
+            let v = if y > allowed || !y.is_finite() {
+                Verdict::Regression
+            } else if y < x - tol.rmse_abs.max(tol.rmse_rel * x) {
+                Verdict::Improved
+            } else {
+                Verdict::Ok
+            };
+            let why = match v {
+                Verdict::Regression => format!("grew beyond the allowed {allowed:.3e} (+max({:e}, {}×baseline))", tol.rmse_abs, tol.rmse_rel),
+                Verdict::Improved => "smaller error".into(),
+                _ => String::new(),
+            };
+            c.push(v, k, "error.rmse", format!("{x:.4e}"), format!("{y:.4e}"), why);
+        }
+        (Some(x), None) => c.push(Verdict::Regression, k, "error.rmse", format!("{x:.4e}"), "-".into(), "no reference comparison in the new run"),
+        _ => {}
+    }
+    let nf = (b.image.non_finite_pixels, n.image.non_finite_pixels);
+    c.push(verdict(nf.1 <= nf.0), k, "image.non_finite_pixels", nf.0.to_string(), nf.1.to_string(), if nf.1 > nf.0 { "NaN/Inf pixels appeared" } else { "" });
+    if tol.times && same_device {
+        if let (Some(bs), Some(ns)) = (b.time_ms.samples.get("frame"), n.time_ms.samples.get("frame")) {
+            if let (Some(bb), Some(nb)) = (median_band(bs), median_band(ns)) {
+                let v = time_verdict(bb, nb, tol.time_margin);
+                c.push(v, k, "time_ms.frame (same device)", bb.show(), nb.show(), time_why(v, tol.time_margin));
+            }
+        }
+    }
+}
+
+/// Every count of a run, as (figure name, value) pairs aligned between the two.
+fn counts(b: &ResultFile, n: &ResultFile) -> Vec<(String, Option<f64>, Option<f64>)> {
+    let flat = |r: &ResultFile| {
+        let mut m: BTreeMap<String, f64> = BTreeMap::new();
+        let u = &r.upload;
+        m.insert("upload.bytes_per_frame".into(), u.bytes_per_frame as f64);
+        m.insert("upload.cell_bytes_per_frame".into(), u.cell_bytes_per_frame as f64);
+        m.insert("upload.constant_bytes_per_frame".into(), u.constant_bytes_per_frame as f64);
+        m.insert("upload.static_bytes".into(), u.static_bytes as f64);
+        if let Some(v) = u.bytes_per_cell {
+            m.insert("upload.bytes_per_cell".into(), v);
+        }
+        for (s, v) in r.stats.iter().flatten() {
+            m.insert(format!("stats.{s}"), *v as f64);
+        }
+        for (w, v) in &r.work {
+            if let Some(v) = v.as_u64() {
+                m.insert(format!("work.{w}"), v as f64);
+            }
+        }
+        m.insert("image.covered_pixels".into(), r.image.covered_pixels as f64);
+        m
+    };
+    let (fb, fnew) = (flat(b), flat(n));
+    let names: std::collections::BTreeSet<&String> = fb.keys().chain(fnew.keys()).collect();
+    names.into_iter().map(|k| (k.clone(), fb.get(k).copied(), fnew.get(k).copied())).collect()
+}
+
+/// A median with its distribution-free 95 % confidence band (order
+/// statistics of the binomial(n, ½); [min, max] below 6 samples).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Band {
+    pub median: f64,
+    pub lo: f64,
+    pub hi: f64,
+}
+
+impl Band {
+    fn show(&self) -> String {
+        format!("{:.3} [{:.3}, {:.3}]", self.median, self.lo, self.hi)
+    }
+}
+
+pub fn median_band(samples: &[f64]) -> Option<Band> {
+    let mut s: Vec<f64> = samples.iter().copied().filter(|v| v.is_finite()).collect();
+    if s.is_empty() {
+        return None;
+    }
+    s.sort_by(f64::total_cmp);
+    let n = s.len();
+    let median = super::stats::Summary::of(&s).median;
+    // Largest k with P(Binomial(n, 1/2) < k) <= 0.025: the band is
+    // [x_(k), x_(n+1-k)] (1-based), which covers the median with >= 95 %.
+    let mut k = 0usize;
+    let mut cdf = 0.0f64;
+    let mut pmf = 0.5f64.powi(n as i32);
+    for j in 0..n {
+        if cdf + pmf > 0.025 {
+            break;
+        }
+        cdf += pmf;
+        k = j + 1;
+        pmf *= (n - j) as f64 / (j + 1) as f64;
+    }
+    let (lo, hi) = if k == 0 { (s[0], s[n - 1]) } else { (s[k - 1], s[n - k]) };
+    Some(Band { median, lo, hi })
+}
+
+/// The band of a ratio of two medians (interval arithmetic on their bands).
+fn ratio_band(a: Band, b: Band) -> Option<Band> {
+    (b.lo > 0.0).then(|| Band { median: a.median / b.median, lo: a.lo / b.hi, hi: a.hi / b.lo })
+}
+
+fn time_verdict(base: Band, new: Band, margin: f64) -> Verdict {
+    if new.lo > base.hi && new.median > base.median * (1.0 + margin) {
+        Verdict::Regression
+    } else if new.hi < base.lo && new.median < base.median * (1.0 - margin) {
+        Verdict::Improved
+    } else {
+        Verdict::Ok
+    }
+}
+
+fn time_why(v: Verdict, margin: f64) -> String {
+    match v {
+        Verdict::Regression => format!("slower by more than {:.0} %, outside both noise bands", margin * 100.0),
+        Verdict::Improved => format!("faster by more than {:.0} %, outside both noise bands", margin * 100.0),
+        _ => String::new(),
+    }
+}
+
+/// Frame-time ratios between every pair of methods on a dataset, within
+/// each run, compared across the runs.
+fn compare_ratios(c: &mut Comparison, base: &SummaryFile, new: &SummaryFile, tol: &Tolerances) {
+    let bands = |s: &SummaryFile| -> BTreeMap<(String, String), Band> {
+        s.runs
+            .iter()
+            .filter_map(|r| {
+                let b = median_band(r.result.as_ref()?.time_ms.samples.get("frame")?)?;
+                Some(((r.dataset.clone(), r.method.clone()), b))
+            })
+            .collect()
+    };
+    let (bb, nb) = (bands(base), bands(new));
+    for ((d, m1), b1) in &bb {
+        for ((d2, m2), b2) in &bb {
+            if d != d2 || m1 >= m2 {
+                continue;
+            }
+            let (Some(n1), Some(n2)) = (nb.get(&(d.clone(), m1.clone())), nb.get(&(d.clone(), m2.clone()))) else { continue };
+            let (Some(rb), Some(rn)) = (ratio_band(*b1, *b2), ratio_band(*n1, *n2)) else { continue };
+            let v = time_verdict(rb, rn, tol.time_margin);
+            // A ratio moving either way means one method changed relative to
+            // the other; which one, only absolute times on one device can say.
+            let v = if v == Verdict::Improved { Verdict::Regression } else { v };
+            let why = if v == Verdict::Regression {
+                format!("the ratio moved by more than {:.0} %, outside both noise bands: one of the two methods changed speed", tol.time_margin * 100.0)
+            } else {
+                String::new()
+            };
+            c.push(v, &format!("{d}/{m1} ÷ {d}/{m2}"), "frame-time ratio", rb.show(), rn.show(), why);
+        }
+    }
+}
+
+/// One exported measure: name, value, and its band when it has one.
+type Measure = (&'static str, f64, Option<(f64, f64)>);
+
+/// The run's figures by benchmark name (`dataset/method`): frame and GPU
+/// latency in nanoseconds with their bands, bytes, RMSE.
+fn metrics(s: &SummaryFile) -> Vec<(String, Vec<Measure>)> {
+    let mut out = Vec::new();
+    for r in &s.runs {
+        let Some(x) = &r.result else { continue };
+        let mut m = Vec::new();
+        for (phase, name) in [("frame", "latency"), ("gpu", "gpu-latency")] {
+            if let Some(b) = x.time_ms.samples.get(phase).and_then(|v| median_band(v)) {
+                m.push((name, b.median * 1e6, Some((b.lo * 1e6, b.hi * 1e6))));
+            }
+        }
+        m.push(("bytes-per-frame", x.upload.bytes_per_frame as f64, None));
+        if let Some(v) = x.upload.bytes_per_cell {
+            m.push(("bytes-per-cell", v, None));
+        }
+        if let Some(e) = &x.error {
+            m.push(("rmse", e.rmse, None));
+        }
+        out.push((key(r), m));
+    }
+    out
+}
+
+/// Bencher Metric Format: `{benchmark: {measure: {value, lower_value, upper_value}}}`.
+pub fn bmf(s: &SummaryFile) -> Value {
+    let mut root = serde_json::Map::new();
+    for (bench, ms) in metrics(s) {
+        let mut measures = serde_json::Map::new();
+        for (name, v, band) in ms {
+            let mut o = json!({ "value": v });
+            if let Some((lo, hi)) = band {
+                o["lower_value"] = json!(lo);
+                o["upper_value"] = json!(hi);
+            }
+            measures.insert(name.into(), o);
+        }
+        root.insert(bench, Value::Object(measures));
+    }
+    Value::Object(root)
+}
+
+/// github-action-benchmark's `customSmallerIsBetter`: `[{name, unit, value, range?, extra?}]`.
+pub fn gha(s: &SummaryFile) -> Value {
+    let mut out = Vec::new();
+    for (bench, ms) in metrics(s) {
+        for (name, v, band) in ms {
+            let (unit, value, range) = match name {
+                "latency" | "gpu-latency" => ("ms", v / 1e6, band.map(|(lo, hi)| format!("[{:.3}, {:.3}]", lo / 1e6, hi / 1e6))),
+                "rmse" => ("rmse", v, None),
+                _ => ("bytes", v, None),
+            };
+            let mut o = json!({ "name": format!("{bench} {name}"), "unit": unit, "value": value });
+            if let Some(r) = range {
+                o["range"] = json!(r);
+                o["extra"] = json!("95 % confidence band of the median frame");
+            }
+            out.push(o);
+        }
+    }
+    Value::Array(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn median_band_is_order_statistics() {
+        let b = median_band(&[5.0, 1.0, 3.0]).unwrap();
+        assert_eq!((b.median, b.lo, b.hi), (3.0, 1.0, 5.0));
+        // n = 10: P(Bin(10, .5) <= 1) = 0.0107, <= 2 is 0.0547: k = 2.
+        let s: Vec<f64> = (1..=10).map(f64::from).collect();
+        let b = median_band(&s).unwrap();
+        assert_eq!((b.median, b.lo, b.hi), (5.5, 2.0, 9.0));
+        // n = 20: P(<= 5) = 0.0207, P(<= 6) = 0.0577: k = 6.
+        let s: Vec<f64> = (1..=20).map(f64::from).collect();
+        let b = median_band(&s).unwrap();
+        assert_eq!((b.lo, b.hi), (6.0, 15.0));
+        assert!(median_band(&[]).is_none());
+    }
+
+    #[test]
+    fn times_regress_only_outside_both_bands_and_the_margin() {
+        let b = Band { median: 100.0, lo: 95.0, hi: 105.0 };
+        assert_eq!(time_verdict(b, Band { median: 130.0, lo: 120.0, hi: 140.0 }, 0.1), Verdict::Regression);
+        assert_eq!(time_verdict(b, Band { median: 108.0, lo: 106.0, hi: 110.0 }, 0.1), Verdict::Ok);
+        assert_eq!(time_verdict(b, Band { median: 130.0, lo: 100.0, hi: 140.0 }, 0.1), Verdict::Ok);
+        assert_eq!(time_verdict(b, Band { median: 70.0, lo: 60.0, hi: 80.0 }, 0.1), Verdict::Improved);
+    }
+}
