@@ -10,9 +10,15 @@
 //!   is the GPU timestamp interval (`iter_custom`).
 //! - `prepare/<dataset>/<method>`: the method's per-frame CPU work alone
 //!   (sort and pack for cell projection).
+//! - `setup/<dataset>/<method>`: creating the method's session: static
+//!   uploads, the tables it builds from the transfer function (integration
+//!   tables, brick flags, ...), pipelines (from the process-wide cache).
 //! - `sort/<dataset>`: the centroid radix sort shared by the tetrahedral
 //!   methods.
-//! Frames are 256x256 so that `cargo bench` finishes in a few minutes.
+//! - `tables/<integrator>/<size>`: the cell-projection integration tables
+//!   (pre-integration, partial pre-integration's Psi) at their default sizes.
+//! Every shipped dataset (`datasets::NAMED`) is benched with every method of
+//! its kind. Frames are 256x256 so that `cargo bench` finishes in minutes.
 
 use std::hint::black_box;
 use std::time::{Duration, Instant};
@@ -20,13 +26,13 @@ use std::time::{Duration, Instant};
 use criterion::{criterion_group, BenchmarkId, Criterion, Throughput};
 
 use volbench::algo::cell_projection::{centroids_f32, sort::CentroidSort};
+use volbench::algo::integrate::{preint_table, psi_table, Integrator};
 use volbench::algo::registry;
 use volbench::harness::datasets::{self, Dataset, DatasetData};
 use volbench::harness::run::{MethodSession, RunConfig};
 use volbench::scene::Projection;
 use volbench::vk::{Context, ContextDesc, UploadCounter};
 
-const DATASETS: [&str; 2] = ["bluntfin", "oxygenpost"];
 const SIZE: u32 = 256;
 
 fn orbit(dataset: &Dataset, frame: u64) -> volbench::scene::Camera {
@@ -41,7 +47,7 @@ fn frames(c: &mut Criterion) {
     let ctx = Context::new(&ContextDesc::from_env().expect("VOLBENCH_* variables")).expect("a Vulkan device (run scripts/setup.sh)");
     let registry = registry::builtin();
     let cfg = RunConfig { width: SIZE, height: SIZE, ..RunConfig::default() };
-    for name in DATASETS {
+    for name in datasets::NAMED.iter().map(|d| d.name) {
         let dataset = datasets::load(name).expect("shipped dataset");
         let tf = dataset.default_transfer_function();
         for method in registry.for_kind(dataset.kind()) {
@@ -50,6 +56,12 @@ fn frames(c: &mut Criterion) {
                 eprintln!("skipping {}: {why}", method.name);
                 continue;
             }
+            let mut group = c.benchmark_group(format!("setup/{name}"));
+            group.sample_size(10).warm_up_time(Duration::from_secs(1)).measurement_time(Duration::from_secs(5));
+            group.bench_function(BenchmarkId::from_parameter(method.name), |b| {
+                b.iter(|| black_box(MethodSession::new(&ctx, &spec, &dataset, &tf, &cfg).expect("session")))
+            });
+            group.finish();
             let mut session = MethodSession::new(&ctx, &spec, &dataset, &tf, &cfg).expect("session");
             let mut counter = UploadCounter::default();
             let mut frame_no = 0u64;
@@ -85,7 +97,7 @@ fn frames(c: &mut Criterion) {
 }
 
 fn sort(c: &mut Criterion) {
-    for name in DATASETS {
+    for name in datasets::NAMED.iter().map(|d| d.name) {
         let dataset = datasets::load(name).expect("shipped dataset");
         let DatasetData::TetMesh { mesh, geometry } = &dataset.data else { continue };
         let camera = orbit(&dataset, 3);
@@ -97,7 +109,25 @@ fn sort(c: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, sort, frames);
+fn tables(c: &mut Criterion) {
+    let dataset = datasets::load("oxygenpost").expect("shipped dataset");
+    let tf = dataset.default_transfer_function();
+    let range = dataset.scalar_range();
+    for integrator in [Integrator::Preint, Integrator::Ppi] {
+        let n = integrator.default_table_size();
+        let mut group = c.benchmark_group(format!("tables/{}", integrator.name()));
+        group.sample_size(10);
+        group.bench_function(BenchmarkId::from_parameter(n), |b| {
+            b.iter(|| match integrator {
+                Integrator::Preint => black_box(preint_table(&tf, range, n, 1.0).expect("table").len()),
+                _ => black_box(psi_table(n).expect("table").len()),
+            })
+        });
+        group.finish();
+    }
+}
+
+criterion_group!(benches, sort, tables, frames);
 
 // criterion_main!, plus the font criterion's plots need: plotters is built
 // with ab_glyph (for volbench's own plots), which finds no system fonts.
