@@ -352,7 +352,7 @@ fn run(cli: &Cli, registry: &Registry, args: &RunArgs) -> Result<()> {
     }
     let row = ComparisonRow { label: spec.label(), dataset: dataset.name.clone(), outcome: Ok(&out.result), rmse_vs_first: None };
     // The table goes to stderr when an output goes to stdout.
-    let table = report::comparison_table(&[row], &registry.published());
+    let table = report::comparison_table(&[row], registry);
     let to_stdout = [&args.json, &args.png, &args.diff_png].iter().any(|p| p.as_deref() == Some(Path::new("-")));
     if to_stdout {
         eprint!("{table}");

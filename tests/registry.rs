@@ -275,3 +275,37 @@ fn the_suite_runs_every_registered_method_on_the_shipped_datasets_of_its_kind() 
     let report = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
     assert!(report.contains("test-solid-box") && report.contains("| post-small | balanced | ok"), "{report}");
 }
+
+#[test]
+fn the_suite_runs_the_option_sets_published_figures_name_and_reports_the_ratios() {
+    use volbench::harness::suite::{plan, run_suite, SuiteSettings};
+    let registry = registry::builtin();
+    let labels = |filter: &str| -> Vec<String> {
+        plan(&registry, &SuiteSettings::standard(true, vec![filter.into()])).unwrap().iter().map(|p| p.spec.label()).collect()
+    };
+    // Thesis Table 6.4 names the integrators on the blunt fin only.
+    assert_eq!(labels("bluntfin"), ["vicp", "balanced", "balanced:integrator=average", "balanced:integrator=linear-exact"]);
+    assert_eq!(labels("oxygenpost"), ["vicp", "balanced"]);
+    // Krüger & Westermann's claim is about any volume.
+    let ct = labels("chest-ct");
+    for m in ["raycast-fragment", "raycast-compute"] {
+        assert!(ct.contains(&m.to_string()) && ct.contains(&format!("{m}:ert=1,skip=off")), "{ct:?}");
+    }
+    let settings = SuiteSettings { width: 32, height: 32, frames: 1, warmup: 0, ..SuiteSettings::standard(true, vec!["bluntfin".into()]) };
+    let planned = plan(&registry, &settings).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let ctx = context();
+    let summary = run_suite(&ctx, &registry, &planned, &settings, dir.path(), |_, _| {}).unwrap();
+    assert!(summary.runs.iter().all(|r| r.status == "ok"), "{:?}", summary.runs.iter().map(|r| &r.message).collect::<Vec<_>>());
+    let report = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
+    for line in [
+        "| bluntfin | balanced ÷ vicp |",
+        "| bluntfin | balanced:integrator=average ÷ balanced |",
+        "| bluntfin | balanced:integrator=linear-exact ÷ balanced |",
+        "| bluntfin | balanced:integrator=average | ok |",
+    ] {
+        assert!(report.contains(line), "{line} missing from\n{report}");
+    }
+    // Published 4.50 / 3.30 fps (Table 6.3) and 1.31 / 0.94 (Table 6.4).
+    assert!(report.contains("| 1.36 |") && report.contains("| 1.39 |"), "{report}");
+}

@@ -4,7 +4,7 @@
 
 use anyhow::{bail, Result};
 
-use super::method::{parse_pairs, DataKind, MethodInfo, Options};
+use super::method::{parse_pairs, DataKind, MethodInfo, Options, Published};
 
 #[derive(Clone, Debug)]
 pub struct Registry {
@@ -113,8 +113,23 @@ impl Registry {
     }
 
     /// Every method's published figures.
-    pub fn published(&self) -> Vec<super::method::Published> {
+    pub fn published(&self) -> Vec<Published> {
         self.methods.iter().flat_map(|m| m.published.iter().copied()).collect()
+    }
+
+    /// The spec a published figure was measured with.
+    pub fn published_spec(&self, p: &Published) -> Result<MethodSpec> {
+        let text = if p.options.is_empty() { p.method.to_string() } else { format!("{}:{}", p.method, p.options) };
+        self.parse_spec(&text, &[]).map_err(|e| anyhow::anyhow!("published figure ({}): {e:#}", p.source))
+    }
+
+    /// The published figures about a run of `spec` (canonical) on
+    /// `dataset`: the same method with the same option set.
+    pub fn published_for(&self, spec: &str, dataset: &str) -> Vec<Published> {
+        self.published()
+            .into_iter()
+            .filter(|p| p.applies_to(dataset) && self.published_spec(p).is_ok_and(|s| s.canonical() == spec))
+            .collect()
     }
 
     pub fn names(&self) -> Vec<&'static str> {

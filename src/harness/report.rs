@@ -9,6 +9,7 @@ use anyhow::{Context as _, Result};
 use serde::Serialize;
 
 use super::run::RunResult;
+use crate::algo::registry::Registry;
 
 /// Write `value` as pretty JSON, all-or-nothing (`fsio::write_output`).
 pub fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<()> {
@@ -31,13 +32,13 @@ pub struct ComparisonRow<'a> {
     pub rmse_vs_first: Option<f64>,
 }
 
-/// A published figure of `result`'s method on its dataset, in cells per
-/// second, if the method registered one.
-fn published_cells_per_second(result: &RunResult, published: &[crate::algo::method::Published]) -> Option<f64> {
-    published.iter().find(|p| p.dataset == result.mesh && p.method == result.method).map(|p| p.cells_per_second)
+/// A published figure of `result`'s method with its options on its
+/// dataset, in cells per second, if the method registered one.
+fn published_cells_per_second(result: &RunResult, registry: &Registry) -> Option<f64> {
+    registry.published_for(&result.spec, &result.mesh).iter().find_map(|p| p.cells_per_second())
 }
 
-pub fn comparison_table(rows: &[ComparisonRow], published: &[crate::algo::method::Published]) -> String {
+pub fn comparison_table(rows: &[ComparisonRow], registry: &Registry) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
@@ -55,7 +56,7 @@ pub fn comparison_table(rows: &[ComparisonRow], published: &[crate::algo::method
             }
         };
         let t = &r.time_ms;
-        let published = published_cells_per_second(r, published).map_or("-".into(), |v| format!("{:.3}", v / 1e6));
+        let published = published_cells_per_second(r, registry).map_or("-".into(), |v| format!("{:.3}", v / 1e6));
         let rmse = row.rmse_vs_first.map_or("-".into(), |v| format!("{v:.2e}"));
         let (ref_rmse, ref_max) = r
             .error

@@ -58,14 +58,18 @@ impl SuiteSettings {
     }
 }
 
-/// One planned run: a shipped dataset and a method at its defaults.
+/// One planned run: a shipped dataset and a method at its defaults, or with
+/// an option set a published figure names.
 #[derive(Debug)]
 pub struct PlannedRun {
     pub dataset: &'static str,
     pub spec: MethodSpec,
 }
 
-/// Every (shipped dataset, method for its kind) pair that passes the filter.
+/// Every (shipped dataset, method for its kind) pair that passes the
+/// filter: the defaults, then each option set a published figure about the
+/// method on that dataset names (so every published ratio has its measured
+/// counterpart in the same run).
 pub fn plan(registry: &Registry, settings: &SuiteSettings) -> Result<Vec<PlannedRun>> {
     let keep = |name: &str| settings.filter.is_empty() || settings.filter.iter().any(|f| f == name);
     for f in &settings.filter {
@@ -76,7 +80,14 @@ pub fn plan(registry: &Registry, settings: &SuiteSettings) -> Result<Vec<Planned
     for d in datasets::NAMED {
         for m in registry.for_kind(d.kind) {
             if keep(d.name) || keep(m.name) {
-                out.push(PlannedRun { dataset: d.name, spec: registry.parse_spec(m.name, &[])? });
+                let mut specs = vec![registry.parse_spec(m.name, &[])?];
+                for p in m.published.iter().filter(|p| p.applies_to(d.name)) {
+                    let s = registry.published_spec(p)?;
+                    if !specs.iter().any(|x| x.canonical() == s.canonical()) {
+                        specs.push(s);
+                    }
+                }
+                out.extend(specs.into_iter().map(|spec| PlannedRun { dataset: d.name, spec }));
             }
         }
     }
@@ -137,6 +148,8 @@ pub fn utc_now() -> String {
 pub struct SuiteRow {
     pub dataset: String,
     pub method: String,
+    /// The method and its non-default options (`balanced:integrator=average`).
+    pub label: String,
     pub status: &'static str,
     pub message: Option<String>,
     pub result: Option<RunResult>,
@@ -168,9 +181,16 @@ pub fn run_suite(
     let mut images: Vec<(String, RgbaImage, Option<RgbaImage>)> = Vec::new();
     let mut loaded: Option<(&str, Dataset)> = None;
     for (i, p) in plan.iter().enumerate() {
-        let label = format!("{} on {}", p.spec.info.name, p.dataset);
+        let label = format!("{} on {}", p.spec.label(), p.dataset);
         progress(i, &label);
-        let mut row = SuiteRow { dataset: p.dataset.into(), method: p.spec.info.name.into(), status: "ok", message: None, result: None };
+        let mut row = SuiteRow {
+            dataset: p.dataset.into(),
+            method: p.spec.info.name.into(),
+            label: p.spec.label(),
+            status: "ok",
+            message: None,
+            result: None,
+        };
         if let Some(why) = skip_reason(&p.spec, &ctx.info) {
             (row.status, row.message) = ("skipped", Some(why));
             summary.runs.push(row);
@@ -203,7 +223,7 @@ pub fn run_suite(
     }
     fsio::write_output(&out.join("summary.json"), &super::report::json_bytes(&summary)?)?;
     fsio::write_output(&out.join("summary.csv"), csv(&summary).as_bytes())?;
-    fsio::write_output(&out.join("report.md"), report(&summary, &registry.published()).as_bytes())?;
+    fsio::write_output(&out.join("report.md"), report(&summary, registry).as_bytes())?;
     super::plots::bar_charts(&out.join("plots"), &summary)?;
     if !images.is_empty() {
         super::plots::montage(&out.join("montage.png"), &images)?;
@@ -214,7 +234,7 @@ pub fn run_suite(
 /// One line per run: the figures a spreadsheet wants.
 pub fn csv(s: &Summary) -> String {
     let mut t = String::from(
-        "dataset,method,status,frame_ms_median,gpu_ms_median,bytes_per_frame,bytes_per_cell,static_bytes,cells_per_second,rmse,max_abs,message\n",
+        "dataset,method,label,status,frame_ms_median,gpu_ms_median,bytes_per_frame,bytes_per_cell,static_bytes,cells_per_second,rmse,max_abs,message\n",
     );
     for r in &s.runs {
         let q = |x: &str| format!("\"{}\"", x.replace('"', "\"\""));
@@ -231,7 +251,15 @@ pub fn csv(s: &Summary) -> String {
             ),
             None => Default::default(),
         };
-        let _ = writeln!(t, "{},{},{},{f},{g},{b},{bc},{st},{cps},{rmse},{max},{}", r.dataset, r.method, r.status, q(r.message.as_deref().unwrap_or("")));
+        let _ = writeln!(
+            t,
+            "{},{},{},{},{f},{g},{b},{bc},{st},{cps},{rmse},{max},{}",
+            r.dataset,
+            r.method,
+            q(&r.label),
+            r.status,
+            q(r.message.as_deref().unwrap_or(""))
+        );
     }
     t
 }
@@ -239,7 +267,7 @@ pub fn csv(s: &Summary) -> String {
 /// The report: environment, the runs table, and measured figures set
 /// beside the published ones as ratios between methods on the same dataset
 /// (absolute times from other hardware are not comparable; ratios are).
-pub fn report(s: &Summary, published: &[crate::algo::method::Published]) -> String {
+pub fn report(s: &Summary, registry: &Registry) -> String {
     let e = &s.environment;
     let mut t = format!(
         "# volbench suite {}\n\nDevice {} ({}, {}), CPU {} ({} cores, LP_NUM_THREADS {}), volbench {} at {}. \
@@ -270,7 +298,7 @@ pub fn report(s: &Summary, published: &[crate::algo::method::Published]) -> Stri
                     t,
                     "| {} | {} | ok | {:.1} [{:.1}, {:.1}] | {:.1} | {:.2} | {} | {:.1} | {:.3} | {} | {} |",
                     r.dataset,
-                    r.method,
+                    r.label,
                     f.median,
                     f.min,
                     f.max,
@@ -284,40 +312,82 @@ pub fn report(s: &Summary, published: &[crate::algo::method::Published]) -> Stri
                 );
             }
             None => {
-                let _ = writeln!(t, "| {} | {} | {}: {} |||||||||", r.dataset, r.method, r.status, r.message.as_deref().unwrap_or("").replace('|', "/"));
+                let _ = writeln!(t, "| {} | {} | {}: {} |||||||||", r.dataset, r.label, r.status, r.message.as_deref().unwrap_or("").replace('|', "/"));
             }
         }
     }
-    // Ratios between two methods on one dataset, measured and published.
-    let mut ratios = String::new();
-    let ok: Vec<&RunResult> = s.runs.iter().filter_map(|r| r.result.as_ref()).collect();
-    for a in &ok {
-        for b in &ok {
-            if a.mesh != b.mesh || a.method >= b.method {
-                continue;
-            }
-            let pa = published.iter().find(|p| p.method == a.method && p.dataset == a.mesh);
-            let pb = published.iter().find(|p| p.method == b.method && p.dataset == b.mesh);
-            if let (Some(pa), Some(pb)) = (pa, pb) {
-                if a.cells_per_second > 0.0 && b.cells_per_second > 0.0 {
-                    let _ = writeln!(
-                        ratios,
-                        "| {} | {} / {} | {:.2} | {:.2} | {} |",
-                        a.mesh,
-                        b.method,
-                        a.method,
-                        b.cells_per_second / a.cells_per_second,
-                        pb.cells_per_second / pa.cells_per_second,
-                        pa.source
-                    );
-                }
-            }
-        }
-    }
-    if !ratios.is_empty() {
-        t += "\n## Measured against published, as ratios of cells per second\n\n| dataset | ratio | measured | published | source |\n|---|---|---:|---:|---|\n";
-        t += &ratios;
-    }
+    t += &published_ratios(s, registry);
     t += "\nPlots: `plots/frame_time.{png,svg}`, `plots/bytes_per_frame.{png,svg}`; images and their ×10 difference from the f64 reference: `montage.png`, `runs/`.\n";
     t
+}
+
+/// Every published figure set beside its measured counterpart, as ratios
+/// inside this run: two frame rates from one source on one dataset (methods
+/// or option sets) against the same two measured; a "defaults up to N×
+/// faster" claim against the measured speed-up on each dataset.
+fn published_ratios(s: &Summary, registry: &Registry) -> String {
+    use crate::algo::method::PublishedFigure;
+    // The measured median frame time of a published figure's run.
+    let measured = |p: &crate::algo::method::Published, dataset: &str| -> Option<(f64, String)> {
+        let spec = registry.published_spec(p).ok()?;
+        let canonical = spec.canonical();
+        let r = s.runs.iter().filter_map(|r| r.result.as_ref()).find(|r| r.mesh == dataset && r.spec == canonical)?;
+        Some((r.time_ms.phase("frame").median, spec.label()))
+    };
+    let default_time = |method: &str, dataset: &str| -> Option<f64> {
+        let spec = registry.parse_spec(method, &[]).ok()?.canonical();
+        s.runs.iter().filter_map(|r| r.result.as_ref()).find(|r| r.mesh == dataset && r.spec == spec).map(|r| r.time_ms.phase("frame").median)
+    };
+    let published = registry.published();
+    let mut rows = String::new();
+    for (i, p) in published.iter().enumerate() {
+        for q in &published[i + 1..] {
+            let (Some(d), Some(fp), Some(fq)) = (p.dataset, p.fps(), q.fps()) else { continue };
+            if q.source != p.source || q.dataset != p.dataset {
+                continue;
+            }
+            let (Some((tp, lp)), Some((tq, lq))) = (measured(p, d), measured(q, d)) else { continue };
+            if tp <= 0.0 || tq <= 0.0 {
+                continue;
+            }
+            let (m, pubr) = (tp / tq, fq / fp);
+            let verdict = if (m / pubr - 1.0).abs() <= 0.25 { "agrees (within 25 %)" } else if m > pubr { "larger here" } else { "smaller here" };
+            let _ = writeln!(rows, "| {d} | {lq} ÷ {lp} | {m:.2} | {pubr:.2} | {verdict} | {} |", p.source);
+        }
+    }
+    for p in &published {
+        let PublishedFigure::DefaultsFasterUpTo(bound) = p.figure else { continue };
+        for r in s.runs.iter().filter_map(|r| r.result.as_ref()) {
+            if r.method != p.method || !p.applies_to(&r.mesh) {
+                continue;
+            }
+            let (Some((t_off, l_off)), Some(t_def)) = (measured(p, &r.mesh), default_time(p.method, &r.mesh)) else { continue };
+            if r.spec != registry.published_spec(p).map(|x| x.canonical()).unwrap_or_default() || t_def <= 0.0 {
+                continue;
+            }
+            let m = t_off / t_def;
+            let verdict = if m <= bound * 1.1 { "within the claim" } else { "beyond the claim" };
+            let _ = writeln!(rows, "| {} | {} ÷ {l_off} | {m:.2} | up to {bound:.1} | {verdict} | {} |", r.mesh, p.method, p.source);
+        }
+    }
+    if rows.is_empty() {
+        return String::new();
+    }
+    let mut notes = String::new();
+    let mut seen = Vec::new();
+    for p in &published {
+        if rows.contains(p.source) && !seen.contains(&p.source) {
+            seen.push(p.source);
+            let _ = writeln!(notes, "- {}: {}", p.source, p.note);
+        }
+    }
+    rows += "\nWhy a ratio here differs from the paper's:\n\n";
+    rows += &notes;
+    format!(
+        "\n## Measured against published, as speed ratios inside this run\n\n\
+         Absolute times from the papers' hardware are not comparable with this machine; ratios between \
+         runs on one dataset are. A ratio a ÷ b is how many times faster a ran than b (frame rate of a over \
+         frame rate of b; published: the paper's two frame rates).\n\n\
+         | dataset | ratio | measured | published | | source |\n|---|---|---:|---:|---|---|\n{rows}"
+    )
 }

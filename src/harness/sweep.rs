@@ -194,7 +194,7 @@ pub fn comparison_markdown(rows: &[CompareRow], registry: &Registry) -> Result<S
             rmse_vs_first,
         });
     }
-    Ok(report::comparison_table(&table_rows, &registry.published()))
+    Ok(report::comparison_table(&table_rows, registry))
 }
 
 /// Run every spec on `dataset`, compare each image with the (cached) f64

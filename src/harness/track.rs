@@ -88,6 +88,9 @@ pub struct SettingsFile {
 pub struct RowFile {
     pub dataset: String,
     pub method: String,
+    /// The method and its non-default options (absent in early summaries).
+    #[serde(default)]
+    pub label: Option<String>,
     pub status: String,
     #[serde(default)]
     pub message: Option<String>,
@@ -146,8 +149,9 @@ pub fn load(path: &Path) -> Result<SummaryFile> {
     Ok(s)
 }
 
+/// A row's name: `dataset/method` or `dataset/method:options`.
 fn key(r: &RowFile) -> String {
-    format!("{}/{}", r.dataset, r.method)
+    format!("{}/{}", r.dataset, r.label.as_deref().unwrap_or(&r.method))
 }
 
 /// What one line of the comparison found.
@@ -426,15 +430,15 @@ fn time_why(v: Verdict, margin: f64) -> String {
     }
 }
 
-/// Frame-time ratios between every pair of methods on a dataset, within
-/// each run, compared across the runs.
+/// Frame-time ratios between every pair of runs on a dataset, within each
+/// summary, compared across the two.
 fn compare_ratios(c: &mut Comparison, base: &SummaryFile, new: &SummaryFile, tol: &Tolerances) {
     let bands = |s: &SummaryFile| -> BTreeMap<(String, String), Band> {
         s.runs
             .iter()
             .filter_map(|r| {
                 let b = median_band(r.result.as_ref()?.time_ms.samples.get("frame")?)?;
-                Some(((r.dataset.clone(), r.method.clone()), b))
+                Some(((r.dataset.clone(), r.label.clone().unwrap_or_else(|| r.method.clone())), b))
             })
             .collect()
     };

@@ -12,7 +12,7 @@ use ash::vk as raw;
 use rayon::prelude::*;
 
 use super::render;
-use crate::algo::method::{MethodInfo, MethodInputs, Published, RenderMethod};
+use crate::algo::method::{MethodInfo, MethodInputs, RenderMethod};
 use super::{build_pipeline, cells_f32, CellF32, CellProjector, FrameSetup, Interpolation};
 use crate::algo::integrate::IntegrationTables;
 use crate::mesh::{TetGeometry, TetMesh};
@@ -34,8 +34,11 @@ pub const METHOD: MethodInfo = render::method_info(
     "balanced",
     "GPU-CPU balanced cell projection (Moreland 2004): 4 vertices, 28 floats per tet per frame, static strip indices",
     &[
-        Published { method: "balanced", dataset: "bluntfin", cells_per_second: 843e3, source: render::THESIS_TABLE_6_3 },
-        Published { method: "balanced", dataset: "oxygenpost", cells_per_second: 1168e3, source: render::THESIS_TABLE_6_3 },
+        render::table_6_3("balanced", "bluntfin", 4.50, 187_395),
+        render::table_6_3("balanced", "oxygenpost", 2.28, 513_375),
+        render::table_6_4("", 0.94),
+        render::table_6_4("integrator=average", 1.31),
+        render::table_6_4("integrator=linear-exact", 0.08),
     ],
     create,
 );

@@ -10,7 +10,7 @@ use ash::vk as raw;
 use rayon::prelude::*;
 
 use super::render;
-use crate::algo::method::{MethodInfo, MethodInputs, Published, RenderMethod};
+use crate::algo::method::{MethodInfo, MethodInputs, RenderMethod};
 use super::{build_pipeline, cells_f32, CellProjector, FrameSetup, Interpolation, FACES};
 use crate::algo::integrate::IntegrationTables;
 use crate::mesh::{TetGeometry, TetMesh};
@@ -25,8 +25,8 @@ pub const METHOD: MethodInfo = render::method_info(
     "vicp",
     "view-independent cell projection (Weiler, Kraus, Ertl 2002): 12 vertices, 132 floats per tet per frame",
     &[
-        Published { method: "vicp", dataset: "bluntfin", cells_per_second: 618e3, source: render::THESIS_TABLE_6_3 },
-        Published { method: "vicp", dataset: "oxygenpost", cells_per_second: 690e3, source: render::THESIS_TABLE_6_3 },
+        render::table_6_3("vicp", "bluntfin", 3.30, 187_395),
+        render::table_6_3("vicp", "oxygenpost", 1.34, 513_375),
     ],
     create,
 );

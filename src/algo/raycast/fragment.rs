@@ -27,7 +27,7 @@ pub const METHOD: MethodInfo = MethodInfo {
     sweep: SWEEP,
     compare: COMPARE,
     stress: &[],
-    published: &[],
+    published: &[super::kruger_westermann("raycast-fragment")],
     create,
 };
 
