@@ -9,6 +9,7 @@ const SOURCES: &[(&str, &str)] = &[
     ("cell_projection/vicp.vert", include_str!("../shaders/cell_projection/vicp.vert")),
     ("cell_projection/vicp.frag", include_str!("../shaders/cell_projection/vicp.frag")),
     ("cell_projection/balanced.vert", include_str!("../shaders/cell_projection/balanced.vert")),
+    ("cell_projection/resident.vert", include_str!("../shaders/cell_projection/resident.vert")),
     ("cell_projection/balanced.frag", include_str!("../shaders/cell_projection/balanced.frag")),
     ("raycast/common.glsl", include_str!("../shaders/raycast/common.glsl")),
     ("raycast/box.vert", include_str!("../shaders/raycast/box.vert")),

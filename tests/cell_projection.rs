@@ -312,3 +312,40 @@ fn integrators_on_a_linear_ramp_against_the_reference() {
     // Averaging colour and attenuation is visibly worse on a steep ramp.
     assert!(rmse(Integrator::Average) > 5.0 * rmse(Integrator::LinearExact), "{errors:?}");
 }
+
+/// `resident`: the balanced method with the cells stored on the device;
+/// per frame only the order crosses (4 bytes per tet), and the image is
+/// balanced's (the same IntersectBackFace, run in the vertex stage).
+#[test]
+fn resident_sends_four_bytes_per_tet_and_renders_what_balanced_renders() {
+    use volbench::algo::cell_projection::resident;
+    let n_post = datasets::load_mesh("post-small").unwrap().tets.len() as u64;
+    let mesh = datasets::load_mesh("post-small").unwrap();
+    let tf = preset(&mesh, "post-small");
+    let r = run(&mesh, &tf, "resident", &small_config(64)).result;
+    assert_eq!(r.upload.floats_per_cell, Some(1.0));
+    assert_eq!(r.upload.bytes_per_cell, Some(4.0));
+    assert_eq!(r.upload.bytes_per_frame, 4 * n_post + PUSH_CONSTANT_BYTES);
+    let stored = (resident::FLOATS_PER_STORED_CELL as u64 * 4 + 7 * 4) * n_post;
+    assert_eq!(r.upload.static_bytes, TABLE_BYTES + stored);
+    assert_eq!(r.upload.frame_counters.static_bytes(), 0);
+    let stats = r.stats.expect("pipeline statistics");
+    assert_eq!(stats.input_vertices, 6 * n_post);
+    for (name, projection, interpolation) in [
+        ("post-small", Projection::Perspective { fovy_deg: 30.0 }, "exact"),
+        ("post-small", Projection::Perspective { fovy_deg: 30.0 }, "paper"),
+        ("post-small", Projection::Orthographic { height: 1.0 }, "exact"),
+        ("bluntfin", Projection::Perspective { fovy_deg: 30.0 }, "exact"),
+    ] {
+        let mesh = datasets::load_mesh(name).unwrap();
+        let tf = preset(&mesh, name);
+        let cfg = RunConfig { projection, ..small_config(128) };
+        let b = run(&mesh, &tf, &format!("balanced:interpolation={interpolation}"), &cfg);
+        let d = run(&mesh, &tf, &format!("resident:interpolation={interpolation}"), &cfg);
+        let e = b.image.compare(&d.image).unwrap();
+        assert!(e.rmse <= 1e-4, "{name} {interpolation}: RMSE {} between balanced and resident", e.rmse);
+        assert!(d.image.covered_pixels() > 1000, "{name}");
+        assert_eq!(d.image.non_finite_pixels(), 0);
+        assert_eq!(b.result.stats.unwrap().fragment_invocations, d.result.stats.unwrap().fragment_invocations, "{name}");
+    }
+}

@@ -17,6 +17,7 @@ pub fn builtin() -> Registry {
         methods: vec![
             super::cell_projection::vicp::METHOD,
             super::cell_projection::balanced::METHOD,
+            super::cell_projection::resident::METHOD,
             super::raycast::fragment::METHOD,
             super::raycast::compute::METHOD,
         ],

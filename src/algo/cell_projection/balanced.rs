@@ -144,6 +144,7 @@ impl Balanced {
             true,
             tables,
             interpolation,
+            &[],
         )?;
         Ok(Balanced { packed: vec![0f32; n * FLOATS_PER_CELL], cells, vertex_buffer, index_buffer, pipeline, pipeline_key })
     }
@@ -171,11 +172,12 @@ impl CellProjector for Balanced {
         self.vertex_buffer.write(0, bytemuck::cast_slice(&self.packed), counter, UploadClass::FrameCells)
     }
 
-    fn record_draw(&self, rec: &CommandRecorder, tables: &IntegrationTables, frame: &FrameSetup, counter: &mut UploadCounter) {
+    fn record_draw(&self, rec: &CommandRecorder, tables: &IntegrationTables, frame: &FrameSetup, counter: &mut UploadCounter) -> VkResult<()> {
         rec.bind_pipeline(&self.pipeline, Some(&tables.set));
         rec.push_constants(&self.pipeline, bytemuck::bytes_of(&frame.constants), counter);
         rec.bind_vertex_buffer(&self.vertex_buffer);
         rec.bind_index_buffer_u32(&self.index_buffer);
         rec.draw_indexed((self.cells.len() * INDICES_PER_CELL) as u32);
+        Ok(())
     }
 }

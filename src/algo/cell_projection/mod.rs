@@ -10,6 +10,7 @@ pub mod balanced;
 pub mod mpvo;
 pub mod radix;
 pub mod render;
+pub mod resident;
 pub mod sort;
 pub mod vicp;
 
@@ -22,6 +23,7 @@ use crate::algo::integrate::IntegrationTables;
 use crate::mesh::{TetGeometry, TetMesh};
 use crate::scene::Camera;
 use crate::vk::{
+    DescriptorSetDesc,
     Blend, ColorTarget, CommandRecorder, Context, GraphicsPipelineKey, GraphicsState, Pipeline, PipelineKey, ShaderKey,
     ShaderStage, UploadCounter, VertexAttribute, VkResult,
 };
@@ -309,11 +311,12 @@ pub trait CellProjector {
     /// Copy the packed data to where the device reads it (counted).
     fn upload(&mut self, counter: &mut UploadCounter) -> VkResult<()>;
     /// Bind and draw (inside dynamic rendering).
-    fn record_draw(&self, rec: &CommandRecorder, tables: &IntegrationTables, frame: &FrameSetup, counter: &mut UploadCounter);
+    fn record_draw(&self, rec: &CommandRecorder, tables: &IntegrationTables, frame: &FrameSetup, counter: &mut UploadCounter) -> VkResult<()>;
 }
 
-/// The pipeline both methods use: premultiplied "over" into RGBA32F, entry
-/// faces only, the integration tables bound at set 0.
+/// The pipeline every cell-projection method uses: premultiplied "over"
+/// into RGBA32F, entry faces only, the integration tables bound at set 0
+/// and `extra_sets` at sets 1, 2, ...
 pub(crate) fn build_pipeline(
     ctx: &Arc<Context>,
     vertex_path: &str,
@@ -324,6 +327,7 @@ pub(crate) fn build_pipeline(
     primitive_restart: bool,
     tables: &IntegrationTables,
     interpolation: Interpolation,
+    extra_sets: &[DescriptorSetDesc],
 ) -> VkResult<(Arc<Pipeline>, PipelineKey)> {
     let defines: Vec<(&str, &str)> =
         interpolation.defines().iter().copied().chain(tables.integrator.define()).collect();
@@ -341,7 +345,7 @@ pub(crate) fn build_pipeline(
             targets: vec![ColorTarget::rgba32f(Blend::PremultipliedOver)],
         },
         push_constant_bytes: std::mem::size_of::<FrameConstants>() as u32,
-        sets: vec![tables.set.desc.clone()],
+        sets: std::iter::once(tables.set.desc.clone()).chain(extra_sets.iter().cloned()).collect(),
     });
     Ok((crate::algo::pipelines::get(ctx, &key)?, key))
 }

@@ -336,8 +336,9 @@ impl RenderMethod for CellProjection {
     fn record(&mut self, rec: &CommandRecorder, target: &Image, _view: &View, counter: &mut UploadCounter) -> Result<()> {
         let setup = self.prepared.take().context("record without a prepared frame")?;
         rec.begin_rendering(target, [0.0; 4]);
-        self.projector.record_draw(rec, &self.tables, &setup, counter);
+        let drawn = self.projector.record_draw(rec, &self.tables, &setup, counter);
         rec.end_rendering();
+        drawn?;
         Ok(())
     }
 

@@ -99,6 +99,7 @@ impl Vicp {
             false,
             tables,
             interpolation,
+            &[],
         )?;
         Ok(Vicp { packed: vec![0f32; records.len()], records, vertex_buffer, pipeline, pipeline_key, cells: n })
     }
@@ -130,10 +131,11 @@ impl CellProjector for Vicp {
         self.vertex_buffer.write(0, bytemuck::cast_slice(&self.packed), counter, UploadClass::FrameCells)
     }
 
-    fn record_draw(&self, rec: &CommandRecorder, tables: &IntegrationTables, frame: &FrameSetup, counter: &mut UploadCounter) {
+    fn record_draw(&self, rec: &CommandRecorder, tables: &IntegrationTables, frame: &FrameSetup, counter: &mut UploadCounter) -> VkResult<()> {
         rec.bind_pipeline(&self.pipeline, Some(&tables.set));
         rec.push_constants(&self.pipeline, bytemuck::bytes_of(&frame.constants), counter);
         rec.bind_vertex_buffer(&self.vertex_buffer);
         rec.draw((self.cells * VERTICES_PER_CELL) as u32);
+        Ok(())
     }
 }

@@ -1,0 +1,147 @@
+//! Device-resident balanced cell projection (beyond the thesis): the cells
+//! (positions, scalars, opposite-face planes, gradient) are uploaded once
+//! into a device-local storage buffer; each frame only the visibility order
+//! crosses to the device, one u32 per tet. The vertex stage runs what the
+//! balanced method's CPU does per vertex (IntersectBackFace from the stored
+//! planes) and feeds balanced's fragment stage unchanged, through the same
+//! static strips. What is left per frame on the CPU is the sort: the
+//! answer to "where does the time go once the bytes are gone".
+
+use std::sync::Arc;
+
+use ash::vk as raw;
+
+use super::balanced::{strip_indices, INDICES_PER_CELL};
+use super::render;
+use super::{build_pipeline, cells_f32, CellF32, CellProjector, FrameSetup, Interpolation};
+use crate::algo::integrate::IntegrationTables;
+use crate::algo::method::{MethodInfo, MethodInputs, RenderMethod};
+use crate::mesh::{TetGeometry, TetMesh};
+use crate::vk::{
+    upload_static, Buffer, BufferDesc, CommandRecorder, Context, DescriptorSet, DescriptorSetDesc, Pipeline, PipelineKey,
+    StorageBufferSet, UploadClass, UploadCounter, VkError, VkResult,
+};
+
+/// Per tet per frame: its index in the order.
+pub const BYTES_PER_CELL_PER_FRAME: usize = 4;
+/// The stored cell (`Cell` in `resident.vert`): 4 × (position, scalar),
+/// 4 × (plane, unused), (gradient, unused).
+pub const FLOATS_PER_STORED_CELL: usize = 36;
+
+/// The registry entry.
+pub const METHOD: MethodInfo = render::method_info(
+    "resident",
+    "device-resident balanced cell projection: cells stored once on the device, 4 bytes per tet per frame (the order)",
+    &[],
+    create,
+);
+
+fn create(inputs: MethodInputs) -> anyhow::Result<Box<dyn RenderMethod>> {
+    let bytes = render::DeviceBytesPerCell {
+        frame: BYTES_PER_CELL_PER_FRAME,
+        fixed: INDICES_PER_CELL * 4 + FLOATS_PER_STORED_CELL * 4,
+    };
+    render::CellProjection::create(inputs, bytes, |ctx, mesh, geometry, tables, interpolation, counter| {
+        Ok(Box::new(Resident::new(ctx, mesh, geometry, tables, interpolation, counter)?))
+    })
+}
+
+pub struct Resident {
+    cells: usize,
+    order: Vec<u32>,
+    order_buffer: Buffer,
+    _cell_buffer: Buffer,
+    index_buffer: Buffer,
+    set: StorageBufferSet,
+    pipeline: Arc<Pipeline>,
+    pipeline_key: PipelineKey,
+}
+
+/// The storage-buffer image of one cell.
+fn stored(c: &CellF32) -> [f32; FLOATS_PER_STORED_CELL] {
+    let mut out = [0f32; FLOATS_PER_STORED_CELL];
+    for i in 0..4 {
+        out[4 * i..4 * i + 4].copy_from_slice(&[c.pos[i][0], c.pos[i][1], c.pos[i][2], c.scalar[i]]);
+        out[16 + 4 * i..16 + 4 * i + 3].copy_from_slice(&c.plane3[i]);
+    }
+    out[32..35].copy_from_slice(&c.gradient);
+    out
+}
+
+impl Resident {
+    pub fn new(
+        ctx: &Arc<Context>,
+        mesh: &TetMesh,
+        geometry: &TetGeometry,
+        tables: &IntegrationTables,
+        interpolation: Interpolation,
+        counter: &mut UploadCounter,
+    ) -> VkResult<Self> {
+        let cells = cells_f32(mesh, geometry);
+        let n = cells.len();
+        let cell_bytes = (n * FLOATS_PER_STORED_CELL * 4) as u64;
+        let limit = u64::from(ctx.info.max_storage_buffer_range);
+        if cell_bytes > limit {
+            return Err(VkError::Invalid(format!(
+                "mesh '{}': {n} cells need a {cell_bytes}-byte storage buffer, above the device's maxStorageBufferRange ({limit} bytes)",
+                mesh.name
+            )));
+        }
+        let data: Vec<f32> = cells.iter().flat_map(stored).collect();
+        let usage = raw::BufferUsageFlags::STORAGE_BUFFER;
+        let cell_buffer = upload_static(ctx, "resident cells", bytemuck::cast_slice(&data), usage, counter)?;
+        let index_buffer =
+            upload_static(ctx, "resident strip indices", bytemuck::cast_slice(&strip_indices(n)), raw::BufferUsageFlags::INDEX_BUFFER, counter)?;
+        let order_buffer = Buffer::new(ctx, BufferDesc::upload("resident order", (n.max(1) * 4) as u64, usage))?;
+        let set = StorageBufferSet::new(ctx, "resident cells and order", &[&cell_buffer, &order_buffer], raw::ShaderStageFlags::VERTEX)?;
+        let (pipeline, pipeline_key) = build_pipeline(
+            ctx,
+            "cell_projection/resident.vert",
+            "cell_projection/balanced.frag",
+            0,
+            &[],
+            raw::PrimitiveTopology::TRIANGLE_STRIP,
+            true,
+            tables,
+            interpolation,
+            &[set_desc()],
+        )?;
+        Ok(Resident { cells: n, order: vec![0; n], order_buffer, _cell_buffer: cell_buffer, index_buffer, set, pipeline, pipeline_key })
+    }
+}
+
+fn set_desc() -> DescriptorSetDesc {
+    DescriptorSetDesc::storage_buffers(2, raw::ShaderStageFlags::VERTEX)
+}
+
+impl CellProjector for Resident {
+    fn cells(&self) -> usize {
+        self.cells
+    }
+    fn vertices_per_cell(&self) -> usize {
+        4
+    }
+    fn floats_per_cell(&self) -> usize {
+        BYTES_PER_CELL_PER_FRAME / 4
+    }
+    fn pipeline_key(&self) -> &PipelineKey {
+        &self.pipeline_key
+    }
+
+    fn pack(&mut self, order: &[u32], _frame: &FrameSetup) {
+        self.order.copy_from_slice(order);
+    }
+
+    fn upload(&mut self, counter: &mut UploadCounter) -> VkResult<()> {
+        self.order_buffer.write(0, bytemuck::cast_slice(&self.order), counter, UploadClass::FrameCells)
+    }
+
+    fn record_draw(&self, rec: &CommandRecorder, tables: &IntegrationTables, frame: &FrameSetup, counter: &mut UploadCounter) -> VkResult<()> {
+        let sets: [&DescriptorSet; 2] = [&tables.set, &self.set];
+        rec.bind_graphics(&self.pipeline, &sets)?;
+        rec.push_constants(&self.pipeline, bytemuck::bytes_of(&frame.constants), counter);
+        rec.bind_index_buffer_u32(&self.index_buffer);
+        rec.draw_indexed((self.cells * INDICES_PER_CELL) as u32);
+        Ok(())
+    }
+}
