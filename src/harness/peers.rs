@@ -43,6 +43,7 @@ use serde::{Deserialize, Serialize};
 
 use super::datasets::{Dataset, DatasetData};
 use super::image::RgbaImage;
+use super::run::RunConfig;
 use super::stats::Summary as Stats;
 use crate::algo::method::DataKind;
 use crate::fsio;
@@ -304,6 +305,57 @@ pub struct PeerScene {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub sample_distance: Option<f64>,
     pub output: PeerOutput,
+}
+
+impl PeerScene {
+    /// File stem of everything this scene writes: `<dataset>-peer-<peer>-<renderer>`.
+    pub fn stem(&self) -> String {
+        format!("{}-peer-{}-{}", self.dataset.name, self.peer, self.renderer)
+    }
+}
+
+/// The scene a peer renderer is given for a dataset exported as `exported`:
+/// the run's cameras (warm-up and timed frames, then the reference view),
+/// size, the transfer function encoded for the renderer, outputs in `dir`.
+pub fn scene(
+    peer: &'static Peer,
+    renderer: &'static PeerRenderer,
+    dataset: &Dataset,
+    tf: &TransferFunction,
+    cfg: &RunConfig,
+    exported: &PeerDataset,
+    dir: &Path,
+) -> Result<PeerScene> {
+    cfg.validate()?;
+    anyhow::ensure!(
+        renderer.kind == dataset.kind(),
+        "peer {}/{} renders {} data; '{}' is {}",
+        peer.name,
+        renderer.name,
+        renderer.kind.name(),
+        dataset.name,
+        dataset.kind().name()
+    );
+    let stem = format!("{}-peer-{}-{}", exported.name, peer.name, renderer.name);
+    Ok(PeerScene {
+        format: SCENE_FORMAT,
+        version: FORMAT_VERSION,
+        peer: peer.name,
+        renderer: renderer.name,
+        dataset: exported.clone(),
+        width: cfg.width,
+        height: cfg.height,
+        warmup: cfg.warmup,
+        frames: cfg.frames,
+        cameras: (0..cfg.warmup + cfg.frames).map(|f| cfg.camera(dataset, f)).collect(),
+        reference_camera: cfg.camera(dataset, 0),
+        transfer_function: encode_transfer_function(tf, renderer.opacity)?,
+        sample_distance: sample_distance(dataset),
+        output: PeerOutput {
+            result: dir.join(format!("{stem}.json")).to_string_lossy().into_owned(),
+            image: dir.join(format!("{stem}.rgba")).to_string_lossy().into_owned(),
+        },
+    })
 }
 
 /// Write the dataset as a binary legacy VTK file the peer reads: an

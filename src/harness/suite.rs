@@ -267,7 +267,7 @@ pub fn run_suite(
 #[allow(clippy::too_many_arguments)]
 fn run_peer_row(
     peer: &LocatedPeer,
-    renderer: &PeerRenderer,
+    renderer: &'static PeerRenderer,
     dataset: &Dataset,
     cfg: &RunConfig,
     peers_dir: &Path,
@@ -301,28 +301,9 @@ fn run_peer_row(
         }
         let Some((_, exported)) = export.as_ref() else { anyhow::bail!("internal: dataset not exported") };
         let tf = dataset.default_transfer_function();
-        let encoded = pe::encode_transfer_function(&tf, renderer.opacity)?;
-        let stem = format!("{}-peer-{}-{}", dataset.name, peer.peer.name, renderer.name);
-        let reference_camera = cfg.camera(dataset, 0);
-        let scene = pe::PeerScene {
-            format: pe::SCENE_FORMAT,
-            version: pe::FORMAT_VERSION,
-            peer: peer.peer.name,
-            renderer: renderer.name,
-            dataset: exported.clone(),
-            width: cfg.width,
-            height: cfg.height,
-            warmup: cfg.warmup,
-            frames: cfg.frames,
-            cameras: (0..cfg.warmup + cfg.frames).map(|f| cfg.camera(dataset, f)).collect(),
-            reference_camera,
-            transfer_function: encoded,
-            sample_distance: pe::sample_distance(dataset),
-            output: pe::PeerOutput {
-                result: peers_dir.join(format!("{stem}.json")).to_string_lossy().into_owned(),
-                image: peers_dir.join(format!("{stem}.rgba")).to_string_lossy().into_owned(),
-            },
-        };
+        let scene = pe::scene(peer.peer, renderer, dataset, &tf, cfg, exported, peers_dir)?;
+        let stem = scene.stem();
+        let reference_camera = scene.reference_camera;
         let (result, image) = pe::run_peer(peer, &scene, &peers_dir.join(format!("{stem}.scene.json")))?;
         let reference = reference_image(dataset, &tf, &reference_camera, cfg.width, cfg.height)?;
         let error = image.compare(&reference.image)?;
