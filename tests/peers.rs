@@ -224,7 +224,7 @@ fn vtk_renders_the_small_post_in_the_suite() {
         assert_eq!(p.status, "ok", "{:?}", p.message);
         assert_eq!(p.frame_samples_ms.len(), 2);
         let e = p.error.unwrap();
-        assert!(e.rmse < 0.02, "{} RMSE {}", p.renderer, e.rmse);
+        assert!(e.rmse < 0.05, "{} RMSE {}", p.renderer, e.rmse);
         assert!(p.covered_pixels.unwrap() > 500);
     }
     // Alternating: volbench, peer, volbench, peer.
