@@ -14,17 +14,7 @@ vtk_req=${VOLBENCH_VTK_VERSION:-vtk>=9.3,<10}
 
 packages=(python3 python3-venv libegl1 libegl-mesa0 libgl1 libgl1-mesa-dri libglx-mesa0
           libx11-6 libxrender1 libxcursor1 libxext6 libxfixes3 libxinerama1 libxft2)
-missing=()
-for p in "${packages[@]}"; do
-    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
-done
-if [ ${#missing[@]} -gt 0 ]; then
-    echo "install-vtk: installing ${missing[*]}"
-    SUDO=""
-    [ "$(id -u)" -ne 0 ] && SUDO="sudo"
-    $SUDO apt-get update -qq
-    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${missing[@]}" >/dev/null
-fi
+bash scripts/ensure-packages.sh "${packages[@]}"
 
 # The system interpreter, not one a version manager put first on PATH.
 py=/usr/bin/python3

@@ -108,12 +108,7 @@ pub const PEERS: &[Peer] = &[Peer {
             kind: DataKind::TetMesh,
             opacity: OpacityModel::Attenuation,
         },
-        PeerRenderer {
-            name: "gpu-raycast",
-            class: "vtkGPUVolumeRayCastMapper",
-            kind: DataKind::Volume,
-            opacity: OpacityModel::Correction,
-        },
+        PeerRenderer { name: "gpu-raycast", class: "vtkGPUVolumeRayCastMapper", kind: DataKind::Volume, opacity: OpacityModel::Correction },
         PeerRenderer {
             name: "fixed-point-raycast",
             class: "vtkFixedPointVolumeRayCastMapper",
@@ -145,10 +140,7 @@ impl LocatedPeer {
 /// Find `--peers NAME`'s interpreter and script, or say how to install them.
 pub fn locate(name: &str) -> Result<LocatedPeer> {
     let Some(peer) = PEERS.iter().find(|p| p.name == name) else {
-        bail!(
-            "--peers {name}: unknown peer (known: {})",
-            PEERS.iter().map(|p| p.name).collect::<Vec<_>>().join(", ")
-        );
+        bail!("--peers {name}: unknown peer (known: {})", PEERS.iter().map(|p| p.name).collect::<Vec<_>>().join(", "));
     };
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let venv = match std::env::var_os(peer.venv_env) {
@@ -157,21 +149,11 @@ pub fn locate(name: &str) -> Result<LocatedPeer> {
     };
     let python = venv.join("bin").join("python");
     if !python.is_file() {
-        bail!(
-            "--peers {name}: no Python environment at {} ({} sets another); run `{}` first",
-            venv.display(),
-            peer.venv_env,
-            peer.install
-        );
+        bail!("--peers {name}: no Python environment at {} ({} sets another); run `{}` first", venv.display(), peer.venv_env, peer.install);
     }
     let script = root.join(peer.script);
-    fsio::check_input(&script, "peer script", 1 << 20)
-        .with_context(|| format!("--peers {name}"))?;
-    Ok(LocatedPeer {
-        peer,
-        python,
-        script,
-    })
+    fsio::check_input(&script, "peer script", 1 << 20).with_context(|| format!("--peers {name}"))?;
+    Ok(LocatedPeer { peer, python, script })
 }
 
 /// The transfer function in VTK's terms for one opacity model.
@@ -201,15 +183,8 @@ fn strictly_increasing(scalars: &mut [f64], range: f64) {
 
 /// Encode volbench's transfer function for a renderer that reads opacity as
 /// `model` says (see the module note).
-pub fn encode_transfer_function(
-    tf: &TransferFunction,
-    model: OpacityModel,
-) -> Result<PeerTransferFunction> {
-    anyhow::ensure!(
-        !tf.points.is_empty(),
-        "transfer function '{}' has no control points",
-        tf.name
-    );
+pub fn encode_transfer_function(tf: &TransferFunction, model: OpacityModel) -> Result<PeerTransferFunction> {
+    anyhow::ensure!(!tf.points.is_empty(), "transfer function '{}' has no control points", tf.name);
     for p in &tf.points {
         anyhow::ensure!(
             p.scalar.is_finite() && p.attenuation.is_finite() && p.attenuation >= 0.0 && p.color.iter().all(|c| c.is_finite()),
@@ -223,11 +198,7 @@ pub fn encode_transfer_function(
     let (lo, hi) = tf.scalar_range();
     // The control points (steps keep both sides, in order), plus for the
     // correction model evenly spaced samples between them.
-    let mut points: Vec<(f64, [f64; 3], f64)> = tf
-        .points
-        .iter()
-        .map(|p| (p.scalar, p.color, p.attenuation))
-        .collect();
+    let mut points: Vec<(f64, [f64; 3], f64)> = tf.points.iter().map(|p| (p.scalar, p.color, p.attenuation)).collect();
     if model == OpacityModel::Correction && hi > lo {
         for k in 0..=CORRECTION_SAMPLES {
             let s = lo + (hi - lo) * k as f64 / CORRECTION_SAMPLES as f64;
@@ -248,21 +219,10 @@ pub fn encode_transfer_function(
     };
     Ok(PeerTransferFunction {
         name: tf.name.clone(),
-        opacity_model: serde_json::to_value(model)?
-            .as_str()
-            .unwrap_or_default()
-            .to_string(),
+        opacity_model: serde_json::to_value(model)?.as_str().unwrap_or_default().to_string(),
         unit_distance,
-        color_points: scalars
-            .iter()
-            .zip(&values)
-            .map(|(&s, (c, _))| [s, c[0], c[1], c[2]])
-            .collect(),
-        opacity_points: scalars
-            .iter()
-            .zip(&values)
-            .map(|(&s, &(_, tau))| [s, opacity(tau)])
-            .collect(),
+        color_points: scalars.iter().zip(&values).map(|(&s, (c, _))| [s, c[0], c[1], c[2]]).collect(),
+        opacity_points: scalars.iter().zip(&values).map(|(&s, &(_, tau))| [s, opacity(tau)]).collect(),
         volbench_points: tf.points.clone(),
     })
 }
@@ -376,17 +336,12 @@ pub fn write_dataset(dataset: &Dataset, path: &Path) -> Result<PeerDataset> {
                         w.write_all(&c.to_be_bytes())?;
                     }
                 }
-                let size = mesh
-                    .tets
-                    .len()
-                    .checked_mul(5)
-                    .context("too many tets for a VTK file")?;
+                let size = mesh.tets.len().checked_mul(5).context("too many tets for a VTK file")?;
                 write!(w, "\nCELLS {} {size}\n", mesh.tets.len())?;
                 for t in &mesh.tets {
                     w.write_all(&4i32.to_be_bytes())?;
                     for &i in t {
-                        let i = i32::try_from(i)
-                            .context("a point index beyond VTK's 32-bit legacy format")?;
+                        let i = i32::try_from(i).context("a point index beyond VTK's 32-bit legacy format")?;
                         w.write_all(&i.to_be_bytes())?;
                     }
                 }
@@ -394,11 +349,7 @@ pub fn write_dataset(dataset: &Dataset, path: &Path) -> Result<PeerDataset> {
                 for _ in &mesh.tets {
                     w.write_all(&10i32.to_be_bytes())?;
                 }
-                write!(
-                    w,
-                    "\nPOINT_DATA {}\nSCALARS scalars double 1\nLOOKUP_TABLE default\n",
-                    mesh.scalars.len()
-                )?;
+                write!(w, "\nPOINT_DATA {}\nSCALARS scalars double 1\nLOOKUP_TABLE default\n", mesh.scalars.len())?;
                 for s in &mesh.scalars {
                     w.write_all(&s.to_be_bytes())?;
                 }
@@ -480,8 +431,7 @@ pub struct PeerResult {
 /// and version, the renderer asked for, one finite non-negative time per
 /// frame, the image's size and layout. `what` names the file in errors.
 pub fn parse_result(text: &str, scene: &PeerScene, what: &str) -> Result<PeerResult> {
-    let r: PeerResult =
-        serde_json::from_str(text).with_context(|| format!("{what}: not a peer result"))?;
+    let r: PeerResult = serde_json::from_str(text).with_context(|| format!("{what}: not a peer result"))?;
     anyhow::ensure!(
         r.format == RESULT_FORMAT && r.version == FORMAT_VERSION,
         "{what}: format '{}' version {}, expected '{RESULT_FORMAT}' version {FORMAT_VERSION}",
@@ -504,17 +454,8 @@ pub fn parse_result(text: &str, scene: &PeerScene, what: &str) -> Result<PeerRes
         scene.frames,
         scene.warmup
     );
-    for (name, v) in r
-        .frame_ms
-        .iter()
-        .chain(&r.warmup_ms)
-        .map(|v| ("frame time", v))
-        .chain([("load_ms", &r.load_ms), ("setup_ms", &r.setup_ms)])
-    {
-        anyhow::ensure!(
-            v.is_finite() && *v >= 0.0,
-            "{what}: {name} {v} is not a finite non-negative number of milliseconds"
-        );
+    for (name, v) in r.frame_ms.iter().chain(&r.warmup_ms).map(|v| ("frame time", v)).chain([("load_ms", &r.load_ms), ("setup_ms", &r.setup_ms)]) {
+        anyhow::ensure!(v.is_finite() && *v >= 0.0, "{what}: {name} {v} is not a finite non-negative number of milliseconds");
     }
     let i = &r.image;
     anyhow::ensure!(
@@ -525,20 +466,9 @@ pub fn parse_result(text: &str, scene: &PeerScene, what: &str) -> Result<PeerRes
         scene.width,
         scene.height
     );
-    anyhow::ensure!(
-        i.format == "rgba8" && i.rows == "top-down",
-        "{what}: image format '{}' rows '{}', expected rgba8 top-down",
-        i.format,
-        i.rows
-    );
-    let expected = Path::new(&scene.output.image)
-        .file_name()
-        .map(|f| f.to_string_lossy().into_owned());
-    anyhow::ensure!(
-        Some(&i.file) == expected.as_ref(),
-        "{what}: image file '{}' is not the one asked for",
-        i.file
-    );
+    anyhow::ensure!(i.format == "rgba8" && i.rows == "top-down", "{what}: image format '{}' rows '{}', expected rgba8 top-down", i.format, i.rows);
+    let expected = Path::new(&scene.output.image).file_name().map(|f| f.to_string_lossy().into_owned());
+    anyhow::ensure!(Some(&i.file) == expected.as_ref(), "{what}: image file '{}' is not the one asked for", i.file);
     Ok(r)
 }
 
@@ -546,26 +476,11 @@ pub fn parse_result(text: &str, scene: &PeerScene, what: &str) -> Result<PeerRes
 /// the peer's framebuffer holds colour composited over transparent black,
 /// i.e. premultiplied, as volbench's images are.
 pub fn read_image(path: &Path, width: u32, height: u32) -> Result<RgbaImage> {
-    let n = (width as u64)
-        .checked_mul(height as u64)
-        .and_then(|n| n.checked_mul(4))
-        .context("peer image size overflows")?;
+    let n = (width as u64).checked_mul(height as u64).and_then(|n| n.checked_mul(4)).context("peer image size overflows")?;
     let bytes = fsio::read_input(path, "peer image", n)?;
-    anyhow::ensure!(
-        bytes.len() as u64 == n,
-        "{}: {} bytes, expected {n} for a {width}x{height} RGBA8 image",
-        path.display(),
-        bytes.len()
-    );
-    let pixels = bytes
-        .chunks_exact(4)
-        .map(|p| [p[0], p[1], p[2], p[3]].map(|c| f32::from(c) / 255.0))
-        .collect();
-    Ok(RgbaImage {
-        width,
-        height,
-        pixels,
-    })
+    anyhow::ensure!(bytes.len() as u64 == n, "{}: {} bytes, expected {n} for a {width}x{height} RGBA8 image", path.display(), bytes.len());
+    let pixels = bytes.chunks_exact(4).map(|p| [p[0], p[1], p[2], p[3]].map(|c| f32::from(c) / 255.0)).collect();
+    Ok(RgbaImage { width, height, pixels })
 }
 
 /// A peer process may take this long before it is stopped (seconds;
@@ -575,9 +490,8 @@ pub const DEFAULT_TIMEOUT_S: u64 = 900;
 fn timeout() -> Result<Duration> {
     match std::env::var("VOLBENCH_PEER_TIMEOUT_S") {
         Ok(v) if !v.is_empty() => {
-            let s: u64 = v.parse().ok().filter(|&s| s > 0).with_context(|| {
-                format!("VOLBENCH_PEER_TIMEOUT_S={v}: expected a positive number of seconds")
-            })?;
+            let s: u64 =
+                v.parse().ok().filter(|&s| s > 0).with_context(|| format!("VOLBENCH_PEER_TIMEOUT_S={v}: expected a positive number of seconds"))?;
             Ok(Duration::from_secs(s))
         }
         _ => Ok(Duration::from_secs(DEFAULT_TIMEOUT_S)),
@@ -586,11 +500,7 @@ fn timeout() -> Result<Duration> {
 
 /// Run one peer renderer on a scene written to `scene_path`; returns the
 /// checked result and the image.
-pub fn run_peer(
-    peer: &LocatedPeer,
-    scene: &PeerScene,
-    scene_path: &Path,
-) -> Result<(PeerResult, RgbaImage)> {
+pub fn run_peer(peer: &LocatedPeer, scene: &PeerScene, scene_path: &Path) -> Result<(PeerResult, RgbaImage)> {
     fsio::write_output(scene_path, &serde_json::to_vec_pretty(scene)?)?;
     let limit = timeout()?;
     let mut child = Command::new(&peer.python)
@@ -602,13 +512,7 @@ pub fn run_peer(
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
         .spawn()
-        .with_context(|| {
-            format!(
-                "starting {} {}",
-                peer.python.display(),
-                peer.script.display()
-            )
-        })?;
+        .with_context(|| format!("starting {} {}", peer.python.display(), peer.script.display()))?;
     let mut stderr = child.stderr.take();
     // Drain stderr on a thread so a chatty peer cannot block on a full pipe.
     let reader = std::thread::spawn(move || {
@@ -626,12 +530,7 @@ pub fn run_peer(
         if start.elapsed() > limit {
             let _ = child.kill();
             let _ = child.wait();
-            bail!(
-                "{} {}: stopped after {} s (VOLBENCH_PEER_TIMEOUT_S)",
-                peer.peer.name,
-                scene.renderer,
-                limit.as_secs()
-            );
+            bail!("{} {}: stopped after {} s (VOLBENCH_PEER_TIMEOUT_S)", peer.peer.name, scene.renderer, limit.as_secs());
         }
         std::thread::sleep(Duration::from_millis(20));
     };
@@ -654,16 +553,7 @@ pub fn run_peer(
                 }
             }
         };
-        bail!(
-            "{} {} failed ({how}){}",
-            peer.peer.name,
-            scene.renderer,
-            if tail.is_empty() {
-                String::new()
-            } else {
-                format!(": {tail}")
-            }
-        );
+        bail!("{} {} failed ({how}){}", peer.peer.name, scene.renderer, if tail.is_empty() { String::new() } else { format!(": {tail}") });
     }
     let result_path = Path::new(&scene.output.result);
     let text = fsio::read_input_text(result_path, "peer result", 16 << 20)?;
@@ -704,26 +594,10 @@ mod tests {
         TransferFunction {
             name: "t".into(),
             points: vec![
-                ControlPoint {
-                    scalar: 0.0,
-                    color: [0.1, 0.2, 0.3],
-                    attenuation: 0.0,
-                },
-                ControlPoint {
-                    scalar: 1.0,
-                    color: [1.0, 0.0, 0.0],
-                    attenuation: 4.0,
-                },
-                ControlPoint {
-                    scalar: 1.0,
-                    color: [0.0, 1.0, 0.0],
-                    attenuation: 2.0,
-                },
-                ControlPoint {
-                    scalar: 3.0,
-                    color: [0.0, 0.0, 1.0],
-                    attenuation: 8.0,
-                },
+                ControlPoint { scalar: 0.0, color: [0.1, 0.2, 0.3], attenuation: 0.0 },
+                ControlPoint { scalar: 1.0, color: [1.0, 0.0, 0.0], attenuation: 4.0 },
+                ControlPoint { scalar: 1.0, color: [0.0, 1.0, 0.0], attenuation: 2.0 },
+                ControlPoint { scalar: 3.0, color: [0.0, 0.0, 1.0], attenuation: 8.0 },
             ],
         }
     }
@@ -759,29 +633,17 @@ mod tests {
             let o = a[1] + (b[1] - a[1]) * (s - a[0]) / (b[0] - a[0]);
             let tau = -(1.0 - o).ln() / e.unit_distance;
             let want = t.eval(s).1;
-            assert!(
-                (tau - want).abs() <= 1e-3 * want.max(1.0),
-                "s={s}: {tau} vs {want}"
-            );
+            assert!((tau - want).abs() <= 1e-3 * want.max(1.0), "s={s}: {tau} vs {want}");
         }
     }
 
     #[test]
     fn a_transparent_or_bad_transfer_function_is_handled() {
-        let e = encode_transfer_function(
-            &TransferFunction::constant([1.0; 3], 0.0),
-            OpacityModel::Correction,
-        )
-        .unwrap();
-        assert_eq!(
-            (e.unit_distance, e.opacity_points.clone()),
-            (1.0, vec![[0.0, 0.0]])
-        );
+        let e = encode_transfer_function(&TransferFunction::constant([1.0; 3], 0.0), OpacityModel::Correction).unwrap();
+        assert_eq!((e.unit_distance, e.opacity_points.clone()), (1.0, vec![[0.0, 0.0]]));
         let mut bad = tf();
         bad.points[1].attenuation = f64::INFINITY;
-        let err = encode_transfer_function(&bad, OpacityModel::Attenuation)
-            .unwrap_err()
-            .to_string();
+        let err = encode_transfer_function(&bad, OpacityModel::Attenuation).unwrap_err().to_string();
         assert!(err.contains("not finite"), "{err}");
     }
 }
