@@ -68,6 +68,10 @@ struct SuiteArgs {
     /// Output directory (default results/<UTC time>/).
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Also run these peers on the same datasets, alternating with volbench's
+    /// runs (`vtk`: VTK's Python wheel, installed by scripts/install-vtk.sh).
+    #[arg(long, value_name = "PEER", value_delimiter = ',')]
+    peers: Vec<String>,
 }
 
 /// Options of a method given as flags: shorthands for `method:key=value`.
@@ -504,7 +508,7 @@ fn stress(cli: &Cli, registry: &Registry, args: &StressArgs) -> Result<()> {
 
 fn suite(cli: &Cli, registry: &Registry, args: &SuiteArgs) -> Result<()> {
     use volbench::harness::suite::{plan, run_suite, utc_now, SuiteSettings};
-    let settings = SuiteSettings::standard(args.quick, args.filter.clone());
+    let settings = SuiteSettings { peers: args.peers.clone(), ..SuiteSettings::standard(args.quick, args.filter.clone()) };
     let plan = plan(registry, &settings)?;
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from(format!("results/{}", utc_now())));
     check_out_dir(&out, &["summary.json", "summary.csv", "report.md", "montage.png"])?;
@@ -530,9 +534,13 @@ fn suite(cli: &Cli, registry: &Registry, args: &SuiteArgs) -> Result<()> {
     })?;
     bar.finish_and_clear();
     let failed = summary.runs.iter().filter(|r| r.status == "failed").count();
+    let peers_failed = summary.peers.iter().filter(|r| r.status == "failed").count();
     println!("results: {}", out.display());
     if failed > 0 {
         bail!("{failed} of {} suite runs failed (see report.md)", summary.runs.len());
+    }
+    if peers_failed > 0 {
+        bail!("{peers_failed} of {} peer runs failed (see report.md)", summary.peers.len());
     }
     Ok(())
 }

@@ -6,6 +6,7 @@
 pub mod datasets;
 pub mod image;
 pub mod pareto;
+pub mod peers;
 pub mod plots;
 pub mod reference_cache;
 pub mod report;

@@ -15,6 +15,7 @@ use anyhow::{Context as _, Result};
 use serde::Serialize;
 
 use super::datasets::{self, Dataset};
+use super::peers::{LocatedPeer, PeerRenderer, PeerRow};
 use super::image::RgbaImage;
 use super::reference_cache::reference_image;
 use super::run::{run, RunConfig, RunOutput, RunResult};
@@ -34,14 +35,17 @@ pub struct SuiteSettings {
     pub quick: bool,
     /// Only runs whose method or dataset name is listed (empty: all).
     pub filter: Vec<String>,
+    /// Peers (`--peers`, see `harness::peers`) run on the same datasets,
+    /// alternating with volbench's runs.
+    pub peers: Vec<String>,
 }
 
 impl SuiteSettings {
     pub fn standard(quick: bool, filter: Vec<String>) -> Self {
         if quick {
-            SuiteSettings { width: 256, height: 256, frames: 3, warmup: 1, orbit_step_deg: 5.0, quick, filter }
+            SuiteSettings { width: 256, height: 256, frames: 3, warmup: 1, orbit_step_deg: 5.0, quick, filter, peers: Vec::new() }
         } else {
-            SuiteSettings { width: 512, height: 512, frames: 20, warmup: 3, orbit_step_deg: 5.0, quick, filter }
+            SuiteSettings { width: 512, height: 512, frames: 20, warmup: 3, orbit_step_deg: 5.0, quick, filter, peers: Vec::new() }
         }
     }
 
@@ -92,6 +96,10 @@ pub fn plan(registry: &Registry, settings: &SuiteSettings) -> Result<Vec<Planned
         }
     }
     anyhow::ensure!(!out.is_empty(), "--filter {:?} leaves nothing to run", settings.filter);
+    // A peer that is not installed is an error before anything runs.
+    for p in &settings.peers {
+        super::peers::locate(p)?;
+    }
     Ok(out)
 }
 
@@ -152,6 +160,8 @@ pub struct SuiteRow {
     pub label: String,
     pub status: &'static str,
     pub message: Option<String>,
+    /// Position in the suite's run order (peers' runs counted too).
+    pub sequence: usize,
     pub result: Option<RunResult>,
 }
 
@@ -161,6 +171,9 @@ pub struct Summary {
     pub environment: Environment,
     pub settings: SuiteSettings,
     pub runs: Vec<SuiteRow>,
+    /// Peers' runs (`--peers`), apart from volbench's: other programs'
+    /// renderers on the same data, view and transfer function.
+    pub peers: Vec<PeerRow>,
 }
 
 /// Run the plan; each row's JSON, PNG and difference PNG go to
@@ -177,48 +190,86 @@ pub fn run_suite(
     cfg.check_device(&ctx.info)?;
     let runs_dir = out.join("runs");
     std::fs::create_dir_all(&runs_dir).with_context(|| format!("creating {}", runs_dir.display()))?;
-    let mut summary = Summary { environment: Environment::of(ctx), settings: settings.clone(), runs: Vec::new() };
+    let mut summary = Summary { environment: Environment::of(ctx), settings: settings.clone(), runs: Vec::new(), peers: Vec::new() };
     let mut images: Vec<(String, RgbaImage, Option<RgbaImage>)> = Vec::new();
+    let located: Vec<LocatedPeer> = settings.peers.iter().map(|p| super::peers::locate(p)).collect::<Result<_>>()?;
+    let peers_dir = out.join("peers");
+    if !located.is_empty() {
+        std::fs::create_dir_all(&peers_dir).with_context(|| format!("creating {}", peers_dir.display()))?;
+    }
     let mut loaded: Option<(&str, Dataset)> = None;
+    // Peer renderers still to run on the current dataset, and its exported copy.
+    let mut pending: Vec<(&LocatedPeer, &'static PeerRenderer)> = Vec::new();
+    let mut export: Option<(std::path::PathBuf, super::peers::PeerDataset)> = None;
+    let mut sequence = 0usize;
     for (i, p) in plan.iter().enumerate() {
         let label = format!("{} on {}", p.spec.label(), p.dataset);
         progress(i, &label);
+        let first_of_dataset = i == 0 || plan[i - 1].dataset != p.dataset;
+        let last_of_dataset = plan.get(i + 1).is_none_or(|n| n.dataset != p.dataset);
+        if loaded.as_ref().is_none_or(|(n, _)| *n != p.dataset) {
+            loaded = Some((p.dataset, datasets::load(p.dataset)?));
+        }
+        let Some((_, dataset)) = &loaded else { continue };
+        if first_of_dataset {
+            // Popped from the end: reversed so they run in their listed order.
+            pending = located.iter().flat_map(|l| l.renderers_for(dataset.kind()).map(move |r| (l, r))).collect();
+            pending.reverse();
+        }
         let mut row = SuiteRow {
             dataset: p.dataset.into(),
             method: p.spec.info.name.into(),
             label: p.spec.label(),
             status: "ok",
             message: None,
+            sequence,
             result: None,
         };
+        sequence += 1;
         if let Some(why) = skip_reason(&p.spec, &ctx.info) {
             (row.status, row.message) = ("skipped", Some(why));
-            summary.runs.push(row);
-            continue;
-        }
-        if loaded.as_ref().is_none_or(|(n, _)| *n != p.dataset) {
-            loaded = Some((p.dataset, datasets::load(p.dataset)?));
-        }
-        let Some((_, dataset)) = &loaded else { continue };
-        let outcome = (|| -> Result<(RunOutput, RgbaImage)> {
-            let tf = dataset.default_transfer_function();
-            let mut r = run(ctx, &p.spec, dataset, &tf, &cfg)?;
-            let reference = reference_image(dataset, &tf, &r.result.image.camera, cfg.width, cfg.height)?;
-            let diff = r.attach_error(&reference)?;
-            let stem = format!("{}-{}", p.dataset, p.spec.file_stem());
-            let (json, png, dpng) = (runs_dir.join(format!("{stem}.json")), runs_dir.join(format!("{stem}.png")), runs_dir.join(format!("{stem}-diff.png")));
-            let bytes = [super::report::json_bytes(&r.result)?, r.image.png_bytes()?, diff.png_bytes()?];
-            fsio::write_all(&[(&json, &bytes[0]), (&png, &bytes[1]), (&dpng, &bytes[2])])?;
-            Ok((r, diff))
-        })();
-        match outcome {
-            Ok((r, diff)) => {
-                images.push((label.clone(), r.image, Some(diff)));
-                row.result = Some(r.result);
+        } else {
+            let outcome = (|| -> Result<(RunOutput, RgbaImage)> {
+                let tf = dataset.default_transfer_function();
+                let mut r = run(ctx, &p.spec, dataset, &tf, &cfg)?;
+                let reference = reference_image(dataset, &tf, &r.result.image.camera, cfg.width, cfg.height)?;
+                let diff = r.attach_error(&reference)?;
+                let stem = format!("{}-{}", p.dataset, p.spec.file_stem());
+                let (json, png, dpng) = (runs_dir.join(format!("{stem}.json")), runs_dir.join(format!("{stem}.png")), runs_dir.join(format!("{stem}-diff.png")));
+                let bytes = [super::report::json_bytes(&r.result)?, r.image.png_bytes()?, diff.png_bytes()?];
+                fsio::write_all(&[(&json, &bytes[0]), (&png, &bytes[1]), (&dpng, &bytes[2])])?;
+                Ok((r, diff))
+            })();
+            match outcome {
+                Ok((r, diff)) => {
+                    images.push((label.clone(), r.image, Some(diff)));
+                    row.result = Some(r.result);
+                }
+                Err(e) => (row.status, row.message) = ("failed", Some(format!("{e:#}"))),
             }
-            Err(e) => (row.status, row.message) = ("failed", Some(format!("{e:#}"))),
         }
         summary.runs.push(row);
+        // Peers alternate with volbench's runs on the same dataset (one after
+        // each run; the rest after the dataset's last run), so that machine
+        // noise hits both.
+        let take = if last_of_dataset { pending.len() } else { pending.len().min(1) };
+        for _ in 0..take {
+            let Some((peer, renderer)) = pending.pop() else { break };
+            let label = format!("peer {}/{} on {}", peer.peer.name, renderer.name, p.dataset);
+            progress(i, &label);
+            let (row, shown) = run_peer_row(peer, renderer, dataset, &cfg, &peers_dir, &runs_dir, &mut export, sequence);
+            sequence += 1;
+            if let Some((image, diff)) = shown {
+                images.push((label, image, Some(diff)));
+            }
+            summary.peers.push(row);
+        }
+        if last_of_dataset {
+            // The exported copy is only the peers' input: not a result.
+            if let Some((path, _)) = export.take() {
+                let _ = std::fs::remove_file(path);
+            }
+        }
         fsio::write_output(&out.join("summary.json"), &super::report::json_bytes(&summary)?)?;
     }
     fsio::write_output(&out.join("summary.json"), &super::report::json_bytes(&summary)?)?;
@@ -229,6 +280,158 @@ pub fn run_suite(
         super::plots::montage(&out.join("montage.png"), &images)?;
     }
     Ok(summary)
+}
+
+/// One peer renderer on one dataset: the dataset exported once per dataset
+/// (`export`), the scene written, the peer run, its image compared with the
+/// same f64 reference as volbench's runs. A failure is the row's status.
+#[allow(clippy::too_many_arguments)]
+fn run_peer_row(
+    peer: &LocatedPeer,
+    renderer: &'static PeerRenderer,
+    dataset: &Dataset,
+    cfg: &RunConfig,
+    peers_dir: &Path,
+    runs_dir: &Path,
+    export: &mut Option<(std::path::PathBuf, super::peers::PeerDataset)>,
+    sequence: usize,
+) -> (PeerRow, Option<(RgbaImage, RgbaImage)>) {
+    use super::peers as pe;
+    let mut row = PeerRow {
+        peer: peer.peer.name.into(),
+        renderer: renderer.name.into(),
+        class: renderer.class.into(),
+        dataset: dataset.name.clone(),
+        status: "ok",
+        message: None,
+        sequence,
+        library_version: None,
+        gl_renderer: None,
+        opacity_model: None,
+        frame_ms: None,
+        frame_samples_ms: Vec::new(),
+        setup_ms: None,
+        error: None,
+        covered_pixels: None,
+    };
+    let outcome = (|| -> Result<(pe::PeerResult, RgbaImage, RgbaImage, super::image::ImageError, String)> {
+        if export.is_none() {
+            let path = peers_dir.join(format!("{}.vtk", dataset.name));
+            let d = pe::write_dataset(dataset, &path).with_context(|| format!("exporting '{}' for the peers", dataset.name))?;
+            *export = Some((path, d));
+        }
+        let Some((_, exported)) = export.as_ref() else { anyhow::bail!("internal: dataset not exported") };
+        let tf = dataset.default_transfer_function();
+        let scene = pe::scene(peer.peer, renderer, dataset, &tf, cfg, exported, peers_dir)?;
+        let stem = scene.stem();
+        let reference_camera = scene.reference_camera;
+        let (result, image) = pe::run_peer(peer, &scene, &peers_dir.join(format!("{stem}.scene.json")))?;
+        let reference = reference_image(dataset, &tf, &reference_camera, cfg.width, cfg.height)?;
+        let error = image.compare(&reference.image)?;
+        let diff = image.difference(&reference.image);
+        let (png, dpng) = (runs_dir.join(format!("{stem}.png")), runs_dir.join(format!("{stem}-diff.png")));
+        let bytes = [image.png_bytes()?, diff.png_bytes()?];
+        fsio::write_all(&[(&png, &bytes[0]), (&dpng, &bytes[1])])?;
+        // The raw image was only the transport; the PNG is the record.
+        let _ = std::fs::remove_file(&scene.output.image);
+        Ok((result, image, diff, error, scene.transfer_function.opacity_model))
+    })();
+    match outcome {
+        Ok((result, image, diff, error, model)) => {
+            row.library_version = Some(result.library_version);
+            row.gl_renderer = Some(result.gl_renderer);
+            row.opacity_model = Some(model);
+            row.frame_ms = Some(super::stats::Summary::of(&result.frame_ms));
+            row.frame_samples_ms = result.frame_ms;
+            row.setup_ms = Some(result.load_ms + result.setup_ms);
+            row.error = Some(error);
+            row.covered_pixels = Some(image.covered_pixels());
+            (row, Some((image, diff)))
+        }
+        Err(e) => {
+            (row.status, row.message) = ("failed", Some(format!("{e:#}")));
+            (row, None)
+        }
+    }
+}
+
+/// The peers' section of the report: each peer renderer's frame time and
+/// error against the same f64 reference, and each volbench run's speed
+/// ratio to it (measured in this run, alternating, so the ratio is
+/// comparable where absolute times across machines are not).
+pub fn peer_report(s: &Summary) -> String {
+    if s.peers.is_empty() {
+        return String::new();
+    }
+    let mut t = String::from(
+        "\n## Peers measured in the same run\n\nOther programs' renderers given the same data, camera path, transfer function and image size, \
+         run alternating with volbench's runs. A peer frame is its Render() plus glFinish (VTK: WaitForCompletion); \
+         its image is compared with the same f64 reference (RGBA, 8-bit framebuffer). \
+         The transfer function is encoded for each renderer's opacity model (`attenuation`: exact; `correction`: resampled, see `harness::peers`).\n\n\
+         | dataset | peer | renderer (class) | status | frame ms median [min, max] | RMSE vs f64 | max err | opacity model |\n|---|---|---|---|---|---:|---:|---|\n",
+    );
+    for p in &s.peers {
+        match (&p.frame_ms, &p.error) {
+            (Some(f), Some(e)) => {
+                let _ = writeln!(
+                    t,
+                    "| {} | {} {} | {} (`{}`) | ok | {:.1} [{:.1}, {:.1}] | {:.2e} | {:.2e} | {} |",
+                    p.dataset,
+                    p.peer,
+                    p.library_version.as_deref().unwrap_or(""),
+                    p.renderer,
+                    p.class,
+                    f.median,
+                    f.min,
+                    f.max,
+                    e.rmse,
+                    e.max_abs,
+                    p.opacity_model.as_deref().unwrap_or("")
+                );
+            }
+            _ => {
+                let _ = writeln!(
+                    t,
+                    "| {} | {} | {} (`{}`) | {}: {} |||||",
+                    p.dataset,
+                    p.peer,
+                    p.renderer,
+                    p.class,
+                    p.status,
+                    p.message.as_deref().unwrap_or("").replace('|', "/")
+                );
+            }
+        }
+    }
+    let mut ratios = String::new();
+    for r in &s.runs {
+        let Some(x) = &r.result else { continue };
+        let ours = x.time_ms.phase("frame").median;
+        for p in s.peers.iter().filter(|p| p.dataset == r.dataset) {
+            let (Some(f), Some(e)) = (&p.frame_ms, &p.error) else { continue };
+            if ours > 0.0 {
+                let _ = writeln!(
+                    ratios,
+                    "| {} | {} | {}/{} | {:.1} | {:.1} | **{:.2}** | {} | {:.2e} |",
+                    r.dataset,
+                    r.label,
+                    p.peer,
+                    p.renderer,
+                    ours,
+                    f.median,
+                    f.median / ours,
+                    x.error.as_ref().map_or("-".into(), |e| format!("{:.2e}", e.rmse)),
+                    e.rmse
+                );
+            }
+        }
+    }
+    if !ratios.is_empty() {
+        t += "\nSpeed ratio = peer's median frame time / volbench's (above 1: volbench is faster), same run, same machine.\n\n\
+              | dataset | volbench method | peer | volbench ms | peer ms | speed ratio | volbench RMSE | peer RMSE |\n|---|---|---|---:|---:|---:|---:|---:|\n";
+        t += &ratios;
+    }
+    t
 }
 
 /// One line per run: the figures a spreadsheet wants.
@@ -317,6 +520,7 @@ pub fn report(s: &Summary, registry: &Registry) -> String {
         }
     }
     t += &published_ratios(s, registry);
+    t += &peer_report(s);
     t += "\nPlots: `plots/frame_time.{png,svg}`, `plots/bytes_per_frame.{png,svg}`; images and their ×10 difference from the f64 reference: `montage.png`, `runs/`.\n";
     t
 }
