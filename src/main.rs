@@ -390,13 +390,13 @@ fn pareto(cli: &Cli, registry: &Registry, args: &ParetoArgs) -> Result<()> {
     let tf = args.frame.transfer_function(&dataset)?;
     let specs = sweep::pareto_specs(registry, &args.methods, dataset.kind(), &args.frame.method.pairs())?;
     let out_dir = args.out.clone().unwrap_or_else(|| PathBuf::from(format!("results/runs/pareto-{}", dataset.name)));
-    check_out_dir(&out_dir, &["pareto.csv", "pareto.md", "pareto.png"])?;
+    check_out_dir(&out_dir, &["pareto.csv", "pareto.md", "pareto.json", "pareto.png"])?;
     let ctx = context(cli)?;
     cfg.check_device(&ctx.info)?;
     std::fs::create_dir_all(&out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
     let points = sweep::pareto(&ctx, &dataset, &tf, &specs, &cfg, &out_dir)?;
     print!("{}", volbench::harness::pareto::markdown(&dataset.name, &points));
-    println!("written: {}/pareto.{{csv,md,png}}", out_dir.display());
+    println!("written: {}/pareto.{{csv,md,json,png}}", out_dir.display());
     let failed = points.iter().filter(|p| p.error.is_some() && !p.skipped).count();
     if failed > 0 {
         bail!("{failed} of {} sweep runs failed (see pareto.md)", points.len());
@@ -422,7 +422,7 @@ fn stress(cli: &Cli, registry: &Registry, args: &StressArgs) -> Result<()> {
             registry.get(m)?;
         }
         cfg.specs.retain(|s| args.methods.iter().any(|m| m == s.info.name));
-        anyhow::ensure!(!cfg.specs.is_empty(), "--method: none of {:?} renders tetrahedral meshes", args.methods);
+        anyhow::ensure!(!cfg.specs.is_empty(), "--method: none of {:?} has stress option sets", args.methods);
     }
     let ctx = context(cli)?;
     let mut done = Vec::new();
