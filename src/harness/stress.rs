@@ -499,18 +499,34 @@ fn near_plane_allowance(mesh: &TetMesh, tf: &TransferFunction) -> Vec<Allowance>
     vec![Allowance::all(extra, format!("{NEAR_PLANE_NOTE}, here {extra:.3}"))]
 }
 
-/// The eye inside the mesh, looking through it.
-fn camera_inside() -> StressCase {
-    let mesh = unit_grid("camera-inside");
-    let tf = mesh_ramp_tf(&mesh);
-    let camera = Camera {
+/// The eye inside the unit cube looking through it: 60 degrees, near plane 1e-3.
+fn inside_camera() -> Camera {
+    Camera {
         eye: [0.53, 0.46, 0.41],
         target: [1.0, 0.7, 0.9],
         up: [0.0, 1.0, 0.0],
         projection: Projection::Perspective { fovy_deg: 60.0 },
         near: 1e-3,
         far: 3.0,
-    };
+    }
+}
+
+/// `c` with every length scaled by `scale`.
+fn scaled_camera(mut c: Camera, scale: f64) -> Camera {
+    for k in 0..3 {
+        c.eye[k] *= scale;
+        c.target[k] *= scale;
+    }
+    c.near *= scale;
+    c.far *= scale;
+    c
+}
+
+/// The eye inside the mesh, looking through it.
+fn camera_inside() -> StressCase {
+    let mesh = unit_grid("camera-inside");
+    let tf = mesh_ramp_tf(&mesh);
+    let camera = inside_camera();
     StressCase {
         name: "camera-inside".into(),
         description: "eye inside the 8^3 grid, near plane 1e-3, 60 degree field of view".into(),
@@ -695,13 +711,7 @@ fn mesh_scale(scale: f64) -> StressCase {
     for p in &mut tf.points {
         p.attenuation /= scale;
     }
-    let mut camera = oblique_camera();
-    for k in 0..3 {
-        camera.eye[k] *= scale;
-        camera.target[k] *= scale;
-    }
-    camera.near *= scale;
-    camera.far *= scale;
+    let camera = scaled_camera(oblique_camera(), scale);
     StressCase {
         name,
         description: format!(
@@ -806,23 +816,10 @@ fn volume_case(name: &str, description: &str, volume: Volume, camera: Camera) ->
 
 fn volume_cases(size: u32) -> Vec<StressCase> {
     let v = |name: &str| grid_volume(name, VOLUME_DIMS, 1.0, 1.0, 0.0);
-    let inside = Camera {
-        eye: [0.53, 0.46, 0.41],
-        target: [1.0, 0.7, 0.9],
-        up: [0.0, 1.0, 0.0],
-        projection: Projection::Perspective { fovy_deg: 60.0 },
-        near: 1e-3,
-        far: 3.0,
-    };
+    let inside = inside_camera();
     let on_face = Camera { eye: [0.0, 0.45, 0.55], target: [1.0, 0.6, 0.4], ..inside };
     let huge = 1e6;
-    let mut huge_camera = oblique_camera();
-    for k in 0..3 {
-        huge_camera.eye[k] *= huge;
-        huge_camera.target[k] *= huge;
-    }
-    huge_camera.near *= huge;
-    huge_camera.far *= huge;
+    let huge_camera = scaled_camera(oblique_camera(), huge);
     let mut huge_case = volume_case(
         "vol-huge-spacing",
         "the control volume with spacing 1e6 times larger (and camera and attenuation scaled alike: the same image)",
