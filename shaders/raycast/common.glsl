@@ -84,7 +84,9 @@ vec3 shade(vec3 color, vec3 u, vec3 to_eye) {
 // The segment [a, b] (voxel coordinates, a nearer the eye) marched with a step
 // of at most `step` voxels: n = ceil(L / step) equal steps, one sample at the
 // middle of each, opacity 1 - exp(-tau * world length of the step), i.e. the
-// lab's alpha' = 1 - (1 - alpha)^(ds / ds0) with alpha given by tau. Returns
+// lab's alpha' = 1 - (1 - alpha)^(ds / ds0) with alpha given by tau. Past
+// the `ert` threshold one sample covers TAIL_STRIDE steps (its middle, or
+// its end for PREINT) until the opacity passes 1 - TAIL_STOP (1 - ert). Returns
 // premultiplied RGBA; `samples` counts texture samples of the volume.
 vec4 march(vec3 a, vec3 b, out uint samples) {
     samples = 0u;
