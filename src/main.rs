@@ -45,11 +45,12 @@ enum Command {
     /// Run every method (or the given specs) on each dataset: the comparison table.
     Compare(CompareArgs),
     /// Sweep each method's option sets on one dataset: run time against error
-    /// (CSV, Markdown, PNG plot with the Pareto front).
+    /// (CSV, Markdown, JSON, PNG plot with the Pareto front).
     Pareto(ParetoArgs),
     /// Render adversarial cases (slivers, degenerate cells, grazing rays, far
-    /// from the origin, extreme scalars, steps, opaque media, camera inside)
-    /// with every tetrahedral method and option set against the f64 reference.
+    /// from the origin, extreme scalars, steps, opaque media, camera inside;
+    /// thin, huge, constant and extreme-valued volumes) with every method on
+    /// the cases of its kind, each stress option set, against the f64 reference.
     Stress(StressArgs),
     /// Every registered method on every shipped dataset of its kind at
     /// standard settings: results/<run-id>/ with summary.json, summary.csv,
@@ -197,7 +198,7 @@ struct StressArgs {
     /// Image side in pixels (even, 16..=2048).
     #[arg(long, default_value_t = 128)]
     size: u32,
-    /// Only these methods (repeat; default every tetrahedral method).
+    /// Only these methods (repeat; default every method).
     #[arg(long = "method", value_name = "NAME")]
     methods: Vec<String>,
     /// Write {"cases": [...]} as JSON (rewritten as each row completes).
