@@ -202,6 +202,25 @@ fn chest_ct_defaults_within_1e3_of_no_skipping_no_termination() {
     }
 }
 
+/// The sweep's premise: the error against the reference falls monotonically
+/// as the step shrinks, for both integrators (the chest CT sweep in
+/// `results/raycast-pareto-chest-ct/` shows the same at 512x512).
+#[test]
+fn error_falls_monotonically_with_the_step() {
+    let d = dataset(blob([24, 20, 16], [1.0, 1.0, 1.5]));
+    let tf = tf(d.bounds().diagonal());
+    let cam = orbit(&d);
+    let want = reference(&d, &tf, &cam);
+    for integrator in ["point", "preint"] {
+        let errors: Vec<f64> = ["4", "2", "1", "0.5", "0.25"]
+            .iter()
+            .map(|step| rmse(&render(&format!("raycast-compute:step={step},integrator={integrator}"), &d, &tf, cam).image, &want))
+            .collect();
+        eprintln!("{integrator}: rmse at steps 4..0.25: {errors:?}");
+        assert!(errors.windows(2).all(|w| w[1] < w[0]), "{integrator}: {errors:?}");
+    }
+}
+
 /// Spacing (1, 1, 2) renders like the same field resampled at spacing 1
 /// (layers in between are the linear interpolation, which is what trilinear
 /// interpolation of the coarse volume gives there).
