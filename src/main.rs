@@ -45,11 +45,12 @@ enum Command {
     /// Run every method (or the given specs) on each dataset: the comparison table.
     Compare(CompareArgs),
     /// Sweep each method's option sets on one dataset: run time against error
-    /// (CSV, Markdown, PNG plot with the Pareto front).
+    /// (CSV, Markdown, JSON, PNG plot with the Pareto front).
     Pareto(ParetoArgs),
     /// Render adversarial cases (slivers, degenerate cells, grazing rays, far
-    /// from the origin, extreme scalars, steps, opaque media, camera inside)
-    /// with every tetrahedral method and option set against the f64 reference.
+    /// from the origin, extreme scalars, steps, opaque media, camera inside;
+    /// thin, huge, constant and extreme-valued volumes) with every method on
+    /// the cases of its kind, each stress option set, against the f64 reference.
     Stress(StressArgs),
     /// Every registered method on every shipped dataset of its kind at
     /// standard settings: results/<run-id>/ with summary.json, summary.csv,
@@ -220,7 +221,7 @@ struct StressArgs {
     /// Image side in pixels (even, 16..=2048).
     #[arg(long, default_value_t = 128)]
     size: u32,
-    /// Only these methods (repeat; default every tetrahedral method).
+    /// Only these methods (repeat; default every method).
     #[arg(long = "method", value_name = "NAME")]
     methods: Vec<String>,
     /// Write {"cases": [...]} as JSON (rewritten as each row completes).
@@ -445,13 +446,13 @@ fn pareto(cli: &Cli, registry: &Registry, args: &ParetoArgs) -> Result<()> {
     let tf = args.frame.transfer_function(&dataset)?;
     let specs = sweep::pareto_specs(registry, &args.methods, dataset.kind(), &args.frame.method.pairs())?;
     let out_dir = args.out.clone().unwrap_or_else(|| PathBuf::from(format!("results/runs/pareto-{}", dataset.name)));
-    check_out_dir(&out_dir, &["pareto.csv", "pareto.md", "pareto.png"])?;
+    check_out_dir(&out_dir, &["pareto.csv", "pareto.md", "pareto.json", "pareto.png"])?;
     let ctx = context(cli)?;
     cfg.check_device(&ctx.info)?;
     std::fs::create_dir_all(&out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
     let points = sweep::pareto(&ctx, &dataset, &tf, &specs, &cfg, &out_dir)?;
     print!("{}", volbench::harness::pareto::markdown(&dataset.name, &points));
-    println!("written: {}/pareto.{{csv,md,png}}", out_dir.display());
+    println!("written: {}/pareto.{{csv,md,json,png}}", out_dir.display());
     let failed = points.iter().filter(|p| p.error.is_some() && !p.skipped).count();
     if failed > 0 {
         bail!("{failed} of {} sweep runs failed (see pareto.md)", points.len());
@@ -477,7 +478,7 @@ fn stress(cli: &Cli, registry: &Registry, args: &StressArgs) -> Result<()> {
             registry.get(m)?;
         }
         cfg.specs.retain(|s| args.methods.iter().any(|m| m == s.info.name));
-        anyhow::ensure!(!cfg.specs.is_empty(), "--method: none of {:?} renders tetrahedral meshes", args.methods);
+        anyhow::ensure!(!cfg.specs.is_empty(), "--method: none of {:?} has stress option sets", args.methods);
     }
     let ctx = context(cli)?;
     let mut done = Vec::new();

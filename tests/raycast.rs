@@ -74,10 +74,14 @@ fn orbit(d: &Dataset) -> Camera {
 }
 
 fn render(spec: &str, d: &Dataset, tf: &TransferFunction, camera: Camera) -> RunOutput {
+    render_sized(spec, d, tf, camera, SIZE)
+}
+
+fn render_sized(spec: &str, d: &Dataset, tf: &TransferFunction, camera: Camera, size: u32) -> RunOutput {
     let spec = registry::builtin().parse_spec(spec, &[]).unwrap();
     let cfg = RunConfig {
-        width: SIZE,
-        height: SIZE,
+        width: size,
+        height: size,
         frames: 1,
         warmup: 0,
         fixed_camera: Some(camera),
@@ -163,17 +167,57 @@ fn skipping_and_early_termination_keep_the_image_and_save_samples() {
         assert_eq!(full.result.work.counts["bricks_skipped"], 0);
         // Skipping is exact by construction (dilated flags): only rounding.
         assert!(rmse(&skip.image, &full.image) <= 1e-6);
-        // Terminating at opacity A drops at most the remaining transmittance
-        // 1 - A < 0.05 of a pixel; on this nearly opaque volume the lab's
-        // 0.95 changes the image by RMSE 3.9e-3 (most rays saturate), 0.99
-        // stays within 1e-3.
-        let max_abs = ert.image.compare(&full.image).unwrap().max_abs;
-        assert!(max_abs <= 0.05 + 1e-5, "{max_abs}");
-        assert!(rmse(&both.image, &ert.image) <= 1e-6, "skipping on top of termination changes nothing");
+        // Past the threshold the rest of the ray is estimated by a coarser
+        // march (its contribution is at most 1 - ert = 0.05 of a pixel), not
+        // dropped: the lab's rule (drop it) changed this nearly opaque
+        // volume's image by RMSE 3.9e-3.
+        let e_ert = ert.image.compare(&full.image).unwrap();
+        assert!(e_ert.max_abs <= 0.05 + 1e-5 && e_ert.rmse <= 1e-3, "{e_ert:?}");
+        assert!(rmse(&both.image, &full.image) <= 1e-3, "default (both on) against both off");
         let ert99 = render(&format!("{method}:ert=0.99"), &d, &tf, cam);
         let e99 = rmse(&ert99.image, &full.image);
         eprintln!("{method}: ert=0.99: samples {}, rmse {e99:.2e}", samples(&ert99));
         assert!(e99 <= 1e-3 && samples(&ert99) < s_skip, "{e99}");
+    }
+}
+
+/// The bound on the shipped chest CT with its preset: the defaults
+/// (early termination at 0.95 and skipping, both on) against both off, RMSE
+/// <= 1e-3 for both variants. Measured 3.3e-4 at 128x128 (and 4.0e-4 at
+/// 512x512 in 8-bit PNGs; the lab's rule, dropping the rest of the ray
+/// past the threshold, gave 4.3e-3 there).
+#[test]
+fn chest_ct_defaults_within_1e3_of_no_skipping_no_termination() {
+    let d = volbench::harness::datasets::load("chest-ct").unwrap();
+    let tf = d.default_transfer_function();
+    let cam = orbit(&d);
+    for method in ["raycast-fragment", "raycast-compute"] {
+        let full = render_sized(&format!("{method}:skip=off,ert=1"), &d, &tf, cam, 128);
+        let both = render_sized(method, &d, &tf, cam, 128);
+        let e = rmse(&both.image, &full.image);
+        eprintln!("{method}: chest CT default vs skip=off,ert=1: rmse {e:.2e}, samples {} -> {}", samples(&full), samples(&both));
+        assert!(e <= 1e-3, "{method}: {e}");
+        assert!(full.image.covered_pixels() > 128 * 128 / 10, "the CT is in view: {}", full.image.covered_pixels());
+        assert!(samples(&both) * 2 < samples(&full), "skipping saves most samples on the CT");
+    }
+}
+
+/// The sweep's premise: the error against the reference falls monotonically
+/// as the step shrinks, for both integrators (the chest CT sweep in
+/// `results/raycast-pareto-chest-ct/` shows the same at 512x512).
+#[test]
+fn error_falls_monotonically_with_the_step() {
+    let d = dataset(blob([24, 20, 16], [1.0, 1.0, 1.5]));
+    let tf = tf(d.bounds().diagonal());
+    let cam = orbit(&d);
+    let want = reference(&d, &tf, &cam);
+    for integrator in ["point", "preint"] {
+        let errors: Vec<f64> = ["4", "2", "1", "0.5", "0.25"]
+            .iter()
+            .map(|step| rmse(&render(&format!("raycast-compute:step={step},integrator={integrator}"), &d, &tf, cam).image, &want))
+            .collect();
+        eprintln!("{integrator}: rmse at steps 4..0.25: {errors:?}");
+        assert!(errors.windows(2).all(|w| w[1] < w[0]), "{integrator}: {errors:?}");
     }
 }
 
@@ -259,11 +303,23 @@ fn preintegration_and_lighting() {
         let no_skip = render(&format!("{method}:integrator=preint,step=2,skip=off"), &d, &spike, cam).image;
         assert!(rmse(&pre_img, &no_skip) <= 1e-6);
         eprintln!("{method}: step 2: point {point:.2e}, preint {pre:.2e}");
-        // Measured 2.0e-2 against 6.2e-2: the remaining error is the scalar
-        // taken linear between samples two voxels apart.
+        // Measured 1.2e-2 against 6.2e-2 (2.0e-2 before the curvature
+        // correction): the remaining error is the scalar's reconstruction
+        // between samples two voxels apart.
         assert!(pre < 0.5 * point, "pre-integration must beat point sampling at a large step");
     }
     let tf = tf(diag);
+    // A smooth transfer function: the error is the field's reconstruction
+    // between samples, where the curvature-corrected segments must not lose
+    // to point samples (plain linear segments did, by about 2x).
+    let want_smooth = reference(&d, &tf, &cam);
+    for step in ["1", "2"] {
+        let p = rmse(&render(&format!("raycast-compute:step={step},ert=1"), &d, &tf, cam).image, &want_smooth);
+        let q = rmse(&render(&format!("raycast-compute:step={step},ert=1,integrator=preint"), &d, &tf, cam).image, &want_smooth);
+        eprintln!("smooth tf, step {step}: point {p:.2e}, preint {q:.2e}");
+        // Measured: step 1 5.0e-4 against 1.8e-4, step 2 2.3e-3 against 9.6e-4.
+        assert!(q < 0.6 * p, "step {step}: preint {q} point {p}");
+    }
     let flat = render("raycast-compute", &d, &tf, cam);
     let lit = render("raycast-compute:shade=on", &d, &tf, cam);
     let lit_frag = render("raycast-fragment:shade=on", &d, &tf, cam);

@@ -145,6 +145,7 @@ const SOLID_BOX: MethodInfo = MethodInfo {
     sweep: &["shade=0.25", "shade=1"],
     compare: &[""],
     stress: &[],
+    accuracy_bound: |_, _| Some(1e-3),
     published: &[],
     create: create_box,
 };
@@ -193,9 +194,13 @@ fn sweeps_iterate_over_the_registry_and_survive_a_failing_row() {
     let points = sweep::pareto(&ctx, &dataset, &tf, &specs, &small(), dir.path()).unwrap();
     assert_eq!(points.len(), 2);
     assert!(points.iter().all(|p| p.error.is_none() && p.rmse > 0.0));
-    for f in ["pareto.csv", "pareto.md", "pareto.png"] {
+    for f in ["pareto.csv", "pareto.md", "pareto.json", "pareto.png"] {
         assert!(dir.path().join(f).is_file(), "{f}");
     }
+    let sweep_json: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.path().join("pareto.json")).unwrap()).unwrap();
+    assert_eq!(sweep_json["points"].as_array().map(Vec::len), Some(2));
+    assert_eq!(sweep_json["dataset"], "post-small");
+    std::fs::remove_file(dir.path().join("pareto.json")).unwrap();
     // compare: the box and balanced side by side, plus a row that fails
     // (a table too large for the device's table budget) in the middle.
     let specs = vec![
@@ -212,7 +217,7 @@ fn sweeps_iterate_over_the_registry_and_survive_a_failing_row() {
     assert!(err.contains("table-size") || err.contains("table_size"), "{err}");
     let table = sweep::comparison_markdown(&rows, &registry).unwrap();
     assert!(table.contains("FAILED"), "{table}");
-    // Every JSON written validates against the schema.
+    // Every run JSON written validates against the schema.
     let mut n = 0;
     for e in std::fs::read_dir(dir.path()).unwrap() {
         let p = e.unwrap().path();

@@ -10,7 +10,7 @@ mod common;
 use std::sync::{Arc, Mutex, OnceLock};
 
 use volbench::algo::registry;
-use volbench::harness::stress::{self, StressCase, StressConfig, StressReport, StressRow};
+use volbench::harness::stress::{self, CaseData, StressCase, StressConfig, StressReport, StressRow};
 use volbench::mesh::TetGeometry;
 use volbench::vk::{Context, ContextDesc};
 
@@ -82,8 +82,13 @@ fn every_case_is_small_and_valid() {
     names.dedup();
     assert_eq!(names.len(), all.len(), "case names must be unique");
     for c in &all {
-        let n = c.mesh.tets.len();
-        assert!((300..=5000).contains(&n), "{}: {n} tets", c.name);
+        match &c.data {
+            CaseData::TetMesh(m) => assert!((300..=5000).contains(&m.tets.len()), "{}: {} tets", c.name, m.tets.len()),
+            CaseData::Volume(v) => {
+                let n: usize = v.dims().iter().product();
+                assert!((500..=5000).contains(&n), "{}: {n} samples", c.name);
+            }
+        }
         assert!(c.tf.points.windows(2).all(|w| w[0].scalar <= w[1].scalar), "{}", c.name);
         assert!(c.camera.near > 0.0 && c.camera.near < c.camera.far, "{}", c.name);
         for a in &c.allowances {
@@ -95,24 +100,24 @@ fn every_case_is_small_and_valid() {
 #[test]
 fn slivers_reach_1e_12_of_the_bounding_box_and_stay_solid() {
     let c = case("slivers");
-    let g = TetGeometry::compute(&c.mesh);
-    let b = c.mesh.bounds();
+    let g = TetGeometry::compute(c.mesh().unwrap());
+    let b = c.mesh().unwrap().bounds();
     let bbox: f64 = (0..3).map(|k| b.max[k] - b.min[k]).product();
     let min = g.cells.iter().map(|x| x.volume).fold(f64::INFINITY, f64::min);
     assert!(min / bbox < 1.1e-12 && min / bbox > 0.9e-12, "smallest volume {:e} of the box", min / bbox);
     assert_eq!(g.degenerate_count(), 0, "slivers are thin, not zero-volume");
     // In f32 the two thinnest layers have no thickness at all.
-    let zs: Vec<f32> = c.mesh.points.iter().map(|p| p[2] as f32).collect();
-    assert!(zs.contains(&0.5) && c.mesh.points.iter().any(|p| p[2] > 0.5 && (p[2] as f32) == 0.5));
+    let zs: Vec<f32> = c.mesh().unwrap().points.iter().map(|p| p[2] as f32).collect();
+    assert!(zs.contains(&0.5) && c.mesh().unwrap().points.iter().any(|p| p[2] > 0.5 && (p[2] as f32) == 0.5));
 }
 
 #[test]
 fn degenerate_cases_are_degenerate() {
     let z = case("zero-volume");
-    assert!(z.mesh.stats.zero_volume >= 64, "{}", z.mesh.stats.zero_volume);
-    assert_eq!(TetGeometry::compute(&z.mesh).degenerate_count(), z.mesh.stats.zero_volume);
+    assert!(z.mesh().unwrap().stats.zero_volume >= 64, "{}", z.mesh().unwrap().stats.zero_volume);
+    assert_eq!(TetGeometry::compute(z.mesh().unwrap()).degenerate_count(), z.mesh().unwrap().stats.zero_volume);
     let n = case("needles-caps");
-    let g = TetGeometry::compute(&n.mesh);
+    let g = TetGeometry::compute(n.mesh().unwrap());
     let max = g.cells.iter().map(|x| x.volume).fold(0.0, f64::max);
     let min = g.cells.iter().map(|x| x.volume).fold(f64::INFINITY, f64::min);
     assert!(min < 1e-5 * max, "caps and needles down to 1e-6 of a cell: {min:e} vs {max:e}");
@@ -121,7 +126,7 @@ fn degenerate_cases_are_degenerate() {
     let e = case("eye-on-plane");
     assert_eq!((e.camera.eye[1], e.camera.eye[2]), (0.5, 0.5));
     let v = case("eye-on-vertex");
-    assert!(v.mesh.points.contains(&v.camera.eye));
+    assert!(v.mesh().unwrap().points.contains(&v.camera.eye));
 
     // Pixel centres exactly on grid lines: the ray origins' coordinates are
     // multiples of 1/8 for some pixels, along the view axis for all.
@@ -142,14 +147,14 @@ fn translated_cases_move_mesh_and_camera_together() {
     let base = case("baseline");
     for (name, offset) in [("translate-1e3", 1e3), ("translate-1e5", 1e5), ("translate-1e7", 1e7)] {
         let c = case(name);
-        assert_eq!(c.mesh.tets, base.mesh.tets);
+        assert_eq!(c.mesh().unwrap().tets, base.mesh().unwrap().tets);
         let by = [offset, -0.75 * offset, 0.5 * offset];
         // Equal up to the f64 rounding of the translated coordinates.
         let tol = 4.0 * f64::EPSILON * offset;
         let moved = |a: [f64; 3], b: [f64; 3]| (0..3).all(|k| (a[k] - by[k] - b[k]).abs() <= tol);
         assert!(moved(c.camera.eye, base.camera.eye), "{name}");
         assert!(moved(c.camera.target, base.camera.target), "{name}");
-        assert!(moved(c.mesh.points[7], base.mesh.points[7]), "{name}");
+        assert!(moved(c.mesh().unwrap().points[7], base.mesh().unwrap().points[7]), "{name}");
     }
 }
 
@@ -240,6 +245,40 @@ fn mpvo_order_meets_the_accuracy_bound_where_centroid_does_not() {
     assert_all_pass(&rows);
     for r in &rows {
         assert_eq!(r.status, "ok", "{}: no allowance applies to MPVO rows", r.case);
+    }
+}
+
+/// The volume cases (rays grazing the box, the eye on a face and inside,
+/// a one-voxel-thick volume, huge spacing, a constant volume, values near
+/// 1e30, a 1e-6 range, 1e6 + [0, 1] in f32) with both ray casters and every
+/// stress option set of theirs: finite, within the methods' bounds, and
+/// documented only where the case says so.
+#[test]
+fn volume_cases_with_both_ray_casters() {
+    let selected: Vec<StressCase> = cases().into_iter().filter(|c| matches!(c.data, CaseData::Volume(_))).collect();
+    let names: Vec<&str> = selected.iter().map(|c| c.name.as_str()).collect();
+    for want in ["vol-grazing", "vol-eye-on-face", "vol-camera-inside", "vol-thin", "vol-huge-spacing", "vol-constant", "vol-values-1e30", "vol-range-1e-6", "vol-offset-1e6"] {
+        assert!(names.contains(&want), "{want} missing: {names:?}");
+    }
+    let mut cfg = StressConfig::full(&registry::builtin(), SIZE).unwrap();
+    cfg.specs.retain(|s| s.info.name.starts_with("raycast"));
+    assert_eq!(cfg.specs.len(), 6, "two ray casters x three stress option sets");
+    let rows = run(&selected, &cfg);
+    assert_eq!(rows.len(), selected.len() * 6, "every volume case with every ray-cast spec, no mesh method");
+    assert_all_pass(&rows);
+    for r in &rows {
+        let documented = r.case == "vol-grazing" || r.case == "vol-thin";
+        assert_eq!(r.status == "documented", documented, "{}: {} ({})", r.case, r.status, r.options);
+        // Without an allowance the ray casters are held to 1e-3.
+        if !documented {
+            assert!(r.max_abs_error <= 1e-3, "{} {} {}: {}", r.case, r.method, r.options, r.max_abs_error);
+        }
+    }
+    let v = serde_json::to_value(StressReport { cases: rows.clone() }).unwrap();
+    common::assert_matches_schema("stress.schema.json", &v, "the volume stress rows");
+    // raycast-compute clips analytically: grazing rays are integrated.
+    for r in rows.iter().filter(|r| r.case == "vol-grazing" && r.method == "raycast-compute") {
+        assert!(r.max_abs_error <= 1e-3, "{}", r.max_abs_error);
     }
 }
 

@@ -377,8 +377,14 @@ pub struct MethodInfo {
     pub sweep: &'static [&'static str],
     /// Option sets `compare` shows side by side ("" = the defaults).
     pub compare: &'static [&'static str],
-    /// Option sets the stress suite renders every case with.
+    /// Option sets the stress suite renders every case of its kind with.
     pub stress: &'static [&'static str],
+    /// The max |error| against the f64 reference the stress suite holds a
+    /// render with these options to where a case documents no limitation
+    /// (`perspective`: the case's view is), measured by the method's family;
+    /// `None` when for such a view the option set computes the same as
+    /// another of its stress sets (rendered once).
+    pub accuracy_bound: fn(&Options, bool) -> Option<f64>,
     /// Published figures for this method (reports).
     pub published: &'static [Published],
     pub create: fn(MethodInputs) -> Result<Box<dyn RenderMethod>>,

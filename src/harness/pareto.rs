@@ -166,6 +166,28 @@ pub fn register_font() -> Result<()> {
     Ok(())
 }
 
+/// A fixed colour per integrator name (any method family's), grey otherwise.
+fn integrator_colour(name: &str) -> plotters::style::RGBColor {
+    use plotters::style::RGBColor;
+    match name {
+        "average" => RGBColor(200, 60, 60),
+        "preint" => RGBColor(60, 140, 60),
+        "ppi" => RGBColor(40, 90, 200),
+        "linear-exact" => RGBColor(150, 60, 180),
+        "point" => RGBColor(230, 140, 20),
+        _ => RGBColor(110, 110, 110),
+    }
+}
+
+/// The sweep as JSON: what was swept (dataset, image size, device) and every
+/// row, failed ones with their error and no numbers (null).
+pub fn write_json(path: &Path, dataset: &str, width: u32, height: u32, device: &str, points: &[ParetoPoint]) -> Result<()> {
+    let doc = serde_json::json!({ "dataset": dataset, "width": width, "height": height, "device": device, "points": points });
+    let mut bytes = serde_json::to_vec_pretty(&doc)?;
+    bytes.push(b'\n');
+    crate::fsio::write_output(path, &bytes)
+}
+
 /// Frame time (x) against RMSE (y), both logarithmic; the front is joined
 /// by a line and its points labelled.
 pub fn plot_png(path: &Path, title: &str, points: &[ParetoPoint]) -> Result<()> {
@@ -224,12 +246,7 @@ pub fn plot_png(path: &Path, title: &str, points: &[ParetoPoint]) -> Result<()> 
             .x_label_formatter(&|v| format!("{v:.0}"))
             .y_label_formatter(&|v| format!("{v:.1e}"))
             .draw()?;
-        let colour = |p: &ParetoPoint| match p.integrator.as_str() {
-            "average" => RGBColor(200, 60, 60),
-            "preint" => RGBColor(60, 140, 60),
-            "ppi" => RGBColor(40, 90, 200),
-            _ => RGBColor(150, 60, 180),
-        };
+        let colour = |p: &ParetoPoint| integrator_colour(&p.integrator);
         for p in &points {
             let c = colour(p);
             // Each method its own marker: filled, ring, then larger ring.
@@ -249,19 +266,14 @@ pub fn plot_png(path: &Path, title: &str, points: &[ParetoPoint]) -> Result<()> 
                 ("sans-serif", 13).into_font().color(&BLACK),
             ))?;
         }
-        // Legend: colours are integrators; markers are methods.
-        for (i, (name, c)) in [
-            ("average", RGBColor(200, 60, 60)),
-            ("preint", RGBColor(60, 140, 60)),
-            ("ppi", RGBColor(40, 90, 200)),
-            ("linear-exact", RGBColor(150, 60, 180)),
-        ]
-        .into_iter()
-        .enumerate()
-        {
+        // Legend: colours are integrators (those in the sweep); markers are methods.
+        let mut integrators: Vec<&str> = points.iter().map(|p| p.integrator.as_str()).collect();
+        integrators.sort();
+        integrators.dedup();
+        for (i, name) in integrators.iter().enumerate() {
             let y = 560 + 22 * i as i32;
-            root.draw(&Circle::new((900, y), 5, c.filled()))?;
-            root.draw(&Text::new(name, (912, y - 8), ("sans-serif", 15).into_font()))?;
+            root.draw(&Circle::new((900, y), 5, integrator_colour(name).filled()))?;
+            root.draw(&Text::new(if name.is_empty() { "-" } else { *name }, (912, y - 8), ("sans-serif", 15).into_font()))?;
         }
         let markers: Vec<String> =
             methods.iter().enumerate().map(|(i, m)| format!("{}: {m}", if i % 2 == 0 { "filled" } else { "ring" })).collect();

@@ -10,7 +10,7 @@ use std::sync::Arc;
 use anyhow::{Context as _, Result};
 
 use super::datasets::Dataset;
-use super::pareto::{mark_front, markdown, plot_png, write_csv, ParetoPoint};
+use super::pareto::{mark_front, markdown, plot_png, write_csv, write_json, ParetoPoint};
 use super::reference_cache::reference_image;
 use super::report::{self, ComparisonRow};
 use super::run::{run, RunConfig, RunOutput};
@@ -199,7 +199,7 @@ pub fn comparison_markdown(rows: &[CompareRow], registry: &Registry) -> Result<S
 
 /// Run every spec on `dataset`, compare each image with the (cached) f64
 /// reference, and keep `pareto.csv` (rewritten as each row completes),
-/// `pareto.md` and `pareto.png` in `out_dir`. Failed rows are recorded.
+/// `pareto.md`, `pareto.json` and `pareto.png` in `out_dir`. Failed rows are recorded.
 pub fn pareto(
     ctx: &Arc<Context>,
     dataset: &Dataset,
@@ -239,6 +239,7 @@ pub fn pareto(
         write_csv(&out_dir.join("pareto.csv"), &points)?;
     }
     fsio::write_output(&out_dir.join("pareto.md"), markdown(&dataset.name, &points).as_bytes())?;
+    write_json(&out_dir.join("pareto.json"), &dataset.name, cfg.width, cfg.height, &ctx.info.name, &points)?;
     if points.iter().any(|p| p.error.is_none()) {
         let title = format!("{}: frame time against error ({}x{}, {})", dataset.name, cfg.width, cfg.height, ctx.info.name);
         plot_png(&out_dir.join("pareto.png"), &title, &points)?;

@@ -10,7 +10,7 @@ use std::sync::Arc;
 use anyhow::{bail, Result};
 use serde_json::json;
 
-use super::{set0_desc, Settings, VolumeResources, COMPARE, OPTIONS, PUSH_BYTES, SWEEP};
+use super::{set0_desc, Settings, VolumeResources, accuracy_bound, COMPARE, OPTIONS, PUSH_BYTES, STRESS, SWEEP};
 use crate::algo::method::{DataKind, Feature, MethodInfo, MethodInputs, Phases, RenderMethod, SceneData, View, Work};
 use crate::vk::{
     raw, Blend, ColorAttachment, ColorTarget, CommandRecorder, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc,
@@ -26,7 +26,8 @@ pub const METHOD: MethodInfo = MethodInfo {
     features: &[Feature::FragmentStoresAndAtomics],
     sweep: SWEEP,
     compare: COMPARE,
-    stress: &[],
+    stress: STRESS,
+    accuracy_bound,
     published: &[super::kruger_westermann("raycast-fragment")],
     create,
 };
