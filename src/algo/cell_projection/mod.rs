@@ -218,7 +218,7 @@ impl FrameSetup {
         let o = scale.origin;
         setup.origin = o;
         setup.eye = std::array::from_fn(|k| (camera.eye[k] - o[k]) as f32);
-        let vp = (camera.view_proj(width, height) * glam::DMat4::from_translation(glam::DVec3::from(o))).to_cols_array_2d();
+        let vp = camera.view_proj_relative(o, width, height).to_cols_array_2d();
         // Scalars arrive mapped by `scalar_map`: map the table's range alike.
         let (lo, hi) = tables.tf_range;
         let lo_rel = (lo - scale.scalar_origin) / scale.scalar_scale;

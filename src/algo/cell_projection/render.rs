@@ -154,6 +154,7 @@ pub const fn method_info(
         compare: COMPARE,
         stress: STRESS,
         published,
+        check: check_options,
         create,
     }
 }
@@ -166,6 +167,12 @@ pub const THESIS_TABLE_6_3: &str = "Moreland, PhD thesis 2004, Table 6.3 (Quadro
 pub fn enum_option<T: ValueEnum>(options: &Options, name: &str) -> Result<T> {
     let text = options.text(name)?;
     T::from_str(&text, false).map_err(|_| anyhow::anyhow!("option '{name}': unknown value '{text}'"))
+}
+
+/// `MethodInfo::check`: the options make valid [`Settings`] (e.g. the
+/// table size fits the integrator's table limit).
+fn check_options(options: &Options) -> Result<()> {
+    Settings::from_options(options).map(|_| ())
 }
 
 /// The typed settings of a cell-projection run, from its options.

@@ -28,6 +28,7 @@ pub const METHOD: MethodInfo = MethodInfo {
     compare: COMPARE,
     stress: &[],
     published: &[],
+    check: crate::algo::method::no_check,
     create,
 };
 
