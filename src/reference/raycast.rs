@@ -144,10 +144,15 @@ impl<'a> Ray<'a> {
             bw[0] * q[0][2] + bw[1] * q[1][2] + bw[2] * q[2][2],
         ];
         let t = dot(x, self.d) * inv;
-        let s = (bw[0] * scalars[v[0] as usize]
-            + bw[1] * scalars[v[1] as usize]
-            + bw[2] * scalars[v[2] as usize])
-            * inv;
+        // Interpolated as the lowest scalar plus weighted differences and
+        // kept within the three values, so a face whose vertices share a
+        // scalar gives exactly it: the weighted mean itself may round to a
+        // neighbouring value, which would put a constant field on the wrong
+        // side of a transfer-function step at its value (the GPU gets the
+        // value exactly).
+        let sv = v.map(|i| scalars[i as usize]);
+        let (lo, hi) = (sv[0].min(sv[1]).min(sv[2]), sv[0].max(sv[1]).max(sv[2]));
+        let s = (lo + (bw[0] * (sv[0] - lo) + bw[1] * (sv[1] - lo) + bw[2] * (sv[2] - lo)) * inv).clamp(lo, hi);
         if sum != 0.0 && t.is_finite() && s.is_finite() {
             (t, s)
         } else {
