@@ -219,49 +219,27 @@ fn second_red_team_pass() {
     assert!(stderr(&o).len() < 2000, "{} bytes of message", stderr(&o).len());
 }
 
-/// An n^3 grid of unit-less cubes (side `h`, from `origin`), five tets each
-/// (alternating so faces match), as an ASCII legacy VTK file; `scalar` gives
+/// An n^3 grid of cubes (side `h`, from `origin`), five tets each (the
+/// library's conforming split), as an ASCII legacy VTK file; `scalar` gives
 /// each point's value from its position relative to `origin`.
 fn write_grid_vtk(path: &Path, n: usize, h: f64, origin: [f64; 3], scalar: impl Fn([f64; 3]) -> f64) {
-    let id = |i: usize, j: usize, k: usize| (i * (n + 1) + j) * (n + 1) + k;
+    // Point (i, j, k) is number i + (n+1) (j + (n+1) k), as the split expects.
     let mut points = Vec::new();
     let mut scalars = Vec::new();
-    for i in 0..=n {
+    for k in 0..=n {
         for j in 0..=n {
-            for k in 0..=n {
+            for i in 0..=n {
                 let rel = [i as f64 * h, j as f64 * h, k as f64 * h];
                 points.push([origin[0] + rel[0], origin[1] + rel[1], origin[2] + rel[2]]);
                 scalars.push(scalar(rel));
             }
         }
     }
-    let mut tets: Vec<[usize; 4]> = Vec::new();
-    for i in 0..n {
-        for j in 0..n {
-            for k in 0..n {
-                let c = |a: usize, b: usize, d: usize| id(i + a, j + b, k + d);
-                let (v000, v100, v010, v110) = (c(0, 0, 0), c(1, 0, 0), c(0, 1, 0), c(1, 1, 0));
-                let (v001, v101, v011, v111) = (c(0, 0, 1), c(1, 0, 1), c(0, 1, 1), c(1, 1, 1));
-                if (i + j + k) % 2 == 0 {
-                    tets.extend([
-                        [v000, v100, v010, v001],
-                        [v110, v100, v010, v111],
-                        [v101, v100, v111, v001],
-                        [v011, v010, v001, v111],
-                        [v100, v010, v001, v111],
-                    ]);
-                } else {
-                    tets.extend([
-                        [v100, v000, v110, v101],
-                        [v010, v000, v110, v011],
-                        [v001, v000, v101, v011],
-                        [v111, v110, v101, v011],
-                        [v000, v110, v101, v011],
-                    ]);
-                }
-            }
-        }
-    }
+    let tets: Vec<[usize; 4]> = volbench::mesh::split::hex_grid_tet_indices([n + 1; 3])
+        .unwrap()
+        .into_iter()
+        .map(|t| t.map(|v| v as usize))
+        .collect();
     write_vtk(path, &points, &scalars, &tets);
 }
 
