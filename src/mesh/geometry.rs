@@ -148,6 +148,15 @@ fn tet_det_from(p: [[f64; 3]; 4]) -> (f64, bool, [usize; 4]) {
     (det, zero, FROM[base])
 }
 
+/// `a` of the plane `n·(x - origin) + a = 0` through the face opposite
+/// vertex `i` of `p`, from the face's centroid (symmetric in its three
+/// vertices).
+fn face_offset(n: [f64; 3], p: [[f64; 3]; 4], i: usize, origin: [f64; 3]) -> f64 {
+    let f = [(i + 1) % 4, (i + 2) % 4, (i + 3) % 4];
+    let fc: [f64; 3] = std::array::from_fn(|k| ((p[f[0]][k] - origin[k]) + (p[f[1]][k] - origin[k]) + (p[f[2]][k] - origin[k])) / 3.0);
+    -dot(n, fc)
+}
+
 /// What [`TetMesh::validate`] reports about duplicate cells.
 struct DuplicateTets {
     /// Cells that repeat an earlier one.
@@ -488,10 +497,7 @@ impl TetPrecomputed {
                 return TetPrecomputed { volume: (det / 6.0).abs(), ..Self::DEGENERATE };
             }
             n = n.map(|c| c / len);
-            // Offset from the face centroid (symmetric in the three vertices).
-            let fc: [f64; 3] =
-                std::array::from_fn(|k| (p[f[0]][k] + p[f[1]][k] + p[f[2]][k]) / 3.0);
-            let mut a = -dot(n, fc);
+            let mut a = face_offset(n, p, i, [0.0; 3]);
             if dot(n, p[i]) + a > 0.0 {
                 n = n.map(|c| -c);
                 a = -a;
@@ -504,6 +510,20 @@ impl TetPrecomputed {
         } else {
             TetPrecomputed { volume: out.volume, ..Self::DEGENERATE }
         }
+    }
+
+    /// Plane `i` for points given relative to `origin`: the same normal, the
+    /// offset recomputed from the face's vertices minus `origin` (`p` are
+    /// the cell's vertices, as given to `from_vertices`), so it stays exact
+    /// far from the world origin, where `planes[i][3]` is as large as the
+    /// coordinates and has lost their low digits. Equal to `planes[i]` for
+    /// origin 0.
+    pub fn plane_relative(&self, i: usize, p: [[f64; 3]; 4], origin: [f64; 3]) -> [f64; 4] {
+        let [nx, ny, nz, _] = self.planes[i];
+        if self.degenerate {
+            return [0.0; 4];
+        }
+        [nx, ny, nz, face_offset([nx, ny, nz], p, i, origin)]
     }
 
     /// SPEC's 3-float plane for vertex `i` at `cell_vertex_pos`: the plane of
