@@ -313,7 +313,7 @@ impl OutputSet {
     /// Add an output named by `option` (for the message).
     pub fn add(&mut self, option: &str, path: &Path) -> Result<()> {
         let target = OutputTarget::of(path).with_context(|| format!("{option}"))?;
-        target.probe().with_context(|| format!("{option}"))?;
+        target.probe().with_context(|| option.to_string())?;
         let key = match &target {
             OutputTarget::Stdout => identity(Path::new("/dev/stdout")).unwrap_or_else(|| PathBuf::from("-")),
             OutputTarget::File(p) | OutputTarget::Special(p) => identity(p).unwrap_or_else(|| canonical_for_compare(p)),

@@ -153,7 +153,8 @@ fn tet_det_from(p: [[f64; 3]; 4]) -> (f64, bool, [usize; 4]) {
 /// vertices).
 fn face_offset(n: [f64; 3], p: [[f64; 3]; 4], i: usize, origin: [f64; 3]) -> f64 {
     let f = [(i + 1) % 4, (i + 2) % 4, (i + 3) % 4];
-    let fc: [f64; 3] = std::array::from_fn(|k| ((p[f[0]][k] - origin[k]) + (p[f[1]][k] - origin[k]) + (p[f[2]][k] - origin[k])) / 3.0);
+    let rel = |v: usize, k: usize| p[f[v]][k] - origin[k];
+    let fc: [f64; 3] = std::array::from_fn(|k| (rel(0, k) + rel(1, k) + rel(2, k)) / 3.0);
     -dot(n, fc)
 }
 
