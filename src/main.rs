@@ -304,7 +304,19 @@ fn check_out_dir(dir: &Path, files: &[&str]) -> Result<()> {
             Ok(())
         }
         Err(_) if std::fs::symlink_metadata(dir).is_ok() => bail!("--out {}: is a dangling symbolic link", dir.display()),
-        Err(_) => Ok(()),
+        // Made after the checks; its nearest existing ancestor must be a
+        // directory that takes new entries (probed, nothing created).
+        Err(_) => {
+            let existing = dir
+                .ancestors()
+                .skip(1)
+                .map(|a| if a.as_os_str().is_empty() { Path::new(".") } else { a })
+                .find(|a| a.exists())
+                .unwrap_or(Path::new("."));
+            OutputSet::new()
+                .add("--out", &existing.join(".volbench-out-probe"))
+                .with_context(|| format!("--out {}: cannot be created", dir.display()))
+        }
     }
 }
 

@@ -467,6 +467,9 @@ fn sizes_and_output_paths_of_sweeps_are_checked_before_any_work() {
     let o = run_bounded(volbench().args(["pareto", "--data", "post-small", "--method", "balanced", "--table-size", "1000", "--out"]).arg(d.path().join("p")));
     assert_error(&o, &["--table-size 1000 for preint"]);
     assert!(!d.path().join("p").exists());
+    // An --out directory that cannot be made: refused before any work.
+    let o = run_bounded(volbench().args(["compare", "--data", "post-small", "--method", "vicp", "--out", "/proc/volbench-out"]));
+    assert_error(&o, &["--out /proc/volbench-out", "cannot be created"]);
     // A read-only directory (as root too: a read-only bind is not at hand,
     // so use a path below a regular file, and /proc, which refuses new files).
     let file = d.path().join("f");
