@@ -14,7 +14,9 @@
 //!   redirection would. A symlink to a regular file is followed and its
 //!   target replaced. `-` means standard output.
 //! - `OutputSet` checks a run's outputs before any work starts: no two the
-//!   same, each one's directory exists, and none is a directory.
+//!   same, each one's directory exists, none is a directory, and each can be
+//!   written (a temporary file can be created beside it, a special file
+//!   opened for writing).
 
 use std::collections::HashSet;
 use std::fs;
@@ -142,6 +144,31 @@ impl OutputTarget {
                     Ok(_) => bail!("{}: {} is not a directory", path.display(), parent.display()),
                     Err(_) => bail!("{}: directory {} does not exist", path.display(), parent.display()),
                 }
+            }
+        }
+    }
+}
+
+impl OutputTarget {
+    /// Try, before any work, what writing will do: create (and remove) a
+    /// temporary file beside a regular-file target, where the real one will
+    /// be made (catches a read-only file system or directory), or open a
+    /// special file for writing. Writes nothing to the target.
+    pub fn probe(&self) -> Result<()> {
+        match self {
+            OutputTarget::Stdout => Ok(()),
+            OutputTarget::Special(p) => fs::OpenOptions::new()
+                .write(true)
+                .open(p)
+                .map(drop)
+                .with_context(|| format!("{}: cannot be opened for writing", p.display())),
+            OutputTarget::File(p) => {
+                let real = fs::canonicalize(p).unwrap_or_else(|_| p.clone());
+                let tmp = temp_path(&real);
+                let _guard = TempGuard(Some(tmp.clone()));
+                fs::OpenOptions::new().write(true).create_new(true).open(&tmp).map(drop).with_context(|| {
+                    format!("{}: cannot be written (no file can be created in {})", p.display(), parent_dir(&real).display())
+                })
             }
         }
     }
@@ -286,6 +313,7 @@ impl OutputSet {
     /// Add an output named by `option` (for the message).
     pub fn add(&mut self, option: &str, path: &Path) -> Result<()> {
         let target = OutputTarget::of(path).with_context(|| format!("{option}"))?;
+        target.probe().with_context(|| option.to_string())?;
         let key = match &target {
             OutputTarget::Stdout => identity(Path::new("/dev/stdout")).unwrap_or_else(|| PathBuf::from("-")),
             OutputTarget::File(p) | OutputTarget::Special(p) => identity(p).unwrap_or_else(|| canonical_for_compare(p)),

@@ -328,7 +328,19 @@ fn check_out_dir(dir: &Path, files: &[&str]) -> Result<()> {
             Ok(())
         }
         Err(_) if std::fs::symlink_metadata(dir).is_ok() => bail!("--out {}: is a dangling symbolic link", dir.display()),
-        Err(_) => Ok(()),
+        // Made after the checks; its nearest existing ancestor must be a
+        // directory that takes new entries (probed, nothing created).
+        Err(_) => {
+            let existing = dir
+                .ancestors()
+                .skip(1)
+                .map(|a| if a.as_os_str().is_empty() { Path::new(".") } else { a })
+                .find(|a| a.exists())
+                .unwrap_or(Path::new("."));
+            OutputSet::new()
+                .add("--out", &existing.join(".volbench-out-probe"))
+                .with_context(|| format!("--out {}: cannot be created", dir.display()))
+        }
     }
 }
 
@@ -482,22 +494,19 @@ fn stress(cli: &Cli, registry: &Registry, args: &StressArgs) -> Result<()> {
     }
     let ctx = context(cli)?;
     let mut done = Vec::new();
-    let mut write_error = None;
+    // The JSON is rewritten as each row completes; a write that fails ends
+    // the run at once (the path was probed up front, so this is rare).
     let rows = run_cases_with_progress(&ctx, &stress_cases(args.size), &cfg, |row| {
         done.push(row.clone());
         if done.len() % 50 == 0 {
             eprintln!("volbench: stress: {} renders ({} ...)", done.len(), row.case);
         }
-        if let (Some(p), None) = (&args.json, &write_error) {
-            if let Err(e) = report::write_json(p, &StressReport { cases: done.clone() }) {
-                write_error = Some(e);
-            }
+        match &args.json {
+            Some(p) => report::write_json(p, &StressReport { cases: done.clone() }),
+            None => Ok(()),
         }
     })?;
     print!("{}", stress_table(&rows));
-    if let Some(e) = write_error {
-        return Err(e);
-    }
     let failed = failures(&rows);
     let non_finite: usize = rows.iter().map(|r| r.nan_pixels + r.inf_pixels).sum();
     println!("{} renders, {} NaN/Inf pixels, {} failed", rows.len(), non_finite, failed);

@@ -147,7 +147,17 @@ const SOLID_BOX: MethodInfo = MethodInfo {
     stress: &[],
     accuracy_bound: |_, _| Some(1e-3),
     published: &[],
+    check: volbench::algo::method::no_check,
     create: create_box,
+};
+
+/// A method whose every run fails after the sweep has started (a table
+/// too large is now refused when its spec is parsed, so it cannot be used).
+const FAILS: MethodInfo = MethodInfo {
+    name: "test-fails",
+    summary: "test only: fails when created",
+    create: |_| anyhow::bail!("test-fails: this method always fails"),
+    ..SOLID_BOX
 };
 
 fn registry_with_box() -> Registry {
@@ -183,7 +193,7 @@ fn a_test_only_method_runs_through_the_runner_with_the_common_schema() {
 
 #[test]
 fn sweeps_iterate_over_the_registry_and_survive_a_failing_row() {
-    let registry = registry_with_box();
+    let registry = registry_with_box().with(FAILS);
     let dataset = datasets::load("post-small").unwrap();
     let tf = dataset.default_transfer_function();
     let dir = tempfile::tempdir().unwrap();
@@ -201,11 +211,13 @@ fn sweeps_iterate_over_the_registry_and_survive_a_failing_row() {
     assert_eq!(sweep_json["points"].as_array().map(Vec::len), Some(2));
     assert_eq!(sweep_json["dataset"], "post-small");
     std::fs::remove_file(dir.path().join("pareto.json")).unwrap();
-    // compare: the box and balanced side by side, plus a row that fails
-    // (a table too large for the device's table budget) in the middle.
+    // compare: the box and balanced side by side, plus a row that fails in
+    // the middle. (A table too large is refused before any work.)
+    let e = registry.parse_spec("balanced:integrator=preint,table_size=4096", &[]).unwrap_err().to_string();
+    assert!(e.contains("--table-size 4096 for preint"), "{e}");
     let specs = vec![
         registry.parse_spec("test-solid-box", &[]).unwrap(),
-        registry.parse_spec("balanced:integrator=preint,table_size=4096", &[]).unwrap(),
+        registry.parse_spec("test-fails", &[]).unwrap(),
         registry.parse_spec("balanced", &[]).unwrap(),
     ];
     let jobs = vec![sweep::CompareJob { dataset, tf, specs }];
@@ -213,8 +225,8 @@ fn sweeps_iterate_over_the_registry_and_survive_a_failing_row() {
     let rows = sweep::compare(&ctx, &registry, &jobs, &small(), Some(dir.path())).unwrap();
     assert_eq!(rows.len(), 3, "the failing row does not end the sweep");
     assert!(rows[0].outcome.is_ok() && rows[2].outcome.is_ok());
-    let err = rows[1].outcome.as_ref().err().expect("the oversized table fails");
-    assert!(err.contains("table-size") || err.contains("table_size"), "{err}");
+    let err = rows[1].outcome.as_ref().err().expect("the failing method fails");
+    assert!(err.contains("always fails"), "{err}");
     let table = sweep::comparison_markdown(&rows, &registry).unwrap();
     assert!(table.contains("FAILED"), "{table}");
     // Every run JSON written validates against the schema.
@@ -228,7 +240,7 @@ fn sweeps_iterate_over_the_registry_and_survive_a_failing_row() {
         }
     }
     assert_eq!(n, 2, "one JSON per successful row");
-    assert!(!dir.path().join("post-small-balanced-integrator-preint_table_size-4096.json").exists());
+    assert!(!dir.path().join("post-small-test-fails.json").exists());
 }
 
 #[test]

@@ -387,7 +387,16 @@ pub struct MethodInfo {
     pub accuracy_bound: fn(&Options, bool) -> Option<f64>,
     /// Published figures for this method (reports).
     pub published: &'static [Published],
+    /// Checks a complete option set beyond each option's own range (e.g. a
+    /// table size against the memory its integrator's table implies), so
+    /// that every spec is refused when parsed, before any Vulkan work.
+    pub check: fn(&Options) -> Result<()>,
     pub create: fn(MethodInputs) -> Result<Box<dyn RenderMethod>>,
+}
+
+/// [`MethodInfo::check`] for methods whose options are independent.
+pub fn no_check(_: &Options) -> Result<()> {
+    Ok(())
 }
 
 impl std::fmt::Debug for MethodInfo {
@@ -420,7 +429,9 @@ impl MethodInfo {
             };
             out.insert(k.to_string(), spec.parse(self.name, v)?);
         }
-        Ok(Options(out))
+        let options = Options(out);
+        (self.check)(&options).map_err(|e| anyhow::anyhow!("method '{}': {e:#}", self.name))?;
+        Ok(options)
     }
 
     /// Why this device cannot run the method, if it cannot.

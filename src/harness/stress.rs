@@ -214,11 +214,6 @@ fn oblique_camera() -> Camera {
     look([2.3, 1.7, 2.9], [0.5, 0.5, 0.5], [0.0, 1.0, 0.0], Projection::Perspective { fovy_deg: 30.0 }, 0.9)
 }
 
-fn translated(mut c: Camera, by: [f64; 3]) -> Camera {
-    c.eye = std::array::from_fn(|k| c.eye[k] + by[k]);
-    c.target = std::array::from_fn(|k| c.target[k] + by[k]);
-    c
-}
 
 /// The centroid order is not a visibility order for badly shaped cells:
 /// colour (not alpha, which does not depend on order) is off where two
@@ -593,7 +588,7 @@ fn far_from_origin(offset: f64) -> StressCase {
             (24.0 - offset.log2()).max(0.0).floor()
         ),
         data: CaseData::TetMesh(mesh),
-        camera: translated(oblique_camera(), by),
+        camera: oblique_camera().translated(by),
         tf,
         allowances: Vec::new(),
     }
@@ -978,17 +973,18 @@ pub fn non_finite_pixels(image: &RgbaImage) -> (usize, usize) {
 /// Render `cases` with every spec of `cfg` and compare each image with the
 /// f64 reference (cached on disk, see `reference_cache`).
 pub fn run_cases(ctx: &Arc<Context>, cases: &[StressCase], cfg: &StressConfig) -> Result<Vec<StressRow>> {
-    run_cases_with_progress(ctx, cases, cfg, |_| {})
+    run_cases_with_progress(ctx, cases, cfg, |_| Ok(()))
 }
 
 /// [`run_cases`], calling `progress` with each row as soon as it is
 /// measured. A render that fails is a `fail` row with its error; the sweep
-/// goes on. An error of the reference itself ends the sweep.
+/// goes on. An error of the reference itself, or one `progress` returns
+/// (e.g. the JSON cannot be written), ends the sweep.
 pub fn run_cases_with_progress(
     ctx: &Arc<Context>,
     cases: &[StressCase],
     cfg: &StressConfig,
-    mut progress: impl FnMut(&StressRow),
+    mut progress: impl FnMut(&StressRow) -> Result<()>,
 ) -> Result<Vec<StressRow>> {
     let mut rows = Vec::new();
     for case in cases {
@@ -1042,7 +1038,7 @@ pub fn run_cases_with_progress(
                 }
                 Err(e) => row.error = Some(format!("{e:#}")),
             }
-            progress(&row);
+            progress(&row)?;
             rows.push(row);
         }
     }
@@ -1053,7 +1049,7 @@ pub fn run_cases_with_progress(
 /// interpolation and sort at `size` x `size` pixels, against the f64
 /// reference. About 700 renders; ~2 minutes at 128x128 on 2 cores.
 pub fn run_stress(ctx: &Arc<Context>, registry: &Registry, size: u32) -> Result<Vec<StressRow>> {
-    run_stress_with_progress(ctx, registry, size, |_| {})
+    run_stress_with_progress(ctx, registry, size, |_| Ok(()))
 }
 
 /// [`run_stress`], calling `progress` with each row as soon as it is measured.
@@ -1061,7 +1057,7 @@ pub fn run_stress_with_progress(
     ctx: &Arc<Context>,
     registry: &Registry,
     size: u32,
-    progress: impl FnMut(&StressRow),
+    progress: impl FnMut(&StressRow) -> Result<()>,
 ) -> Result<Vec<StressRow>> {
     anyhow::ensure!(
         size >= 16 && size.is_multiple_of(2),

@@ -27,7 +27,11 @@
 //!   1e12, moved 1e7 from the origin) and the measured grid at diagonals
 //!   1.0e-15 and 9.9e14 render correctly. Within the coordinate bound the
 //!   distance from the origin does not matter: positions are sent relative
-//!   to the mesh's centre, the subtraction done in f64.
+//!   to the mesh's centre, the subtraction done in f64, and the view matrix
+//!   is built for those relative positions (`Camera::view_proj_relative`;
+//!   the reference bins and walks relative to the eye), so nothing large
+//!   cancels: a grid moved by 1e14 renders with the error it has at the
+//!   origin (`tests/reliability.rs`).
 //! - Scalars: `|s| <= MAX_ABS_VALUE` (f32's largest finite value); they are
 //!   sent relative to their range, so any range within f32 works.
 //! - Cells: every tet has four distinct vertex indices; no two tets have the
@@ -36,6 +40,13 @@
 //!   renders wrong; at least one tet has non-zero volume (a mesh of only flat
 //!   cells renders nothing). Zero-volume cells among others are kept and
 //!   counted (`MeshStats::zero_volume`).
+//! - Overlaps: cells with volume must not overlap through a shared face
+//!   (points at identical positions count as one): no face is held by three
+//!   or more of them, and two that share a face lie on opposite sides of it.
+//!   This catches a cell repeated with one vertex moved, folds and
+//!   inside-out neighbours at the cost of one sort of the faces; overlapping
+//!   cells that share no face at all (a copy made of new, displaced points)
+//!   are not detected, since that needs a spatial search.
 //!
 //! [`TetGeometry::compute`] does once, at load time and in f64, what SPEC §1
 //! calls view-independent: the constant scalar gradient of each tet and its
@@ -52,14 +63,18 @@ use anyhow::{bail, Result};
 use rayon::prelude::*;
 use std::collections::HashMap;
 
-/// Relative threshold for a zero-volume cell: `|det| <= ZERO_VOLUME_REL * L^3`
-/// with `det = det[p1-p0, p2-p0, p3-p0]` (six times the volume) and `L` the
-/// longest of the six edges (see [`tet_det`]). Relative, so the test does not
-/// depend on the mesh's units. 1e-10 is far above f64 rounding of `det`
-/// (~1e-16 L^3), so a cell whose vertices are coplanar up to rounding is
-/// flat, and far below real thin cells: the stress suite's thinnest slivers
-/// (|det| = 6e-12 with L^3 = 5.5e-3) stay solid, the blunt fin's collapsed
-/// cells (det exactly 0) are its 77 zero-volume cells.
+/// Relative threshold for a zero-volume cell (see [`tet_det`]): the cell is
+/// flat when, at each of its four vertices, `|det|` is at most
+/// `ZERO_VOLUME_REL` times the product of the three edge lengths meeting
+/// there, i.e. every vertex's three edges are coplanar to within 1e-10 (the
+/// sine of the angle between one edge and the plane of the other two). The
+/// test depends only on the cell's shape, not on its size or elongation: a
+/// needle of aspect ratio 1e6 (edges at its base at right angles) is solid,
+/// while a cap or sliver whose height is 1e-10 of its width is flat. 1e-10 is
+/// far above f64 rounding of `det` (~1e-16 of that product), so a cell whose
+/// vertices are coplanar up to rounding is flat, and far below real thin
+/// cells: the stress suite's thinnest slivers stay solid, the blunt fin's
+/// collapsed cells (det exactly 0) are its 77 zero-volume cells.
 pub const ZERO_VOLUME_REL: f64 = 1e-10;
 
 /// Largest magnitude accepted for a scalar: `f32::MAX`. Every GPU path packs
@@ -103,24 +118,44 @@ fn len2(a: [f64; 3]) -> f64 {
 /// cell counts as zero-volume under [`ZERO_VOLUME_REL`]: the one flatness
 /// test (module docs). The flag ignores orientation; callers that also need
 /// a positive orientation (the reference's "solid") check the sign of `det`.
+///
+/// The determinant is computed from the vertex whose three edges have the
+/// smallest length product (the others follow in an even permutation, so
+/// the sign is that of `det[p1-p0, p2-p0, p3-p0]`): its rounding error is
+/// about 1e-16 of that product, so at the tip of a needle, where the three
+/// long edges are nearly parallel, precision is not lost to cancellation.
 pub fn tet_det(p: [[f64; 3]; 4]) -> (f64, bool) {
-    let e1 = sub(p[1], p[0]);
-    let e2 = sub(p[2], p[0]);
-    let e3 = sub(p[3], p[0]);
-    let det = dot(e1, cross(e2, e3));
-    let longest2 = [
-        len2(e1),
-        len2(e2),
-        len2(e3),
-        len2(sub(p[2], p[1])),
-        len2(sub(p[3], p[1])),
-        len2(sub(p[3], p[2])),
-    ]
-    .into_iter()
-    .fold(0.0f64, f64::max);
-    let l3 = longest2 * longest2.sqrt();
-    let zero = det == 0.0 || det.abs() <= ZERO_VOLUME_REL * l3;
+    let (det, zero, _) = tet_det_from(p);
     (det, zero)
+}
+
+/// [`tet_det`] and the vertex order it was computed in (an even permutation
+/// of 0..4, starting at the best-conditioned vertex), for computations that
+/// should use the same edges.
+fn tet_det_from(p: [[f64; 3]; 4]) -> (f64, bool, [usize; 4]) {
+    // Edge lengths l[a][b]; the vertex with the smallest product of its
+    // three edges is the best-conditioned base (and gives the loosest, i.e.
+    // shape-only, threshold).
+    let l = |a: usize, b: usize| len2(sub(p[a], p[b])).sqrt();
+    let (l01, l02, l03, l12, l13, l23) = (l(0, 1), l(0, 2), l(0, 3), l(1, 2), l(1, 3), l(2, 3));
+    let products = [l01 * l02 * l03, l01 * l12 * l13, l02 * l12 * l23, l03 * l13 * l23];
+    // Even permutations of (0, 1, 2, 3) starting at each vertex.
+    const FROM: [[usize; 4]; 4] = [[0, 1, 2, 3], [1, 0, 3, 2], [2, 3, 0, 1], [3, 2, 1, 0]];
+    let base = (1..4).fold(0, |b, v| if products[v] < products[b] { v } else { b });
+    let [o, a, b, c] = FROM[base];
+    let det = dot(sub(p[a], p[o]), cross(sub(p[b], p[o]), sub(p[c], p[o])));
+    let zero = det == 0.0 || det.abs() <= ZERO_VOLUME_REL * products[base];
+    (det, zero, FROM[base])
+}
+
+/// `a` of the plane `n·(x - origin) + a = 0` through the face opposite
+/// vertex `i` of `p`, from the face's centroid (symmetric in its three
+/// vertices).
+fn face_offset(n: [f64; 3], p: [[f64; 3]; 4], i: usize, origin: [f64; 3]) -> f64 {
+    let f = [(i + 1) % 4, (i + 2) % 4, (i + 3) % 4];
+    let rel = |v: usize, k: usize| p[f[v]][k] - origin[k];
+    let fc: [f64; 3] = std::array::from_fn(|k| (rel(0, k) + rel(1, k) + rel(2, k)) / 3.0);
+    -dot(n, fc)
 }
 
 /// What [`TetMesh::validate`] reports about duplicate cells.
@@ -218,10 +253,78 @@ impl TetMesh {
             .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
         self.stats.reoriented += reoriented;
         self.stats.zero_volume = zero;
+        self.check_overlaps(source)?;
         if zero == self.tets.len() {
             bail!(
-                "{source}: all {zero} tets have zero volume (|det| <= {ZERO_VOLUME_REL:e} x longest edge^3): \
-                 the mesh is flat and would render nothing"
+                "{source}: all {zero} tets have zero volume (at every vertex, the three edges are coplanar \
+                 to within {ZERO_VOLUME_REL:e}): the mesh is flat and would render nothing"
+            );
+        }
+        Ok(())
+    }
+
+    /// Refuses cells with volume that overlap through a shared face (module
+    /// docs): a face held by three or more solid cells, or two solid cells
+    /// on the same side of their common face (a fold). Faces are matched by
+    /// position (points at identical coordinates are one), as the renderers'
+    /// adjacency does. Flat cells take no part: they hold no volume, and real
+    /// data welds them onto solid neighbours (the blunt fin's collapsed
+    /// points). One sort of the 4n faces, no pairwise search; overlapping
+    /// cells that share no face are not found here. Expects oriented cells
+    /// with indices in range.
+    fn check_overlaps(&self, source: &str) -> Result<()> {
+        use super::adjacency::{weld_coincident, FaceAdjacency, FACE_VERTS, NONE};
+        let solid: Vec<bool> = self.tets.par_iter().map(|t| !tet_det(t.map(|v| self.points[v as usize])).1).collect();
+        let weld = weld_coincident(&self.points);
+        let adj = FaceAdjacency::build(&self.tets, Some(&weld), |_| true);
+        let face_of = |slot: u32| -> [u32; 3] {
+            let (c, f) = (slot as usize / 4, slot as usize % 4);
+            FACE_VERTS[f].map(|l| self.tets[c][l])
+        };
+        // A face with three or more solid holders.
+        let crowded = adj.shared.iter().filter_map(|holders| {
+            let solid_holders: Vec<usize> =
+                holders.iter().map(|&s| s as usize / 4).filter(|&c| solid[c]).collect();
+            (solid_holders.len() >= 3).then(|| (holders[0], solid_holders))
+        });
+        let crowded: Vec<(u32, Vec<usize>)> = crowded.collect();
+        if let Some((slot, cells)) = crowded.first() {
+            bail!(
+                "{source}: {} face(s) are shared by three or more cells with volume, which therefore overlap: \
+                 face {:?} is a face of tets {:?}; a conforming mesh shares a face between at most two cells",
+                crowded.len(),
+                face_of(*slot),
+                cells
+            );
+        }
+        // Two solid cells on the same side of their common face: cell c's
+        // vertex f replaced by the partner's opposite vertex keeps c's
+        // (positive) orientation.
+        let folded = |slot: usize| -> bool {
+            let p = adj.partner[slot];
+            if p == NONE || (p as usize) < slot {
+                return false;
+            }
+            let (c, f) = (slot / 4, slot % 4);
+            let (d, g) = (p as usize / 4, p as usize % 4);
+            if !solid[c] || !solid[d] {
+                return false;
+            }
+            let mut q = self.tet_points(c);
+            q[f] = self.points[self.tets[d][g] as usize];
+            let (det, flat) = tet_det(q);
+            det > 0.0 && !flat
+        };
+        let folds: Vec<usize> = (0..adj.partner.len()).into_par_iter().filter(|&s| folded(s)).collect();
+        if let Some(&slot) = folds.first() {
+            let p = adj.partner[slot] as usize;
+            bail!(
+                "{source}: {} pair(s) of cells overlap: tets {} and {} share the face {:?} but lie on the same \
+                 side of it (a folded or repeated cell)",
+                folds.len(),
+                slot / 4,
+                p / 4,
+                face_of(slot as u32)
             );
         }
         Ok(())
@@ -366,21 +469,23 @@ impl TetPrecomputed {
     /// f64::MAX, a cell whose determinant overflows is reported degenerate
     /// with volume `f64::MAX`.)
     pub fn from_vertices(p: [[f64; 3]; 4], s: [f64; 4]) -> TetPrecomputed {
-        let (det, zero) = tet_det(p);
+        let (det, zero, order) = tet_det_from(p);
         if !det.is_finite() {
             return TetPrecomputed { volume: f64::MAX, ..Self::DEGENERATE };
         }
         if zero {
             return TetPrecomputed { volume: (det / 6.0).abs(), ..Self::DEGENERATE };
         }
-        let e1 = sub(p[1], p[0]);
-        let e2 = sub(p[2], p[0]);
-        let e3 = sub(p[3], p[0]);
+        // From the vertex `det` was computed from (same sign, same edges).
+        let [o, v1, v2, v3] = order;
+        let e1 = sub(p[v1], p[o]);
+        let e2 = sub(p[v2], p[o]);
+        let e3 = sub(p[v3], p[o]);
         // Cramer via cross products: g = (ds1 (e2×e3) + ds2 (e3×e1) + ds3 (e1×e2)) / det.
         let c23 = cross(e2, e3);
         let c31 = cross(e3, e1);
         let c12 = cross(e1, e2);
-        let (d1, d2, d3) = (s[1] - s[0], s[2] - s[0], s[3] - s[0]);
+        let (d1, d2, d3) = (s[v1] - s[o], s[v2] - s[o], s[v3] - s[o]);
         let inv = 1.0 / det;
         let gradient: [f64; 3] =
             std::array::from_fn(|k| (d1 * c23[k] + d2 * c31[k] + d3 * c12[k]) * inv);
@@ -393,10 +498,7 @@ impl TetPrecomputed {
                 return TetPrecomputed { volume: (det / 6.0).abs(), ..Self::DEGENERATE };
             }
             n = n.map(|c| c / len);
-            // Offset from the face centroid (symmetric in the three vertices).
-            let fc: [f64; 3] =
-                std::array::from_fn(|k| (p[f[0]][k] + p[f[1]][k] + p[f[2]][k]) / 3.0);
-            let mut a = -dot(n, fc);
+            let mut a = face_offset(n, p, i, [0.0; 3]);
             if dot(n, p[i]) + a > 0.0 {
                 n = n.map(|c| -c);
                 a = -a;
@@ -409,6 +511,20 @@ impl TetPrecomputed {
         } else {
             TetPrecomputed { volume: out.volume, ..Self::DEGENERATE }
         }
+    }
+
+    /// Plane `i` for points given relative to `origin`: the same normal, the
+    /// offset recomputed from the face's vertices minus `origin` (`p` are
+    /// the cell's vertices, as given to `from_vertices`), so it stays exact
+    /// far from the world origin, where `planes[i][3]` is as large as the
+    /// coordinates and has lost their low digits. Equal to `planes[i]` for
+    /// origin 0.
+    pub fn plane_relative(&self, i: usize, p: [[f64; 3]; 4], origin: [f64; 3]) -> [f64; 4] {
+        let [nx, ny, nz, _] = self.planes[i];
+        if self.degenerate {
+            return [0.0; 4];
+        }
+        [nx, ny, nz, face_offset([nx, ny, nz], p, i, origin)]
     }
 
     /// SPEC's 3-float plane for vertex `i` at `cell_vertex_pos`: the plane of
@@ -608,6 +724,34 @@ mod tests {
         // ...a mesh of flat cells only is rejected: it would render nothing.
         let e = mesh_of(flat, [0.0; 4]).validate("flat").unwrap_err().to_string();
         assert!(e.contains("flat: all 1 tets have zero volume"), "{e}");
+    }
+
+    #[test]
+    fn flatness_depends_on_shape_not_elongation() {
+        // A needle of aspect ratio 1e6 (length 1, base edges 1e-6 at right
+        // angles) is solid from whichever vertex it is listed; its gradient
+        // is exact. A cap 1e-11 high over a unit triangle is flat.
+        let w = 1e-6;
+        let needle = [[0.0, 0.0, 0.0], [w, 0.0, 0.0], [0.0, w, 0.0], [0.0, 0.0, 1.0]];
+        let s = |p: [f64; 3]| 2.0 * p[0] - 3.0 * p[1] + 0.5 * p[2];
+        for r in 0..4 {
+            let p: [[f64; 3]; 4] = std::array::from_fn(|k| needle[(k + r) % 4]);
+            let (det, zero) = tet_det(p);
+            assert!(!zero, "rotation {r}");
+            assert!((det.abs() - w * w).abs() <= 1e-9 * w * w, "rotation {r}: {det}");
+            let t = TetPrecomputed::from_vertices(p, p.map(s));
+            assert!(!t.degenerate);
+            for (g, want) in t.gradient.iter().zip([2.0, -3.0, 0.5]) {
+                assert!((g - want).abs() < 1e-6, "rotation {r}: {:?}", t.gradient);
+            }
+        }
+        let cap = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.3, 0.3, 1e-11]];
+        assert!(tet_det(cap).1);
+        // The same cap scaled by 1e-9 or 1e9: the test does not see units.
+        for k in [1e-9, 1e9] {
+            assert!(tet_det(cap.map(|p| p.map(|c| c * k))).1);
+            assert!(!tet_det(needle.map(|p| p.map(|c| c * k))).1);
+        }
     }
 
     #[test]

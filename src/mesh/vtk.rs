@@ -14,9 +14,9 @@
 //! `CELLS` and `CELL_TYPES` in files before 5.x, the `int` the format
 //! implies): in ASCII `unsigned_char 300`, a negative value for an unsigned
 //! type or `1.5` for an integer type is an error, as is a `float` beyond
-//! f32's range. BINARY files are big-endian; little-endian float arrays are
-//! recognised (`byte_order`) and rejected as such instead of loading as
-//! subnormals and rendering blank. Lines must end in LF or CRLF (CR-only
+//! f32's range. BINARY files are big-endian; little-endian arrays, float or
+//! integer, are recognised (`byte_order`) and rejected as such instead of
+//! loading as subnormals or huge integers and rendering blank. Lines must end in LF or CRLF (CR-only
 //! files are reported as such).
 //!
 //! All errors name the file, the problem and the byte offset.
@@ -70,6 +70,16 @@ impl DType {
     }
     fn is_float(self) -> bool {
         matches!(self, DType::F32 | DType::F64)
+    }
+    /// Evidence that a BINARY array of this type, big-endian by the
+    /// format, was written little-endian (`byte_order`).
+    fn looks_little_endian(self, bytes: &[u8]) -> Option<super::byte_order::LittleEndianEvidence> {
+        use super::byte_order::{looks_little_endian, looks_little_endian_int};
+        match self {
+            DType::F32 | DType::F64 => looks_little_endian(bytes, self.size()),
+            DType::I8 | DType::I16 | DType::I32 | DType::I64 => looks_little_endian_int(bytes, self.size(), true),
+            DType::U8 | DType::U16 | DType::U32 | DType::U64 => looks_little_endian_int(bytes, self.size(), false),
+        }
     }
     /// The VTK name of the type, for messages.
     fn name(self) -> &'static str {
@@ -301,11 +311,9 @@ impl<'a> Reader<'a> {
     fn values_f64(&mut self, n: usize, dt: DType, what: &str) -> Result<Vec<f64>> {
         if self.binary {
             let s = self.binary_bytes(n, dt, what)?;
-            if dt.is_float() {
-                if let Some(evidence) = super::byte_order::looks_little_endian(s, dt.size()) {
-                    self.pos -= s.len();
-                    return Err(self.err(format!("{what}: {evidence}")));
-                }
+            if let Some(evidence) = dt.looks_little_endian(s) {
+                self.pos -= s.len();
+                return Err(self.err(format!("{what}: {evidence}")));
             }
             let w = dt.size();
             Ok(s.chunks_exact(w).map(|c| decode_f64(c, dt)).collect())
@@ -323,6 +331,8 @@ impl<'a> Reader<'a> {
             return Err(self.err(format!("{what} must have an integer type, not a float type")));
         }
         if self.binary {
+            // (Counts, indices and cell types are checked one by one, with a
+            // byte-swap hint where they fail: `swapped_hint`.)
             let s = self.binary_bytes(n, dt, what)?;
             let w = dt.size();
             Ok(s.chunks_exact(w).map(|c| decode_i64(c, dt)).collect())

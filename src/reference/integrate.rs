@@ -17,7 +17,7 @@
 //! `α = −expm1(−depth)` keeps full relative precision for thin media and the
 //! composited transmittance is `exp(−Σ depth)` exactly.
 
-use crate::scene::{ControlPoint, TransferFunction};
+use crate::scene::TransferFunction;
 
 use super::psi::psi_terms;
 
@@ -72,49 +72,6 @@ pub fn integrate_piece(l_f: [f64; 3], tau_f: f64, l_b: [f64; 3], tau_b: f64, d: 
     }
 }
 
-/// The linear transfer-function interval holding scalar `s` (`i` = index of
-/// the first control point strictly above `s`, as in `TransferFunction::eval`).
-#[derive(Clone, Copy)]
-enum TfPiece {
-    Const([f64; 3], f64),
-    Linear(ControlPoint, ControlPoint),
-}
-
-impl TfPiece {
-    fn at(points: &[ControlPoint], s: f64) -> TfPiece {
-        let n = points.len();
-        if n == 0 {
-            return TfPiece::Const([0.0; 3], 0.0);
-        }
-        let i = points.partition_point(|p| p.scalar <= s);
-        if i == 0 {
-            TfPiece::Const(points[0].color, points[0].attenuation)
-        } else if i == n {
-            TfPiece::Const(points[n - 1].color, points[n - 1].attenuation)
-        } else {
-            TfPiece::Linear(points[i - 1], points[i])
-        }
-    }
-
-    fn eval(&self, s: f64) -> ([f64; 3], f64) {
-        match *self {
-            TfPiece::Const(c, tau) => (c, tau),
-            TfPiece::Linear(p, q) => {
-                let t = (s - p.scalar) / (q.scalar - p.scalar);
-                let lerp = |x: f64, y: f64| x + (y - x) * t;
-                (
-                    [
-                        lerp(p.color[0], q.color[0]),
-                        lerp(p.color[1], q.color[1]),
-                        lerp(p.color[2], q.color[2]),
-                    ],
-                    lerp(p.attenuation, q.attenuation),
-                )
-            }
-        }
-    }
-}
-
 /// The exact integral over a segment of length `length` whose scalar goes
 /// linearly from `s_front` (the end nearer the eye) to `s_back`.
 pub fn integrate_segment(tf: &TransferFunction, s_front: f64, s_back: f64, length: f64) -> Segment {
@@ -137,7 +94,7 @@ pub fn integrate_segment(tf: &TransferFunction, s_front: f64, s_back: f64, lengt
         &pts[0..0]
     };
     let piece = |sa: f64, sb: f64, ua: f64, ub: f64| -> Segment {
-        let tfp = TfPiece::at(pts, 0.5 * (sa + sb));
+        let tfp = tf.piece_at(0.5 * (sa + sb));
         let (lf, tf_) = tfp.eval(sa);
         let (lb, tb) = tfp.eval(sb);
         integrate_piece(lf, tf_, lb, tb, length * (ub - ua))
@@ -167,6 +124,7 @@ pub fn integrate_segment(tf: &TransferFunction, s_front: f64, s_back: f64, lengt
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::scene::ControlPoint;
 
     fn tf(points: &[(f64, [f64; 3], f64)]) -> TransferFunction {
         TransferFunction {

@@ -43,7 +43,7 @@
 //! meets, flat or not: the walk leaves through "the other crossed face",
 //! i.e. the face whose signs are opposite to those of the face it came in
 //! by. For a solid, positively oriented cell that is the usual exit; a flat
-//! cell (zero-volume by `mesh::geometry::tet_det`, `|det| ≤ 1e-10·L³`, the
+//! cell (zero-volume by `mesh::geometry::tet_det`: coplanar to 1e-10, the
 //! test that also makes the GPU paths' cells `degenerate`; or inverted) has
 //! no orientation to trust, so it is crossed whichever way its vertices are
 //! ordered, with a zero-length segment (exit depth is clamped to be ≥ entry
@@ -185,7 +185,10 @@ pub fn render_reference_with_stats(
         tf,
         entry_tolerance: 1e-9 * diag,
         max_steps_per_ray: 4 * mesh.tets.len() as u64 + 1024,
+        eye: camera.eye,
     };
+    // Rays of the camera moved to the origin: relative to the eye.
+    let relative = camera.translated(camera.eye.map(|c| -c));
     let fwd = camera.forward();
     let (near, far) = (camera.near, camera.far);
     let mut pixels = vec![[0.0f64; 4]; width as usize * height as usize];
@@ -196,7 +199,7 @@ pub fn render_reference_with_stats(
             let mut stats = ReferenceStats::default();
             let mut entries = Vec::new();
             for (x, px) in row.iter_mut().enumerate() {
-                let (o, d) = camera.ray(x as f64, y as f64, width, height);
+                let (o, d) = relative.ray(x as f64, y as f64, width, height);
                 // View depth = t·(d·fwd) (perspective); = t (orthographic).
                 let cos = match camera.projection {
                     Projection::Perspective { .. } => d.dot(fwd),

@@ -40,8 +40,10 @@ fn sign(x: f64) -> i8 {
 const EDGE: [[usize; 4]; 4] = [[9, 0, 1, 2], [0, 9, 3, 4], [1, 3, 9, 5], [2, 4, 5, 9]];
 const EDGE_ENDS: [(usize, usize); 6] = [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)];
 
-/// One ray: origin, unit direction and the two perturbation directions.
+/// One ray: origin (relative to `eye`), unit direction and the two
+/// perturbation directions.
 pub(crate) struct Ray<'a> {
+    eye: [f64; 3],
     o: [f64; 3],
     d: [f64; 3],
     n1: [f64; 3],
@@ -50,7 +52,10 @@ pub(crate) struct Ray<'a> {
 }
 
 impl<'a> Ray<'a> {
-    pub fn new(o: [f64; 3], d: [f64; 3], pts: &'a [[f64; 3]]) -> Self {
+    /// `o` is relative to `eye` (0 for perspective rays): points are taken
+    /// relative to the eye first, exact for points near it, so nothing is
+    /// lost to the magnitude of world coordinates far from the origin.
+    pub fn new(eye: [f64; 3], o: [f64; 3], d: [f64; 3], pts: &'a [[f64; 3]]) -> Self {
         // n1, n2: an orthonormal pair perpendicular to d (any fixed choice).
         let ax = if d[0].abs() <= d[1].abs() && d[0].abs() <= d[2].abs() {
             [1.0, 0.0, 0.0]
@@ -63,12 +68,12 @@ impl<'a> Ray<'a> {
         let l = dot(n1, n1).sqrt();
         let n1 = [n1[0] / l, n1[1] / l, n1[2] / l];
         let n2 = cross(d, n1);
-        Ray { o, d, n1, n2, pts }
+        Ray { eye, o, d, n1, n2, pts }
     }
 
     #[inline]
     fn q(&self, v: u32) -> [f64; 3] {
-        sub(self.pts[v as usize], self.o)
+        sub(sub(self.pts[v as usize], self.eye), self.o)
     }
 
     /// The edge value of the *canonically oriented* edge lo → hi (global
@@ -139,10 +144,15 @@ impl<'a> Ray<'a> {
             bw[0] * q[0][2] + bw[1] * q[1][2] + bw[2] * q[2][2],
         ];
         let t = dot(x, self.d) * inv;
-        let s = (bw[0] * scalars[v[0] as usize]
-            + bw[1] * scalars[v[1] as usize]
-            + bw[2] * scalars[v[2] as usize])
-            * inv;
+        // Interpolated as the lowest scalar plus weighted differences and
+        // kept within the three values, so a face whose vertices share a
+        // scalar gives exactly it: the weighted mean itself may round to a
+        // neighbouring value, which would put a constant field on the wrong
+        // side of a transfer-function step at its value (the GPU gets the
+        // value exactly).
+        let sv = v.map(|i| scalars[i as usize]);
+        let (lo, hi) = (sv[0].min(sv[1]).min(sv[2]), sv[0].max(sv[1]).max(sv[2]));
+        let s = (lo + (bw[0] * (sv[0] - lo) + bw[1] * (sv[1] - lo) + bw[2] * (sv[2] - lo)) * inv).clamp(lo, hi);
         if sum != 0.0 && t.is_finite() && s.is_finite() {
             (t, s)
         } else {
@@ -223,7 +233,10 @@ impl Bins {
         width: u32,
         height: u32,
     ) -> Bins {
-        let vp = camera.view_proj(width, height);
+        // Relative to the eye (see `Camera::view_proj_relative`): exact for
+        // the points near it, so binning stays right far from the origin.
+        let eye = camera.eye;
+        let vp = camera.view_proj_relative(eye, width, height);
         let tiles_x = width.div_ceil(TILE);
         let tiles_y = height.div_ceil(TILE);
         let (wf, hf) = (width as f64, height as f64);
@@ -241,7 +254,7 @@ impl Bins {
             ];
             let (mut wmin, mut wmax) = (f64::INFINITY, f64::NEG_INFINITY);
             for &k in &fv {
-                let p = mesh.points[tet[k] as usize];
+                let p = sub(mesh.points[tet[k] as usize], eye);
                 let c = vp * glam::DVec4::new(p[0], p[1], p[2], 1.0);
                 wmin = wmin.min(c.w);
                 wmax = wmax.max(c.w);
@@ -317,6 +330,8 @@ pub(crate) struct Tracer<'a> {
     /// taken as already covered (only happens for overlapping meshes).
     pub entry_tolerance: f64,
     pub max_steps_per_ray: u64,
+    /// The camera's eye: ray origins are relative to it (`Ray::new`).
+    pub eye: [f64; 3],
 }
 
 /// Front-to-back accumulation along one ray.
@@ -344,7 +359,8 @@ enum WalkEnd {
 }
 
 impl Tracer<'_> {
-    /// Premultiplied RGBA for the ray through pixel (px, py), origin `o`, unit
+    /// Premultiplied RGBA for the ray through pixel (px, py), origin `o`
+    /// (relative to `self.eye`), unit
     /// direction `d`, clipped to t ∈ [t_min, t_max].
     #[allow(clippy::too_many_arguments)]
     pub fn trace(
@@ -358,7 +374,7 @@ impl Tracer<'_> {
         entries: &mut Vec<Entry>,
         stats: &mut ReferenceStats,
     ) -> [f64; 4] {
-        let ray = Ray::new(o, d, &self.mesh.points);
+        let ray = Ray::new(self.eye, o, d, &self.mesh.points);
         let scalars = &self.mesh.scalars;
         entries.clear();
         let tile = ((py / TILE) * self.bins.tiles_x + px / TILE) as usize;

@@ -125,13 +125,17 @@ mod tests {
     /// inverted cells (which the reference never calls solid).
     #[test]
     fn solid_agrees_with_geometry() {
-        let mut points = vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        let mut points = Vec::new();
         let mut tets = Vec::new();
-        // Apex heights (|det| = h, longest edge sqrt(2)): flat below
-        // 1e-10·2^1.5 ≈ 2.83e-10.
-        for h in [0.0, 1e-13, 1e-11, 2.8e-10, 2.9e-10, 1e-9, 1e-3, 1.0] {
-            points.push([0.3, 0.3, h]);
-            tets.push([0, 1, 2, points.len() as u32 - 1]);
+        // Apex heights over a unit right triangle, each cell on its own
+        // triangle (cells stacked on one face would overlap): |det| = h, and
+        // the apex's three edges (0.424, 0.762, 0.762) have the smallest
+        // product, 0.2461, so the cell is flat below 1e-10 · 0.2461.
+        for (k, h) in [0.0, 1e-13, 1e-11, 2.4e-11, 2.5e-11, 1e-9, 1e-3, 1.0].into_iter().enumerate() {
+            let x = 2.0 * k as f64;
+            let first = points.len() as u32;
+            points.extend([[x, 0.0, 0.0], [x + 1.0, 0.0, 0.0], [x, 1.0, 0.0], [x + 0.3, 0.3, h]]);
+            tets.push([first, first + 1, first + 2, first + 3]);
         }
         let n = points.len();
         let mut mesh = TetMesh { name: "thin".into(), scalars: vec![0.0; n], points, tets, stats: MeshStats::default() };

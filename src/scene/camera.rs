@@ -126,6 +126,29 @@ impl Camera {
         self.proj(width as f64 / height as f64) * self.view()
     }
 
+    /// The same camera moved by `by` (eye and target; the view is unchanged).
+    pub fn translated(&self, by: [f64; 3]) -> Camera {
+        Camera {
+            eye: std::array::from_fn(|k| self.eye[k] + by[k]),
+            target: std::array::from_fn(|k| self.target[k] + by[k]),
+            ..*self
+        }
+    }
+
+    /// [`Self::view_proj`] for points given relative to `origin` (it maps
+    /// `p - origin` where `view_proj` maps `p`): the one place geometry far
+    /// from the world origin is made relative. The camera is moved by
+    /// `-origin` first, so the matrix holds the eye's offset from `origin`
+    /// (small for a camera near the mesh) instead of `view_proj`'s
+    /// translation by `-eye` followed by `+origin`, two terms as large as
+    /// the coordinates that cancel in f64: at 1e14 from the world origin
+    /// that loses ~0.02 world units, visible error on a unit-sized mesh.
+    /// Callers subtract `origin` from their points in f64 (exact for
+    /// points near it) before projecting or converting to f32.
+    pub fn view_proj_relative(&self, origin: [f64; 3], width: u32, height: u32) -> DMat4 {
+        self.translated(origin.map(|c| -c)).view_proj(width, height)
+    }
+
     /// The ray through the centre of pixel (x, y): origin and unit direction.
     /// For perspective the origin is the eye; for orthographic it lies on the
     /// near plane's parallel through the eye.

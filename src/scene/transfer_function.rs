@@ -33,6 +33,34 @@ pub fn effective_scalar_range(lo: f64, hi: f64) -> (f64, f64) {
     }
 }
 
+/// One linear interval of a transfer function (see
+/// [`TransferFunction::piece_at`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum TfPiece {
+    /// Below the first point or from the last on (or no points at all).
+    Const([f64; 3], f64),
+    /// Between two consecutive points at different scalars.
+    Linear(ControlPoint, ControlPoint),
+}
+
+impl TfPiece {
+    /// Colour and attenuation at `s`, extending the piece linearly (the
+    /// reference evaluates a piece at its ends).
+    pub fn eval(&self, s: f64) -> ([f64; 3], f64) {
+        match *self {
+            TfPiece::Const(c, tau) => (c, tau),
+            TfPiece::Linear(p, q) => {
+                let t = (s - p.scalar) / (q.scalar - p.scalar);
+                let lerp = |x: f64, y: f64| x + (y - x) * t;
+                (
+                    [lerp(p.color[0], q.color[0]), lerp(p.color[1], q.color[1]), lerp(p.color[2], q.color[2])],
+                    lerp(p.attenuation, q.attenuation),
+                )
+            }
+        }
+    }
+}
+
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct ControlPoint {
     pub scalar: f64,
@@ -70,31 +98,40 @@ impl TransferFunction {
     /// what f32 alpha resolves. Used to tell an empty image that must be a
     /// failure from one that is right.
     pub fn visible_over(&self, lo: f64, hi: f64, length: f64) -> bool {
-        let inside = self.points.iter().filter(|p| p.scalar >= lo && p.scalar <= hi).map(|p| p.attenuation);
+        // Right-continuous (see `piece_at`): the side of a step at `lo`
+        // below it is never taken, so only points above `lo` count (the
+        // value at `lo` itself is `eval(lo)`).
+        let inside = self.points.iter().filter(|p| p.scalar > lo && p.scalar <= hi).map(|p| p.attenuation);
         let max = [self.eval(lo).1, self.eval(hi).1].into_iter().chain(inside).fold(0.0, f64::max);
         max * length > 1e-4
     }
 
-    /// Colour and attenuation at scalar `s`.
-    pub fn eval(&self, s: f64) -> ([f64; 3], f64) {
+    /// The linear piece that holds scalar `s`: the one rule for where a
+    /// scalar falls, used by [`Self::eval`] (hence the GPU tables) and by the
+    /// CPU reference's exact integration. The function is right-continuous:
+    /// at a step (several points at one scalar) a scalar exactly at the step
+    /// takes the value after it, the last point at that scalar; below the
+    /// first point and from the last point on it is constant.
+    pub fn piece_at(&self, s: f64) -> TfPiece {
         let pts = &self.points;
-        let Some(first) = pts.first() else { return ([0.0; 3], 0.0) };
-        if s <= first.scalar || pts.len() == 1 {
-            return (first.color, first.attenuation);
-        }
-        let last = pts[pts.len() - 1];
-        if s >= last.scalar {
-            return (last.color, last.attenuation);
-        }
+        let n = pts.len();
         // First point strictly above s; its predecessor is at or below s.
         let i = pts.partition_point(|p| p.scalar <= s);
-        let (a, b) = (pts[i - 1], pts[i]);
-        let t = (s - a.scalar) / (b.scalar - a.scalar);
-        let lerp = |x: f64, y: f64| x + (y - x) * t;
-        (
-            [lerp(a.color[0], b.color[0]), lerp(a.color[1], b.color[1]), lerp(a.color[2], b.color[2])],
-            lerp(a.attenuation, b.attenuation),
-        )
+        if n == 0 {
+            TfPiece::Const([0.0; 3], 0.0)
+        } else if i == 0 {
+            TfPiece::Const(pts[0].color, pts[0].attenuation)
+        } else if i == n {
+            TfPiece::Const(pts[n - 1].color, pts[n - 1].attenuation)
+        } else {
+            TfPiece::Linear(pts[i - 1], pts[i])
+        }
+    }
+
+    /// Colour and attenuation at scalar `s` (right-continuous, see
+    /// [`Self::piece_at`]).
+    pub fn eval(&self, s: f64) -> ([f64; 3], f64) {
+        self.piece_at(s).eval(s)
     }
 
     /// `n` samples (rgb = colour, a = attenuation) evenly spaced over
@@ -131,6 +168,26 @@ mod tests {
         assert_eq!(tf.eval(-1.0), ([0.0; 3], 0.0));
         assert_eq!(tf.eval(1.0), ([0.5, 0.25, 0.0], 2.0));
         assert_eq!(tf.eval(5.0), ([1.0, 0.5, 0.0], 4.0));
+    }
+
+    #[test]
+    fn steps_are_right_continuous_wherever_they_are() {
+        let pt = |scalar: f64, attenuation: f64| ControlPoint { scalar, color: [1.0; 3], attenuation };
+        // A step at the first point, in the middle and at the last point:
+        // at the step's scalar the value after it applies.
+        let tf = TransferFunction {
+            name: "t".into(),
+            points: vec![pt(1.0, 0.0), pt(1.0, 5.0), pt(2.0, 5.0), pt(2.0, 1.0), pt(3.0, 7.0), pt(3.0, 0.0)],
+        };
+        assert_eq!(tf.eval(1.0).1, 5.0);
+        assert_eq!(tf.eval(2.0).1, 1.0);
+        assert_eq!(tf.eval(3.0).1, 0.0);
+        assert_eq!(tf.eval(0.5).1, 0.0);
+        assert_eq!(tf.eval(2.5).1, 4.0);
+        // What is visible over a constant field follows the same rule.
+        assert!(tf.visible_over(1.0, 1.0, 1.0));
+        assert!(!tf.visible_over(3.0, 3.0, 1.0));
+        assert!(tf.visible_over(2.5, 3.0, 1.0));
     }
 
     #[test]

@@ -4,7 +4,8 @@
 //! name `ASPECT_RATIO`), `ORIGIN`, then `POINT_DATA` with a one-component
 //! `SCALARS` array (its `LOOKUP_TABLE` line optional) of type unsigned_char,
 //! short, unsigned_short or float (char and int convert, see `decode`). The
-//! first such array is the volume; other attribute arrays, `FIELD` blocks,
+//! first such array is the volume (BINARY samples that look little-endian,
+//! `mesh::byte_order`, are refused as such); other attribute arrays, `FIELD` blocks,
 //! lookup tables, `CELL_DATA` and `METADATA` are parsed and skipped, so a
 //! file is read to its end and a malformed tail is still an error. ASCII
 //! values outside the declared type's range are errors.
@@ -319,6 +320,19 @@ pub fn parse_structured_points_bytes(name: &str, bytes: &[u8]) -> Result<Volume>
                     })?;
                     let s = if r.binary {
                         let data = r.binary_bytes(n, ty.size(), &what)?;
+                        // BINARY is big-endian: little-endian samples are
+                        // named as such, as the mesh reader does.
+                        use crate::mesh::byte_order::{looks_little_endian, looks_little_endian_int};
+                        let evidence = match ty {
+                            RawType::F32 => looks_little_endian(data, 4),
+                            RawType::I16 | RawType::I32 => looks_little_endian_int(data, ty.size(), true),
+                            RawType::U16 => looks_little_endian_int(data, 2, false),
+                            RawType::I8 | RawType::U8 => None,
+                        };
+                        if let Some(e) = evidence {
+                            r.pos -= data.len();
+                            bail!(r.err(format!("{what}: {e}")));
+                        }
                         decode_binary(name, data, ty, Endian::Big, n)?
                     } else {
                         let mut t = Tokens::new(&r.b[r.pos..]);

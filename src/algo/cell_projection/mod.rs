@@ -220,7 +220,7 @@ impl FrameSetup {
         let o = scale.origin;
         setup.origin = o;
         setup.eye = std::array::from_fn(|k| (camera.eye[k] - o[k]) as f32);
-        let vp = (camera.view_proj(width, height) * glam::DMat4::from_translation(glam::DVec3::from(o))).to_cols_array_2d();
+        let vp = camera.view_proj_relative(o, width, height).to_cols_array_2d();
         // Scalars arrive mapped by `scalar_map`: map the table's range alike.
         let (lo, hi) = tables.tf_range;
         let lo_rel = (lo - scale.scalar_origin) / scale.scalar_scale;
@@ -365,7 +365,9 @@ pub struct CellF32 {
 /// Positions are relative to `render_origin(mesh)` and scalars mapped by
 /// `scalar_map(mesh)` (gradients scaled alike), both in f64 before the
 /// conversion (far from the origin the f32 values would otherwise have lost
-/// the mesh). Planes do not depend on either.
+/// the mesh). Planes do not depend on either; the vertex-to-face distances
+/// that scale them come from edge vectors, which are small wherever the
+/// mesh is.
 pub fn cells_f32(mesh: &TetMesh, geometry: &TetGeometry) -> Vec<CellF32> {
     use rayon::prelude::*;
     let o = render_origin(mesh);
@@ -383,8 +385,13 @@ pub fn cells_f32(mesh: &TetMesh, geometry: &TetGeometry) -> Vec<CellF32> {
             }
             let mut plane3 = [[0f32; 3]; 4];
             for i in 0..4 {
-                let [nx, ny, nz, a] = g.planes[i];
-                let dist = nx * p[i][0] + ny * p[i][1] + nz * p[i][2] + a;
+                // Vertex i's distance to its opposite face from an edge
+                // vector (n·(p_i - p_j), p_j on that face), not n·p_i + a:
+                // far from the origin those two terms are as large as the
+                // coordinates and cancel (at 1e14 an error of ~0.02 units).
+                let [nx, ny, nz, _] = g.planes[i];
+                let e = crate::mesh::geometry::sub(p[i], p[(i + 1) % 4]);
+                let dist = nx * e[0] + ny * e[1] + nz * e[2];
                 plane3[i] = if dist != 0.0 {
                     [(nx / dist) as f32, (ny / dist) as f32, (nz / dist) as f32]
                 } else {

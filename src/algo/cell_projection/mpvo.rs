@@ -35,7 +35,7 @@
 //!
 //! **Per frame** ([`MpvoSort::sort`]):
 //! 1. In parallel over cells, for each interior face of cell `c` with plane
-//!    `(n, a)` (outward from `c`), the side test `s = n·eye + a`
+//!    `(n, a)` (outward from `c`), the side test `s = n·eye + a` (eye and plane relative to the mesh's render origin)
 //!    (perspective) or `s = −n·v` (orthographic, `v` the view direction: the
 //!    eye is at `−∞·v`). `s > 0`: the eye is outside `c` across that face, so
 //!    the neighbour lies between `c` and the eye and `c` is drawn first.
@@ -163,7 +163,12 @@ pub struct MpvoSort {
     nodes: Vec<Node>,
     /// `planes[4c+f]`: the plane of that face, outward from `c`, exactly the
     /// negation of the neighbour's; zero when the face carries no constraint.
+    /// Relative to `origin` (`TetPrecomputed::plane_relative`), as are the
+    /// links' planes: far from the world origin a world-space offset has
+    /// lost the digits the eye-side test needs.
     planes: Vec<[f64; 4]>,
+    /// `render_origin` of the mesh.
+    origin: [f64; 3],
     /// Constraints across non-conforming seams (see module docs), and per
     /// cell the links it takes part in (CSR: `link_list[link_start[c] ..
     /// link_start[c + 1]]`, only for cells with `Node::linked`).
@@ -258,7 +263,8 @@ impl MpvoSort {
             }
         }
 
-        let links = seam_links(mesh, geometry, &weld, &partner);
+        let origin = super::render_origin(mesh);
+        let links = seam_links(mesh, geometry, &weld, &partner, origin);
         build.seam_links = links.len();
         let mut link_start = vec![0u32; n + 1];
         for l in &links {
@@ -292,9 +298,9 @@ impl MpvoSort {
                 let other = !cells[d].degenerate;
                 // The owner: the solid side, the lower slot if both are solid.
                 if own && (!other || slot < other_slot as usize) {
-                    cells[c].planes[slot % 4]
+                    cells[c].plane_relative(slot % 4, mesh.tet_points(c), origin)
                 } else if other {
-                    cells[d].planes[other_slot as usize % 4].map(|x| -x)
+                    cells[d].plane_relative(other_slot as usize % 4, mesh.tet_points(d), origin).map(|x| -x)
                 } else {
                     [0.0; 4]
                 }
@@ -329,11 +335,13 @@ impl MpvoSort {
         MpvoSort {
             nodes,
             planes,
+            origin,
             link_sides: vec![0; links.len()],
             links,
             link_start,
             link_list,
-            centroids: geometry.centroids.clone(),
+            // Relative to `origin`, like the planes and the eye.
+            centroids: geometry.centroids.iter().map(|c| std::array::from_fn(|k| c[k] - origin[k])).collect(),
             build,
             keys: vec![0; n],
             scratch_keys: Vec::new(),
@@ -377,7 +385,7 @@ impl MpvoSort {
     /// Step 1: side tests and depth keys; returns (constraints, edge-on
     /// faces), seam links included.
     fn classify(&mut self, camera: &Camera) -> (usize, usize) {
-        let eye = camera.eye;
+        let eye: [f64; 3] = std::array::from_fn(|k| camera.eye[k] - self.origin[k]);
         let f = camera.forward();
         let v = [f.x, f.y, f.z];
         let perspective = camera.is_perspective();
@@ -620,7 +628,7 @@ impl LinkView<'_> {
 /// within 1e-3 edge lengths of the plane) and overlap (both third vertices
 /// strictly on the same side of the shared edge). One link per cell pair,
 /// with the plane of the lower-indexed cell's face.
-fn seam_links(mesh: &TetMesh, geometry: &TetGeometry, weld: &[u32], partner: &[u32]) -> Vec<Link> {
+fn seam_links(mesh: &TetMesh, geometry: &TetGeometry, weld: &[u32], partner: &[u32], origin: [f64; 3]) -> Vec<Link> {
     let cells = &geometry.cells;
     let face_ids = |slot: usize| {
         let t = mesh.tets[slot / 4];
@@ -678,7 +686,8 @@ fn seam_links(mesh: &TetMesh, geometry: &TetGeometry, weld: &[u32], partner: &[u
                 let sf = dot(nf, cross(e, sub(wf, pu)));
                 let sg = dot(nf, cross(e, sub(wg, pu)));
                 if sf * sg > 0.0 {
-                    let (a, b, plane) = if cf < cg { (cf, cg, pf) } else { (cg, cf, pg) };
+                    let (a, b, c, face) = if cf < cg { (cf, cg, cf, f) } else { (cg, cf, cg, g) };
+                    let plane = cells[c].plane_relative(face % 4, mesh.tet_points(c), origin);
                     links.push(Link { a: a as u32, b: b as u32, plane });
                 }
             }

@@ -155,6 +155,7 @@ pub const fn method_info(
         stress: STRESS,
         accuracy_bound,
         published,
+        check: check_options,
         create,
     }
 }
@@ -226,6 +227,12 @@ pub const fn table_6_4(options: &'static str, fps: f64) -> Published {
 pub fn enum_option<T: ValueEnum>(options: &Options, name: &str) -> Result<T> {
     let text = options.text(name)?;
     T::from_str(&text, false).map_err(|_| anyhow::anyhow!("option '{name}': unknown value '{text}'"))
+}
+
+/// `MethodInfo::check`: the options make valid [`Settings`] (e.g. the
+/// table size fits the integrator's table limit).
+fn check_options(options: &Options) -> Result<()> {
+    Settings::from_options(options).map(|_| ())
 }
 
 /// The typed settings of a cell-projection run, from its options.

@@ -29,6 +29,7 @@ pub const METHOD: MethodInfo = MethodInfo {
     stress: STRESS,
     accuracy_bound,
     published: &[super::kruger_westermann("raycast-fragment")],
+    check: crate::algo::method::no_check,
     create,
 };
 
