@@ -25,12 +25,21 @@ pub fn bar_charts(dir: &Path, s: &Summary) -> Result<()> {
         return Ok(());
     }
     let device = &s.environment.device.name;
-    for (name, title, values) in [
-        ("frame_time", format!("median frame time (ms), {}x{}, {device}", s.settings.width, s.settings.height), rows.iter().map(|r| r.1).collect::<Vec<_>>()),
-        ("bytes_per_frame", "bytes crossing to the device per frame (MB)".to_string(), rows.iter().map(|r| r.2).collect()),
+    // Peers (`--peers`) have frame times but no byte counts.
+    let peers: Vec<(String, f64)> = s
+        .peers
+        .iter()
+        .filter_map(|p| Some((format!("{} / peer {}/{}", p.dataset, p.peer, p.renderer), p.frame_ms?.median)))
+        .collect();
+    let times: Vec<(String, f64)> = rows.iter().map(|r| (r.0.clone(), r.1)).chain(peers).collect();
+    let bytes: Vec<(String, f64)> = rows.iter().map(|r| (r.0.clone(), r.2)).collect();
+    for (name, title, chart) in [
+        ("frame_time", format!("median frame time (ms), {}x{}, {device}", s.settings.width, s.settings.height), &times),
+        ("bytes_per_frame", "bytes crossing to the device per frame (MB)".to_string(), &bytes),
     ] {
-        let labels: Vec<&str> = rows.iter().map(|r| r.0.as_str()).collect();
-        let (w, h) = (1000u32, 120 + 40 * rows.len() as u32);
+        let labels: Vec<&str> = chart.iter().map(|r| r.0.as_str()).collect();
+        let values: Vec<f64> = chart.iter().map(|r| r.1).collect();
+        let (w, h) = (1000u32, 120 + 40 * chart.len() as u32);
         let mut rgb = vec![0u8; (w * h * 3) as usize];
         {
             let root = plotters::prelude::BitMapBackend::with_buffer(&mut rgb, (w, h));
