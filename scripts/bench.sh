@@ -6,7 +6,9 @@
 #      difference from the f64 reference, comparison.md), table printed;
 #   2. run time against error on both meshes (pareto/<mesh>/pareto.{csv,md,png});
 #   3. the suite: every registered method on every shipped dataset of its kind
-#      (suite/: summary.json, summary.csv, report.md, plots, montage).
+#      (suite/: summary.json, summary.csv, report.md, plots, montage), with
+#      VTK's renderers measured in the same run (scripts/install-vtk.sh; if
+#      VTK cannot be installed the suite runs without peers and says so).
 # Extra arguments go to `volbench compare` (e.g. --frames 30). criterion
 # benches of the hot paths are separate: `cargo bench`.
 set -euo pipefail
@@ -20,5 +22,10 @@ $bin compare --data bluntfin,oxygenpost --size 512x512 --frames 20 --warmup 3 --
 for mesh in bluntfin oxygenpost; do
     $bin pareto --data "$mesh" --size 512x512 --frames 5 --warmup 1 --out "$out/pareto/$mesh" > /dev/null
 done
-$bin suite --out "$out/suite"
+if bash scripts/install-vtk.sh; then
+    $bin suite --peers vtk --out "$out/suite"
+else
+    echo "bench: VTK could not be installed; the suite runs without peers" >&2
+    $bin suite --out "$out/suite"
+fi
 echo "results: $out"
