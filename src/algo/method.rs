@@ -227,6 +227,7 @@ impl Feature {
 pub enum SceneData<'a> {
     TetMesh { mesh: &'a TetMesh, geometry: &'a TetGeometry },
     Volume(&'a crate::volume::Volume),
+    Terrain(&'a crate::terrain::Heightmap),
 }
 
 impl SceneData<'_> {
@@ -234,6 +235,7 @@ impl SceneData<'_> {
         match self {
             SceneData::TetMesh { .. } => DataKind::TetMesh,
             SceneData::Volume(_) => DataKind::Volume,
+            SceneData::Terrain(_) => DataKind::Terrain,
         }
     }
 }
@@ -309,6 +311,12 @@ pub trait RenderMethod {
     /// CPU time spent building tables at set-up (ms), reported apart.
     fn table_build_ms(&self) -> f64 {
         0.0
+    }
+    /// The camera of frame `frame` when the method flies its own path (a
+    /// terrain fly-over); `None` keeps the runner's orbit. A run's fixed
+    /// camera wins over both.
+    fn camera(&self, _frame: usize) -> Option<Camera> {
+        None
     }
 }
 
