@@ -12,6 +12,7 @@
 
 pub mod datasets;
 pub mod geotiff;
+pub mod hybrid;
 pub mod npy;
 
 use std::path::Path;
