@@ -318,6 +318,22 @@ pub trait RenderMethod {
     fn camera(&self, _frame: usize) -> Option<Camera> {
         None
     }
+    /// The error of the last frame that the method measures itself against
+    /// the full-resolution data, for datasets without an image reference
+    /// (a terrain's level of detail: height error). When given, the runner
+    /// records it as the result's `error` and sweeps plot it.
+    fn own_error(&self) -> Option<OwnError> {
+        None
+    }
+}
+
+/// See `RenderMethod::own_error`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OwnError {
+    pub rmse: f64,
+    pub max_abs: f64,
+    /// What was compared, with the unit.
+    pub what: String,
 }
 
 /// A figure the literature published for a method on a dataset, set beside

@@ -19,6 +19,7 @@ pub fn builtin() -> Registry {
             super::cell_projection::balanced::METHOD,
             super::raycast::fragment::METHOD,
             super::raycast::compute::METHOD,
+            super::terrain::cpu::METHOD,
         ],
     }
 }
