@@ -95,6 +95,9 @@ pub struct Level {
     /// grid triangles against the finest samples (world units).
     pub error_max: Vec<f64>,
     pub error_sse: Vec<f64>,
+    /// Skirt triangles (see `HybridModel::skirt_depth`), grouped by block.
+    pub skirt_indices: Vec<u32>,
+    pub skirt_by_block: Vec<Range<u32>>,
 }
 
 /// A TIN patch: its polygon (grid units, counter-clockwise) and TB range.
@@ -130,6 +133,11 @@ pub struct HybridModel {
     /// Finest samples in the domain and their heights' sum of squares about
     /// nothing (for RMS errors: `error_sse / samples`).
     pub samples: u64,
+    /// Skirts: every block hangs a vertical strip this deep (height
+    /// units: the largest grid error of any level, so it covers any gap)
+    /// from its border at its level, so blocks of different levels leave
+    /// no cracks at their T-junctions. Skirt vertices follow the grid's.
+    pub skirt_depth: f64,
 }
 
 /// A patch shape in domain fractions.
@@ -439,6 +447,7 @@ impl HybridModel {
             tin_indices,
             patches,
             samples: 0,
+            skirt_depth: 0.0,
         };
         // Levels whose cells could hold a whole patch are left out (a TIN
         // inside one cell would leave a hole in that cell's tessellation).
@@ -450,6 +459,7 @@ impl HybridModel {
             }
         }
         model.samples = model.domain.iter().map(|&d| d as u64).product::<u64>();
+        model.add_skirts(map);
         Ok(model)
     }
 
@@ -551,7 +561,68 @@ impl HybridModel {
                 pc_by_block.push(p0..pc.len() as u32);
             }
         }
-        Ok(Some(Level { side, cells, class, nc_indices, nc_by_block, pc, pc_by_block, error_max, error_sse }))
+        Ok(Some(Level {
+            side,
+            cells,
+            class,
+            nc_indices,
+            nc_by_block,
+            pc,
+            pc_by_block,
+            error_max,
+            error_sse,
+            skirt_indices: Vec::new(),
+            skirt_by_block: Vec::new(),
+        }))
+    }
+
+    /// Skirt vertices (a lowered copy of every grid sample on a block
+    /// border) and each level's skirt triangles per block.
+    fn add_skirts(&mut self, map: &Heightmap) {
+        let depth = self.levels.iter().flat_map(|l| l.error_max.iter().copied()).fold(0.0, f64::max).max(1e-3 * map.range().1.abs().max(1.0));
+        self.skirt_depth = depth;
+        let (w, h, b) = (self.domain[0] + 1, self.domain[1] + 1, self.block_side);
+        let mut skirt = vec![u32::MAX; w as usize * h as usize];
+        for j in 0..h {
+            for i in 0..w {
+                if i % b == 0 || j % b == 0 {
+                    let v = self.vertices[self.grid_vertex(i, j) as usize];
+                    skirt[(i + w * j) as usize] = self.vertices.len() as u32;
+                    self.vertices.push([v[0], v[1], (v[2] as f64 - depth) as f32, 0.0]);
+                }
+            }
+        }
+        for k in 0..self.levels.len() {
+            let side = self.levels[k].side;
+            let (mut idx, mut ranges) = (Vec::new(), Vec::new());
+            for by in 0..self.blocks[1] {
+                for bx in 0..self.blocks[0] {
+                    let start = idx.len() as u32;
+                    let (x0, y0, x1, y1) = (bx * b, by * b, (bx + 1) * b, (by + 1) * b);
+                    // Border edges with the block's cell inside them; only
+                    // NC cells get skirts (one under a TIN could show through it).
+                    let mut border = Vec::new();
+                    for t in (0..b).step_by(side as usize) {
+                        border.push(([x0 + t, y0], [x0 + t + side, y0], [x0 + t, y0]));
+                        border.push(([x0 + t, y1], [x0 + t + side, y1], [x0 + t, y1 - side]));
+                        border.push(([x0, y0 + t], [x0, y0 + t + side], [x0, y0 + t]));
+                        border.push(([x1, y0 + t], [x1, y0 + t + side], [x1 - side, y0 + t]));
+                    }
+                    let level = &self.levels[k];
+                    for ([ax, ay], [cx, cy], [ix, iy]) in border {
+                        if level.class[(ix / side + level.cells[0] * (iy / side)) as usize] != CellClass::Nc {
+                            continue;
+                        }
+                        let (a, c) = (self.grid_vertex(ax, ay), self.grid_vertex(cx, cy));
+                        let (sa, sc) = (skirt[(ax + w * ay) as usize], skirt[(cx + w * cy) as usize]);
+                        idx.extend([a, c, sc, a, sc, sa]);
+                    }
+                    ranges.push(start..idx.len() as u32);
+                }
+            }
+            self.levels[k].skirt_indices = idx;
+            self.levels[k].skirt_by_block = ranges;
+        }
     }
 
     /// Count of cells per class at `level`: (NC, CC, PC).

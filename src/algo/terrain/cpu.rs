@@ -98,7 +98,8 @@ impl RenderMethod for HmCpu {
             .with("nc_cells", a.nc_cells)
             .with("pc_cells", a.pc_cells.len() as u64)
             .with("pc_triangles", pc_tris)
-            .with("triangles", a.nc_cells * 2 + pc_tris + self.scene.tin_triangles())
+            .with("skirt_triangles", a.skirt_triangles)
+            .with("triangles", a.nc_cells * 2 + pc_tris + self.scene.tin_triangles() + a.skirt_triangles)
     }
 
     fn details(&self) -> serde_json::Value {

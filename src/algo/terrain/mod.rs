@@ -13,8 +13,11 @@
 //! nearest distance from the eye, is within `lod_error` pixels (`level`
 //! forces one level everywhere). Seams: blocks of different levels meet
 //! with T-junctions (the finer side has vertices the coarser edge lacks);
-//! no stitching or skirts are drawn, so small cracks can show at those
-//! seams in perspective views. Uniform levels (`level=k`) have none.
+//! the skirt rule covers the cracks: every active block draws, with its NC
+//! cells, a vertical strip hanging from its border at its level, as deep as
+//! the largest grid error of any level (`HybridModel::skirt_depth`).
+//! Skirts are vertical, so they cover nothing seen from straight above;
+//! the coverage-count output leaves them out.
 
 pub mod cpu;
 
@@ -146,6 +149,9 @@ pub struct ActiveSet {
     /// Static index ranges (first, count) of the active NC cells.
     pub nc_draws: Vec<(u32, u32)>,
     pub nc_cells: u64,
+    /// Static index ranges of the active blocks' skirts.
+    pub skirt_draws: Vec<(u32, u32)>,
+    pub skirt_triangles: u64,
     /// Active PC cells: (level, index in that level's PC list).
     pub pc_cells: Vec<(u8, u32)>,
     /// Height error of the frame's grid against the finest samples (world
@@ -163,6 +169,8 @@ pub struct TerrainScene {
     pub static_indices: Buffer,
     /// Offset of each level's NC indices in `static_indices`.
     level_offsets: Vec<u32>,
+    /// Offset of each level's skirt indices in `static_indices`.
+    skirt_offsets: Vec<u32>,
     tin_first: u32,
     pub pipeline: Arc<Pipeline>,
     pub key: PipelineKey,
@@ -192,10 +200,12 @@ impl TerrainScene {
         let mut geometry = Buffer::new(ctx, BufferDesc::upload("terrain geometry", geo.len() as u64, raw::BufferUsageFlags::VERTEX_BUFFER))?;
         geometry.write(0, geo, counter, UploadClass::Static)?;
         let mut all = Vec::new();
-        let mut level_offsets = Vec::new();
+        let (mut level_offsets, mut skirt_offsets) = (Vec::new(), Vec::new());
         for l in &model.levels {
             level_offsets.push(all.len() as u32);
             all.extend_from_slice(&l.nc_indices);
+            skirt_offsets.push(all.len() as u32);
+            all.extend_from_slice(&l.skirt_indices);
         }
         let tin_first = all.len() as u32;
         all.extend_from_slice(&model.tin_indices);
@@ -246,6 +256,7 @@ impl TerrainScene {
             geometry,
             static_indices,
             level_offsets,
+            skirt_offsets,
             tin_first,
             pipeline,
             key,
@@ -299,6 +310,15 @@ impl TerrainScene {
                 }
                 a.nc_cells += ((r.end - r.start) / 6) as u64;
             }
+            let r = &l.skirt_by_block[b];
+            if r.end > r.start && !self.settings.coverage {
+                let first = self.skirt_offsets[level] + r.start;
+                match a.skirt_draws.last_mut() {
+                    Some((f, c)) if *f + *c == first => *c += r.end - r.start,
+                    _ => a.skirt_draws.push((first, r.end - r.start)),
+                }
+                a.skirt_triangles += ((r.end - r.start) / 3) as u64;
+            }
             a.pc_cells.extend((l.pc_by_block[b].start..l.pc_by_block[b].end).map(|i| (level as u8, i)));
             sse += l.error_sse[b];
             a.max_error = a.max_error.max(l.error_max[b]);
@@ -331,7 +351,7 @@ impl TerrainScene {
         rec.bind_vertex_buffer(&self.geometry);
         rec.bind_index_buffer_u32(&self.static_indices);
         rec.push_constants(&self.pipeline, &self.push(view, TINT_NC), counter);
-        for &(first, count) in &self.active.nc_draws {
+        for &(first, count) in self.active.nc_draws.iter().chain(&self.active.skirt_draws) {
             rec.draw_indexed_range(first, count);
         }
         rec.push_constants(&self.pipeline, &self.push(view, TINT_TIN), counter);
@@ -386,7 +406,9 @@ impl TerrainScene {
             "geometric_error": { "rms": self.active.rms_error, "max": self.active.max_error, "unit": "height units against the full-resolution grid (grid part)" },
             "model_build_ms": self.build_ms,
             "pipeline": { "key": self.key.id(), "name": self.key.name() },
-            "seams": "T-junctions between blocks of different levels, not stitched (see algo::terrain)",
+            "seams": "skirts: every block hangs a vertical strip from its border at its level (see algo::terrain)",
+            "skirt_depth": m.skirt_depth,
+            "active_skirt_triangles": self.active.skirt_triangles,
         })
     }
 }
