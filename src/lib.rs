@@ -11,5 +11,6 @@ pub mod mesh;
 pub mod reference;
 pub mod scene;
 pub mod shaders;
+pub mod terrain;
 pub mod vk;
 pub mod volume;

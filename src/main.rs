@@ -363,7 +363,7 @@ fn run(cli: &Cli, registry: &Registry, args: &RunArgs) -> Result<()> {
     let mut out = run_method(&ctx, &spec, &dataset, &tf, &cfg)
         .with_context(|| format!("running {} on {}", spec.canonical(), args.data))?;
     let mut diff = None;
-    if with_reference {
+    if with_reference && out.result.error.is_none() {
         let reference = reference_image(&dataset, &tf, &out.result.image.camera, cfg.width, cfg.height)?;
         diff = Some(out.attach_error(&reference)?);
     }

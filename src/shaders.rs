@@ -17,6 +17,9 @@ const SOURCES: &[(&str, &str)] = &[
     ("raycast/fullscreen.vert", include_str!("../shaders/raycast/fullscreen.vert")),
     ("raycast/march.frag", include_str!("../shaders/raycast/march.frag")),
     ("raycast/march.comp", include_str!("../shaders/raycast/march.comp")),
+    ("terrain/common.glsl", include_str!("../shaders/terrain/common.glsl")),
+    ("terrain/mesh.vert", include_str!("../shaders/terrain/mesh.vert")),
+    ("terrain/mesh.frag", include_str!("../shaders/terrain/mesh.frag")),
 ];
 
 /// The text of a shader or include, by its path under `shaders/`.

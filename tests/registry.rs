@@ -86,6 +86,7 @@ fn create_box(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
             cull: raw::CullModeFlags::NONE,
             front_face: raw::FrontFace::COUNTER_CLOCKWISE,
             targets: &[ColorTarget::rgba32f(Blend::PremultipliedOver)],
+            depth_test: false,
             geometry: None,
             push_constant_bytes: std::mem::size_of::<BoxConstants>() as u32,
             descriptor_layouts: &[],

@@ -227,6 +227,7 @@ impl Feature {
 pub enum SceneData<'a> {
     TetMesh { mesh: &'a TetMesh, geometry: &'a TetGeometry },
     Volume(&'a crate::volume::Volume),
+    Terrain(&'a crate::terrain::Heightmap),
 }
 
 impl SceneData<'_> {
@@ -234,6 +235,7 @@ impl SceneData<'_> {
         match self {
             SceneData::TetMesh { .. } => DataKind::TetMesh,
             SceneData::Volume(_) => DataKind::Volume,
+            SceneData::Terrain(_) => DataKind::Terrain,
         }
     }
 }
@@ -310,6 +312,28 @@ pub trait RenderMethod {
     fn table_build_ms(&self) -> f64 {
         0.0
     }
+    /// The camera of frame `frame` when the method flies its own path (a
+    /// terrain fly-over); `None` keeps the runner's orbit. A run's fixed
+    /// camera wins over both.
+    fn camera(&self, _frame: usize) -> Option<Camera> {
+        None
+    }
+    /// The error of the last frame that the method measures itself against
+    /// the full-resolution data, for datasets without an image reference
+    /// (a terrain's level of detail: height error). When given, the runner
+    /// records it as the result's `error` and sweeps plot it.
+    fn own_error(&self) -> Option<OwnError> {
+        None
+    }
+}
+
+/// See `RenderMethod::own_error`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OwnError {
+    pub rmse: f64,
+    pub max_abs: f64,
+    /// What was compared, with the unit.
+    pub what: String,
 }
 
 /// A figure the literature published for a method, set beside the measured

@@ -7,3 +7,4 @@ pub mod method;
 pub mod pipelines;
 pub mod raycast;
 pub mod registry;
+pub mod terrain;

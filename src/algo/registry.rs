@@ -20,6 +20,7 @@ pub fn builtin() -> Registry {
             super::cell_projection::resident::METHOD,
             super::raycast::fragment::METHOD,
             super::raycast::compute::METHOD,
+            super::terrain::cpu::METHOD,
         ],
     }
 }

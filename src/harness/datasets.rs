@@ -13,6 +13,7 @@ use sha2::{Digest as _, Sha256};
 
 use crate::algo::method::{DataKind, SceneData};
 use crate::mesh::{self, Bounds, TetGeometry, TetMesh};
+use crate::terrain::Heightmap;
 use crate::volume::Volume;
 use crate::scene::{Camera, ControlPoint, TransferFunction};
 
@@ -47,6 +48,11 @@ pub const NAMED: &[NamedDataset] = &[
     },
     NamedDataset { name: "headsq", kind: DataKind::Volume, description: "VTK's headsq MRI, 64x64x93 int16" },
     NamedDataset { name: "hydrogen", kind: DataKind::Volume, description: "hydrogen atom probability density (VTK XML ImageData)" },
+    NamedDataset {
+        name: "jacksboro",
+        kind: DataKind::Terrain,
+        description: "USGS 3-arc-second elevation model of the Jacksboro fault, 403x344 int16 metres (NumPy .npz)",
+    },
 ];
 
 /// The named meshes (kept for callers that only take meshes).
@@ -64,6 +70,7 @@ pub fn data_dir() -> PathBuf {
 pub enum DatasetData {
     TetMesh { mesh: TetMesh, geometry: TetGeometry },
     Volume(Volume),
+    Terrain(Heightmap),
 }
 
 /// A loaded dataset (see the module note).
@@ -104,6 +111,11 @@ impl Dataset {
         Dataset { name: volume.name.clone(), named, source, digest, data: DatasetData::Volume(volume) }
     }
 
+    pub fn from_heightmap(map: Heightmap, named: bool, source: String) -> Self {
+        let digest = heightmap_digest(&map);
+        Dataset { name: map.name.clone(), named, source, digest, data: DatasetData::Terrain(map) }
+    }
+
     pub fn kind(&self) -> DataKind {
         self.scene().kind()
     }
@@ -113,6 +125,7 @@ impl Dataset {
         match &self.data {
             DatasetData::TetMesh { mesh, geometry } => SceneData::TetMesh { mesh, geometry },
             DatasetData::Volume(v) => SceneData::Volume(v),
+            DatasetData::Terrain(t) => SceneData::Terrain(t),
         }
     }
 
@@ -120,6 +133,11 @@ impl Dataset {
         match &self.data {
             DatasetData::TetMesh { mesh, .. } => mesh.bounds(),
             DatasetData::Volume(v) => v.bounds(),
+            DatasetData::Terrain(t) => {
+                let [ex, ey] = t.extent();
+                let (lo, hi) = t.range();
+                Bounds { min: [0.0, 0.0, lo], max: [ex, ey, hi] }
+            }
         }
     }
 
@@ -127,6 +145,7 @@ impl Dataset {
         match &self.data {
             DatasetData::TetMesh { mesh, .. } => mesh.scalar_range(),
             DatasetData::Volume(v) => v.range(),
+            DatasetData::Terrain(t) => t.range(),
         }
     }
 
@@ -135,6 +154,7 @@ impl Dataset {
         match &self.data {
             DatasetData::TetMesh { mesh, .. } => mesh_transfer_function(mesh, self.named.then_some(self.name.as_str())),
             DatasetData::Volume(v) => volume_transfer_function(v, self.named.then_some(self.name.as_str())),
+            DatasetData::Terrain(t) => terrain_colour_ramp(t),
         }
     }
 
@@ -172,6 +192,19 @@ impl Dataset {
                     "range": [v.range().0, v.range().1],
                 }),
             },
+            DatasetData::Terrain(t) => DatasetSummary {
+                name: self.name.clone(),
+                kind: self.kind(),
+                source: self.source.clone(),
+                digest: self.digest.clone(),
+                counts: BTreeMap::from([("samples", t.heights.len() as u64)]),
+                stats: serde_json::json!({
+                    "grid": [t.nx, t.ny],
+                    "spacing": t.spacing,
+                    "range": [t.range().0, t.range().1],
+                    "nodata_filled": t.nodata_filled,
+                }),
+            },
         }
     }
 
@@ -188,6 +221,11 @@ impl Dataset {
                     .with_context(|| format!("rendering the f64 reference of '{}'", self.name))?;
                 Ok(r.pixels.iter().map(|p| p.map(|c| c as f32)).collect())
             }
+            DatasetData::Terrain(_) => anyhow::bail!(
+                "'{}' is a terrain: there is no f64 image reference for terrains; their error is geometric \
+                 (height against the full-resolution grid, in the result's details)",
+                self.name
+            ),
         }
     }
 
@@ -196,6 +234,7 @@ impl Dataset {
         match &self.data {
             DatasetData::TetMesh { .. } => "f64 CPU ray walk over face adjacency, exact emission-absorption",
             DatasetData::Volume(_) => "f64 CPU ray march of the trilinear field",
+            DatasetData::Terrain(_) => "none (terrain error is geometric)",
         }
     }
 }
@@ -243,6 +282,32 @@ pub fn volume_digest(v: &Volume) -> String {
     hex(&h.finalize())
 }
 
+/// SHA-256 over a height grid's size, spacing and heights.
+pub fn heightmap_digest(t: &Heightmap) -> String {
+    let mut h = Sha256::new();
+    h.update(b"volbench heightmap v1\0");
+    h.update((t.nx as u64).to_le_bytes());
+    h.update((t.ny as u64).to_le_bytes());
+    for s in t.spacing {
+        h.update(s.to_le_bytes());
+    }
+    for z in &t.heights {
+        h.update(z.to_le_bytes());
+    }
+    hex(&h.finalize())
+}
+
+/// A terrain's colours by height (low green, brown, high white): what the
+/// shaded terrain images are tinted with.
+pub fn terrain_colour_ramp(t: &Heightmap) -> TransferFunction {
+    let (lo, hi) = crate::scene::effective_scalar_range(t.range().0, t.range().1);
+    let stops = [(0.0, [0.25, 0.5, 0.2]), (0.5, [0.55, 0.45, 0.3]), (1.0, [0.95, 0.95, 0.95])];
+    TransferFunction {
+        name: "terrain-hypsometric".into(),
+        points: stops.iter().map(|&(f, color)| ControlPoint { scalar: lo + f * (hi - lo), color, attenuation: 1.0 }).collect(),
+    }
+}
+
 /// Whether a path names a volume rather than a mesh: by extension, and for
 /// `.vtk` (both kinds use it) by the DATASET line of its header.
 fn is_volume_path(p: &Path) -> bool {
@@ -279,6 +344,11 @@ pub fn load(spec: &str) -> Result<Dataset> {
         "bluntfin" => named(spec, mesh::datasets::load_bluntfin(&dir), "data/plot3d/bluntfin{xyz,q}.bin".into()),
         "oxygenpost" => named(spec, mesh::datasets::load_oxygenpost(&dir), "data/plot3d/post{xyz,q}.bin".into()),
         "post-small" => named(spec, mesh::datasets::load_post_small(&dir), "data/unstructured/post_tets_vtkdata.vtk".into()),
+        name if crate::terrain::datasets::NAMES.contains(&name) => {
+            let t = crate::terrain::datasets::load_named(name, &dir).with_context(|| format!("loading dataset '{name}'"))?;
+            let file = crate::terrain::datasets::file_of(name).unwrap_or_default();
+            Ok(Dataset::from_heightmap(t, true, format!("data/{file}")))
+        }
         name if crate::volume::datasets::NAMES.contains(&name) => {
             let mut v = crate::volume::datasets::load_named(name, &dir).with_context(|| format!("loading dataset '{name}'"))?;
             v.name = name.to_string();
@@ -286,12 +356,24 @@ pub fn load(spec: &str) -> Result<Dataset> {
             Ok(Dataset::from_volume(v, true, format!("data/{file}")))
         }
         path => {
+            // `file.npz#name` picks an array of an archive.
+            if let Some((file, array)) = path.rsplit_once('#') {
+                let p = Path::new(file);
+                if crate::terrain::format_of_extension(p).is_some() && std::fs::symlink_metadata(path).is_err() {
+                    let t = crate::terrain::load_heightmap(p, Some(array)).with_context(|| format!("loading dataset '{path}'"))?;
+                    return Ok(Dataset::from_heightmap(t, false, path.to_string()));
+                }
+            }
             let p = Path::new(path);
             if std::fs::symlink_metadata(p).is_err() {
                 anyhow::bail!(
                     "dataset '{path}': no such file, and not one of the shipped datasets ({})",
                     NAMED.iter().map(|d| d.name).collect::<Vec<_>>().join(", ")
                 );
+            }
+            if crate::terrain::format_of_extension(p).is_some() {
+                let t = crate::terrain::load_heightmap(p, None).with_context(|| format!("loading dataset '{path}'"))?;
+                return Ok(Dataset::from_heightmap(t, false, path.to_string()));
             }
             if is_volume_path(p) {
                 let v = crate::volume::load_volume(p).with_context(|| format!("loading dataset '{path}'"))?;
@@ -308,6 +390,7 @@ pub fn load_mesh(spec: &str) -> Result<TetMesh> {
     match load(spec)?.data {
         DatasetData::TetMesh { mesh, .. } => Ok(mesh),
         DatasetData::Volume(_) => anyhow::bail!("'{spec}' is a volume, not a tetrahedral mesh"),
+        DatasetData::Terrain(_) => anyhow::bail!("'{spec}' is a terrain, not a tetrahedral mesh"),
     }
 }
 

@@ -378,6 +378,7 @@ pub fn write_dataset(dataset: &Dataset, path: &Path) -> Result<PeerDataset> {
             })?;
             "vtk-legacy-structured-points"
         }
+        DatasetData::Terrain(_) => anyhow::bail!("'{}': no peer renders terrains, so none is exported", dataset.name),
     };
     Ok(PeerDataset {
         name: dataset.name.clone(),
@@ -393,7 +394,7 @@ pub fn write_dataset(dataset: &Dataset, path: &Path) -> Result<PeerDataset> {
 pub fn sample_distance(dataset: &Dataset) -> Option<f64> {
     match &dataset.data {
         DatasetData::Volume(v) => Some(0.5 * v.spacing().into_iter().fold(f64::INFINITY, f64::min)),
-        DatasetData::TetMesh { .. } => None,
+        DatasetData::TetMesh { .. } | DatasetData::Terrain(_) => None,
     }
 }
 

@@ -109,6 +109,15 @@ impl RunConfig {
         Ok(())
     }
 
+    /// The camera of frame `f` for `method`: the fixed camera, else the
+    /// method's own path, else the orbit (frame 0 is the reference view).
+    pub fn frame_camera(&self, dataset: &Dataset, method: &dyn RenderMethod, f: usize) -> Camera {
+        match self.fixed_camera {
+            Some(c) => c,
+            None => method.camera(f).unwrap_or_else(|| self.camera(dataset, f)),
+        }
+    }
+
     /// The camera of frame `f` (the orbit's angle 0 is the reference view).
     pub fn camera(&self, dataset: &Dataset, f: usize) -> Camera {
         match self.fixed_camera {
@@ -491,7 +500,7 @@ pub fn run(ctx: &Arc<Context>, spec: &MethodSpec, dataset: &Dataset, tf: &Transf
     let mut last_frame_counters = UploadCounter::default();
 
     if cfg.overlap {
-        let cameras: Vec<Camera> = (0..cfg.warmup + cfg.frames).map(|f| cfg.camera(dataset, f)).collect();
+        let cameras: Vec<Camera> = (0..cfg.warmup + cfg.frames).map(|f| cfg.frame_camera(dataset, session.method(), f)).collect();
         for (f, (timing, bytes)) in session.run_overlapped(&cameras, &mut counter)?.into_iter().enumerate() {
             if f >= cfg.warmup {
                 samples.push(&timing);
@@ -501,7 +510,8 @@ pub fn run(ctx: &Arc<Context>, spec: &MethodSpec, dataset: &Dataset, tf: &Transf
     } else {
         for f in 0..cfg.warmup + cfg.frames {
             let before = counter;
-            let (timing, _) = session.frame(&cfg.camera(dataset, f), &mut counter).with_context(|| format!("frame {f}"))?;
+            let camera = cfg.frame_camera(dataset, session.method(), f);
+            let (timing, _) = session.frame(&camera, &mut counter).with_context(|| format!("frame {f}"))?;
             if f >= cfg.warmup {
                 samples.push(&timing);
                 last_frame_counters = counter.since(&before);
@@ -509,7 +519,7 @@ pub fn run(ctx: &Arc<Context>, spec: &MethodSpec, dataset: &Dataset, tf: &Transf
         }
     }
     // The reference view, untimed: its image and statistics are reported.
-    let reference_camera = cfg.camera(dataset, 0);
+    let reference_camera = cfg.frame_camera(dataset, session.method(), 0);
     let (_, stats) = session.frame(&reference_camera, &mut UploadCounter::default()).context("reference-view frame")?;
     let image = session.read_image(ctx)?;
     ctx.check_validation().context("Vulkan validation")?;
@@ -572,7 +582,16 @@ pub fn run(ctx: &Arc<Context>, spec: &MethodSpec, dataset: &Dataset, tf: &Transf
             non_finite_pixels: image.non_finite_pixels(),
             camera: reference_camera,
         },
-        error: None,
+        // A method that measures its own error (no image reference exists).
+        error: method.own_error().map(|e| ErrorReport {
+            rmse: e.rmse,
+            max_abs: e.max_abs,
+            psnr_db: f64::INFINITY,
+            reference: e.what,
+            reference_ms: 0.0,
+            reference_cached: false,
+            reference_recomputed: None,
+        }),
         details: method.details(),
         diagnostics,
         device: ctx.info.clone(),

@@ -229,20 +229,28 @@ pub fn run_suite(
         if let Some(why) = skip_reason(&p.spec, &ctx.info) {
             (row.status, row.message) = ("skipped", Some(why));
         } else {
-            let outcome = (|| -> Result<(RunOutput, RgbaImage)> {
+            let outcome = (|| -> Result<(RunOutput, Option<RgbaImage>)> {
                 let tf = dataset.default_transfer_function();
                 let mut r = run(ctx, &p.spec, dataset, &tf, &cfg)?;
-                let reference = reference_image(dataset, &tf, &r.result.image.camera, cfg.width, cfg.height)?;
-                let diff = r.attach_error(&reference)?;
                 let stem = format!("{}-{}", p.dataset, p.spec.file_stem());
                 let (json, png, dpng) = (runs_dir.join(format!("{stem}.json")), runs_dir.join(format!("{stem}.png")), runs_dir.join(format!("{stem}-diff.png")));
-                let bytes = [super::report::json_bytes(&r.result)?, r.image.png_bytes()?, diff.png_bytes()?];
-                fsio::write_all(&[(&json, &bytes[0]), (&png, &bytes[1]), (&dpng, &bytes[2])])?;
+                // A method with its own error (terrain) has no image reference.
+                let diff = if r.result.error.is_none() {
+                    let reference = reference_image(dataset, &tf, &r.result.image.camera, cfg.width, cfg.height)?;
+                    Some(r.attach_error(&reference)?)
+                } else {
+                    None
+                };
+                let bytes = [super::report::json_bytes(&r.result)?, r.image.png_bytes()?];
+                match &diff {
+                    Some(d) => fsio::write_all(&[(&json, &bytes[0]), (&png, &bytes[1]), (&dpng, &d.png_bytes()?)])?,
+                    None => fsio::write_all(&[(&json, &bytes[0]), (&png, &bytes[1])])?,
+                }
                 Ok((r, diff))
             })();
             match outcome {
                 Ok((r, diff)) => {
-                    images.push((label.clone(), r.image, Some(diff)));
+                    images.push((label.clone(), r.image, diff));
                     row.result = Some(r.result);
                 }
                 Err(e) => (row.status, row.message) = ("failed", Some(format!("{e:#}"))),

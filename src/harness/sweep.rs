@@ -142,13 +142,13 @@ pub fn compare(ctx: &Arc<Context>, registry: &Registry, jobs: &[CompareJob], cfg
             eprintln!("volbench: {} on {}...", spec.label(), dataset.name);
             let outcome = (|| -> Result<RunOutput> {
                 let mut result = run(ctx, spec, dataset, &job.tf, cfg)?;
-                if reference.is_none() {
+                if reference.is_none() && result.result.error.is_none() {
                     eprintln!("volbench: f64 reference of {}...", dataset.name);
                     reference = Some(reference_image(dataset, &job.tf, &result.result.image.camera, cfg.width, cfg.height)?);
                 }
                 let diff = match &reference {
-                    Some(r) => Some(result.attach_error(r)?),
-                    None => None,
+                    Some(r) if result.result.error.is_none() => Some(result.attach_error(r)?),
+                    _ => None,
                 };
                 if let Some(dir) = out {
                     let stem = format!("{}-{}", dataset.name, spec.file_stem());
@@ -222,11 +222,14 @@ pub fn pareto(
         eprintln!("volbench: {label}...");
         let point = (|| -> Result<ParetoPoint> {
             let mut out = run(ctx, spec, dataset, tf, cfg)?;
-            if reference.is_none() {
-                reference = Some(reference_image(dataset, tf, &out.result.image.camera, cfg.width, cfg.height)?);
-            }
-            if let Some(r) = &reference {
-                out.attach_error(r)?;
+            // A method's own error (terrain height error) needs no image.
+            if out.result.error.is_none() {
+                if reference.is_none() {
+                    reference = Some(reference_image(dataset, tf, &out.result.image.camera, cfg.width, cfg.height)?);
+                }
+                if let Some(r) = &reference {
+                    out.attach_error(r)?;
+                }
             }
             ParetoPoint::from_result(&label, &out.result).context("no error against the reference")
         })()

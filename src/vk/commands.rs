@@ -310,6 +310,32 @@ impl CommandRecorder {
         self.record_begin_rendering(&[ColorAttachment { image: target, clear: Some(clear) }]);
     }
 
+    /// Start dynamic rendering into `target` with the depth buffer `depth`
+    /// (`Image::depth_target`), both cleared (colour to `clear`, depth to 1).
+    pub fn begin_rendering_with_depth(&self, target: &Image, clear: [f32; 4], depth: &Image) -> VkResult<()> {
+        if (depth.width, depth.height) != (target.width, target.height) || depth.format != super::image::DEPTH_FORMAT {
+            return Err(VkError::Invalid(format!(
+                "depth buffer '{}' ({}x{} {:?}) does not match target '{}' ({}x{})",
+                depth.name(),
+                depth.width,
+                depth.height,
+                depth.format,
+                target.name(),
+                target.width,
+                target.height
+            )));
+        }
+        depth.barrier(self.raw, ImageUse::DepthAttachment, false);
+        let info = vk::RenderingAttachmentInfo::default()
+            .image_view(depth.view)
+            .image_layout(vk::ImageLayout::DEPTH_ATTACHMENT_OPTIMAL)
+            .load_op(vk::AttachmentLoadOp::CLEAR)
+            .store_op(vk::AttachmentStoreOp::DONT_CARE)
+            .clear_value(vk::ClearValue { depth_stencil: vk::ClearDepthStencilValue { depth: 1.0, stencil: 0 } });
+        self.record_begin_rendering_depth(&[ColorAttachment { image: target, clear: Some(clear) }], Some(&info));
+        Ok(())
+    }
+
     /// Start dynamic rendering into several colour attachments (locations
     /// 0, 1, ... in the order given); all must have the same size and be
     /// colour-attachment capable. Viewport and scissor cover the whole target.
@@ -346,6 +372,10 @@ impl CommandRecorder {
     }
 
     fn record_begin_rendering(&self, targets: &[ColorAttachment]) {
+        self.record_begin_rendering_depth(targets, None);
+    }
+
+    fn record_begin_rendering_depth(&self, targets: &[ColorAttachment], depth: Option<&vk::RenderingAttachmentInfo>) {
         let attachments: Vec<vk::RenderingAttachmentInfo> = targets
             .iter()
             .map(|t| {
@@ -364,7 +394,10 @@ impl CommandRecorder {
             .collect();
         let (width, height) = targets.first().map(|t| (t.image.width, t.image.height)).unwrap_or((0, 0));
         let area = vk::Rect2D { offset: vk::Offset2D { x: 0, y: 0 }, extent: vk::Extent2D { width, height } };
-        let info = vk::RenderingInfo::default().render_area(area).layer_count(1).color_attachments(&attachments);
+        let mut info = vk::RenderingInfo::default().render_area(area).layer_count(1).color_attachments(&attachments);
+        if let Some(d) = depth {
+            info = info.depth_attachment(d);
+        }
         let viewport =
             [vk::Viewport { x: 0.0, y: 0.0, width: width as f32, height: height as f32, min_depth: 0.0, max_depth: 1.0 }];
         unsafe {
@@ -451,6 +484,11 @@ impl CommandRecorder {
 
     pub fn draw_indexed(&self, indices: u32) {
         unsafe { self.ctx.device.cmd_draw_indexed(self.raw, indices, 1, 0, 0, 0) };
+    }
+
+    /// Draw `count` indices starting at index `first` of the bound buffer.
+    pub fn draw_indexed_range(&self, first: u32, count: u32) {
+        unsafe { self.ctx.device.cmd_draw_indexed(self.raw, count, 1, first, 0, 0) };
     }
 
     /// Dispatch a `[x, y, z]` grid of workgroups of the bound compute

@@ -69,7 +69,7 @@ pub fn texel_bytes(format: vk::Format) -> Option<u64> {
         | vk::Format::R16_UINT
         | vk::Format::R16_SINT
         | vk::Format::R16_SFLOAT => 2,
-        vk::Format::R32_SFLOAT | vk::Format::R32_UINT | vk::Format::R32_SINT | vk::Format::R8G8B8A8_UNORM => 4,
+        vk::Format::R32_SFLOAT | vk::Format::R32_UINT | vk::Format::R32_SINT | vk::Format::R8G8B8A8_UNORM | vk::Format::D32_SFLOAT => 4,
         vk::Format::R32G32_SFLOAT | vk::Format::R16G16B16A16_SFLOAT => 8,
         vk::Format::R32G32B32A32_SFLOAT | vk::Format::R32G32B32A32_UINT => 16,
         _ => return None,
@@ -126,6 +126,8 @@ pub enum ImageUse {
     TransferSrc,
     /// Destination of a copy (upload).
     TransferDst,
+    /// Depth attachment of a dynamic-rendering pass (tested and written).
+    DepthAttachment,
 }
 
 /// Layout, stages and accesses of the last recorded use.
@@ -157,6 +159,11 @@ impl ImageUse {
             ),
             ImageUse::TransferSrc => (L::TRANSFER_SRC_OPTIMAL, S::COPY, A::TRANSFER_READ),
             ImageUse::TransferDst => (L::TRANSFER_DST_OPTIMAL, S::COPY, A::TRANSFER_WRITE),
+            ImageUse::DepthAttachment => (
+                L::DEPTH_ATTACHMENT_OPTIMAL,
+                S::EARLY_FRAGMENT_TESTS | S::LATE_FRAGMENT_TESTS,
+                A::DEPTH_STENCIL_ATTACHMENT_READ | A::DEPTH_STENCIL_ATTACHMENT_WRITE,
+            ),
         };
         ImageState { layout, stages, access }
     }
@@ -200,6 +207,11 @@ impl Image {
             usage |= vk::ImageUsageFlags::SAMPLED;
         }
         Self::create(ctx, name, ImageDim::D2, [width, height, 1], TARGET_FORMAT, usage)
+    }
+
+    /// A 32-bit float depth buffer (`DEPTH_FORMAT`) for a `width`x`height` target.
+    pub fn depth_target(ctx: &Arc<Context>, name: &str, width: u32, height: u32) -> VkResult<Image> {
+        Self::create(ctx, name, ImageDim::D2, [width, height, 1], DEPTH_FORMAT, vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT)
     }
 
     /// An empty sampled image (contents undefined until uploaded or written).
@@ -309,7 +321,7 @@ impl Image {
             .image(raw)
             .view_type(dim.view_type())
             .format(format)
-            .subresource_range(color_range());
+            .subresource_range(range_of(format));
         image.view = unsafe { ctx.device.create_image_view(&view_info, None) }.check("vkCreateImageView")?;
         ctx.set_name(raw, name);
         ctx.set_name(image.view, name);
@@ -367,7 +379,7 @@ impl Image {
             .dst_access_mask(to.access)
             .new_layout(to.layout)
             .image(self.raw)
-            .subresource_range(color_range())];
+            .subresource_range(range_of(self.format))];
         unsafe {
             self.ctx.device.cmd_pipeline_barrier2(cmd, &vk::DependencyInfo::default().image_memory_barriers(&barrier));
         }
@@ -439,6 +451,16 @@ pub fn upload_texture(ctx: &Arc<Context>, desc: &TextureDesc, data: &[u8], count
     rec.image_barrier(&image, ImageUse::Sampled);
     rec.submit_and_wait()?;
     Ok(image)
+}
+
+/// The depth format of `Image::depth_target` (required by Vulkan for
+/// depth attachments on every device).
+pub const DEPTH_FORMAT: vk::Format = vk::Format::D32_SFLOAT;
+
+/// The whole image: the depth aspect for the depth format, else colour.
+fn range_of(format: vk::Format) -> vk::ImageSubresourceRange {
+    let aspect_mask = if format == DEPTH_FORMAT { vk::ImageAspectFlags::DEPTH } else { vk::ImageAspectFlags::COLOR };
+    vk::ImageSubresourceRange { aspect_mask, ..color_range() }
 }
 
 pub fn color_range() -> vk::ImageSubresourceRange {

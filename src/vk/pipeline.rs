@@ -97,6 +97,8 @@ pub struct GraphicsPipelineDesc<'a> {
     /// Colour attachments at locations 0, 1, ...: usually
     /// `&[ColorTarget::rgba32f(blend)]`.
     pub targets: &'a [ColorTarget],
+    /// Depth test (less) and write against a `DEPTH_FORMAT` attachment.
+    pub depth_test: bool,
     pub push_constant_bytes: u32,
     /// Set layouts for sets 0, 1, ... (e.g. `&[set.layout]`).
     pub descriptor_layouts: &'a [vk::DescriptorSetLayout],
@@ -253,7 +255,11 @@ impl Pipeline {
         let dynamic = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic_states);
         let formats: Vec<vk::Format> = desc.targets.iter().map(|t| t.format).collect();
         let mut rendering = vk::PipelineRenderingCreateInfo::default().color_attachment_formats(&formats);
-        let depth = vk::PipelineDepthStencilStateCreateInfo::default();
+        let mut depth = vk::PipelineDepthStencilStateCreateInfo::default();
+        if desc.depth_test {
+            rendering = rendering.depth_attachment_format(super::image::DEPTH_FORMAT);
+            depth = depth.depth_test_enable(true).depth_write_enable(true).depth_compare_op(vk::CompareOp::LESS);
+        }
         let info = vk::GraphicsPipelineCreateInfo::default()
             .stages(&stages)
             .vertex_input_state(&vertex_input)

@@ -72,6 +72,8 @@ pub struct GraphicsState {
     pub cull: vk::CullModeFlags,
     pub front_face: vk::FrontFace,
     pub targets: Vec<ColorTarget>,
+    /// Depth test and write (`GraphicsPipelineDesc::depth_test`).
+    pub depth_test: bool,
 }
 
 #[derive(Debug, Clone, PartialEq, Eq, Hash)]
@@ -155,7 +157,9 @@ impl PipelineKey {
                 for t in &s.targets {
                     let _ = write!(out, "{}/{},", t.format.as_raw(), t.blend.code());
                 }
-                let _ = write!(out, "];push={};", g.push_constant_bytes);
+                // Written only when on, so keys without depth keep their ids.
+                let depth = if s.depth_test { ";depth=1" } else { "" };
+                let _ = write!(out, "]{depth};push={};", g.push_constant_bytes);
                 put_sets(&mut out, &g.sets);
             }
             PipelineKey::Compute(c) => {
@@ -261,6 +265,7 @@ impl PipelineCache {
                     cull: s.cull,
                     front_face: s.front_face,
                     targets: &s.targets,
+                    depth_test: s.depth_test,
                     push_constant_bytes: g.push_constant_bytes,
                     descriptor_layouts: &raw_layouts,
                 };

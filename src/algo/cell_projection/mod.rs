@@ -343,6 +343,7 @@ pub(crate) fn build_pipeline(
             cull: raw::CullModeFlags::BACK,
             front_face: ENTRY_FACE_WINDING,
             targets: vec![ColorTarget::rgba32f(Blend::PremultipliedOver)],
+            depth_test: false,
         },
         push_constant_bytes: std::mem::size_of::<FrameConstants>() as u32,
         sets: std::iter::once(tables.set.desc.clone()).chain(extra_sets.iter().cloned()).collect(),

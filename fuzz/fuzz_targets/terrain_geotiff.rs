@@ -1,0 +1,17 @@
+//! Single-band GeoTIFF elevation reader: any bytes give a height grid or an
+//! error naming the file, never a panic.
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+use volbench::terrain::geotiff::parse_geotiff_bytes;
+
+fuzz_target!(|data: &[u8]| {
+    match parse_geotiff_bytes("fuzz.tif", data) {
+        Ok(m) => {
+            assert_eq!(m.nx * m.ny, m.heights.len());
+            assert!(m.heights.iter().all(|h| h.is_finite()));
+            assert!(m.spacing.iter().all(|s| s.is_finite() && *s > 0.0));
+        }
+        Err(e) => assert!(format!("{e:#}").starts_with("fuzz.tif"), "{e:#}"),
+    }
+});

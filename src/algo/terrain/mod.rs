@@ -1,0 +1,414 @@
+//! Hybrid terrain meshes (Paredes et al., GRAPP 2012; SPEC §4): the grid
+//! with view-dependent levels of detail and embedded TINs
+//! (`crate::terrain::hybrid`), drawn by methods that differ in where the PC
+//! cells' tessellation happens. This module holds what they share: options,
+//! the static device data (geometry buffer with the TB vertices first, the
+//! NC cells' and TINs' static indices), level-of-detail selection per block,
+//! the scripted fly-over camera, the pipeline and the frame's draws of NC
+//! cells and TINs. `cpu` is HM's original placement (tessellate on the CPU
+//! every frame, upload the triangles).
+//!
+//! Level of detail: each block (a coarsest cell) takes the coarsest level
+//! whose largest height error in the block, projected at the block's
+//! nearest distance from the eye, is within `lod_error` pixels (`level`
+//! forces one level everywhere). Seams: blocks of different levels meet
+//! with T-junctions (the finer side has vertices the coarser edge lacks);
+//! the skirt rule covers the cracks: every active block draws, with its NC
+//! cells, a vertical strip hanging from its border at its level, as deep as
+//! the largest grid error of any level (`HybridModel::skirt_depth`).
+//! Skirts are vertical, so they cover nothing seen from straight above;
+//! the coverage-count output leaves them out.
+
+pub mod cpu;
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use anyhow::Result;
+use glam::DVec3;
+use serde_json::json;
+
+use crate::algo::method::{OptionSpec, OptionValues, Options, OwnError, Phases, View};
+use crate::scene::{Camera, Projection};
+use crate::terrain::hybrid::HybridModel;
+use crate::terrain::Heightmap;
+use crate::vk::{
+    raw, Blend, Buffer, BufferDesc, ColorTarget, CommandRecorder, Context, GraphicsPipelineKey, GraphicsState, Image, Pipeline,
+    PipelineKey, ShaderKey, ShaderStage, UploadClass, UploadCounter, VertexAttribute,
+};
+
+pub const OPTIONS: &[OptionSpec] = &[
+    OptionSpec {
+        name: "lod_error",
+        default: "2",
+        unit: "px",
+        values: OptionValues::Float { min: 0.01, max: 100000.0 },
+        build_time: false,
+        help: "largest projected height error a block's level may have (view-dependent level of detail)",
+    },
+    OptionSpec {
+        name: "level",
+        default: "-1",
+        unit: "",
+        values: OptionValues::Int { min: -1, max: 4 },
+        build_time: false,
+        help: "draw every block at this level (0 = finest; -1: view-dependent, by lod_error)",
+    },
+    OptionSpec {
+        name: "colour",
+        default: "shaded",
+        unit: "",
+        values: OptionValues::Choice { values: &["shaded", "classes"] },
+        build_time: false,
+        help: "shaded by height, or tinted by class (NC grid green, PC tessellation orange, TIN blue)",
+    },
+    OptionSpec {
+        name: "coverage",
+        default: "off",
+        unit: "",
+        values: OptionValues::Bool,
+        build_time: true,
+        help: "count covering triangles per pixel (additive, no depth test): the coverage test's target",
+    },
+];
+
+/// Time against geometric error: the projected-error threshold.
+pub const SWEEP: &[&str] = &["lod_error=0.5", "lod_error=1", "lod_error=2", "lod_error=4", "lod_error=8", "lod_error=16", "lod_error=64"];
+pub const COMPARE: &[&str] = &["", "colour=classes"];
+
+/// Class tints (rgb): NC grid, PC tessellation, TIN.
+const TINT_NC: [f32; 3] = [0.35, 0.75, 0.3];
+const TINT_PC: [f32; 3] = [1.0, 0.55, 0.1];
+const TINT_TIN: [f32; 3] = [0.25, 0.45, 1.0];
+
+/// Push constants: mat4, tint, light, range.
+pub const PUSH_BYTES: u32 = 112;
+
+/// The options as typed values.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Settings {
+    pub lod_error: f64,
+    pub level: Option<usize>,
+    pub classes: bool,
+    pub coverage: bool,
+}
+
+impl Settings {
+    pub fn from_options(o: &Options) -> Result<Self> {
+        let level = o.int("level")?;
+        Ok(Settings {
+            lod_error: o.float("lod_error")?,
+            level: (level >= 0).then_some(level as usize),
+            classes: o.text("colour")? == "classes",
+            coverage: o.flag("coverage")?,
+        })
+    }
+}
+
+/// The camera of frame `frame` of the fly-over: once around an ellipse
+/// over the middle of the terrain every 120 frames, 0.25 of the terrain's
+/// width above its highest point, looking ahead and down.
+pub fn fly_over(map: &Heightmap, frame: usize) -> Camera {
+    let [ex, ey] = map.extent();
+    let (lo, hi) = map.range();
+    let t = (frame % 120) as f64 / 120.0 * std::f64::consts::TAU;
+    let c = DVec3::new(0.5 * ex, 0.5 * ey, lo);
+    let at = |t: f64| c + DVec3::new(0.3 * ex * t.cos(), 0.3 * ey * t.sin(), 0.0);
+    let size = ex.max(ey);
+    let eye = at(t) + DVec3::new(0.0, 0.0, hi - lo + 0.25 * size);
+    let ahead = at(t + 0.9);
+    Camera {
+        eye: eye.into(),
+        target: [ahead.x, ahead.y, 0.5 * (lo + hi)],
+        up: [0.0, 0.0, 1.0],
+        projection: Projection::Perspective { fovy_deg: 50.0 },
+        near: 0.002 * size,
+        far: 3.0 * size,
+    }
+}
+
+/// A camera above the domain looking straight down, orthographic, framing
+/// exactly the domain's height (the coverage test's view).
+pub fn top_down(model: &HybridModel, lo: f64, hi: f64) -> Camera {
+    let (w, h) = (model.domain[0] as f64 * model.spacing[0], model.domain[1] as f64 * model.spacing[1]);
+    Camera {
+        eye: [0.5 * w, 0.5 * h, hi + 10.0],
+        target: [0.5 * w, 0.5 * h, lo],
+        up: [0.0, 1.0, 0.0],
+        projection: Projection::Orthographic { height: h },
+        near: 1.0,
+        far: hi - lo + 20.0,
+    }
+}
+
+/// What a frame draws, chosen on the CPU.
+#[derive(Debug, Clone, Default)]
+pub struct ActiveSet {
+    /// Level per block.
+    pub levels: Vec<u8>,
+    /// Static index ranges (first, count) of the active NC cells.
+    pub nc_draws: Vec<(u32, u32)>,
+    pub nc_cells: u64,
+    /// Static index ranges of the active blocks' skirts.
+    pub skirt_draws: Vec<(u32, u32)>,
+    pub skirt_triangles: u64,
+    /// Active PC cells: (level, index in that level's PC list).
+    pub pc_cells: Vec<(u8, u32)>,
+    /// Height error of the frame's grid against the finest samples (world
+    /// units): RMS over the domain and largest.
+    pub rms_error: f64,
+    pub max_error: f64,
+}
+
+/// The device data and pipeline every hybrid-mesh method shares.
+pub struct TerrainScene {
+    pub model: HybridModel,
+    pub settings: Settings,
+    pub geometry: Buffer,
+    /// NC indices of every level, then the TINs'.
+    pub static_indices: Buffer,
+    /// Offset of each level's NC indices in `static_indices`.
+    level_offsets: Vec<u32>,
+    /// Offset of each level's skirt indices in `static_indices`.
+    skirt_offsets: Vec<u32>,
+    tin_first: u32,
+    pub pipeline: Arc<Pipeline>,
+    pub key: PipelineKey,
+    pub depth: Option<Image>,
+    pub active: ActiveSet,
+    range: (f64, f64),
+    block_bounds: Vec<([f64; 3], [f64; 3])>,
+    pub build_ms: f64,
+    /// Camera frames' source (the fly-over) for `RenderMethod::camera`.
+    map: Heightmap,
+}
+
+fn bytes_of<T: bytemuck::Pod>(v: &[T]) -> &[u8] {
+    bytemuck::cast_slice(v)
+}
+
+impl TerrainScene {
+    pub fn new(ctx: &Arc<Context>, map: &Heightmap, options: &Options, width: u32, height: u32, counter: &mut UploadCounter) -> Result<Self> {
+        let settings = Settings::from_options(options)?;
+        let t0 = Instant::now();
+        let model = HybridModel::build(map)?;
+        let build_ms = t0.elapsed().as_secs_f64() * 1e3;
+        if let Some(l) = settings.level {
+            anyhow::ensure!(l < model.levels.len(), "option 'level' = {l}: '{}' has levels 0 to {}", map.name, model.levels.len() - 1);
+        }
+        let geo = bytes_of(&model.vertices);
+        let mut geometry = Buffer::new(ctx, BufferDesc::upload("terrain geometry", geo.len() as u64, raw::BufferUsageFlags::VERTEX_BUFFER))?;
+        geometry.write(0, geo, counter, UploadClass::Static)?;
+        let mut all = Vec::new();
+        let (mut level_offsets, mut skirt_offsets) = (Vec::new(), Vec::new());
+        for l in &model.levels {
+            level_offsets.push(all.len() as u32);
+            all.extend_from_slice(&l.nc_indices);
+            skirt_offsets.push(all.len() as u32);
+            all.extend_from_slice(&l.skirt_indices);
+        }
+        let tin_first = all.len() as u32;
+        all.extend_from_slice(&model.tin_indices);
+        let idx = bytes_of(&all);
+        let mut static_indices = Buffer::new(ctx, BufferDesc::upload("terrain static indices", idx.len() as u64, raw::BufferUsageFlags::INDEX_BUFFER))?;
+        static_indices.write(0, idx, counter, UploadClass::Static)?;
+        let key = PipelineKey::Graphics(GraphicsPipelineKey {
+            vertex: ShaderKey::new("terrain/mesh.vert", ShaderStage::Vertex, &[]),
+            geometry: None,
+            fragment: ShaderKey::new("terrain/mesh.frag", ShaderStage::Fragment, if settings.coverage { &[("COVERAGE", "1")] } else { &[] }),
+            state: GraphicsState {
+                vertex_stride: 16,
+                attributes: vec![VertexAttribute { location: 0, format: raw::Format::R32G32B32A32_SFLOAT, offset: 0 }],
+                topology: raw::PrimitiveTopology::TRIANGLE_LIST,
+                primitive_restart: false,
+                cull: raw::CullModeFlags::NONE,
+                front_face: raw::FrontFace::COUNTER_CLOCKWISE,
+                targets: vec![ColorTarget::rgba32f(if settings.coverage { Blend::Additive } else { Blend::None })],
+                depth_test: !settings.coverage,
+            },
+            push_constant_bytes: PUSH_BYTES,
+            sets: vec![],
+        });
+        let pipeline = crate::algo::pipelines::get(ctx, &key)?;
+        let depth = if settings.coverage { None } else { Some(Image::depth_target(ctx, "terrain depth", width, height)?) };
+        let range = map.range();
+        let bs = model.block_side as f64;
+        let block_bounds = (0..model.blocks[1])
+            .flat_map(|by| (0..model.blocks[0]).map(move |bx| (bx, by)))
+            .map(|(bx, by)| {
+                let (x0, y0) = (bx as f64 * bs, by as f64 * bs);
+                let mut lo = f64::MAX;
+                let mut hi = f64::MIN;
+                for j in y0 as usize..=(y0 + bs) as usize {
+                    for i in x0 as usize..=(x0 + bs) as usize {
+                        let z = map.height(i, j) as f64;
+                        lo = lo.min(z);
+                        hi = hi.max(z);
+                    }
+                }
+                let s = model.spacing;
+                ([x0 * s[0], y0 * s[1], lo], [(x0 + bs) * s[0], (y0 + bs) * s[1], hi])
+            })
+            .collect();
+        Ok(TerrainScene {
+            model,
+            settings,
+            geometry,
+            static_indices,
+            level_offsets,
+            skirt_offsets,
+            tin_first,
+            pipeline,
+            key,
+            depth,
+            active: ActiveSet::default(),
+            range,
+            block_bounds,
+            build_ms,
+            map: map.clone(),
+        })
+    }
+
+    /// The fly-over's camera for `frame`.
+    pub fn camera(&self, frame: usize) -> Camera {
+        fly_over(&self.map, frame)
+    }
+
+    /// Choose each block's level and the active NC draws and PC cells.
+    pub fn select(&mut self, view: &View, phases: &mut Phases) {
+        let t0 = Instant::now();
+        let m = &self.model;
+        let nblocks = self.block_bounds.len();
+        let top = m.levels.len() - 1;
+        let eye = DVec3::from(view.camera.eye);
+        // Pixels per world unit at distance 1 (perspective) or everywhere.
+        let (scale, perspective) = match view.camera.projection {
+            Projection::Perspective { fovy_deg } => (view.height as f64 / (2.0 * (0.5 * fovy_deg.to_radians()).tan()), true),
+            Projection::Orthographic { height } => (view.height as f64 / height, false),
+        };
+        let mut a = ActiveSet { levels: vec![0; nblocks], ..Default::default() };
+        let mut sse = 0.0;
+        for b in 0..nblocks {
+            let level = match self.settings.level {
+                Some(l) => l,
+                None => {
+                    let (lo, hi) = self.block_bounds[b];
+                    let nearest = DVec3::new(eye.x.clamp(lo[0], hi[0]), eye.y.clamp(lo[1], hi[1]), eye.z.clamp(lo[2], hi[2]));
+                    let d = if perspective { (nearest - eye).length().max(1e-9) } else { 1.0 };
+                    (0..=top).rev().find(|&k| m.levels[k].error_max[b] * scale / d <= self.settings.lod_error).unwrap_or(0)
+                }
+            };
+            a.levels[b] = level as u8;
+            let l = &m.levels[level];
+            let r = &l.nc_by_block[b];
+            if r.end > r.start {
+                // Merge with the previous range when contiguous.
+                let first = self.level_offsets[level] + r.start;
+                match a.nc_draws.last_mut() {
+                    Some((f, c)) if *f + *c == first => *c += r.end - r.start,
+                    _ => a.nc_draws.push((first, r.end - r.start)),
+                }
+                a.nc_cells += ((r.end - r.start) / 6) as u64;
+            }
+            let r = &l.skirt_by_block[b];
+            if r.end > r.start && !self.settings.coverage {
+                let first = self.skirt_offsets[level] + r.start;
+                match a.skirt_draws.last_mut() {
+                    Some((f, c)) if *f + *c == first => *c += r.end - r.start,
+                    _ => a.skirt_draws.push((first, r.end - r.start)),
+                }
+                a.skirt_triangles += ((r.end - r.start) / 3) as u64;
+            }
+            a.pc_cells.extend((l.pc_by_block[b].start..l.pc_by_block[b].end).map(|i| (level as u8, i)));
+            sse += l.error_sse[b];
+            a.max_error = a.max_error.max(l.error_max[b]);
+        }
+        a.rms_error = (sse / m.samples.max(1) as f64).sqrt();
+        self.active = a;
+        phases.add("lod", t0.elapsed().as_secs_f64() * 1e3);
+    }
+
+    /// Push constants for a draw tinted `tint`.
+    fn push(&self, view: &View, tint: [f32; 3]) -> Vec<u8> {
+        let m = view.camera.view_proj(view.width, view.height);
+        let light = (-view.camera.forward() + DVec3::new(0.3, 0.2, 1.0)).normalize();
+        let mut v: Vec<f32> = m.to_cols_array().iter().map(|&x| x as f32).collect();
+        v.extend([tint[0], tint[1], tint[2], if self.settings.classes { 0.85 } else { 0.0 }]);
+        v.extend([light.x as f32, light.y as f32, light.z as f32, 0.0]);
+        v.extend([self.range.0 as f32, self.range.1 as f32, 0.0, 0.0]);
+        bytes_of(&v).to_vec()
+    }
+
+    /// Begin the frame's rendering and draw the active NC cells and the
+    /// TINs; the method then draws its PC triangles with `pc_tint`'s push
+    /// constants bound (returned).
+    pub fn record_static(&self, rec: &CommandRecorder, target: &Image, view: &View, counter: &mut UploadCounter) -> Result<Vec<u8>> {
+        match &self.depth {
+            Some(d) => rec.begin_rendering_with_depth(target, [0.0; 4], d)?,
+            None => rec.begin_rendering(target, [0.0; 4]),
+        }
+        rec.bind_graphics(&self.pipeline, &[])?;
+        rec.bind_vertex_buffer(&self.geometry);
+        rec.bind_index_buffer_u32(&self.static_indices);
+        rec.push_constants(&self.pipeline, &self.push(view, TINT_NC), counter);
+        for &(first, count) in self.active.nc_draws.iter().chain(&self.active.skirt_draws) {
+            rec.draw_indexed_range(first, count);
+        }
+        rec.push_constants(&self.pipeline, &self.push(view, TINT_TIN), counter);
+        rec.draw_indexed_range(self.tin_first, self.model.tin_indices.len() as u32);
+        Ok(self.push(view, TINT_PC))
+    }
+
+    /// The frame's height error (see `ActiveSet`).
+    pub fn own_error(&self) -> OwnError {
+        OwnError {
+            rmse: self.active.rms_error,
+            max_abs: self.active.max_error,
+            what: "height error of the frame's grid levels against the full-resolution samples (grid part; height units)".into(),
+        }
+    }
+
+    pub fn tin_triangles(&self) -> u64 {
+        self.model.tin_indices.len() as u64 / 3
+    }
+
+    /// Facts for the result's details.
+    pub fn details(&self, variant: serde_json::Value) -> serde_json::Value {
+        let m = &self.model;
+        let levels: Vec<serde_json::Value> = (0..m.levels.len())
+            .map(|k| {
+                let (nc, cc, pc) = m.counts(k);
+                json!({ "side": m.levels[k].side, "cells": m.levels[k].cells, "nc": nc, "cc": cc, "pc": pc })
+            })
+            .collect();
+        let mut histogram = vec![0u32; m.levels.len()];
+        for &l in &self.active.levels {
+            histogram[l as usize] += 1;
+        }
+        json!({
+            "family": "terrain",
+            "variant": variant,
+            "domain_cells": m.domain,
+            "cropped": m.cropped,
+            "spacing": m.spacing,
+            "blocks": m.blocks,
+            "block_side": m.block_side,
+            "levels": levels,
+            "tb_vertices": m.tb_xy.len(),
+            "tin_interior_vertices": m.tin_interior,
+            "tin_triangles": self.tin_triangles(),
+            "patches": m.patches.iter().map(|p| json!({ "name": p.name, "polygon_vertices": p.polygon.len(), "tb_vertices": p.tb.end - p.tb.start })).collect::<Vec<_>>(),
+            "lod_error_px": self.settings.lod_error,
+            "forced_level": self.settings.level,
+            "blocks_per_level": histogram,
+            "active_nc_cells": self.active.nc_cells,
+            "active_pc_cells": self.active.pc_cells.len(),
+            "geometric_error": { "rms": self.active.rms_error, "max": self.active.max_error, "unit": "height units against the full-resolution grid (grid part)" },
+            "model_build_ms": self.build_ms,
+            "pipeline": { "key": self.key.id(), "name": self.key.name() },
+            "seams": "skirts: every block hangs a vertical strip from its border at its level (see algo::terrain)",
+            "skirt_depth": m.skirt_depth,
+            "active_skirt_triangles": self.active.skirt_triangles,
+        })
+    }
+}

@@ -1,0 +1,136 @@
+//! Terrain: regular elevation grids and the hybrid model built on them.
+//!
+//! A [`Heightmap`] is a regular grid of heights (row-major, row 0 first as
+//! stored in the file) with a horizontal spacing per axis, read from NumPy
+//! `.npy` / `.npz` or single-band GeoTIFF by the readers here. Every reader
+//! takes bytes (so the fuzz targets drive them directly) and names the file
+//! in every error; sizes are checked before anything is allocated. Samples
+//! that are NaN or equal to the file's nodata value are filled with the
+//! lowest valid height and counted (`nodata_filled`), so a hole in a DEM is
+//! visible in results rather than drawn as a spike; a grid with no valid
+//! sample at all is an error.
+
+pub mod datasets;
+pub mod geotiff;
+pub mod hybrid;
+pub mod npy;
+
+use std::path::Path;
+
+use anyhow::{bail, Result};
+
+/// Largest grid side accepted (samples): 16384 keeps a grid of f32 heights
+/// within 1 GiB and every index within u32.
+pub const MAX_SIDE: usize = 16384;
+
+/// A regular grid of heights (see the module note).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Heightmap {
+    pub name: String,
+    /// Samples along x (columns) and y (rows).
+    pub nx: usize,
+    pub ny: usize,
+    /// Distance between neighbouring samples along x and y (world units).
+    pub spacing: [f64; 2],
+    /// Heights, `heights[x + nx * y]`, all finite.
+    pub heights: Vec<f32>,
+    /// Samples that were NaN or nodata and were filled (see the module note).
+    pub nodata_filled: usize,
+}
+
+impl Heightmap {
+    /// Build from samples as f64; `nodata` marks missing samples besides
+    /// NaN. Errors name `file`.
+    pub fn from_samples(file: &str, nx: usize, ny: usize, samples: &[f64], nodata: Option<f64>, spacing: [f64; 2]) -> Result<Self> {
+        if nx < 2 || ny < 2 {
+            bail!("{file}: a height grid needs at least 2x2 samples, got {nx}x{ny}");
+        }
+        if nx > MAX_SIDE || ny > MAX_SIDE {
+            bail!("{file}: a {nx}x{ny} grid exceeds the {MAX_SIDE} samples per side volbench accepts");
+        }
+        if nx.checked_mul(ny) != Some(samples.len()) {
+            bail!("{file}: {} samples for a {nx}x{ny} grid", samples.len());
+        }
+        if !spacing.iter().all(|s| s.is_finite() && *s > 0.0) {
+            bail!("{file}: grid spacing {spacing:?} must be finite and positive");
+        }
+        let missing = |v: f64| !v.is_finite() || nodata.is_some_and(|n| v == n);
+        let lowest = samples.iter().copied().filter(|&v| !missing(v)).fold(f64::INFINITY, f64::min);
+        if !lowest.is_finite() {
+            bail!("{file}: no valid height (every sample is NaN, infinite or nodata)");
+        }
+        let highest = samples.iter().copied().filter(|&v| !missing(v)).fold(f64::NEG_INFINITY, f64::max);
+        if lowest < -(f32::MAX as f64) || highest > f32::MAX as f64 {
+            bail!("{file}: heights [{lowest}, {highest}] do not fit in 32-bit floats");
+        }
+        let mut filled = 0;
+        let heights = samples
+            .iter()
+            .map(|&v| {
+                if missing(v) {
+                    filled += 1;
+                    lowest as f32
+                } else {
+                    v as f32
+                }
+            })
+            .collect();
+        Ok(Heightmap { name: file.to_string(), nx, ny, spacing, heights, nodata_filled: filled })
+    }
+
+    pub fn height(&self, x: usize, y: usize) -> f32 {
+        self.heights[x + self.nx * y]
+    }
+
+    /// Lowest and highest height.
+    pub fn range(&self) -> (f64, f64) {
+        let lo = self.heights.iter().copied().fold(f32::INFINITY, f32::min) as f64;
+        let hi = self.heights.iter().copied().fold(f32::NEG_INFINITY, f32::max) as f64;
+        (lo, hi)
+    }
+
+    /// World extent along x and y (sample 0 at the origin).
+    pub fn extent(&self) -> [f64; 2] {
+        [(self.nx - 1) as f64 * self.spacing[0], (self.ny - 1) as f64 * self.spacing[1]]
+    }
+}
+
+/// The elevation formats, by file extension.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Format {
+    Npy,
+    Npz,
+    GeoTiff,
+}
+
+pub fn format_of_extension(path: &Path) -> Option<Format> {
+    let ext = path.extension()?.to_str()?.to_ascii_lowercase();
+    match ext.as_str() {
+        "npy" => Some(Format::Npy),
+        "npz" => Some(Format::Npz),
+        "tif" | "tiff" => Some(Format::GeoTiff),
+        _ => None,
+    }
+}
+
+/// Largest elevation file read (bytes).
+pub const MAX_FILE_BYTES: u64 = crate::fsio::MAX_INPUT_BYTES;
+
+/// Read an elevation grid; `array` picks the array of an `.npz` by name.
+pub fn load_heightmap(path: &Path, array: Option<&str>) -> Result<Heightmap> {
+    let name = path.display().to_string();
+    let Some(format) = format_of_extension(path) else {
+        bail!("{name}: not an elevation grid (expected .npy, .npz, .tif or .tiff)");
+    };
+    if array.is_some() && format != Format::Npz {
+        bail!("{name}: an array name can only be given for an .npz archive");
+    }
+    let bytes = crate::fsio::read_input(path, "elevation grid", MAX_FILE_BYTES)?;
+    let mut map = match format {
+        Format::Npy => npy::parse_npy_heightmap(&name, &bytes)?,
+        Format::Npz => npy::parse_npz_heightmap(&name, &bytes, array)?,
+        Format::GeoTiff => geotiff::parse_geotiff_bytes(&name, &bytes)?,
+    };
+    map.name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or(name);
+    Ok(map)
+}
