@@ -267,8 +267,9 @@ pub fn compare(base: &SummaryFile, new: &SummaryFile, tol: &Tolerances) -> Resul
             (None, None) => c.push(Verdict::Ok, &k, "status", b.status.clone(), n.status.clone(), ""),
         }
     }
+    let base_keys: std::collections::BTreeSet<String> = base.runs.iter().map(key).collect();
     for n in &new.runs {
-        if !base.runs.iter().any(|b| key(b) == key(n)) {
+        if !base_keys.contains(&key(n)) {
             c.push(Verdict::Info, &key(n), "row", "absent".into(), n.status.clone(), "new run, not in the baseline");
         }
     }

@@ -11,7 +11,7 @@ use std::sync::Arc;
 
 use ash::vk as raw;
 
-use super::balanced::{strip_indices, INDICES_PER_CELL};
+use super::balanced::{strip_indices, INDICES_PER_CELL, VERTICES_PER_CELL};
 use super::render;
 use super::{build_pipeline, cells_f32, CellF32, CellProjector, FrameSetup, Interpolation};
 use crate::algo::integrate::IntegrationTables;
@@ -119,7 +119,7 @@ impl CellProjector for Resident {
         self.cells
     }
     fn vertices_per_cell(&self) -> usize {
-        4
+        VERTICES_PER_CELL
     }
     fn floats_per_cell(&self) -> usize {
         BYTES_PER_CELL_PER_FRAME / 4
