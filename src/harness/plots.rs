@@ -18,7 +18,7 @@ pub fn bar_charts(dir: &Path, s: &Summary) -> Result<()> {
         .iter()
         .filter_map(|r| {
             let x = r.result.as_ref()?;
-            Some((format!("{} / {}", r.dataset, r.method), x.time_ms.phase("frame").median, x.upload.bytes_per_frame as f64 / 1e6))
+            Some((format!("{} / {}", r.dataset, r.label), x.time_ms.phase("frame").median, x.upload.bytes_per_frame as f64 / 1e6))
         })
         .collect();
     if rows.is_empty() {
