@@ -233,6 +233,10 @@ fn vtk_renders_the_small_post_in_the_suite() {
     assert_eq!(summary.peers.iter().map(|p| p.sequence).collect::<Vec<_>>(), [1, 3]);
     let report = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
     assert!(report.contains("Peers measured in the same run") && report.contains("| post-small | balanced | vtk/projected-tetrahedra |"), "{report}");
+    let csv = std::fs::read_to_string(dir.path().join("summary.csv")).unwrap();
+    assert!(csv.starts_with("source,dataset,method,"), "{csv}");
+    assert!(csv.lines().any(|l| l.starts_with("volbench,post-small,balanced,")), "{csv}");
+    assert!(csv.lines().any(|l| l.starts_with("vtk,post-small,\"projected-tetrahedra\",")), "{csv}");
     assert!(dir.path().join("runs/post-small-peer-vtk-projected-tetrahedra.png").is_file());
     assert!(!dir.path().join("peers/post-small.vtk").exists(), "the exported copy is removed");
 }

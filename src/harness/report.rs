@@ -8,7 +8,7 @@ use std::path::Path;
 use anyhow::{Context as _, Result};
 use serde::Serialize;
 
-use super::run::RunResult;
+use super::run::{ErrorKind, RunResult};
 use crate::algo::registry::Registry;
 
 /// Write `value` as pretty JSON, all-or-nothing (`fsio::write_output`).
@@ -45,6 +45,7 @@ pub fn comparison_table(rows: &[ComparisonRow], registry: &Registry) -> String {
         "| dataset | run | cells | floats/cell | MB/frame | static KB | frame ms median [min, max] | CPU prep | upload | GPU | wait | M cells/s | published M cells/s | RMSE vs first | RMSE vs f64 ref | max err |"
     );
     let _ = writeln!(s, "|---|---|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    let mut own_notes = Vec::new();
     for row in rows {
         let r = match &row.outcome {
             Ok(r) => *r,
@@ -58,10 +59,14 @@ pub fn comparison_table(rows: &[ComparisonRow], registry: &Registry) -> String {
         let t = &r.time_ms;
         let published = published_cells_per_second(r, registry).map_or("-".into(), |v| format!("{:.3}", v / 1e6));
         let rmse = row.rmse_vs_first.map_or("-".into(), |v| format!("{v:.2e}"));
-        let (ref_rmse, ref_max) = r
-            .error
-            .as_ref()
-            .map_or(("-".into(), "-".into()), |e| (format!("{:.2e}", e.rmse), format!("{:.2e}", e.max_abs)));
+        // A method's own measure (not an image error) is marked and explained under the table.
+        let (ref_rmse, ref_max) = r.error.as_ref().map_or(("-".into(), "-".into()), |e| {
+            let mark = if e.compared == ErrorKind::Own { "†" } else { "" };
+            (format!("{:.2e}{mark}", e.rmse), format!("{:.2e}{mark}", e.max_abs))
+        });
+        if let Some(e) = r.error.as_ref().filter(|e| e.compared == ErrorKind::Own) {
+            own_notes.push(format!("† {} / {}: {}", row.dataset, row.label, e.reference));
+        }
         // The method's own CPU phases (sort, pack, ...) together.
         let runner = ["frame", "gpu", "upload", "record", "submit", "wait"];
         // (+ 0.0: an empty float sum is -0.0.)
@@ -89,6 +94,12 @@ pub fn comparison_table(rows: &[ComparisonRow], registry: &Registry) -> String {
             ref_rmse,
             ref_max,
         );
+    }
+    if !own_notes.is_empty() {
+        s += "\n";
+        for n in own_notes {
+            let _ = writeln!(s, "{n}");
+        }
     }
     s
 }

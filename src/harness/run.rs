@@ -237,9 +237,11 @@ pub struct RunResult {
     pub git_sha: &'static str,
 }
 
-/// Error of an image against the f64 reference (RGBA, values in [0, 1]).
+/// Error of a run: its image against the f64 reference (RGBA, values in
+/// [0, 1]), or a method's own measure where no image reference exists.
 #[derive(Debug, Clone, Serialize)]
 pub struct ErrorReport {
+    pub compared: ErrorKind,
     pub rmse: f64,
     pub max_abs: f64,
     pub psnr_db: f64,
@@ -252,6 +254,17 @@ pub struct ErrorReport {
     pub reference_recomputed: Option<String>,
 }
 
+/// What an `ErrorReport` measures, so a report never labels a height error
+/// as an image error.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ErrorKind {
+    /// The reference-view image against the f64 CPU reference image.
+    Image,
+    /// The method's own measure (`RenderMethod::own_error`); `reference` says what, with the unit.
+    Own,
+}
+
 pub struct RunOutput {
     pub result: RunResult,
     pub image: RgbaImage,
@@ -262,6 +275,7 @@ impl RunOutput {
     pub fn attach_error(&mut self, reference: &super::reference_cache::Reference) -> Result<RgbaImage> {
         let e = self.image.compare(&reference.image)?;
         self.result.error = Some(ErrorReport {
+            compared: ErrorKind::Image,
             rmse: e.rmse,
             max_abs: e.max_abs,
             psnr_db: e.psnr_db,
@@ -584,6 +598,7 @@ pub fn run(ctx: &Arc<Context>, spec: &MethodSpec, dataset: &Dataset, tf: &Transf
         },
         // A method that measures its own error (no image reference exists).
         error: method.own_error().map(|e| ErrorReport {
+            compared: ErrorKind::Own,
             rmse: e.rmse,
             max_abs: e.max_abs,
             psnr_db: f64::INFINITY,

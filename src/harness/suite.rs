@@ -442,13 +442,14 @@ pub fn peer_report(s: &Summary) -> String {
     t
 }
 
-/// One line per run: the figures a spreadsheet wants.
+/// One line per run, volbench's and the peers' (`source`), with the
+/// figures a spreadsheet wants; a peer has no bytes or GPU time to report.
 pub fn csv(s: &Summary) -> String {
     let mut t = String::from(
-        "dataset,method,label,status,frame_ms_median,gpu_ms_median,bytes_per_frame,bytes_per_cell,static_bytes,cells_per_second,rmse,max_abs,message\n",
+        "source,dataset,method,label,status,frame_ms_median,gpu_ms_median,bytes_per_frame,bytes_per_cell,static_bytes,cells_per_second,rmse,max_abs,message\n",
     );
+    let q = |x: &str| format!("\"{}\"", x.replace('"', "\"\""));
     for r in &s.runs {
-        let q = |x: &str| format!("\"{}\"", x.replace('"', "\"\""));
         let (f, g, b, bc, st, cps, rmse, max) = match &r.result {
             Some(x) => (
                 format!("{:.3}", x.time_ms.phase("frame").median),
@@ -464,12 +465,27 @@ pub fn csv(s: &Summary) -> String {
         };
         let _ = writeln!(
             t,
-            "{},{},{},{},{f},{g},{b},{bc},{st},{cps},{rmse},{max},{}",
+            "volbench,{},{},{},{},{f},{g},{b},{bc},{st},{cps},{rmse},{max},{}",
             r.dataset,
             r.method,
             q(&r.label),
             r.status,
             q(r.message.as_deref().unwrap_or(""))
+        );
+    }
+    for p in &s.peers {
+        let f = p.frame_ms.as_ref().map_or(String::new(), |f| format!("{:.3}", f.median));
+        let rmse = p.error.as_ref().map_or(String::new(), |e| format!("{:.6e}", e.rmse));
+        let max = p.error.as_ref().map_or(String::new(), |e| format!("{:.6e}", e.max_abs));
+        let _ = writeln!(
+            t,
+            "{},{},{},{},{},{f},,,,,,{rmse},{max},{}",
+            p.peer,
+            p.dataset,
+            q(&p.renderer),
+            q(&format!("{} {} ({})", p.peer, p.renderer, p.class)),
+            p.status,
+            q(p.message.as_deref().unwrap_or(""))
         );
     }
     t
@@ -499,7 +515,7 @@ pub fn report(s: &Summary, registry: &Registry) -> String {
         s.settings.orbit_step_deg,
         if s.settings.quick { " (--quick)" } else { "" },
     );
-    t += "| dataset | method | status | frame ms median [min, max] | GPU ms | MB/frame | bytes/cell | static KB | M cells/s | RMSE vs f64 | max err |\n";
+    t += "| dataset | method | status | frame ms median [min, max] | GPU ms | MB/frame | bytes/cell | static KB | M cells/s | error RMSE | max err |\n";
     t += "|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|\n";
     for r in &s.runs {
         match &r.result {
@@ -527,9 +543,34 @@ pub fn report(s: &Summary, registry: &Registry) -> String {
             }
         }
     }
+    t += &error_legend(s);
     t += &published_ratios(s, registry);
     t += &peer_report(s);
     t += "\nPlots: `plots/frame_time.{png,svg}`, `plots/bytes_per_frame.{png,svg}`; images and their ×10 difference from the f64 reference: `montage.png`, `runs/`.\n";
+    t
+}
+
+/// What the runs table's error columns compare: the f64 reference image,
+/// or (rows listed by name) a method's own measure in its own unit.
+fn error_legend(s: &Summary) -> String {
+    use super::run::ErrorKind;
+    let mut t = String::from("\nError columns: the reference-view image against the f64 CPU reference image (RGBA in [0, 1])");
+    let own: Vec<String> = s
+        .runs
+        .iter()
+        .filter_map(|r| {
+            let e = r.result.as_ref()?.error.as_ref()?;
+            (e.compared == ErrorKind::Own).then(|| format!("{} / {}: {}", r.dataset, r.label, e.reference))
+        })
+        .collect();
+    if own.is_empty() {
+        t += ".\n";
+    } else {
+        t += ", except these rows, which report the method's own measure:\n\n";
+        for line in own {
+            let _ = writeln!(t, "- {line}");
+        }
+    }
     t
 }
 
