@@ -42,15 +42,18 @@ layout(push_constant) uniform Frame {
     vec4 light;      // xyz: unit direction towards the light, world axes
 } frame;
 
+// Samples are taken with an explicit level (single-level textures): the
+// march loop is non-uniform control flow, where implicit derivatives are
+// undefined, and the explicit level spares llvmpipe computing them.
 float table_coord(vec3 u) {
-    float v = texture(volume_tex, (u + 0.5) * params.inv_dims.xyz).r;
+    float v = textureLod(volume_tex, (u + 0.5) * params.inv_dims.xyz, 0.0).r;
     return clamp(params.tf_map.x * (v - params.tf_map.y), 0.0, 1.0);
 }
 
 // Table lookup at coordinate t in [0, 1], texel centres at the ends.
 vec4 classify(float t) {
     float n = params.inv_dims.w;
-    return texture(tf_tex, (t * (n - 1.0) + 0.5) / n);
+    return textureLod(tf_tex, (t * (n - 1.0) + 0.5) / n, 0.0);
 }
 
 vec3 gradient(vec3 u) {
@@ -166,7 +169,7 @@ vec4 march(vec3 a, vec3 b, out uint samples) {
         // linear segment's error (s'' h^2 / 12) is twice the midpoint rule's
         // and point sampling beats pre-integration on smooth data.
         if (t_prev2 >= 0.0) fb = clamp(fb - (t - 2.0 * t_prev + t_prev2) / 12.0, 0.0, 1.0);
-        vec4 seg = texture(preint_tex, fb * (params.inv_dims.w - 1.0) / params.inv_dims.w + 0.5 / params.inv_dims.w);
+        vec4 seg = textureLod(preint_tex, fb * (params.inv_dims.w - 1.0) / params.inv_dims.w + 0.5 / params.inv_dims.w, 0.0);
         t_prev2 = m == 1 ? t_prev : -1.0;
         t_prev = t;
         float scale = seg_world / params.tf_map.w;
