@@ -146,6 +146,7 @@ const SOLID_BOX: MethodInfo = MethodInfo {
     sweep: &["shade=0.25", "shade=1"],
     compare: &[""],
     stress: &[],
+    suite: &[],
     accuracy_bound: |_, _| Some(1e-3),
     published: &[],
     check: volbench::algo::method::no_check,
@@ -308,6 +309,8 @@ fn the_suite_runs_the_option_sets_published_figures_name_and_reports_the_ratios(
     let ct = labels("chest-ct");
     for m in ["raycast-fragment", "raycast-compute"] {
         assert!(ct.contains(&m.to_string()) && ct.contains(&format!("{m}:ert=1,skip=off")), "{ct:?}");
+        // The method's own suite set (the cheap end of its trade-off), for comparisons at matched error.
+        assert!(ct.contains(&format!("{m}:step=1")), "{ct:?}");
     }
     let settings = SuiteSettings { width: 32, height: 32, frames: 1, warmup: 0, ..SuiteSettings::standard(true, vec!["bluntfin".into()]) };
     let planned = plan(&registry, &settings).unwrap();

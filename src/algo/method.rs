@@ -403,6 +403,10 @@ pub struct MethodInfo {
     pub compare: &'static [&'static str],
     /// Option sets the stress suite renders every case of its kind with.
     pub stress: &'static [&'static str],
+    /// Option sets the benchmark suite runs besides the defaults and the
+    /// published figures' sets: the cheaper end of the method's accuracy
+    /// trade-off, so a report can set it beside a peer at matched error.
+    pub suite: &'static [&'static str],
     /// The max |error| against the f64 reference the stress suite holds a
     /// render with these options to where a case documents no limitation
     /// (`perspective`: the case's view is), measured by the method's family;

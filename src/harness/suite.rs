@@ -73,7 +73,8 @@ pub struct PlannedRun {
 /// Every (shipped dataset, method for its kind) pair that passes the
 /// filter: the defaults, then each option set a published figure about the
 /// method on that dataset names (so every published ratio has its measured
-/// counterpart in the same run).
+/// counterpart in the same run), then the method's own suite sets
+/// (`MethodInfo::suite`: the cheap end of its accuracy trade-off).
 pub fn plan(registry: &Registry, settings: &SuiteSettings) -> Result<Vec<PlannedRun>> {
     let keep = |name: &str| settings.filter.is_empty() || settings.filter.iter().any(|f| f == name);
     for f in &settings.filter {
@@ -85,8 +86,10 @@ pub fn plan(registry: &Registry, settings: &SuiteSettings) -> Result<Vec<Planned
         for m in registry.for_kind(d.kind) {
             if keep(d.name) || keep(m.name) {
                 let mut specs = vec![registry.parse_spec(m.name, &[])?];
-                for p in m.published.iter().filter(|p| p.applies_to(d.name)) {
-                    let s = registry.published_spec(p)?;
+                let published = m.published.iter().filter(|p| p.applies_to(d.name)).map(|p| registry.published_spec(p));
+                let own = m.suite.iter().map(|o| registry.parse_spec(&format!("{}:{o}", m.name), &[]));
+                for s in published.chain(own) {
+                    let s = s?;
                     if !specs.iter().any(|x| x.canonical() == s.canonical()) {
                         specs.push(s);
                     }
@@ -439,7 +442,45 @@ pub fn peer_report(s: &Summary) -> String {
               | dataset | volbench method | peer | volbench ms | peer ms | speed ratio | volbench RMSE | peer RMSE |\n|---|---|---|---:|---:|---:|---:|---:|\n";
         t += &ratios;
     }
+    t += &matched_error(s);
     t
+}
+
+/// Speed at matched error: per peer renderer, the fastest volbench run on
+/// the same dataset whose image error is no larger than the peer's (a
+/// faster but less accurate run would not be a like-for-like comparison).
+fn matched_error(s: &Summary) -> String {
+    use super::run::ErrorKind;
+    let mut rows = String::new();
+    for p in &s.peers {
+        let (Some(f), Some(pe)) = (&p.frame_ms, &p.error) else { continue };
+        let fastest = s
+            .runs
+            .iter()
+            .filter(|r| r.dataset == p.dataset)
+            .filter_map(|r| {
+                let x = r.result.as_ref()?;
+                let e = x.error.as_ref().filter(|e| e.compared == ErrorKind::Image && e.rmse <= pe.rmse)?;
+                Some((r, x.time_ms.phase("frame").median, e.rmse))
+            })
+            .filter(|(_, ms, _)| *ms > 0.0)
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        let (label, ms, rmse) = match fastest {
+            Some((r, ms, rmse)) => (r.label.as_str(), format!("{ms:.1}"), format!("{rmse:.2e}")),
+            None => ("none as accurate", "-".into(), "-".into()),
+        };
+        let ratio = fastest.map_or("-".into(), |(_, ms, _)| format!("**{:.2}**", f.median / ms));
+        let _ = writeln!(rows, "| {} | {}/{} | {:.1} | {:.2e} | {label} | {ms} | {rmse} | {ratio} |", p.dataset, p.peer, p.renderer, f.median, pe.rmse);
+    }
+    if rows.is_empty() {
+        return rows;
+    }
+    format!(
+        "\nAt matched error: the fastest volbench run of this suite on the dataset whose RMSE against the f64 reference is \
+         no larger than the peer's, and the speed ratio (peer ms / volbench ms).\n\n\
+         | dataset | peer | peer ms | peer RMSE | fastest volbench run at most as far from the reference | volbench ms | volbench RMSE | speed ratio |\n\
+         |---|---|---:|---:|---|---:|---:|---:|\n{rows}"
+    )
 }
 
 /// One line per run, volbench's and the peers' (`source`), with the

@@ -153,6 +153,7 @@ pub const fn method_info(
         sweep: SWEEP,
         compare: COMPARE,
         stress: STRESS,
+        suite: &[],
         accuracy_bound,
         published,
         check: check_options,

@@ -21,6 +21,7 @@ pub const METHOD: MethodInfo = MethodInfo {
     features: &[],
     sweep: SWEEP,
     compare: COMPARE,
+    suite: &[],
     stress: &[],
     // No stress cases for terrains (their error is the method's own).
     accuracy_bound: |_, _| None,
