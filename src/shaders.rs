@@ -20,6 +20,10 @@ const SOURCES: &[(&str, &str)] = &[
     ("terrain/common.glsl", include_str!("../shaders/terrain/common.glsl")),
     ("terrain/mesh.vert", include_str!("../shaders/terrain/mesh.vert")),
     ("terrain/mesh.frag", include_str!("../shaders/terrain/mesh.frag")),
+    ("terrain/tessellate.glsl", include_str!("../shaders/terrain/tessellate.glsl")),
+    ("terrain/pc.vert", include_str!("../shaders/terrain/pc.vert")),
+    ("terrain/pc.geom", include_str!("../shaders/terrain/pc.geom")),
+    ("terrain/pc.comp", include_str!("../shaders/terrain/pc.comp")),
 ];
 
 /// The text of a shader or include, by its path under `shaders/`.

@@ -21,6 +21,8 @@ pub fn builtin() -> Registry {
             super::raycast::fragment::METHOD,
             super::raycast::compute::METHOD,
             super::terrain::cpu::METHOD,
+            super::terrain::gpu::METHOD,
+            super::terrain::compute::METHOD,
         ],
     }
 }

@@ -586,6 +586,7 @@ pub fn report(s: &Summary, registry: &Registry) -> String {
     }
     t += &error_legend(s);
     t += &published_ratios(s, registry);
+    t += &placement_report(s);
     t += &peer_report(s);
     t += "\nPlots: `plots/frame_time.{png,svg}`, `plots/bytes_per_frame.{png,svg}`; images and their ×10 difference from the f64 reference: `montage.png`, `runs/`.\n";
     t
@@ -610,6 +611,55 @@ fn error_legend(s: &Summary) -> String {
         t += ", except these rows, which report the method's own measure:\n\n";
         for line in own {
             let _ = writeln!(t, "- {line}");
+        }
+    }
+    t
+}
+
+/// Runs that do the same work in different places (a method's
+/// `details.same_work` names the work; e.g. the terrain methods' PC-cell
+/// tessellation on the CPU, in a geometry shader, in a compute pass), per
+/// dataset, set side by side with the first such run as the base: frame
+/// time, device time and per-frame bytes as ratios inside this run, with
+/// the work counts that must agree between them.
+fn placement_report(s: &Summary) -> String {
+    let mut groups: Vec<(String, String, Vec<(&str, &RunResult)>)> = Vec::new();
+    for r in &s.runs {
+        let Some(x) = &r.result else { continue };
+        let Some(work) = x.details.get("same_work").and_then(|w| w.as_str()) else { continue };
+        match groups.iter_mut().find(|g| g.0 == r.dataset && g.1 == work) {
+            Some(g) => g.2.push((&r.label, x)),
+            None => groups.push((r.dataset.clone(), work.to_string(), vec![(&r.label, x)])),
+        }
+    }
+    let mut t = String::new();
+    for (dataset, work, runs) in groups.iter().filter(|g| g.2.len() >= 2) {
+        let (_, base) = runs[0];
+        let (bf, bg, bb) = (base.time_ms.phase("frame").median, base.time_ms.phase("gpu").median, base.upload.bytes_per_frame);
+        let _ = write!(
+            t,
+            "\n## {dataset}: {work}, placed differently\n\nRatios against `{}` inside this run (speed: its frame time ÷ the run's; bytes: the run's ÷ its). \
+             Counts are the reference view's.\n\n| run | frame ms | speed × | GPU ms | GPU speed × | bytes/frame | bytes × | static KB | CPU phases ms | work |\n|---|---:|---:|---:|---:|---:|---:|---:|---|---|\n",
+            runs[0].0
+        );
+        for (label, x) in runs {
+            let (f, g) = (x.time_ms.phase("frame").median, x.time_ms.phase("gpu").median);
+            let runner = ["frame", "gpu", "upload", "record", "submit", "wait"];
+            let phases: Vec<String> =
+                x.time_ms.phases.iter().filter(|(k, _)| !runner.contains(&k.as_str())).map(|(k, v)| format!("{k} {:.2}", v.median)).collect();
+            let work: Vec<String> = x.work.counts.iter().map(|(k, v)| format!("{k} {v}")).collect();
+            let ratio = |a: f64, b: f64| if b > 0.0 { format!("{:.2}", a / b) } else { "-".into() };
+            let _ = writeln!(
+                t,
+                "| {label} | {f:.2} | {} | {g:.2} | {} | {} | {} | {:.1} | {} | {} |",
+                ratio(bf, f),
+                ratio(bg, g),
+                x.upload.bytes_per_frame,
+                ratio(x.upload.bytes_per_frame as f64, bb as f64),
+                x.upload.static_bytes as f64 / 1e3,
+                phases.join(", "),
+                work.join(", "),
+            );
         }
     }
     t

@@ -21,7 +21,8 @@
 //! and interior points at twice the grid's density (heights from the grid,
 //! bilinear), keeping the faces inside the polygon.
 //!
-//! Geometry buffer (one vertex = x, y, z, 0 as f32): TB vertices first, in
+//! Geometry buffer (one vertex = x, y, z, 0 as f32; skirt vertices carry
+//! their drop in w, see `skirt_depth`): TB vertices first, in
 //! TB order (a vertex's offset is its TB index), then the TINs' interior
 //! vertices, then the grid samples. NC cells are two triangles on the
 //! diagonal (x0,y0)-(x1,y1); their indices are static, per level, grouped
@@ -136,7 +137,10 @@ pub struct HybridModel {
     /// Skirts: every block hangs a vertical strip this deep (height
     /// units: the largest grid error of any level, so it covers any gap)
     /// from its border at its level, so blocks of different levels leave
-    /// no cracks at their T-junctions. Skirt vertices follow the grid's.
+    /// no cracks at their T-junctions. Skirt vertices follow the grid's:
+    /// a border sample's x, y and height with the drop in w (the one
+    /// vertex kind whose w is not 0), so a skirt is placed `skirt_depth`
+    /// lower but shaded as the ground at its border (see mesh.frag).
     pub skirt_depth: f64,
 }
 
@@ -301,7 +305,15 @@ impl HybridModel {
         // Patches in grid units, nudged off the lattice, counter-clockwise.
         let mut patches = Vec::new();
         let mut tb_xy: Vec<[f64; 2]> = Vec::new();
-        for spec in default_patches() {
+        let specs = if map.patches.is_empty() {
+            default_patches()
+        } else {
+            map.patches.iter().map(|p| PatchSpec { name: "given patch", polygon: p.clone() }).collect()
+        };
+        for spec in specs {
+            if spec.polygon.len() < 3 || spec.polygon.iter().flatten().any(|c| !c.is_finite()) {
+                bail!("'{name}': TIN patch '{}' needs at least 3 finite vertices", spec.name);
+            }
             let mut poly: Vec<[f64; 2]> = spec.polygon.iter().map(|p| [p[0] * dw + 0.3183, p[1] * dh + 0.2718]).collect();
             if signed_area(&poly) < 0.0 {
                 poly.reverse();
@@ -576,8 +588,8 @@ impl HybridModel {
         }))
     }
 
-    /// Skirt vertices (a lowered copy of every grid sample on a block
-    /// border) and each level's skirt triangles per block.
+    /// Skirt vertices (a copy of every grid sample and TB vertex on a block
+    /// border, with the drop) and each level's skirt triangles per block.
     fn add_skirts(&mut self, map: &Heightmap) {
         let depth = self.levels.iter().flat_map(|l| l.error_max.iter().copied()).fold(0.0, f64::max).max(1e-3 * map.range().1.abs().max(1.0));
         self.skirt_depth = depth;
@@ -588,8 +600,20 @@ impl HybridModel {
                 if i % b == 0 || j % b == 0 {
                     let v = self.vertices[self.grid_vertex(i, j) as usize];
                     skirt[(i + w * j) as usize] = self.vertices.len() as u32;
-                    self.vertices.push([v[0], v[1], (v[2] as f64 - depth) as f32, 0.0]);
+                    // The sample's own height, and the drop in w: the vertex
+                    // stage lowers it; shading sees the border's height.
+                    self.vertices.push([v[0], v[1], v[2], depth as f32]);
                 }
+            }
+        }
+        // TB vertices on block borders hang skirts too (PC cells' edges).
+        let mut tb_skirt = vec![u32::MAX; self.tb_xy.len()];
+        for (t, p) in self.tb_xy.iter().enumerate() {
+            let on = |c: f64| c.fract() == 0.0 && (c as u32) % b == 0;
+            if on(p[0]) || on(p[1]) {
+                let v = self.vertices[t];
+                tb_skirt[t] = self.vertices.len() as u32;
+                self.vertices.push([v[0], v[1], v[2], depth as f32]);
             }
         }
         for k in 0..self.levels.len() {
@@ -599,8 +623,9 @@ impl HybridModel {
                 for bx in 0..self.blocks[0] {
                     let start = idx.len() as u32;
                     let (x0, y0, x1, y1) = (bx * b, by * b, (bx + 1) * b, (by + 1) * b);
-                    // Border edges with the block's cell inside them; only
-                    // NC cells get skirts (one under a TIN could show through it).
+                    // Border edges with the block's cell inside them: NC
+                    // cells' whole edges, PC cells' parts outside the TINs
+                    // (a skirt under a TIN could show through it).
                     let mut border = Vec::new();
                     for t in (0..b).step_by(side as usize) {
                         border.push(([x0 + t, y0], [x0 + t + side, y0], [x0 + t, y0]));
@@ -609,13 +634,44 @@ impl HybridModel {
                         border.push(([x1, y0 + t], [x1, y0 + t + side], [x1 - side, y0 + t]));
                     }
                     let level = &self.levels[k];
+                    let block = (bx + self.blocks[0] * by) as usize;
                     for ([ax, ay], [cx, cy], [ix, iy]) in border {
-                        if level.class[(ix / side + level.cells[0] * (iy / side)) as usize] != CellClass::Nc {
-                            continue;
-                        }
                         let (a, c) = (self.grid_vertex(ax, ay), self.grid_vertex(cx, cy));
                         let (sa, sc) = (skirt[(ax + w * ay) as usize], skirt[(cx + w * cy) as usize]);
-                        idx.extend([a, c, sc, a, sc, sa]);
+                        match level.class[(ix / side + level.cells[0] * (iy / side)) as usize] {
+                            CellClass::Nc => idx.extend([a, c, sc, a, sc, sa]),
+                            CellClass::Cc => {}
+                            CellClass::Pc => {
+                                // The parts of the edge outside the TINs, split
+                                // where TB chains cross it.
+                                let r = &level.pc_by_block[block];
+                                let Some(pc) = level.pc[r.start as usize..r.end as usize].iter().find(|p| p.cell == [ix / side, iy / side]) else {
+                                    continue;
+                                };
+                                let horizontal = ay == cy;
+                                let along = |p: [f64; 2]| if horizontal { p[0] } else { p[1] };
+                                let mut stops: Vec<(f64, u32, u32)> = vec![(along([ax as f64, ay as f64]), a, sa)];
+                                for ch in &pc.chains {
+                                    for t in [self.tb_at(ch, 0), self.tb_at(ch, ch.len - 1)] {
+                                        let p = self.tb_xy[t as usize];
+                                        let on = if horizontal { p[1] == ay as f64 } else { p[0] == ax as f64 };
+                                        if on && tb_skirt[t as usize] != u32::MAX {
+                                            stops.push((along(p), t, tb_skirt[t as usize]));
+                                        }
+                                    }
+                                }
+                                stops.push((along([cx as f64, cy as f64]), c, sc));
+                                stops.sort_by(|p, q| p.0.total_cmp(&q.0));
+                                for pair in stops.windows(2) {
+                                    let (p, q) = (pair[0], pair[1]);
+                                    let mid = 0.5 * (p.0 + q.0);
+                                    let m = if horizontal { [mid, ay as f64] } else { [ax as f64, mid] };
+                                    if !self.patches.iter().any(|poly| inside(&poly.polygon, m)) {
+                                        idx.extend([p.1, q.1, q.2, p.1, q.2, p.2]);
+                                    }
+                                }
+                            }
+                        }
                     }
                     ranges.push(start..idx.len() as u32);
                 }
@@ -640,87 +696,105 @@ impl HybridModel {
 
     /// Triangles (geometry indices, counter-clockwise in x-y) covering the
     /// part of PC cell `pc` of `level` outside the TINs, appended to `out`.
+    ///
+    /// This is the one tessellation of the project: `shaders/terrain/
+    /// tessellate.glsl` is a line-by-line transcription that the GPU
+    /// methods run, so all three produce the same triangles in the same
+    /// order. That is why it computes in f32 (what a GPU computes in), in
+    /// cell-local coordinates (TB position minus the cell's corner, both
+    /// f32; exact for the coordinate on a grid line, and small numbers
+    /// elsewhere), with each product written so no fused multiply-add can
+    /// change a rounding (the shader marks them `precise`).
+    ///
+    /// Which border arcs lie outside the TINs needs no point-in-polygon
+    /// test: a TB runs counter-clockwise around its patch (the TIN on its
+    /// left), so the arc that leaves a chain's entry point counter-clockwise
+    /// along the cell border is outside, and the arc that leaves its exit
+    /// point is inside.
     pub fn tessellate(&self, level: usize, pc: &PcCell, out: &mut Vec<u32>) -> Result<()> {
         let side = self.levels[level].side;
-        let s = side as f64;
-        let (x0, y0) = (pc.cell[0] as f64 * s, pc.cell[1] as f64 * s);
-        let (x1, y1) = (x0 + s, y0 + s);
-        // Position along the border, counter-clockwise from (x0, y0).
-        let u_of = |p: [f64; 2]| -> f64 {
-            if p[1] == y0 {
-                p[0] - x0
-            } else if p[0] == x1 {
-                s + p[1] - y0
-            } else if p[1] == y1 {
-                2.0 * s + x1 - p[0]
+        let s = side as f32;
+        let origin = [(pc.cell[0] * side) as f32, (pc.cell[1] * side) as f32];
+        let local = |t: u32| {
+            let p = self.tb_xy[t as usize];
+            [p[0] as f32 - origin[0], p[1] as f32 - origin[1]]
+        };
+        // Position along the border, counter-clockwise from the corner.
+        let u_of = |p: [f32; 2]| -> f32 {
+            if p[1] == 0.0 {
+                p[0]
+            } else if p[0] == s {
+                s + p[1]
+            } else if p[1] == s {
+                2.0 * s + (s - p[0])
             } else {
-                3.0 * s + y1 - p[1]
+                3.0 * s + (s - p[1])
             }
         };
-        let point_at = |u: f64| -> [f64; 2] {
-            if u < s {
-                [x0 + u, y0]
-            } else if u < 2.0 * s {
-                [x1, y0 + u - s]
-            } else if u < 3.0 * s {
-                [x1 - (u - 2.0 * s), y1]
-            } else {
-                [x0, y1 - (u - 3.0 * s)]
-            }
-        };
-        let corners = [(0.0, [pc.cell[0] * side, pc.cell[1] * side]), (s, [(pc.cell[0] + 1) * side, pc.cell[1] * side]),
-            (2.0 * s, [(pc.cell[0] + 1) * side, (pc.cell[1] + 1) * side]), (3.0 * s, [pc.cell[0] * side, (pc.cell[1] + 1) * side])];
-        // Chain ends on the border: (u, chain, is its start).
-        let mut ends: Vec<(f64, usize, bool)> = Vec::new();
+        let corner_ids = [
+            self.grid_vertex(pc.cell[0] * side, pc.cell[1] * side),
+            self.grid_vertex((pc.cell[0] + 1) * side, pc.cell[1] * side),
+            self.grid_vertex((pc.cell[0] + 1) * side, (pc.cell[1] + 1) * side),
+            self.grid_vertex(pc.cell[0] * side, (pc.cell[1] + 1) * side),
+        ];
+        let corner_xy = [[0.0, 0.0], [s, 0.0], [s, s], [0.0, s]];
+        // Chain ends on the border: (u, chain, is its start), sorted by u
+        // (insertion sort, as the shader does; the u are distinct).
+        let mut ends: Vec<(f32, usize, bool)> = Vec::new();
         for (ci, ch) in pc.chains.iter().enumerate() {
-            let a = self.tb_xy[self.tb_at(ch, 0) as usize];
-            let b = self.tb_xy[self.tb_at(ch, ch.len - 1) as usize];
-            ends.push((u_of(a), ci, true));
-            ends.push((u_of(b), ci, false));
-        }
-        ends.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let m = ends.len();
-        let arc_mid = |i: usize| {
-            let (ua, mut ub) = (ends[i].0, ends[(i + 1) % m].0);
-            if ub <= ua {
-                ub += 4.0 * s;
+            for (k, is_start) in [(0, true), (ch.len - 1, false)] {
+                let e = (u_of(local(self.tb_at(ch, k))), ci, is_start);
+                let mut at = ends.len();
+                while at > 0 && ends[at - 1].0 > e.0 {
+                    at -= 1;
+                }
+                ends.insert(at, e);
             }
-            point_at((0.5 * (ua + ub)) % (4.0 * s))
-        };
-        let outside = |p: [f64; 2]| !self.patches.iter().any(|q| inside(&q.polygon, p));
+        }
+        let m = ends.len();
         let mut visited = vec![false; m];
+        let (mut ring, mut pts) = (Vec::new(), Vec::new());
         for start in 0..m {
-            if visited[start] || !outside(arc_mid(start)) {
+            if visited[start] || !ends[start].2 {
                 continue;
             }
-            let mut ring: Vec<u32> = Vec::new();
+            ring.clear();
+            pts.clear();
             let mut i = start;
             loop {
                 visited[i] = true;
-                // Arc from end i to end i+1: its first end and the corners.
-                let (ci, is_start) = (ends[i].1, ends[i].2);
-                let ch = &pc.chains[ci];
-                ring.push(if is_start { self.tb_at(ch, 0) } else { self.tb_at(ch, ch.len - 1) });
+                // Arc from end i (a chain's entry) to end i+1: end i, then
+                // the corners strictly between.
+                let ch = &pc.chains[ends[i].1];
+                let first = self.tb_at(ch, 0);
+                ring.push(first);
+                pts.push(local(first));
                 let (ua, mut ub) = (ends[i].0, ends[(i + 1) % m].0);
                 if ub <= ua {
                     ub += 4.0 * s;
                 }
                 for round in 0..2 {
-                    for &(cu, [cx, cy]) in &corners {
-                        let cu = cu + round as f64 * 4.0 * s;
+                    for c in 0..4 {
+                        let cu = c as f32 * s + round as f32 * 4.0 * s;
                         if cu > ua && cu < ub {
-                            ring.push(self.grid_vertex(cx, cy));
+                            ring.push(corner_ids[c]);
+                            pts.push(corner_xy[c]);
                         }
                     }
                 }
-                // The chain from end i+1 to its other end.
+                // End i+1 is a chain's exit: that chain backwards to just
+                // after its entry, which is the next arc's first vertex.
                 let j = (i + 1) % m;
-                let (cj, j_start) = (ends[j].1, ends[j].2);
-                let ch = &pc.chains[cj];
-                let steps: Vec<u32> = if j_start { (0..ch.len - 1).collect() } else { (1..ch.len).rev().collect() };
-                ring.extend(steps.into_iter().map(|k| self.tb_at(ch, k)));
-                let other = ends.iter().position(|e| e.1 == cj && e.2 != j_start).context("chain end missing")?;
-                i = other;
+                if ends[j].2 {
+                    bail!("PC cell {:?} at level {level}: two chain entries follow each other on the border", pc.cell);
+                }
+                let ch = &pc.chains[ends[j].1];
+                for k in (1..ch.len).rev() {
+                    let t = self.tb_at(ch, k);
+                    ring.push(t);
+                    pts.push(local(t));
+                }
+                i = ends.iter().position(|e| e.1 == ends[j].1 && e.2).context("chain entry missing")?;
                 if i == start {
                     break;
                 }
@@ -728,13 +802,13 @@ impl HybridModel {
                     bail!("PC cell {:?} at level {level}: the border walk does not close", pc.cell);
                 }
             }
-            let pts: Vec<[f64; 2]> = ring.iter().map(|&v| self.xy(v)).collect();
             ear_clip(&pts, &ring, out).with_context(|| format!("tessellating PC cell {:?} at level {level}", pc.cell))?;
         }
         Ok(())
     }
 
     /// Grid coordinates of a geometry vertex (TB or grid sample).
+    #[cfg(test)]
     fn xy(&self, v: u32) -> [f64; 2] {
         if (v as usize) < self.tb_xy.len() {
             self.tb_xy[v as usize]
@@ -774,45 +848,54 @@ fn cell_error(map: &Heightmap, [x0, y0]: [u32; 2], side: u32) -> (f64, f64) {
     (mx, sse)
 }
 
-/// Ear clipping of a simple counter-clockwise ring (positions `pts`,
-/// geometry indices `ids`). When nothing else can be clipped a collinear
-/// vertex is clipped as a flat triangle (every ring edge stays an edge).
-pub fn ear_clip(pts: &[[f64; 2]], ids: &[u32], out: &mut Vec<u32>) -> Result<()> {
+/// Twice the area (cell-local units²) below which a ring vertex counts as
+/// collinear with its neighbours when no ear is left (f32 rounding of
+/// coordinates up to 16 is ~1e-6; see `ear_clip`).
+pub const FLAT_AREA: f32 = 1e-4;
+
+/// Twice the signed area of triangle o, a, b in f32, evaluated in this
+/// order (the shader's `cross2` is the same expression, `precise`).
+pub fn cross_f32(o: [f32; 2], a: [f32; 2], b: [f32; 2]) -> f32 {
+    let p = (a[0] - o[0]) * (b[1] - o[1]);
+    let q = (a[1] - o[1]) * (b[0] - o[0]);
+    p - q
+}
+
+/// Ear clipping of a simple counter-clockwise ring (cell-local positions
+/// `pts`, geometry indices `ids`), in f32 (see `HybridModel::tessellate`):
+/// the first convex vertex, in ring order, whose triangle holds no other
+/// ring vertex is clipped, again and again. When nothing else can be
+/// clipped, the first (nearly) collinear vertex is clipped as a flat
+/// triangle (every ring edge stays an edge: dropping it would leave a
+/// T-junction against the TIN or the neighbour, which the rasterizer's
+/// snapping turns into gaps or overlaps).
+pub fn ear_clip(pts: &[[f32; 2]], ids: &[u32], out: &mut Vec<u32>) -> Result<()> {
     let mut ring: Vec<usize> = (0..pts.len()).collect();
     while ring.len() > 3 {
         let n = ring.len();
-        let mut clipped = false;
+        let mut clip = None;
         for k in 0..n {
             let (a, b, c) = (ring[(k + n - 1) % n], ring[k], ring[(k + 1) % n]);
-            if cross(pts[a], pts[b], pts[c]) <= 1e-12 {
+            if cross_f32(pts[a], pts[b], pts[c]) <= 0.0 {
                 continue;
             }
             let blocked = ring.iter().any(|&o| {
                 o != a && o != b && o != c && {
                     let p = pts[o];
-                    cross(pts[a], pts[b], p) >= 0.0 && cross(pts[b], pts[c], p) >= 0.0 && cross(pts[c], pts[a], p) >= 0.0
+                    cross_f32(pts[a], pts[b], p) >= 0.0 && cross_f32(pts[b], pts[c], p) >= 0.0 && cross_f32(pts[c], pts[a], p) >= 0.0
                 }
             });
             if !blocked {
-                out.extend([ids[a], ids[b], ids[c]]);
-                ring.remove(k);
-                clipped = true;
+                clip = Some(k);
                 break;
             }
         }
-        if !clipped {
-            // Clip a (nearly) collinear vertex as a flat triangle: dropping
-            // it would leave a T-junction against the TIN or the neighbour,
-            // which the rasterizer's snapping turns into gaps or overlaps.
-            let k = (0..n).find(|&k| cross(pts[ring[(k + n - 1) % n]], pts[ring[k]], pts[ring[(k + 1) % n]]).abs() <= 1e-12);
-            match k {
-                Some(k) => {
-                    out.extend([ids[ring[(k + n - 1) % n]], ids[ring[k]], ids[ring[(k + 1) % n]]]);
-                    ring.remove(k);
-                }
-                None => bail!("no ear in a ring of {n} vertices (not simple or not counter-clockwise)"),
-            }
+        if clip.is_none() {
+            clip = (0..n).find(|&k| cross_f32(pts[ring[(k + n - 1) % n]], pts[ring[k]], pts[ring[(k + 1) % n]]).abs() <= FLAT_AREA);
         }
+        let Some(k) = clip else { bail!("no ear in a ring of {n} vertices (not simple or not counter-clockwise)") };
+        out.extend([ids[ring[(k + n - 1) % n]], ids[ring[k]], ids[ring[(k + 1) % n]]]);
+        ring.remove(k);
     }
     if ring.len() == 3 {
         out.extend(ring.iter().map(|&r| ids[r]));
@@ -890,11 +973,11 @@ mod tests {
     #[test]
     fn ear_clip_handles_collinear_points_and_reflex_corners() {
         // An L with points along its edges.
-        let pts = [[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [2.0, 1.0], [1.0, 1.0], [1.0, 2.0], [0.0, 2.0], [0.0, 1.0]];
+        let pts: [[f32; 2]; 8] = [[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [2.0, 1.0], [1.0, 1.0], [1.0, 2.0], [0.0, 2.0], [0.0, 1.0]];
         let ids: Vec<u32> = (0..8).collect();
         let mut out = Vec::new();
         ear_clip(&pts, &ids, &mut out).unwrap();
-        let a: f64 = out.chunks(3).map(|t| 0.5 * cross(pts[t[0] as usize], pts[t[1] as usize], pts[t[2] as usize])).sum();
+        let a: f32 = out.chunks(3).map(|t| 0.5 * cross_f32(pts[t[0] as usize], pts[t[1] as usize], pts[t[2] as usize])).sum();
         assert!((a - 3.0).abs() < 1e-12, "{a}");
         assert!(ear_clip(&[[0.0, 0.0], [0.0, 1.0], [1.0, 1.0], [1.0, 0.0]], &[0, 1, 2, 3], &mut out).is_err());
     }

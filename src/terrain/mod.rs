@@ -36,6 +36,10 @@ pub struct Heightmap {
     pub heights: Vec<f32>,
     /// Samples that were NaN or nodata and were filled (see the module note).
     pub nodata_filled: usize,
+    /// TIN patch outlines in fractions of the domain (simple, disjoint,
+    /// inside it); empty: the default corridor and site
+    /// (`hybrid::HybridModel::build`). Files never set them; tests do.
+    pub patches: Vec<Vec<[f64; 2]>>,
 }
 
 impl Heightmap {
@@ -75,7 +79,7 @@ impl Heightmap {
                 }
             })
             .collect();
-        Ok(Heightmap { name: file.to_string(), nx, ny, spacing, heights, nodata_filled: filled })
+        Ok(Heightmap { name: file.to_string(), nx, ny, spacing, heights, nodata_filled: filled, patches: Vec::new() })
     }
 
     pub fn height(&self, x: usize, y: usize) -> f32 {

@@ -491,6 +491,21 @@ impl CommandRecorder {
         unsafe { self.ctx.device.cmd_draw_indexed(self.raw, count, 1, first, 0, 0) };
     }
 
+    /// One indexed draw whose arguments (`VkDrawIndexedIndirectCommand`,
+    /// 20 bytes) the device reads from `args` at `offset` (e.g. written by
+    /// a compute pass).
+    pub fn draw_indexed_indirect(&self, args: &Buffer, offset: u64) -> VkResult<()> {
+        if offset % 4 != 0 || offset.checked_add(20).is_none_or(|end| end > args.size()) {
+            return Err(VkError::Invalid(format!(
+                "indirect draw arguments at byte {offset} of buffer '{}' ({} bytes)",
+                args.desc.name,
+                args.size()
+            )));
+        }
+        unsafe { self.ctx.device.cmd_draw_indexed_indirect(self.raw, args.raw, offset, 1, 20) };
+        Ok(())
+    }
+
     /// Dispatch a `[x, y, z]` grid of workgroups of the bound compute
     /// pipeline; each dimension must be within maxComputeWorkGroupCount.
     pub fn dispatch(&self, groups: [u32; 3]) -> VkResult<()> {

@@ -224,6 +224,9 @@ pub struct DeviceInfo {
     pub max_compute_work_group_size: [u32; 3],
     pub max_compute_work_group_invocations: u32,
     pub max_geometry_output_vertices: u32,
+    /// All components (built-ins included) one geometry-shader invocation
+    /// may emit over all its vertices.
+    pub max_geometry_total_output_components: u32,
 }
 
 /// Messages the validation layer reported, shared with its callback.
@@ -538,6 +541,7 @@ impl Context {
             max_compute_work_group_size: limits.max_compute_work_group_size,
             max_compute_work_group_invocations: limits.max_compute_work_group_invocations,
             max_geometry_output_vertices: limits.max_geometry_output_vertices,
+            max_geometry_total_output_components: limits.max_geometry_total_output_components,
         };
         Ok((physical, device, queue_family, info))
     }

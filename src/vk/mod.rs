@@ -42,6 +42,6 @@ pub use pipeline::{Blend, ColorTarget, ComputePipelineDesc, GraphicsPipelineDesc
 pub use pipeline_cache::{
     fnv1a64, ComputePipelineKey, GraphicsPipelineKey, GraphicsState, PipelineCache, PipelineKey, ShaderKey,
 };
-pub use query::{FrameQueries, PipelineStats};
+pub use query::{FrameQueries, PipelineStats, TimestampPool};
 pub use shader::{compile_glsl, ShaderModule, ShaderStage};
 pub use upload::{UploadClass, UploadCounter};

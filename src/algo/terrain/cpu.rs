@@ -114,6 +114,13 @@ impl RenderMethod for HmCpu {
         }))
     }
 
+    /// The fingerprint of this frame's PC triangles (`tables::triangle_digest`),
+    /// which the GPU methods' must equal.
+    fn diagnostics(&mut self, _view: &View) -> Result<Option<serde_json::Value>> {
+        let (triangles, digest) = super::tables::triangle_digest(&self.indices);
+        Ok(Some(json!({ "pc_triangles": triangles, "pc_digest": digest, "tessellation_errors": 0 })))
+    }
+
     fn table_build_ms(&self) -> f64 {
         self.scene.build_ms
     }

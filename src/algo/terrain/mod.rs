@@ -5,8 +5,13 @@
 //! the static device data (geometry buffer with the TB vertices first, the
 //! NC cells' and TINs' static indices), level-of-detail selection per block,
 //! the scripted fly-over camera, the pipeline and the frame's draws of NC
-//! cells and TINs. `cpu` is HM's original placement (tessellate on the CPU
-//! every frame, upload the triangles).
+//! cells and TINs. The methods: `cpu` is HM's original placement
+//! (tessellate on the CPU every frame, upload the triangles), `gpu` GPU HM
+//! (a geometry shader per active PC-list entry, only the active PC list
+//! uploaded), `compute` the same tessellation in a compute pass drawn
+//! indirectly; `tables` holds the PC data both GPU methods read. All three
+//! run the one tessellation (`HybridModel::tessellate`, transcribed in
+//! `shaders/terrain/tessellate.glsl`), so they draw the same triangles.
 //!
 //! Level of detail: each block (a coarsest cell) takes the coarsest level
 //! whose largest height error in the block, projected at the block's
@@ -15,11 +20,15 @@
 //! with T-junctions (the finer side has vertices the coarser edge lacks);
 //! the skirt rule covers the cracks: every active block draws, with its NC
 //! cells, a vertical strip hanging from its border at its level, as deep as
-//! the largest grid error of any level (`HybridModel::skirt_depth`).
+//! the largest grid error of any level (`HybridModel::skirt_depth`), shaded
+//! as the ground at its border (see mesh.frag).
 //! Skirts are vertical, so they cover nothing seen from straight above;
 //! the coverage-count output leaves them out.
 
+pub mod compute;
 pub mod cpu;
+pub mod gpu;
+pub mod tables;
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -33,8 +42,8 @@ use crate::scene::{Camera, Projection};
 use crate::terrain::hybrid::HybridModel;
 use crate::terrain::Heightmap;
 use crate::vk::{
-    raw, Blend, Buffer, BufferDesc, ColorTarget, CommandRecorder, Context, GraphicsPipelineKey, GraphicsState, Image, Pipeline,
-    PipelineKey, ShaderKey, ShaderStage, UploadClass, UploadCounter, VertexAttribute,
+    raw, Blend, Buffer, BufferDesc, ColorTarget, CommandRecorder, Context, DescriptorSetDesc, GraphicsPipelineKey, GraphicsState,
+    Image, Pipeline, PipelineKey, ShaderKey, ShaderStage, TexelBuffer, UploadClass, UploadCounter, VertexAttribute,
 };
 
 pub const OPTIONS: &[OptionSpec] = &[
@@ -81,7 +90,8 @@ const TINT_NC: [f32; 3] = [0.35, 0.75, 0.3];
 const TINT_PC: [f32; 3] = [1.0, 0.55, 0.1];
 const TINT_TIN: [f32; 3] = [0.25, 0.45, 1.0];
 
-/// Push constants: mat4, tint, light, range.
+/// Push constants: mat4, tint, light, range (range.zw: the grid's first
+/// geometry index and row length, as u32 bits, for the PC tessellators).
 pub const PUSH_BYTES: u32 = 112;
 
 /// The options as typed values.
@@ -141,6 +151,36 @@ pub fn top_down(model: &HybridModel, lo: f64, hi: f64) -> Camera {
     }
 }
 
+/// A terrain pipeline's key: the shared fragment stage (shaded, or the
+/// coverage count), blend and depth by `settings`; the vertex input is one
+/// 16-byte attribute (a position, or a PC-list entry).
+pub fn mesh_key(
+    settings: &Settings,
+    vertex: ShaderKey,
+    geometry: Option<ShaderKey>,
+    attribute: VertexAttribute,
+    topology: raw::PrimitiveTopology,
+    sets: Vec<DescriptorSetDesc>,
+) -> PipelineKey {
+    PipelineKey::Graphics(GraphicsPipelineKey {
+        vertex,
+        geometry,
+        fragment: ShaderKey::new("terrain/mesh.frag", ShaderStage::Fragment, if settings.coverage { &[("COVERAGE", "1")] } else { &[] }),
+        state: GraphicsState {
+            vertex_stride: 16,
+            attributes: vec![attribute],
+            topology,
+            primitive_restart: false,
+            cull: raw::CullModeFlags::NONE,
+            front_face: raw::FrontFace::COUNTER_CLOCKWISE,
+            targets: vec![ColorTarget::rgba32f(if settings.coverage { Blend::Additive } else { Blend::None })],
+            depth_test: !settings.coverage,
+        },
+        push_constant_bytes: PUSH_BYTES,
+        sets,
+    })
+}
+
 /// What a frame draws, chosen on the CPU.
 #[derive(Debug, Clone, Default)]
 pub struct ActiveSet {
@@ -164,7 +204,9 @@ pub struct ActiveSet {
 pub struct TerrainScene {
     pub model: HybridModel,
     pub settings: Settings,
-    pub geometry: Buffer,
+    /// World positions, TB vertices first; also a texel buffer (RGBA32F)
+    /// the geometry shader reads (the paper's TBO).
+    pub geometry: TexelBuffer,
     /// NC indices of every level, then the TINs'.
     pub static_indices: Buffer,
     /// Offset of each level's NC indices in `static_indices`.
@@ -197,8 +239,9 @@ impl TerrainScene {
             anyhow::ensure!(l < model.levels.len(), "option 'level' = {l}: '{}' has levels 0 to {}", map.name, model.levels.len() - 1);
         }
         let geo = bytes_of(&model.vertices);
-        let mut geometry = Buffer::new(ctx, BufferDesc::upload("terrain geometry", geo.len() as u64, raw::BufferUsageFlags::VERTEX_BUFFER))?;
-        geometry.write(0, geo, counter, UploadClass::Static)?;
+        let usage = raw::BufferUsageFlags::VERTEX_BUFFER | raw::BufferUsageFlags::UNIFORM_TEXEL_BUFFER;
+        let mut geometry = TexelBuffer::new(ctx, BufferDesc::upload("terrain geometry", geo.len() as u64, usage), raw::Format::R32G32B32A32_SFLOAT)?;
+        geometry.buffer.write(0, geo, counter, UploadClass::Static)?;
         let mut all = Vec::new();
         let (mut level_offsets, mut skirt_offsets) = (Vec::new(), Vec::new());
         for l in &model.levels {
@@ -212,23 +255,14 @@ impl TerrainScene {
         let idx = bytes_of(&all);
         let mut static_indices = Buffer::new(ctx, BufferDesc::upload("terrain static indices", idx.len() as u64, raw::BufferUsageFlags::INDEX_BUFFER))?;
         static_indices.write(0, idx, counter, UploadClass::Static)?;
-        let key = PipelineKey::Graphics(GraphicsPipelineKey {
-            vertex: ShaderKey::new("terrain/mesh.vert", ShaderStage::Vertex, &[]),
-            geometry: None,
-            fragment: ShaderKey::new("terrain/mesh.frag", ShaderStage::Fragment, if settings.coverage { &[("COVERAGE", "1")] } else { &[] }),
-            state: GraphicsState {
-                vertex_stride: 16,
-                attributes: vec![VertexAttribute { location: 0, format: raw::Format::R32G32B32A32_SFLOAT, offset: 0 }],
-                topology: raw::PrimitiveTopology::TRIANGLE_LIST,
-                primitive_restart: false,
-                cull: raw::CullModeFlags::NONE,
-                front_face: raw::FrontFace::COUNTER_CLOCKWISE,
-                targets: vec![ColorTarget::rgba32f(if settings.coverage { Blend::Additive } else { Blend::None })],
-                depth_test: !settings.coverage,
-            },
-            push_constant_bytes: PUSH_BYTES,
-            sets: vec![],
-        });
+        let key = mesh_key(
+            &settings,
+            ShaderKey::new("terrain/mesh.vert", ShaderStage::Vertex, &[]),
+            None,
+            VertexAttribute { location: 0, format: raw::Format::R32G32B32A32_SFLOAT, offset: 0 },
+            raw::PrimitiveTopology::TRIANGLE_LIST,
+            vec![],
+        );
         let pipeline = crate::algo::pipelines::get(ctx, &key)?;
         let depth = if settings.coverage { None } else { Some(Image::depth_target(ctx, "terrain depth", width, height)?) };
         let range = map.range();
@@ -335,7 +369,8 @@ impl TerrainScene {
         let mut v: Vec<f32> = m.to_cols_array().iter().map(|&x| x as f32).collect();
         v.extend([tint[0], tint[1], tint[2], if self.settings.classes { 0.85 } else { 0.0 }]);
         v.extend([light.x as f32, light.y as f32, light.z as f32, 0.0]);
-        v.extend([self.range.0 as f32, self.range.1 as f32, 0.0, 0.0]);
+        let (base, width) = (self.model.grid_base, self.model.domain[0] + 1);
+        v.extend([self.range.0 as f32, self.range.1 as f32, f32::from_bits(base), f32::from_bits(width)]);
         bytes_of(&v).to_vec()
     }
 
@@ -348,7 +383,7 @@ impl TerrainScene {
             None => rec.begin_rendering(target, [0.0; 4]),
         }
         rec.bind_graphics(&self.pipeline, &[])?;
-        rec.bind_vertex_buffer(&self.geometry);
+        rec.bind_vertex_buffer(&self.geometry.buffer);
         rec.bind_index_buffer_u32(&self.static_indices);
         rec.push_constants(&self.pipeline, &self.push(view, TINT_NC), counter);
         for &(first, count) in self.active.nc_draws.iter().chain(&self.active.skirt_draws) {
@@ -387,6 +422,8 @@ impl TerrainScene {
         }
         json!({
             "family": "terrain",
+            // The suite sets the three placements of this work side by side.
+            "same_work": "PC-cell tessellation (NC cells, TINs and skirts drawn alike)",
             "variant": variant,
             "domain_cells": m.domain,
             "cropped": m.cropped,
