@@ -110,6 +110,11 @@ vec2 oriented(uint a, uint b, vec3 qa, vec3 qb, vec3 pa, vec3 pb) {
 // barycentric weights bw: (t, scalar); false when unusable (weights summing
 // to 0, a face seen edge-on, non-finite results).
 bool crossing(vec3 q0, vec3 q1, vec3 q2, vec3 bw, vec3 sv, out vec2 ts) {
+    // Edge values scale as length^2 and bw * q as length^3: normalised, so
+    // that meshes 1e-15 or 5e14 units across neither underflow nor
+    // overflow f32 (stress cases "mesh-scale-*").
+    float m = max(abs(bw.x), max(abs(bw.y), abs(bw.z)));
+    bw = m > 0.0 ? bw / m : bw;
     float sum = bw.x + bw.y + bw.z;
     vec3 x = bw.x * q0 + bw.y * q1 + bw.z * q2;
     float t = dot(x, ray_d) / sum;
