@@ -17,6 +17,7 @@ const SOURCES: &[(&str, &str)] = &[
     ("raycast/fullscreen.vert", include_str!("../shaders/raycast/fullscreen.vert")),
     ("raycast/march.frag", include_str!("../shaders/raycast/march.frag")),
     ("raycast/march.comp", include_str!("../shaders/raycast/march.comp")),
+    ("tet_raycast/walk.comp", include_str!("../shaders/tet_raycast/walk.comp")),
     ("terrain/common.glsl", include_str!("../shaders/terrain/common.glsl")),
     ("terrain/mesh.vert", include_str!("../shaders/terrain/mesh.vert")),
     ("terrain/mesh.frag", include_str!("../shaders/terrain/mesh.frag")),

@@ -267,6 +267,22 @@ impl IntegrationTables {
         length_scale: f64,
         counter: &mut UploadCounter,
     ) -> anyhow::Result<Self> {
+        Self::for_stages(ctx, tf, range, integrator, table_size, length_scale, raw::ShaderStageFlags::FRAGMENT, counter)
+    }
+
+    /// [`Self::new`] with the tables visible to `stages` (a compute method
+    /// integrates in its compute stage).
+    #[allow(clippy::too_many_arguments)]
+    pub fn for_stages(
+        ctx: &Arc<Context>,
+        tf: &TransferFunction,
+        range: (f64, f64),
+        integrator: Integrator,
+        table_size: usize,
+        length_scale: f64,
+        stages: raw::ShaderStageFlags,
+        counter: &mut UploadCounter,
+    ) -> anyhow::Result<Self> {
         check_table_size(integrator, table_size)?;
         // The table is one storage buffer: it must fit the device's range.
         let range_limit = u64::from(ctx.info.max_storage_buffer_range);
@@ -285,7 +301,7 @@ impl IntegrationTables {
         let usage = raw::BufferUsageFlags::STORAGE_BUFFER;
         let tf_buf = upload_static(ctx, "transfer function table", bytemuck::cast_slice(&tf_table), usage, counter)?;
         let table_buf = upload_static(ctx, "integration table", bytemuck::cast_slice(table.as_slice()), usage, counter)?;
-        let set = StorageBufferSet::new(ctx, "integration tables", &[&tf_buf, &table_buf], raw::ShaderStageFlags::FRAGMENT)?;
+        let set = StorageBufferSet::new(ctx, "integration tables", &[&tf_buf, &table_buf], stages)?;
         Ok(IntegrationTables {
             integrator,
             tf_range: (lo, hi),

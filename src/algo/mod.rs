@@ -8,3 +8,4 @@ pub mod pipelines;
 pub mod raycast;
 pub mod registry;
 pub mod terrain;
+pub mod tet_raycast;

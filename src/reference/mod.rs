@@ -83,7 +83,7 @@ pub mod gauss_legendre;
 pub mod integrate;
 pub mod psi;
 mod raycast;
-mod topology;
+pub(crate) mod topology;
 pub mod volume;
 
 use anyhow::{bail, ensure, Result};

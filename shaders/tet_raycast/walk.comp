@@ -1,0 +1,463 @@
+#version 450
+// Tetrahedral ray casting (Weiler, Kraus, Merz, Ertl, Vis 2003) in one
+// compute pass: one invocation per pixel. The ray finds its first boundary
+// face that it enters (a BVH over the boundary faces, built once), walks
+// cell to cell through face adjacency integrating each segment with the
+// shared integrator (common/integrate.glsl), and when it leaves the mesh
+// looks for the next boundary face it enters (non-convex meshes, seams).
+// Crossings are decided as the f64 reference decides them
+// (src/reference/raycast.rs): Plücker edge values of the ray against the
+// mesh's edges, each computed from its canonical orientation (lower vertex
+// index first) with `precise` arithmetic, so the two cells sharing a face and
+// the faces sharing an edge see bit-identical numbers, and zero values take
+// the sign of a symbolic perturbation of the ray. The exit point of one cell
+// is the entry of the next (carried, not recomputed), so depths telescope.
+// The whole line is searched for entries (as the reference does): a ray whose
+// eye lies inside the mesh starts its walk behind the eye and integrates
+// only from the near plane on.
+#ifndef WG_X
+#define WG_X 8
+#define WG_Y 8
+#endif
+layout(local_size_x = WG_X, local_size_y = WG_Y) in;
+
+layout(push_constant) uniform Frame {
+    vec4 eye;       // xyz: eye relative to the render origin; w: 1 perspective, 0 orthographic
+    vec4 forward;   // xyz: unit view direction; w: near (view depth)
+    vec4 right;     // xyz: right, scaled so that ndc x = 1 is the image's edge; w: far (view depth)
+    vec4 up;        // xyz: up, scaled alike; w: early-termination opacity (>= 1: off)
+    vec4 tf_range;  // as common/frame.glsl (read by common/integrate.glsl)
+    vec4 limits;    // x: entry tolerance (world units); y: step budget per ray (uint bits);
+                    // z: stall limit (uint bits); w: pre-integration length scale
+} frame;
+
+#include "common/integrate.glsl"
+
+// set 1: the mesh, uploaded once.
+layout(std430, set = 1, binding = 0) readonly buffer Points { vec4 points[]; };     // xyz: position; w: scalar
+layout(std430, set = 1, binding = 1) readonly buffer Tets { uvec4 tets[]; };        // vertex indices
+layout(std430, set = 1, binding = 2) readonly buffer Neighbors { uint neighbors[]; };  // [4 c + f] = 4 c' + f', NONE on the boundary
+layout(std430, set = 1, binding = 3) readonly buffer Solid { uint solid[]; };       // 1: positive volume; 0: flat
+struct Node {
+    vec4 lo;  // xyz: box min; w: inner: left child index; leaf: first primitive (uint bits)
+    vec4 hi;  // xyz: box max; w: 0 for an inner node (right child = left + 1), else primitive count (uint bits)
+};
+layout(std430, set = 1, binding = 4) readonly buffer Bvh { Node nodes[]; };
+layout(std430, set = 1, binding = 5) readonly buffer Prims { uint prims[]; };      // boundary face slots 4 c + f
+layout(std430, set = 1, binding = 6) buffer Counters {
+    uint cells_lo;          // cells visited, all rays (64 bits: lo, hi)
+    uint cells_hi;
+    uint max_cells;         // most cells one ray visited
+    uint rays_hit;          // rays that entered the mesh
+    uint terminated;        // rays stopped by early termination
+    uint reentering;        // rays that entered the mesh more than once
+    uint bound_hits;        // rays that exhausted the step budget
+    uint stalled;           // walks abandoned after STALL cells without progress
+    uint fallback_exits;    // exit faces chosen by the fallback rule (rounding)
+    uint reversed;          // walks stopped going backwards (flat boundary cells)
+    uint walks;             // walks started
+    uint entry_searches;    // BVH searches
+} counters;
+
+// set 2: the image.
+layout(set = 2, binding = 0, rgba32f) uniform writeonly image2D target;
+
+const uint NONE = 0xFFFFFFFFu;
+// Stands for infinity (depths are far below it).
+const float INF = 3.0e38;
+// Local vertices of face f (opposite vertex f), counter-clockwise seen from
+// outside a positively oriented tet (mesh::adjacency::FACE_VERTS).
+const uvec3 FACE_VERTS[4] = uvec3[4](uvec3(1, 2, 3), uvec3(0, 3, 2), uvec3(0, 1, 3), uvec3(0, 2, 1));
+
+// The ray: origin, unit direction, the two perturbation directions.
+vec3 ray_o;
+vec3 ray_d;
+vec3 ray_n1;
+vec3 ray_n2;
+
+// Vertex offset from the ray origin; the same operations for every cell.
+vec3 rel(vec3 p) {
+    precise vec3 q = p - ray_o;
+    return q;
+}
+
+// Edge value w = d . ((p_lo - o) x (p_hi - o)) of the canonically oriented
+// edge lo -> hi, and its sign with exact zeros resolved by the perturbation
+// o -> o + eps n1 + eps^2 n2 (see reference/raycast.rs, Ray::edge).
+vec2 edge_lo_hi(vec3 q_lo, vec3 q_hi, vec3 p_lo, vec3 p_hi) {
+    precise vec3 c = cross(q_lo, q_hi);
+    precise float w = dot(ray_d, c);
+    float s = sign(w);
+    if (s == 0.0) {
+        vec3 e = p_hi - p_lo;
+        s = sign(-dot(e, ray_n1));
+        if (s == 0.0) {
+            s = sign(-dot(e, ray_n2));
+        }
+    }
+    return vec2(w, s);
+}
+
+// The edge a -> b (global indices a, b): (value, sign).
+vec2 oriented(uint a, uint b, vec3 qa, vec3 qb, vec3 pa, vec3 pb) {
+    if (a < b) {
+        return edge_lo_hi(qa, qb, pa, pb);
+    }
+    return -edge_lo_hi(qb, qa, pb, pa);
+}
+
+// The crossing of the ray line with the face whose vertex offsets are q and
+// barycentric weights bw: (t, scalar); false when unusable (weights summing
+// to 0, a face seen edge-on, non-finite results).
+bool crossing(vec3 q0, vec3 q1, vec3 q2, vec3 bw, vec3 sv, out vec2 ts) {
+    // Edge values scale as length^2 and bw * q as length^3: normalised, so
+    // that meshes 1e-15 or 5e14 units across neither underflow nor
+    // overflow f32 (stress cases "mesh-scale-*").
+    float m = max(abs(bw.x), max(abs(bw.y), abs(bw.z)));
+    bw = m > 0.0 ? bw / m : bw;
+    float sum = bw.x + bw.y + bw.z;
+    vec3 x = bw.x * q0 + bw.y * q1 + bw.z * q2;
+    float t = dot(x, ray_d) / sum;
+    // The lowest scalar plus weighted differences, kept within the three
+    // values (a face of one scalar gives exactly it).
+    float lo = min(sv.x, min(sv.y, sv.z));
+    float hi = max(sv.x, max(sv.y, sv.z));
+    float s = clamp(lo + dot(bw, sv - lo) / sum, lo, hi);
+    ts = vec2(t, s);
+    return sum != 0.0 && abs(t) < 1e30 && !isnan(t) && !isnan(s);
+}
+
+// Whether the ray crosses boundary face `slot` entering the mesh (any way
+// for a flat cell, whose orientation says nothing), and where: (t, s).
+bool enters(uint slot, out vec2 ts) {
+    uint c = slot >> 2;
+    uvec3 fv = FACE_VERTS[slot & 3u];
+    uvec4 t4 = tets[c];
+    uint v[3] = uint[3](t4[fv.x], t4[fv.y], t4[fv.z]);
+    vec4 p0 = points[v[0]];
+    vec4 p1 = points[v[1]];
+    vec4 p2 = points[v[2]];
+    vec3 q0 = rel(p0.xyz);
+    vec3 q1 = rel(p1.xyz);
+    vec3 q2 = rel(p2.xyz);
+    bool either_way = solid[c] == 0u;
+    vec2 e01 = oriented(v[0], v[1], q0, q1, p0.xyz, p1.xyz);
+    if (e01.y == 0.0 || (e01.y > 0.0 && !either_way)) return false;
+    vec2 e12 = oriented(v[1], v[2], q1, q2, p1.xyz, p2.xyz);
+    if (e12.y != e01.y) return false;
+    vec2 e20 = oriented(v[2], v[0], q2, q0, p2.xyz, p0.xyz);
+    if (e20.y != e01.y) return false;
+    return crossing(q0, q1, q2, vec3(e12.x, e20.x, e01.x), vec3(p0.w, p1.w, p2.w), ts);
+}
+
+// (t, id) strictly before (t2, id2) in the order entries are taken.
+bool before(float t, uint id, float t2, uint id2) {
+    return t < t2 || (t == t2 && id < id2);
+}
+
+// The next boundary entry along the ray: the least (t, face) after
+// (t_prev, id_prev) (any when !have_prev) with t >= t_lo. Depth-first
+// through the BVH, nearer child first, pruned by the best entry so far.
+bool next_entry(float t_lo, bool have_prev, float t_prev, uint id_prev, out float t_best, out float s_best, out uint id_best) {
+    // Axis-parallel rays: a tiny component instead of 0 keeps the slabs finite.
+    vec3 inv = 1.0 / mix(ray_d, vec3(1e-20), lessThan(abs(ray_d), vec3(1e-20)));
+    t_best = INF;
+    s_best = 0.0;
+    id_best = NONE;
+    uint stack[48];
+    int sp = 0;
+    stack[sp++] = 0u;
+    while (sp > 0) {
+        Node n = nodes[stack[--sp]];
+        vec3 a = (n.lo.xyz - ray_o) * inv;
+        vec3 b = (n.hi.xyz - ray_o) * inv;
+        vec3 tmin3 = min(a, b);
+        vec3 tmax3 = max(a, b);
+        float tn = max(tmin3.x, max(tmin3.y, tmin3.z));
+        float tf = min(tmax3.x, min(tmax3.y, tmax3.z));
+        if (tn > tf || tf < t_lo || tn > t_best) continue;
+        uint count = floatBitsToUint(n.hi.w);
+        uint first = floatBitsToUint(n.lo.w);
+        if (count == 0u) {
+            if (sp + 2 > 48) continue;  // cannot happen: the tree is at most 40 levels deep
+            // Push the farther child first (by the box centre along the ray).
+            vec3 cl = 0.5 * (nodes[first].lo.xyz + nodes[first].hi.xyz);
+            vec3 cr = 0.5 * (nodes[first + 1u].lo.xyz + nodes[first + 1u].hi.xyz);
+            bool left_first = dot(cl - ray_o, ray_d) <= dot(cr - ray_o, ray_d);
+            stack[sp++] = left_first ? first + 1u : first;
+            stack[sp++] = left_first ? first : first + 1u;
+            continue;
+        }
+        for (uint k = 0u; k < count; ++k) {
+            uint slot = prims[first + k];
+            vec2 ts;
+            if (!enters(slot, ts)) continue;
+            if (ts.x < t_lo) continue;
+            if (have_prev && !before(t_prev, id_prev, ts.x, slot)) continue;
+            if (before(ts.x, slot, t_best, id_best)) {
+                t_best = ts.x;
+                s_best = ts.y;
+                id_best = slot;
+            }
+        }
+    }
+    return id_best != NONE;
+}
+
+// Per-ray tallies, added to the counters once per ray.
+uint n_cells = 0u;
+uint n_fallback = 0u;
+uint n_stalled = 0u;
+uint n_reversed = 0u;
+bool hit_bound = false;
+
+// Front-to-back accumulation: colour and transmittance.
+vec3 acc_c = vec3(0.0);
+float acc_t = 1.0;
+
+const int WALK_EXIT = 0;
+const int WALK_DONE = 1;
+const int WALK_TERMINATED = 2;
+
+// Walk from boundary face `face` entered at (t_in, s_in) until the ray leaves
+// the mesh (WALK_EXIT, t_exit), is done (far plane, budget) or opaque.
+//
+// The line crosses exactly two faces of a cell. The entry face (a0, a1, a2)
+// and its directed edge values (a0->a1, a1->a2, a2->a0), all of sign sigma,
+// are carried from the previous cell, so a cell costs one new vertex n (the
+// one opposite the entry face) and its three edges n->a_i: the face
+// (n, a_{k+1}, a_{k+2}) is crossed iff its three directed edges also have
+// sign sigma, i.e. sigma * sign(n->a_{k+1}) > 0 and sigma * sign(n->a_{k+2}) < 0.
+// This does not depend on the cell's orientation, so a flat cell (two
+// coincident vertices: an edge value exactly 0) is crossed through its
+// coincident face with a zero-length segment, as the reference crosses it.
+int walk(uint face, float t_in, float s_in, float t_min, float t_max, out float t_exit) {
+    uint tet = face >> 2;
+    uint f_in = face & 3u;
+    uint budget = floatBitsToUint(frame.limits.y);
+    uint stall_limit = floatBitsToUint(frame.limits.z);
+    float ert = frame.up.w;
+    uint stall = 0u;
+    t_exit = t_in;
+    uvec4 v = tets[tet];
+    uvec3 fv0 = FACE_VERTS[f_in];
+    uint a0 = v[fv0.x];
+    uint a1 = v[fv0.y];
+    uint a2 = v[fv0.z];
+    vec4 p0 = points[a0];
+    vec4 p1 = points[a1];
+    vec4 p2 = points[a2];
+    vec3 q0 = rel(p0.xyz);
+    vec3 q1 = rel(p1.xyz);
+    vec3 q2 = rel(p2.xyz);
+    vec2 e01 = oriented(a0, a1, q0, q1, p0.xyz, p1.xyz);
+    vec3 ae = vec3(e01.x, oriented(a1, a2, q1, q2, p1.xyz, p2.xyz).x, oriented(a2, a0, q2, q0, p2.xyz, p0.xyz).x);
+    float sigma = e01.y;
+    while (true) {
+        if (n_cells >= budget) {
+            hit_bound = true;
+            return WALK_DONE;
+        }
+        n_cells += 1u;
+        // A solid cell entered through a face it reads as an exit (the
+        // entry face's outward order, FACE_VERTS, carries sign +1) is being
+        // walked backwards (only after a flat boundary cell): stop there, as
+        // the reference does.
+        if (solid[tet] != 0u) {
+            uvec3 fv = FACE_VERTS[f_in];
+            uint x = v[fv.x];
+            uint y = v[fv.y];
+            uint z = v[fv.z];
+            bool same_order = (a0 == x && a1 == y) || (a0 == y && a1 == z) || (a0 == z && a1 == x);
+            if ((same_order ? sigma : -sigma) > 0.0) {
+                n_reversed += 1u;
+                t_exit = t_in;
+                return WALK_EXIT;
+            }
+        }
+        uint nid = v[f_in];
+        vec4 pn = points[nid];
+        vec3 qn = rel(pn.xyz);
+        vec2 e0 = oriented(nid, a0, qn, q0, pn.xyz, p0.xyz);
+        vec2 e1 = oriented(nid, a1, qn, q1, pn.xyz, p1.xyz);
+        vec2 e2 = oriented(nid, a2, qn, q2, pn.xyz, p2.xyz);
+        vec3 c = sigma * vec3(e0.y, e1.y, e2.y);
+        vec3 w = vec3(e0.x, e1.x, e2.x);
+        bool x0 = c.y > 0.0 && c.z < 0.0;
+        bool x1 = c.z > 0.0 && c.x < 0.0;
+        bool x2 = c.x > 0.0 && c.y < 0.0;
+        // Directed edge values of face k = (n, a_{k+1}, a_{k+2}) as its
+        // barycentric weights (a_{k+1}->a_{k+2}, a_{k+2}->n, n->a_{k+1}).
+        vec3 b0 = vec3(ae.y, -w.z, w.y);
+        vec3 b1 = vec3(ae.z, -w.x, w.z);
+        vec3 b2 = vec3(ae.x, -w.y, w.x);
+        uint k;
+        vec3 bw;
+        if (int(x0) + int(x1) + int(x2) == 1) {
+            k = x0 ? 0u : (x1 ? 1u : 2u);
+            bw = x0 ? b0 : (x1 ? b1 : b2);
+        } else {
+            // Rounding made the signs inconsistent (a ray within an ulp of a
+            // vertex or edge): the face whose worst edge is least wrong, its
+            // wrong-signed weights zeroed.
+            n_fallback += 1u;
+            vec3 s0 = sigma * b0;
+            vec3 s1 = sigma * b1;
+            vec3 s2 = sigma * b2;
+            float m0 = min(s0.x, min(s0.y, s0.z));
+            float m1 = min(s1.x, min(s1.y, s1.z));
+            float m2 = min(s2.x, min(s2.y, s2.z));
+            k = (m0 >= m1 && m0 >= m2) ? 0u : (m1 >= m2 ? 1u : 2u);
+            vec3 sk = k == 0u ? s0 : (k == 1u ? s1 : s2);
+            bw = max(sk, vec3(0.0)) * sigma;
+        }
+        vec3 bk = k == 0u ? b0 : (k == 1u ? b1 : b2);
+        // The exit face's vertices (n, r1, r2) = (n, a_{k+1}, a_{k+2}); a_k is
+        // the vertex it leaves behind.
+        uint r0 = k == 0u ? a0 : (k == 1u ? a1 : a2);
+        uint r1 = k == 0u ? a1 : (k == 1u ? a2 : a0);
+        uint r2 = k == 0u ? a2 : (k == 1u ? a0 : a1);
+        vec4 pr1 = k == 0u ? p1 : (k == 1u ? p2 : p0);
+        vec4 pr2 = k == 0u ? p2 : (k == 1u ? p0 : p1);
+        vec3 qr1 = k == 0u ? q1 : (k == 1u ? q2 : q0);
+        vec3 qr2 = k == 0u ? q2 : (k == 1u ? q0 : q1);
+        vec2 ts;
+        bool usable = crossing(qn, qr1, qr2, bw, vec3(pn.w, pr1.w, pr2.w), ts);
+        float t_out = t_in;
+        float s_out = s_in;
+        if (usable) {
+            t_out = max(ts.x, t_in);
+            s_out = ts.y;
+        }
+        if (t_out > t_in) {
+            stall = 0u;
+            if (t_out > t_min && t_in < t_max) {
+                float ta = max(t_in, t_min);
+                float tb = min(t_out, t_max);
+                float inv_len = 1.0 / (t_out - t_in);
+                float sa = ta > t_in ? mix(s_in, s_out, (ta - t_in) * inv_len) : s_in;
+                float sb = tb < t_out ? mix(s_in, s_out, (tb - t_in) * inv_len) : s_out;
+                if (tb > ta) {
+                    vec4 seg = integrate_segment(sa, sb, tb - ta);
+                    acc_c += acc_t * seg.rgb;
+                    acc_t *= 1.0 - seg.a;
+                }
+            }
+            if (acc_t <= 0.0 || (ert < 1.0 && 1.0 - acc_t >= ert)) {
+                return WALK_TERMINATED;
+            }
+            if (t_out >= t_max) {
+                return WALK_DONE;
+            }
+        } else {
+            stall += 1u;
+            if (stall > stall_limit) {
+                n_stalled += 1u;
+                t_exit = t_out;
+                return WALK_EXIT;
+            }
+        }
+        // The exit face is the one opposite r0 in this cell.
+        uint f_out = v.x == r0 ? 0u : (v.y == r0 ? 1u : (v.z == r0 ? 2u : 3u));
+        uint nb = neighbors[4u * tet + f_out];
+        if (nb == NONE) {
+            t_exit = t_out;
+            return WALK_EXIT;
+        }
+        a0 = nid;
+        a1 = r1;
+        a2 = r2;
+        p0 = pn;
+        p1 = pr1;
+        p2 = pr2;
+        q0 = qn;
+        q1 = qr1;
+        q2 = qr2;
+        ae = vec3(bk.z, bk.x, bk.y);
+        tet = nb >> 2;
+        f_in = nb & 3u;
+        t_in = t_out;
+        s_in = s_out;
+        v = tets[tet];
+    }
+    return WALK_DONE;
+}
+
+void main() {
+    ivec2 size = imageSize(target);
+    ivec2 px = ivec2(gl_GlobalInvocationID.xy);
+    if (px.x >= size.x || px.y >= size.y) return;
+    // The ray through the pixel's centre (scene::Camera::ray), relative to
+    // the render origin.
+    vec2 ndc = (vec2(px) + 0.5) / vec2(size) * 2.0 - 1.0;
+    vec3 fwd = frame.forward.xyz;
+    float cos_fwd;
+    if (frame.eye.w > 0.5) {
+        ray_o = frame.eye.xyz;
+        ray_d = normalize(fwd + frame.right.xyz * ndc.x - frame.up.xyz * ndc.y);
+        cos_fwd = dot(ray_d, fwd);
+    } else {
+        ray_o = frame.eye.xyz + frame.right.xyz * ndc.x - frame.up.xyz * ndc.y;
+        ray_d = fwd;
+        cos_fwd = 1.0;
+    }
+    // n1, n2: an orthonormal pair perpendicular to d (Ray::new's choice).
+    vec3 ad = abs(ray_d);
+    vec3 ax = (ad.x <= ad.y && ad.x <= ad.z) ? vec3(1, 0, 0) : (ad.y <= ad.z ? vec3(0, 1, 0) : vec3(0, 0, 1));
+    ray_n1 = normalize(cross(ray_d, ax));
+    ray_n2 = cross(ray_d, ray_n1);
+    // Segments are clipped to the view depths [near, far].
+    float t_min = frame.forward.w / cos_fwd;
+    float t_max = frame.right.w / cos_fwd;
+    float tol = frame.limits.x;
+
+    bool have_prev = false;
+    float t_prev = -INF;
+    uint id_prev = NONE;
+    float t_done = -INF;
+    uint walks = 0u;
+    uint searches = 0u;
+    bool terminated = false;
+    while (true) {
+        float t_e;
+        float s_e;
+        uint id_e;
+        searches += 1u;
+        // An entry up to the tolerance (plus a few f32 ulps of the depth)
+        // before the last exit still counts: coincident boundaries (seams)
+        // give the exit and the re-entry the same depth up to rounding.
+        float t_lo = have_prev ? t_done - (tol + 1e-5 * abs(t_done)) : -INF;
+        if (!next_entry(t_lo, have_prev, t_prev, id_prev, t_e, s_e, id_e)) break;
+        if (t_e >= t_max) break;
+        have_prev = true;
+        t_prev = t_e;
+        id_prev = id_e;
+        walks += 1u;
+        float t_exit;
+        int end = walk(id_e, t_e, s_e, t_min, t_max, t_exit);
+        if (end == WALK_TERMINATED) {
+            terminated = true;
+            break;
+        }
+        if (end == WALK_DONE) break;
+        t_done = t_exit;
+    }
+    imageStore(target, px, vec4(acc_c, 1.0 - acc_t));
+
+    if (n_cells > 0u) {
+        uint old = atomicAdd(counters.cells_lo, n_cells);
+        if (old > 0xFFFFFFFFu - n_cells) atomicAdd(counters.cells_hi, 1u);
+        atomicMax(counters.max_cells, n_cells);
+    }
+    if (walks > 0u) {
+        atomicAdd(counters.rays_hit, 1u);
+        atomicAdd(counters.walks, walks);
+    }
+    if (walks > 1u) atomicAdd(counters.reentering, 1u);
+    if (terminated) atomicAdd(counters.terminated, 1u);
+    if (hit_bound) atomicAdd(counters.bound_hits, 1u);
+    if (n_stalled > 0u) atomicAdd(counters.stalled, n_stalled);
+    if (n_fallback > 0u) atomicAdd(counters.fallback_exits, n_fallback);
+    if (n_reversed > 0u) atomicAdd(counters.reversed, n_reversed);
+    atomicAdd(counters.entry_searches, searches);
+}

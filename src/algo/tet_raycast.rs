@@ -1,0 +1,626 @@
+//! `tet-raycast`: hardware-based ray casting of tetrahedral meshes (Weiler,
+//! Kraus, Merz, Ertl, Vis 2003) as one compute pass (`shaders/tet_raycast/
+//! walk.comp`), beyond the thesis (issue 12). Each pixel's ray finds the
+//! first boundary face it enters, walks cell to cell through face adjacency,
+//! integrating each segment with the integrator the cell-projection methods
+//! use (`shaders/common/integrate.glsl`, the same tables), and after leaving
+//! the mesh continues at the next boundary face it enters (non-convex meshes,
+//! the oxygen post's unmerged seam). No sort and no per-frame cell data: the
+//! mesh (points with scalars, cells, face adjacency, which cells are solid)
+//! and a BVH over the boundary faces are uploaded once; per frame only the
+//! camera crosses (push constants).
+//!
+//! **Same walk as the f64 reference.** The adjacency is the reference's
+//! ([`Topology`]: `mesh::adjacency` by vertex index, cells with a repeated
+//! index left out, faces of three or more cells treated as boundary) and so
+//! is the crossing rule (Plücker edge values with canonical orientation and
+//! a symbolic perturbation; flat cells crossed whichever way they are
+//! oriented, with zero-length segments). Boundary entries are taken in
+//! (depth, face) order along the whole ray line, as the reference takes
+//! them, so the eye may be inside the mesh: the walk then starts behind the
+//! eye and integrates from the near plane on (not required by issue 12; it
+//! costs the cells behind the eye).
+//!
+//! **Entry search: a BVH over the boundary faces**, built once on the CPU
+//! (median split on the longest centroid axis, up to [`LEAF_FACES`] faces per
+//! leaf), traversed nearest child first for the least entry (t, face) after
+//! the previous one. The alternatives were a per-frame screen-tile binning
+//! (per-frame data crossing to the device) or a depth peel of boundary faces
+//! (a pass per layer); the BVH keeps the frame to the camera's bytes and
+//! handles any number of re-entries.
+//!
+//! **Bounded walks.** A ray visits at most (cells + [`STEP_MARGIN`]) cells
+//! over all its walks, and a walk that makes no progress in depth for
+//! [`STALL_LIMIT`] consecutive cells is abandoned (the reference's limits,
+//! with its step budget cut to one pass over the mesh plus a margin): the
+//! blunt fin's 77 zero-volume cells cannot hang a ray. Rays that hit the
+//! budget and stalled walks are counted and reported, as are exits chosen by
+//! the fallback rule (rounding) and walks stopped going backwards.
+//!
+//! **Early ray termination** (`ert`, default [`ERT_DEFAULT`]): a ray stops
+//! once its opacity reaches the threshold. What it drops is at most its
+//! remaining transmittance times the (≤ 1) colour of what lies behind, so
+//! the error per channel grows by at most 1 − ert (1e-3 at the default);
+//! `ert=1` stops only when the transmittance is exactly 0 in f32.
+//!
+//! **Counts** (device counters, read back after every frame, deterministic):
+//! cells visited (total, max per ray), rays that entered the mesh, rays that
+//! re-entered it, rays terminated early, walk-bound hits, stalled walks,
+//! fallback exits, reversed walks, BVH searches.
+
+use std::sync::Arc;
+
+use anyhow::{bail, Context as _, Result};
+use serde_json::json;
+
+use super::cell_projection::render::{self, enum_option};
+use super::cell_projection::{render_origin, scalar_map, ExitTolerances, FrameSetup, Interpolation, MeshScale};
+use super::integrate::{check_table_size, IntegrationTables, Integrator};
+use super::method::{DataKind, MethodInfo, MethodInputs, OptionSpec, OptionValues, Options, Phases, RenderMethod, SceneData, View, Work};
+use crate::mesh::adjacency::{FACE_VERTS, NONE};
+use crate::mesh::{TetGeometry, TetMesh};
+use crate::reference::topology::Topology;
+use crate::scene::{Camera, Projection};
+use crate::vk::raw::Handle as _;
+use crate::vk::{
+    raw, upload_static, Buffer, BufferDesc, CommandRecorder, ComputePipelineKey, Context, DescriptorKind, DescriptorResource,
+    DescriptorSet, DescriptorSetDesc, Image, ImageUse, MemoryKind, Pipeline, PipelineKey, ShaderKey, ShaderStage, UploadCounter,
+};
+
+/// Workgroup shape (pixels).
+pub const WORKGROUP: [u32; 2] = [8, 8];
+/// Largest number of boundary faces in a BVH leaf.
+pub const LEAF_FACES: usize = 4;
+/// Cells a ray may visit beyond one pass over the mesh.
+pub const STEP_MARGIN: u64 = 1024;
+/// Consecutive cells without progress in depth that abandon a walk.
+pub const STALL_LIMIT: u32 = 1024;
+/// The default early-termination opacity.
+pub const ERT_DEFAULT: f64 = 0.999;
+/// Push constants: 6 vec4.
+pub const PUSH_BYTES: u32 = 96;
+/// Counter words read back after every frame (`Counters` in walk.comp).
+const COUNTER_WORDS: usize = 12;
+/// The BVH's depth bound the shader's traversal stack holds (48 entries).
+const MAX_BVH_DEPTH: usize = 40;
+
+/// Integrator and table size as the cell-projection methods take them, plus
+/// the termination threshold.
+pub const OPTIONS: &[OptionSpec] = &[
+    render::OPTIONS[0],
+    render::OPTIONS[1],
+    OptionSpec {
+        name: "ert",
+        default: "0.999",
+        unit: "opacity",
+        values: OptionValues::Float { min: 0.5, max: 1.0 },
+        build_time: false,
+        help: "early ray termination: stop once the ray's opacity reaches this (1 = only when fully opaque); \
+               adds at most 1 - ert to a pixel's error",
+    },
+];
+
+pub const METHOD: MethodInfo = MethodInfo {
+    name: "tet-raycast",
+    data: DataKind::TetMesh,
+    summary: "tetrahedral ray casting in compute (Weiler et al. 2003): BVH entry, cell-to-cell walk through face \
+              adjacency, re-entry; only the camera per frame",
+    options: OPTIONS,
+    features: &[],
+    sweep: &[
+        "integrator=average",
+        "integrator=preint,table_size=128",
+        "integrator=ppi,table_size=128",
+        "integrator=ppi,table_size=512",
+        "integrator=ppi,table_size=1024",
+        "integrator=linear-exact",
+        "integrator=ppi,ert=0.99",
+        "integrator=ppi,ert=1",
+    ],
+    compare: &["", "ert=1"],
+    stress: &["integrator=average", "integrator=preint", "integrator=ppi", "integrator=linear-exact"],
+    suite: &[],
+    accuracy_bound,
+    published: &[],
+    check: check_options,
+    create,
+};
+
+/// The cell-projection bound of the integrator with exact interpolation
+/// (the segments are exact along each ray, as that interpolation's are),
+/// plus what early termination may drop (1 - ert).
+pub fn accuracy_bound(options: &Options, _perspective: bool) -> Option<f64> {
+    let integrator = options.text("integrator").unwrap_or_default();
+    let exact = Options(
+        [("integrator".to_string(), super::method::OptionValue::Text(integrator)), ("interpolation".to_string(), super::method::OptionValue::Text("exact".into()))]
+            .into_iter()
+            .collect(),
+    );
+    let base = render::accuracy_bound(&exact, true)?;
+    let ert = options.float("ert").unwrap_or(1.0);
+    Some(base + (1.0 - ert).max(0.0))
+}
+
+fn check_options(options: &Options) -> Result<()> {
+    Settings::from_options(options).map(|_| ())
+}
+
+/// The typed options.
+#[derive(Debug, Clone, Copy)]
+pub struct Settings {
+    pub integrator: Integrator,
+    pub table_size: usize,
+    pub ert: f64,
+}
+
+impl Settings {
+    pub fn from_options(options: &Options) -> Result<Self> {
+        let integrator: Integrator = enum_option(options, "integrator")?;
+        let table_size = options.int("table_size")? as usize;
+        check_table_size(integrator, table_size)?;
+        Ok(Settings { integrator, table_size, ert: options.float("ert")? })
+    }
+}
+
+/// A BVH over boundary faces, as the shader reads it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FaceBvh {
+    /// Per node: box min (w: left child or first primitive, u32 bits), box
+    /// max (w: 0 for an inner node, else the primitive count, u32 bits).
+    pub nodes: Vec<[f32; 8]>,
+    /// Face slots `4 c + f`, in leaf order.
+    pub prims: Vec<u32>,
+    pub depth: usize,
+}
+
+/// Builds the BVH of `faces` (slot, three vertex positions), each box
+/// padded by `pad`. Deterministic: ties in the median split are broken by
+/// slot. An empty input gives one node that no ray enters.
+pub fn build_face_bvh(faces: &[(u32, [[f32; 3]; 3])], pad: f32) -> FaceBvh {
+    struct Item {
+        slot: u32,
+        centroid: [f32; 3],
+        lo: [f32; 3],
+        hi: [f32; 3],
+    }
+    let mut items: Vec<Item> = faces
+        .iter()
+        .map(|&(slot, p)| {
+            let lo = std::array::from_fn(|k| p[0][k].min(p[1][k]).min(p[2][k]) - pad);
+            let hi = std::array::from_fn(|k| p[0][k].max(p[1][k]).max(p[2][k]) + pad);
+            let centroid = std::array::from_fn(|k| (p[0][k] + p[1][k] + p[2][k]) / 3.0);
+            Item { slot, centroid, lo, hi }
+        })
+        .collect();
+    let bits = |v: u32| f32::from_bits(v);
+    if items.is_empty() {
+        let e = 1e30f32;
+        return FaceBvh { nodes: vec![[e, e, e, bits(0), -e, -e, -e, bits(0)]], prims: Vec::new(), depth: 1 };
+    }
+    let mut nodes: Vec<[f32; 8]> = vec![[0.0; 8]];
+    let mut depth = 1;
+    // (node, start, end, level)
+    let mut stack = vec![(0usize, 0usize, items.len(), 1usize)];
+    while let Some((node, start, end, level)) = stack.pop() {
+        depth = depth.max(level);
+        let range = &mut items[start..end];
+        let mut lo = [f32::INFINITY; 3];
+        let mut hi = [f32::NEG_INFINITY; 3];
+        let mut clo = [f32::INFINITY; 3];
+        let mut chi = [f32::NEG_INFINITY; 3];
+        for it in range.iter() {
+            for k in 0..3 {
+                lo[k] = lo[k].min(it.lo[k]);
+                hi[k] = hi[k].max(it.hi[k]);
+                clo[k] = clo[k].min(it.centroid[k]);
+                chi[k] = chi[k].max(it.centroid[k]);
+            }
+        }
+        let count = end - start;
+        if count <= LEAF_FACES {
+            nodes[node] = [lo[0], lo[1], lo[2], bits(start as u32), hi[0], hi[1], hi[2], bits(count as u32)];
+            continue;
+        }
+        let ext: [f32; 3] = std::array::from_fn(|k| chi[k] - clo[k]);
+        let axis = if ext[0] >= ext[1] && ext[0] >= ext[2] { 0 } else if ext[1] >= ext[2] { 1 } else { 2 };
+        let mid = count / 2;
+        range.select_nth_unstable_by(mid, |a, b| a.centroid[axis].total_cmp(&b.centroid[axis]).then(a.slot.cmp(&b.slot)));
+        let left = nodes.len();
+        nodes.push([0.0; 8]);
+        nodes.push([0.0; 8]);
+        nodes[node] = [lo[0], lo[1], lo[2], bits(left as u32), hi[0], hi[1], hi[2], bits(0)];
+        stack.push((left + 1, start + mid, end, level + 1));
+        stack.push((left, start, start + mid, level + 1));
+    }
+    FaceBvh { nodes, prims: items.iter().map(|it| it.slot).collect(), depth }
+}
+
+fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
+    let SceneData::TetMesh { mesh, geometry } = inputs.data else {
+        bail!("tet-raycast renders tetrahedral meshes only");
+    };
+    let settings = Settings::from_options(inputs.options)?;
+    TetRaycast::new(inputs.ctx, mesh, geometry, inputs.tf, settings, inputs.width, inputs.height, inputs.counter)
+        .map(|m| Box::new(m) as Box<dyn RenderMethod>)
+}
+
+pub struct TetRaycast {
+    tables: IntegrationTables,
+    scale: MeshScale,
+    settings: Settings,
+    mesh_set: DescriptorSet,
+    _buffers: Vec<Buffer>,
+    counters: Buffer,
+    pipeline: Arc<Pipeline>,
+    key: PipelineKey,
+    target_desc: DescriptorSetDesc,
+    target_set: Option<(u64, DescriptorSet)>,
+    push: Vec<u8>,
+    pixels: u64,
+    cells: usize,
+    boundary_faces: usize,
+    bvh_nodes: usize,
+    bvh_depth: usize,
+    step_budget: u64,
+    ctx: Arc<Context>,
+}
+
+/// Bytes of `count` elements of `elem` bytes, refused above the device's
+/// storage-buffer range (named by `what` and the mesh).
+fn buffer_bytes(ctx: &Context, mesh: &TetMesh, what: &str, count: usize, elem: usize) -> Result<u64> {
+    let limit = u64::from(ctx.info.max_storage_buffer_range);
+    let bytes = (count as u64).checked_mul(elem as u64).filter(|&b| b <= limit);
+    bytes.ok_or_else(|| {
+        anyhow::anyhow!(
+            "mesh '{}': the {what} ({count} x {elem} bytes) exceed the device's maxStorageBufferRange ({limit} bytes)",
+            mesh.name
+        )
+    })
+}
+
+impl TetRaycast {
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        ctx: &Arc<Context>,
+        mesh: &TetMesh,
+        _geometry: &TetGeometry,
+        tf: &crate::scene::TransferFunction,
+        settings: Settings,
+        width: u32,
+        height: u32,
+        counter: &mut UploadCounter,
+    ) -> Result<Self> {
+        let n = mesh.tets.len();
+        if (n as u64) * 4 >= u64::from(NONE) {
+            bail!("mesh '{}': {n} cells are too many for 32-bit face slots", mesh.name);
+        }
+        for (what, count, elem) in [("points", mesh.points.len(), 16), ("cells", n, 16), ("neighbours", n, 16), ("solid flags", n, 4)] {
+            buffer_bytes(ctx, mesh, what, count, elem)?;
+        }
+        let info = &ctx.info;
+        crate::mesh::check_fits(n, 16 + 16 + 4 + 4 * 4 + 32, info.device_local_heap_bytes)
+            .with_context(|| format!("mesh '{}' on {}", mesh.name, info.name))?;
+        let length_scale = mesh.bounds().diagonal() / (n.max(1) as f64).cbrt();
+        let tables = IntegrationTables::for_stages(
+            ctx,
+            tf,
+            mesh.scalar_range(),
+            settings.integrator,
+            settings.table_size,
+            length_scale,
+            raw::ShaderStageFlags::COMPUTE,
+            counter,
+        )
+        .context("building the integration tables")?;
+        let topo = Topology::build(mesh);
+
+        // Points relative to the render origin and scalars mapped, in f64
+        // before the f32 conversion (as every tetrahedral method sends them).
+        let origin = render_origin(mesh);
+        let (so, ss) = scalar_map(mesh);
+        let points: Vec<[f32; 4]> = mesh
+            .points
+            .iter()
+            .zip(&mesh.scalars)
+            .map(|(p, s)| [(p[0] - origin[0]) as f32, (p[1] - origin[1]) as f32, (p[2] - origin[2]) as f32, ((s - so) / ss) as f32])
+            .collect();
+        let neighbors: Vec<u32> = topo.neighbor.clone();
+        let solid: Vec<u32> = topo.solid.iter().map(|&s| s as u32).collect();
+        let faces: Vec<(u32, [[f32; 3]; 3])> = topo
+            .boundary
+            .iter()
+            .map(|&slot| {
+                let t = &mesh.tets[(slot >> 2) as usize];
+                let fv = FACE_VERTS[(slot & 3) as usize];
+                (slot, fv.map(|l| {
+                    let p = points[t[l] as usize];
+                    [p[0], p[1], p[2]]
+                }))
+            })
+            .collect();
+        let diag = mesh.bounds().diagonal();
+        let bvh = build_face_bvh(&faces, (1e-5 * diag) as f32);
+        if bvh.depth > MAX_BVH_DEPTH {
+            bail!("mesh '{}': boundary-face BVH {} levels deep, more than the shader's {MAX_BVH_DEPTH}", mesh.name, bvh.depth);
+        }
+        buffer_bytes(ctx, mesh, "BVH nodes", bvh.nodes.len(), 32)?;
+
+        let usage = raw::BufferUsageFlags::STORAGE_BUFFER;
+        let up = |name: &str, bytes: &[u8], counter: &mut UploadCounter| upload_static(ctx, name, bytes, usage, counter);
+        // Empty arrays still need a buffer (zero-size buffers are invalid).
+        let nonempty = |b: &[u8]| if b.is_empty() { vec![0u8; 16] } else { b.to_vec() };
+        let buffers = vec![
+            up("tet-raycast points", &nonempty(bytemuck::cast_slice(&points)), counter)?,
+            up("tet-raycast cells", &nonempty(bytemuck::cast_slice(&mesh.tets)), counter)?,
+            up("tet-raycast neighbours", &nonempty(bytemuck::cast_slice(&neighbors)), counter)?,
+            up("tet-raycast solid flags", &nonempty(bytemuck::cast_slice(&solid)), counter)?,
+            up("tet-raycast boundary BVH", &nonempty(bytemuck::cast_slice(&bvh.nodes)), counter)?,
+            up("tet-raycast boundary faces", &nonempty(bytemuck::cast_slice(&bvh.prims)), counter)?,
+        ];
+        let counters = Buffer::new(
+            ctx,
+            BufferDesc {
+                name: "tet-raycast counters".into(),
+                size: (COUNTER_WORDS * 4) as u64,
+                usage: raw::BufferUsageFlags::STORAGE_BUFFER | raw::BufferUsageFlags::TRANSFER_DST,
+                memory: MemoryKind::Readback,
+            },
+        )?;
+        let mesh_desc = DescriptorSetDesc::storage_buffers(7, raw::ShaderStageFlags::COMPUTE);
+        let resources: Vec<DescriptorResource> =
+            buffers.iter().chain(std::iter::once(&counters)).map(DescriptorResource::StorageBuffer).collect();
+        let mesh_set = DescriptorSet::new(ctx, "tet-raycast mesh", &mesh_desc, &resources)?;
+        let target_desc = DescriptorSetDesc::new(&[(DescriptorKind::StorageImage, raw::ShaderStageFlags::COMPUTE)]);
+        let wg = WORKGROUP.map(|v| v.to_string());
+        let mut defines: Vec<(&str, &str)> = settings.integrator.define().into_iter().collect();
+        defines.push(("WG_X", &wg[0]));
+        defines.push(("WG_Y", &wg[1]));
+        let key = PipelineKey::Compute(ComputePipelineKey {
+            shader: ShaderKey::new("tet_raycast/walk.comp", ShaderStage::Compute, &defines),
+            push_constant_bytes: PUSH_BYTES,
+            sets: vec![tables.set.desc.clone(), mesh_desc, target_desc.clone()],
+        });
+        let pipeline = crate::algo::pipelines::get(ctx, &key)?;
+        Ok(TetRaycast {
+            tables,
+            scale: MeshScale::of(mesh),
+            settings,
+            mesh_set,
+            _buffers: buffers,
+            counters,
+            pipeline,
+            key,
+            target_desc,
+            target_set: None,
+            push: Vec::new(),
+            pixels: u64::from(width) * u64::from(height),
+            cells: n,
+            boundary_faces: topo.boundary.len(),
+            bvh_nodes: bvh.nodes.len(),
+            bvh_depth: bvh.depth,
+            step_budget: n as u64 + STEP_MARGIN,
+            ctx: ctx.clone(),
+        })
+    }
+
+    /// The frame's push constants (`Frame` in walk.comp).
+    fn push_constants(&self, view: &View) -> Vec<u8> {
+        let c: &Camera = &view.camera;
+        // The table range and length scale exactly as the cell-projection
+        // methods map them.
+        let setup = FrameSetup::new(c, view.width, view.height, &self.tables, &self.scale, Interpolation::Exact, &ExitTolerances::default());
+        let o = self.scale.origin;
+        let eye: [f64; 3] = std::array::from_fn(|k| c.eye[k] - o[k]);
+        let fwd = c.forward();
+        let right = fwd.cross(glam::DVec3::from(c.up)).normalize();
+        let up = right.cross(fwd);
+        let aspect = f64::from(view.width) / f64::from(view.height);
+        let (sx, sy, persp) = match c.projection {
+            Projection::Perspective { fovy_deg } => {
+                let t = (0.5 * fovy_deg.to_radians()).tan();
+                (t * aspect, t, 1.0)
+            }
+            Projection::Orthographic { height } => (0.5 * height * aspect, 0.5 * height, 0.0),
+        };
+        let budget = u32::try_from(self.step_budget).unwrap_or(u32::MAX);
+        let tol = 1e-5 * self.scale.diagonal;
+        let v: [f32; 24] = [
+            eye[0] as f32, eye[1] as f32, eye[2] as f32, persp,
+            fwd.x as f32, fwd.y as f32, fwd.z as f32, c.near as f32,
+            (right.x * sx) as f32, (right.y * sx) as f32, (right.z * sx) as f32, c.far as f32,
+            (up.x * sy) as f32, (up.y * sy) as f32, (up.z * sy) as f32, self.settings.ert as f32,
+            setup.constants.tf_range[0], setup.constants.tf_range[1], setup.constants.tf_range[2], setup.constants.tf_range[3],
+            tol as f32, f32::from_bits(budget), f32::from_bits(STALL_LIMIT), setup.constants.limits[3],
+        ];
+        bytemuck::cast_slice(&v).to_vec()
+    }
+
+    /// The last frame's counters (`Counters` in walk.comp).
+    fn counters(&self) -> [u64; COUNTER_WORDS] {
+        match self.counters.read() {
+            Ok(b) if b.len() >= COUNTER_WORDS * 4 => {
+                std::array::from_fn(|i| u32::from_ne_bytes([b[4 * i], b[4 * i + 1], b[4 * i + 2], b[4 * i + 3]]) as u64)
+            }
+            _ => [0; COUNTER_WORDS],
+        }
+    }
+}
+
+/// The counters by name.
+struct Counts {
+    cells: u64,
+    max_cells: u64,
+    rays_hit: u64,
+    terminated: u64,
+    reentering: u64,
+    bound_hits: u64,
+    stalled: u64,
+    fallback_exits: u64,
+    reversed: u64,
+    walks: u64,
+    searches: u64,
+}
+
+impl From<[u64; COUNTER_WORDS]> for Counts {
+    fn from(c: [u64; COUNTER_WORDS]) -> Self {
+        Counts {
+            cells: c[0] | (c[1] << 32),
+            max_cells: c[2],
+            rays_hit: c[3],
+            terminated: c[4],
+            reentering: c[5],
+            bound_hits: c[6],
+            stalled: c[7],
+            fallback_exits: c[8],
+            reversed: c[9],
+            walks: c[10],
+            searches: c[11],
+        }
+    }
+}
+
+impl RenderMethod for TetRaycast {
+    fn prepare(&mut self, view: &View, _phases: &mut Phases) -> Result<()> {
+        self.push = self.push_constants(view);
+        Ok(())
+    }
+
+    fn upload(&mut self, _counter: &mut UploadCounter) -> Result<()> {
+        Ok(())
+    }
+
+    fn record(&mut self, rec: &CommandRecorder, target: &Image, view: &View, counter: &mut UploadCounter) -> Result<()> {
+        let id = target.raw.as_raw();
+        if self.target_set.as_ref().map(|(t, _)| *t) != Some(id) {
+            let set = DescriptorSet::new(&self.ctx, "tet-raycast target", &self.target_desc, &[DescriptorResource::StorageImage(target)])?;
+            self.target_set = Some((id, set));
+        }
+        let Some((_, set)) = &self.target_set else { bail!("no target set") };
+        rec.fill_buffer(&self.counters, 0);
+        rec.memory_barrier(
+            (raw::PipelineStageFlags2::CLEAR | raw::PipelineStageFlags2::COPY, raw::AccessFlags2::TRANSFER_WRITE),
+            (raw::PipelineStageFlags2::COMPUTE_SHADER, raw::AccessFlags2::SHADER_STORAGE_READ | raw::AccessFlags2::SHADER_STORAGE_WRITE),
+        );
+        rec.image_barrier_discard(target, ImageUse::ComputeStorage);
+        rec.bind_compute(&self.pipeline, &[&self.tables.set, &self.mesh_set, set])?;
+        rec.push_constants(&self.pipeline, &self.push, counter);
+        rec.dispatch([view.width.div_ceil(WORKGROUP[0]), view.height.div_ceil(WORKGROUP[1]), 1])?;
+        rec.memory_barrier(
+            (raw::PipelineStageFlags2::COMPUTE_SHADER, raw::AccessFlags2::SHADER_STORAGE_WRITE),
+            (raw::PipelineStageFlags2::HOST, raw::AccessFlags2::HOST_READ),
+        );
+        Ok(())
+    }
+
+    fn work(&self) -> Work {
+        let c = Counts::from(self.counters());
+        Work::default()
+            .with("cells", self.cells as u64)
+            .with("pixels", self.pixels)
+            .with("rays_hit", c.rays_hit)
+            .with("cells_visited", c.cells)
+            .with("max_cells_per_ray", c.max_cells)
+            .with("rays_terminated_early", c.terminated)
+            .with("rays_reentering", c.reentering)
+            .with("walk_bound_hits", c.bound_hits)
+            .with("stalled_walks", c.stalled)
+            .with("fallback_exits", c.fallback_exits)
+            .with("walks", c.walks)
+    }
+
+    fn details(&self) -> serde_json::Value {
+        let c = Counts::from(self.counters());
+        let mean = |total: u64, of: u64| if of > 0 { total as f64 / of as f64 } else { 0.0 };
+        json!({
+            "family": "tet-raycast",
+            "workgroup": WORKGROUP,
+            "pipeline": { "key": self.key.id(), "name": self.key.name() },
+            "table_size": self.tables.table_size,
+            "ert": self.settings.ert,
+            "boundary_faces": self.boundary_faces,
+            "bvh_nodes": self.bvh_nodes,
+            "bvh_depth": self.bvh_depth,
+            "bvh_leaf_faces": LEAF_FACES,
+            "step_budget_per_ray": self.step_budget,
+            "stall_limit": STALL_LIMIT,
+            "cells_per_ray_mean": mean(c.cells, c.rays_hit),
+            "cells_per_pixel_mean": mean(c.cells, self.pixels),
+            "cells_per_ray_max": c.max_cells,
+            "rays_hit": c.rays_hit,
+            "rays_terminated_early": c.terminated,
+            "rays_reentering": c.reentering,
+            "walk_bound_hits": c.bound_hits,
+            "stalled_walks": c.stalled,
+            "fallback_exits": c.fallback_exits,
+            "reversed_walks": c.reversed,
+            "walks": c.walks,
+            "entry_searches": c.searches,
+        })
+    }
+
+    fn table_build_ms(&self) -> f64 {
+        self.tables.build_ms
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bvh_holds_every_face_once_within_its_leaf_boxes() {
+        let faces: Vec<(u32, [[f32; 3]; 3])> = (0..37u32)
+            .map(|i| {
+                let x = (i % 7) as f32;
+                let y = (i / 7) as f32;
+                (4 * i + 1, [[x, y, 0.0], [x + 1.0, y, 0.0], [x, y + 1.0, 0.5]])
+            })
+            .collect();
+        let bvh = build_face_bvh(&faces, 0.0);
+        let mut seen: Vec<u32> = bvh.prims.clone();
+        seen.sort_unstable();
+        assert_eq!(seen, faces.iter().map(|f| f.0).collect::<Vec<_>>());
+        // Every leaf's box holds its faces; every inner node's box its children's.
+        let mut leaves = 0;
+        for n in &bvh.nodes {
+            let (first, count) = (n[3].to_bits() as usize, n[7].to_bits() as usize);
+            if count == 0 {
+                for c in [first, first + 1] {
+                    for k in 0..3 {
+                        assert!(bvh.nodes[c][k] >= n[k] && bvh.nodes[c][4 + k] <= n[4 + k]);
+                    }
+                }
+                continue;
+            }
+            leaves += count;
+            assert!(count <= LEAF_FACES);
+            for &slot in &bvh.prims[first..first + count] {
+                let p = faces.iter().find(|f| f.0 == slot).unwrap().1;
+                for v in p {
+                    for k in 0..3 {
+                        assert!(v[k] >= n[k] && v[k] <= n[4 + k]);
+                    }
+                }
+            }
+        }
+        assert_eq!(leaves, faces.len());
+        assert!(bvh.depth <= 5, "{}", bvh.depth);
+        // Deterministic.
+        assert_eq!(bvh, build_face_bvh(&faces, 0.0));
+        // No faces: one node no ray enters (min above max).
+        let empty = build_face_bvh(&[], 0.0);
+        assert_eq!(empty.nodes.len(), 1);
+        assert!(empty.nodes[0][0] > empty.nodes[0][4]);
+    }
+
+    #[test]
+    fn accuracy_bound_adds_what_termination_drops() {
+        let r = crate::algo::registry::builtin();
+        let s = r.parse_spec("tet-raycast", &[]).unwrap();
+        assert!((accuracy_bound(&s.options, true).unwrap() - (1e-3 + 1e-3)).abs() < 1e-12);
+        let s = r.parse_spec("tet-raycast:integrator=average,ert=1", &[]).unwrap();
+        assert_eq!(accuracy_bound(&s.options, false), Some(5e-3));
+        assert!(r.parse_spec("tet-raycast:ert=0.2", &[]).is_err());
+        assert!(r.parse_spec("tet-raycast:sort=mpvo", &[]).unwrap_err().to_string().contains("no option 'sort'"));
+    }
+}

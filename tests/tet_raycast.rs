@@ -1,0 +1,357 @@
+//! `tet-raycast` (issue 12 item 3) on lavapipe with the validation layer on:
+//! against the f64 reference, at least as close as balanced cell projection
+//! with the same integrator, on the real meshes (the blunt fin with its 77
+//! zero-volume cells, the oxygen post with its unmerged seam, VTK's small
+//! post) and on synthetic ones (a non-convex block with a notch and a hole,
+//! two blocks side by side with coincident unshared boundaries, the stress
+//! suite's zero-volume and sliver meshes); the compute counts (cells per
+//! ray, re-entries, early terminations, stalled walks) and what crosses per
+//! frame (only the camera). No timings.
+
+use std::sync::{Arc, Mutex, OnceLock};
+
+use volbench::algo::registry;
+use volbench::harness::datasets::{self, Dataset};
+use volbench::harness::image::RgbaImage;
+use volbench::harness::run::{run as run_method, RunConfig, RunOutput};
+use volbench::mesh::split::hex_grid_to_tets;
+use volbench::mesh::{MeshStats, TetMesh};
+use volbench::reference::render_reference_with_stats;
+use volbench::scene::{Camera, ControlPoint, Projection, TransferFunction};
+use volbench::vk::{Context, ContextDesc};
+
+fn context() -> std::sync::MutexGuard<'static, Arc<Context>> {
+    static CTX: OnceLock<Mutex<Arc<Context>>> = OnceLock::new();
+    CTX.get_or_init(|| {
+        let ctx = Context::new(&ContextDesc { device: None, validation: true }).expect("a Vulkan device (run scripts/setup.sh)");
+        Mutex::new(ctx)
+    })
+    .lock()
+    .unwrap_or_else(|p| p.into_inner())
+}
+
+fn run(mesh: &TetMesh, tf: &TransferFunction, spec: &str, camera: Camera, size: u32) -> RunOutput {
+    let dataset = Dataset::from_mesh(mesh.clone(), false, "test".into());
+    let spec = registry::builtin().parse_spec(spec, &[]).expect("spec");
+    let cfg = RunConfig { width: size, height: size, frames: 1, warmup: 1, fixed_camera: Some(camera), ..RunConfig::default() };
+    let ctx = context();
+    let out = run_method(&ctx, &spec, &dataset, tf, &cfg).unwrap_or_else(|e| panic!("{e:#}"));
+    assert!(ctx.validation_messages().is_empty(), "{:?}", ctx.validation_messages());
+    out
+}
+
+fn reference(mesh: &TetMesh, tf: &TransferFunction, camera: &Camera, size: u32) -> (RgbaImage, volbench::reference::ReferenceStats) {
+    let (r, stats) = render_reference_with_stats(mesh, camera, tf, size, size).unwrap();
+    (RgbaImage { width: size, height: size, pixels: r.pixels.iter().map(|p| p.map(|c| c as f32)).collect() }, stats)
+}
+
+fn count(o: &RunOutput, name: &str) -> u64 {
+    *o.result.work.counts.get(name).unwrap_or_else(|| panic!("work count '{name}' missing: {:?}", o.result.work.counts))
+}
+
+/// RMSE against the reference of tet-raycast and of balanced with each
+/// integrator; tet-raycast must be at least as close. Returns the last
+/// tet-raycast run.
+fn at_least_as_good_as_balanced(name: &str, mesh: &TetMesh, tf: &TransferFunction, camera: Camera, size: u32, integrators: &[&str]) -> RunOutput {
+    let (want, _) = reference(mesh, tf, &camera, size);
+    assert!(want.covered_pixels() > (size * size / 20) as usize, "{name}: the view must see the mesh");
+    let mut last = None;
+    for integrator in integrators {
+        let ray = run(mesh, tf, &format!("tet-raycast:integrator={integrator}"), camera, size);
+        let bal = run(mesh, tf, &format!("balanced:integrator={integrator}"), camera, size);
+        let (er, eb) = (ray.image.compare(&want).unwrap(), bal.image.compare(&want).unwrap());
+        eprintln!(
+            "{name} {integrator}: RMSE tet-raycast {:.3e} (max {:.3e}), balanced {:.3e} (max {:.3e}); work {:?}",
+            er.rmse, er.max_abs, eb.rmse, eb.max_abs, ray.result.work.counts
+        );
+        assert_eq!(ray.image.non_finite_pixels(), 0, "{name}");
+        // At least as close as balanced, up to 1e-5 of RMSE: where both are
+        // at the integrator's own error (transfer-function control points
+        // inside segments) they differ by f32 noise either way (measured up
+        // to 2.8e-6 on the oxygen post at 96x96).
+        assert!(er.rmse <= eb.rmse + 1e-5, "{name} {integrator}: tet-raycast RMSE {} > balanced {}", er.rmse, eb.rmse);
+        assert_eq!(count(&ray, "walk_bound_hits"), 0, "{name}");
+        assert_eq!(count(&ray, "stalled_walks"), 0, "{name}");
+        last = Some(ray);
+    }
+    last.unwrap()
+}
+
+fn preset(mesh: &TetMesh, name: &str) -> TransferFunction {
+    datasets::mesh_transfer_function(mesh, Some(name))
+}
+
+fn orbit(mesh: &TetMesh, angle_deg: f64) -> Camera {
+    Camera::orbit(&mesh.bounds(), angle_deg.to_radians(), Projection::Perspective { fovy_deg: 30.0 })
+}
+
+const ALL: [&str; 4] = ["average", "preint", "ppi", "linear-exact"];
+
+#[test]
+fn blunt_fin_with_its_zero_volume_cells() {
+    let mesh = datasets::load_mesh("bluntfin").unwrap();
+    assert_eq!(mesh.stats.zero_volume, 77);
+    let tf = preset(&mesh, "bluntfin");
+    let out = at_least_as_good_as_balanced("bluntfin", &mesh, &tf, orbit(&mesh, 0.0), 96, &["ppi", "linear-exact"]);
+    // The blunt fin is one convex-ish block seen from outside: rays enter once.
+    assert!(count(&out, "rays_hit") > 1000);
+    assert!(count(&out, "max_cells_per_ray") <= mesh.tets.len() as u64);
+}
+
+#[test]
+fn oxygen_post_reenters_at_its_seam() {
+    let mesh = datasets::load_mesh("oxygenpost").unwrap();
+    let tf = preset(&mesh, "oxygenpost");
+    let out = at_least_as_good_as_balanced("oxygenpost", &mesh, &tf, orbit(&mesh, 30.0), 96, &["ppi"]);
+    // The O-grid seam is two coincident boundaries and the post a hole in
+    // the disk: rays leave the mesh and enter it again.
+    assert!(count(&out, "rays_reentering") > 100, "{:?}", out.result.work.counts);
+    assert!(count(&out, "walks") > count(&out, "rays_hit"));
+}
+
+#[test]
+fn post_small_every_integrator() {
+    let mesh = datasets::load_mesh("post-small").unwrap();
+    let tf = preset(&mesh, "post-small");
+    at_least_as_good_as_balanced("post-small", &mesh, &tf, orbit(&mesh, 40.0), 96, &ALL);
+}
+
+/// The smooth field the synthetic meshes carry.
+fn field(p: [f64; 3]) -> f64 {
+    0.55 * p[2] + 0.3 * p[0] + 0.15 * (0.5 + 0.5 * (3.0 * p[1] + 1.0).sin())
+}
+
+fn grid(name: &str, n: [usize; 3], lo: [f64; 3], hi: [f64; 3]) -> TetMesh {
+    let mut points = Vec::new();
+    for k in 0..=n[2] {
+        for j in 0..=n[1] {
+            for i in 0..=n[0] {
+                let c = [i, j, k];
+                points.push(std::array::from_fn(|a| lo[a] + (hi[a] - lo[a]) * c[a] as f64 / n[a] as f64));
+            }
+        }
+    }
+    let scalars = points.iter().map(|&p| field(p)).collect();
+    hex_grid_to_tets(name, [n[0] + 1, n[1] + 1, n[2] + 1], points, scalars).unwrap()
+}
+
+fn ramp(mesh: &TetMesh) -> TransferFunction {
+    let (lo, hi) = mesh.scalar_range();
+    TransferFunction {
+        name: "ramp".into(),
+        points: vec![
+            ControlPoint { scalar: lo, color: [0.1, 0.3, 1.0], attenuation: 0.5 },
+            ControlPoint { scalar: 0.5 * (lo + hi), color: [0.2, 0.9, 0.3], attenuation: 1.5 },
+            ControlPoint { scalar: hi, color: [1.0, 0.6, 0.1], attenuation: 4.0 },
+        ],
+    }
+}
+
+fn validated(mut mesh: TetMesh) -> TetMesh {
+    let name = mesh.name.clone();
+    mesh.validate(&name).unwrap();
+    mesh
+}
+
+/// The unit 8^3 grid with a notch cut from one side and a square hole
+/// through it: every ray through the hole or the notch leaves the mesh and
+/// enters it again.
+fn notched_block() -> TetMesh {
+    let g = grid("notched", [8, 8, 8], [0.0; 3], [1.0; 3]);
+    let inside = |c: [f64; 3]| {
+        let hole = (0.375..0.625).contains(&c[0]) && (0.375..0.625).contains(&c[1]);
+        let notch = c[0] > 0.625 && (0.25..0.5).contains(&c[2]);
+        !(hole || notch)
+    };
+    let tets: Vec<[u32; 4]> = g
+        .tets
+        .iter()
+        .copied()
+        .filter(|t| {
+            let c: [f64; 3] = std::array::from_fn(|a| t.iter().map(|&v| g.points[v as usize][a]).sum::<f64>() / 4.0);
+            inside(c)
+        })
+        .collect();
+    validated(TetMesh { name: "notched".into(), tets, stats: MeshStats::default(), ..g })
+}
+
+/// Two 4x8x8 blocks side by side, the shared plane x = 0.5 stored twice
+/// (points duplicated, not shared): coincident boundaries, as the oxygen
+/// post's seam.
+fn two_blocks() -> TetMesh {
+    let a = grid("a", [4, 8, 8], [0.0; 3], [0.5, 1.0, 1.0]);
+    let b = grid("b", [4, 8, 8], [0.5, 0.0, 0.0], [1.0; 3]);
+    let off = a.points.len() as u32;
+    let mut points = a.points.clone();
+    points.extend(&b.points);
+    let mut scalars = a.scalars.clone();
+    scalars.extend(&b.scalars);
+    let mut tets = a.tets.clone();
+    tets.extend(b.tets.iter().map(|t| t.map(|v| v + off)));
+    validated(TetMesh { name: "two-blocks".into(), points, scalars, tets, stats: MeshStats::default() })
+}
+
+fn oblique(eye: [f64; 3]) -> Camera {
+    Camera {
+        eye,
+        target: [0.5, 0.5, 0.5],
+        up: [0.0, 1.0, 0.0],
+        projection: Projection::Perspective { fovy_deg: 35.0 },
+        near: 0.5,
+        far: 10.0,
+    }
+}
+
+#[test]
+fn non_convex_block_reenters_at_the_next_boundary_face() {
+    let mesh = notched_block();
+    let tf = ramp(&mesh);
+    for eye in [[2.3, 1.7, 2.9], [0.55, 0.45, 3.2], [3.0, 0.6, 0.4]] {
+        let cam = oblique(eye);
+        let out = at_least_as_good_as_balanced("notched", &mesh, &tf, cam, 80, &["ppi", "linear-exact"]);
+        assert!(count(&out, "rays_reentering") > 0, "{eye:?}: {:?}", out.result.work.counts);
+        // The same walks as the f64 reference, which shares the adjacency
+        // and crossing rule: the counts agree to the few rays that pass
+        // within f32 rounding of an edge.
+        let (_, stats) = reference(&mesh, &tf, &cam, 80);
+        let (cells, walks) = (count(&out, "cells_visited") as f64, count(&out, "walks") as f64);
+        assert!((cells - stats.steps as f64).abs() <= 1e-3 * stats.steps as f64, "cells {cells} vs reference {}", stats.steps);
+        assert!((walks - stats.walks as f64).abs() <= 1e-3 * stats.walks as f64, "walks {walks} vs reference {}", stats.walks);
+    }
+    // Orthographic, through the hole.
+    let cam = Camera { projection: Projection::Orthographic { height: 1.6 }, ..oblique([0.5, 0.5, 4.0]) };
+    at_least_as_good_as_balanced("notched ortho", &mesh, &tf, cam, 64, &["ppi"]);
+}
+
+#[test]
+fn coincident_unshared_boundaries_are_crossed() {
+    let mesh = two_blocks();
+    let tf = ramp(&mesh);
+    let out = at_least_as_good_as_balanced("two-blocks", &mesh, &tf, oblique([2.6, 1.4, 2.2]), 80, &["ppi"]);
+    assert!(count(&out, "rays_reentering") > 500, "{:?}", out.result.work.counts);
+}
+
+/// The stress suite's degenerate meshes, with every integrator.
+#[test]
+fn stress_meshes_with_flat_and_sliver_cells() {
+    for case in volbench::harness::stress::stress_cases(64) {
+        if !["zero-volume", "slivers", "needles-caps", "axis-ortho", "eye-on-plane"].contains(&case.name.as_str()) {
+            continue;
+        }
+        let mesh = case.mesh().unwrap().clone();
+        at_least_as_good_as_balanced(&case.name, &mesh, &case.tf, case.camera, 64, &["ppi"]);
+    }
+}
+
+/// Rays exactly along edges and through vertices of a grid seen along an
+/// axis: the perturbation assigns each ray to the cells the f64 reference
+/// assigns it to, so (with every coordinate exact in binary) the walks are
+/// the reference's, count for count.
+#[test]
+fn axis_aligned_rays_visit_the_references_cells_exactly() {
+    let mesh = grid("cube", [4, 4, 4], [0.0; 3], [1.0; 3]);
+    // Linear (no control point inside the range): the closed form is exact.
+    let (lo, hi) = mesh.scalar_range();
+    let tf = TransferFunction {
+        name: "linear".into(),
+        points: vec![
+            ControlPoint { scalar: lo, color: [0.1, 0.3, 1.0], attenuation: 0.5 },
+            ControlPoint { scalar: hi, color: [1.0, 0.6, 0.1], attenuation: 4.0 },
+        ],
+    };
+    // 1/32 per pixel, the view centre half a pixel off 0.5: pixel centres
+    // at multiples of 1/32, every 8th on a grid line (exact in binary).
+    let c = 0.5 + 1.0 / 64.0;
+    let cam = Camera {
+        eye: [c, c, 3.0],
+        target: [c, c, 0.0],
+        up: [0.0, 1.0, 0.0],
+        projection: Projection::Orthographic { height: 2.0 },
+        near: 1.0,
+        far: 5.0,
+    };
+    let (want, stats) = reference(&mesh, &tf, &cam, 64);
+    let out = run(&mesh, &tf, "tet-raycast:integrator=linear-exact", cam, 64);
+    assert_eq!(count(&out, "cells_visited"), stats.steps);
+    assert_eq!(count(&out, "walks"), stats.walks);
+    assert_eq!(count(&out, "rays_hit"), stats.rays_hit);
+    assert_eq!(count(&out, "rays_reentering"), 0, "a convex block is entered once");
+    assert_eq!(count(&out, "fallback_exits"), 0);
+    let e = out.image.compare(&want).unwrap();
+    assert!(e.max_abs < 1e-4, "{e:?}");
+}
+
+/// Early termination: an opaque block stops every covered ray once its
+/// opacity passes the threshold, visiting fewer cells, and the error it
+/// adds stays below 1 - ert.
+#[test]
+fn early_termination_is_counted_and_bounded() {
+    let mesh = grid("dense", [6, 6, 6], [0.0; 3], [1.0; 3]);
+    let tf = TransferFunction::constant([1.0, 0.8, 0.6], 12.0);
+    let cam = oblique([2.3, 1.7, 2.9]);
+    let (want, _) = reference(&mesh, &tf, &cam, 64);
+    let full = run(&mesh, &tf, "tet-raycast:integrator=linear-exact,ert=1", cam, 64);
+    let cut = run(&mesh, &tf, "tet-raycast:integrator=linear-exact,ert=0.99", cam, 64);
+    let hit = count(&full, "rays_hit");
+    assert_eq!(count(&full, "rays_terminated_early"), 0, "exp(-12 x 1.7) is not 0 in f32");
+    assert!(count(&cut, "rays_terminated_early") > hit / 2, "{:?}", cut.result.work.counts);
+    assert!(count(&cut, "cells_visited") < count(&full, "cells_visited"));
+    assert_eq!(count(&cut, "rays_hit"), hit);
+    let (ef, ec) = (full.image.compare(&want).unwrap(), cut.image.compare(&want).unwrap());
+    assert!(ef.max_abs < 1e-4, "{ef:?}");
+    assert!(ec.max_abs <= 0.01 + 1e-4 && ec.max_abs > 1e-4, "{ec:?}");
+}
+
+/// More than a thousand flat hex layers 1e-13 apart (zero-volume cells,
+/// all at z = 0.5 in f32) on every ray: walks that make no progress for
+/// 1024 cells are abandoned and counted, the frame finishes and the image
+/// stays finite.
+#[test]
+fn walks_through_stacks_of_flat_cells_are_bounded() {
+    let n = 1100;
+    let mut zs = vec![0.0];
+    zs.extend((0..n).map(|i| 0.5 + i as f64 * 1e-13));
+    zs.push(1.0);
+    let mut points = Vec::new();
+    for &z in &zs {
+        for y in [0.0, 1.0] {
+            for x in [0.0, 1.0] {
+                points.push([x, y, z]);
+            }
+        }
+    }
+    let scalars = points.iter().map(|&p| field(p)).collect();
+    let mesh = hex_grid_to_tets("flat-stack", [2, 2, zs.len()], points, scalars).unwrap();
+    // The central tet of each flat hex is zero-volume in f64 (the corner
+    // tets are slivers there); in f32 every layer is at z = 0.5.
+    assert!(mesh.stats.zero_volume >= n - 1, "{}", mesh.stats.zero_volume);
+    let tf = ramp(&mesh);
+    let cam = Camera { projection: Projection::Orthographic { height: 1.5 }, ..oblique([0.5, 0.5, 3.0]) };
+    let out = run(&mesh, &tf, "tet-raycast", cam, 32);
+    eprintln!("flat stack: {:?}", out.result.work.counts);
+    assert_eq!(out.image.non_finite_pixels(), 0);
+    assert!(count(&out, "stalled_walks") > 0, "{:?}", out.result.work.counts);
+    assert_eq!(count(&out, "walk_bound_hits"), 0);
+    assert!(count(&out, "max_cells_per_ray") <= mesh.tets.len() as u64 + 1024);
+}
+
+/// Per frame only the camera crosses: the push constants, no cell data.
+#[test]
+fn only_the_camera_crosses_per_frame() {
+    let mesh = datasets::load_mesh("post-small").unwrap();
+    let tf = preset(&mesh, "post-small");
+    let out = run(&mesh, &tf, "tet-raycast", orbit(&mesh, 0.0), 48);
+    let u = &out.result.upload;
+    assert_eq!(u.cell_bytes_per_frame, 0);
+    assert_eq!(u.bytes_per_frame, 96, "the push constants");
+    assert!(u.static_bytes > 16 * mesh.tets.len() as u64);
+    assert_eq!(u.frame_counters.static_bytes(), 0);
+    common_schema(&out);
+}
+
+mod common;
+
+fn common_schema(out: &RunOutput) {
+    let v = serde_json::to_value(&out.result).unwrap();
+    common::assert_matches_schema("run.schema.json", &v, "a tet-raycast result");
+}
