@@ -129,8 +129,9 @@ struct FrameArgs {
     /// Camera rotation per frame, degrees.
     #[arg(long, default_value_t = 5.0)]
     orbit_step: f64,
-    /// Zoom the orbit camera in by this factor (its field of view narrowed;
-    /// 4: a quarter of the dataset across, most cells off-screen).
+    /// Zoom the orbit camera in by this factor (its field of view narrowed,
+    /// aimed halfway from the centre to the low corner; 4: a quarter of the
+    /// dataset across, most cells off-screen).
     #[arg(long, default_value_t = 1.0)]
     zoom: f64,
     /// Run each frame's phases strictly one after another (no CPU/device overlap).

