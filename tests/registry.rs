@@ -299,7 +299,7 @@ fn the_suite_runs_the_option_sets_published_figures_name_and_reports_the_ratios(
     use volbench::harness::suite::{plan, run_suite, SuiteSettings};
     let registry = registry::builtin();
     let labels = |filter: &str| -> Vec<String> {
-        plan(&registry, &SuiteSettings::standard(true, vec![filter.into()])).unwrap().iter().map(|p| p.spec.label()).collect()
+        plan(&registry, &SuiteSettings::standard(true, vec![filter.into()])).unwrap().iter().map(|p| p.label()).collect()
     };
     // Thesis Table 6.4 names the integrators on the blunt fin only.
     assert_eq!(labels("bluntfin"), ["vicp", "balanced", "balanced:integrator=average", "balanced:integrator=linear-exact", "resident"]);
