@@ -300,11 +300,20 @@ fn the_suite_runs_the_option_sets_published_figures_name_and_reports_the_ratios(
     use volbench::harness::suite::{plan, run_suite, SuiteSettings};
     let registry = registry::builtin();
     let labels = |filter: &str| -> Vec<String> {
-        plan(&registry, &SuiteSettings::standard(true, vec![filter.into()])).unwrap().iter().map(|p| p.spec.label()).collect()
+        plan(&registry, &SuiteSettings::standard(true, vec![filter.into()])).unwrap().iter().map(|p| p.label()).collect()
     };
     // Thesis Table 6.4 names the integrators on the blunt fin only.
     assert_eq!(labels("bluntfin"), ["vicp", "balanced", "balanced:integrator=average", "balanced:integrator=linear-exact", "resident", "tet-raycast"]);
-    assert_eq!(labels("oxygenpost"), ["vicp", "balanced", "resident", "tet-raycast"]);
+    // The oxygen post also has the culling scenes, culling on and off
+    // (--quick: the first method with a `cull` option, no zoomed scene).
+    assert_eq!(
+        labels("oxygenpost"),
+        [
+            "vicp", "balanced", "resident", "tet-raycast",
+            "vicp @transparent", "vicp:cull=off @transparent",
+            "vicp @still", "vicp:cull=off @still",
+        ]
+    );
     // Krüger & Westermann's claim is about any volume.
     let ct = labels("chest-ct");
     for m in ["raycast-fragment", "raycast-compute"] {

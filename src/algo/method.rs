@@ -263,13 +263,19 @@ pub struct View {
 }
 
 /// Named CPU phases of one frame, in milliseconds (e.g. `sort`, `pack`):
-/// reported as `time_ms.<name>` beside the runner's own phases.
+/// reported as `time_ms.<name>` beside the runner's own phases; and named
+/// per-frame counts (e.g. `cull.frustum`, cells skipped by a rule),
+/// reported as `frame_counts.<name>` per timed frame.
 #[derive(Debug, Clone, Default)]
-pub struct Phases(pub Vec<(&'static str, f64)>);
+pub struct Phases(pub Vec<(&'static str, f64)>, pub Vec<(&'static str, u64)>);
 
 impl Phases {
     pub fn add(&mut self, name: &'static str, ms: f64) {
         self.0.push((name, ms));
+    }
+
+    pub fn count(&mut self, name: &'static str, n: u64) {
+        self.1.push((name, n));
     }
 }
 

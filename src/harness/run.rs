@@ -44,6 +44,11 @@ pub struct RunConfig {
     pub projection: Projection,
     /// Camera rotation per frame, radians.
     pub orbit_step: f64,
+    /// The orbit camera's field of view narrowed this many times and aimed
+    /// halfway from the centre to the bounding box's low corner (1: the
+    /// orbit, the whole dataset in view; 4: a quarter of it across, most
+    /// cells off-screen).
+    pub zoom: f64,
     /// A camera used for every frame instead of the orbit (tests, stills).
     pub fixed_camera: Option<Camera>,
     /// Prepare frame N+1 on the CPU while the device draws frame N.
@@ -65,6 +70,7 @@ impl Default for RunConfig {
             warmup: 2,
             projection: Projection::Perspective { fovy_deg: 30.0 },
             orbit_step: 5f64.to_radians(),
+            zoom: 1.0,
             fixed_camera: None,
             overlap: true,
             diagnostics: false,
@@ -84,6 +90,11 @@ impl RunConfig {
         );
         anyhow::ensure!(self.width > 0 && self.height > 0, "--size must be positive, got {}x{}", self.width, self.height);
         anyhow::ensure!(self.orbit_step.is_finite(), "--orbit-step must be a finite number of degrees");
+        anyhow::ensure!(
+            self.zoom.is_finite() && (1e-3..=1e3).contains(&self.zoom),
+            "--zoom must be a factor in [0.001, 1000], got {}",
+            self.zoom
+        );
         Ok(())
     }
 
@@ -122,7 +133,16 @@ impl RunConfig {
     pub fn camera(&self, dataset: &Dataset, f: usize) -> Camera {
         match self.fixed_camera {
             Some(c) => c,
-            None => dataset.orbit_camera(f as f64 * self.orbit_step, self.projection),
+            None if self.zoom == 1.0 => dataset.orbit_camera(f as f64 * self.orbit_step, self.projection),
+            // Zoomed: aimed halfway from the centre to the bounding box's low
+            // corner, so the crowd of small cells a mesh often has at its
+            // centre (the oxygen post's post) leaves the view with the rest.
+            None => {
+                let b = dataset.bounds();
+                let (c, lo) = (b.center(), b.min);
+                let aim = std::array::from_fn(|k| 0.5 * (c[k] + lo[k]));
+                Camera { target: aim, ..dataset.orbit_camera(f as f64 * self.orbit_step, self.projection) }.zoomed(self.zoom)
+            }
         }
     }
 }
@@ -136,12 +156,17 @@ pub struct UploadReport {
     /// lists), apart from the constants.
     pub cell_bytes_per_frame: u64,
     pub constant_bytes_per_frame: u64,
-    /// Per-frame data divided by the number of cells (methods that process
-    /// cells; absent otherwise).
+    /// Per-frame data divided by the cells drawn in that frame (methods that
+    /// process cells; absent otherwise): the record each drawn cell costs
+    /// (VICP 528, balanced 112, resident 4 bytes), whatever culling skipped.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub bytes_per_cell: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub floats_per_cell: Option<f64>,
+    /// Per-frame data divided by the mesh's cell count: what culling saved
+    /// shows here (equal to `bytes_per_cell` when nothing is culled).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub bytes_per_mesh_cell: Option<f64>,
     /// One-time uploads (index buffers, tables, volumes), not part of any frame.
     pub static_bytes: u64,
     /// The counters themselves for the last timed frame and for set-up.
@@ -176,6 +201,40 @@ pub struct WorkReport {
     pub per_second: BTreeMap<&'static str, f64>,
 }
 
+/// One of the method's per-frame counts over the timed frames (e.g. cells
+/// a culling rule skipped): every frame's value, their sum and the number
+/// of frames.
+#[derive(Debug, Clone, Serialize)]
+pub struct FrameCountReport {
+    pub total: u64,
+    pub frames: usize,
+    pub per_frame: Vec<u64>,
+}
+
+/// The rasterizer's work in the reference-view frame, from the pipeline
+/// statistics: primitives assembled, primitives out of clipping, fragment
+/// shader invocations; `"unavailable"` (with the reason) on a device without
+/// pipeline-statistics queries.
+#[derive(Debug, Clone, Serialize)]
+#[serde(untagged)]
+pub enum RasterizerReport {
+    Counts { primitives_in: u64, primitives_after_clipping: u64, fragment_invocations: u64 },
+    Unavailable(String),
+}
+
+impl RasterizerReport {
+    pub fn of(stats: Option<&PipelineStats>, device: &str) -> Self {
+        match stats {
+            Some(s) => RasterizerReport::Counts {
+                primitives_in: s.input_primitives,
+                primitives_after_clipping: s.clipping_primitives,
+                fragment_invocations: s.fragment_invocations,
+            },
+            None => RasterizerReport::Unavailable(format!("unavailable: device '{device}' has no pipelineStatisticsQuery")),
+        }
+    }
+}
+
 #[derive(Debug, Clone, Serialize)]
 pub struct ImageReport {
     pub width: u32,
@@ -190,6 +249,8 @@ pub struct ImageReport {
 pub struct ViewReport {
     pub projection: Projection,
     pub orbit_step_deg: f64,
+    /// `RunConfig::zoom`.
+    pub zoom: f64,
     pub fixed_camera: bool,
 }
 
@@ -224,6 +285,11 @@ pub struct RunResult {
     pub cells_per_second: f64,
     /// Pipeline statistics of the reference-view frame (deterministic).
     pub stats: Option<PipelineStats>,
+    /// The rasterizer's share of `stats`, or why there is none.
+    pub rasterizer: RasterizerReport,
+    /// The method's per-frame counts over the timed frames (cell projection:
+    /// `cull.transparent`, `cull.frustum`, `cull.reused`, `cells_drawn`).
+    pub frame_counts: BTreeMap<String, FrameCountReport>,
     pub image: ImageReport,
     /// The reference-view image against the f64 CPU reference, when asked for.
     pub error: Option<ErrorReport>,
@@ -466,12 +532,15 @@ impl MethodSession {
     }
 }
 
-/// Raw samples by phase name.
+/// Raw samples by phase name, and the method's per-frame counts.
 #[derive(Default)]
-struct Samples(BTreeMap<String, Vec<f64>>);
+struct Samples(BTreeMap<String, Vec<f64>>, BTreeMap<String, Vec<u64>>);
 
 impl Samples {
     fn push(&mut self, t: &FrameTiming) {
+        for &(name, n) in &t.method.1 {
+            self.1.entry(name.to_string()).or_default().push(n);
+        }
         let mut add = |k: &str, v: f64| self.0.entry(k.to_string()).or_default().push(v);
         for &(name, v) in &t.method.0 {
             add(name, v);
@@ -546,13 +615,17 @@ pub fn run(ctx: &Arc<Context>, spec: &MethodSpec, dataset: &Dataset, tf: &Transf
     let cells = work.0.get("cells").copied();
     let fc = last_frame_counters;
     let cell_bytes = fc.frame_cell_bytes();
-    let bytes_per_cell = cells.filter(|&n| n > 0).map(|n| cell_bytes as f64 / n as f64);
+    // The last timed frame's cells drawn (culling may skip some), else all.
+    let drawn = samples.1.get("cells_drawn").and_then(|v| v.last().copied()).or(cells);
+    let bytes_per_cell = drawn.filter(|&n| n > 0).map(|n| cell_bytes as f64 / n as f64);
+    let bytes_per_mesh_cell = cells.filter(|&n| n > 0).map(|n| cell_bytes as f64 / n as f64);
     let upload = UploadReport {
         bytes_per_frame: fc.frame_bytes(),
         cell_bytes_per_frame: cell_bytes,
         constant_bytes_per_frame: fc.frame_constant_bytes(),
         bytes_per_cell,
         floats_per_cell: bytes_per_cell.map(|b| b / 4.0),
+        bytes_per_mesh_cell,
         static_bytes: session.setup_counter.static_bytes(),
         frame_counters: fc,
         setup_counters: session.setup_counter,
@@ -562,6 +635,11 @@ pub fn run(ctx: &Arc<Context>, spec: &MethodSpec, dataset: &Dataset, tf: &Transf
     let per_second: BTreeMap<&'static str, f64> =
         work.0.iter().map(|(&k, &n)| (k, if median_s > 0.0 { n as f64 / median_s } else { 0.0 })).collect();
     let cells_per_second = per_second.get("cells").copied().unwrap_or(0.0);
+    let frame_counts = samples
+        .1
+        .into_iter()
+        .map(|(k, v)| (k, FrameCountReport { total: v.iter().sum(), frames: v.len(), per_frame: v }))
+        .collect();
     let time_ms = TimeReport { phases, setup_ms: session.setup_ms, table_build_ms: method.table_build_ms(), samples: samples.0 };
     let summary = dataset.summary();
     let result = RunResult {
@@ -581,6 +659,7 @@ pub fn run(ctx: &Arc<Context>, spec: &MethodSpec, dataset: &Dataset, tf: &Transf
         view: ViewReport {
             projection: reference_camera.projection,
             orbit_step_deg: cfg.orbit_step.to_degrees(),
+            zoom: cfg.zoom,
             fixed_camera: cfg.fixed_camera.is_some(),
         },
         transfer_function: tf.name.clone(),
@@ -588,7 +667,9 @@ pub fn run(ctx: &Arc<Context>, spec: &MethodSpec, dataset: &Dataset, tf: &Transf
         time_ms,
         work: WorkReport { counts: work.0.clone(), per_second },
         cells_per_second,
+        rasterizer: RasterizerReport::of(stats.as_ref(), &ctx.info.name),
         stats,
+        frame_counts,
         image: ImageReport {
             width: cfg.width,
             height: cfg.height,

@@ -63,11 +63,87 @@ impl SuiteSettings {
 }
 
 /// One planned run: a shipped dataset and a method at its defaults, or with
-/// an option set a published figure names.
+/// an option set a published figure names; or a culling scene.
 #[derive(Debug)]
 pub struct PlannedRun {
     pub dataset: &'static str,
     pub spec: MethodSpec,
+    pub scene: Scene,
+}
+
+impl PlannedRun {
+    /// How the run is named in rows and reports: the spec's label, and the
+    /// scene when it is not the standard one (`balanced:cull=off @zoomed`).
+    pub fn label(&self) -> String {
+        match self.scene {
+            Scene::Standard => self.spec.label(),
+            s => format!("{} @{}", self.spec.label(), s.name()),
+        }
+    }
+
+    fn file_stem(&self) -> String {
+        match self.scene {
+            Scene::Standard => self.spec.file_stem(),
+            s => format!("{}@{}", self.spec.file_stem(), s.name()),
+        }
+    }
+}
+
+/// The view and transfer function of a run: the standard orbit with the
+/// dataset's preset, or one of the scenes where culling matters
+/// (`algo::cell_projection::cull`), each run with culling on and off.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Scene {
+    Standard,
+    /// The dataset's `<name>-band` transfer function (`data/tf/`): opaque
+    /// only in a narrow band of the scalar range, most cells transparent.
+    Transparent,
+    /// The orbit zoomed in [`ZOOM`] times (`RunConfig::zoom`: aimed off
+    /// the centre): most cells off-screen.
+    Zoomed,
+    /// The orbit's first view for every frame.
+    Still,
+}
+
+/// The zoomed scene's factor.
+pub const ZOOM: f64 = 4.0;
+
+/// The datasets the culling scenes run on (the oxygen post: its preset and
+/// its `oxygenpost-band` transfer function).
+pub const CULL_SCENE_DATASETS: &[&str] = &["oxygenpost"];
+
+impl Scene {
+    pub const CULLING: [Scene; 3] = [Scene::Transparent, Scene::Zoomed, Scene::Still];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Scene::Standard => "standard",
+            Scene::Transparent => "transparent",
+            Scene::Zoomed => "zoomed",
+            Scene::Still => "still",
+        }
+    }
+
+    /// The run configuration of this scene from the suite's.
+    fn config(self, cfg: &RunConfig) -> RunConfig {
+        match self {
+            Scene::Standard | Scene::Transparent => cfg.clone(),
+            Scene::Zoomed => RunConfig { zoom: ZOOM, ..cfg.clone() },
+            Scene::Still => RunConfig { orbit_step: 0.0, ..cfg.clone() },
+        }
+    }
+
+    /// The transfer function of this scene on `dataset`.
+    fn transfer_function(self, dataset: &Dataset) -> Result<crate::scene::TransferFunction> {
+        match self {
+            Scene::Transparent => {
+                let path = datasets::data_dir().join("tf").join(format!("{}-band.json", dataset.name));
+                dataset.load_transfer_function(&path)
+            }
+            _ => Ok(dataset.default_transfer_function()),
+        }
+    }
 }
 
 /// Every (shipped dataset, method for its kind) pair that passes the
@@ -94,7 +170,28 @@ pub fn plan(registry: &Registry, settings: &SuiteSettings) -> Result<Vec<Planned
                         specs.push(s);
                     }
                 }
-                out.extend(specs.into_iter().map(|spec| PlannedRun { dataset: d.name, spec }));
+                out.extend(specs.into_iter().map(|spec| PlannedRun { dataset: d.name, spec, scene: Scene::Standard }));
+            }
+        }
+        // The culling scenes: each method with a `cull` option, culling on
+        // and off (the unchanged-image check and the speed-up); --quick runs
+        // them for the first such method only.
+        if CULL_SCENE_DATASETS.contains(&d.name) {
+            let culling: Vec<_> = registry
+                .for_kind(d.kind)
+                .into_iter()
+                .filter(|m| (keep(d.name) || keep(m.name)) && m.options.iter().any(|o| o.name == "cull"))
+                .take(if settings.quick { 1 } else { usize::MAX })
+                .collect();
+            // --quick leaves out the zoomed scene: magnified cells cost many
+            // more fragments (the CI budget).
+            for scene in Scene::CULLING.into_iter().filter(|&s| !(settings.quick && s == Scene::Zoomed)) {
+                for m in &culling {
+                    for cull in ["on", "off"] {
+                        let spec = registry.parse_spec(&format!("{}:cull={cull}", m.name), &[])?;
+                        out.push(PlannedRun { dataset: d.name, spec, scene });
+                    }
+                }
             }
         }
     }
@@ -163,6 +260,8 @@ pub struct SuiteRow {
     pub label: String,
     pub status: &'static str,
     pub message: Option<String>,
+    /// The view and transfer function (`standard`, or a culling scene).
+    pub scene: Scene,
     /// Position in the suite's run order (peers' runs counted too).
     pub sequence: usize,
     pub result: Option<RunResult>,
@@ -177,6 +276,24 @@ pub struct Summary {
     /// Peers' runs (`--peers`), apart from volbench's: other programs'
     /// renderers on the same data, view and transfer function.
     pub peers: Vec<PeerRow>,
+    /// Each culling scene's culled image against the unculled one.
+    pub cull_checks: Vec<CullCheck>,
+}
+
+/// The unchanged-image check of one culling scene: the reference-view image
+/// of a method with `cull=on` against the same with `cull=off`.
+#[derive(Debug, Clone, Serialize)]
+pub struct CullCheck {
+    pub dataset: String,
+    pub scene: Scene,
+    pub method: String,
+    pub rmse: f64,
+    pub max_abs: f64,
+}
+
+/// `spec` with `cull=on`.
+fn cull_on(registry: &Registry, spec: &MethodSpec) -> Result<MethodSpec> {
+    registry.parse_spec(&format!("{}:cull=on", spec.info.name), &[])
 }
 
 /// Run the plan; each row's JSON, PNG and difference PNG go to
@@ -193,7 +310,8 @@ pub fn run_suite(
     cfg.check_device(&ctx.info)?;
     let runs_dir = out.join("runs");
     std::fs::create_dir_all(&runs_dir).with_context(|| format!("creating {}", runs_dir.display()))?;
-    let mut summary = Summary { environment: Environment::of(ctx), settings: settings.clone(), runs: Vec::new(), peers: Vec::new() };
+    let mut summary =
+        Summary { environment: Environment::of(ctx), settings: settings.clone(), runs: Vec::new(), peers: Vec::new(), cull_checks: Vec::new() };
     let mut images: Vec<(String, RgbaImage, Option<RgbaImage>)> = Vec::new();
     let located: Vec<LocatedPeer> = settings.peers.iter().map(|p| super::peers::locate(p)).collect::<Result<_>>()?;
     let peers_dir = out.join("peers");
@@ -206,7 +324,7 @@ pub fn run_suite(
     let mut export: Option<(std::path::PathBuf, super::peers::PeerDataset)> = None;
     let mut sequence = 0usize;
     for (i, p) in plan.iter().enumerate() {
-        let label = format!("{} on {}", p.spec.label(), p.dataset);
+        let label = format!("{} on {}", p.label(), p.dataset);
         progress(i, &label);
         let first_of_dataset = i == 0 || plan[i - 1].dataset != p.dataset;
         let last_of_dataset = plan.get(i + 1).is_none_or(|n| n.dataset != p.dataset);
@@ -222,7 +340,8 @@ pub fn run_suite(
         let mut row = SuiteRow {
             dataset: p.dataset.into(),
             method: p.spec.info.name.into(),
-            label: p.spec.label(),
+            label: p.label(),
+            scene: p.scene,
             status: "ok",
             message: None,
             sequence,
@@ -233,9 +352,10 @@ pub fn run_suite(
             (row.status, row.message) = ("skipped", Some(why));
         } else {
             let outcome = (|| -> Result<(RunOutput, Option<RgbaImage>)> {
-                let tf = dataset.default_transfer_function();
+                let tf = p.scene.transfer_function(dataset)?;
+                let cfg = p.scene.config(&cfg);
                 let mut r = run(ctx, &p.spec, dataset, &tf, &cfg)?;
-                let stem = format!("{}-{}", p.dataset, p.spec.file_stem());
+                let stem = format!("{}-{}", p.dataset, p.file_stem());
                 let (json, png, dpng) = (runs_dir.join(format!("{stem}.json")), runs_dir.join(format!("{stem}.png")), runs_dir.join(format!("{stem}-diff.png")));
                 // A method with its own error (terrain) has no image reference.
                 let diff = if r.result.error.is_none() {
@@ -253,6 +373,22 @@ pub fn run_suite(
             })();
             match outcome {
                 Ok((r, diff)) => {
+                    // A culling scene's pair: the culled image against the
+                    // unculled one (the unchanged-image check).
+                    if p.scene != Scene::Standard && p.spec.options.flag("cull").ok() == Some(false) {
+                        let on = PlannedRun { dataset: p.dataset, spec: cull_on(registry, &p.spec)?, scene: p.scene };
+                        let on_label = format!("{} on {}", on.label(), p.dataset);
+                        if let Some((_, on_image, _)) = images.iter().find(|(l, _, _)| *l == on_label) {
+                            let e = on_image.compare(&r.image)?;
+                            summary.cull_checks.push(CullCheck {
+                                dataset: p.dataset.into(),
+                                scene: p.scene,
+                                method: p.spec.info.name.into(),
+                                rmse: e.rmse,
+                                max_abs: e.max_abs,
+                            });
+                        }
+                    }
                     images.push((label.clone(), r.image, diff));
                     row.result = Some(r.result);
                 }
@@ -587,6 +723,7 @@ pub fn report(s: &Summary, registry: &Registry) -> String {
     t += &error_legend(s);
     t += &published_ratios(s, registry);
     t += &placement_report(s);
+    t += &cull_report(s);
     t += &peer_report(s);
     t += "\nPlots: `plots/frame_time.{png,svg}`, `plots/bytes_per_frame.{png,svg}`; images and their ×10 difference from the f64 reference: `montage.png`, `runs/`.\n";
     t
@@ -661,6 +798,58 @@ fn placement_report(s: &Summary) -> String {
                 work.join(", "),
             );
         }
+    }
+    t
+}
+
+/// The culling scenes: per method, what each rule skipped, the frame time
+/// with culling on and off and the speed-up, the rasterizer's work both
+/// ways, and the unchanged-image check (culled against unculled image).
+pub fn cull_report(s: &Summary) -> String {
+    if s.cull_checks.is_empty() {
+        return String::new();
+    }
+    let find = |c: &CullCheck, on: bool| {
+        s.runs.iter().find(|r| r.dataset == c.dataset && r.scene == c.scene && r.method == c.method && r.result.as_ref().is_some_and(|x| x.options.flag("cull").ok() == Some(on)))
+    };
+    let per_frame = |x: &RunResult, k: &str| x.frame_counts.get(k).filter(|c| c.frames > 0).map_or(0.0, |c| c.total as f64 / c.frames as f64);
+    let mut t = String::from(
+        "\n## Culling: skipping what a scene does not need\n\n\
+         Each scene runs every tetrahedral method with culling on (`cull=on`, the default) and off. Skipped per timed frame \
+         (mean): cells whose table lookups read zero attenuation (transparent), other cells outside the view volume \
+         (off-screen); frames re-used: frames with the same view and transfer function as the one before (no cull, sort, \
+         pack or upload; the draw is repeated). Primitives in / fragments: pipeline statistics of the reference-view frame, \
+         culled / unculled. The image check compares the culled and the unculled reference-view image (culling is exact: \
+         RMSE 0 expected, ≤ 1e-6 required).\n\n\
+         | dataset | scene | method | cells | transparent | off-screen | frames re-used | drawn | frame ms culled | unculled | speed-up | MB/frame culled / unculled | primitives in | fragments | RMSE culled vs unculled | image |\n\
+         |---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|---|---|---:|---|\n",
+    );
+    for c in &s.cull_checks {
+        let (Some(on), Some(off)) = (find(c, true).and_then(|r| r.result.as_ref()), find(c, false).and_then(|r| r.result.as_ref())) else { continue };
+        let (f_on, f_off) = (on.time_ms.phase("frame").median, off.time_ms.phase("frame").median);
+        let reused = on.frame_counts.get("cull.reused").map_or(0, |x| x.total);
+        let stats = |x: &RunResult| x.stats.map_or(("-".to_string(), "-".to_string()), |st| (st.input_primitives.to_string(), st.fragment_invocations.to_string()));
+        let ((p_on, fr_on), (p_off, fr_off)) = (stats(on), stats(off));
+        let _ = writeln!(
+            t,
+            "| {} | {} | {} | {} | {:.0} | {:.0} | {}/{} | {:.0} | {:.1} | {:.1} | **{:.2}** | {:.2} / {:.2} | {p_on} / {p_off} | {fr_on} / {fr_off} | {:.2e} | {} |",
+            c.dataset,
+            c.scene.name(),
+            c.method,
+            on.work.counts.get("cells").copied().unwrap_or(0),
+            per_frame(on, "cull.transparent"),
+            per_frame(on, "cull.frustum"),
+            reused,
+            on.frames,
+            per_frame(on, "cells_drawn"),
+            f_on,
+            f_off,
+            if f_on > 0.0 { f_off / f_on } else { 0.0 },
+            on.upload.bytes_per_frame as f64 / 1e6,
+            off.upload.bytes_per_frame as f64 / 1e6,
+            c.rmse,
+            if c.rmse <= 1e-6 { "unchanged" } else { "**CHANGED**" },
+        );
     }
     t
 }

@@ -126,6 +126,21 @@ impl Camera {
         self.proj(width as f64 / height as f64) * self.view()
     }
 
+    /// The same eye and target with the field of view narrowed `factor`
+    /// times (perspective: tan of the half angle divided; orthographic: the
+    /// view volume's height divided), so the image zooms in on the target by
+    /// that factor and cells away from it leave the view.
+    pub fn zoomed(&self, factor: f64) -> Camera {
+        let projection = match self.projection {
+            Projection::Perspective { fovy_deg } => {
+                let t = (0.5 * fovy_deg.to_radians()).tan() / factor;
+                Projection::Perspective { fovy_deg: 2.0 * t.atan().to_degrees() }
+            }
+            Projection::Orthographic { height } => Projection::Orthographic { height: height / factor },
+        };
+        Camera { projection, ..*self }
+    }
+
     /// The same camera moved by `by` (eye and target; the view is unchanged).
     pub fn translated(&self, by: [f64; 3]) -> Camera {
         Camera {
@@ -180,6 +195,23 @@ mod tests {
 
     fn bounds() -> Bounds {
         Bounds { min: [-1.0, -2.0, 0.0], max: [3.0, 1.0, 2.0] }
+    }
+
+    /// Zooming by 2 halves the image-plane extent: a point at NDC x
+    /// lands at 2x.
+    #[test]
+    fn zoom_scales_the_image() {
+        for projection in [Projection::Perspective { fovy_deg: 30.0 }, Projection::Orthographic { height: 1.0 }] {
+            let cam = Camera::orbit(&bounds(), 0.3, projection);
+            let z = cam.zoomed(2.0);
+            let p = DVec3::from(cam.target) + DVec3::new(0.1, 0.05, -0.02);
+            let ndc = |c: &Camera| {
+                let v = c.view_proj(64, 64) * p.extend(1.0);
+                (v.x / v.w, v.y / v.w)
+            };
+            let (a, b) = (ndc(&cam), ndc(&z));
+            assert!((2.0 * a.0 - b.0).abs() < 1e-12 && (2.0 * a.1 - b.1).abs() < 1e-12, "{a:?} {b:?}");
+        }
     }
 
     /// A point on a pixel's ray must project back to that pixel's centre.

@@ -57,6 +57,8 @@ pub struct Balanced {
     index_buffer: Buffer,
     pipeline: Arc<Pipeline>,
     pipeline_key: PipelineKey,
+    /// Cells in the last `pack`.
+    drawn: usize,
 }
 
 /// The static index data: tet slot k's strip over vertices 4k..4k+3.
@@ -146,7 +148,7 @@ impl Balanced {
             interpolation,
             &[],
         )?;
-        Ok(Balanced { packed: vec![0f32; n * FLOATS_PER_CELL], cells, vertex_buffer, index_buffer, pipeline, pipeline_key })
+        Ok(Balanced { packed: vec![0f32; n * FLOATS_PER_CELL], cells, vertex_buffer, index_buffer, pipeline, pipeline_key, drawn: n })
     }
 }
 
@@ -164,12 +166,18 @@ impl CellProjector for Balanced {
         &self.pipeline_key
     }
 
+    fn drawn(&self) -> usize {
+        self.drawn
+    }
+
     fn pack(&mut self, order: &[u32], frame: &FrameSetup) {
-        pack_records(&self.cells, order, frame, &mut self.packed);
+        self.drawn = order.len().min(self.cells.len());
+        pack_records(&self.cells, &order[..self.drawn], frame, &mut self.packed[..self.drawn * FLOATS_PER_CELL]);
     }
 
     fn upload(&mut self, counter: &mut UploadCounter) -> VkResult<()> {
-        self.vertex_buffer.write(0, bytemuck::cast_slice(&self.packed), counter, UploadClass::FrameCells)
+        let packed = &self.packed[..self.drawn * FLOATS_PER_CELL];
+        self.vertex_buffer.write(0, bytemuck::cast_slice(packed), counter, UploadClass::FrameCells)
     }
 
     fn record_draw(&self, rec: &CommandRecorder, tables: &IntegrationTables, frame: &FrameSetup, counter: &mut UploadCounter) -> VkResult<()> {
@@ -177,7 +185,7 @@ impl CellProjector for Balanced {
         rec.push_constants(&self.pipeline, bytemuck::bytes_of(&frame.constants), counter);
         rec.bind_vertex_buffer(&self.vertex_buffer);
         rec.bind_index_buffer_u32(&self.index_buffer);
-        rec.draw_indexed((self.cells.len() * INDICES_PER_CELL) as u32);
+        rec.draw_indexed((self.drawn * INDICES_PER_CELL) as u32);
         Ok(())
     }
 }

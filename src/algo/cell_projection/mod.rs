@@ -7,6 +7,7 @@
 //! `upload` (host memory -> device-visible buffer, counted), `record_draw`.
 
 pub mod balanced;
+pub mod cull;
 pub mod mpvo;
 pub mod radix;
 pub mod render;
@@ -306,7 +307,15 @@ pub trait CellProjector {
     fn floats_per_cell(&self) -> usize;
     /// The key of the pipeline it draws with (recorded in results).
     fn pipeline_key(&self) -> &PipelineKey;
-    /// Write this frame's vertex data in `order` into host memory.
+    /// Cells the last `pack` wrote, i.e. the next draw draws (`cull` may
+    /// leave cells out of `order`). A projector that ignores the order
+    /// draws every cell.
+    fn drawn(&self) -> usize {
+        self.cells()
+    }
+    /// Write this frame's vertex data in `order` into host memory: a
+    /// visibility order of every cell, or of the cells `cull` kept (then
+    /// shorter than `cells()`; only those are uploaded and drawn).
     fn pack(&mut self, order: &[u32], frame: &FrameSetup);
     /// Copy the packed data to where the device reads it (counted).
     fn upload(&mut self, counter: &mut UploadCounter) -> VkResult<()>;

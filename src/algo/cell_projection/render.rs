@@ -2,8 +2,10 @@
 //! their options, the sweeps they take part in, and [`CellProjection`], the
 //! `RenderMethod` that owns the integration tables, the visibility sort and
 //! one [`CellProjector`] (the part that differs: what crosses per frame and
-//! where IntersectBackFace runs). A frame is sort + pack on the CPU
-//! (`prepare`), the counted copy (`upload`) and one draw into the target.
+//! where IntersectBackFace runs). A frame is cull + sort + pack on the CPU
+//! (`prepare`), the counted copy (`upload`) and one draw into the target;
+//! culling (`cull`, option `cull`) leaves out cells the frame does not need
+//! and re-uses an unchanged frame's data.
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -12,6 +14,7 @@ use anyhow::{Context as _, Result};
 use clap::ValueEnum;
 use serde_json::json;
 
+use super::cull::{Culler, FrameCull, LookupGrid};
 use super::mpvo::MpvoSort;
 use super::sort::{CentroidSort, SortKind, Sorter};
 use super::{centroids_relative_f32, render_origin, CellProjector, ExitTolerances, FrameSetup, Interpolation, MeshScale};
@@ -79,6 +82,14 @@ pub const OPTIONS: &[OptionSpec] = &[
         values: OptionValues::Float { min: 0.0, max: 0.1 },
         build_time: false,
         help: "a plane whose weight is below this is an exit at distance 0 (off: drops grazing segments)",
+    },
+    OptionSpec {
+        name: "cull",
+        default: "on",
+        unit: "",
+        values: OptionValues::Bool,
+        build_time: false,
+        help: "skip fully transparent and off-screen cells, re-use an unchanged frame (exact: the image is unchanged)",
     },
 ];
 
@@ -244,6 +255,8 @@ pub struct Settings {
     pub sort: SortKind,
     pub interpolation: Interpolation,
     pub tolerances: ExitTolerances,
+    /// Culling on (`cull`).
+    pub cull: bool,
 }
 
 impl Settings {
@@ -261,6 +274,7 @@ impl Settings {
                 plane_ratio_max: options.float("plane_ratio_max")? as f32,
                 edge_eps: options.float("edge_eps")? as f32,
             },
+            cull: options.flag("cull")?,
         })
     }
 }
@@ -295,6 +309,13 @@ pub struct CellProjection {
     check: Option<(CentroidSort, MpvoSort)>,
     prepared: Option<FrameSetup>,
     mesh_stats: crate::mesh::MeshStats,
+    culler: Culler,
+    /// MPVO's order with the culled cells left out.
+    filtered: Vec<u32>,
+    /// The prepared frame re-uses the data already on the device.
+    reused: bool,
+    /// What the last prepared (not re-used) frame skipped.
+    last_cull: Option<FrameCull>,
 }
 
 impl CellProjection {
@@ -324,6 +345,7 @@ impl CellProjection {
         let projector = build(ctx, mesh, geometry, &tables, settings.interpolation, inputs.counter)?;
         let sorter = Sorter::new(settings.sort, mesh, geometry);
         let origin = render_origin(mesh);
+        let culler = Culler::new(mesh, inputs.tf, LookupGrid::of(&tables), origin, settings.cull);
         let check = inputs.diagnostics.then(|| {
             (CentroidSort::with_origin(centroids_relative_f32(geometry, origin), origin), MpvoSort::new(mesh, geometry))
         });
@@ -336,6 +358,10 @@ impl CellProjection {
             check,
             prepared: None,
             mesh_stats: mesh.stats.clone(),
+            culler,
+            filtered: Vec::new(),
+            reused: false,
+            last_cull: None,
         }))
     }
 
@@ -359,18 +385,52 @@ fn ms(d: std::time::Duration) -> f64 {
 impl RenderMethod for CellProjection {
     fn prepare(&mut self, view: &View, phases: &mut Phases) -> Result<()> {
         let setup = self.frame_setup(view);
+        let (camera, w, h) = (&view.camera, view.width, view.height);
+        self.reused = self.culler.unchanged(camera, w, h);
         let t0 = Instant::now();
-        let order = self.sorter.sort(&view.camera);
-        let t1 = Instant::now();
-        self.projector.pack(order, &setup);
-        let t2 = Instant::now();
-        phases.add("sort", ms(t1 - t0));
-        phases.add("pack", ms(t2 - t1));
+        if !self.reused {
+            let culled = self.culler.cull(camera, w, h);
+            let t1 = Instant::now();
+            let order: &[u32] = match (culled.is_some(), &mut self.sorter) {
+                (false, sorter) => sorter.sort(camera),
+                // Cull before sorting: the same order as filtering the full one.
+                (true, Sorter::Centroid(s)) => s.sort_subset(camera, self.culler.survivors()),
+                // The full exact order, filtered (see `cull`: transitivity).
+                (true, Sorter::Mpvo(s)) => {
+                    let full = s.sort(camera);
+                    self.culler.filter_order(full, &mut self.filtered);
+                    &self.filtered
+                }
+            };
+            let t2 = Instant::now();
+            self.projector.pack(order, &setup);
+            let t3 = Instant::now();
+            if self.culler.enabled() {
+                phases.add("cull", ms(t1 - t0));
+            }
+            phases.add("sort", ms(t2 - t1));
+            phases.add("pack", ms(t3 - t2));
+            self.last_cull = culled;
+            self.culler.remember(camera, w, h);
+        } else {
+            // Nothing to do: the device holds this view's data.
+            phases.add("cull", 0.0);
+            phases.add("sort", 0.0);
+            phases.add("pack", 0.0);
+        }
+        let c = self.last_cull.unwrap_or_default();
+        phases.count("cells_drawn", self.projector.drawn() as u64);
+        phases.count("cull.transparent", c.transparent);
+        phases.count("cull.frustum", c.frustum);
+        phases.count("cull.reused", u64::from(self.reused));
         self.prepared = Some(setup);
         Ok(())
     }
 
     fn upload(&mut self, counter: &mut UploadCounter) -> Result<()> {
+        if self.reused {
+            return Ok(());
+        }
         self.projector.upload(counter).context("uploading vertex records")
     }
 
@@ -384,7 +444,7 @@ impl RenderMethod for CellProjection {
     }
 
     fn work(&self) -> Work {
-        Work::default().with("cells", self.projector.cells() as u64)
+        Work::default().with("cells", self.projector.cells() as u64).with("cells_drawn", self.projector.drawn() as u64)
     }
 
     fn details(&self) -> serde_json::Value {
@@ -396,6 +456,13 @@ impl RenderMethod for CellProjection {
             "pipeline": { "key": self.projector.pipeline_key().id(), "name": self.projector.pipeline_key().name() },
             "tolerances": self.settings.tolerances,
             "mesh_stats": self.mesh_stats,
+            "cull": {
+                "enabled": self.culler.enabled(),
+                "transparent_cells": self.culler.transparent_cells(),
+                "rules": "cull.transparent: cells whose table lookups read zero attenuation; cull.frustum: other cells \
+                          with all four vertices outside one clip plane; cull.reused: 1 when the frame re-used the previous \
+                          frame's data (same camera, size, transfer function: no cull, sort, pack or upload; the draw is repeated)",
+            },
         })
     }
 

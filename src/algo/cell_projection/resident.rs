@@ -48,6 +48,8 @@ fn create(inputs: MethodInputs) -> anyhow::Result<Box<dyn RenderMethod>> {
 
 pub struct Resident {
     cells: usize,
+    /// Cells in the last `pack` (the first `drawn` entries of `order`).
+    drawn: usize,
     order: Vec<u32>,
     order_buffer: Buffer,
     _cell_buffer: Buffer,
@@ -106,7 +108,7 @@ impl Resident {
             interpolation,
             &[set_desc()],
         )?;
-        Ok(Resident { cells: n, order: vec![0; n], order_buffer, _cell_buffer: cell_buffer, index_buffer, set, pipeline, pipeline_key })
+        Ok(Resident { cells: n, drawn: n, order: vec![0; n], order_buffer, _cell_buffer: cell_buffer, index_buffer, set, pipeline, pipeline_key })
     }
 }
 
@@ -128,12 +130,17 @@ impl CellProjector for Resident {
         &self.pipeline_key
     }
 
+    fn drawn(&self) -> usize {
+        self.drawn
+    }
+
     fn pack(&mut self, order: &[u32], _frame: &FrameSetup) {
-        self.order.copy_from_slice(order);
+        self.drawn = order.len().min(self.cells);
+        self.order[..self.drawn].copy_from_slice(&order[..self.drawn]);
     }
 
     fn upload(&mut self, counter: &mut UploadCounter) -> VkResult<()> {
-        self.order_buffer.write(0, bytemuck::cast_slice(&self.order), counter, UploadClass::FrameCells)
+        self.order_buffer.write(0, bytemuck::cast_slice(&self.order[..self.drawn]), counter, UploadClass::FrameCells)
     }
 
     fn record_draw(&self, rec: &CommandRecorder, tables: &IntegrationTables, frame: &FrameSetup, counter: &mut UploadCounter) -> VkResult<()> {
@@ -141,7 +148,7 @@ impl CellProjector for Resident {
         rec.bind_graphics(&self.pipeline, &sets)?;
         rec.push_constants(&self.pipeline, bytemuck::bytes_of(&frame.constants), counter);
         rec.bind_index_buffer_u32(&self.index_buffer);
-        rec.draw_indexed((self.cells * INDICES_PER_CELL) as u32);
+        rec.draw_indexed((self.drawn * INDICES_PER_CELL) as u32);
         Ok(())
     }
 }

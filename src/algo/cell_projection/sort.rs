@@ -52,27 +52,47 @@ impl CentroidSort {
         self.centroids.is_empty()
     }
 
-    /// Cell indices, farthest first.
-    pub fn sort(&mut self, camera: &Camera) -> &[u32] {
+    /// The sort key of a centroid for `camera`: ascending key order is
+    /// descending depth (farthest first).
+    fn key_fn(&self, camera: &Camera) -> impl Fn(&[f32; 3]) -> u32 + Sync {
         let o = self.origin;
         let eye: [f32; 3] = std::array::from_fn(|k| (camera.eye[k] - o[k]) as f32);
         let fwd = camera.forward();
         let fwd = [fwd.x as f32, fwd.y as f32, fwd.z as f32];
         let perspective = camera.is_perspective();
-        // Farthest first: invert the key of the depth so ascending key order
-        // is descending depth.
-        self.keys.par_iter_mut().zip(self.centroids.par_iter()).for_each(|(k, c)| {
+        move |c: &[f32; 3]| {
             let d = [c[0] - eye[0], c[1] - eye[1], c[2] - eye[2]];
             let depth = if perspective {
                 d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
             } else {
                 d[0] * fwd[0] + d[1] * fwd[1] + d[2] * fwd[2]
             };
-            *k = !float_key(depth);
-        });
-        for (i, o) in self.order.iter_mut().enumerate() {
-            *o = i as u32;
+            !float_key(depth)
         }
+    }
+
+    /// Cell indices, farthest first.
+    pub fn sort(&mut self, camera: &Camera) -> &[u32] {
+        let key = self.key_fn(camera);
+        self.keys.clear();
+        self.keys.par_extend(self.centroids.par_iter().map(key));
+        self.order.clear();
+        self.order.extend(0..self.centroids.len() as u32);
+        radix_sort_pairs(&mut self.keys, &mut self.order, &mut self.scratch_keys, &mut self.scratch_order);
+        &self.order
+    }
+
+    /// The cells `cells` (ascending ids) only, farthest first: exactly
+    /// [`Self::sort`]'s order with the other cells left out (same keys, and
+    /// the radix sort is stable from ascending ids), for culling
+    /// (`cull`) before sorting.
+    pub fn sort_subset(&mut self, camera: &Camera, cells: &[u32]) -> &[u32] {
+        let key = self.key_fn(camera);
+        let centroids = &self.centroids;
+        self.keys.clear();
+        self.keys.par_extend(cells.par_iter().map(|&c| key(&centroids[c as usize])));
+        self.order.clear();
+        self.order.extend_from_slice(cells);
         radix_sort_pairs(&mut self.keys, &mut self.order, &mut self.scratch_keys, &mut self.scratch_order);
         &self.order
     }
@@ -93,6 +113,9 @@ mod tests {
         cam.target = [0.0, 0.0, 0.0];
         let mut s = CentroidSort::new(cs);
         // distances from z = 20: 20, 15, 25, 20.02
+        assert_eq!(s.sort(&cam), &[2, 3, 0, 1]);
+        // A subset keeps the full order, and the full sort is whole again.
+        assert_eq!(s.sort_subset(&cam, &[1, 2, 3]), &[2, 3, 1]);
         assert_eq!(s.sort(&cam), &[2, 3, 0, 1]);
     }
 }

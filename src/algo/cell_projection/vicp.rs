@@ -47,6 +47,8 @@ pub struct Vicp {
     pipeline: Arc<Pipeline>,
     pipeline_key: PipelineKey,
     cells: usize,
+    /// Cells in the last `pack`.
+    drawn: usize,
 }
 
 /// The 12 records of one tet.
@@ -101,7 +103,7 @@ impl Vicp {
             interpolation,
             &[],
         )?;
-        Ok(Vicp { packed: vec![0f32; records.len()], records, vertex_buffer, pipeline, pipeline_key, cells: n })
+        Ok(Vicp { packed: vec![0f32; records.len()], records, vertex_buffer, pipeline, pipeline_key, cells: n, drawn: n })
     }
 }
 
@@ -119,7 +121,12 @@ impl CellProjector for Vicp {
         &self.pipeline_key
     }
 
+    fn drawn(&self) -> usize {
+        self.drawn
+    }
+
     fn pack(&mut self, order: &[u32], _frame: &FrameSetup) {
+        self.drawn = order.len().min(self.cells);
         let records = &self.records;
         self.packed.par_chunks_mut(FLOATS_PER_CELL).zip(order.par_iter()).for_each(|(dst, &t)| {
             let t = t as usize * FLOATS_PER_CELL;
@@ -128,14 +135,15 @@ impl CellProjector for Vicp {
     }
 
     fn upload(&mut self, counter: &mut UploadCounter) -> VkResult<()> {
-        self.vertex_buffer.write(0, bytemuck::cast_slice(&self.packed), counter, UploadClass::FrameCells)
+        let packed = &self.packed[..self.drawn * FLOATS_PER_CELL];
+        self.vertex_buffer.write(0, bytemuck::cast_slice(packed), counter, UploadClass::FrameCells)
     }
 
     fn record_draw(&self, rec: &CommandRecorder, tables: &IntegrationTables, frame: &FrameSetup, counter: &mut UploadCounter) -> VkResult<()> {
         rec.bind_pipeline(&self.pipeline, Some(&tables.set));
         rec.push_constants(&self.pipeline, bytemuck::bytes_of(&frame.constants), counter);
         rec.bind_vertex_buffer(&self.vertex_buffer);
-        rec.draw((self.cells * VERTICES_PER_CELL) as u32);
+        rec.draw((self.drawn * VERTICES_PER_CELL) as u32);
         Ok(())
     }
 }
