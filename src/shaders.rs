@@ -11,6 +11,8 @@ const SOURCES: &[(&str, &str)] = &[
     ("cell_projection/balanced.vert", include_str!("../shaders/cell_projection/balanced.vert")),
     ("cell_projection/resident.vert", include_str!("../shaders/cell_projection/resident.vert")),
     ("cell_projection/balanced.frag", include_str!("../shaders/cell_projection/balanced.frag")),
+    ("cell_projection/atfs.vert", include_str!("../shaders/cell_projection/atfs.vert")),
+    ("cell_projection/atfs.frag", include_str!("../shaders/cell_projection/atfs.frag")),
     ("raycast/common.glsl", include_str!("../shaders/raycast/common.glsl")),
     ("raycast/box.vert", include_str!("../shaders/raycast/box.vert")),
     ("raycast/box.frag", include_str!("../shaders/raycast/box.frag")),

@@ -6,6 +6,7 @@
 //! A frame is: sort (shared, `sort`), `pack` (CPU, into host memory),
 //! `upload` (host memory -> device-visible buffer, counted), `record_draw`.
 
+pub mod atfs;
 pub mod balanced;
 pub mod mpvo;
 pub mod radix;
@@ -304,6 +305,12 @@ pub trait CellProjector {
     /// Vertex records and floats each tet sends per frame, by construction.
     fn vertices_per_cell(&self) -> usize;
     fn floats_per_cell(&self) -> usize;
+    /// Cells drawn per frame when a cell is drawn more than once (atfs:
+    /// once per transfer-function interval); `floats_per_cell` is then per
+    /// drawn piece. `None`: each cell once.
+    fn pieces(&self) -> Option<usize> {
+        None
+    }
     /// The key of the pipeline it draws with (recorded in results).
     fn pipeline_key(&self) -> &PipelineKey;
     /// Write this frame's vertex data in `order` into host memory.

@@ -192,6 +192,10 @@ pub fn accuracy_bound(options: &Options, perspective: bool) -> Option<f64> {
 }
 
 
+/// Where Table 6.3 figures come from (one source: the report pairs figures
+/// of one source on one dataset into ratios).
+pub const TABLE_6_3_SOURCE: &str = "Moreland, PhD thesis 2004, Table 6.3 (Quadro FX 3000, 800x800)";
+
 /// Moreland's thesis Table 6.3: VICP against balanced, frames per second at
 /// the defaults (pre-integrated colour, Quadro FX 3000, 800x800).
 pub const fn table_6_3(method: &'static str, dataset: &'static str, fps: f64, cells: u64) -> Published {
@@ -200,7 +204,7 @@ pub const fn table_6_3(method: &'static str, dataset: &'static str, fps: f64, ce
         dataset: Some(dataset),
         options: "",
         figure: PublishedFigure::Fps { fps, cells },
-        source: "Moreland, PhD thesis 2004, Table 6.3 (Quadro FX 3000, 800x800)",
+        source: TABLE_6_3_SOURCE,
         note: "In 2004 the 132 floats per tet VICP sends (against 28) cost AGP transfer and vertex work; on lavapipe \
                an upload is a memcpy and the serial triangle front end and the fragment work dominate (PLATFORM.md), \
                so the 4.7x fewer bytes buy a smaller speed-up; on a discrete GPU the ratio moves towards the thesis's.",
@@ -264,15 +268,17 @@ impl Settings {
     }
 }
 
-/// Builds one projector; the two methods differ only here.
-pub type ProjectorBuilder = fn(
-    &Arc<Context>,
-    &TetMesh,
-    &TetGeometry,
-    &IntegrationTables,
-    Interpolation,
-    &mut UploadCounter,
-) -> VkResult<Box<dyn CellProjector>>;
+/// Builds one projector; the methods differ only here (a closure, so that a
+/// projector can keep what its constructor was given, e.g. atfs the
+/// transfer function).
+pub trait ProjectorBuilder:
+    FnOnce(&Arc<Context>, &TetMesh, &TetGeometry, &IntegrationTables, Interpolation, &mut UploadCounter) -> VkResult<Box<dyn CellProjector>>
+{
+}
+impl<F> ProjectorBuilder for F where
+    F: FnOnce(&Arc<Context>, &TetMesh, &TetGeometry, &IntegrationTables, Interpolation, &mut UploadCounter) -> VkResult<Box<dyn CellProjector>>
+{
+}
 
 /// Bytes a projector needs on the device per cell: per-frame records in one
 /// allocation, plus static data (checked before anything is allocated).
@@ -297,7 +303,7 @@ pub struct CellProjection {
 }
 
 impl CellProjection {
-    pub fn create(inputs: MethodInputs, bytes: DeviceBytesPerCell, build: ProjectorBuilder) -> Result<Box<dyn RenderMethod>> {
+    pub fn create(inputs: MethodInputs, bytes: DeviceBytesPerCell, build: impl ProjectorBuilder) -> Result<Box<dyn RenderMethod>> {
         let SceneData::TetMesh { mesh, geometry } = inputs.data else {
             anyhow::bail!("cell projection renders tetrahedral meshes only");
         };
@@ -383,7 +389,11 @@ impl RenderMethod for CellProjection {
     }
 
     fn work(&self) -> Work {
-        Work::default().with("cells", self.projector.cells() as u64)
+        let work = Work::default().with("cells", self.projector.cells() as u64);
+        match self.projector.pieces() {
+            Some(p) => work.with("pieces", p as u64),
+            None => work,
+        }
     }
 
     fn details(&self) -> serde_json::Value {
@@ -395,6 +405,14 @@ impl RenderMethod for CellProjection {
             "pipeline": { "key": self.projector.pipeline_key().id(), "name": self.projector.pipeline_key().name() },
             "tolerances": self.settings.tolerances,
             "mesh_stats": self.mesh_stats,
+            "pieces": self.projector.pieces().map(|p| {
+                let n = self.projector.cells().max(1) as f64;
+                json!({
+                    "per_frame": p,
+                    "growth_over_cells": p as f64 / n - 1.0,
+                    "bytes_per_original_cell_by_construction": (p * self.projector.floats_per_cell() * 4) as f64 / n,
+                })
+            }),
         })
     }
 
