@@ -282,6 +282,25 @@ fn volume_cases_with_both_ray_casters() {
     }
 }
 
+/// Cells cut by the near plane (the eye inside the mesh, on a vertex, the
+/// near plane through the mesh) and by the far plane, with every
+/// tetrahedral method: near caps integrate from the near plane and every
+/// segment stops at the far plane, so these cases carry no allowance and
+/// meet the methods' bounds like the others (before: the cut cells' segments
+/// were lost or integrated past the far plane, errors up to 1 - exp(-tau L)).
+#[test]
+fn near_and_far_plane_cases_meet_the_bounds_with_every_tet_method() {
+    let names = ["camera-inside", "eye-on-vertex", "near-cut", "far-cut"];
+    let selected: Vec<StressCase> = cases().into_iter().filter(|c| names.contains(&c.name.as_str())).collect();
+    assert_eq!(selected.len(), names.len());
+    assert!(selected.iter().all(|c| c.allowances.is_empty()));
+    let rows = run(&selected, &config(&["vicp", "balanced", "resident", "atfs"], &["preint", "ppi"], &["exact"], &["mpvo"]));
+    assert_all_pass(&rows);
+    for r in &rows {
+        assert_eq!(r.status, "ok", "{} {} {}: {}", r.case, r.method, r.options, r.max_abs_error);
+    }
+}
+
 /// The whole sweep with its table (what `volbench stress` prints).
 #[test]
 #[ignore]

@@ -246,6 +246,10 @@ pub fn piece_order(first: u32, last: u32, holding_eye: u32, mut emit: impl FnMut
     emit(e);
 }
 
+fn piece_flags(j: u32, first: u32, last: u32) -> u32 {
+    (if j == first { LOWEST } else { 0 }) | if j == last { HIGHEST } else { 0 }
+}
+
 impl Atfs {
     #[allow(clippy::too_many_arguments)]
     pub fn new(
@@ -335,7 +339,7 @@ impl Atfs {
         let eye = intervals.index_of(Self::scalar_at_eye(c, frame)).min(u32::MAX as usize) as u32;
         let mut k = 0;
         piece_order(first, last, eye, |j| {
-            let flags = if j == first { LOWEST } else { 0 } | if j == last { HIGHEST } else { 0 };
+            let flags = piece_flags(j, first, last);
             let dst = &mut out[k * FLOATS_PER_PIECE..(k + 1) * FLOATS_PER_PIECE];
             dst.copy_from_slice(&rec);
             for i in 0..VERTICES_PER_CELL {
@@ -361,6 +365,14 @@ impl CellProjector for Atfs {
     }
     fn pipeline_key(&self) -> &PipelineKey {
         &self.pipeline_key
+    }
+    fn cap_pieces(&self, cell: usize, frame: &FrameSetup, emit: &mut dyn FnMut(u32)) {
+        let (c, (first, last)) = (&self.cells[cell], self.spans[cell]);
+        let eye = self.intervals.index_of(Self::scalar_at_eye(c, frame)).min(u32::MAX as usize) as u32;
+        piece_order(first, last, eye, |j| emit(4 * piece_flags(j, first, last) + 16 * j));
+    }
+    fn pieces_set(&self) -> Option<&DescriptorSet> {
+        Some(&self.set)
     }
 
     fn pack(&mut self, order: &[u32], frame: &FrameSetup) {

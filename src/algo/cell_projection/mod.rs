@@ -9,6 +9,7 @@
 pub mod atfs;
 pub mod balanced;
 pub mod mpvo;
+pub mod near;
 pub mod radix;
 pub mod render;
 pub mod resident;
@@ -309,6 +310,15 @@ pub trait CellProjector {
     /// once per transfer-function interval); `floats_per_cell` is then per
     /// drawn piece. `None`: each cell once.
     fn pieces(&self) -> Option<usize> {
+        None
+    }
+    /// The codes of the pieces a cell's near cap is drawn with, back to
+    /// front (`near`, `cap.vert`): one, 0, unless cells are drawn in pieces.
+    fn cap_pieces(&self, _cell: usize, _frame: &FrameSetup, emit: &mut dyn FnMut(u32)) {
+        emit(0);
+    }
+    /// The set the piece codes index (atfs's intervals), bound at set 1.
+    fn pieces_set(&self) -> Option<&crate::vk::DescriptorSet> {
         None
     }
     /// The key of the pipeline it draws with (recorded in results).

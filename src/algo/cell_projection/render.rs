@@ -300,6 +300,9 @@ pub struct CellProjection {
     check: Option<(CentroidSort, MpvoSort)>,
     prepared: Option<FrameSetup>,
     mesh_stats: crate::mesh::MeshStats,
+    /// Cells cut by the near plane (`near`).
+    near: super::near::NearCaps,
+    ctx: Arc<Context>,
 }
 
 impl CellProjection {
@@ -327,6 +330,8 @@ impl CellProjection {
         )
         .context("building the integration tables")?;
         let projector = build(ctx, mesh, geometry, &tables, settings.interpolation, inputs.counter)?;
+        let pieces = projector.pieces_set().map(|s| s.desc.clone());
+        let near = super::near::NearCaps::new(ctx, mesh, &tables, settings.interpolation, pieces)?;
         let sorter = Sorter::new(settings.sort, mesh, geometry);
         let origin = render_origin(mesh);
         let check = inputs.diagnostics.then(|| {
@@ -341,6 +346,8 @@ impl CellProjection {
             check,
             prepared: None,
             mesh_stats: mesh.stats.clone(),
+            near,
+            ctx: ctx.clone(),
         }))
     }
 
@@ -368,6 +375,8 @@ impl RenderMethod for CellProjection {
         let order = self.sorter.sort(&view.camera);
         let t1 = Instant::now();
         self.projector.pack(order, &setup);
+        // Near caps are per-frame records too (none unless the near plane cuts the mesh).
+        self.near.prepare(&view.camera, &setup, &*self.projector);
         let t2 = Instant::now();
         phases.add("sort", ms(t1 - t0));
         phases.add("pack", ms(t2 - t1));
@@ -376,13 +385,17 @@ impl RenderMethod for CellProjection {
     }
 
     fn upload(&mut self, counter: &mut UploadCounter) -> Result<()> {
-        self.projector.upload(counter).context("uploading vertex records")
+        self.projector.upload(counter).context("uploading vertex records")?;
+        self.near.upload(&self.ctx, counter).context("uploading near caps")
     }
 
     fn record(&mut self, rec: &CommandRecorder, target: &Image, _view: &View, counter: &mut UploadCounter) -> Result<()> {
         let setup = self.prepared.take().context("record without a prepared frame")?;
         rec.begin_rendering(target, [0.0; 4]);
-        let drawn = self.projector.record_draw(rec, &self.tables, &setup, counter);
+        let drawn = self
+            .projector
+            .record_draw(rec, &self.tables, &setup, counter)
+            .and_then(|()| self.near.record(rec, &self.tables, self.projector.pieces_set(), &setup, counter));
         rec.end_rendering();
         drawn?;
         Ok(())
