@@ -296,7 +296,10 @@ fn near_and_far_plane_cases_meet_the_bounds_with_every_tet_method() {
     let selected: Vec<StressCase> = cases().into_iter().filter(|c| names.contains(&c.name.as_str())).collect();
     assert_eq!(selected.len(), names.len());
     // near-cut keeps a measured allowance for single pixels along the section (see the case).
-    assert!(selected.iter().all(|c| c.allowances.is_empty() || c.name == "near-cut"));
+    // eye-on-vertex keeps one for the papers' (inexact) perspective interpolation only.
+    assert!(selected
+        .iter()
+        .all(|c| c.name == "near-cut" || c.allowances.iter().all(|a| a.when == [("interpolation", &["paper"][..])])));
     let rows = run(&selected, &config(&["vicp", "balanced", "resident", "atfs"], &["preint", "ppi"], &["exact"], &["mpvo"]));
     assert_all_pass(&rows);
     for r in rows.iter().filter(|r| r.case != "near-cut") {

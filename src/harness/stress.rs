@@ -644,7 +644,14 @@ fn eye_on_vertex() -> StressCase {
         description: "eye exactly on a vertex inside the 8^3 grid (the ray direction through it is 0/0), near \
                       plane 1e-3"
             .into(),
-        allowances: Vec::new(),
+        allowances: vec![Allowance {
+            when: &[("interpolation", &["paper"])],
+            extra: 0.15,
+            reason: "the papers' interpolation under perspective is not exact (README: \"Perspective\"), and around \
+                     the eye on a vertex every cell is seen edge-on: measured max 0.371 with vicp and ppi at 64x64 \
+                     (bound 0.25), allowance rounded up; exact interpolation meets the bound"
+                .into(),
+        }],
         data: CaseData::TetMesh(mesh),
         camera,
         tf,
