@@ -3,6 +3,7 @@
 // drawn interpolates to exactly 0 and is never selected.
 #include "common/frame.glsl"
 #include "common/integrate.glsl"
+#include "common/clip.glsl"
 #define EXIT_VEC vec4
 #define EXIT_N 4
 #include "common/exit.glsl"
@@ -19,6 +20,7 @@ void main() {
     float len;
     float sb;
     if (exit_point(in_d, in_s, in_w, in_sf, in_g, in_rel, len, sb)) {
+        clamp_to_far(in_rel, in_sf, len, sb);
         out_color = integrate_segment(in_sf, sb, len);
     } else {
         out_color = vec4(0.0);

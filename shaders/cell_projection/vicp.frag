@@ -2,6 +2,7 @@
 // The exit point is the nearest plane in front of the entry point.
 #include "common/frame.glsl"
 #include "common/integrate.glsl"
+#include "common/clip.glsl"
 #define EXIT_VEC vec3
 #define EXIT_N 3
 #include "common/exit.glsl"
@@ -18,6 +19,7 @@ void main() {
     float len;
     float sb;
     if (exit_point(in_d, in_s, in_w, in_sf, in_g, in_rel, len, sb)) {
+        clamp_to_far(in_rel, in_sf, len, sb);
         out_color = integrate_segment(in_sf, sb, len);
     } else {
         out_color = vec4(0.0);

@@ -12,6 +12,9 @@
 //   zeta = exp(-D (tau_f + tau_b) / 2)
 //   C    = L_b (Psi - zeta) + L_f (1 - Psi),  alpha = 1 - zeta
 // where Psi is the segment's average transmittance.
+// Every integrator defines integrate_segment(s_front, s_back, len); all but
+// INTEGRATOR_PREINT also integrate_values(front, back, len) from the colour
+// and attenuation at the two ends (rgb = L, a = tau).
 
 layout(std430, set = 0, binding = 0) readonly buffer TransferTable { vec4 tf[]; };   // rgb = L, a = tau
 layout(std430, set = 0, binding = 1) readonly buffer IntegrationTable { vec4 table[]; };
@@ -47,9 +50,7 @@ vec4 linear_segment(vec4 front, vec4 back, float zeta, float psi) {
 
 #if defined(INTEGRATOR_AVERAGE)
 
-vec4 integrate_segment(float s_front, float s_back, float len) {
-    vec4 front = transfer(s_front);
-    vec4 back = transfer(s_back);
+vec4 integrate_values(vec4 front, vec4 back, float len) {
     float alpha = 1.0 - exp(-optical_depth(0.5 * (max(front.a, 0.0) + max(back.a, 0.0)), len));
     return vec4(0.5 * (front.rgb + back.rgb) * alpha, alpha);
 }
@@ -161,9 +162,7 @@ float psi_exact(float a, float b) {
     return e.x - c * e.y + 0.5 * c * c * e.z;
 }
 
-vec4 integrate_segment(float s_front, float s_back, float len) {
-    vec4 front = transfer(s_front);
-    vec4 back = transfer(s_back);
+vec4 integrate_values(vec4 front, vec4 back, float len) {
     float a = optical_depth(front.a, len);
     float b = optical_depth(back.a, len);
     float zeta = exp(-0.5 * (a + b));
@@ -182,9 +181,7 @@ float psi_lookup(float gamma_f, float gamma_b) {
     return mix(along_f.x, along_f.y, f.y);
 }
 
-vec4 integrate_segment(float s_front, float s_back, float len) {
-    vec4 front = transfer(s_front);
-    vec4 back = transfer(s_back);
+vec4 integrate_values(vec4 front, vec4 back, float len) {
     float tf_d = optical_depth(front.a, len);
     float tb_d = optical_depth(back.a, len);
     float zeta = exp(-0.5 * (tf_d + tb_d));
@@ -192,4 +189,14 @@ vec4 integrate_segment(float s_front, float s_back, float len) {
     return linear_segment(front, back, zeta, psi);
 }
 
+#endif
+
+#ifndef INTEGRATOR_PREINT
+// The integrators that take colour and attenuation linear along the
+// segment need only their values at its two ends: `integrate_values` above,
+// from the transfer-function table here, or from a piece of the transfer
+// function that is exactly linear (atfs.frag).
+vec4 integrate_segment(float s_front, float s_back, float len) {
+    return integrate_values(transfer(s_front), transfer(s_back), len);
+}
 #endif

@@ -370,6 +370,9 @@ pub enum PublishedFigure {
     Fps { fps: f64, cells: u64 },
     /// The defaults run up to this many times faster than this option set.
     DefaultsFasterUpTo(f64),
+    /// Cells drawn per frame for a mesh of `cells` cells (a method that
+    /// draws a cell more than once; set beside the run's `work.pieces`).
+    CellsRendered { rendered: u64, cells: u64 },
 }
 
 impl Published {
@@ -377,7 +380,7 @@ impl Published {
     pub fn fps(&self) -> Option<f64> {
         match self.figure {
             PublishedFigure::Fps { fps, .. } => Some(fps),
-            PublishedFigure::DefaultsFasterUpTo(_) => None,
+            PublishedFigure::DefaultsFasterUpTo(_) | PublishedFigure::CellsRendered { .. } => None,
         }
     }
 
@@ -385,7 +388,7 @@ impl Published {
     pub fn cells_per_second(&self) -> Option<f64> {
         match self.figure {
             PublishedFigure::Fps { fps, cells } => Some(fps * cells as f64),
-            PublishedFigure::DefaultsFasterUpTo(_) => None,
+            PublishedFigure::DefaultsFasterUpTo(_) | PublishedFigure::CellsRendered { .. } => None,
         }
     }
 

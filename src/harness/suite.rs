@@ -901,6 +901,28 @@ fn published_ratios(s: &Summary, registry: &Registry) -> String {
             let _ = writeln!(rows, "| {} | {} ÷ {l_off} | {m:.2} | up to {bound:.1} | {verdict} | {} |", r.mesh, p.method, p.source);
         }
     }
+    // Cells drawn per frame (a method drawing cells more than once): the
+    // growth over the mesh's cell count, measured from the run's work counts.
+    for p in &published {
+        let PublishedFigure::CellsRendered { rendered, cells } = p.figure else { continue };
+        let Ok(spec) = registry.published_spec(p) else { continue };
+        let canonical = spec.canonical();
+        for r in s.runs.iter().filter_map(|r| r.result.as_ref()).filter(|r| r.spec == canonical && p.applies_to(&r.mesh)) {
+            let (Some(&drawn), Some(&n)) = (r.work.counts.get("pieces"), r.work.counts.get("cells")) else { continue };
+            if n == 0 || cells == 0 {
+                continue;
+            }
+            let (m, pubr) = (drawn as f64 / n as f64, rendered as f64 / cells as f64);
+            let verdict = if (m / pubr - 1.0).abs() <= 0.25 { "agrees (within 25 %)" } else if m > pubr { "larger here" } else { "smaller here" };
+            let _ = writeln!(
+                rows,
+                "| {} | {} cells drawn ÷ cells ({drawn} for {n}; published {rendered} for {cells}) | {m:.2} | {pubr:.2} | {verdict} | {} |",
+                r.mesh,
+                spec.label(),
+                p.source
+            );
+        }
+    }
     if rows.is_empty() {
         return String::new();
     }
@@ -918,7 +940,8 @@ fn published_ratios(s: &Summary, registry: &Registry) -> String {
         "\n## Measured against published, as speed ratios inside this run\n\n\
          Absolute times from the papers' hardware are not comparable with this machine; ratios between \
          runs on one dataset are. A ratio a ÷ b is how many times faster a ran than b (frame rate of a over \
-         frame rate of b; published: the paper's two frame rates).\n\n\
+         frame rate of b; published: the paper's two frame rates); \"cells drawn ÷ cells\" is how many times a \
+         method draws the mesh's cell count per frame (counts, not speeds).\n\n\
          | dataset | ratio | measured | published | | source |\n|---|---|---:|---:|---|---|\n{rows}"
     )
 }

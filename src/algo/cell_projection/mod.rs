@@ -6,9 +6,11 @@
 //! A frame is: sort (shared, `sort`), `pack` (CPU, into host memory),
 //! `upload` (host memory -> device-visible buffer, counted), `record_draw`.
 
+pub mod atfs;
 pub mod balanced;
 pub mod cull;
 pub mod mpvo;
+pub mod near;
 pub mod radix;
 pub mod render;
 pub mod resident;
@@ -305,6 +307,26 @@ pub trait CellProjector {
     /// Vertex records and floats each tet sends per frame, by construction.
     fn vertices_per_cell(&self) -> usize;
     fn floats_per_cell(&self) -> usize;
+    /// Cells drawn per frame when a cell is drawn more than once (atfs:
+    /// once per transfer-function interval); `floats_per_cell` is then per
+    /// drawn piece. `None`: each cell once.
+    fn pieces(&self) -> Option<usize> {
+        None
+    }
+    /// Pieces the last `pack` wrote (`cull` may leave cells out); `pieces()`
+    /// when nothing was left out.
+    fn pieces_drawn(&self) -> usize {
+        self.pieces().unwrap_or_else(|| self.drawn())
+    }
+    /// The codes of the pieces a cell's near cap is drawn with, back to
+    /// front (`near`, `cap.vert`): one, 0, unless cells are drawn in pieces.
+    fn cap_pieces(&self, _cell: usize, _frame: &FrameSetup, emit: &mut dyn FnMut(u32)) {
+        emit(0);
+    }
+    /// The set the piece codes index (atfs's intervals), bound at set 1.
+    fn pieces_set(&self) -> Option<&crate::vk::DescriptorSet> {
+        None
+    }
     /// The key of the pipeline it draws with (recorded in results).
     fn pipeline_key(&self) -> &PipelineKey;
     /// Cells the last `pack` wrote, i.e. the next draw draws (`cull` may

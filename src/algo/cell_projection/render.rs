@@ -204,6 +204,10 @@ pub fn accuracy_bound(options: &Options, perspective: bool) -> Option<f64> {
 }
 
 
+/// Where Table 6.3 figures come from (one source: the report pairs figures
+/// of one source on one dataset into ratios).
+pub const TABLE_6_3_SOURCE: &str = "Moreland, PhD thesis 2004, Table 6.3 (Quadro FX 3000, 800x800)";
+
 /// Moreland's thesis Table 6.3: VICP against balanced, frames per second at
 /// the defaults (pre-integrated colour, Quadro FX 3000, 800x800).
 pub const fn table_6_3(method: &'static str, dataset: &'static str, fps: f64, cells: u64) -> Published {
@@ -212,7 +216,7 @@ pub const fn table_6_3(method: &'static str, dataset: &'static str, fps: f64, ce
         dataset: Some(dataset),
         options: "",
         figure: PublishedFigure::Fps { fps, cells },
-        source: "Moreland, PhD thesis 2004, Table 6.3 (Quadro FX 3000, 800x800)",
+        source: TABLE_6_3_SOURCE,
         note: "In 2004 the 132 floats per tet VICP sends (against 28) cost AGP transfer and vertex work; on lavapipe \
                an upload is a memcpy and the serial triangle front end and the fragment work dominate (PLATFORM.md), \
                so the 4.7x fewer bytes buy a smaller speed-up; on a discrete GPU the ratio moves towards the thesis's.",
@@ -279,15 +283,17 @@ impl Settings {
     }
 }
 
-/// Builds one projector; the two methods differ only here.
-pub type ProjectorBuilder = fn(
-    &Arc<Context>,
-    &TetMesh,
-    &TetGeometry,
-    &IntegrationTables,
-    Interpolation,
-    &mut UploadCounter,
-) -> VkResult<Box<dyn CellProjector>>;
+/// Builds one projector; the methods differ only here (a closure, so that a
+/// projector can keep what its constructor was given, e.g. atfs the
+/// transfer function).
+pub trait ProjectorBuilder:
+    FnOnce(&Arc<Context>, &TetMesh, &TetGeometry, &IntegrationTables, Interpolation, &mut UploadCounter) -> VkResult<Box<dyn CellProjector>>
+{
+}
+impl<F> ProjectorBuilder for F where
+    F: FnOnce(&Arc<Context>, &TetMesh, &TetGeometry, &IntegrationTables, Interpolation, &mut UploadCounter) -> VkResult<Box<dyn CellProjector>>
+{
+}
 
 /// Bytes a projector needs on the device per cell: per-frame records in one
 /// allocation, plus static data (checked before anything is allocated).
@@ -316,10 +322,13 @@ pub struct CellProjection {
     reused: bool,
     /// What the last prepared (not re-used) frame skipped.
     last_cull: Option<FrameCull>,
+    /// Cells cut by the near plane (`near`).
+    near: super::near::NearCaps,
+    ctx: Arc<Context>,
 }
 
 impl CellProjection {
-    pub fn create(inputs: MethodInputs, bytes: DeviceBytesPerCell, build: ProjectorBuilder) -> Result<Box<dyn RenderMethod>> {
+    pub fn create(inputs: MethodInputs, bytes: DeviceBytesPerCell, build: impl ProjectorBuilder) -> Result<Box<dyn RenderMethod>> {
         let SceneData::TetMesh { mesh, geometry } = inputs.data else {
             anyhow::bail!("cell projection renders tetrahedral meshes only");
         };
@@ -343,6 +352,8 @@ impl CellProjection {
         )
         .context("building the integration tables")?;
         let projector = build(ctx, mesh, geometry, &tables, settings.interpolation, inputs.counter)?;
+        let pieces = projector.pieces_set().map(|s| s.desc.clone());
+        let near = super::near::NearCaps::new(ctx, mesh, &tables, settings.interpolation, pieces)?;
         let sorter = Sorter::new(settings.sort, mesh, geometry);
         let origin = render_origin(mesh);
         let culler = Culler::new(mesh, inputs.tf, LookupGrid::of(&tables), origin, settings.cull);
@@ -362,6 +373,8 @@ impl CellProjection {
             filtered: Vec::new(),
             reused: false,
             last_cull: None,
+            near,
+            ctx: ctx.clone(),
         }))
     }
 
@@ -404,6 +417,9 @@ impl RenderMethod for CellProjection {
             };
             let t2 = Instant::now();
             self.projector.pack(order, &setup);
+            // Near caps are per-frame records too (none unless the near plane
+            // cuts the mesh); a re-used frame keeps the ones on the device.
+            self.near.prepare(camera, &setup, &*self.projector);
             let t3 = Instant::now();
             if self.culler.enabled() {
                 phases.add("cull", ms(t1 - t0));
@@ -431,20 +447,28 @@ impl RenderMethod for CellProjection {
         if self.reused {
             return Ok(());
         }
-        self.projector.upload(counter).context("uploading vertex records")
+        self.projector.upload(counter).context("uploading vertex records")?;
+        self.near.upload(&self.ctx, counter).context("uploading near caps")
     }
 
     fn record(&mut self, rec: &CommandRecorder, target: &Image, _view: &View, counter: &mut UploadCounter) -> Result<()> {
         let setup = self.prepared.take().context("record without a prepared frame")?;
         rec.begin_rendering(target, [0.0; 4]);
-        let drawn = self.projector.record_draw(rec, &self.tables, &setup, counter);
+        let drawn = self
+            .projector
+            .record_draw(rec, &self.tables, &setup, counter)
+            .and_then(|()| self.near.record(rec, &self.tables, self.projector.pieces_set(), &setup, counter));
         rec.end_rendering();
         drawn?;
         Ok(())
     }
 
     fn work(&self) -> Work {
-        Work::default().with("cells", self.projector.cells() as u64).with("cells_drawn", self.projector.drawn() as u64)
+        let work = Work::default().with("cells", self.projector.cells() as u64).with("cells_drawn", self.projector.drawn() as u64);
+        match self.projector.pieces() {
+            Some(p) => work.with("pieces", p as u64).with("pieces_drawn", self.projector.pieces_drawn() as u64),
+            None => work,
+        }
     }
 
     fn details(&self) -> serde_json::Value {
@@ -463,6 +487,15 @@ impl RenderMethod for CellProjection {
                           with all four vertices outside one clip plane; cull.reused: 1 when the frame re-used the previous \
                           frame's data (same camera, size, transfer function: no cull, sort, pack or upload; the draw is repeated)",
             },
+            "pieces": self.projector.pieces().map(|p| {
+                let n = self.projector.cells().max(1) as f64;
+                json!({
+                    "per_frame": p,
+                    "drawn_per_frame": self.projector.pieces_drawn(),
+                    "growth_over_cells": p as f64 / n - 1.0,
+                    "bytes_per_original_cell_by_construction": (p * self.projector.floats_per_cell() * 4) as f64 / n,
+                })
+            }),
         })
     }
 

@@ -1,0 +1,2 @@
+#version 450
+#include "cell_projection/cap_vert.glsl"

@@ -1,0 +1,352 @@
+//! Near caps: cells cut by the camera's near plane, for every tetrahedral
+//! cell-projection method. A cell is drawn from its entry faces; where the
+//! near plane cuts it, the rasterizer clips the part of those faces in
+//! front of the plane, and every ray that enters the cell there would lose
+//! the cell's segment from the near plane to its exit (the f64 reference
+//! integrates from the near plane). So each frame the CPU finds the cells
+//! the near plane cuts (none unless the plane meets the mesh's bounding
+//! box: orbit views pay one box test) and sends the section of each by a
+//! plane just behind the near plane (`CAP_OFFSET`, so it survives clipping)
+//! as one or two triangles, with the records `cap.frag` needs at each
+//! corner. They are drawn after all cells: on any ray the segment from the
+//! near plane is the first one, so "over" puts it on top. `cap.frag` adds
+//! the segment only where no entry plane lies between the cap and the near
+//! plane (elsewhere the entry face is drawn) and stops it at the far plane.
+//! The per-frame bytes are counted with the cells' records.
+
+use std::sync::Arc;
+
+use ash::vk as raw;
+use rayon::prelude::*;
+
+use super::{build_pipeline, scalar_map, render_origin, CellProjector, FrameSetup, Interpolation};
+use crate::algo::integrate::IntegrationTables;
+use crate::mesh::TetMesh;
+use crate::scene::Camera;
+use crate::vk::{
+    Buffer, BufferDesc, CommandRecorder, Context, DescriptorSet, DescriptorSetDesc, Pipeline, UploadClass, UploadCounter,
+    VertexAttribute, VkResult,
+};
+
+/// pos 3, s_f 1, d 4, s 4, w 4, g 1, code 1.
+pub const FLOATS_PER_VERTEX: usize = 18;
+
+/// The cap's plane lies this far behind the near plane, relative to the
+/// near distance, plus this much of the depth range (so that it is not
+/// clipped by rounding; `cap.frag` integrates from the near plane itself).
+const CAP_OFFSET_NEAR: f64 = 1e-5;
+const CAP_OFFSET_RANGE: f64 = 1e-6;
+
+pub struct NearCaps {
+    tets: Vec<[u32; 4]>,
+    /// Positions relative to the mesh's render origin, and scalars mapped as
+    /// the device sees them (`scalar_map`), in f64.
+    points: Vec<[f64; 3]>,
+    scalars: Vec<f64>,
+    origin: [f64; 3],
+    /// The points' bounding box (relative to `origin`).
+    bounds: ([f64; 3], [f64; 3]),
+    records: Vec<f32>,
+    vertices: usize,
+    buffer: Option<Buffer>,
+    pipeline: Arc<Pipeline>,
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+}
+
+/// The barycentric coordinates of a tet as affine functions: lambda_k(p) =
+/// grad[k] . (p - v0) + base[k]. None for a flat tet.
+fn barycentric(v: &[[f64; 3]; 4]) -> Option<([[f64; 3]; 4], [f64; 4])> {
+    let (e1, e2, e3) = (sub(v[1], v[0]), sub(v[2], v[0]), sub(v[3], v[0]));
+    let det = dot(e1, cross(e2, e3));
+    let scale = (dot(e1, e1) * dot(e2, e2) * dot(e3, e3)).sqrt();
+    if det.abs() <= 1e-12 * scale || !det.is_finite() {
+        return None;
+    }
+    // Rows of the inverse of [e1 e2 e3]: gradients of lambda_1..3.
+    let g1 = cross(e2, e3).map(|x| x / det);
+    let g2 = cross(e3, e1).map(|x| x / det);
+    let g3 = cross(e1, e2).map(|x| x / det);
+    let g0 = [-(g1[0] + g2[0] + g3[0]), -(g1[1] + g2[1] + g3[1]), -(g1[2] + g2[2] + g3[2])];
+    Some(([g0, g1, g2, g3], [1.0, 0.0, 0.0, 0.0]))
+}
+
+impl NearCaps {
+    pub fn new(
+        ctx: &Arc<Context>,
+        mesh: &TetMesh,
+        tables: &IntegrationTables,
+        interpolation: Interpolation,
+        pieces_set: Option<DescriptorSetDesc>,
+    ) -> VkResult<Self> {
+        let origin = render_origin(mesh);
+        let (so, ss) = scalar_map(mesh);
+        let f = |location, format, floats: u32| VertexAttribute { location, format, offset: floats * 4 };
+        let attributes = [
+            f(0, raw::Format::R32G32B32_SFLOAT, 0),
+            f(1, raw::Format::R32_SFLOAT, 3),
+            f(2, raw::Format::R32G32B32A32_SFLOAT, 4),
+            f(3, raw::Format::R32G32B32A32_SFLOAT, 8),
+            f(4, raw::Format::R32G32B32A32_SFLOAT, 12),
+            f(5, raw::Format::R32_SFLOAT, 16),
+            f(6, raw::Format::R32_SFLOAT, 17),
+        ];
+        let (vertex, fragment) = if pieces_set.is_some() {
+            ("cell_projection/cap_pieces.vert", "cell_projection/cap_pieces.frag")
+        } else {
+            ("cell_projection/cap.vert", "cell_projection/cap.frag")
+        };
+        let (pipeline, _) = build_pipeline(
+            ctx,
+            vertex,
+            fragment,
+            (FLOATS_PER_VERTEX * 4) as u32,
+            &attributes,
+            raw::PrimitiveTopology::TRIANGLE_LIST,
+            false,
+            tables,
+            interpolation,
+            pieces_set.as_slice(),
+        )?;
+        let points: Vec<[f64; 3]> = mesh.points.iter().map(|p| sub(*p, origin)).collect();
+        let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+        for p in &points {
+            for k in 0..3 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+        Ok(NearCaps {
+            tets: mesh.tets.clone(),
+            bounds: (lo, hi),
+            points,
+            scalars: mesh.scalars.iter().map(|s| (s - so) / ss).collect(),
+            origin,
+            records: Vec::new(),
+            vertices: 0,
+            buffer: None,
+            pipeline,
+        })
+    }
+
+    /// This frame's caps (empty unless the near plane meets the mesh).
+    pub fn prepare(&mut self, camera: &Camera, frame: &FrameSetup, projector: &dyn CellProjector) {
+        self.records.clear();
+        self.vertices = 0;
+        let eye = sub(camera.eye, self.origin);
+        let fwd = camera.forward();
+        let fwd = [fwd.x, fwd.y, fwd.z];
+        let depth = |p: [f64; 3]| dot(sub(p, eye), fwd);
+        let cap = camera.near + CAP_OFFSET_NEAR * camera.near.abs() + CAP_OFFSET_RANGE * (camera.far - camera.near);
+        // Quick reject: the plane misses the points' bounding box.
+        let (lo, hi) = self.bounds;
+        let corners = (0..8).map(|i| depth([if i & 1 == 0 { lo[0] } else { hi[0] }, if i & 2 == 0 { lo[1] } else { hi[1] }, if i & 4 == 0 { lo[2] } else { hi[2] }]));
+        let (dmin, dmax) = corners.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), d| (a.min(d), b.max(d)));
+        if !(dmin < cap && cap < dmax) {
+            return;
+        }
+        let points = &self.points;
+        let cut: Vec<usize> = self
+            .tets
+            .par_iter()
+            .enumerate()
+            .filter(|(_, tet)| {
+                let z = tet.map(|i| depth(points[i as usize]));
+                let zmin = z.iter().copied().fold(f64::INFINITY, f64::min);
+                let zmax = z.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                zmin < cap && cap < zmax
+            })
+            .map(|(t, _)| t)
+            .collect();
+        let mut codes = Vec::new();
+        for t in cut {
+            let tet = self.tets[t];
+            let v = tet.map(|i| self.points[i as usize]);
+            let s = tet.map(|i| self.scalars[i as usize]);
+            let polygon = section(&v, &v.map(depth), cap);
+            codes.clear();
+            projector.cap_pieces(t, frame, &mut |code| codes.push(code));
+            cap_records(&v, &s, &polygon, eye, fwd, frame, &codes, &mut self.records);
+        }
+        self.vertices = self.records.len() / FLOATS_PER_VERTEX;
+    }
+
+    /// Copy this frame's caps to the device (counted with the cells' records).
+    pub fn upload(&mut self, ctx: &Arc<Context>, counter: &mut UploadCounter) -> VkResult<()> {
+        if self.vertices == 0 {
+            return Ok(());
+        }
+        let bytes = (self.records.len() * 4) as u64;
+        if self.buffer.as_ref().is_none_or(|b| b.size() < bytes) {
+            // Grown to twice what is needed, so an orbit does not reallocate every frame.
+            self.buffer = Some(Buffer::new(ctx, BufferDesc::upload("near caps", bytes * 2, raw::BufferUsageFlags::VERTEX_BUFFER))?);
+        }
+        match self.buffer.as_mut() {
+            Some(b) => b.write(0, bytemuck::cast_slice(&self.records), counter, UploadClass::FrameCells),
+            None => Ok(()),
+        }
+    }
+
+    /// Draw the caps after every cell (inside the same rendering).
+    pub fn record(
+        &self,
+        rec: &CommandRecorder,
+        tables: &IntegrationTables,
+        pieces: Option<&DescriptorSet>,
+        frame: &FrameSetup,
+        counter: &mut UploadCounter,
+    ) -> VkResult<()> {
+        let Some(buffer) = self.buffer.as_ref().filter(|_| self.vertices > 0) else { return Ok(()) };
+        match pieces {
+            Some(set) => rec.bind_graphics(&self.pipeline, &[&tables.set, set])?,
+            None => rec.bind_graphics(&self.pipeline, &[&tables.set])?,
+        }
+        rec.push_constants(&self.pipeline, bytemuck::bytes_of(&frame.constants), counter);
+        rec.bind_vertex_buffer(buffer);
+        rec.draw(self.vertices as u32);
+        Ok(())
+    }
+
+    /// Cap vertices this frame.
+    pub fn vertices(&self) -> usize {
+        self.vertices
+    }
+}
+
+/// The section of a tet (vertices `v` at view depths `z`) by the plane at
+/// depth `cap`: 3 or 4 points, in order around the polygon.
+fn section(v: &[[f64; 3]; 4], z: &[f64; 4], cap: f64) -> Vec<[f64; 3]> {
+    let below: Vec<usize> = (0..4).filter(|&i| z[i] < cap).collect();
+    let above: Vec<usize> = (0..4).filter(|&i| z[i] >= cap).collect();
+    let cut = |i: usize, j: usize| {
+        let t = (cap - z[i]) / (z[j] - z[i]);
+        std::array::from_fn(|k| v[i][k] + (v[j][k] - v[i][k]) * t)
+    };
+    match (below.len(), above.len()) {
+        (1, 3) => above.iter().map(|&j| cut(below[0], j)).collect(),
+        (3, 1) => below.iter().map(|&i| cut(i, above[0])).collect(),
+        // Around the quad: (b0,a0), (b0,a1), (b1,a1), (b1,a0).
+        (2, 2) => vec![cut(below[0], above[0]), cut(below[0], above[1]), cut(below[1], above[1]), cut(below[1], above[0])],
+        _ => Vec::new(),
+    }
+}
+
+/// The records of a cap polygon's triangles, once per piece code, each
+/// triangle wound as an entry face (its right-handed normal pointing away
+/// from the eye, like the cells' faces: the pipeline culls the others).
+#[allow(clippy::too_many_arguments)]
+fn cap_records(
+    v: &[[f64; 3]; 4],
+    s: &[f64; 4],
+    polygon: &[[f64; 3]],
+    eye: [f64; 3],
+    fwd: [f64; 3],
+    frame: &FrameSetup,
+    codes: &[u32],
+    out: &mut Vec<f32>,
+) {
+    let Some((grad, _)) = barycentric(v) else { return };
+    if polygon.len() < 3 {
+        return;
+    }
+    let lambda = |p: [f64; 3]| -> [f64; 4] {
+        let r = sub(p, v[0]);
+        let l1 = dot(grad[1], r);
+        let l2 = dot(grad[2], r);
+        let l3 = dot(grad[3], r);
+        [1.0 - l1 - l2 - l3, l1, l2, l3]
+    };
+    // The scalar's gradient: sum of s_k grad lambda_k.
+    let g: [f64; 3] = std::array::from_fn(|c| (0..4).map(|k| s[k] * grad[k][c]).sum());
+    let exact = frame.exact_perspective();
+    let max_distance = f64::from(frame.max_distance);
+    let ratio_max = f64::from(frame.plane_ratio_max);
+    let lambda_eye = lambda(eye);
+    let record = |p: [f64; 3], code: u32| -> [f32; FLOATS_PER_VERTEX] {
+        let l = lambda(p);
+        let sf: f64 = (0..4).map(|k| l[k] * s[k]).sum();
+        let rel = sub(p, eye);
+        let (mut d, mut sk) = ([0f64; 4], [sf; 4]);
+        let gslot;
+        if exact {
+            // lambda_k u_k with u_k = 1 / lambda_k(eye), clamped as the
+            // shaders clamp the plane ratio.
+            for k in 0..4 {
+                let u = (1.0 / lambda_eye[k]).clamp(-ratio_max, ratio_max);
+                d[k] = l[k] * if u.is_finite() { u } else { 0.0 };
+            }
+            gslot = dot(g, rel);
+        } else {
+            let dir = if frame.perspective {
+                let n = dot(rel, rel).sqrt();
+                if n > 0.0 { rel.map(|x| x / n) } else { fwd }
+            } else {
+                fwd
+            };
+            let gd = dot(g, dir);
+            for k in 0..4 {
+                // Vertex k's distance to its opposite plane along `dir`,
+                // clamped as the shaders clamp it, times lambda_k.
+                let t = (-1.0 / dot(grad[k], dir)).clamp(-max_distance, max_distance);
+                d[k] = l[k] * t;
+                sk[k] = sf + gd * d[k];
+            }
+            gslot = sf;
+        }
+        let mut r = [0f32; FLOATS_PER_VERTEX];
+        r[..3].copy_from_slice(&p.map(|x| x as f32));
+        r[3] = sf as f32;
+        for k in 0..4 {
+            r[4 + k] = d[k] as f32;
+            r[8 + k] = sk[k] as f32;
+            r[12 + k] = l[k] as f32;
+        }
+        r[16] = gslot as f32;
+        r[17] = code as f32;
+        r
+    };
+    for &code in codes {
+        for i in 1..polygon.len() - 1 {
+            let (a, mut b, mut c) = (polygon[0], polygon[i], polygon[i + 1]);
+            if dot(cross(sub(b, a), sub(c, a)), sub(a, eye)) < 0.0 {
+                std::mem::swap(&mut b, &mut c);
+            }
+            for p in [a, b, c] {
+                out.extend_from_slice(&record(p, code));
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sections_are_polygons_on_the_plane() {
+        let v = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        let z = v.map(|p| p[2]);
+        let tri = section(&v, &z, 0.5);
+        assert_eq!(tri.len(), 3);
+        assert!(tri.iter().all(|p| (p[2] - 0.5).abs() < 1e-12));
+        let z = v.map(|p| p[0] + p[1]);
+        let quad = section(&v, &z, 0.5);
+        assert_eq!(quad.len(), 4);
+        // Consecutive corners share a face of the tet: the quad is not self-crossing.
+        let area = |a: [f64; 3], b: [f64; 3], c: [f64; 3]| cross(sub(b, a), sub(c, a));
+        let n1 = area(quad[0], quad[1], quad[2]);
+        let n2 = area(quad[0], quad[2], quad[3]);
+        assert!(dot(n1, n2) > 0.0);
+        assert!(section(&v, &z, 5.0).is_empty());
+        let (grad, _) = barycentric(&v).unwrap();
+        assert_eq!(grad[1], [1.0, 0.0, 0.0]);
+    }
+}
