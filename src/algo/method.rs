@@ -262,8 +262,9 @@ pub struct View {
     pub height: u32,
 }
 
-/// Named CPU phases of one frame, in milliseconds (e.g. `sort`, `pack`):
-/// reported as `time_ms.<name>` beside the runner's own phases.
+/// Named phases of one frame, in milliseconds (CPU: e.g. `sort`, `pack`;
+/// device passes a method times itself: e.g. `sort_gpu`): reported as
+/// `time_ms.<name>` beside the runner's own phases.
 #[derive(Debug, Clone, Default)]
 pub struct Phases(pub Vec<(&'static str, f64)>);
 
@@ -307,6 +308,11 @@ pub trait RenderMethod {
     /// a sort is from a visibility order); the runner asks when told to.
     fn diagnostics(&mut self, _view: &View) -> Result<Option<serde_json::Value>> {
         Ok(None)
+    }
+    /// After the frame's fence: add phases the device measured for it (GPU
+    /// times of the method's own passes, from its timestamps) to `phases`.
+    fn after_frame(&mut self, _phases: &mut Phases) -> Result<()> {
+        Ok(())
     }
     /// CPU time spent building tables at set-up (ms), reported apart.
     fn table_build_ms(&self) -> f64 {

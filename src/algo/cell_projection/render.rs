@@ -359,11 +359,14 @@ impl RenderMethod for CellProjection {
     fn prepare(&mut self, view: &View, phases: &mut Phases) -> Result<()> {
         let setup = self.frame_setup(view);
         let t0 = Instant::now();
-        let order = self.sorter.sort(&view.camera);
+        let device_sort = self.projector.sorts_on_device();
+        let order = if device_sort { &[] } else { self.sorter.sort(&view.camera) };
         let t1 = Instant::now();
         self.projector.pack(order, &setup);
         let t2 = Instant::now();
-        phases.add("sort", ms(t1 - t0));
+        if !device_sort {
+            phases.add("sort", ms(t1 - t0));
+        }
         phases.add("pack", ms(t2 - t1));
         self.prepared = Some(setup);
         Ok(())
@@ -375,6 +378,7 @@ impl RenderMethod for CellProjection {
 
     fn record(&mut self, rec: &CommandRecorder, target: &Image, _view: &View, counter: &mut UploadCounter) -> Result<()> {
         let setup = self.prepared.take().context("record without a prepared frame")?;
+        self.projector.record_before_draw(rec, &setup, counter).context("recording the device sort")?;
         rec.begin_rendering(target, [0.0; 4]);
         let drawn = self.projector.record_draw(rec, &self.tables, &setup, counter);
         rec.end_rendering();
@@ -408,5 +412,12 @@ impl RenderMethod for CellProjection {
 
     fn table_build_ms(&self) -> f64 {
         self.tables.build_ms
+    }
+
+    fn after_frame(&mut self, phases: &mut Phases) -> Result<()> {
+        for (name, ms) in self.projector.device_phases().context("reading the projector's timestamps")? {
+            phases.add(name, ms);
+        }
+        Ok(())
     }
 }
