@@ -277,7 +277,7 @@ fn the_suite_runs_every_registered_method_on_the_shipped_datasets_of_its_kind() 
     let settings = SuiteSettings { width: 48, height: 48, frames: 1, warmup: 0, ..SuiteSettings::standard(true, vec!["post-small".into()]) };
     let planned = plan(&registry, &settings).unwrap();
     let names: Vec<&str> = planned.iter().map(|p| p.spec.info.name).collect();
-    assert_eq!(names, ["vicp", "balanced", "resident", "test-solid-box"], "the new method is in the suite with no change there");
+    assert_eq!(names, ["vicp", "balanced", "resident", "resident-gpusort", "test-solid-box"], "the new method is in the suite with no change there");
     assert!(plan(&registry, &SuiteSettings::standard(true, vec!["nosuch".into()])).unwrap_err().to_string().contains("nosuch"));
     let dir = tempfile::tempdir().unwrap();
     let ctx = context();
@@ -302,8 +302,8 @@ fn the_suite_runs_the_option_sets_published_figures_name_and_reports_the_ratios(
         plan(&registry, &SuiteSettings::standard(true, vec![filter.into()])).unwrap().iter().map(|p| p.spec.label()).collect()
     };
     // Thesis Table 6.4 names the integrators on the blunt fin only.
-    assert_eq!(labels("bluntfin"), ["vicp", "balanced", "balanced:integrator=average", "balanced:integrator=linear-exact", "resident"]);
-    assert_eq!(labels("oxygenpost"), ["vicp", "balanced", "resident"]);
+    assert_eq!(labels("bluntfin"), ["vicp", "balanced", "balanced:integrator=average", "balanced:integrator=linear-exact", "resident", "resident-gpusort"]);
+    assert_eq!(labels("oxygenpost"), ["vicp", "balanced", "resident", "resident-gpusort"]);
     // Krüger & Westermann's claim is about any volume.
     let ct = labels("chest-ct");
     for m in ["raycast-fragment", "raycast-compute"] {

@@ -263,8 +263,13 @@ pub struct View {
 }
 
 /// Named phases of one frame, in milliseconds (CPU: e.g. `sort`, `pack`;
-/// device passes a method times itself: e.g. `sort_gpu`): reported as
-/// `time_ms.<name>` beside the runner's own phases.
+/// device passes a method times itself, named with [`DEVICE_PHASE_SUFFIX`]:
+/// e.g. `sort_gpu`): reported as `time_ms.<name>` beside the runner's own
+/// phases.
+/// The end of the name of every device phase (`RenderMethod::after_frame`):
+/// reports keep them apart from the CPU's preparation.
+pub const DEVICE_PHASE_SUFFIX: &str = "_gpu";
+
 #[derive(Debug, Clone, Default)]
 pub struct Phases(pub Vec<(&'static str, f64)>);
 
@@ -310,7 +315,8 @@ pub trait RenderMethod {
         Ok(None)
     }
     /// After the frame's fence: add phases the device measured for it (GPU
-    /// times of the method's own passes, from its timestamps) to `phases`.
+    /// times of the method's own passes, from its timestamps, named
+    /// `<pass>_gpu`) to `phases`.
     fn after_frame(&mut self, _phases: &mut Phases) -> Result<()> {
         Ok(())
     }

@@ -62,10 +62,12 @@ pub fn comparison_table(rows: &[ComparisonRow], registry: &Registry) -> String {
             .error
             .as_ref()
             .map_or(("-".into(), "-".into()), |e| (format!("{:.2e}", e.rmse), format!("{:.2e}", e.max_abs)));
-        // The method's own CPU phases (sort, pack, ...) together.
+        // The method's own CPU phases (sort, pack, ...) together; not the
+        // device passes it times itself (`*_gpu`, part of `gpu`).
         let runner = ["frame", "gpu", "upload", "record", "submit", "wait"];
+        let cpu = |k: &str| !runner.contains(&k) && !k.ends_with(crate::algo::method::DEVICE_PHASE_SUFFIX);
         // (+ 0.0: an empty float sum is -0.0.)
-        let prep: f64 = t.phases.iter().filter(|(k, _)| !runner.contains(&k.as_str())).map(|(_, v)| v.median).sum::<f64>() + 0.0;
+        let prep: f64 = t.phases.iter().filter(|(k, _)| cpu(k)).map(|(_, v)| v.median).sum::<f64>() + 0.0;
         let frame = t.phase("frame");
         let _ = writeln!(
             s,

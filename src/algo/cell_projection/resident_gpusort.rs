@@ -217,6 +217,11 @@ mod tests {
     }
 
     #[test]
+    fn the_sort_phase_is_a_device_phase() {
+        assert!(SORT_PHASE.ends_with(crate::algo::method::DEVICE_PHASE_SUFFIX));
+    }
+
+    #[test]
     fn mpvo_is_refused_naming_the_option() {
         let r = crate::algo::registry::builtin();
         let e = r.parse_spec("resident-gpusort:sort=mpvo", &[]).unwrap_err().to_string();
