@@ -49,4 +49,23 @@ uint digit_of(uint key) {
     return (key >> params.shift) & (RADIX - 1u);
 }
 
+// One invocation's count of each of the 16 digits among its ITEMS keys,
+// packed 8 bits per digit into a uvec4 (digit d: byte d % 4 of component
+// d / 4). Updated and read with vector compares and selects: a private
+// array indexed by a per-invocation digit would become scratch memory
+// (per-lane loads and stores on lavapipe).
+#if RADIX_BITS != 4 || ITEMS > 255
+#error "the packed digit counters hold 16 digits of up to 255 keys"
+#endif
+
+uvec4 packed_one(uint d) {
+    return uvec4(equal(uvec4(d >> 2u), uvec4(0u, 1u, 2u, 3u))) << ((d & 3u) * 8u);
+}
+
+uint packed_get(uvec4 c, uint d) {
+    uint q = d >> 2u;
+    uint w = q == 0u ? c.x : (q == 1u ? c.y : (q == 2u ? c.z : c.w));
+    return (w >> ((d & 3u) * 8u)) & 0xffu;
+}
+
 #endif

@@ -20,40 +20,37 @@ void main() {
     }
     uint t = gl_LocalInvocationIndex;
     uint start = g * TILE + t * uint(ITEMS);
-    uint next[RADIX];
-    for (uint d = 0u; d < RADIX; d++) {
-        next[d] = 0u;
-    }
+    uvec4 c = uvec4(0u);
     for (uint i = 0u; i < uint(ITEMS); i++) {
         uint idx = start + i;
         if (idx < params.n) {
-            next[digit_of(keys_src[idx])] += 1u;
+            c += packed_one(digit_of(keys_src[idx]));
         }
     }
     for (uint d = 0u; d < RADIX; d++) {
-        s_count[d * uint(WG) + t] = next[d];
+        s_count[d * uint(WG) + t] = packed_get(c, d);
     }
     barrier();
     for (uint d = t; d < RADIX; d += uint(WG)) {
         uint acc = 0u;
         for (uint j = 0u; j < uint(WG); j++) {
-            uint c = s_count[d * uint(WG) + j];
+            uint n_j = s_count[d * uint(WG) + j];
             s_count[d * uint(WG) + j] = acc;
-            acc += c;
+            acc += n_j;
         }
         s_base[d] = counts[d * params.groups + g];
     }
     barrier();
-    for (uint d = 0u; d < RADIX; d++) {
-        next[d] = s_base[d] + s_count[d * uint(WG) + t];
-    }
+    // Slot = the tile's first slot for the digit + the keys with it in
+    // earlier invocations + those placed so far by this one.
+    c = uvec4(0u);
     for (uint i = 0u; i < uint(ITEMS); i++) {
         uint idx = start + i;
         if (idx < params.n) {
             uint k = keys_src[idx];
             uint d = digit_of(k);
-            uint dst = next[d];
-            next[d] = dst + 1u;
+            uint dst = s_base[d] + s_count[d * uint(WG) + t] + packed_get(c, d);
+            c += packed_one(d);
             keys_dst[dst] = k;
             vals_dst[dst] = vals_src[idx];
         }

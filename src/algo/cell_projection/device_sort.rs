@@ -15,6 +15,9 @@
 //! histogram, a one-workgroup scan of the digit-major counts and a stable
 //! scatter. Only shared memory and barriers are used, no subgroup
 //! operations, so nothing depends on the subgroup size (4 or 8 on lavapipe).
+//! Each invocation counts its keys' digits in registers (16 counters of 8
+//! bits packed in a uvec4), not with shared atomics or a private array
+//! indexed by the digit, both of which lavapipe runs lane by lane.
 //! The pairs ping-pong between two buffer pairs; after an even number of
 //! passes the order ends in `order`, where it started. Each pass has its
 //! own descriptor set whose params buffer (static, uploaded once) holds the
@@ -43,8 +46,10 @@ pub const WORKGROUP: u32 = 128;
 pub const ITEMS_PER_INVOCATION: u32 = 16;
 /// Keys per histogram/scatter workgroup.
 pub const TILE: u32 = WORKGROUP * ITEMS_PER_INVOCATION;
-/// Bits per radix pass: 16 counters per invocation in the scatter's shared
-/// memory (8 KiB at 128 invocations, within the 16 KiB every device has).
+/// Bits per radix pass: 16 counters per invocation in the histogram's and
+/// scatter's shared memory (8 KiB at 128 invocations, within the 16 KiB
+/// every device has), packed 8 bits each in registers (so at most 255 keys
+/// per invocation).
 pub const RADIX_BITS: u32 = 4;
 pub const PASSES: u32 = 32 / RADIX_BITS;
 /// The camera as pushed per frame (`Camera` in `sort_keys.comp`).
@@ -279,6 +284,7 @@ mod tests {
     fn the_passes_cover_a_u32_key_and_end_where_they_started() {
         assert_eq!(PASSES * RADIX_BITS, 32);
         assert_eq!(PASSES % 2, 0, "the order must end in the buffer the keys started in");
+        assert!(RADIX_BITS == 4 && ITEMS_PER_INVOCATION <= 255, "the packed counters (radix_sort.glsl)");
         // The scatter's shared memory: RADIX counters per invocation plus the bases.
         let shared = ((1 << RADIX_BITS) * WORKGROUP + (1 << RADIX_BITS)) * 4;
         assert!(shared <= 16 * 1024, "{shared} bytes of shared memory");
