@@ -278,7 +278,7 @@ fn the_suite_runs_every_registered_method_on_the_shipped_datasets_of_its_kind() 
     let settings = SuiteSettings { width: 48, height: 48, frames: 1, warmup: 0, ..SuiteSettings::standard(true, vec!["post-small".into()]) };
     let planned = plan(&registry, &settings).unwrap();
     let names: Vec<&str> = planned.iter().map(|p| p.spec.info.name).collect();
-    assert_eq!(names, ["vicp", "balanced", "resident", "atfs", "tet-raycast", "test-solid-box"], "the new method is in the suite with no change there");
+    assert_eq!(names, ["vicp", "balanced", "resident", "resident-gpusort", "atfs", "tet-raycast", "test-solid-box"], "the new method is in the suite with no change there");
     assert!(plan(&registry, &SuiteSettings::standard(true, vec!["nosuch".into()])).unwrap_err().to_string().contains("nosuch"));
     let dir = tempfile::tempdir().unwrap();
     let ctx = context();
@@ -305,14 +305,17 @@ fn the_suite_runs_the_option_sets_published_figures_name_and_reports_the_ratios(
     // Thesis Table 6.4 names the integrators on the blunt fin only.
     assert_eq!(
         labels("bluntfin"),
-        ["vicp", "balanced", "balanced:integrator=average", "balanced:integrator=linear-exact", "resident", "atfs", "tet-raycast"]
+        [
+            "vicp", "balanced", "balanced:integrator=average", "balanced:integrator=linear-exact",
+            "resident", "resident-gpusort", "atfs", "tet-raycast",
+        ]
     );
     // The oxygen post also has the culling scenes, culling on and off
     // (--quick: the first method with a `cull` option, no zoomed scene).
     assert_eq!(
         labels("oxygenpost"),
         [
-            "vicp", "balanced", "resident", "atfs", "tet-raycast",
+            "vicp", "balanced", "resident", "resident-gpusort", "atfs", "tet-raycast",
             "vicp @transparent", "vicp:cull=off @transparent",
             "vicp @still", "vicp:cull=off @still",
         ]

@@ -262,10 +262,15 @@ pub struct View {
     pub height: u32,
 }
 
-/// Named CPU phases of one frame, in milliseconds (e.g. `sort`, `pack`):
-/// reported as `time_ms.<name>` beside the runner's own phases; and named
-/// per-frame counts (e.g. `cull.frustum`, cells skipped by a rule),
-/// reported as `frame_counts.<name>` per timed frame.
+/// The end of the name of every device phase (`RenderMethod::after_frame`):
+/// reports keep them apart from the CPU's preparation.
+pub const DEVICE_PHASE_SUFFIX: &str = "_gpu";
+
+/// Named phases of one frame, in milliseconds (CPU: e.g. `sort`, `pack`;
+/// device passes a method times itself, named with [`DEVICE_PHASE_SUFFIX`]:
+/// e.g. `sort_gpu`): reported as `time_ms.<name>` beside the runner's own
+/// phases; and named per-frame counts (e.g. `cull.frustum`, cells skipped
+/// by a rule), reported as `frame_counts.<name>` per timed frame.
 #[derive(Debug, Clone, Default)]
 pub struct Phases(pub Vec<(&'static str, f64)>, pub Vec<(&'static str, u64)>);
 
@@ -313,6 +318,12 @@ pub trait RenderMethod {
     /// a sort is from a visibility order); the runner asks when told to.
     fn diagnostics(&mut self, _view: &View) -> Result<Option<serde_json::Value>> {
         Ok(None)
+    }
+    /// After the frame's fence: add phases the device measured for it (GPU
+    /// times of the method's own passes, from its timestamps, named
+    /// `<pass>_gpu`) to `phases`.
+    fn after_frame(&mut self, _phases: &mut Phases) -> Result<()> {
+        Ok(())
     }
     /// CPU time spent building tables at set-up (ms), reported apart.
     fn table_build_ms(&self) -> f64 {

@@ -18,6 +18,7 @@ pub fn builtin() -> Registry {
             super::cell_projection::vicp::METHOD,
             super::cell_projection::balanced::METHOD,
             super::cell_projection::resident::METHOD,
+            super::cell_projection::resident_gpusort::METHOD,
             super::cell_projection::atfs::METHOD,
             super::tet_raycast::METHOD,
             super::raycast::fragment::METHOD,

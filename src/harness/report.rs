@@ -67,10 +67,12 @@ pub fn comparison_table(rows: &[ComparisonRow], registry: &Registry) -> String {
         if let Some(e) = r.error.as_ref().filter(|e| e.compared == ErrorKind::Own) {
             own_notes.push(format!("† {} / {}: {}", row.dataset, row.label, e.reference));
         }
-        // The method's own CPU phases (sort, pack, ...) together.
+        // The method's own CPU phases (sort, pack, ...) together; not the
+        // device passes it times itself (`*_gpu`, part of `gpu`).
         let runner = ["frame", "gpu", "upload", "record", "submit", "wait"];
+        let cpu = |k: &str| !runner.contains(&k) && !k.ends_with(crate::algo::method::DEVICE_PHASE_SUFFIX);
         // (+ 0.0: an empty float sum is -0.0.)
-        let prep: f64 = t.phases.iter().filter(|(k, _)| !runner.contains(&k.as_str())).map(|(_, v)| v.median).sum::<f64>() + 0.0;
+        let prep: f64 = t.phases.iter().filter(|(k, _)| cpu(k)).map(|(_, v)| v.median).sum::<f64>() + 0.0;
         let frame = t.phase("frame");
         let _ = writeln!(
             s,

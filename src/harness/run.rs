@@ -489,6 +489,7 @@ impl MethodSession {
         timing.wait = ms(self.recorder.wait()?);
         let (gpu, stats) = self.queries.results()?;
         timing.gpu = gpu;
+        self.method.after_frame(&mut timing.method)?;
         Ok(stats)
     }
 

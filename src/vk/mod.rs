@@ -10,7 +10,7 @@
 //! descriptor sets (`descriptors`), graphics and compute pipelines
 //! (`pipeline`) and their cache (`pipeline_cache`), command recording with
 //! bounded fence waits, dispatch and barriers (`commands`), timestamps and
-//! statistics (`query`), shader compilation (`shader`) and the byte
+//! statistics (`query`), a method's own timestamps (`timestamps`), shader compilation (`shader`) and the byte
 //! counters (`upload`).
 
 pub mod buffer;
@@ -23,6 +23,7 @@ pub mod pipeline;
 pub mod pipeline_cache;
 pub mod query;
 pub mod shader;
+pub mod timestamps;
 pub mod upload;
 
 pub use ash::vk as raw;
@@ -42,6 +43,7 @@ pub use pipeline::{Blend, ColorTarget, ComputePipelineDesc, GraphicsPipelineDesc
 pub use pipeline_cache::{
     fnv1a64, ComputePipelineKey, GraphicsPipelineKey, GraphicsState, PipelineCache, PipelineKey, ShaderKey,
 };
-pub use query::{FrameQueries, PipelineStats, TimestampPool};
+pub use query::{FrameQueries, PipelineStats};
 pub use shader::{compile_glsl, ShaderModule, ShaderStage};
+pub use timestamps::TimestampPool;
 pub use upload::{UploadClass, UploadCounter};

@@ -176,59 +176,6 @@ impl FrameQueries {
     }
 }
 
-/// A method's own timestamps inside a frame (e.g. where its compute pass
-/// ends), read back without waiting: `read` gives `None` until the frame
-/// that wrote them has completed.
-pub struct TimestampPool {
-    pool: vk::QueryPool,
-    count: u32,
-    period_ns: f64,
-    valid_mask: u64,
-    ctx: Arc<Context>,
-}
-
-impl TimestampPool {
-    pub fn new(ctx: &Arc<Context>, count: u32) -> VkResult<Self> {
-        let info = vk::QueryPoolCreateInfo::default().query_type(vk::QueryType::TIMESTAMP).query_count(count.max(1));
-        let pool = unsafe { ctx.device.create_query_pool(&info, None) }.check("vkCreateQueryPool(method timestamps)")?;
-        let bits = ctx.info.timestamp_valid_bits;
-        let valid_mask = if bits >= 64 { u64::MAX } else { (1u64 << bits) - 1 };
-        Ok(TimestampPool { pool, count: count.max(1), period_ns: ctx.info.timestamp_period_ns as f64, valid_mask, ctx: ctx.clone() })
-    }
-
-    /// Reset every query; record outside a render pass, before the writes.
-    pub fn reset(&self, rec: &CommandRecorder) {
-        unsafe { self.ctx.device.cmd_reset_query_pool(rec.raw, self.pool, 0, self.count) };
-    }
-
-    /// Timestamp `index` once the work before it has passed `stage`.
-    pub fn write(&self, rec: &CommandRecorder, index: u32, stage: vk::PipelineStageFlags2) -> VkResult<()> {
-        if index >= self.count {
-            return Err(VkError::Invalid(format!("timestamp {index} of a pool of {}", self.count)));
-        }
-        unsafe { self.ctx.device.cmd_write_timestamp2(rec.raw, stage, self.pool, index) };
-        Ok(())
-    }
-
-    /// Milliseconds from timestamp 0 to each later one, once all are
-    /// available (`None` before that, or if the device has no timestamps).
-    pub fn read(&self) -> Option<Vec<f64>> {
-        if self.ctx.info.timestamp_valid_bits == 0 {
-            return None;
-        }
-        let mut ts = vec![0u64; self.count as usize];
-        unsafe { self.ctx.device.get_query_pool_results(self.pool, 0, &mut ts, vk::QueryResultFlags::TYPE_64) }.ok()?;
-        let m = self.valid_mask;
-        Some(ts[1..].iter().map(|&t| ((t & m).wrapping_sub(ts[0] & m) & m) as f64 * self.period_ns * 1e-6).collect())
-    }
-}
-
-impl Drop for TimestampPool {
-    fn drop(&mut self) {
-        unsafe { self.ctx.device.destroy_query_pool(self.pool, None) };
-    }
-}
-
 impl Drop for FrameQueries {
     fn drop(&mut self) {
         unsafe {

@@ -9,11 +9,13 @@
 pub mod atfs;
 pub mod balanced;
 pub mod cull;
+pub mod device_sort;
 pub mod mpvo;
 pub mod near;
 pub mod radix;
 pub mod render;
 pub mod resident;
+pub mod resident_gpusort;
 pub mod sort;
 pub mod vicp;
 
@@ -343,6 +345,20 @@ pub trait CellProjector {
     fn upload(&mut self, counter: &mut UploadCounter) -> VkResult<()>;
     /// Bind and draw (inside dynamic rendering).
     fn record_draw(&self, rec: &CommandRecorder, tables: &IntegrationTables, frame: &FrameSetup, counter: &mut UploadCounter) -> VkResult<()>;
+    /// True when the projector orders the cells itself on the device: the
+    /// CPU sort is skipped and `pack` gets an empty order.
+    fn sorts_on_device(&self) -> bool {
+        false
+    }
+    /// Device work before the draw, outside the rendering pass (a sort).
+    fn record_before_draw(&self, _rec: &CommandRecorder, _frame: &FrameSetup, _counter: &mut UploadCounter) -> VkResult<()> {
+        Ok(())
+    }
+    /// GPU times of the projector's own passes in the frame just waited
+    /// for, as (phase, ms).
+    fn device_phases(&self) -> VkResult<Vec<(&'static str, f64)>> {
+        Ok(Vec::new())
+    }
 }
 
 /// The pipeline every cell-projection method uses: premultiplied "over"

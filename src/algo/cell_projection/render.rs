@@ -25,8 +25,12 @@ use crate::algo::method::{
 use crate::mesh::{TetGeometry, TetMesh};
 use crate::vk::{CommandRecorder, Context, Image, UploadCounter, VkResult};
 
-/// The options both cell-projection methods take.
-pub const OPTIONS: &[OptionSpec] = &[
+/// Every cell-projection method's options; `OPTIONS` adds `cull`
+/// (a method that draws every cell in its own order, e.g. sorted on the
+/// device, has nothing to cull: `OPTIONS_WITHOUT_CULL`).
+pub const OPTIONS: &[OptionSpec] = &[SHARED_OPTIONS[0], SHARED_OPTIONS[1], SHARED_OPTIONS[2], SHARED_OPTIONS[3], SHARED_OPTIONS[4], SHARED_OPTIONS[5], SHARED_OPTIONS[6], CULL_OPTION];
+pub const OPTIONS_WITHOUT_CULL: &[OptionSpec] = &SHARED_OPTIONS;
+const SHARED_OPTIONS: [OptionSpec; 7] = [
     OptionSpec {
         name: "integrator",
         default: "ppi",
@@ -83,15 +87,15 @@ pub const OPTIONS: &[OptionSpec] = &[
         build_time: false,
         help: "a plane whose weight is below this is an exit at distance 0 (off: drops grazing segments)",
     },
-    OptionSpec {
-        name: "cull",
-        default: "on",
-        unit: "",
-        values: OptionValues::Bool,
-        build_time: false,
-        help: "skip fully transparent and off-screen cells, re-use an unchanged frame (exact: the image is unchanged)",
-    },
 ];
+const CULL_OPTION: OptionSpec = OptionSpec {
+    name: "cull",
+    default: "on",
+    unit: "",
+    values: OptionValues::Bool,
+    build_time: false,
+    help: "skip fully transparent and off-screen cells, re-use an unchanged frame (exact: the image is unchanged)",
+};
 
 /// The run-time-against-error sweep: every integrator (tables at three
 /// sizes for ppi) under both interpolations and both sorts.
@@ -278,7 +282,8 @@ impl Settings {
                 plane_ratio_max: options.float("plane_ratio_max")? as f32,
                 edge_eps: options.float("edge_eps")? as f32,
             },
-            cull: options.flag("cull")?,
+            // Absent for methods without the option (OPTIONS_WITHOUT_CULL).
+            cull: options.flag("cull").unwrap_or(false),
         })
     }
 }
@@ -356,7 +361,8 @@ impl CellProjection {
         let near = super::near::NearCaps::new(ctx, mesh, &tables, settings.interpolation, pieces)?;
         let sorter = Sorter::new(settings.sort, mesh, geometry);
         let origin = render_origin(mesh);
-        let culler = Culler::new(mesh, inputs.tf, LookupGrid::of(&tables), origin, settings.cull);
+        // Cells a device sort orders are all drawn: culling is off for it.
+        let culler = Culler::new(mesh, inputs.tf, LookupGrid::of(&tables), origin, settings.cull && !projector.sorts_on_device());
         let check = inputs.diagnostics.then(|| {
             (CentroidSort::with_origin(centroids_relative_f32(geometry, origin), origin), MpvoSort::new(mesh, geometry))
         });
@@ -401,15 +407,19 @@ impl RenderMethod for CellProjection {
         let (camera, w, h) = (&view.camera, view.width, view.height);
         self.reused = self.culler.unchanged(camera, w, h);
         let t0 = Instant::now();
+        // A projector that sorts on the device draws every cell in its own
+        // order: nothing is culled or sorted here for it.
+        let device_sort = self.projector.sorts_on_device();
         if !self.reused {
-            let culled = self.culler.cull(camera, w, h);
+            let culled = if device_sort { None } else { self.culler.cull(camera, w, h) };
             let t1 = Instant::now();
-            let order: &[u32] = match (culled.is_some(), &mut self.sorter) {
-                (false, sorter) => sorter.sort(camera),
+            let order: &[u32] = match (device_sort, culled.is_some(), &mut self.sorter) {
+                (true, _, _) => &[],
+                (false, false, sorter) => sorter.sort(camera),
                 // Cull before sorting: the same order as filtering the full one.
-                (true, Sorter::Centroid(s)) => s.sort_subset(camera, self.culler.survivors()),
+                (false, true, Sorter::Centroid(s)) => s.sort_subset(camera, self.culler.survivors()),
                 // The full exact order, filtered (see `cull`: transitivity).
-                (true, Sorter::Mpvo(s)) => {
+                (false, true, Sorter::Mpvo(s)) => {
                     let full = s.sort(camera);
                     self.culler.filter_order(full, &mut self.filtered);
                     &self.filtered
@@ -424,14 +434,18 @@ impl RenderMethod for CellProjection {
             if self.culler.enabled() {
                 phases.add("cull", ms(t1 - t0));
             }
-            phases.add("sort", ms(t2 - t1));
+            if !device_sort {
+                phases.add("sort", ms(t2 - t1));
+            }
             phases.add("pack", ms(t3 - t2));
             self.last_cull = culled;
             self.culler.remember(camera, w, h);
         } else {
             // Nothing to do: the device holds this view's data.
             phases.add("cull", 0.0);
-            phases.add("sort", 0.0);
+            if !device_sort {
+                phases.add("sort", 0.0);
+            }
             phases.add("pack", 0.0);
         }
         let c = self.last_cull.unwrap_or_default();
@@ -453,6 +467,7 @@ impl RenderMethod for CellProjection {
 
     fn record(&mut self, rec: &CommandRecorder, target: &Image, _view: &View, counter: &mut UploadCounter) -> Result<()> {
         let setup = self.prepared.take().context("record without a prepared frame")?;
+        self.projector.record_before_draw(rec, &setup, counter).context("recording the device sort")?;
         rec.begin_rendering(target, [0.0; 4]);
         let drawn = self
             .projector
@@ -509,5 +524,12 @@ impl RenderMethod for CellProjection {
 
     fn table_build_ms(&self) -> f64 {
         self.tables.build_ms
+    }
+
+    fn after_frame(&mut self, phases: &mut Phases) -> Result<()> {
+        for (name, ms) in self.projector.device_phases().context("reading the projector's timestamps")? {
+            phases.add(name, ms);
+        }
+        Ok(())
     }
 }

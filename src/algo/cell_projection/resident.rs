@@ -60,7 +60,7 @@ pub struct Resident {
 }
 
 /// The storage-buffer image of one cell.
-fn stored(c: &CellF32) -> [f32; FLOATS_PER_STORED_CELL] {
+pub(super) fn stored(c: &CellF32) -> [f32; FLOATS_PER_STORED_CELL] {
     let mut out = [0f32; FLOATS_PER_STORED_CELL];
     for i in 0..4 {
         out[4 * i..4 * i + 4].copy_from_slice(&[c.pos[i][0], c.pos[i][1], c.pos[i][2], c.scalar[i]]);

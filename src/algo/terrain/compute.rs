@@ -130,7 +130,7 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
         pipeline,
         key,
         pc_triangles: 0,
-        timestamps: TimestampPool::new(ctx, 3)?,
+        timestamps: TimestampPool::new(ctx, "hm-compute timestamps", 3)?,
         recorded: false,
         device_ms: Vec::new(),
         ctx: ctx.clone(),

@@ -1,0 +1,305 @@
+//! The centroid visibility sort on the device: a compute-shader LSD radix
+//! sort (`shaders/cell_projection/sort_*.comp`) of the same keys the CPU's
+//! `CentroidSort` sorts, into a device-local buffer of cell indices that a
+//! draw reads in place. Per frame only the camera crosses (32 bytes of push
+//! constants); the centroids are uploaded once.
+//!
+//! Keys: each cell's centroid depth (squared distance from the eye, or
+//! distance along the view direction for orthographic views) in f32,
+//! computed term by term as `CentroidSort::sort` computes it (no fused
+//! multiply-adds), mapped by `radix::float_key` and inverted (farthest
+//! first). The sort is stable, so ties stay in cell-index order: the order
+//! equals the CPU's exactly (`tests/gpusort.rs`).
+//!
+//! Passes: one key dispatch, then per 4-bit digit (8 passes) a per-tile
+//! histogram, a one-workgroup scan of the digit-major counts and a stable
+//! scatter. Only shared memory and barriers are used, no subgroup
+//! operations, so nothing depends on the subgroup size (4 or 8 on lavapipe).
+//! Each invocation counts its keys' digits in registers (16 counters of 8
+//! bits packed in a uvec4), not with shared atomics or a private array
+//! indexed by the digit, both of which lavapipe runs lane by lane.
+//! The pairs ping-pong between two buffer pairs; after an even number of
+//! passes the order ends in `order`, where it started. Each pass has its
+//! own descriptor set whose params buffer (static, uploaded once) holds the
+//! digit's shift, so no per-pass constant crosses per frame.
+//!
+//! Synchronisation: a barrier orders the previous frame's draw (which read
+//! `order`) and the previous sort before this frame's first write; one
+//! compute-to-compute barrier separates every two dispatches; the last one
+//! makes the order visible to the vertex stage (`record`). Timestamps
+//! around the whole sort give its GPU time (`gpu_ms`).
+
+use std::sync::Arc;
+
+use ash::vk as raw;
+
+use crate::scene::Camera;
+use crate::vk::{
+    upload_static, Buffer, BufferDesc, CommandRecorder, ComputePipelineKey, Context, DescriptorSetDesc,
+    Pipeline, PipelineKey, ShaderKey, ShaderStage, StorageBufferSet, TimestampPool, UploadClass, UploadCounter, VkError,
+    VkResult,
+};
+
+/// Invocations per workgroup (the minimum every device supports is 128).
+pub const WORKGROUP: u32 = 128;
+/// Consecutive keys one invocation places in the scatter.
+pub const ITEMS_PER_INVOCATION: u32 = 16;
+/// Keys per histogram/scatter workgroup.
+pub const TILE: u32 = WORKGROUP * ITEMS_PER_INVOCATION;
+/// Bits per radix pass: 16 counters per invocation in the histogram's and
+/// scatter's shared memory (8 KiB at 128 invocations, within the 16 KiB
+/// every device has), packed 8 bits each in registers (so at most 255 keys
+/// per invocation).
+pub const RADIX_BITS: u32 = 4;
+pub const PASSES: u32 = 32 / RADIX_BITS;
+/// The camera as pushed per frame (`Camera` in `sort_keys.comp`).
+pub const CAMERA_BYTES: usize = std::mem::size_of::<SortCamera>();
+
+/// The sort's camera: the eye relative to the centroids' origin and the view
+/// direction, in f32 as the CPU sort uses them; w of `eye` is 1 for
+/// perspective views (depth = squared distance), 0 for orthographic ones
+/// (depth along `dir`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct SortCamera {
+    pub eye: [f32; 4],
+    pub dir: [f32; 4],
+}
+
+impl SortCamera {
+    /// The same f64 -> f32 conversions as `CentroidSort::sort` for centroids
+    /// relative to `origin` (and as `FrameSetup::new` for the eye).
+    pub fn new(camera: &Camera, origin: [f64; 3]) -> Self {
+        let f = camera.forward();
+        let p = if camera.is_perspective() { 1.0 } else { 0.0 };
+        SortCamera {
+            eye: [
+                (camera.eye[0] - origin[0]) as f32,
+                (camera.eye[1] - origin[1]) as f32,
+                (camera.eye[2] - origin[2]) as f32,
+                p,
+            ],
+            dir: [f.x as f32, f.y as f32, f.z as f32, 0.0],
+        }
+    }
+
+    /// The same camera from a frame's setup (its eye is relative to the
+    /// mesh's render origin, which the centroids must be relative to).
+    pub fn from_frame(frame: &super::FrameSetup) -> Self {
+        let (e, d) = (frame.eye, frame.view_dir);
+        SortCamera { eye: [e[0], e[1], e[2], if frame.perspective { 1.0 } else { 0.0 }], dir: [d[0], d[1], d[2], 0.0] }
+    }
+}
+
+/// The pipelines' defines: the constants above, set in one place.
+fn defines() -> Vec<(&'static str, String)> {
+    vec![("WG", WORKGROUP.to_string()), ("ITEMS", ITEMS_PER_INVOCATION.to_string()), ("RADIX_BITS", RADIX_BITS.to_string())]
+}
+
+fn set_desc() -> DescriptorSetDesc {
+    DescriptorSetDesc::storage_buffers(7, raw::ShaderStageFlags::COMPUTE)
+}
+
+fn pipeline(ctx: &Arc<Context>, shader: &str, push_constant_bytes: u32) -> VkResult<Arc<Pipeline>> {
+    let d = defines();
+    let d: Vec<(&str, &str)> = d.iter().map(|(k, v)| (*k, v.as_str())).collect();
+    let key = PipelineKey::Compute(ComputePipelineKey {
+        shader: ShaderKey::new(shader, ShaderStage::Compute, &d),
+        push_constant_bytes,
+        sets: vec![set_desc()],
+    });
+    crate::algo::pipelines::get(ctx, &key)
+}
+
+/// Bytes on the device per cell: centroid (vec4), two key and two value
+/// buffers; the counts add 16 u32 per `TILE` cells.
+pub const DEVICE_BYTES_PER_CELL: usize = 16 + 4 * 4;
+
+pub struct DeviceCentroidSort {
+    n: u32,
+    groups: u32,
+    pipelines: Pipeline4,
+    /// One set per pass (pass 0's also serves the key dispatch).
+    sets: Vec<StorageBufferSet>,
+    timestamps: TimestampPool,
+    /// The sorted cell indices after `record` (farthest first).
+    order: Buffer,
+    _params: Vec<Buffer>,
+    _centroids: Buffer,
+    _buffers: [Buffer; 4],
+}
+
+/// The four kernels.
+struct Pipeline4 {
+    keys: Arc<Pipeline>,
+    histogram: Arc<Pipeline>,
+    scan: Arc<Pipeline>,
+    scatter: Arc<Pipeline>,
+}
+
+impl DeviceCentroidSort {
+    /// Upload `centroids` (relative to the origin the cameras given to
+    /// `record` are relative to; see `SortCamera::new`) once and build the
+    /// buffers and pipelines. `name` names the buffers.
+    pub fn new(ctx: &Arc<Context>, name: &str, centroids: &[[f32; 3]], counter: &mut UploadCounter) -> VkResult<Self> {
+        let len = centroids.len();
+        // Every index (up to the last tile's end) must fit a u32.
+        let n = u32::try_from(len)
+            .ok()
+            .filter(|&n| n <= u32::MAX - TILE)
+            .ok_or_else(|| VkError::Invalid(format!("{name}: {len} cells are more than the device sort indexes (u32)")))?;
+        let groups = n.div_ceil(TILE);
+        let limit = u64::from(ctx.info.max_storage_buffer_range);
+        let centroid_bytes = len as u64 * 16;
+        let count_bytes = u64::from(groups) * (1 << RADIX_BITS) * 4;
+        if centroid_bytes.max(count_bytes) > limit {
+            return Err(VkError::Invalid(format!(
+                "{name}: {len} cells need a {centroid_bytes}-byte centroid buffer, above the device's \
+                 maxStorageBufferRange ({limit} bytes)"
+            )));
+        }
+        let storage = raw::BufferUsageFlags::STORAGE_BUFFER;
+        let padded: Vec<[f32; 4]> = centroids.iter().map(|c| [c[0], c[1], c[2], 0.0]).collect();
+        let centroid_buffer =
+            upload_static(ctx, &format!("{name} centroids"), bytemuck::cast_slice(&padded), storage, counter)?;
+        let pair_bytes = (len.max(1) * 4) as u64;
+        let local = |what: &str, usage| Buffer::new(ctx, BufferDesc::device_local(&format!("{name} {what}"), pair_bytes, usage));
+        // The order is read by the draw and, in tests, copied back.
+        let order = local("order", storage | raw::BufferUsageFlags::TRANSFER_SRC)?;
+        let keys_a = local("keys A", storage)?;
+        let keys_b = local("keys B", storage)?;
+        let vals_b = local("order B", storage)?;
+        let counts = Buffer::new(ctx, BufferDesc::device_local(&format!("{name} digit counts"), count_bytes.max(4), storage))?;
+        let mut params = Vec::with_capacity(PASSES as usize);
+        for pass in 0..PASSES {
+            let mut b = Buffer::new(ctx, BufferDesc::upload(&format!("{name} pass {pass} params"), 16, storage))?;
+            let words = [n, groups, pass * RADIX_BITS, 0];
+            b.write(0, bytemuck::cast_slice(&words), counter, UploadClass::Static)?;
+            params.push(b);
+        }
+        let mut sets = Vec::with_capacity(PASSES as usize);
+        for (pass, p) in params.iter().enumerate() {
+            // Even passes read A (`keys_a`, `order`) and write B, odd ones back.
+            let (src, dst) = if pass % 2 == 0 { ([&keys_a, &order], [&keys_b, &vals_b]) } else { ([&keys_b, &vals_b], [&keys_a, &order]) };
+            let buffers = [p, &centroid_buffer, src[0], src[1], dst[0], dst[1], &counts];
+            sets.push(StorageBufferSet::new(ctx, &format!("{name} pass {pass}"), &buffers, raw::ShaderStageFlags::COMPUTE)?);
+        }
+        let pipelines = Pipeline4 {
+            keys: pipeline(ctx, "cell_projection/sort_keys.comp", CAMERA_BYTES as u32)?,
+            histogram: pipeline(ctx, "cell_projection/sort_histogram.comp", 0)?,
+            scan: pipeline(ctx, "cell_projection/sort_scan.comp", 0)?,
+            scatter: pipeline(ctx, "cell_projection/sort_scatter.comp", 0)?,
+        };
+        let timestamps = TimestampPool::new(ctx, &format!("{name} timestamps"), 2)?;
+        Ok(DeviceCentroidSort {
+            n,
+            groups,
+            pipelines,
+            sets,
+            timestamps,
+            order,
+            _params: params,
+            _centroids: centroid_buffer,
+            _buffers: [keys_a, keys_b, vals_b, counts],
+        })
+    }
+
+    pub fn len(&self) -> usize {
+        self.n as usize
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.n == 0
+    }
+
+    /// The device-local buffer of sorted cell indices (u32, farthest first)
+    /// that `record` writes.
+    pub fn order(&self) -> &Buffer {
+        &self.order
+    }
+
+    /// Record the sort for `camera` (outside a render pass); the camera's
+    /// push constants are counted in `counter`. Ends with the order visible
+    /// to the graphics stages and to copies.
+    pub fn record(&self, rec: &CommandRecorder, camera: &SortCamera, counter: &mut UploadCounter) -> VkResult<()> {
+        use raw::{AccessFlags2 as A, PipelineStageFlags2 as S};
+        let rw = A::SHADER_STORAGE_READ | A::SHADER_STORAGE_WRITE;
+        // The previous frame's draw read `order`, its sort wrote every buffer.
+        rec.memory_barrier((S::PRE_RASTERIZATION_SHADERS | S::COMPUTE_SHADER | S::COPY, rw | A::TRANSFER_READ), (S::COMPUTE_SHADER, rw));
+        self.timestamps.reset(rec);
+        self.timestamps.write(rec, 0, S::TOP_OF_PIPE)?;
+        if self.n > 0 {
+            let p = &self.pipelines;
+            rec.bind_compute(&p.keys, &[&self.sets[0]])?;
+            rec.push_constants(&p.keys, bytemuck::bytes_of(camera), counter);
+            rec.dispatch_groups(u64::from(self.n.div_ceil(WORKGROUP)))?;
+            for set in &self.sets {
+                rec.compute_to_compute();
+                rec.bind_compute(&p.histogram, &[set])?;
+                rec.dispatch_groups(u64::from(self.groups))?;
+                rec.compute_to_compute();
+                rec.bind_compute(&p.scan, &[set])?;
+                rec.dispatch([1, 1, 1])?;
+                rec.compute_to_compute();
+                rec.bind_compute(&p.scatter, &[set])?;
+                rec.dispatch_groups(u64::from(self.groups))?;
+            }
+        }
+        self.timestamps.write(rec, 1, S::COMPUTE_SHADER)?;
+        rec.memory_barrier(
+            (S::COMPUTE_SHADER, A::SHADER_STORAGE_WRITE),
+            (S::PRE_RASTERIZATION_SHADERS | S::COMPUTE_SHADER | S::COPY, A::SHADER_STORAGE_READ | A::TRANSFER_READ),
+        );
+        Ok(())
+    }
+
+    /// GPU milliseconds the last recorded sort took (after its submission
+    /// has been waited for).
+    pub fn gpu_ms(&self) -> VkResult<f64> {
+        self.timestamps.elapsed_ms(0, 1)
+    }
+
+    /// Copy the order back to the host (tests; after the sort's submission
+    /// has been waited for).
+    pub fn read_order(&self, ctx: &Arc<Context>) -> VkResult<Vec<u32>> {
+        let bytes = u64::from(self.n) * 4;
+        let readback = Buffer::new(ctx, BufferDesc::readback("device sort order readback", bytes.max(4)))?;
+        let rec = CommandRecorder::new(ctx, "device sort order readback")?;
+        rec.begin()?;
+        if bytes > 0 {
+            rec.copy_buffer(&self.order, &readback, bytes);
+        }
+        rec.transfer_to_host();
+        rec.submit_and_wait()?;
+        let data = readback.read()?;
+        Ok(bytemuck::pod_collect_to_vec(&data[..bytes as usize]))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_passes_cover_a_u32_key_and_end_where_they_started() {
+        assert_eq!(PASSES * RADIX_BITS, 32);
+        assert_eq!(PASSES % 2, 0, "the order must end in the buffer the keys started in");
+        assert!(RADIX_BITS == 4 && ITEMS_PER_INVOCATION <= 255, "the packed counters (radix_sort.glsl)");
+        // The scatter's shared memory: RADIX counters per invocation plus the bases.
+        let shared = ((1 << RADIX_BITS) * WORKGROUP + (1 << RADIX_BITS)) * 4;
+        assert!(shared <= 16 * 1024, "{shared} bytes of shared memory");
+    }
+
+    #[test]
+    fn the_sort_camera_is_the_frame_setup_camera() {
+        use super::super::{ExitTolerances, FrameSetup, Interpolation};
+        use crate::mesh::Bounds;
+        use crate::scene::Projection;
+        let b = Bounds { min: [0.0; 3], max: [1.0, 2.0, 3.0] };
+        for projection in [Projection::Perspective { fovy_deg: 30.0 }, Projection::Orthographic { height: 1.0 }] {
+            let cam = Camera::orbit(&b, 0.7, projection);
+            let frame = FrameSetup::for_camera(&cam, b.diagonal(), Interpolation::Exact, &ExitTolerances::default());
+            assert_eq!(SortCamera::from_frame(&frame), SortCamera::new(&cam, [0.0; 3]));
+        }
+    }
+}

@@ -1,0 +1,232 @@
+//! `resident-gpusort` (beyond the thesis): `resident` with the visibility
+//! sort on the device. The cells, their centroids and the static strips are
+//! uploaded once; each frame a compute radix sort (`device_sort`) orders the
+//! cells by centroid depth into a device-local buffer that the vertex stage
+//! of `resident.vert` reads in place, so nothing but the camera crosses per
+//! frame (the sort's 32 bytes and the draw's frame constants, all push
+//! constants). The draw is `resident`'s: same shaders, strips and order
+//! (the device order equals the CPU's centroid order exactly), so the same
+//! image. The sort's GPU time is reported as the phase `sort_gpu`.
+//!
+//! Only the centroid order: MPVO's order is a graph traversal, not a sort,
+//! and is not built on the device; `sort=mpvo` is refused when the spec is
+//! parsed.
+
+use std::sync::Arc;
+
+use anyhow::Result;
+use ash::vk as raw;
+
+use super::balanced::{strip_indices, INDICES_PER_CELL, VERTICES_PER_CELL};
+use super::device_sort::{DeviceCentroidSort, SortCamera};
+use super::render;
+use super::resident::{stored, FLOATS_PER_STORED_CELL};
+use super::sort::SortKind;
+use super::{build_pipeline, cells_f32, centroids_relative_f32, render_origin, CellProjector, FrameSetup, Interpolation};
+use crate::algo::integrate::IntegrationTables;
+use crate::algo::method::{DataKind, MethodInfo, MethodInputs, Options, RenderMethod};
+use crate::mesh::{TetGeometry, TetMesh};
+use crate::vk::{
+    upload_static, Buffer, CommandRecorder, Context, DescriptorSet, DescriptorSetDesc, Pipeline, PipelineKey,
+    StorageBufferSet, UploadCounter, VkError, VkResult,
+};
+
+/// The name of the sort's GPU-time phase (`time_ms.sort_gpu`).
+pub const SORT_PHASE: &str = "sort_gpu";
+
+/// The registry entry: cell projection's options, sweeps and bounds, with
+/// the option sets that name MPVO left out.
+pub const METHOD: MethodInfo = MethodInfo {
+    name: "resident-gpusort",
+    data: DataKind::TetMesh,
+    summary: "resident with the centroid sort on the device (compute radix sort): only the camera crosses per frame",
+    options: render::OPTIONS_WITHOUT_CULL,
+    features: &[],
+    sweep: SWEEP,
+    compare: render::COMPARE,
+    stress: STRESS,
+    suite: &[],
+    accuracy_bound: render::accuracy_bound,
+    published: &[],
+    check,
+    create,
+};
+
+/// `render::SWEEP` without its `sort=mpvo` sets (a unit test keeps the two in step).
+const SWEEP: &[&str] = &[
+    "integrator=average,interpolation=paper,sort=centroid",
+    "integrator=preint,table_size=128,interpolation=paper,sort=centroid",
+    "integrator=ppi,table_size=128,interpolation=paper,sort=centroid",
+    "integrator=ppi,table_size=512,interpolation=paper,sort=centroid",
+    "integrator=ppi,table_size=1024,interpolation=paper,sort=centroid",
+    "integrator=linear-exact,interpolation=paper,sort=centroid",
+    "integrator=average,interpolation=exact,sort=centroid",
+    "integrator=preint,table_size=128,interpolation=exact,sort=centroid",
+    "integrator=ppi,table_size=128,interpolation=exact,sort=centroid",
+    "integrator=ppi,table_size=512,interpolation=exact,sort=centroid",
+    "integrator=ppi,table_size=1024,interpolation=exact,sort=centroid",
+    "integrator=linear-exact,interpolation=exact,sort=centroid",
+];
+
+/// `render::STRESS` without its `sort=mpvo` sets.
+const STRESS: &[&str] = &[
+    "integrator=average,interpolation=paper,sort=centroid",
+    "integrator=preint,interpolation=paper,sort=centroid",
+    "integrator=ppi,interpolation=paper,sort=centroid",
+    "integrator=linear-exact,interpolation=paper,sort=centroid",
+    "integrator=average,interpolation=exact,sort=centroid",
+    "integrator=preint,interpolation=exact,sort=centroid",
+    "integrator=ppi,interpolation=exact,sort=centroid",
+    "integrator=linear-exact,interpolation=exact,sort=centroid",
+];
+
+/// Cell projection's checks, and the centroid order only.
+fn check(options: &Options) -> Result<()> {
+    let settings = render::Settings::from_options(options)?;
+    anyhow::ensure!(
+        settings.sort == SortKind::Centroid,
+        "option 'sort' = {}: the device sort builds the centroid order only (sort=centroid; MPVO runs on the CPU: \
+         use resident:sort=mpvo)",
+        settings.sort.name()
+    );
+    Ok(())
+}
+
+fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
+    let bytes = render::DeviceBytesPerCell {
+        frame: 0,
+        fixed: INDICES_PER_CELL * 4 + FLOATS_PER_STORED_CELL * 4 + super::device_sort::DEVICE_BYTES_PER_CELL,
+    };
+    render::CellProjection::create(inputs, bytes, |ctx, mesh, geometry, tables, interpolation, counter| {
+        Ok(Box::new(ResidentGpuSort::new(ctx, mesh, geometry, tables, interpolation, counter)?))
+    })
+}
+
+pub struct ResidentGpuSort {
+    cells: usize,
+    set: StorageBufferSet,
+    sort: DeviceCentroidSort,
+    _cell_buffer: Buffer,
+    index_buffer: Buffer,
+    pipeline: Arc<Pipeline>,
+    pipeline_key: PipelineKey,
+}
+
+impl ResidentGpuSort {
+    pub fn new(
+        ctx: &Arc<Context>,
+        mesh: &TetMesh,
+        geometry: &TetGeometry,
+        tables: &IntegrationTables,
+        interpolation: Interpolation,
+        counter: &mut UploadCounter,
+    ) -> VkResult<Self> {
+        let cells = cells_f32(mesh, geometry);
+        let n = cells.len();
+        let cell_bytes = n as u64 * (FLOATS_PER_STORED_CELL * 4) as u64;
+        let limit = u64::from(ctx.info.max_storage_buffer_range);
+        if cell_bytes > limit {
+            return Err(VkError::Invalid(format!(
+                "mesh '{}': {n} cells need a {cell_bytes}-byte storage buffer, above the device's maxStorageBufferRange ({limit} bytes)",
+                mesh.name
+            )));
+        }
+        // The same f64 -> f32 centroids as the CPU's centroid sort.
+        let centroids = centroids_relative_f32(geometry, render_origin(mesh));
+        let sort = DeviceCentroidSort::new(ctx, "resident-gpusort", &centroids, counter)?;
+        let data: Vec<f32> = cells.iter().flat_map(stored).collect();
+        let storage = raw::BufferUsageFlags::STORAGE_BUFFER;
+        let cell_buffer = upload_static(ctx, "resident-gpusort cells", bytemuck::cast_slice(&data), storage, counter)?;
+        let index_buffer = upload_static(
+            ctx,
+            "resident-gpusort strip indices",
+            bytemuck::cast_slice(&strip_indices(n)),
+            raw::BufferUsageFlags::INDEX_BUFFER,
+            counter,
+        )?;
+        let set = StorageBufferSet::new(ctx, "resident-gpusort cells and order", &[&cell_buffer, sort.order()], raw::ShaderStageFlags::VERTEX)?;
+        let (pipeline, pipeline_key) = build_pipeline(
+            ctx,
+            "cell_projection/resident.vert",
+            "cell_projection/balanced.frag",
+            0,
+            &[],
+            raw::PrimitiveTopology::TRIANGLE_STRIP,
+            true,
+            tables,
+            interpolation,
+            &[DescriptorSetDesc::storage_buffers(2, raw::ShaderStageFlags::VERTEX)],
+        )?;
+        Ok(ResidentGpuSort { cells: n, set, sort, _cell_buffer: cell_buffer, index_buffer, pipeline, pipeline_key })
+    }
+}
+
+impl CellProjector for ResidentGpuSort {
+    fn cells(&self) -> usize {
+        self.cells
+    }
+    fn vertices_per_cell(&self) -> usize {
+        VERTICES_PER_CELL
+    }
+    fn floats_per_cell(&self) -> usize {
+        0
+    }
+    fn pipeline_key(&self) -> &PipelineKey {
+        &self.pipeline_key
+    }
+
+    /// Nothing: the order is made on the device.
+    fn pack(&mut self, _order: &[u32], _frame: &FrameSetup) {}
+
+    fn upload(&mut self, _counter: &mut UploadCounter) -> VkResult<()> {
+        Ok(())
+    }
+
+    fn sorts_on_device(&self) -> bool {
+        true
+    }
+
+    fn record_before_draw(&self, rec: &CommandRecorder, frame: &FrameSetup, counter: &mut UploadCounter) -> VkResult<()> {
+        self.sort.record(rec, &SortCamera::from_frame(frame), counter)
+    }
+
+    fn record_draw(&self, rec: &CommandRecorder, tables: &IntegrationTables, frame: &FrameSetup, counter: &mut UploadCounter) -> VkResult<()> {
+        let sets: [&DescriptorSet; 2] = [&tables.set, &self.set];
+        rec.bind_graphics(&self.pipeline, &sets)?;
+        rec.push_constants(&self.pipeline, bytemuck::bytes_of(&frame.constants), counter);
+        rec.bind_index_buffer_u32(&self.index_buffer);
+        rec.draw_indexed((self.cells * INDICES_PER_CELL) as u32);
+        Ok(())
+    }
+
+    fn device_phases(&self) -> VkResult<Vec<(&'static str, f64)>> {
+        Ok(vec![(SORT_PHASE, self.sort.gpu_ms()?)])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The option sets are cell projection's, less those naming MPVO.
+    #[test]
+    fn option_sets_are_render_s_centroid_sets() {
+        let centroid = |sets: &[&'static str]| -> Vec<&'static str> { sets.iter().copied().filter(|s| !s.contains("sort=mpvo")).collect() };
+        assert_eq!(SWEEP, centroid(render::SWEEP).as_slice());
+        assert_eq!(STRESS, centroid(render::STRESS).as_slice());
+        assert!(render::COMPARE.iter().all(|s| !s.contains("mpvo")));
+    }
+
+    #[test]
+    fn the_sort_phase_is_a_device_phase() {
+        assert!(SORT_PHASE.ends_with(crate::algo::method::DEVICE_PHASE_SUFFIX));
+    }
+
+    #[test]
+    fn mpvo_is_refused_naming_the_option() {
+        let r = crate::algo::registry::builtin();
+        let e = r.parse_spec("resident-gpusort:sort=mpvo", &[]).unwrap_err().to_string();
+        assert!(e.contains("resident-gpusort") && e.contains("option 'sort'") && e.contains("centroid"), "{e}");
+        r.parse_spec("resident-gpusort:sort=centroid", &[]).unwrap();
+    }
+}

@@ -1,0 +1,103 @@
+//! A method's own timestamp queries: a small pool of timestamps that a
+//! method writes around its passes (e.g. a device sort) so that the pass's
+//! GPU time is reported as its own phase, beside the frame's `gpu` time that
+//! `query::FrameQueries` measures around everything. Separate from
+//! `FrameQueries` so that the runner's pool stays the runner's: a method
+//! resets and writes its pool in its own command recording and reads it
+//! after the frame's fence has signalled.
+
+use std::sync::Arc;
+
+use ash::vk;
+
+use super::commands::CommandRecorder;
+use super::error::{Check, VkError, VkResult};
+use super::Context;
+
+pub struct TimestampPool {
+    raw: vk::QueryPool,
+    count: u32,
+    name: String,
+    period_ns: f64,
+    valid_mask: u64,
+    ctx: Arc<Context>,
+}
+
+impl TimestampPool {
+    /// A pool of `count` timestamps named `name` (debug name and errors).
+    /// On a queue without timestamps the pool exists but `read` gives
+    /// `None` and `elapsed_ms` an error saying so.
+    pub fn new(ctx: &Arc<Context>, name: &str, count: u32) -> VkResult<Self> {
+        let info = vk::QueryPoolCreateInfo::default().query_type(vk::QueryType::TIMESTAMP).query_count(count.max(1));
+        let raw = unsafe { ctx.device.create_query_pool(&info, None) }.check("vkCreateQueryPool(method timestamps)")?;
+        ctx.set_name(raw, name);
+        let bits = ctx.info.timestamp_valid_bits;
+        let valid_mask = if bits >= 64 { u64::MAX } else { (1u64 << bits) - 1 };
+        Ok(TimestampPool {
+            raw,
+            count,
+            name: name.to_string(),
+            period_ns: ctx.info.timestamp_period_ns as f64,
+            valid_mask,
+            ctx: ctx.clone(),
+        })
+    }
+
+    /// Reset every timestamp; record outside a render pass, before `write`.
+    pub fn reset(&self, rec: &CommandRecorder) {
+        unsafe { self.ctx.device.cmd_reset_query_pool(rec.raw, self.raw, 0, self.count) };
+    }
+
+    /// Write timestamp `index` once every earlier command has passed `stage`.
+    pub fn write(&self, rec: &CommandRecorder, index: u32, stage: vk::PipelineStageFlags2) -> VkResult<()> {
+        if index >= self.count {
+            return Err(VkError::Invalid(format!("timestamp {index} of '{}', which holds {}", self.name, self.count)));
+        }
+        unsafe { self.ctx.device.cmd_write_timestamp2(rec.raw, stage, self.raw, index) };
+        Ok(())
+    }
+
+    /// Milliseconds from timestamp `from` to timestamp `to`, after the
+    /// submission that wrote them has been waited for. Read without
+    /// VK_QUERY_RESULT_WAIT_BIT (which could block forever on a timestamp
+    /// never submitted): called too early, this is an error instead.
+    pub fn elapsed_ms(&self, from: u32, to: u32) -> VkResult<f64> {
+        if self.ctx.info.timestamp_valid_bits == 0 {
+            return Err(VkError::Unsupported { device: self.ctx.info.name.clone(), what: "timestamp queries on its queue".into() });
+        }
+        if from >= self.count || to >= self.count {
+            return Err(VkError::Invalid(format!("timestamps {from}..{to} of '{}', which holds {}", self.name, self.count)));
+        }
+        let mut ts = vec![0u64; self.count as usize];
+        unsafe { self.ctx.device.get_query_pool_results(self.raw, 0, &mut ts, vk::QueryResultFlags::TYPE_64) }.map_err(
+            |result| match result {
+                vk::Result::NOT_READY => VkError::Invalid(format!(
+                    "timestamps of '{}' not available (was the frame submitted and waited for?)",
+                    self.name
+                )),
+                result => VkError::Call { what: "vkGetQueryPoolResults(method timestamps)", result },
+            },
+        )?;
+        let m = self.valid_mask;
+        let ticks = (ts[to as usize] & m).wrapping_sub(ts[from as usize] & m) & m;
+        Ok(ticks as f64 * self.period_ns * 1e-6)
+    }
+}
+
+impl TimestampPool {
+    /// Milliseconds from timestamp 0 to each later one, once all are
+    /// available (`None` before that, or on a queue without timestamps):
+    /// for a method that reads its own passes without failing the frame.
+    pub fn read(&self) -> Option<Vec<f64>> {
+        if self.ctx.info.timestamp_valid_bits == 0 {
+            return None;
+        }
+        (1..self.count).map(|i| self.elapsed_ms(0, i).ok()).collect()
+    }
+}
+
+impl Drop for TimestampPool {
+    fn drop(&mut self) {
+        unsafe { self.ctx.device.destroy_query_pool(self.raw, None) };
+    }
+}
