@@ -173,15 +173,16 @@ pub fn plan(registry: &Registry, settings: &SuiteSettings) -> Result<Vec<Planned
                 out.extend(specs.into_iter().map(|spec| PlannedRun { dataset: d.name, spec, scene: Scene::Standard }));
             }
         }
-        // The culling scenes: each method with a `cull` option, culling on
-        // and off (the unchanged-image check and the speed-up); --quick runs
-        // them for the first such method only.
+        // The culling scenes: the first methods with a `cull` option (the
+        // papers' VICP and balanced; --quick: the first only), culling on
+        // and off (the unchanged-image check and the speed-up). Every method
+        // culls alike (tests/cull.rs); more would not fit the suite's budget.
         if CULL_SCENE_DATASETS.contains(&d.name) {
             let culling: Vec<_> = registry
                 .for_kind(d.kind)
                 .into_iter()
                 .filter(|m| (keep(d.name) || keep(m.name)) && m.options.iter().any(|o| o.name == "cull"))
-                .take(if settings.quick { 1 } else { usize::MAX })
+                .take(if settings.quick { 1 } else { 2 })
                 .collect();
             // --quick leaves out the zoomed scene: magnified cells cost many
             // more fragments (the CI budget).

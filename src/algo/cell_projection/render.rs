@@ -479,7 +479,11 @@ impl RenderMethod for CellProjection {
     }
 
     fn work(&self) -> Work {
-        let work = Work::default().with("cells", self.projector.cells() as u64).with("cells_drawn", self.projector.drawn() as u64);
+        // Near caps (cells cut by the near plane) are per-frame cell data too.
+        let work = Work::default()
+            .with("cells", self.projector.cells() as u64)
+            .with("cells_drawn", self.projector.drawn() as u64)
+            .with("near_cap_vertices", self.near.vertices() as u64);
         match self.projector.pieces() {
             Some(p) => work.with("pieces", p as u64).with("pieces_drawn", self.projector.pieces_drawn() as u64),
             None => work,
