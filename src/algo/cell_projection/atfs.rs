@@ -37,7 +37,7 @@ use crate::scene::transfer_function::TABLE_MAX;
 use crate::scene::TransferFunction;
 use crate::vk::{
     upload_static, Buffer, BufferDesc, CommandRecorder, Context, DescriptorSet, DescriptorSetDesc, Pipeline, PipelineKey,
-    StorageBufferSet, UploadClass, UploadCounter, VertexAttribute, VkError, VkResult,
+    StorageBufferSet, UploadClass, UploadCounter, VkError, VkResult,
 };
 
 /// Floats per drawn piece per frame: balanced's record.
@@ -282,20 +282,12 @@ impl Atfs {
         )?;
         let bytes = (pieces.max(1) * FLOATS_PER_PIECE * 4) as u64;
         let vertex_buffer = Buffer::new(ctx, BufferDesc::upload("atfs vertex records", bytes, raw::BufferUsageFlags::VERTEX_BUFFER))?;
-        let f = |location, format, floats: u32| VertexAttribute { location, format, offset: floats * 4 };
-        let attributes = [
-            f(0, raw::Format::R32G32B32_SFLOAT, 0),
-            f(1, raw::Format::R32_SFLOAT, 3),
-            f(2, raw::Format::R32_SFLOAT, 4),
-            f(3, raw::Format::R32_SFLOAT, 5),
-            f(4, raw::Format::R32_SFLOAT, 6),
-        ];
         let (pipeline, pipeline_key) = build_pipeline(
             ctx,
             "cell_projection/atfs.vert",
             "cell_projection/atfs.frag",
             (FLOATS_PER_VERTEX * 4) as u32,
-            &attributes,
+            &super::balanced::record_attributes(),
             raw::PrimitiveTopology::TRIANGLE_STRIP,
             true,
             tables,

@@ -50,6 +50,19 @@ fn create(inputs: MethodInputs) -> anyhow::Result<Box<dyn RenderMethod>> {
     })
 }
 
+/// The vertex record's attributes: position, d, s_f, s_b and the vertex's
+/// index in its tet (atfs's pieces use the same record).
+pub(super) fn record_attributes() -> [VertexAttribute; 5] {
+    let f = |location, format, floats: u32| VertexAttribute { location, format, offset: floats * 4 };
+    [
+        f(0, raw::Format::R32G32B32_SFLOAT, 0),
+        f(1, raw::Format::R32_SFLOAT, 3),
+        f(2, raw::Format::R32_SFLOAT, 4),
+        f(3, raw::Format::R32_SFLOAT, 5),
+        f(4, raw::Format::R32_SFLOAT, 6),
+    ]
+}
+
 pub struct Balanced {
     cells: Vec<CellF32>,
     packed: Vec<f32>,
@@ -128,20 +141,12 @@ impl Balanced {
         let bytes = (n * FLOATS_PER_CELL * 4) as u64;
         let vertex_buffer =
             Buffer::new(ctx, BufferDesc::upload("balanced vertex records", bytes, raw::BufferUsageFlags::VERTEX_BUFFER))?;
-        let f = |location, format, floats: u32| VertexAttribute { location, format, offset: floats * 4 };
-        let attributes = [
-            f(0, raw::Format::R32G32B32_SFLOAT, 0),
-            f(1, raw::Format::R32_SFLOAT, 3),
-            f(2, raw::Format::R32_SFLOAT, 4),
-            f(3, raw::Format::R32_SFLOAT, 5),
-            f(4, raw::Format::R32_SFLOAT, 6),
-        ];
         let (pipeline, pipeline_key) = build_pipeline(
             ctx,
             "cell_projection/balanced.vert",
             "cell_projection/balanced.frag",
             (FLOATS_PER_VERTEX * 4) as u32,
-            &attributes,
+            &record_attributes(),
             raw::PrimitiveTopology::TRIANGLE_STRIP,
             true,
             tables,
