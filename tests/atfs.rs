@@ -3,7 +3,9 @@
 //! reference on both real meshes, and its deterministic counts (pieces
 //! drawn, bytes per original tet).
 
-use std::sync::{Arc, Mutex, OnceLock};
+mod common;
+use common::context;
+
 
 use volbench::algo::cell_projection::atfs::{Intervals, FLOATS_PER_PIECE};
 use volbench::algo::cell_projection::scalar_map;
@@ -13,17 +15,7 @@ use volbench::harness::image::RgbaImage;
 use volbench::harness::run::{run as run_method, RunConfig, RunOutput};
 use volbench::mesh::TetMesh;
 use volbench::scene::TransferFunction;
-use volbench::vk::{Context, ContextDesc};
 
-fn context() -> std::sync::MutexGuard<'static, Arc<Context>> {
-    static CTX: OnceLock<Mutex<Arc<Context>>> = OnceLock::new();
-    CTX.get_or_init(|| {
-        let ctx = Context::new(&ContextDesc { device: None, validation: true }).expect("a Vulkan device (run scripts/setup.sh)");
-        Mutex::new(ctx)
-    })
-    .lock()
-    .unwrap_or_else(|p| p.into_inner())
-}
 
 fn run(mesh: &TetMesh, tf: &TransferFunction, spec: &str, cfg: &RunConfig) -> RunOutput {
     let dataset = Dataset::from_mesh(mesh.clone(), false, "test".into());

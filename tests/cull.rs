@@ -6,24 +6,16 @@
 //! rasterizer's primitives = 4 per drawn cell); an unchanged view re-uses
 //! the previous frame (nothing uploaded). No timings.
 
-use std::sync::{Arc, Mutex, OnceLock};
+mod common;
+use common::context;
+
 
 use volbench::algo::registry;
 use volbench::harness::datasets::{self, Dataset};
 use volbench::harness::run::{run as run_method, RasterizerReport, RunConfig, RunOutput};
 use volbench::mesh::TetMesh;
 use volbench::scene::{ControlPoint, TransferFunction};
-use volbench::vk::{Context, ContextDesc};
 
-fn context() -> std::sync::MutexGuard<'static, Arc<Context>> {
-    static CTX: OnceLock<Mutex<Arc<Context>>> = OnceLock::new();
-    CTX.get_or_init(|| {
-        let ctx = Context::new(&ContextDesc { device: None, validation: true }).expect("a Vulkan device (run scripts/setup.sh)");
-        Mutex::new(ctx)
-    })
-    .lock()
-    .unwrap_or_else(|p| p.into_inner())
-}
 
 fn run(dataset: &Dataset, tf: &TransferFunction, spec: &str, cfg: &RunConfig) -> RunOutput {
     let spec = registry::builtin().parse_spec(spec, &[]).expect("spec");

@@ -5,8 +5,8 @@
 //! deterministic counts only, no timings.
 
 mod common;
+use common::context;
 
-use std::sync::{Arc, Mutex, OnceLock};
 
 use volbench::algo::cell_projection::device_sort::{DeviceCentroidSort, SortCamera, CAMERA_BYTES, TILE};
 use volbench::algo::cell_projection::resident::FLOATS_PER_STORED_CELL;
@@ -19,17 +19,8 @@ use volbench::harness::datasets::{self, Dataset};
 use volbench::harness::run::{run as run_method, RunConfig, RunOutput};
 use volbench::mesh::{Bounds, TetGeometry, TetMesh};
 use volbench::scene::{Camera, Projection, TransferFunction};
-use volbench::vk::{CommandRecorder, Context, ContextDesc, UploadCounter};
+use volbench::vk::{CommandRecorder, UploadCounter};
 
-fn context() -> std::sync::MutexGuard<'static, Arc<Context>> {
-    static CTX: OnceLock<Mutex<Arc<Context>>> = OnceLock::new();
-    CTX.get_or_init(|| {
-        let ctx = Context::new(&ContextDesc { device: None, validation: true }).expect("a Vulkan device (run scripts/setup.sh)");
-        Mutex::new(ctx)
-    })
-    .lock()
-    .unwrap_or_else(|p| p.into_inner())
-}
 
 /// The device order for `centroids` (relative to `origin`) seen by `camera`,
 /// and the bytes the sort pushed.

@@ -8,7 +8,6 @@
 //! ray, re-entries, early terminations, stalled walks) and what crosses per
 //! frame (only the camera). No timings.
 
-use std::sync::{Arc, Mutex, OnceLock};
 
 use volbench::algo::registry;
 use volbench::harness::datasets::{self, Dataset};
@@ -18,17 +17,7 @@ use volbench::mesh::split::hex_grid_to_tets;
 use volbench::mesh::{MeshStats, TetMesh};
 use volbench::reference::render_reference_with_stats;
 use volbench::scene::{Camera, ControlPoint, Projection, TransferFunction};
-use volbench::vk::{Context, ContextDesc};
 
-fn context() -> std::sync::MutexGuard<'static, Arc<Context>> {
-    static CTX: OnceLock<Mutex<Arc<Context>>> = OnceLock::new();
-    CTX.get_or_init(|| {
-        let ctx = Context::new(&ContextDesc { device: None, validation: true }).expect("a Vulkan device (run scripts/setup.sh)");
-        Mutex::new(ctx)
-    })
-    .lock()
-    .unwrap_or_else(|p| p.into_inner())
-}
 
 fn run(mesh: &TetMesh, tf: &TransferFunction, spec: &str, camera: Camera, size: u32) -> RunOutput {
     let dataset = Dataset::from_mesh(mesh.clone(), false, "test".into());
@@ -350,6 +339,7 @@ fn only_the_camera_crosses_per_frame() {
 }
 
 mod common;
+use common::context;
 
 fn common_schema(out: &RunOutput) {
     let v = serde_json::to_value(&out.result).unwrap();

@@ -1,5 +1,6 @@
-//! Shared by the integration tests: validation of written JSON against the
-//! committed schemas (`results/schema/`).
+//! Shared by the integration tests: one validated Vulkan context per test
+//! binary, and validation of written JSON against the committed schemas
+//! (`results/schema/`).
 
 #![allow(dead_code)]
 
@@ -10,4 +11,16 @@ pub fn assert_matches_schema(schema: &str, value: &serde_json::Value, what: &str
     let validator = jsonschema::validator_for(&schema).expect("a valid JSON Schema");
     let errors: Vec<String> = validator.iter_errors(value).map(|e| format!("{} at {}", e, e.instance_path())).collect();
     assert!(errors.is_empty(), "{what} does not match {}:\n{}", path.display(), errors.join("\n"));
+}
+
+/// One validated context for the whole test binary; runs are serialised
+/// because lavapipe already uses every core.
+pub fn context() -> std::sync::MutexGuard<'static, std::sync::Arc<volbench::vk::Context>> {
+    static CTX: std::sync::OnceLock<std::sync::Mutex<std::sync::Arc<volbench::vk::Context>>> = std::sync::OnceLock::new();
+    CTX.get_or_init(|| {
+        let ctx = volbench::vk::Context::new(&volbench::vk::ContextDesc { device: None, validation: true }).expect("a Vulkan device (run scripts/setup.sh)");
+        std::sync::Mutex::new(ctx)
+    })
+    .lock()
+    .unwrap_or_else(|p| p.into_inner())
 }
