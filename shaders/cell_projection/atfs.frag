@@ -1,6 +1,6 @@
 #version 450
-// Adaptive transfer function sampling: balanced's exit search, the segment
-// stopped at the far plane, then clipped to this piece's scalar interval
+// Adaptive transfer function sampling: balanced's exit, the segment stopped
+// at the far plane, then clipped to this piece's scalar interval
 // (cell_projection/atfs.glsl).
 #include "common/frame.glsl"
 #include "common/integrate.glsl"
@@ -8,22 +8,16 @@
 #define EXIT_VEC vec4
 #define EXIT_N 4
 #include "common/exit.glsl"
+#include "cell_projection/known_exits_io.glsl"
 #include "cell_projection/atfs.glsl"
 
-layout(location = 0) in float in_sf;
-layout(location = 1) in vec4 in_d;
-layout(location = 2) in vec4 in_s;
-layout(location = 3) in vec4 in_w;
-layout(location = 4) in float in_g;
-layout(location = 5) in vec3 in_rel;
 layout(location = 0) out vec4 out_color;
 
 void main() {
     float len;
     float sb;
-    if (exit_point(in_d, in_s, in_w, in_sf, in_g, in_rel, len, sb)) {
-        clamp_to_far(in_rel, in_sf, len, sb);
-        out_color = integrate_piece(in_sf, sb, len);
+    if (known_exit(len, sb)) {
+        out_color = integrate_piece(v_sf, sb, len);
     } else {
         out_color = vec4(0.0);
     }

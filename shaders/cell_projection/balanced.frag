@@ -1,27 +1,23 @@
 #version 450
-// As VICP's fragment stage with 4-vectors: the entry for the face being
-// drawn interpolates to exactly 0 and is never selected.
+// Balanced cell projection's fragment stage (also resident's): the nearest
+// of the tet's known exit planes, the segment stopped at the far plane
+// (known_exit), integrated. The plane of the face being drawn is an entry plane, never
+// in the mask.
 #include "common/frame.glsl"
 #include "common/integrate.glsl"
 #include "common/clip.glsl"
 #define EXIT_VEC vec4
 #define EXIT_N 4
 #include "common/exit.glsl"
+#include "cell_projection/known_exits_io.glsl"
 
-layout(location = 0) in float in_sf;
-layout(location = 1) in vec4 in_d;
-layout(location = 2) in vec4 in_s;
-layout(location = 3) in vec4 in_w;
-layout(location = 4) in float in_g;
-layout(location = 5) in vec3 in_rel;
 layout(location = 0) out vec4 out_color;
 
 void main() {
     float len;
     float sb;
-    if (exit_point(in_d, in_s, in_w, in_sf, in_g, in_rel, len, sb)) {
-        clamp_to_far(in_rel, in_sf, len, sb);
-        out_color = integrate_segment(in_sf, sb, len);
+    if (known_exit(len, sb)) {
+        out_color = integrate_segment(v_sf, sb, len);
     } else {
         out_color = vec4(0.0);
     }

@@ -1,38 +1,23 @@
 #version 450
 // GPU-CPU balanced cell projection (Moreland): the CPU has already computed,
-// per frame, the distance d from this vertex to its opposite face and the
-// scalar s_b there. The vertex stage spreads them into 4-vectors indexed by
+// per frame, each vertex's ray-plane distance c to its opposite face and
+// the scalar s_b there, plus the tet's exit mask (balanced.rs
+// `cell_records`). The vertex stage spreads them into 4-vectors indexed by
 // the vertex's index in the tet, so the same 4 records serve all 4 faces.
-// (With EXACT_PERSPECTIVE under perspective the CPU sends, in the same two
-// slots, the plane ratio u and g . (v - eye) instead; see common/exit.glsl.)
+// (With EXACT_PERSPECTIVE the CPU sends, in the same two slots, the plane
+// ratio u and the gradient term; see common/exit.glsl.)
 #include "common/frame.glsl"
+#include "cell_projection/record.glsl"
+#define KNOWN_EXITS_VERTEX
+#include "cell_projection/known_exits_io.glsl"
 
 layout(location = 0) in vec3 in_pos;     // v
-layout(location = 1) in float in_d;      // d (view-dependent, from the CPU)
+layout(location = 1) in float in_c;      // t or u (view-dependent, from the CPU)
 layout(location = 2) in float in_sf;     // s_f = s_v
-layout(location = 3) in float in_sb;     // s_b on the opposite face
-layout(location = 4) in float in_index;  // i: index in the tet (0..3)
-
-layout(location = 0) out float out_sf;
-layout(location = 1) out vec4 out_d;
-layout(location = 2) out vec4 out_s;
-layout(location = 3) out vec4 out_w;    // barycentric weight of each vertex (see common/exit.glsl)
-layout(location = 4) out float out_g;   // exact perspective: g . (v - eye)
-layout(location = 5) out vec3 out_rel;  // exact perspective: v - eye
+layout(location = 3) in float in_b;      // s_b, or the gradient term (exact)
+layout(location = 4) in float in_code;   // record.glsl
 
 void main() {
-    int k = int(in_index + 0.5);
-    vec4 d = vec4(0.0);
-    vec4 s = vec4(in_sf);
-    vec4 w = vec4(0.0);
-    d[k] = in_d;
-    s[k] = in_sb;
-    w[k] = 1.0;
-    out_sf = in_sf;
-    out_d = d;
-    out_s = s;
-    out_w = w;
-    out_g = in_sb;
-    out_rel = in_pos - frame.eye.xyz;
-    gl_Position = frame.view_proj * vec4(in_pos, 1.0);
+    int code = record_code(in_code);
+    emit_vertex(in_pos, record_vertex(code), in_c, in_sf, in_b, record_exits(code));
 }

@@ -7,6 +7,7 @@
 // affine in the point, so they interpolate exactly. With CAP_PIECES the
 // record's code selects an atfs interval as atfs.vert does.
 #include "common/frame.glsl"
+#include "cell_projection/record.glsl"
 
 layout(location = 0) in vec3 in_pos;
 layout(location = 1) in float in_sf;
@@ -14,7 +15,7 @@ layout(location = 2) in vec4 in_d;
 layout(location = 3) in vec4 in_s;
 layout(location = 4) in vec4 in_w;
 layout(location = 5) in float in_g;
-layout(location = 6) in float in_code;  // atfs: 4 * flags + 16 * j
+layout(location = 6) in float in_code;  // atfs: flags and piece as in record.glsl
 
 layout(location = 0) out float out_sf;
 layout(location = 1) out vec4 out_d;
@@ -44,9 +45,9 @@ void main() {
     out_g = in_g;
     out_rel = in_pos - frame.eye.xyz;
 #ifdef CAP_PIECES
-    int code = int(in_code + 0.5);
-    int flags = (code >> 2) & 3;
-    Interval iv = intervals[code >> 4];
+    int code = record_code(in_code);
+    int flags = record_flags(code);
+    Interval iv = intervals[record_piece(code)];
     out_bounds = vec3((flags & 1) != 0 ? -UNBOUNDED : iv.bounds.x, (flags & 2) != 0 ? UNBOUNDED : iv.bounds.y, iv.bounds.z);
     out_base = iv.base;
     out_slope = iv.slope;

@@ -3,10 +3,13 @@
 // buffer uploaded once; per frame only the sorted order (one u32 per tet)
 // crosses to the device. Vertex 4k+i of the static strips is vertex i of
 // the tet in slot k; the vertex stage runs balanced's CPU half
-// (IntersectBackFace: d and s_b, or u and g.(v - eye) with exact
-// perspective) from the stored planes, then spreads the results exactly as
-// balanced.vert does, so balanced.frag integrates them unchanged.
+// (IntersectBackFace, balanced.rs `cell_records`) from the stored planes,
+// for all four vertices since the tet's exit mask needs every c_j, then
+// emits its own values exactly as balanced.vert does, so balanced.frag
+// integrates them unchanged.
 #include "common/frame.glsl"
+#define KNOWN_EXITS_VERTEX
+#include "cell_projection/known_exits_io.glsl"
 
 struct Cell {
     vec4 pos[4];    // xyz: position relative to the render origin; w: scalar
@@ -16,46 +19,33 @@ struct Cell {
 layout(std430, set = 1, binding = 0) readonly buffer Cells { Cell cells[]; };
 layout(std430, set = 1, binding = 1) readonly buffer Order { uint order[]; };
 
-layout(location = 0) out float out_sf;
-layout(location = 1) out vec4 out_d;
-layout(location = 2) out vec4 out_s;
-layout(location = 3) out vec4 out_w;
-layout(location = 4) out float out_g;
-layout(location = 5) out vec3 out_rel;
-
 void main() {
     uint slot = uint(gl_VertexIndex) >> 2;
     int k = gl_VertexIndex & 3;
     uint t = order[slot];
+    bool exact = false;
+#ifdef EXACT_PERSPECTIVE
+    exact = frame.eye.w > 0.5;
+#endif
+    // c_j: the ray-plane distance t, or with exact perspective the plane ratio u.
+    vec4 c;
+    for (int j = 0; j < 4; ++j) {
+        vec3 p = cells[t].pos[j].xyz;
+        vec3 plane3 = cells[t].plane[j].xyz;
+        c[j] = exact ? perspective_plane_ratio(plane3, p - frame.eye.xyz) : distance_to_opposite_plane(plane3, ray_direction(p));
+    }
+    float half_limit = 0.5 * (exact ? frame.limits.y : frame.limits.x);
+    uvec4 bits = uvec4(greaterThan(c, vec4(0.0))) * uvec4(lessThan(c, vec4(half_limit))) * uvec4(1u, 2u, 4u, 8u);
+    uint exits = bits.x | bits.y | bits.z | bits.w;
+
     vec3 pos = cells[t].pos[k].xyz;
     float sf = cells[t].pos[k].w;
-    vec3 plane3 = cells[t].plane[k].xyz;
     vec3 g = cells[t].gradient.xyz;
-    float a;
-    float b;
+    vec3 dir = ray_direction(pos);
 #ifdef EXACT_PERSPECTIVE
-    if (frame.eye.w > 0.5) {
-        vec3 rel = pos - frame.eye.xyz;
-        a = perspective_plane_ratio(plane3, rel);
-        b = dot(g, rel);
-    } else
+    float b = exact ? dot(g, pos - frame.eye.xyz) : dot(g, dir);
+#else
+    float b = sf + dot(dir, g) * c[k];
 #endif
-    {
-        vec3 dir = ray_direction(pos);
-        a = distance_to_opposite_plane(plane3, dir);
-        b = sf + dot(dir, g) * a;
-    }
-    vec4 d = vec4(0.0);
-    vec4 s = vec4(sf);
-    vec4 w = vec4(0.0);
-    d[k] = a;
-    s[k] = b;
-    w[k] = 1.0;
-    out_sf = sf;
-    out_d = d;
-    out_s = s;
-    out_w = w;
-    out_g = b;
-    out_rel = pos - frame.eye.xyz;
-    gl_Position = frame.view_proj * vec4(pos, 1.0);
+    emit_vertex(pos, k, c[k], sf, b, exits);
 }

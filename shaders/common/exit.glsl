@@ -112,3 +112,55 @@ bool exit_point(EXIT_VEC d, EXIT_VEC s, EXIT_VEC w, float s_front, float g_rel, 
     }
     return found && len <= frame.view_dir.w;
 }
+
+// The balanced family knows each tet's exit planes: `exits` bit k says
+// plane k is one for every ray through the tet (balanced.rs `exit_mask`:
+// the sign test exit_planes makes, on the per-vertex value c_k itself), so
+// the fragment only takes the nearest, with no derivatives and nothing for
+// rounding to flip: near an edge d[k] = lambda_k c_k rounds to about 0,
+// which is where that exit is. The farther-than-any-cell guard stays.
+const float NO_EXIT = 3.0e38;
+
+#ifdef EXACT_PERSPECTIVE
+// Perspective: plane k is met at mu = 1 / (1 - d[k]) times p - eye, ahead
+// only when d[k] < 1 (beyond, the ray moves away from the plane); with
+// m = mu - 1 = d / (1 - d), the exit is m |p - eye| away and its scalar
+// s_f + m g.(p - eye). Orthographic: d[k] is the distance and the scalar
+// changes by g.view_dir per unit length. `g` is the matching gradient term.
+// The segment also stops at the far plane, measured in the same m (the ray
+// from the fragment is p + m (p - eye), or p + m view_dir): far_distance of
+// common/clip.glsl (include it first) along that unnormalised direction,
+// which needs no square root or division per fragment beyond its own.
+bool exit_point_known(vec4 d, uint exits, float s_front, float g, vec3 rel, out float len, out float s_back) {
+    bool perspective = frame.eye.w > 0.5;
+    uvec4 known = uvec4(notEqual(uvec4(exits) & uvec4(1u, 2u, 4u, 8u), uvec4(0u)));
+    uvec4 ahead = uvec4(lessThan(d, vec4(perspective ? 1.0 : NO_EXIT)));
+    vec4 x = mix(vec4(NO_EXIT), max(d, 0.0), bvec4(known & ahead));
+    float p = min(min(x.x, x.y), min(x.z, x.w));
+    float m = perspective ? p / (1.0 - p) : p;
+    float r = perspective ? length(rel) : 1.0;
+    bool found = p < NO_EXIT && m * r <= frame.view_dir.w;
+    // A NaN (ray in the far plane) or farther distance changes nothing.
+    float m_far = far_distance(rel, perspective ? rel : frame.view_dir.xyz);
+    if (m_far < m) {
+        m = max(m_far, 0.0);
+    }
+    len = m * r;
+    s_back = s_front + m * g;
+    return found;
+}
+#else
+// The papers' records: d[k] is the distance, s[k] the scalar there.
+bool exit_point_known(vec4 d, uint exits, vec4 s, float s_front, out float len, out float s_back) {
+    len = NO_EXIT;
+    s_back = s_front;
+    for (int k = 0; k < 4; ++k) {
+        float dk = max(d[k], 0.0);
+        if (((exits >> uint(k)) & 1u) != 0u && dk < len) {
+            len = dk;
+            s_back = s[k];
+        }
+    }
+    return len <= frame.view_dir.w;
+}
+#endif

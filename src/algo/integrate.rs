@@ -12,7 +12,7 @@ use ash::vk as raw;
 use rayon::prelude::*;
 
 use crate::scene::TransferFunction;
-use crate::vk::{upload_static, Buffer, Context, StorageBufferSet, UploadCounter};
+use crate::vk::{upload_static, Context, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc, TexelBuffer, UploadCounter};
 
 /// Default sizes: the TF table resolves control points to 1/1023 of the
 /// range; a 512^2 Psi table keeps per-lookup error near 1e-3 or below.
@@ -246,9 +246,9 @@ pub struct IntegrationTables {
     pub table_size: usize,
     /// Length scale of the pre-integration table's length axis.
     pub length_scale: f64,
-    pub set: StorageBufferSet,
-    _tf: Buffer,
-    _table: Buffer,
+    pub set: DescriptorSet,
+    _tf: TexelBuffer,
+    _table: TexelBuffer,
     /// CPU time spent building the tables (reported apart from frames).
     pub build_ms: f64,
 }
@@ -284,9 +284,10 @@ impl IntegrationTables {
         counter: &mut UploadCounter,
     ) -> anyhow::Result<Self> {
         check_table_size(integrator, table_size)?;
-        // The table is one storage buffer: it must fit the device's range.
-        let range_limit = u64::from(ctx.info.max_storage_buffer_range);
-        check_table_size_within(integrator, table_size, range_limit, "the device's storage-buffer range (maxStorageBufferRange)")?;
+        // The table is one texel buffer of RGBA32F: it must fit the device's
+        // element limit.
+        let texel_limit = u64::from(ctx.info.max_texel_buffer_elements).saturating_mul(16);
+        check_table_size_within(integrator, table_size, texel_limit, "the device's texel-buffer limit (maxTexelBufferElements x 16 bytes)")?;
         let t0 = std::time::Instant::now();
         let (lo, hi) = if range.1 > range.0 { range } else { (range.0, range.0 + 1.0) };
         let tf_table = tf.table(TF_TABLE_SIZE, lo, hi);
@@ -298,10 +299,25 @@ impl IntegrationTables {
             Integrator::Average | Integrator::LinearExact => Arc::new(vec![[0.0; 4]]),
         };
         let build_ms = t0.elapsed().as_secs_f64() * 1e3;
-        let usage = raw::BufferUsageFlags::STORAGE_BUFFER;
-        let tf_buf = upload_static(ctx, "transfer function table", bytemuck::cast_slice(&tf_table), usage, counter)?;
-        let table_buf = upload_static(ctx, "integration table", bytemuck::cast_slice(table.as_slice()), usage, counter)?;
-        let set = StorageBufferSet::new(ctx, "integration tables", &[&tf_buf, &table_buf], stages)?;
+        // Uniform texel buffers (`samplerBuffer`, texelFetch): a lookup is one
+        // texel fetch. As storage buffers each of a fragment's five vec4
+        // lookups was, on llvmpipe, a per-lane loop of guarded scalar loads
+        // per component, about half of balanced's frame on the oxygen post
+        // (README: the balanced method at its speed limit).
+        let usage = raw::BufferUsageFlags::UNIFORM_TEXEL_BUFFER;
+        let texels = |name: &str, data: &[[f32; 4]], counter: &mut UploadCounter| -> anyhow::Result<TexelBuffer> {
+            let buffer = upload_static(ctx, name, bytemuck::cast_slice(data), usage, counter)?;
+            Ok(TexelBuffer::over(ctx, buffer, raw::Format::R32G32B32A32_SFLOAT)?)
+        };
+        let tf_buf = texels("transfer function table", &tf_table, counter)?;
+        let table_buf = texels("integration table", table.as_slice(), counter)?;
+        let desc = DescriptorSetDesc::new(&[(DescriptorKind::UniformTexelBuffer, stages), (DescriptorKind::UniformTexelBuffer, stages)]);
+        let set = DescriptorSet::new(
+            ctx,
+            "integration tables",
+            &desc,
+            &[DescriptorResource::UniformTexelBuffer(&tf_buf), DescriptorResource::UniformTexelBuffer(&table_buf)],
+        )?;
         Ok(IntegrationTables {
             integrator,
             tf_range: (lo, hi),

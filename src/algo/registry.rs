@@ -177,7 +177,7 @@ mod tests {
         let s = r.parse_spec("balanced:integrator=preint,sort=mpvo", &[]).unwrap();
         assert_eq!(s.options.text("integrator").unwrap(), "preint");
         assert_eq!(s.options.text("interpolation").unwrap(), "exact", "defaults filled in");
-        assert!(s.canonical().starts_with("balanced:cull=on,distance_clamp=1000,edge_eps=0,integrator=preint"));
+        assert!(s.canonical().starts_with("balanced:cull=on,distance_clamp=1000,integrator=preint"));
         let e = r.parse_spec("balanced:integrater=ppi", &[]).unwrap_err().to_string();
         assert!(e.contains("'balanced'") && e.contains("'integrater'"), "{e}");
         let e = r.parse_spec("balanced:table_size=99999", &[]).unwrap_err().to_string();

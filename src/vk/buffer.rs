@@ -183,6 +183,24 @@ impl TexelBuffer {
     /// `desc.usage` must include UNIFORM_TEXEL_BUFFER and/or
     /// STORAGE_TEXEL_BUFFER; the format must support them as buffer features.
     pub fn new(ctx: &Arc<Context>, desc: BufferDesc, format: vk::Format) -> VkResult<TexelBuffer> {
+        Self::check(ctx, &desc, format)?;
+        Self::over(ctx, Buffer::new(ctx, desc)?, format)
+    }
+
+    /// A view of `format` texels over all of an existing buffer (e.g. one
+    /// `upload_static` filled in device-local memory), checked as `new`
+    /// checks its description.
+    pub fn over(ctx: &Arc<Context>, buffer: Buffer, format: vk::Format) -> VkResult<TexelBuffer> {
+        let texels = Self::check(ctx, &buffer.desc, format)?;
+        let info = vk::BufferViewCreateInfo::default().buffer(buffer.raw).format(format).offset(0).range(buffer.size());
+        let view = unsafe { ctx.device.create_buffer_view(&info, None) }.check("vkCreateBufferView")?;
+        ctx.set_name(view, &buffer.desc.name);
+        Ok(TexelBuffer { buffer, view, format, texels })
+    }
+
+    /// Usage, format features, whole texels and the device's element limit;
+    /// the number of texels.
+    fn check(ctx: &Context, desc: &BufferDesc, format: vk::Format) -> VkResult<u64> {
         let texel = super::image::texel_bytes(format)
             .ok_or_else(|| VkError::Invalid(format!("texel buffer '{}': format {format:?} is not supported here", desc.name)))?;
         let mut features = vk::FormatFeatureFlags::empty();
@@ -218,11 +236,7 @@ impl TexelBuffer {
                 what: format!("{texels} texels in texel buffer '{}' (maxTexelBufferElements is {max})", desc.name),
             });
         }
-        let buffer = Buffer::new(ctx, desc)?;
-        let info = vk::BufferViewCreateInfo::default().buffer(buffer.raw).format(format).offset(0).range(buffer.size());
-        let view = unsafe { ctx.device.create_buffer_view(&info, None) }.check("vkCreateBufferView")?;
-        ctx.set_name(view, &buffer.desc.name);
-        Ok(TexelBuffer { buffer, view, format, texels })
+        Ok(texels)
     }
 }
 

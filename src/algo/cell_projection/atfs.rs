@@ -27,9 +27,10 @@ use anyhow::{ensure, Context as _, Result};
 use ash::vk as raw;
 use rayon::prelude::*;
 
-use super::balanced::{cell_records, strip_indices, FLOATS_PER_CELL, FLOATS_PER_VERTEX, INDICES_PER_CELL, VERTICES_PER_CELL};
+use super::balanced::{
+    cell_records, CODE_FLAGS_SHIFT, CODE_MAX_PIECES, CODE_PIECE_SHIFT, FLOATS_PER_CELL, FLOATS_PER_VERTEX, VERTICES_PER_CELL};
 use super::render;
-use super::{build_pipeline, cells_f32, scalar_map, CellF32, CellProjector, FrameSetup, Interpolation};
+use super::{build_pipeline, cells_f32, scalar_map, CellF32, CellProjector, FrameSetup, DrawSettings, MAX_INDICES_PER_CELL};
 use crate::algo::integrate::IntegrationTables;
 use crate::algo::method::{MethodInfo, MethodInputs, Published, PublishedFigure, RenderMethod};
 use crate::mesh::{TetGeometry, TetMesh};
@@ -42,8 +43,9 @@ use crate::vk::{
 
 /// Floats per drawn piece per frame: balanced's record.
 pub const FLOATS_PER_PIECE: usize = FLOATS_PER_CELL;
-/// The vertex code is i + 4 * flags + 16 * j in an f32, exact below 2^24.
-pub const MAX_INTERVALS: usize = 1 << 20;
+/// Intervals a vertex code can name (`balanced::CODE_PIECE_SHIFT`: the code
+/// is i | exits << 2 | flags << 6 | j << 8 in an f32, exact below 2^24).
+pub const MAX_INTERVALS: usize = CODE_MAX_PIECES as usize;
 /// Flags of the code: the piece is its cell's lowest / highest.
 const LOWEST: u32 = 1;
 const HIGHEST: u32 = 2;
@@ -87,6 +89,7 @@ pub const METHOD: MethodInfo = render::method_info(
     "atfs",
     "adaptive transfer function sampling (Moreland 2004): balanced cell projection drawn once per transfer-function \
      interval a cell spans, segments clipped at control-point isovalues (28 floats per piece)",
+    render::KNOWN_EXITS_OPTIONS,
     PUBLISHED,
     create,
 );
@@ -200,7 +203,7 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
     // Indices 4 per piece must stay below the restart marker; the draw
     // counts 7 per piece in a u32.
     ensure!(
-        pieces.checked_mul(INDICES_PER_CELL as u64).is_some_and(|n| n < u64::from(u32::MAX)),
+        pieces.checked_mul(MAX_INDICES_PER_CELL as u64).is_some_and(|n| n < u64::from(u32::MAX)),
         "mesh '{}': {pieces} pieces (cells x transfer-function intervals) are more than one draw can index",
         mesh.name
     );
@@ -208,11 +211,11 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
     let per_cell = |bytes_per_piece: u64| pieces.saturating_mul(bytes_per_piece).div_ceil(n) as usize;
     let bytes = render::DeviceBytesPerCell {
         frame: per_cell((FLOATS_PER_PIECE * 4) as u64),
-        fixed: per_cell((INDICES_PER_CELL * 4) as u64),
+        fixed: per_cell((MAX_INDICES_PER_CELL * 4) as u64),
     };
     let pieces = pieces as usize;
-    render::CellProjection::create(inputs, bytes, move |ctx, mesh, geometry, tables, interpolation, counter| {
-        Ok(Box::new(Atfs::new(ctx, mesh, geometry, tables, interpolation, intervals, spans, pieces, counter)?))
+    render::CellProjection::create(inputs, bytes, move |ctx, mesh, geometry, tables, draw, counter| {
+        Ok(Box::new(Atfs::new(ctx, mesh, geometry, tables, draw, intervals, spans, pieces, counter)?))
     })
 }
 
@@ -230,6 +233,7 @@ pub struct Atfs {
     packed: Vec<f32>,
     vertex_buffer: Buffer,
     index_buffer: Buffer,
+    indices_per_cell: usize,
     _interval_buffer: Buffer,
     set: StorageBufferSet,
     pipeline: Arc<Pipeline>,
@@ -260,7 +264,7 @@ impl Atfs {
         mesh: &TetMesh,
         geometry: &TetGeometry,
         tables: &IntegrationTables,
-        interpolation: Interpolation,
+        draw: DrawSettings,
         intervals: Intervals,
         spans: Vec<(u32, u32)>,
         pieces: usize,
@@ -275,8 +279,8 @@ impl Atfs {
         let set = StorageBufferSet::new(ctx, "atfs intervals", &[&interval_buffer], raw::ShaderStageFlags::VERTEX)?;
         let index_buffer = upload_static(
             ctx,
-            "atfs strip indices",
-            bytemuck::cast_slice(&strip_indices(pieces)),
+            "atfs indices",
+            bytemuck::cast_slice(&draw.primitives.indices(pieces)),
             raw::BufferUsageFlags::INDEX_BUFFER,
             counter,
         )?;
@@ -288,10 +292,10 @@ impl Atfs {
             "cell_projection/atfs.frag",
             (FLOATS_PER_VERTEX * 4) as u32,
             &super::balanced::record_attributes(),
-            raw::PrimitiveTopology::TRIANGLE_STRIP,
-            true,
+            draw.primitives.topology(),
+            draw.primitives.primitive_restart(),
             tables,
-            interpolation,
+            draw.interpolation,
             &[DescriptorSetDesc::storage_buffers(1, raw::ShaderStageFlags::VERTEX)],
         )?;
         Ok(Atfs {
@@ -305,6 +309,7 @@ impl Atfs {
             pieces,
             vertex_buffer,
             index_buffer,
+            indices_per_cell: draw.primitives.indices_per_cell(),
             _interval_buffer: interval_buffer,
             set,
             pipeline,
@@ -340,7 +345,9 @@ impl Atfs {
             let dst = &mut out[k * FLOATS_PER_PIECE..(k + 1) * FLOATS_PER_PIECE];
             dst.copy_from_slice(&rec);
             for i in 0..VERTICES_PER_CELL {
-                dst[i * FLOATS_PER_VERTEX + FLOATS_PER_VERTEX - 1] = (i as u32 + 4 * flags + 16 * j) as f32;
+                // balanced's code (i and the exit mask) with this piece's.
+                let code = &mut dst[i * FLOATS_PER_VERTEX + FLOATS_PER_VERTEX - 1];
+                *code = (*code as u32 | flags << CODE_FLAGS_SHIFT | j << CODE_PIECE_SHIFT) as f32;
             }
             k += 1;
         });
@@ -372,7 +379,7 @@ impl CellProjector for Atfs {
     fn cap_pieces(&self, cell: usize, frame: &FrameSetup, emit: &mut dyn FnMut(u32)) {
         let (c, (first, last)) = (&self.cells[cell], self.spans[cell]);
         let eye = self.intervals.index_of(Self::scalar_at_eye(c, frame)).min(u32::MAX as usize) as u32;
-        piece_order(first, last, eye, |j| emit(4 * piece_flags(j, first, last) + 16 * j));
+        piece_order(first, last, eye, |j| emit(piece_flags(j, first, last) << CODE_FLAGS_SHIFT | j << CODE_PIECE_SHIFT));
     }
     fn pieces_set(&self) -> Option<&DescriptorSet> {
         Some(&self.set)
@@ -423,7 +430,7 @@ impl CellProjector for Atfs {
         rec.push_constants(&self.pipeline, bytemuck::bytes_of(&frame.constants), counter);
         rec.bind_vertex_buffer(&self.vertex_buffer);
         rec.bind_index_buffer_u32(&self.index_buffer);
-        rec.draw_indexed((self.drawn_pieces * INDICES_PER_CELL) as u32);
+        rec.draw_indexed((self.drawn_pieces * self.indices_per_cell) as u32);
         Ok(())
     }
 }

@@ -1,10 +1,11 @@
 //! GPU-CPU balanced cell projection (Moreland 2004, thesis §4.2): the CPU runs
 //! IntersectBackFace per vertex per frame and sends 4 records of 7 floats,
-//! (v: 3, d: 1, s_f: 1, s_b: 1, i: 1) = 28 floats per tet. Each tet is drawn as
-//! the strip 0,1,2,3,0,1 from an index buffer that is uploaded once into
-//! device-local memory and never changes: strips are separated by primitive
-//! restart (index 0xFFFFFFFF), so the buffer holds 7 u32 per tet (6 indices +
-//! the restart marker). Only the vertex records move when the order changes.
+//! (v: 3, d: 1, s_f: 1, s_b: 1, code: 1) = 28 floats per tet. Each tet's four
+//! faces are drawn from an index buffer that is uploaded once into
+//! device-local memory and never changes: the thesis's strip 0,1,2,3,0,1
+//! with primitive restart (7 u32 per tet), or the same faces as a triangle
+//! list (12 u32 per tet, the default; `Primitives`). Only the vertex records
+//! move when the order changes.
 
 use std::sync::Arc;
 
@@ -13,7 +14,7 @@ use rayon::prelude::*;
 
 use super::render;
 use crate::algo::method::{MethodInfo, MethodInputs, RenderMethod};
-use super::{build_pipeline, cells_f32, CellF32, CellProjector, FrameSetup, Interpolation};
+use super::{build_pipeline, cells_f32, CellF32, CellProjector, DrawSettings, FrameSetup, Interpolation, MAX_INDICES_PER_CELL};
 use crate::algo::integrate::IntegrationTables;
 use crate::mesh::{TetGeometry, TetMesh};
 use crate::vk::{
@@ -24,15 +25,14 @@ use crate::vk::{
 pub const FLOATS_PER_VERTEX: usize = 7;
 pub const VERTICES_PER_CELL: usize = 4;
 pub const FLOATS_PER_CELL: usize = FLOATS_PER_VERTEX * VERTICES_PER_CELL;
-/// The strip's 6 indices plus the restart marker.
-pub const INDICES_PER_CELL: usize = 7;
-pub const STRIP: [u32; 6] = [0, 1, 2, 3, 0, 1];
-pub const RESTART: u32 = u32::MAX;
 
-/// The registry entry.
-pub const METHOD: MethodInfo = render::method_info(
+/// The registry entry; the suite also runs the thesis's strip indices, so
+/// the report sets the two index layouts side by side in one run.
+pub const METHOD: MethodInfo = MethodInfo { suite: &["primitives=strip"], ..BALANCED };
+const BALANCED: MethodInfo = render::method_info(
     "balanced",
-    "GPU-CPU balanced cell projection (Moreland 2004): 4 vertices, 28 floats per tet per frame, static strip indices",
+    "GPU-CPU balanced cell projection (Moreland 2004): 4 vertices, 28 floats per tet per frame, static indices",
+    render::KNOWN_EXITS_OPTIONS,
     &[
         render::table_6_3("balanced", "bluntfin", 4.50, 187_395),
         render::table_6_3("balanced", "oxygenpost", 2.28, 513_375),
@@ -44,9 +44,9 @@ pub const METHOD: MethodInfo = render::method_info(
 );
 
 fn create(inputs: MethodInputs) -> anyhow::Result<Box<dyn RenderMethod>> {
-    let bytes = render::DeviceBytesPerCell { frame: FLOATS_PER_CELL * 4, fixed: INDICES_PER_CELL * 4 };
-    render::CellProjection::create(inputs, bytes, |ctx, mesh, geometry, tables, interpolation, counter| {
-        Ok(Box::new(Balanced::new(ctx, mesh, geometry, tables, interpolation, counter)?))
+    let bytes = render::DeviceBytesPerCell { frame: FLOATS_PER_CELL * 4, fixed: MAX_INDICES_PER_CELL * 4 };
+    render::CellProjection::create(inputs, bytes, |ctx, mesh, geometry, tables, draw, counter| {
+        Ok(Box::new(Balanced::new(ctx, mesh, geometry, tables, draw, counter)?))
     })
 }
 
@@ -70,44 +70,77 @@ pub struct Balanced {
     index_buffer: Buffer,
     pipeline: Arc<Pipeline>,
     pipeline_key: PipelineKey,
+    indices_per_cell: usize,
     /// Cells in the last `pack`.
     drawn: usize,
 }
 
-/// The static index data: tet slot k's strip over vertices 4k..4k+3.
-pub fn strip_indices(cells: usize) -> Vec<u32> {
-    let mut idx = Vec::with_capacity(cells * INDICES_PER_CELL);
-    for k in 0..cells as u32 {
-        idx.extend(STRIP.iter().map(|&i| 4 * k + i));
-        idx.push(RESTART);
-    }
-    idx
+/// The record's last float codes, exactly in f32, `i | exits << 2 | flags
+/// << 6 | piece << 8`: the vertex's index i in the tet, the tet's exit mask
+/// (bit k: the plane opposite vertex k is an exit plane for the rays through
+/// the tet, see `exit_mask`), and for atfs's pieces their flags and
+/// transfer-function interval (`shaders/cell_projection/record.glsl`).
+pub const CODE_EXITS_SHIFT: u32 = 2;
+pub const CODE_FLAGS_SHIFT: u32 = 6;
+pub const CODE_PIECE_SHIFT: u32 = 8;
+/// Pieces (intervals) a code can name and stay exact in f32 (2^24).
+pub const CODE_MAX_PIECES: u32 = 1 << (24 - CODE_PIECE_SHIFT);
+
+/// The tet's exit mask from the view-dependent value c_k at each vertex k
+/// (the ray-plane distance t_k, or the plane ratio u_k with exact
+/// perspective; `limit` is its clamp). Plane k is an exit plane for every
+/// ray through the tet when 0 < c_k < limit / 2 (the ray meets it ahead; a
+/// value at the clamp means a ray parallel to the plane or the eye in it,
+/// which never crosses it): a property of the tet and the eye, not of the
+/// fragment. The fragment stage used to recover it from interpolated values
+/// and their screen-space derivatives (`exit_planes` in
+/// `shaders/common/exit.glsl`, still VICP's and the near caps' rule); known
+/// per tet, it costs the fragment nothing and rounding cannot flip it.
+#[inline]
+pub fn exit_mask(c: [f32; 4], limit: f32) -> u32 {
+    let half = 0.5 * limit;
+    (0..4).fold(0, |m, k| m | (u32::from(c[k] > 0.0 && c[k] < half) << k))
 }
 
 /// Balanced-ProjectTet's CPU half for one tet: 4 records of 7 floats,
-/// (v, d, s_f, s_b, i); with exact perspective interpolation the two
-/// view-dependent slots hold u and g.(v - eye) instead (see `Interpolation`).
+/// (v, c, s_f, b, code): c is the vertex's ray-plane distance t (or, with
+/// exact perspective interpolation, the plane ratio u; see
+/// `Interpolation`); b is the scalar s_b where the ray through the vertex
+/// meets the opposite plane (`paper` interpolation), or with exact
+/// interpolation the gradient term that gives the exit scalar anywhere on
+/// the face, g.(v - eye) under perspective and g.view_dir orthographic;
+/// code as `CODE_EXITS_SHIFT` describes, with piece 0.
 #[inline]
 pub fn cell_records(c: &CellF32, frame: &FrameSetup, out: &mut [f32]) {
+    let g = c.gradient;
+    let dot = |a: [f32; 3], b: [f32; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let mut value = [0f32; 4];
+    let mut slot = [0f32; 4];
+    let limit;
     if frame.exact_perspective() {
         let e = frame.eye;
         for i in 0..4 {
             let p = c.pos[i];
             let rel = [p[0] - e[0], p[1] - e[1], p[2] - e[2]];
-            let u = frame.perspective_plane_ratio(c.plane3[i], rel);
-            let g = c.gradient;
-            let g_rel = g[0] * rel[0] + g[1] * rel[1] + g[2] * rel[2];
-            out[i * 7..i * 7 + 7].copy_from_slice(&[p[0], p[1], p[2], u, c.scalar[i], g_rel, i as f32]);
+            value[i] = frame.perspective_plane_ratio(c.plane3[i], rel);
+            slot[i] = dot(g, rel);
         }
-        return;
+        limit = frame.plane_ratio_max;
+    } else {
+        let exact = frame.interpolation == Interpolation::Exact;
+        for i in 0..4 {
+            let dir = frame.ray_direction(c.pos[i]);
+            let d = frame.distance_to_opposite_plane(c.plane3[i], dir);
+            value[i] = d;
+            slot[i] = if exact { dot(g, dir) } else { c.scalar[i] + dot(dir, g) * d };
+        }
+        limit = frame.max_distance;
     }
+    let exits = exit_mask(value, limit) << CODE_EXITS_SHIFT;
     for i in 0..4 {
         let p = c.pos[i];
-        let dir = frame.ray_direction(p);
-        let d = frame.distance_to_opposite_plane(c.plane3[i], dir);
-        let g = c.gradient;
-        let sb = c.scalar[i] + (dir[0] * g[0] + dir[1] * g[1] + dir[2] * g[2]) * d;
-        out[i * 7..i * 7 + 7].copy_from_slice(&[p[0], p[1], p[2], d, c.scalar[i], sb, i as f32]);
+        let code = (i as u32 | exits) as f32;
+        out[i * 7..i * 7 + 7].copy_from_slice(&[p[0], p[1], p[2], value[i], c.scalar[i], slot[i], code]);
     }
 }
 
@@ -126,15 +159,15 @@ impl Balanced {
         mesh: &TetMesh,
         geometry: &TetGeometry,
         tables: &IntegrationTables,
-        interpolation: Interpolation,
+        draw: DrawSettings,
         counter: &mut UploadCounter,
     ) -> VkResult<Self> {
         let cells = cells_f32(mesh, geometry);
         let n = cells.len();
         let index_buffer = upload_static(
             ctx,
-            "balanced strip indices",
-            bytemuck::cast_slice(&strip_indices(n)),
+            "balanced indices",
+            bytemuck::cast_slice(&draw.primitives.indices(n)),
             raw::BufferUsageFlags::INDEX_BUFFER,
             counter,
         )?;
@@ -147,13 +180,22 @@ impl Balanced {
             "cell_projection/balanced.frag",
             (FLOATS_PER_VERTEX * 4) as u32,
             &record_attributes(),
-            raw::PrimitiveTopology::TRIANGLE_STRIP,
-            true,
+            draw.primitives.topology(),
+            draw.primitives.primitive_restart(),
             tables,
-            interpolation,
+            draw.interpolation,
             &[],
         )?;
-        Ok(Balanced { packed: vec![0f32; n * FLOATS_PER_CELL], cells, vertex_buffer, index_buffer, pipeline, pipeline_key, drawn: n })
+        Ok(Balanced {
+            packed: vec![0f32; n * FLOATS_PER_CELL],
+            cells,
+            vertex_buffer,
+            index_buffer,
+            pipeline,
+            pipeline_key,
+            indices_per_cell: draw.primitives.indices_per_cell(),
+            drawn: n,
+        })
     }
 }
 
@@ -190,7 +232,7 @@ impl CellProjector for Balanced {
         rec.push_constants(&self.pipeline, bytemuck::bytes_of(&frame.constants), counter);
         rec.bind_vertex_buffer(&self.vertex_buffer);
         rec.bind_index_buffer_u32(&self.index_buffer);
-        rec.draw_indexed((self.drawn * INDICES_PER_CELL) as u32);
+        rec.draw_indexed((self.drawn * self.indices_per_cell) as u32);
         Ok(())
     }
 }

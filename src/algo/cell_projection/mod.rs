@@ -76,6 +76,77 @@ pub const ENTRY_FACE_WINDING: raw::FrontFace = raw::FrontFace::CLOCKWISE;
 /// (3,1,0) opposite 2.
 pub const FACES: [[usize; 3]; 4] = [[0, 1, 2], [1, 3, 2], [2, 3, 0], [3, 1, 0]];
 
+/// How the balanced family draws each tet's four faces from its static,
+/// device-local index buffer (tet slot k's vertices are 4k..4k+3).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, clap::ValueEnum, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum Primitives {
+    /// The thesis's: the strip 0,1,2,3,0,1 closed by a primitive-restart
+    /// marker, 7 u32 per tet.
+    Strip,
+    /// The same four faces (`FACES`) as a triangle list, 12 u32 per tet, no
+    /// restart. Same triangles, same image; on lavapipe the frame is ~15 %
+    /// faster (README: the balanced method at its speed limit), so the default.
+    #[default]
+    List,
+}
+
+/// The strip's 6 indices of tet slot 0 (plus the restart marker).
+pub const STRIP: [u32; 6] = [0, 1, 2, 3, 0, 1];
+pub const RESTART: u32 = u32::MAX;
+/// The most indices a tet takes (`Primitives::List`).
+pub const MAX_INDICES_PER_CELL: usize = 12;
+
+impl Primitives {
+    pub fn name(self) -> &'static str {
+        match self {
+            Primitives::Strip => "strip",
+            Primitives::List => "list",
+        }
+    }
+
+    pub fn indices_per_cell(self) -> usize {
+        match self {
+            Primitives::Strip => STRIP.len() + 1,
+            Primitives::List => MAX_INDICES_PER_CELL,
+        }
+    }
+
+    pub fn topology(self) -> raw::PrimitiveTopology {
+        match self {
+            Primitives::Strip => raw::PrimitiveTopology::TRIANGLE_STRIP,
+            Primitives::List => raw::PrimitiveTopology::TRIANGLE_LIST,
+        }
+    }
+
+    pub fn primitive_restart(self) -> bool {
+        self == Primitives::Strip
+    }
+
+    /// The static index data for `cells` tet slots.
+    pub fn indices(self, cells: usize) -> Vec<u32> {
+        let mut idx = Vec::with_capacity(cells * self.indices_per_cell());
+        for k in 0..cells as u32 {
+            match self {
+                Primitives::Strip => {
+                    idx.extend(STRIP.iter().map(|&i| 4 * k + i));
+                    idx.push(RESTART);
+                }
+                Primitives::List => idx.extend(FACES.iter().flatten().map(|&i| 4 * k + i as u32)),
+            }
+        }
+        idx
+    }
+}
+
+/// The build-time drawing choices a projector is made with.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DrawSettings {
+    pub interpolation: Interpolation,
+    /// The balanced family's index layout (VICP draws its own face lists).
+    pub primitives: Primitives,
+}
+
 /// Run-time tolerances of the exit-plane choice (push constants), named and
 /// recorded with results. Why each exists is explained in
 /// `shaders/common/frame.glsl` and `shaders/common/exit.glsl`; the defaults

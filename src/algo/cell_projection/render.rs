@@ -17,7 +17,7 @@ use serde_json::json;
 use super::cull::{Culler, FrameCull, LookupGrid};
 use super::mpvo::MpvoSort;
 use super::sort::{CentroidSort, SortKind, Sorter};
-use super::{centroids_relative_f32, render_origin, CellProjector, ExitTolerances, FrameSetup, Interpolation, MeshScale};
+use super::{centroids_relative_f32, render_origin, CellProjector, DrawSettings, ExitTolerances, FrameSetup, Interpolation, MeshScale, Primitives};
 use crate::algo::integrate::{IntegrationTables, Integrator};
 use crate::algo::method::{
     DataKind, MethodInfo, MethodInputs, OptionSpec, OptionValues, Options, Phases, Published, PublishedFigure, RenderMethod, SceneData, View, Work,
@@ -25,12 +25,24 @@ use crate::algo::method::{
 use crate::mesh::{TetGeometry, TetMesh};
 use crate::vk::{CommandRecorder, Context, Image, UploadCounter, VkResult};
 
-/// Every cell-projection method's options; `OPTIONS` adds `cull`
-/// (a method that draws every cell in its own order, e.g. sorted on the
-/// device, has nothing to cull: `OPTIONS_WITHOUT_CULL`).
-pub const OPTIONS: &[OptionSpec] = &[SHARED_OPTIONS[0], SHARED_OPTIONS[1], SHARED_OPTIONS[2], SHARED_OPTIONS[3], SHARED_OPTIONS[4], SHARED_OPTIONS[5], SHARED_OPTIONS[6], CULL_OPTION];
-pub const OPTIONS_WITHOUT_CULL: &[OptionSpec] = &SHARED_OPTIONS;
-const SHARED_OPTIONS: [OptionSpec; 7] = [
+/// Every cell-projection method's options. VICP chooses exit planes in the
+/// fragment stage and takes `edge_eps`; the balanced family knows them per
+/// tet (`balanced::exit_mask`), where the edge epsilon has nothing to
+/// correct (`KNOWN_EXITS_OPTIONS`). `cull` is left out where a method draws
+/// every cell in its own order, e.g. sorted on the device
+/// (`KNOWN_EXITS_OPTIONS_WITHOUT_CULL`).
+pub const OPTIONS: &[OptionSpec] = &[
+    SHARED_OPTIONS[0], SHARED_OPTIONS[1], SHARED_OPTIONS[2], SHARED_OPTIONS[3], SHARED_OPTIONS[4], SHARED_OPTIONS[5], EDGE_EPS_OPTION,
+    CULL_OPTION,
+];
+pub const KNOWN_EXITS_OPTIONS: &[OptionSpec] = &[
+    SHARED_OPTIONS[0], SHARED_OPTIONS[1], SHARED_OPTIONS[2], SHARED_OPTIONS[3], SHARED_OPTIONS[4], SHARED_OPTIONS[5], PRIMITIVES_OPTION,
+    CULL_OPTION,
+];
+pub const KNOWN_EXITS_OPTIONS_WITHOUT_CULL: &[OptionSpec] = &[
+    SHARED_OPTIONS[0], SHARED_OPTIONS[1], SHARED_OPTIONS[2], SHARED_OPTIONS[3], SHARED_OPTIONS[4], SHARED_OPTIONS[5], PRIMITIVES_OPTION,
+];
+const SHARED_OPTIONS: [OptionSpec; 6] = [
     OptionSpec {
         name: "integrator",
         default: "ppi",
@@ -79,15 +91,23 @@ const SHARED_OPTIONS: [OptionSpec; 7] = [
         build_time: false,
         help: "clamp of the plane ratio u = h/e (exact interpolation)",
     },
-    OptionSpec {
+];
+const EDGE_EPS_OPTION: OptionSpec = OptionSpec {
         name: "edge_eps",
         default: "0",
         unit: "barycentric weight",
         values: OptionValues::Float { min: 0.0, max: 0.1 },
         build_time: false,
         help: "a plane whose weight is below this is an exit at distance 0 (off: drops grazing segments)",
-    },
-];
+};
+const PRIMITIVES_OPTION: OptionSpec = OptionSpec {
+    name: "primitives",
+    default: "list",
+    unit: "",
+    values: OptionValues::Choice { values: &["list", "strip"] },
+    build_time: true,
+    help: "static indices of a tet's four faces: a triangle list (12 u32) or the thesis's strip with restart (7 u32)",
+};
 const CULL_OPTION: OptionSpec = OptionSpec {
     name: "cull",
     default: "on",
@@ -156,6 +176,7 @@ pub const STRESS: &[&str] = &[
 pub const fn method_info(
     name: &'static str,
     summary: &'static str,
+    options: &'static [OptionSpec],
     published: &'static [Published],
     create: fn(MethodInputs) -> Result<Box<dyn RenderMethod>>,
 ) -> MethodInfo {
@@ -163,7 +184,7 @@ pub const fn method_info(
         name,
         data: DataKind::TetMesh,
         summary,
-        options: OPTIONS,
+        options,
         features: &[],
         sweep: SWEEP,
         compare: COMPARE,
@@ -262,6 +283,7 @@ pub struct Settings {
     pub table_size: usize,
     pub sort: SortKind,
     pub interpolation: Interpolation,
+    pub primitives: Primitives,
     pub tolerances: ExitTolerances,
     /// Culling on (`cull`).
     pub cull: bool,
@@ -277,12 +299,15 @@ impl Settings {
             table_size,
             sort: enum_option(options, "sort")?,
             interpolation: enum_option(options, "interpolation")?,
+            // Absent for VICP, which draws its own face lists.
+            primitives: if options.0.contains_key("primitives") { enum_option(options, "primitives")? } else { Primitives::default() },
             tolerances: ExitTolerances {
                 distance_clamp_diagonals: options.float("distance_clamp")?,
                 plane_ratio_max: options.float("plane_ratio_max")? as f32,
-                edge_eps: options.float("edge_eps")? as f32,
+                // Absent for the balanced family (KNOWN_EXITS_OPTIONS).
+                edge_eps: options.float("edge_eps").unwrap_or(0.0) as f32,
             },
-            // Absent for methods without the option (OPTIONS_WITHOUT_CULL).
+            // Absent for methods without the option (KNOWN_EXITS_OPTIONS_WITHOUT_CULL).
             cull: options.flag("cull").unwrap_or(false),
         })
     }
@@ -292,11 +317,11 @@ impl Settings {
 /// projector can keep what its constructor was given, e.g. atfs the
 /// transfer function).
 pub trait ProjectorBuilder:
-    FnOnce(&Arc<Context>, &TetMesh, &TetGeometry, &IntegrationTables, Interpolation, &mut UploadCounter) -> VkResult<Box<dyn CellProjector>>
+    FnOnce(&Arc<Context>, &TetMesh, &TetGeometry, &IntegrationTables, DrawSettings, &mut UploadCounter) -> VkResult<Box<dyn CellProjector>>
 {
 }
 impl<F> ProjectorBuilder for F where
-    F: FnOnce(&Arc<Context>, &TetMesh, &TetGeometry, &IntegrationTables, Interpolation, &mut UploadCounter) -> VkResult<Box<dyn CellProjector>>
+    F: FnOnce(&Arc<Context>, &TetMesh, &TetGeometry, &IntegrationTables, DrawSettings, &mut UploadCounter) -> VkResult<Box<dyn CellProjector>>
 {
 }
 
@@ -356,7 +381,8 @@ impl CellProjection {
             inputs.counter,
         )
         .context("building the integration tables")?;
-        let projector = build(ctx, mesh, geometry, &tables, settings.interpolation, inputs.counter)?;
+        let draw = DrawSettings { interpolation: settings.interpolation, primitives: settings.primitives };
+        let projector = build(ctx, mesh, geometry, &tables, draw, inputs.counter)?;
         let pieces = projector.pieces_set().map(|s| s.desc.clone());
         let near = super::near::NearCaps::new(ctx, mesh, &tables, settings.interpolation, pieces)?;
         let sorter = Sorter::new(settings.sort, mesh, geometry);

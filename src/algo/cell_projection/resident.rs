@@ -11,9 +11,9 @@ use std::sync::Arc;
 
 use ash::vk as raw;
 
-use super::balanced::{strip_indices, INDICES_PER_CELL, VERTICES_PER_CELL};
+use super::balanced::VERTICES_PER_CELL;
 use super::render;
-use super::{build_pipeline, cells_f32, CellF32, CellProjector, FrameSetup, Interpolation};
+use super::{build_pipeline, cells_f32, CellF32, CellProjector, FrameSetup, DrawSettings, MAX_INDICES_PER_CELL};
 use crate::algo::integrate::IntegrationTables;
 use crate::algo::method::{MethodInfo, MethodInputs, RenderMethod};
 use crate::mesh::{TetGeometry, TetMesh};
@@ -32,6 +32,7 @@ pub const FLOATS_PER_STORED_CELL: usize = 36;
 pub const METHOD: MethodInfo = render::method_info(
     "resident",
     "device-resident balanced cell projection: cells stored once on the device, 4 bytes per tet per frame (the order)",
+    render::KNOWN_EXITS_OPTIONS,
     &[],
     create,
 );
@@ -39,10 +40,10 @@ pub const METHOD: MethodInfo = render::method_info(
 fn create(inputs: MethodInputs) -> anyhow::Result<Box<dyn RenderMethod>> {
     let bytes = render::DeviceBytesPerCell {
         frame: BYTES_PER_CELL_PER_FRAME,
-        fixed: INDICES_PER_CELL * 4 + FLOATS_PER_STORED_CELL * 4,
+        fixed: MAX_INDICES_PER_CELL * 4 + FLOATS_PER_STORED_CELL * 4,
     };
-    render::CellProjection::create(inputs, bytes, |ctx, mesh, geometry, tables, interpolation, counter| {
-        Ok(Box::new(Resident::new(ctx, mesh, geometry, tables, interpolation, counter)?))
+    render::CellProjection::create(inputs, bytes, |ctx, mesh, geometry, tables, draw, counter| {
+        Ok(Box::new(Resident::new(ctx, mesh, geometry, tables, draw, counter)?))
     })
 }
 
@@ -54,6 +55,7 @@ pub struct Resident {
     order_buffer: Buffer,
     _cell_buffer: Buffer,
     index_buffer: Buffer,
+    indices_per_cell: usize,
     set: StorageBufferSet,
     pipeline: Arc<Pipeline>,
     pipeline_key: PipelineKey,
@@ -76,7 +78,7 @@ impl Resident {
         mesh: &TetMesh,
         geometry: &TetGeometry,
         tables: &IntegrationTables,
-        interpolation: Interpolation,
+        draw: DrawSettings,
         counter: &mut UploadCounter,
     ) -> VkResult<Self> {
         let cells = cells_f32(mesh, geometry);
@@ -93,7 +95,7 @@ impl Resident {
         let usage = raw::BufferUsageFlags::STORAGE_BUFFER;
         let cell_buffer = upload_static(ctx, "resident cells", bytemuck::cast_slice(&data), usage, counter)?;
         let index_buffer =
-            upload_static(ctx, "resident strip indices", bytemuck::cast_slice(&strip_indices(n)), raw::BufferUsageFlags::INDEX_BUFFER, counter)?;
+            upload_static(ctx, "resident indices", bytemuck::cast_slice(&draw.primitives.indices(n)), raw::BufferUsageFlags::INDEX_BUFFER, counter)?;
         let order_buffer = Buffer::new(ctx, BufferDesc::upload("resident order", (n.max(1) * 4) as u64, usage))?;
         let set = StorageBufferSet::new(ctx, "resident cells and order", &[&cell_buffer, &order_buffer], raw::ShaderStageFlags::VERTEX)?;
         let (pipeline, pipeline_key) = build_pipeline(
@@ -102,13 +104,24 @@ impl Resident {
             "cell_projection/balanced.frag",
             0,
             &[],
-            raw::PrimitiveTopology::TRIANGLE_STRIP,
-            true,
+            draw.primitives.topology(),
+            draw.primitives.primitive_restart(),
             tables,
-            interpolation,
+            draw.interpolation,
             &[set_desc()],
         )?;
-        Ok(Resident { cells: n, drawn: n, order: vec![0; n], order_buffer, _cell_buffer: cell_buffer, index_buffer, set, pipeline, pipeline_key })
+        Ok(Resident {
+            cells: n,
+            drawn: n,
+            order: vec![0; n],
+            order_buffer,
+            _cell_buffer: cell_buffer,
+            index_buffer,
+            indices_per_cell: draw.primitives.indices_per_cell(),
+            set,
+            pipeline,
+            pipeline_key,
+        })
     }
 }
 
@@ -148,7 +161,7 @@ impl CellProjector for Resident {
         rec.bind_graphics(&self.pipeline, &sets)?;
         rec.push_constants(&self.pipeline, bytemuck::bytes_of(&frame.constants), counter);
         rec.bind_index_buffer_u32(&self.index_buffer);
-        rec.draw_indexed((self.drawn * INDICES_PER_CELL) as u32);
+        rec.draw_indexed((self.drawn * self.indices_per_cell) as u32);
         Ok(())
     }
 }

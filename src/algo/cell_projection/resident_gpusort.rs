@@ -17,12 +17,12 @@ use std::sync::Arc;
 use anyhow::Result;
 use ash::vk as raw;
 
-use super::balanced::{strip_indices, INDICES_PER_CELL, VERTICES_PER_CELL};
+use super::balanced::VERTICES_PER_CELL;
 use super::device_sort::{DeviceCentroidSort, SortCamera};
 use super::render;
 use super::resident::{stored, FLOATS_PER_STORED_CELL};
 use super::sort::SortKind;
-use super::{build_pipeline, cells_f32, centroids_relative_f32, render_origin, CellProjector, FrameSetup, Interpolation};
+use super::{build_pipeline, cells_f32, centroids_relative_f32, render_origin, CellProjector, FrameSetup, DrawSettings, MAX_INDICES_PER_CELL};
 use crate::algo::integrate::IntegrationTables;
 use crate::algo::method::{DataKind, MethodInfo, MethodInputs, Options, RenderMethod};
 use crate::mesh::{TetGeometry, TetMesh};
@@ -40,7 +40,7 @@ pub const METHOD: MethodInfo = MethodInfo {
     name: "resident-gpusort",
     data: DataKind::TetMesh,
     summary: "resident with the centroid sort on the device (compute radix sort): only the camera crosses per frame",
-    options: render::OPTIONS_WITHOUT_CULL,
+    options: render::KNOWN_EXITS_OPTIONS_WITHOUT_CULL,
     features: &[],
     sweep: SWEEP,
     compare: render::COMPARE,
@@ -95,10 +95,10 @@ fn check(options: &Options) -> Result<()> {
 fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
     let bytes = render::DeviceBytesPerCell {
         frame: 0,
-        fixed: INDICES_PER_CELL * 4 + FLOATS_PER_STORED_CELL * 4 + super::device_sort::DEVICE_BYTES_PER_CELL,
+        fixed: MAX_INDICES_PER_CELL * 4 + FLOATS_PER_STORED_CELL * 4 + super::device_sort::DEVICE_BYTES_PER_CELL,
     };
-    render::CellProjection::create(inputs, bytes, |ctx, mesh, geometry, tables, interpolation, counter| {
-        Ok(Box::new(ResidentGpuSort::new(ctx, mesh, geometry, tables, interpolation, counter)?))
+    render::CellProjection::create(inputs, bytes, |ctx, mesh, geometry, tables, draw, counter| {
+        Ok(Box::new(ResidentGpuSort::new(ctx, mesh, geometry, tables, draw, counter)?))
     })
 }
 
@@ -108,6 +108,7 @@ pub struct ResidentGpuSort {
     sort: DeviceCentroidSort,
     _cell_buffer: Buffer,
     index_buffer: Buffer,
+    indices_per_cell: usize,
     pipeline: Arc<Pipeline>,
     pipeline_key: PipelineKey,
 }
@@ -118,7 +119,7 @@ impl ResidentGpuSort {
         mesh: &TetMesh,
         geometry: &TetGeometry,
         tables: &IntegrationTables,
-        interpolation: Interpolation,
+        draw: DrawSettings,
         counter: &mut UploadCounter,
     ) -> VkResult<Self> {
         let cells = cells_f32(mesh, geometry);
@@ -139,8 +140,8 @@ impl ResidentGpuSort {
         let cell_buffer = upload_static(ctx, "resident-gpusort cells", bytemuck::cast_slice(&data), storage, counter)?;
         let index_buffer = upload_static(
             ctx,
-            "resident-gpusort strip indices",
-            bytemuck::cast_slice(&strip_indices(n)),
+            "resident-gpusort indices",
+            bytemuck::cast_slice(&draw.primitives.indices(n)),
             raw::BufferUsageFlags::INDEX_BUFFER,
             counter,
         )?;
@@ -151,13 +152,13 @@ impl ResidentGpuSort {
             "cell_projection/balanced.frag",
             0,
             &[],
-            raw::PrimitiveTopology::TRIANGLE_STRIP,
-            true,
+            draw.primitives.topology(),
+            draw.primitives.primitive_restart(),
             tables,
-            interpolation,
+            draw.interpolation,
             &[DescriptorSetDesc::storage_buffers(2, raw::ShaderStageFlags::VERTEX)],
         )?;
-        Ok(ResidentGpuSort { cells: n, set, sort, _cell_buffer: cell_buffer, index_buffer, pipeline, pipeline_key })
+        Ok(ResidentGpuSort { cells: n, set, sort, _cell_buffer: cell_buffer, index_buffer, indices_per_cell: draw.primitives.indices_per_cell(), pipeline, pipeline_key })
     }
 }
 
@@ -195,7 +196,7 @@ impl CellProjector for ResidentGpuSort {
         rec.bind_graphics(&self.pipeline, &sets)?;
         rec.push_constants(&self.pipeline, bytemuck::bytes_of(&frame.constants), counter);
         rec.bind_index_buffer_u32(&self.index_buffer);
-        rec.draw_indexed((self.cells * INDICES_PER_CELL) as u32);
+        rec.draw_indexed((self.cells * self.indices_per_cell) as u32);
         Ok(())
     }
 

@@ -24,6 +24,7 @@ pub const FLOATS_PER_CELL: usize = FLOATS_PER_VERTEX * VERTICES_PER_CELL;
 pub const METHOD: MethodInfo = render::method_info(
     "vicp",
     "view-independent cell projection (Weiler, Kraus, Ertl 2002): 12 vertices, 132 floats per tet per frame",
+    render::OPTIONS,
     &[
         render::table_6_3("vicp", "bluntfin", 3.30, 187_395),
         render::table_6_3("vicp", "oxygenpost", 1.34, 513_375),
@@ -33,8 +34,8 @@ pub const METHOD: MethodInfo = render::method_info(
 
 fn create(inputs: MethodInputs) -> anyhow::Result<Box<dyn RenderMethod>> {
     let bytes = render::DeviceBytesPerCell { frame: FLOATS_PER_CELL * 4, fixed: 0 };
-    render::CellProjection::create(inputs, bytes, |ctx, mesh, geometry, tables, interpolation, _counter| {
-        Ok(Box::new(Vicp::new(ctx, mesh, geometry, tables, interpolation)?))
+    render::CellProjection::create(inputs, bytes, |ctx, mesh, geometry, tables, draw, _counter| {
+        Ok(Box::new(Vicp::new(ctx, mesh, geometry, tables, draw.interpolation)?))
     })
 }
 
