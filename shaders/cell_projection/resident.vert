@@ -11,13 +11,14 @@
 #define KNOWN_EXITS_VERTEX
 #include "cell_projection/known_exits_io.glsl"
 
-struct Cell {
-    vec4 pos[4];    // xyz: position relative to the render origin; w: scalar
-    vec4 plane[4];  // xyz: 3-float plane of the face opposite vertex i
-    vec4 gradient;  // xyz: scalar gradient
-};
-layout(std430, set = 1, binding = 0) readonly buffer Cells { Cell cells[]; };
+// Cell t is texels 9t..9t+8 (resident.rs `stored`): pos[4] (xyz: position
+// relative to the render origin; w: scalar), plane[4] (xyz: 3-float plane of
+// the face opposite vertex i), gradient (xyz).
+layout(set = 1, binding = 0) uniform samplerBuffer cells;
 layout(std430, set = 1, binding = 1) readonly buffer Order { uint order[]; };
+vec4 cell_pos(uint t, int i) { return texelFetch(cells, int(9u * t) + i); }
+vec4 cell_plane(uint t, int i) { return texelFetch(cells, int(9u * t) + 4 + i); }
+vec3 cell_gradient(uint t) { return texelFetch(cells, int(9u * t) + 8).xyz; }
 
 void main() {
     uint slot = uint(gl_VertexIndex) >> 2;
@@ -30,17 +31,18 @@ void main() {
     // c_j: the ray-plane distance t, or with exact perspective the plane ratio u.
     vec4 c;
     for (int j = 0; j < 4; ++j) {
-        vec3 p = cells[t].pos[j].xyz;
-        vec3 plane3 = cells[t].plane[j].xyz;
+        vec3 p = cell_pos(t, j).xyz;
+        vec3 plane3 = cell_plane(t, j).xyz;
         c[j] = exact ? perspective_plane_ratio(plane3, p - frame.eye.xyz) : distance_to_opposite_plane(plane3, ray_direction(p));
     }
     float half_limit = 0.5 * (exact ? frame.limits.y : frame.limits.x);
     uvec4 bits = uvec4(greaterThan(c, vec4(0.0))) * uvec4(lessThan(c, vec4(half_limit))) * uvec4(1u, 2u, 4u, 8u);
     uint exits = bits.x | bits.y | bits.z | bits.w;
 
-    vec3 pos = cells[t].pos[k].xyz;
-    float sf = cells[t].pos[k].w;
-    vec3 g = cells[t].gradient.xyz;
+    vec4 pk = cell_pos(t, k);
+    vec3 pos = pk.xyz;
+    float sf = pk.w;
+    vec3 g = cell_gradient(t);
     vec3 dir = ray_direction(pos);
 #ifdef EXACT_PERSPECTIVE
     float b = exact ? dot(g, pos - frame.eye.xyz) : dot(g, dir);

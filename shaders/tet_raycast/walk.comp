@@ -33,11 +33,16 @@ layout(push_constant) uniform Frame {
 
 #include "common/integrate.glsl"
 
-// set 1: the mesh, uploaded once.
-layout(std430, set = 1, binding = 0) readonly buffer Points { vec4 points[]; };     // xyz: position; w: scalar
-layout(std430, set = 1, binding = 1) readonly buffer Tets { uvec4 tets[]; };        // vertex indices
-layout(std430, set = 1, binding = 2) readonly buffer Neighbors { uint neighbors[]; };  // [4 c + f] = 4 c' + f', NONE on the boundary
-layout(std430, set = 1, binding = 3) readonly buffer Solid { uint solid[]; };       // 1: positive volume; 0: flat
+// set 1: the mesh, uploaded once. What the walk reads per cell is in
+// uniform texel buffers (one texel fetch per lookup; tet_raycast.rs says why).
+layout(set = 1, binding = 0) uniform samplerBuffer points_tb;      // xyz: position; w: scalar
+layout(set = 1, binding = 1) uniform usamplerBuffer tets_tb;       // vertex indices
+layout(set = 1, binding = 2) uniform usamplerBuffer neighbors_tb;  // [4 c + f] = 4 c' + f', NONE on the boundary
+layout(set = 1, binding = 3) uniform usamplerBuffer solid_tb;      // 1: positive volume; 0: flat
+vec4 point_at(uint i) { return texelFetch(points_tb, int(i)); }
+uvec4 tet_at(uint c) { return texelFetch(tets_tb, int(c)); }
+uint neighbor_at(uint slot) { return texelFetch(neighbors_tb, int(slot)).r; }
+uint solid_at(uint c) { return texelFetch(solid_tb, int(c)).r; }
 struct Node {
     vec4 lo;  // xyz: box min; w: inner: left child index; leaf: first primitive (uint bits)
     vec4 hi;  // xyz: box max; w: 0 for an inner node (right child = left + 1), else primitive count (uint bits)
@@ -132,15 +137,15 @@ bool crossing(vec3 q0, vec3 q1, vec3 q2, vec3 bw, vec3 sv, out vec2 ts) {
 bool enters(uint slot, out vec2 ts) {
     uint c = slot >> 2;
     uvec3 fv = FACE_VERTS[slot & 3u];
-    uvec4 t4 = tets[c];
+    uvec4 t4 = tet_at(c);
     uint v[3] = uint[3](t4[fv.x], t4[fv.y], t4[fv.z]);
-    vec4 p0 = points[v[0]];
-    vec4 p1 = points[v[1]];
-    vec4 p2 = points[v[2]];
+    vec4 p0 = point_at(v[0]);
+    vec4 p1 = point_at(v[1]);
+    vec4 p2 = point_at(v[2]);
     vec3 q0 = rel(p0.xyz);
     vec3 q1 = rel(p1.xyz);
     vec3 q2 = rel(p2.xyz);
-    bool either_way = solid[c] == 0u;
+    bool either_way = solid_at(c) == 0u;
     vec2 e01 = oriented(v[0], v[1], q0, q1, p0.xyz, p1.xyz);
     if (e01.y == 0.0 || (e01.y > 0.0 && !either_way)) return false;
     vec2 e12 = oriented(v[1], v[2], q1, q2, p1.xyz, p2.xyz);
@@ -239,14 +244,14 @@ int walk(uint face, float t_in, float s_in, float t_min, float t_max, out float 
     float ert = frame.up.w;
     uint stall = 0u;
     t_exit = t_in;
-    uvec4 v = tets[tet];
+    uvec4 v = tet_at(tet);
     uvec3 fv0 = FACE_VERTS[f_in];
     uint a0 = v[fv0.x];
     uint a1 = v[fv0.y];
     uint a2 = v[fv0.z];
-    vec4 p0 = points[a0];
-    vec4 p1 = points[a1];
-    vec4 p2 = points[a2];
+    vec4 p0 = point_at(a0);
+    vec4 p1 = point_at(a1);
+    vec4 p2 = point_at(a2);
     vec3 q0 = rel(p0.xyz);
     vec3 q1 = rel(p1.xyz);
     vec3 q2 = rel(p2.xyz);
@@ -263,7 +268,7 @@ int walk(uint face, float t_in, float s_in, float t_min, float t_max, out float 
         // entry face's outward order, FACE_VERTS, carries sign +1) is being
         // walked backwards (only after a flat boundary cell): stop there, as
         // the reference does.
-        if (solid[tet] != 0u) {
+        if (solid_at(tet) != 0u) {
             uvec3 fv = FACE_VERTS[f_in];
             uint x = v[fv.x];
             uint y = v[fv.y];
@@ -276,7 +281,7 @@ int walk(uint face, float t_in, float s_in, float t_min, float t_max, out float 
             }
         }
         uint nid = v[f_in];
-        vec4 pn = points[nid];
+        vec4 pn = point_at(nid);
         vec3 qn = rel(pn.xyz);
         vec2 e0 = oriented(nid, a0, qn, q0, pn.xyz, p0.xyz);
         vec2 e1 = oriented(nid, a1, qn, q1, pn.xyz, p1.xyz);
@@ -359,7 +364,7 @@ int walk(uint face, float t_in, float s_in, float t_min, float t_max, out float 
         }
         // The exit face is the one opposite r0 in this cell.
         uint f_out = v.x == r0 ? 0u : (v.y == r0 ? 1u : (v.z == r0 ? 2u : 3u));
-        uint nb = neighbors[4u * tet + f_out];
+        uint nb = neighbor_at(4u * tet + f_out);
         if (nb == NONE) {
             t_exit = t_out;
             return WALK_EXIT;
@@ -378,7 +383,7 @@ int walk(uint face, float t_in, float s_in, float t_min, float t_max, out float 
         f_in = nb & 3u;
         t_in = t_out;
         s_in = s_out;
-        v = tets[tet];
+        v = tet_at(tet);
     }
     return WALK_DONE;
 }

@@ -64,7 +64,7 @@ use crate::scene::{Camera, Projection};
 use crate::vk::raw::Handle as _;
 use crate::vk::{
     raw, upload_static, Buffer, BufferDesc, CommandRecorder, ComputePipelineKey, Context, DescriptorKind, DescriptorResource,
-    DescriptorSet, DescriptorSetDesc, Image, ImageUse, MemoryKind, Pipeline, PipelineKey, ShaderKey, ShaderStage, UploadCounter,
+    DescriptorSet, DescriptorSetDesc, Image, ImageUse, MemoryKind, Pipeline, PipelineKey, ShaderKey, ShaderStage, TexelBuffer, UploadCounter,
 };
 
 /// Workgroup shape (pixels).
@@ -250,6 +250,7 @@ pub struct TetRaycast {
     settings: Settings,
     mesh_set: DescriptorSet,
     _buffers: Vec<Buffer>,
+    _texel_buffers: Vec<TexelBuffer>,
     counters: Buffer,
     pipeline: Arc<Pipeline>,
     key: PipelineKey,
@@ -345,15 +346,27 @@ impl TetRaycast {
         }
         buffer_bytes(ctx, mesh, "BVH nodes", bvh.nodes.len(), 32)?;
 
-        let usage = raw::BufferUsageFlags::STORAGE_BUFFER;
-        let up = |name: &str, bytes: &[u8], counter: &mut UploadCounter| upload_static(ctx, name, bytes, usage, counter);
+        // What the walk reads per cell (points, cells, neighbours, solid
+        // flags) is in uniform texel buffers: a texel fetch per lookup,
+        // where a storage-buffer load with a per-ray index is, on llvmpipe,
+        // a loop over the SIMD lanes per component (integrate.rs). The BVH
+        // and its face list, read once per entry search, stay storage
+        // buffers (a node's uint fields must not pass through float texels).
         // Empty arrays still need a buffer (zero-size buffers are invalid).
         let nonempty = |b: &[u8]| if b.is_empty() { vec![0u8; 16] } else { b.to_vec() };
+        let texels = |name: &str, bytes: &[u8], format: raw::Format, counter: &mut UploadCounter| -> Result<TexelBuffer> {
+            let buffer = upload_static(ctx, name, &nonempty(bytes), raw::BufferUsageFlags::UNIFORM_TEXEL_BUFFER, counter)?;
+            Ok(TexelBuffer::over(ctx, buffer, format)?)
+        };
+        let texel_buffers = vec![
+            texels("tet-raycast points", bytemuck::cast_slice(&points), raw::Format::R32G32B32A32_SFLOAT, counter)?,
+            texels("tet-raycast cells", bytemuck::cast_slice(&mesh.tets), raw::Format::R32G32B32A32_UINT, counter)?,
+            texels("tet-raycast neighbours", bytemuck::cast_slice(&neighbors), raw::Format::R32_UINT, counter)?,
+            texels("tet-raycast solid flags", bytemuck::cast_slice(&solid), raw::Format::R32_UINT, counter)?,
+        ];
+        let usage = raw::BufferUsageFlags::STORAGE_BUFFER;
+        let up = |name: &str, bytes: &[u8], counter: &mut UploadCounter| upload_static(ctx, name, bytes, usage, counter);
         let buffers = vec![
-            up("tet-raycast points", &nonempty(bytemuck::cast_slice(&points)), counter)?,
-            up("tet-raycast cells", &nonempty(bytemuck::cast_slice(&mesh.tets)), counter)?,
-            up("tet-raycast neighbours", &nonempty(bytemuck::cast_slice(&neighbors)), counter)?,
-            up("tet-raycast solid flags", &nonempty(bytemuck::cast_slice(&solid)), counter)?,
             up("tet-raycast boundary BVH", &nonempty(bytemuck::cast_slice(&bvh.nodes)), counter)?,
             up("tet-raycast boundary faces", &nonempty(bytemuck::cast_slice(&bvh.prims)), counter)?,
         ];
@@ -366,9 +379,16 @@ impl TetRaycast {
                 memory: MemoryKind::Readback,
             },
         )?;
-        let mesh_desc = DescriptorSetDesc::storage_buffers(7, raw::ShaderStageFlags::COMPUTE);
-        let resources: Vec<DescriptorResource> =
-            buffers.iter().chain(std::iter::once(&counters)).map(DescriptorResource::StorageBuffer).collect();
+        let compute = raw::ShaderStageFlags::COMPUTE;
+        let mesh_desc = DescriptorSetDesc::new(&[(DescriptorKind::UniformTexelBuffer, compute); 4])
+            .with(DescriptorKind::StorageBuffer, compute)
+            .with(DescriptorKind::StorageBuffer, compute)
+            .with(DescriptorKind::StorageBuffer, compute);
+        let resources: Vec<DescriptorResource> = texel_buffers
+            .iter()
+            .map(DescriptorResource::UniformTexelBuffer)
+            .chain(buffers.iter().chain(std::iter::once(&counters)).map(DescriptorResource::StorageBuffer))
+            .collect();
         let mesh_set = DescriptorSet::new(ctx, "tet-raycast mesh", &mesh_desc, &resources)?;
         let target_desc = DescriptorSetDesc::new(&[(DescriptorKind::StorageImage, raw::ShaderStageFlags::COMPUTE)]);
         let wg = WORKGROUP.map(|v| v.to_string());
@@ -387,6 +407,7 @@ impl TetRaycast {
             settings,
             mesh_set,
             _buffers: buffers,
+            _texel_buffers: texel_buffers,
             counters,
             pipeline,
             key,

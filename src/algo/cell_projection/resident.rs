@@ -18,8 +18,8 @@ use crate::algo::integrate::IntegrationTables;
 use crate::algo::method::{MethodInfo, MethodInputs, RenderMethod};
 use crate::mesh::{TetGeometry, TetMesh};
 use crate::vk::{
-    upload_static, Buffer, BufferDesc, CommandRecorder, Context, DescriptorSet, DescriptorSetDesc, Pipeline, PipelineKey,
-    StorageBufferSet, UploadClass, UploadCounter, VkError, VkResult,
+    upload_static, Buffer, BufferDesc, CommandRecorder, Context, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc,
+    Pipeline, PipelineKey, TexelBuffer, UploadClass, UploadCounter, VkError, VkResult,
 };
 
 /// Per tet per frame: its index in the order.
@@ -53,15 +53,15 @@ pub struct Resident {
     drawn: usize,
     order: Vec<u32>,
     order_buffer: Buffer,
-    _cell_buffer: Buffer,
+    _cell_buffer: TexelBuffer,
     index_buffer: Buffer,
     indices_per_cell: usize,
-    set: StorageBufferSet,
+    set: DescriptorSet,
     pipeline: Arc<Pipeline>,
     pipeline_key: PipelineKey,
 }
 
-/// The storage-buffer image of one cell.
+/// The stored image of one cell (9 RGBA32F texels).
 pub(super) fn stored(c: &CellF32) -> [f32; FLOATS_PER_STORED_CELL] {
     let mut out = [0f32; FLOATS_PER_STORED_CELL];
     for i in 0..4 {
@@ -83,21 +83,12 @@ impl Resident {
     ) -> VkResult<Self> {
         let cells = cells_f32(mesh, geometry);
         let n = cells.len();
-        let cell_bytes = (n * FLOATS_PER_STORED_CELL * 4) as u64;
-        let limit = u64::from(ctx.info.max_storage_buffer_range);
-        if cell_bytes > limit {
-            return Err(VkError::Invalid(format!(
-                "mesh '{}': {n} cells need a {cell_bytes}-byte storage buffer, above the device's maxStorageBufferRange ({limit} bytes)",
-                mesh.name
-            )));
-        }
-        let data: Vec<f32> = cells.iter().flat_map(stored).collect();
+        let cell_buffer = upload_cells(ctx, "resident cells", mesh, &cells, counter)?;
         let usage = raw::BufferUsageFlags::STORAGE_BUFFER;
-        let cell_buffer = upload_static(ctx, "resident cells", bytemuck::cast_slice(&data), usage, counter)?;
         let index_buffer =
             upload_static(ctx, "resident indices", bytemuck::cast_slice(&draw.primitives.indices(n)), raw::BufferUsageFlags::INDEX_BUFFER, counter)?;
         let order_buffer = Buffer::new(ctx, BufferDesc::upload("resident order", (n.max(1) * 4) as u64, usage))?;
-        let set = StorageBufferSet::new(ctx, "resident cells and order", &[&cell_buffer, &order_buffer], raw::ShaderStageFlags::VERTEX)?;
+        let set = cells_and_order_set(ctx, "resident cells and order", &cell_buffer, &order_buffer)?;
         let (pipeline, pipeline_key) = build_pipeline(
             ctx,
             "cell_projection/resident.vert",
@@ -125,8 +116,37 @@ impl Resident {
     }
 }
 
-fn set_desc() -> DescriptorSetDesc {
-    DescriptorSetDesc::storage_buffers(2, raw::ShaderStageFlags::VERTEX)
+/// Set 1 of `resident.vert`: the stored cells (a uniform texel buffer of
+/// RGBA32F, `FLOATS_PER_STORED_CELL / 4` texels per cell: each vertex stage
+/// invocation reads all of its cell, and a texel fetch is one lookup where
+/// a storage-buffer load with a per-vertex index is, on llvmpipe, a loop
+/// over the SIMD lanes per component) and the order (a storage buffer, one
+/// u32 per vertex).
+pub(super) fn set_desc() -> DescriptorSetDesc {
+    let vertex = raw::ShaderStageFlags::VERTEX;
+    DescriptorSetDesc::new(&[(DescriptorKind::UniformTexelBuffer, vertex), (DescriptorKind::StorageBuffer, vertex)])
+}
+
+pub(super) fn cells_and_order_set(ctx: &Arc<Context>, name: &str, cells: &TexelBuffer, order: &Buffer) -> VkResult<DescriptorSet> {
+    DescriptorSet::new(ctx, name, &set_desc(), &[DescriptorResource::UniformTexelBuffer(cells), DescriptorResource::StorageBuffer(order)])
+}
+
+/// The cells as `resident.vert` reads them, uploaded once into device-local
+/// memory; a mesh with more texels than the device's texel-buffer limit is
+/// an error naming it.
+pub(super) fn upload_cells(ctx: &Arc<Context>, name: &str, mesh: &TetMesh, cells: &[CellF32], counter: &mut UploadCounter) -> VkResult<TexelBuffer> {
+    let n = cells.len();
+    let texels = n as u64 * (FLOATS_PER_STORED_CELL / 4) as u64;
+    let limit = u64::from(ctx.info.max_texel_buffer_elements);
+    if texels > limit {
+        return Err(VkError::Invalid(format!(
+            "mesh '{}': {n} cells need {texels} texels, above the device's maxTexelBufferElements ({limit})",
+            mesh.name
+        )));
+    }
+    let data: Vec<f32> = cells.iter().flat_map(stored).collect();
+    let buffer = upload_static(ctx, name, bytemuck::cast_slice(&data), raw::BufferUsageFlags::UNIFORM_TEXEL_BUFFER, counter)?;
+    TexelBuffer::over(ctx, buffer, raw::Format::R32G32B32A32_SFLOAT)
 }
 
 impl CellProjector for Resident {

@@ -20,15 +20,15 @@ use ash::vk as raw;
 use super::balanced::VERTICES_PER_CELL;
 use super::device_sort::{DeviceCentroidSort, SortCamera};
 use super::render;
-use super::resident::{stored, FLOATS_PER_STORED_CELL};
+use super::resident::{cells_and_order_set, set_desc, upload_cells, FLOATS_PER_STORED_CELL};
 use super::sort::SortKind;
 use super::{build_pipeline, cells_f32, centroids_relative_f32, render_origin, CellProjector, FrameSetup, DrawSettings, MAX_INDICES_PER_CELL};
 use crate::algo::integrate::IntegrationTables;
 use crate::algo::method::{DataKind, MethodInfo, MethodInputs, Options, RenderMethod};
 use crate::mesh::{TetGeometry, TetMesh};
 use crate::vk::{
-    upload_static, Buffer, CommandRecorder, Context, DescriptorSet, DescriptorSetDesc, Pipeline, PipelineKey,
-    StorageBufferSet, UploadCounter, VkError, VkResult,
+    upload_static, Buffer, CommandRecorder, Context, DescriptorSet, Pipeline, PipelineKey, TexelBuffer, UploadCounter,
+    VkResult,
 };
 
 /// The name of the sort's GPU-time phase (`time_ms.sort_gpu`).
@@ -104,9 +104,9 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
 
 pub struct ResidentGpuSort {
     cells: usize,
-    set: StorageBufferSet,
+    set: DescriptorSet,
     sort: DeviceCentroidSort,
-    _cell_buffer: Buffer,
+    _cell_buffer: TexelBuffer,
     index_buffer: Buffer,
     indices_per_cell: usize,
     pipeline: Arc<Pipeline>,
@@ -124,20 +124,10 @@ impl ResidentGpuSort {
     ) -> VkResult<Self> {
         let cells = cells_f32(mesh, geometry);
         let n = cells.len();
-        let cell_bytes = n as u64 * (FLOATS_PER_STORED_CELL * 4) as u64;
-        let limit = u64::from(ctx.info.max_storage_buffer_range);
-        if cell_bytes > limit {
-            return Err(VkError::Invalid(format!(
-                "mesh '{}': {n} cells need a {cell_bytes}-byte storage buffer, above the device's maxStorageBufferRange ({limit} bytes)",
-                mesh.name
-            )));
-        }
         // The same f64 -> f32 centroids as the CPU's centroid sort.
         let centroids = centroids_relative_f32(geometry, render_origin(mesh));
         let sort = DeviceCentroidSort::new(ctx, "resident-gpusort", &centroids, counter)?;
-        let data: Vec<f32> = cells.iter().flat_map(stored).collect();
-        let storage = raw::BufferUsageFlags::STORAGE_BUFFER;
-        let cell_buffer = upload_static(ctx, "resident-gpusort cells", bytemuck::cast_slice(&data), storage, counter)?;
+        let cell_buffer = upload_cells(ctx, "resident-gpusort cells", mesh, &cells, counter)?;
         let index_buffer = upload_static(
             ctx,
             "resident-gpusort indices",
@@ -145,7 +135,7 @@ impl ResidentGpuSort {
             raw::BufferUsageFlags::INDEX_BUFFER,
             counter,
         )?;
-        let set = StorageBufferSet::new(ctx, "resident-gpusort cells and order", &[&cell_buffer, sort.order()], raw::ShaderStageFlags::VERTEX)?;
+        let set = cells_and_order_set(ctx, "resident-gpusort cells and order", &cell_buffer, sort.order())?;
         let (pipeline, pipeline_key) = build_pipeline(
             ctx,
             "cell_projection/resident.vert",
@@ -156,7 +146,7 @@ impl ResidentGpuSort {
             draw.primitives.primitive_restart(),
             tables,
             draw.interpolation,
-            &[DescriptorSetDesc::storage_buffers(2, raw::ShaderStageFlags::VERTEX)],
+            &[set_desc()],
         )?;
         Ok(ResidentGpuSort { cells: n, set, sort, _cell_buffer: cell_buffer, index_buffer, indices_per_cell: draw.primitives.indices_per_cell(), pipeline, pipeline_key })
     }
