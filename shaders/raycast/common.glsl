@@ -31,7 +31,7 @@ layout(std140, set = 0, binding = 0) uniform Params {
 layout(set = 0, binding = 1) uniform sampler3D volume_tex;
 layout(set = 0, binding = 2) uniform sampler1D tf_tex;
 // Per-brick flag: 1 when some sample in it may have attenuation > 0.
-layout(std430, set = 0, binding = 3) readonly buffer Bricks { uint brick_visible[]; };
+layout(set = 0, binding = 3) uniform usamplerBuffer brick_flags;
 // Counters, cleared every frame: samples taken, largest per ray, bricks stepped over, rays.
 layout(std430, set = 0, binding = 4) buffer Counters { uint total_samples; uint max_samples; uint skipped_bricks; uint rays; } counters;
 layout(set = 0, binding = 5) uniform sampler2D preint_tex;
@@ -136,7 +136,7 @@ vec4 march(vec3 a, vec3 b, out uint samples) {
                 if (dir[ax] != 0.0) s_exit = min(s_exit, s_axis[ax]);
             }
             int next = min(int(floor(s_exit / h - 0.5)) + 1, steps);
-            if (brick_visible[bc.x + bgrid.x * (bc.y + bgrid.y * bc.z)] == 0u) {
+            if (texelFetch(brick_flags, bc.x + bgrid.x * (bc.y + bgrid.y * bc.z)).r == 0u) {
                 skipped += 1u;
 #ifdef PREINT
                 t_prev = -1.0;

@@ -85,7 +85,7 @@ use crate::scene::TransferFunction;
 use crate::volume::{Samples, Volume};
 use crate::vk::{
     raw, upload_texture, Buffer, BufferDesc, CommandRecorder, Context, DescriptorKind, DescriptorResource, DescriptorSet,
-    DescriptorSetDesc, MemoryKind, Sampler, TextureDesc, UploadClass, UploadCounter,
+    DescriptorSetDesc, MemoryKind, Sampler, TexelBuffer, TextureDesc, UploadClass, UploadCounter,
 };
 
 /// Transfer-function table entries (1D) and pre-integration table side (2D).
@@ -244,7 +244,7 @@ pub struct VolumeResources {
     _tf: crate::vk::Image,
     _preint: crate::vk::Image,
     _params: Buffer,
-    _bricks: Buffer,
+    _bricks: TexelBuffer,
     counters: Buffer,
     _sampler: Sampler,
     pub texture_format: &'static str,
@@ -263,7 +263,7 @@ pub fn set0_desc() -> DescriptorSetDesc {
         .with(DescriptorKind::UniformBuffer, st)
         .with(DescriptorKind::CombinedImageSampler, st)
         .with(DescriptorKind::CombinedImageSampler, st)
-        .with(DescriptorKind::StorageBuffer, st)
+        .with(DescriptorKind::UniformTexelBuffer, st)
         .with(DescriptorKind::StorageBuffer, st)
         .with(DescriptorKind::CombinedImageSampler, st)
 }
@@ -386,8 +386,14 @@ impl VolumeResources {
         let table_build_ms = t0.elapsed().as_secs_f64() * 1e3;
         let bricks_visible = flags.iter().filter(|&&f| f != 0).count();
         let flag_bytes: Vec<u8> = flags.iter().flat_map(|x| x.to_ne_bytes()).collect();
-        let mut bricks = Buffer::new(ctx, BufferDesc::upload("brick flags", flag_bytes.len() as u64, raw::BufferUsageFlags::STORAGE_BUFFER))?;
-        bricks.write(0, &flag_bytes, counter, UploadClass::Static)?;
+        // A uniform texel buffer: a flag is one texel fetch (as a storage
+        // buffer, a per-ray index made llvmpipe loop over the SIMD lanes).
+        let mut bricks = TexelBuffer::new(
+            ctx,
+            BufferDesc::upload("brick flags", flag_bytes.len() as u64, raw::BufferUsageFlags::UNIFORM_TEXEL_BUFFER),
+            raw::Format::R32_UINT,
+        )?;
+        bricks.buffer.write(0, &flag_bytes, counter, UploadClass::Static)?;
 
         let spacing = vol.spacing();
         // t = (v - offset) * scale / (hi - lo), offset lo / scale for the
@@ -423,7 +429,7 @@ impl VolumeResources {
                 DescriptorResource::UniformBuffer(&params_buf),
                 DescriptorResource::CombinedImageSampler(&volume, &sampler),
                 DescriptorResource::CombinedImageSampler(&tf_img, &sampler),
-                DescriptorResource::StorageBuffer(&bricks),
+                DescriptorResource::UniformTexelBuffer(&bricks),
                 DescriptorResource::StorageBuffer(&counters),
                 DescriptorResource::CombinedImageSampler(&preint, &sampler),
             ],
