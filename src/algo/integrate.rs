@@ -12,7 +12,7 @@ use ash::vk as raw;
 use rayon::prelude::*;
 
 use crate::scene::TransferFunction;
-use crate::vk::{upload_static, Context, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc, TexelBuffer, UploadCounter};
+use crate::vk::{upload_static_texels, Context, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc, TexelBuffer, UploadCounter};
 
 /// Default sizes: the TF table resolves control points to 1/1023 of the
 /// range; a 512^2 Psi table keeps per-lookup error near 1e-3 or below.
@@ -304,10 +304,8 @@ impl IntegrationTables {
         // lookups was, on llvmpipe, a per-lane loop of guarded scalar loads
         // per component, about half of balanced's frame on the oxygen post
         // (README: the balanced method at its speed limit).
-        let usage = raw::BufferUsageFlags::UNIFORM_TEXEL_BUFFER;
-        let texels = |name: &str, data: &[[f32; 4]], counter: &mut UploadCounter| -> anyhow::Result<TexelBuffer> {
-            let buffer = upload_static(ctx, name, bytemuck::cast_slice(data), usage, counter)?;
-            Ok(TexelBuffer::over(ctx, buffer, raw::Format::R32G32B32A32_SFLOAT)?)
+        let texels = |name: &str, data: &[[f32; 4]], counter: &mut UploadCounter| {
+            upload_static_texels(ctx, name, bytemuck::cast_slice(data), raw::Format::R32G32B32A32_SFLOAT, counter)
         };
         let tf_buf = texels("transfer function table", &tf_table, counter)?;
         let table_buf = texels("integration table", table.as_slice(), counter)?;

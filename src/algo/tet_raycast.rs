@@ -63,7 +63,7 @@ use crate::reference::topology::Topology;
 use crate::scene::{Camera, Projection};
 use crate::vk::raw::Handle as _;
 use crate::vk::{
-    raw, upload_static, Buffer, BufferDesc, CommandRecorder, ComputePipelineKey, Context, DescriptorKind, DescriptorResource,
+    raw, upload_static, upload_static_texels, Buffer, BufferDesc, CommandRecorder, ComputePipelineKey, Context, DescriptorKind, DescriptorResource,
     DescriptorSet, DescriptorSetDesc, Image, ImageUse, MemoryKind, Pipeline, PipelineKey, ShaderKey, ShaderStage, TexelBuffer, UploadCounter,
 };
 
@@ -354,9 +354,8 @@ impl TetRaycast {
         // buffers (a node's uint fields must not pass through float texels).
         // Empty arrays still need a buffer (zero-size buffers are invalid).
         let nonempty = |b: &[u8]| if b.is_empty() { vec![0u8; 16] } else { b.to_vec() };
-        let texels = |name: &str, bytes: &[u8], format: raw::Format, counter: &mut UploadCounter| -> Result<TexelBuffer> {
-            let buffer = upload_static(ctx, name, &nonempty(bytes), raw::BufferUsageFlags::UNIFORM_TEXEL_BUFFER, counter)?;
-            Ok(TexelBuffer::over(ctx, buffer, format)?)
+        let texels = |name: &str, bytes: &[u8], format: raw::Format, counter: &mut UploadCounter| {
+            upload_static_texels(ctx, name, &nonempty(bytes), format, counter)
         };
         let texel_buffers = vec![
             texels("tet-raycast points", bytemuck::cast_slice(&points), raw::Format::R32G32B32A32_SFLOAT, counter)?,

@@ -23,7 +23,7 @@ use std::time::{Duration, Instant};
 
 use ash::vk;
 
-use super::buffer::Buffer;
+use super::buffer::{Buffer, TexelBuffer};
 use super::descriptors::DescriptorSet;
 use super::error::{Check, VkError, VkResult};
 use super::image::{color_layers, Image, ImageUse};
@@ -262,6 +262,20 @@ pub fn upload_static(
     );
     rec.submit_and_wait()?;
     Ok(dst)
+}
+
+/// [`upload_static`] into a uniform texel buffer of `format` texels (read
+/// with `texelFetch` from a `samplerBuffer`), checked as `TexelBuffer::over`
+/// checks it.
+pub fn upload_static_texels(
+    ctx: &Arc<Context>,
+    name: &str,
+    data: &[u8],
+    format: vk::Format,
+    counter: &mut UploadCounter,
+) -> VkResult<TexelBuffer> {
+    let buffer = upload_static(ctx, name, data, vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER, counter)?;
+    TexelBuffer::over(ctx, buffer, format)
 }
 
 /// One colour attachment of a dynamic-rendering pass: cleared to `clear`, or

@@ -30,7 +30,7 @@ use rayon::prelude::*;
 use super::balanced::{
     cell_records, CODE_FLAGS_SHIFT, CODE_MAX_PIECES, CODE_PIECE_SHIFT, FLOATS_PER_CELL, FLOATS_PER_VERTEX, VERTICES_PER_CELL};
 use super::render;
-use super::{build_pipeline, cells_f32, scalar_map, CellF32, CellProjector, FrameSetup, DrawSettings, MAX_INDICES_PER_CELL};
+use super::{build_pipeline, cells_f32, scalar_map, CellF32, CellProjector, FrameSetup, DrawSettings, StaticIndices, MAX_INDICES_PER_CELL};
 use crate::algo::integrate::IntegrationTables;
 use crate::algo::method::{MethodInfo, MethodInputs, Published, PublishedFigure, RenderMethod};
 use crate::mesh::{TetGeometry, TetMesh};
@@ -232,8 +232,7 @@ pub struct Atfs {
     drawn_pieces: usize,
     packed: Vec<f32>,
     vertex_buffer: Buffer,
-    index_buffer: Buffer,
-    indices_per_cell: usize,
+    indices: StaticIndices,
     _interval_buffer: Buffer,
     set: StorageBufferSet,
     pipeline: Arc<Pipeline>,
@@ -277,13 +276,7 @@ impl Atfs {
         let usage = raw::BufferUsageFlags::STORAGE_BUFFER;
         let interval_buffer = upload_static(ctx, "atfs intervals", bytemuck::cast_slice(&intervals.gpu), usage, counter)?;
         let set = StorageBufferSet::new(ctx, "atfs intervals", &[&interval_buffer], raw::ShaderStageFlags::VERTEX)?;
-        let index_buffer = upload_static(
-            ctx,
-            "atfs indices",
-            bytemuck::cast_slice(&draw.primitives.indices(pieces)),
-            raw::BufferUsageFlags::INDEX_BUFFER,
-            counter,
-        )?;
+        let indices = StaticIndices::upload(ctx, "atfs indices", draw.primitives, pieces, counter)?;
         let bytes = (pieces.max(1) * FLOATS_PER_PIECE * 4) as u64;
         let vertex_buffer = Buffer::new(ctx, BufferDesc::upload("atfs vertex records", bytes, raw::BufferUsageFlags::VERTEX_BUFFER))?;
         let (pipeline, pipeline_key) = build_pipeline(
@@ -308,8 +301,7 @@ impl Atfs {
             spans,
             pieces,
             vertex_buffer,
-            index_buffer,
-            indices_per_cell: draw.primitives.indices_per_cell(),
+            indices,
             _interval_buffer: interval_buffer,
             set,
             pipeline,
@@ -429,8 +421,7 @@ impl CellProjector for Atfs {
         rec.bind_graphics(&self.pipeline, &sets)?;
         rec.push_constants(&self.pipeline, bytemuck::bytes_of(&frame.constants), counter);
         rec.bind_vertex_buffer(&self.vertex_buffer);
-        rec.bind_index_buffer_u32(&self.index_buffer);
-        rec.draw_indexed((self.drawn_pieces * self.indices_per_cell) as u32);
+        self.indices.draw(rec, self.drawn_pieces);
         Ok(())
     }
 }

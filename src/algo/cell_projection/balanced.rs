@@ -14,11 +14,11 @@ use rayon::prelude::*;
 
 use super::render;
 use crate::algo::method::{MethodInfo, MethodInputs, RenderMethod};
-use super::{build_pipeline, cells_f32, CellF32, CellProjector, DrawSettings, FrameSetup, Interpolation, MAX_INDICES_PER_CELL};
+use super::{build_pipeline, cells_f32, CellF32, CellProjector, DrawSettings, StaticIndices, FrameSetup, Interpolation, MAX_INDICES_PER_CELL};
 use crate::algo::integrate::IntegrationTables;
 use crate::mesh::{TetGeometry, TetMesh};
 use crate::vk::{
-    upload_static, Buffer, BufferDesc, CommandRecorder, Context, Pipeline, PipelineKey, UploadClass, UploadCounter, VertexAttribute,
+    Buffer, BufferDesc, CommandRecorder, Context, Pipeline, PipelineKey, UploadClass, UploadCounter, VertexAttribute,
     VkResult,
 };
 
@@ -67,10 +67,9 @@ pub struct Balanced {
     cells: Vec<CellF32>,
     packed: Vec<f32>,
     vertex_buffer: Buffer,
-    index_buffer: Buffer,
+    indices: StaticIndices,
     pipeline: Arc<Pipeline>,
     pipeline_key: PipelineKey,
-    indices_per_cell: usize,
     /// Cells in the last `pack`.
     drawn: usize,
 }
@@ -164,13 +163,7 @@ impl Balanced {
     ) -> VkResult<Self> {
         let cells = cells_f32(mesh, geometry);
         let n = cells.len();
-        let index_buffer = upload_static(
-            ctx,
-            "balanced indices",
-            bytemuck::cast_slice(&draw.primitives.indices(n)),
-            raw::BufferUsageFlags::INDEX_BUFFER,
-            counter,
-        )?;
+        let indices = StaticIndices::upload(ctx, "balanced indices", draw.primitives, n, counter)?;
         let bytes = (n * FLOATS_PER_CELL * 4) as u64;
         let vertex_buffer =
             Buffer::new(ctx, BufferDesc::upload("balanced vertex records", bytes, raw::BufferUsageFlags::VERTEX_BUFFER))?;
@@ -190,10 +183,9 @@ impl Balanced {
             packed: vec![0f32; n * FLOATS_PER_CELL],
             cells,
             vertex_buffer,
-            index_buffer,
+            indices,
             pipeline,
             pipeline_key,
-            indices_per_cell: draw.primitives.indices_per_cell(),
             drawn: n,
         })
     }
@@ -231,8 +223,7 @@ impl CellProjector for Balanced {
         rec.bind_pipeline(&self.pipeline, Some(&tables.set));
         rec.push_constants(&self.pipeline, bytemuck::bytes_of(&frame.constants), counter);
         rec.bind_vertex_buffer(&self.vertex_buffer);
-        rec.bind_index_buffer_u32(&self.index_buffer);
-        rec.draw_indexed((self.drawn * self.indices_per_cell) as u32);
+        self.indices.draw(rec, self.drawn);
         Ok(())
     }
 }

@@ -28,7 +28,7 @@ use crate::algo::integrate::IntegrationTables;
 use crate::mesh::{TetGeometry, TetMesh};
 use crate::scene::Camera;
 use crate::vk::{
-    DescriptorSetDesc,
+    upload_static, Buffer, DescriptorSetDesc,
     Blend, ColorTarget, CommandRecorder, Context, GraphicsPipelineKey, GraphicsState, Pipeline, PipelineKey, ShaderKey,
     ShaderStage, UploadCounter, VertexAttribute, VkResult,
 };
@@ -136,6 +136,29 @@ impl Primitives {
             }
         }
         idx
+    }
+}
+
+/// A balanced-family projector's static index buffer: every tet slot's four
+/// faces as `Primitives` lays them out, uploaded once into device-local
+/// memory (counted as static bytes).
+pub struct StaticIndices {
+    buffer: Buffer,
+    per_cell: usize,
+}
+
+impl StaticIndices {
+    pub fn upload(ctx: &Arc<Context>, name: &str, primitives: Primitives, cells: usize, counter: &mut UploadCounter) -> VkResult<Self> {
+        let indices = primitives.indices(cells);
+        let buffer = upload_static(ctx, name, bytemuck::cast_slice(&indices), raw::BufferUsageFlags::INDEX_BUFFER, counter)?;
+        Ok(StaticIndices { buffer, per_cell: primitives.indices_per_cell() })
+    }
+
+    /// Bind the buffer and draw its first `cells` tet slots (inside dynamic
+    /// rendering, after the pipeline and its inputs are bound).
+    pub fn draw(&self, rec: &CommandRecorder, cells: usize) {
+        rec.bind_index_buffer_u32(&self.buffer);
+        rec.draw_indexed((cells * self.per_cell) as u32);
     }
 }
 

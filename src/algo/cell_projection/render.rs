@@ -304,8 +304,8 @@ impl Settings {
             tolerances: ExitTolerances {
                 distance_clamp_diagonals: options.float("distance_clamp")?,
                 plane_ratio_max: options.float("plane_ratio_max")? as f32,
-                // Absent for the balanced family (KNOWN_EXITS_OPTIONS).
-                edge_eps: options.float("edge_eps").unwrap_or(0.0) as f32,
+                // Absent for the balanced family (KNOWN_EXITS_OPTIONS): off.
+                edge_eps: if options.0.contains_key("edge_eps") { options.float("edge_eps")? as f32 } else { 0.0 },
             },
             // Absent for methods without the option (KNOWN_EXITS_OPTIONS_WITHOUT_CULL).
             cull: options.flag("cull").unwrap_or(false),

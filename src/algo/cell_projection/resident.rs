@@ -13,12 +13,12 @@ use ash::vk as raw;
 
 use super::balanced::VERTICES_PER_CELL;
 use super::render;
-use super::{build_pipeline, cells_f32, CellF32, CellProjector, FrameSetup, DrawSettings, MAX_INDICES_PER_CELL};
+use super::{build_pipeline, cells_f32, CellF32, CellProjector, FrameSetup, DrawSettings, StaticIndices, MAX_INDICES_PER_CELL};
 use crate::algo::integrate::IntegrationTables;
 use crate::algo::method::{MethodInfo, MethodInputs, RenderMethod};
 use crate::mesh::{TetGeometry, TetMesh};
 use crate::vk::{
-    upload_static, Buffer, BufferDesc, CommandRecorder, Context, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc,
+    upload_static_texels, Buffer, BufferDesc, CommandRecorder, Context, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc,
     Pipeline, PipelineKey, TexelBuffer, UploadClass, UploadCounter, VkError, VkResult,
 };
 
@@ -54,8 +54,7 @@ pub struct Resident {
     order: Vec<u32>,
     order_buffer: Buffer,
     _cell_buffer: TexelBuffer,
-    index_buffer: Buffer,
-    indices_per_cell: usize,
+    indices: StaticIndices,
     set: DescriptorSet,
     pipeline: Arc<Pipeline>,
     pipeline_key: PipelineKey,
@@ -85,30 +84,17 @@ impl Resident {
         let n = cells.len();
         let cell_buffer = upload_cells(ctx, "resident cells", mesh, &cells, counter)?;
         let usage = raw::BufferUsageFlags::STORAGE_BUFFER;
-        let index_buffer =
-            upload_static(ctx, "resident indices", bytemuck::cast_slice(&draw.primitives.indices(n)), raw::BufferUsageFlags::INDEX_BUFFER, counter)?;
+        let indices = StaticIndices::upload(ctx, "resident indices", draw.primitives, n, counter)?;
         let order_buffer = Buffer::new(ctx, BufferDesc::upload("resident order", (n.max(1) * 4) as u64, usage))?;
         let set = cells_and_order_set(ctx, "resident cells and order", &cell_buffer, &order_buffer)?;
-        let (pipeline, pipeline_key) = build_pipeline(
-            ctx,
-            "cell_projection/resident.vert",
-            "cell_projection/balanced.frag",
-            0,
-            &[],
-            draw.primitives.topology(),
-            draw.primitives.primitive_restart(),
-            tables,
-            draw.interpolation,
-            &[set_desc()],
-        )?;
+        let (pipeline, pipeline_key) = resident_pipeline(ctx, tables, draw)?;
         Ok(Resident {
             cells: n,
             drawn: n,
             order: vec![0; n],
             order_buffer,
             _cell_buffer: cell_buffer,
-            index_buffer,
-            indices_per_cell: draw.primitives.indices_per_cell(),
+            indices,
             set,
             pipeline,
             pipeline_key,
@@ -125,6 +111,23 @@ impl Resident {
 pub(super) fn set_desc() -> DescriptorSetDesc {
     let vertex = raw::ShaderStageFlags::VERTEX;
     DescriptorSetDesc::new(&[(DescriptorKind::UniformTexelBuffer, vertex), (DescriptorKind::StorageBuffer, vertex)])
+}
+
+/// The pipeline of both resident methods: `resident.vert` (vertices from
+/// the stored cells, set 1) and balanced's fragment stage.
+pub(super) fn resident_pipeline(ctx: &Arc<Context>, tables: &IntegrationTables, draw: DrawSettings) -> VkResult<(Arc<Pipeline>, PipelineKey)> {
+    build_pipeline(
+        ctx,
+        "cell_projection/resident.vert",
+        "cell_projection/balanced.frag",
+        0,
+        &[],
+        draw.primitives.topology(),
+        draw.primitives.primitive_restart(),
+        tables,
+        draw.interpolation,
+        &[set_desc()],
+    )
 }
 
 pub(super) fn cells_and_order_set(ctx: &Arc<Context>, name: &str, cells: &TexelBuffer, order: &Buffer) -> VkResult<DescriptorSet> {
@@ -145,8 +148,7 @@ pub(super) fn upload_cells(ctx: &Arc<Context>, name: &str, mesh: &TetMesh, cells
         )));
     }
     let data: Vec<f32> = cells.iter().flat_map(stored).collect();
-    let buffer = upload_static(ctx, name, bytemuck::cast_slice(&data), raw::BufferUsageFlags::UNIFORM_TEXEL_BUFFER, counter)?;
-    TexelBuffer::over(ctx, buffer, raw::Format::R32G32B32A32_SFLOAT)
+    upload_static_texels(ctx, name, bytemuck::cast_slice(&data), raw::Format::R32G32B32A32_SFLOAT, counter)
 }
 
 impl CellProjector for Resident {
@@ -180,8 +182,7 @@ impl CellProjector for Resident {
         let sets: [&DescriptorSet; 2] = [&tables.set, &self.set];
         rec.bind_graphics(&self.pipeline, &sets)?;
         rec.push_constants(&self.pipeline, bytemuck::bytes_of(&frame.constants), counter);
-        rec.bind_index_buffer_u32(&self.index_buffer);
-        rec.draw_indexed((self.drawn * self.indices_per_cell) as u32);
+        self.indices.draw(rec, self.drawn);
         Ok(())
     }
 }

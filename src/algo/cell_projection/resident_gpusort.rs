@@ -15,19 +15,18 @@
 use std::sync::Arc;
 
 use anyhow::Result;
-use ash::vk as raw;
 
 use super::balanced::VERTICES_PER_CELL;
 use super::device_sort::{DeviceCentroidSort, SortCamera};
 use super::render;
-use super::resident::{cells_and_order_set, set_desc, upload_cells, FLOATS_PER_STORED_CELL};
+use super::resident::{cells_and_order_set, resident_pipeline, upload_cells, FLOATS_PER_STORED_CELL};
 use super::sort::SortKind;
-use super::{build_pipeline, cells_f32, centroids_relative_f32, render_origin, CellProjector, FrameSetup, DrawSettings, MAX_INDICES_PER_CELL};
+use super::{cells_f32, centroids_relative_f32, render_origin, CellProjector, FrameSetup, DrawSettings, StaticIndices, MAX_INDICES_PER_CELL};
 use crate::algo::integrate::IntegrationTables;
 use crate::algo::method::{DataKind, MethodInfo, MethodInputs, Options, RenderMethod};
 use crate::mesh::{TetGeometry, TetMesh};
 use crate::vk::{
-    upload_static, Buffer, CommandRecorder, Context, DescriptorSet, Pipeline, PipelineKey, TexelBuffer, UploadCounter,
+    CommandRecorder, Context, DescriptorSet, Pipeline, PipelineKey, TexelBuffer, UploadCounter,
     VkResult,
 };
 
@@ -107,8 +106,7 @@ pub struct ResidentGpuSort {
     set: DescriptorSet,
     sort: DeviceCentroidSort,
     _cell_buffer: TexelBuffer,
-    index_buffer: Buffer,
-    indices_per_cell: usize,
+    indices: StaticIndices,
     pipeline: Arc<Pipeline>,
     pipeline_key: PipelineKey,
 }
@@ -128,27 +126,10 @@ impl ResidentGpuSort {
         let centroids = centroids_relative_f32(geometry, render_origin(mesh));
         let sort = DeviceCentroidSort::new(ctx, "resident-gpusort", &centroids, counter)?;
         let cell_buffer = upload_cells(ctx, "resident-gpusort cells", mesh, &cells, counter)?;
-        let index_buffer = upload_static(
-            ctx,
-            "resident-gpusort indices",
-            bytemuck::cast_slice(&draw.primitives.indices(n)),
-            raw::BufferUsageFlags::INDEX_BUFFER,
-            counter,
-        )?;
+        let indices = StaticIndices::upload(ctx, "resident-gpusort indices", draw.primitives, n, counter)?;
         let set = cells_and_order_set(ctx, "resident-gpusort cells and order", &cell_buffer, sort.order())?;
-        let (pipeline, pipeline_key) = build_pipeline(
-            ctx,
-            "cell_projection/resident.vert",
-            "cell_projection/balanced.frag",
-            0,
-            &[],
-            draw.primitives.topology(),
-            draw.primitives.primitive_restart(),
-            tables,
-            draw.interpolation,
-            &[set_desc()],
-        )?;
-        Ok(ResidentGpuSort { cells: n, set, sort, _cell_buffer: cell_buffer, index_buffer, indices_per_cell: draw.primitives.indices_per_cell(), pipeline, pipeline_key })
+        let (pipeline, pipeline_key) = resident_pipeline(ctx, tables, draw)?;
+        Ok(ResidentGpuSort { cells: n, set, sort, _cell_buffer: cell_buffer, indices, pipeline, pipeline_key })
     }
 }
 
@@ -185,8 +166,7 @@ impl CellProjector for ResidentGpuSort {
         let sets: [&DescriptorSet; 2] = [&tables.set, &self.set];
         rec.bind_graphics(&self.pipeline, &sets)?;
         rec.push_constants(&self.pipeline, bytemuck::bytes_of(&frame.constants), counter);
-        rec.bind_index_buffer_u32(&self.index_buffer);
-        rec.draw_indexed((self.cells * self.indices_per_cell) as u32);
+        self.indices.draw(rec, self.cells);
         Ok(())
     }
 
