@@ -19,7 +19,7 @@
 #define TAIL_STOP 0.01
 
 layout(std140, set = 0, binding = 0) uniform Params {
-    vec4 box_max;    // xyz: dims - 1 (the box in voxel coordinates); w: brick size in voxels
+    vec4 box_max;    // xyz: dims - 1 (the box in voxel coordinates); w: brick edge in voxels
     vec4 inv_dims;   // xyz: 1 / dims; w: table entries
     vec4 spacing;    // xyz: world units per voxel; w: step in voxels (option `step`)
     vec4 tf_map;     // x, y: normalised texel -> table coordinate t = x * (v - y); z: ert threshold; w: table length (world) for PREINT
@@ -30,10 +30,12 @@ layout(std140, set = 0, binding = 0) uniform Params {
 
 layout(set = 0, binding = 1) uniform sampler3D volume_tex;
 layout(set = 0, binding = 2) uniform sampler1D tf_tex;
-// Per-brick flag: 1 when some sample in it may have attenuation > 0.
-layout(set = 0, binding = 3) uniform usamplerBuffer brick_flags;
-// Counters, cleared every frame: samples taken, largest per ray, bricks stepped over, rays.
-layout(std430, set = 0, binding = 4) buffer Counters { uint total_samples; uint max_samples; uint skipped_bricks; uint rays; } counters;
+// Per brick: 0 when some sample in it may have attenuation > 0, else the
+// Chebyshev distance in bricks to the nearest such brick (at most 255).
+layout(set = 0, binding = 3) uniform usamplerBuffer brick_distance;
+// Counters, cleared every frame: samples taken, largest per ray, bricks
+// stepped over, rays, leaps.
+layout(std430, set = 0, binding = 4) buffer Counters { uint total_samples; uint max_samples; uint skipped_bricks; uint rays; uint leaps; } counters;
 layout(set = 0, binding = 5) uniform sampler2D preint_tex;
 
 layout(push_constant) uniform Frame {
@@ -106,7 +108,11 @@ vec4 march(vec3 a, vec3 b, out uint samples) {
 #ifdef SKIP
     float bsize = params.box_max.w;
     ivec3 bgrid = ivec3(params.bricks.xyz);
+    // Axes the ray is parallel to never bound a leap.
+    vec3 inv_dir = 1.0 / dir;
+    bvec3 moving = notEqual(dir, vec3(0.0));
     uint skipped = 0u;
+    uint leaps = 0u;
     int check_at = 0;   // the next step whose brick must be looked up
 #endif
 #ifdef PREINT
@@ -120,29 +126,36 @@ vec4 march(vec3 a, vec3 b, out uint samples) {
     while (k < steps) {
         int m = min(stride, steps - k);
 #ifdef SKIP
-        // The brick holding the step's middle, looked up once per brick: the
-        // steps up to the first middle past the brick's exit lie in it (a
-        // box is convex). An unflagged brick's samples (its trilinear
-        // neighbourhood, see the flags) have zero attenuation: all its steps
-        // are skipped in one iteration, the same steps as one by one.
+        // The brick holding the step's middle, looked up once per brick. At
+        // distance d it is the centre of an empty cube of 2d - 1 bricks (the
+        // brick alone for d = 0, 1): the steps up to the first middle past
+        // the cube's exit lie in it (a box is convex). An empty cube's steps
+        // (their trilinear neighbourhoods have zero attenuation) are skipped
+        // in one iteration, the same steps as one by one; a flagged brick's
+        // are sampled without further lookups.
         if (k >= check_at) {
             vec3 um = a + dir * (h * (float(k) + 0.5));
             ivec3 bc = clamp(ivec3(floor(um / bsize)), ivec3(0), bgrid - 1);
-            vec3 lo = vec3(bc) * bsize;
-            vec3 far_face = mix(lo, lo + bsize, greaterThan(dir, vec3(0.0)));
-            vec3 s_axis = (far_face - a) / dir;   // inf or NaN on axes the ray is parallel to
-            float s_exit = 1e30;
-            for (int ax = 0; ax < 3; ++ax) {
-                if (dir[ax] != 0.0) s_exit = min(s_exit, s_axis[ax]);
-            }
+            uint dist = texelFetch(brick_distance, bc.x + bgrid.x * (bc.y + bgrid.y * bc.z)).r;
+            float reach = float(max(dist, 1u) - 1u) * bsize;
+            vec3 lo = vec3(bc) * bsize - reach;
+            vec3 far_face = mix(lo, lo + bsize + 2.0 * reach, greaterThan(dir, vec3(0.0)));
+            vec3 s_axis = mix(vec3(1e30), (far_face - a) * inv_dir, moving);
+            float s_exit = min(min(s_axis.x, s_axis.y), s_axis.z);
             int next = min(int(floor(s_exit / h - 0.5)) + 1, steps);
-            if (texelFetch(brick_flags, bc.x + bgrid.x * (bc.y + bgrid.y * bc.z)).r == 0u) {
-                skipped += 1u;
+            if (dist != 0u) {
+                int last = max(k + 1, next);
+                // Bricks passed through between the first and the last
+                // skipped middles: one plus the brick faces crossed.
+                ivec3 b_last = ivec3(floor((a + dir * (h * (float(last) - 0.5))) / bsize));
+                ivec3 crossed = abs(b_last - ivec3(floor(um / bsize)));
+                skipped += uint(1 + crossed.x + crossed.y + crossed.z);
+                leaps += 1u;
 #ifdef PREINT
                 t_prev = -1.0;
                 t_prev2 = -1.0;
 #endif
-                k = max(k + 1, next);
+                k = last;
                 continue;
             }
             check_at = max(next, k + 1);
@@ -157,7 +170,14 @@ vec4 march(vec3 a, vec3 b, out uint samples) {
         float t = table_coord(u);
         samples += 1u;
 #ifdef PREINT
-        if (t_prev < 0.0) { t_prev = table_coord(u - dir * (h * float(m))); samples += 1u; }
+        // After a skip: the segment's front, and for a unit step the sample
+        // before it (the curvature term's), as the march without skipping
+        // has them, so skipping leaves the image unchanged.
+        if (t_prev < 0.0) {
+            t_prev = table_coord(u - dir * (h * float(m)));
+            samples += 1u;
+            if (m == 1 && k >= 1) { t_prev2 = table_coord(u - dir * (h * 2.0)); samples += 1u; }
+        }
         // Table over (front, back) for a segment of params.tf_map.w world
         // units: colour premultiplied and optical depth, scaled to this step.
         vec2 fb = vec2(t_prev, t);
@@ -199,6 +219,7 @@ vec4 march(vec3 a, vec3 b, out uint samples) {
     }
 #ifdef SKIP
     atomicAdd(counters.skipped_bricks, skipped);
+    atomicAdd(counters.leaps, leaps);
 #endif
     atomicAdd(counters.total_samples, samples);
     atomicMax(counters.max_samples, samples);

@@ -57,6 +57,69 @@ pub fn max_attenuation(tf: &TransferFunction, lo: f64, hi: f64) -> f64 {
     [tf.eval(lo).1, tf.eval(hi).1].into_iter().chain(inside).fold(0.0, f64::max)
 }
 
+/// Bricks along x, y, z for `dims` samples: brick b covers voxel
+/// coordinates [b·brick, (b + 1)·brick] (its samples and the next brick's
+/// first layer: the trilinear neighbourhood of every point in it).
+pub fn brick_grid(dims: [usize; 3], brick: usize) -> [usize; 3] {
+    dims.map(|d| d.saturating_sub(1).div_ceil(brick).max(1))
+}
+
+/// Per brick (x fastest): whether the transfer function has attenuation
+/// somewhere over the brick's sample range (a trilinear value never leaves
+/// the range of its corners). With `brick` 1 the bricks are the cells.
+/// Min and max are reduced one axis at a time: each sample is read about
+/// once.
+pub fn attenuating_bricks(vol: &Volume, tf: &TransferFunction, brick: usize) -> Vec<bool> {
+    let dims = vol.dims();
+    let grid = brick_grid(dims, brick);
+    // The samples of brick b along one axis of n samples.
+    let span = |b: usize, n: usize| (b * brick).min(n - 1)..=((b + 1) * brick).min(n - 1);
+    let mut lo = Vec::with_capacity(grid[0] * dims[1] * dims[2]);
+    let mut hi = Vec::with_capacity(lo.capacity());
+    for k in 0..dims[2] {
+        for j in 0..dims[1] {
+            for b in 0..grid[0] {
+                let (mut mn, mut mx) = (f64::INFINITY, f64::NEG_INFINITY);
+                for i in span(b, dims[0]) {
+                    let v = vol.value(i, j, k);
+                    mn = mn.min(v);
+                    mx = mx.max(v);
+                }
+                lo.push(mn);
+                hi.push(mx);
+            }
+        }
+    }
+    // Reduce along y, then z: [gx, ny, nz] -> [gx, gy, nz] -> [gx, gy, gz].
+    let reduce = |lo: &[f64], hi: &[f64], shape: [usize; 3], axis: usize| {
+        let mut out_shape = shape;
+        out_shape[axis] = grid[axis];
+        let count = out_shape[0] * out_shape[1] * out_shape[2];
+        let (mut olo, mut ohi) = (Vec::with_capacity(count), Vec::with_capacity(count));
+        for z in 0..out_shape[2] {
+            for y in 0..out_shape[1] {
+                for x in 0..out_shape[0] {
+                    let (mut mn, mut mx) = (f64::INFINITY, f64::NEG_INFINITY);
+                    let p = [x, y, z];
+                    for s in span(p[axis], shape[axis]) {
+                        let mut q = p;
+                        q[axis] = s;
+                        let n = q[0] + shape[0] * (q[1] + shape[1] * q[2]);
+                        mn = mn.min(lo[n]);
+                        mx = mx.max(hi[n]);
+                    }
+                    olo.push(mn);
+                    ohi.push(mx);
+                }
+            }
+        }
+        (olo, ohi, out_shape)
+    };
+    let (lo, hi, shape) = reduce(&lo, &hi, [grid[0], dims[1], dims[2]], 1);
+    let (lo, hi, _) = reduce(&lo, &hi, shape, 2);
+    lo.iter().zip(&hi).map(|(&mn, &mx)| max_attenuation(tf, mn, mx) > 0.0).collect()
+}
+
 /// The ray's parameter interval inside the axis-aligned box [min, max]
 /// (slab test), or `None` when it misses. Rays parallel to a slab are inside
 /// it iff their origin is.
@@ -143,20 +206,7 @@ struct Walker<'a> {
 impl<'a> Walker<'a> {
     fn new(vol: &'a Volume, tf: &'a TransferFunction) -> Walker<'a> {
         let dims = vol.dims();
-        let c = [dims[0] - 1, dims[1] - 1, dims[2] - 1];
-        let visible: Vec<bool> = (0..c[0] * c[1] * c[2])
-            .into_par_iter()
-            .map(|n| {
-                let (i, j, k) = (n % c[0], (n / c[0]) % c[1], n / (c[0] * c[1]));
-                let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-                for corner in 0..8 {
-                    let v = vol.value(i + (corner & 1), j + ((corner >> 1) & 1), k + (corner >> 2));
-                    lo = lo.min(v);
-                    hi = hi.max(v);
-                }
-                max_attenuation(tf, lo, hi) > 0.0
-            })
-            .collect();
+        let visible = attenuating_bricks(vol, tf, 1);
         Walker { vol, tf, dims, spacing: vol.spacing().into(), origin: vol.origin().into(), visible }
     }
 
@@ -274,6 +324,13 @@ mod tests {
         Volume::new("test", "ramp", dims, spacing, origin, Samples::F32(s)).unwrap()
     }
 
+    #[test]
+    fn brick_grid_covers_every_cell() {
+        assert_eq!(brick_grid([9, 17, 2], 8), [1, 2, 1]);
+        assert_eq!(brick_grid([10, 3, 2], 2), [5, 1, 1]);
+        assert_eq!(brick_grid([256, 256, 133], 2), [128, 128, 66]);
+    }
+
     /// A linear field is reproduced exactly by trilinear interpolation, so the
     /// whole chord is one linear segment: the closed form is
     /// `integrate_segment` over the chord.
@@ -344,5 +401,42 @@ mod tests {
         assert_eq!(cells, 3 * 2 * 2);
         assert_eq!(max_attenuation(&tf, 0.1, 0.4), 0.0);
         assert!(max_attenuation(&tf, 0.1, 0.6) > 0.0);
+    }
+
+    proptest::proptest! {
+        /// The axis-by-axis reduction flags exactly the bricks whose own
+        /// sample range (read directly) has attenuation.
+        #[test]
+        fn attenuating_bricks_match_each_bricks_own_range(
+            nx in 2usize..12, ny in 2usize..12, nz in 2usize..12, brick in 1usize..6, seed in 0u64..1000
+        ) {
+            let tf = TransferFunction {
+                name: "t".into(),
+                points: vec![
+                    ControlPoint { scalar: 0.0, color: [1.0; 3], attenuation: 0.0 },
+                    ControlPoint { scalar: 0.8, color: [1.0; 3], attenuation: 0.0 },
+                    ControlPoint { scalar: 1.0, color: [1.0; 3], attenuation: 1.0 },
+                ],
+            };
+            let hash = |p: [f64; 3]| ((p[0] * 12.9898 + p[1] * 78.233 + p[2] * 37.719 + seed as f64).sin() * 43758.5453).fract().abs();
+            let vol = ramp_volume([nx, ny, nz], [1.0; 3], hash);
+            let grid = brick_grid([nx, ny, nz], brick);
+            let flags = attenuating_bricks(&vol, &tf, brick);
+            proptest::prop_assert_eq!(flags.len(), grid[0] * grid[1] * grid[2]);
+            for (n, &flag) in flags.iter().enumerate() {
+                let b = [n % grid[0], n / grid[0] % grid[1], n / (grid[0] * grid[1])];
+                let span = |a: usize, d: usize| (b[a] * brick).min(d - 1)..=((b[a] + 1) * brick).min(d - 1);
+                let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+                for k in span(2, nz) {
+                    for j in span(1, ny) {
+                        for i in span(0, nx) {
+                            lo = lo.min(vol.value(i, j, k));
+                            hi = hi.max(vol.value(i, j, k));
+                        }
+                    }
+                }
+                proptest::prop_assert_eq!(flag, max_attenuation(&tf, lo, hi) > 0.0, "brick {:?}", b);
+            }
+        }
     }
 }
