@@ -7,7 +7,6 @@ const SOURCES: &[(&str, &str)] = &[
     ("common/exit.glsl", include_str!("../shaders/common/exit.glsl")),
     ("common/dispatch.glsl", include_str!("../shaders/common/dispatch.glsl")),
     ("common/clip.glsl", include_str!("../shaders/common/clip.glsl")),
-    ("common/entry.glsl", include_str!("../shaders/common/entry.glsl")),
     ("cell_projection/vicp.vert", include_str!("../shaders/cell_projection/vicp.vert")),
     ("cell_projection/vicp.frag", include_str!("../shaders/cell_projection/vicp.frag")),
     ("cell_projection/record.glsl", include_str!("../shaders/cell_projection/record.glsl")),

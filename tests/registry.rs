@@ -87,6 +87,7 @@ fn create_box(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
             front_face: raw::FrontFace::COUNTER_CLOCKWISE,
             targets: &[ColorTarget::rgba32f(Blend::PremultipliedOver)],
             depth_test: false,
+            depth_clamp: false,
             geometry: None,
             push_constant_bytes: std::mem::size_of::<BoxConstants>() as u32,
             descriptor_layouts: &[],

@@ -17,7 +17,9 @@ void main() {
     float len;
     float sb;
     if (known_exit(len, sb)) {
-        out_color = integrate_segment(v_sf, sb, len);
+        float sf = v_sf;
+        start_at_near(v_rel, sf, len, sb);
+        out_color = integrate_segment(sf, sb, len);
     } else {
         out_color = vec4(0.0);
     }

@@ -1,16 +1,13 @@
-// Near caps (cap.vert): this fragment lies on the section of a cell just
-// behind the near plane. If the ray entered the cell in front of the near
-// plane (no entry plane between the fragment and the near plane), the
-// cell's entry face was clipped and its segment is integrated here, from
-// the near plane to the exit (stopped at the far plane); otherwise the
-// entry face is drawn and this fragment adds nothing.
+// Near caps (cap.vert): this fragment lies on the section, just behind the
+// near plane, of a cell that holds the eye (near.rs): the ray starts in the
+// cell, none of whose faces is drawn, and its segment is integrated here,
+// from the near plane to the exit (stopped at the far plane).
 #include "common/frame.glsl"
 #include "common/integrate.glsl"
 #include "common/clip.glsl"
 #define EXIT_VEC vec4
 #define EXIT_N 4
 #include "common/exit.glsl"
-#include "common/entry.glsl"
 #ifdef CAP_PIECES
 #include "cell_projection/atfs.glsl"
 #endif
@@ -33,11 +30,6 @@ void main() {
     vec3 dir = ray_direction(frame.eye.xyz + in_rel);
     // Distance back to the near plane (the cap lies just behind it).
     float back = max(-near_distance(in_rel, dir), 0.0);
-    float entry_len;
-    float s_entry;
-    if (entry_point(in_d, in_s, in_w, in_sf, in_g, in_rel, entry_len, s_entry) && entry_len <= back) {
-        return;
-    }
     // Extend the segment back to the near plane (the scalar is linear).
     float rate = len > 0.0 ? (sb - in_sf) / len : 0.0;
     float sf = in_sf - rate * back;

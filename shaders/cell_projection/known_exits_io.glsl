@@ -41,6 +41,7 @@ void emit_vertex(vec3 pos, int k, float c, float sf, float b, uint exits) {
     v_rel = pos - frame.eye.xyz;
     v_exits = exits;
     gl_Position = frame.view_proj * vec4(pos, 1.0);
+    gl_ClipDistance[0] = eye_plane_distance(gl_Position);
 }
 #else
 // This fragment's exit, stopped at the far plane: distance and scalar

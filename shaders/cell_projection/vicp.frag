@@ -20,7 +20,9 @@ void main() {
     float sb;
     if (exit_point(in_d, in_s, in_w, in_sf, in_g, in_rel, len, sb)) {
         clamp_to_far(in_rel, in_sf, len, sb);
-        out_color = integrate_segment(in_sf, sb, len);
+        float sf = in_sf;
+        start_at_near(in_rel, sf, len, sb);
+        out_color = integrate_segment(sf, sb, len);
     } else {
         out_color = vec4(0.0);
     }

@@ -43,4 +43,5 @@ void main() {
     out_g = dot(in_grad, rel);
     out_rel = rel;
     gl_Position = frame.view_proj * vec4(in_pos, 1.0);
+    gl_ClipDistance[0] = eye_plane_distance(gl_Position);
 }

@@ -4,7 +4,7 @@
 // along the viewing ray through the fragment (unit direction), from the
 // fragment's point eye + rel. The f64 reference clips every ray to the same
 // depth range, so a segment that crosses the far plane stops there, and a
-// cell cut by the near plane is integrated from it (near caps, cap.frag).
+// cell cut by the near plane is integrated from it (start_at_near).
 
 vec4 clip_row(int r) {
     return vec4(frame.view_proj[0][r], frame.view_proj[1][r], frame.view_proj[2][r], frame.view_proj[3][r]);
@@ -22,6 +22,24 @@ float near_distance(vec3 rel, vec3 dir) {
 
 float far_distance(vec3 rel, vec3 dir) {
     return plane_distance(clip_row(2) - clip_row(3), rel, dir);
+}
+
+// Starts the segment [0, len] from the fragment at the near plane when the
+// fragment lies in front of it, the scalar at its start moved alike. The
+// cell pipelines draw without near/far clipping (depth clamp), so a cell
+// cut by the near plane keeps all its entry-face fragments and each
+// integrates from the later of its entry point and the near plane: the
+// result is continuous across the section, where a clipped face (its
+// vertices snapped to the rasterizer's sub-pixel grid) plus a cap for the
+// cut part left single pixels with the cell twice or never. A fragment
+// whose whole segment lies in front of the plane keeps length 0.
+void start_at_near(vec3 rel, inout float s_front, inout float len, float s_back) {
+    float t = near_distance(rel, ray_direction(frame.eye.xyz + rel));
+    if (t > 0.0) {
+        float cut = min(t, len);
+        s_front += (s_back - s_front) * (len > 0.0 ? cut / len : 0.0);
+        len -= cut;
+    }
 }
 
 // Stops the segment [0, len] from the fragment at the far plane, the scalar

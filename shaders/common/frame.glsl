@@ -42,3 +42,12 @@ float distance_to_opposite_plane(vec3 plane3, vec3 dir) {
 float perspective_plane_ratio(vec3 plane3, vec3 rel) {
     return clamp(1.0 / (1.0 - dot(plane3, rel)), -frame.limits.y, frame.limits.y);
 }
+
+// The one clip plane of the cell pipelines (gl_ClipDistance[0]), which draw
+// without near/far clipping (depth clamp): just in front of the eye, at a
+// ten-thousandth of the longest cell edge, so that no vertex at or behind
+// the eye (clip w <= 0, e.g. the eye on a mesh vertex) reaches the
+// rasterizer. Orthographic views have no eye plane.
+float eye_plane_distance(vec4 clip_pos) {
+    return frame.eye.w > 0.5 ? clip_pos.w - 1e-4 * frame.view_dir.w : 1.0;
+}

@@ -196,6 +196,10 @@ pub enum Feature {
     PipelineStatistics,
     /// Storage-buffer writes and atomics in the fragment stage.
     FragmentStoresAndAtomics,
+    /// Primitives not clipped at the near and far planes, and a user clip
+    /// plane just in front of the eye instead (cell projection: a cell cut
+    /// by the near plane is integrated from it).
+    DepthClamp,
 }
 
 impl Feature {
@@ -205,6 +209,7 @@ impl Feature {
             Feature::GeometryShader => info.features.geometry_shader,
             Feature::PipelineStatistics => info.features.pipeline_statistics_query,
             Feature::FragmentStoresAndAtomics => info.features.fragment_stores_and_atomics,
+            Feature::DepthClamp => info.features.depth_clamp && info.features.shader_clip_distance,
         };
         if ok {
             Ok(())
@@ -218,6 +223,7 @@ impl Feature {
             Feature::GeometryShader => "the geometry-shader stage (geometryShader)",
             Feature::PipelineStatistics => "pipeline-statistics queries (pipelineStatisticsQuery)",
             Feature::FragmentStoresAndAtomics => "fragment-stage storage writes and atomics (fragmentStoresAndAtomics)",
+            Feature::DepthClamp => "primitives unclipped at the near and far planes (depthClamp, shaderClipDistance)",
         }
     }
 }

@@ -497,13 +497,7 @@ fn near_plane_cut() -> StressCase {
     StressCase {
         name: "near-cut".into(),
         description: "oblique view of the 8^3 grid with the near plane through its middle".into(),
-        allowances: vec![Allowance::all(
-            1e-2,
-            "near caps (src/algo/cell_projection/near.rs) integrate the cut cells from the near plane, but single \
-             pixels along the section still differ from the f64 reference: measured max 7.7e-3 at 64x64 with every \
-             tet method, preint and ppi (RMSE <= 2e-4; before the caps the whole cut cell was missing, up to \
-             1 - exp(-tau_max L)); not yet explained, allowance rounded up",
-        )],
+        allowances: Vec::new(),
         data: CaseData::TetMesh(mesh),
         camera,
         tf,

@@ -134,6 +134,10 @@ pub struct DeviceFeatures {
     pub vertex_pipeline_stores_and_atomics: bool,
     /// Storage images declared without a format qualifier can be written.
     pub shader_storage_image_write_without_format: bool,
+    /// Primitives are not clipped at the near and far planes (depth clamped).
+    pub depth_clamp: bool,
+    /// Vertex shaders can write gl_ClipDistance (user clip planes).
+    pub shader_clip_distance: bool,
 }
 
 impl DeviceFeatures {
@@ -158,6 +162,8 @@ impl DeviceFeatures {
                 have.shader_storage_image_write_without_format,
                 "shaderStorageImageWriteWithoutFormat",
             ),
+            (self.depth_clamp, have.depth_clamp, "depthClamp"),
+            (self.shader_clip_distance, have.shader_clip_distance, "shaderClipDistance"),
         ];
         pairs.iter().filter(|(need, has, _)| *need && !*has).map(|(_, _, n)| *n).collect()
     }
@@ -174,6 +180,8 @@ impl DeviceFeatures {
             fragment_stores_and_atomics: b(f.fragment_stores_and_atomics),
             vertex_pipeline_stores_and_atomics: b(f.vertex_pipeline_stores_and_atomics),
             shader_storage_image_write_without_format: b(f.shader_storage_image_write_without_format),
+            depth_clamp: b(f.depth_clamp),
+            shader_clip_distance: b(f.shader_clip_distance),
         }
     }
 
@@ -188,6 +196,8 @@ impl DeviceFeatures {
             .fragment_stores_and_atomics(self.fragment_stores_and_atomics)
             .vertex_pipeline_stores_and_atomics(self.vertex_pipeline_stores_and_atomics)
             .shader_storage_image_write_without_format(self.shader_storage_image_write_without_format)
+            .depth_clamp(self.depth_clamp)
+            .shader_clip_distance(self.shader_clip_distance)
     }
 }
 

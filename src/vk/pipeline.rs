@@ -99,6 +99,8 @@ pub struct GraphicsPipelineDesc<'a> {
     pub targets: &'a [ColorTarget],
     /// Depth test (less) and write against a `DEPTH_FORMAT` attachment.
     pub depth_test: bool,
+    /// No clipping at the near and far planes (the device's `depthClamp`).
+    pub depth_clamp: bool,
     pub push_constant_bytes: u32,
     /// Set layouts for sets 0, 1, ... (e.g. `&[set.layout]`).
     pub descriptor_layouts: &'a [vk::DescriptorSetLayout],
@@ -246,6 +248,7 @@ impl Pipeline {
             .polygon_mode(vk::PolygonMode::FILL)
             .cull_mode(desc.cull)
             .front_face(desc.front_face)
+            .depth_clamp_enable(desc.depth_clamp)
             .line_width(1.0);
         let multisample =
             vk::PipelineMultisampleStateCreateInfo::default().rasterization_samples(vk::SampleCountFlags::TYPE_1);

@@ -74,6 +74,8 @@ pub struct GraphicsState {
     pub targets: Vec<ColorTarget>,
     /// Depth test and write (`GraphicsPipelineDesc::depth_test`).
     pub depth_test: bool,
+    /// No near/far clipping (`GraphicsPipelineDesc::depth_clamp`).
+    pub depth_clamp: bool,
 }
 
 #[derive(Debug, Clone, PartialEq, Eq, Hash)]
@@ -159,7 +161,8 @@ impl PipelineKey {
                 }
                 // Written only when on, so keys without depth keep their ids.
                 let depth = if s.depth_test { ";depth=1" } else { "" };
-                let _ = write!(out, "]{depth};push={};", g.push_constant_bytes);
+                let clamp = if s.depth_clamp { ";clamp=1" } else { "" };
+                let _ = write!(out, "]{depth}{clamp};push={};", g.push_constant_bytes);
                 put_sets(&mut out, &g.sets);
             }
             PipelineKey::Compute(c) => {
@@ -266,6 +269,7 @@ impl PipelineCache {
                     front_face: s.front_face,
                     targets: &s.targets,
                     depth_test: s.depth_test,
+                    depth_clamp: s.depth_clamp,
                     push_constant_bytes: g.push_constant_bytes,
                     descriptor_layouts: &raw_layouts,
                 };

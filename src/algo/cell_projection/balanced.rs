@@ -93,7 +93,7 @@ pub const CODE_MAX_PIECES: u32 = 1 << (24 - CODE_PIECE_SHIFT);
 /// which never crosses it): a property of the tet and the eye, not of the
 /// fragment. The fragment stage used to recover it from interpolated values
 /// and their screen-space derivatives (`exit_planes` in
-/// `shaders/common/exit.glsl`, still VICP's and the near caps' rule); known
+/// `shaders/common/exit.glsl`, still VICP's rule); known
 /// per tet, it costs the fragment nothing and rounding cannot flip it.
 #[inline]
 pub fn exit_mask(c: [f32; 4], limit: f32) -> u32 {

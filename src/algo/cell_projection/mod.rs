@@ -485,6 +485,13 @@ pub(crate) fn build_pipeline(
             front_face: ENTRY_FACE_WINDING,
             targets: vec![ColorTarget::rgba32f(Blend::PremultipliedOver)],
             depth_test: false,
+            // Faces are not clipped at the near and far planes: a cell cut
+            // by the near plane keeps every entry-face fragment, and each
+            // integrates from the near plane where its point lies in front
+            // of it (common/clip.glsl `start_at_near`). The one clip plane
+            // is the vertex stage's, just in front of the eye
+            // (common/frame.glsl `eye_plane_distance`).
+            depth_clamp: true,
         },
         push_constant_bytes: std::mem::size_of::<FrameConstants>() as u32,
         sets: std::iter::once(tables.set.desc.clone()).chain(extra_sets.iter().cloned()).collect(),

@@ -1,18 +1,22 @@
-//! Near caps: cells cut by the camera's near plane, for every tetrahedral
-//! cell-projection method. A cell is drawn from its entry faces; where the
-//! near plane cuts it, the rasterizer clips the part of those faces in
-//! front of the plane, and every ray that enters the cell there would lose
-//! the cell's segment from the near plane to its exit (the f64 reference
-//! integrates from the near plane). So each frame the CPU finds the cells
-//! the near plane cuts (none unless the plane meets the mesh's bounding
-//! box: orbit views pay one box test) and sends the section of each by a
-//! plane just behind the near plane (`CAP_OFFSET`, so it survives clipping)
-//! as one or two triangles, with the records `cap.frag` needs at each
-//! corner. They are drawn after all cells: on any ray the segment from the
-//! near plane is the first one, so "over" puts it on top. `cap.frag` adds
-//! the segment only where no entry plane lies between the cap and the near
-//! plane (elsewhere the entry face is drawn) and stops it at the far plane.
-//! The per-frame bytes are counted with the cells' records.
+//! Near caps: the cells around the eye, for every tetrahedral
+//! cell-projection method. A cell is drawn from its entry faces, unclipped
+//! at the near plane (depth clamp): a face fragment in front of the plane
+//! integrates from it (`start_at_near`, common/clip.glsl), so a cell the
+//! near plane cuts needs nothing more, unless it holds the eye: every face
+//! of such a cell faces away from the eye, none is drawn, and every ray
+//! starts inside it. So each frame the CPU finds the cells that hold the
+//! eye (none unless the eye is in the mesh's bounding box) and reach past
+//! the near plane, and sends the section of each by a plane just behind the
+//! near plane (`CAP_OFFSET`) as one or two triangles, with the records
+//! `cap.frag` needs at each corner. They are drawn after all cells: on any
+//! ray the segment from the near plane is the first one, so "over" puts it
+//! on top. `cap.frag` integrates from the near plane to the exit, stopped
+//! at the far plane. (Caps for every cut cell, with a test for where the
+//! entry face takes over, left single pixels along the section with the
+//! cell twice or never: the clipped faces' vertices are snapped to the
+//! rasterizer's sub-pixel grid and the cap's test used interpolated
+//! values with the same error.) The per-frame bytes are counted with the
+//! cells' records.
 
 use std::sync::Arc;
 
@@ -146,11 +150,9 @@ impl NearCaps {
         let fwd = [fwd.x, fwd.y, fwd.z];
         let depth = |p: [f64; 3]| dot(sub(p, eye), fwd);
         let cap = camera.near + CAP_OFFSET_NEAR * camera.near.abs() + CAP_OFFSET_RANGE * (camera.far - camera.near);
-        // Quick reject: the plane misses the points' bounding box.
+        // Quick reject: the eye is outside the points' bounding box.
         let (lo, hi) = self.bounds;
-        let corners = (0..8).map(|i| depth([if i & 1 == 0 { lo[0] } else { hi[0] }, if i & 2 == 0 { lo[1] } else { hi[1] }, if i & 4 == 0 { lo[2] } else { hi[2] }]));
-        let (dmin, dmax) = corners.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), d| (a.min(d), b.max(d)));
-        if !(dmin < cap && cap < dmax) {
+        if (0..3).any(|k| eye[k] < lo[k] || eye[k] > hi[k]) {
             return;
         }
         let points = &self.points;
@@ -159,10 +161,10 @@ impl NearCaps {
             .par_iter()
             .enumerate()
             .filter(|(_, tet)| {
-                let z = tet.map(|i| depth(points[i as usize]));
-                let zmin = z.iter().copied().fold(f64::INFINITY, f64::min);
+                let v = tet.map(|i| points[i as usize]);
+                let z = v.map(depth);
                 let zmax = z.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-                zmin < cap && cap < zmax
+                cap < zmax && holds(&v, eye)
             })
             .map(|(t, _)| t)
             .collect();
@@ -219,6 +221,18 @@ impl NearCaps {
     pub fn vertices(&self) -> usize {
         self.vertices
     }
+}
+
+/// Whether the tet holds point `p` (inside or on its boundary, up to
+/// rounding): every barycentric coordinate >= -1e-9. The eye on a shared
+/// vertex, edge or face is held by all the tets around it; each ray from
+/// it runs into one of them, whose section it crosses.
+fn holds(v: &[[f64; 3]; 4], p: [f64; 3]) -> bool {
+    let Some((grad, _)) = barycentric(v) else { return false };
+    let r = sub(p, v[0]);
+    let l: [f64; 3] = std::array::from_fn(|k| dot(grad[k + 1], r));
+    let l0 = 1.0 - l[0] - l[1] - l[2];
+    l0 >= -1e-9 && l.iter().all(|&x| x >= -1e-9)
 }
 
 /// The section of a tet (vertices `v` at view depths `z`) by the plane at

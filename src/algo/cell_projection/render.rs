@@ -20,7 +20,7 @@ use super::sort::{CentroidSort, SortKind, Sorter};
 use super::{centroids_relative_f32, render_origin, CellProjector, DrawSettings, ExitTolerances, FrameSetup, Interpolation, MeshScale, Primitives};
 use crate::algo::integrate::{IntegrationTables, Integrator};
 use crate::algo::method::{
-    DataKind, MethodInfo, MethodInputs, OptionSpec, OptionValues, Options, Phases, Published, PublishedFigure, RenderMethod, SceneData, View, Work,
+    DataKind, Feature, MethodInfo, MethodInputs, OptionSpec, OptionValues, Options, Phases, Published, PublishedFigure, RenderMethod, SceneData, View, Work,
 };
 use crate::mesh::{TetGeometry, TetMesh};
 use crate::vk::{CommandRecorder, Context, Image, UploadCounter, VkResult};
@@ -185,7 +185,7 @@ pub const fn method_info(
         data: DataKind::TetMesh,
         summary,
         options,
-        features: &[],
+        features: &[Feature::DepthClamp],
         sweep: SWEEP,
         compare: COMPARE,
         stress: STRESS,
@@ -352,7 +352,7 @@ pub struct CellProjection {
     reused: bool,
     /// What the last prepared (not re-used) frame skipped.
     last_cull: Option<FrameCull>,
-    /// Cells cut by the near plane (`near`).
+    /// The cells around the eye cut by the near plane (`near`).
     near: super::near::NearCaps,
     ctx: Arc<Context>,
 }
@@ -453,8 +453,8 @@ impl RenderMethod for CellProjection {
             };
             let t2 = Instant::now();
             self.projector.pack(order, &setup);
-            // Near caps are per-frame records too (none unless the near plane
-            // cuts the mesh); a re-used frame keeps the ones on the device.
+            // Near caps are per-frame records too (none unless the eye is in
+            // the mesh); a re-used frame keeps the ones on the device.
             self.near.prepare(camera, &setup, &*self.projector);
             let t3 = Instant::now();
             if self.culler.enabled() {
@@ -505,7 +505,7 @@ impl RenderMethod for CellProjection {
     }
 
     fn work(&self) -> Work {
-        // Near caps (cells cut by the near plane) are per-frame cell data too.
+        // Near caps (the cells around the eye) are per-frame cell data too.
         let work = Work::default()
             .with("cells", self.projector.cells() as u64)
             .with("cells_drawn", self.projector.drawn() as u64)

@@ -23,7 +23,7 @@ use super::resident::{cells_and_order_set, resident_pipeline, upload_cells, FLOA
 use super::sort::SortKind;
 use super::{cells_f32, centroids_relative_f32, render_origin, CellProjector, FrameSetup, DrawSettings, StaticIndices, MAX_INDICES_PER_CELL};
 use crate::algo::integrate::IntegrationTables;
-use crate::algo::method::{DataKind, MethodInfo, MethodInputs, Options, RenderMethod};
+use crate::algo::method::{DataKind, Feature, MethodInfo, MethodInputs, Options, RenderMethod};
 use crate::mesh::{TetGeometry, TetMesh};
 use crate::vk::{
     CommandRecorder, Context, DescriptorSet, Pipeline, PipelineKey, TexelBuffer, UploadCounter,
@@ -40,7 +40,7 @@ pub const METHOD: MethodInfo = MethodInfo {
     data: DataKind::TetMesh,
     summary: "resident with the centroid sort on the device (compute radix sort): only the camera crosses per frame",
     options: render::KNOWN_EXITS_OPTIONS_WITHOUT_CULL,
-    features: &[],
+    features: &[Feature::DepthClamp],
     sweep: SWEEP,
     compare: render::COMPARE,
     stress: STRESS,

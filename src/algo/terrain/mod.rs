@@ -175,6 +175,7 @@ pub fn mesh_key(
             front_face: raw::FrontFace::COUNTER_CLOCKWISE,
             targets: vec![ColorTarget::rgba32f(if settings.coverage { Blend::Additive } else { Blend::None })],
             depth_test: !settings.coverage,
+            depth_clamp: false,
         },
         push_constant_bytes: PUSH_BYTES,
         sets,
