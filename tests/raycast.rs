@@ -137,11 +137,11 @@ fn both_variants_match_the_f64_reference_and_each_other() {
     assert!(w["rays"] > 0 && w["samples"] >= w["rays"] && w["max_samples_per_ray"] <= 2 * 36 + 2, "{w:?}");
 }
 
-#[test]
-fn skipping_and_early_termination_keep_the_image_and_save_samples() {
+/// The two-core blob with a transfer function transparent below 0.7 (only
+/// the two cores are visible, most bricks are empty) and opaque enough that
+/// some rays pass 0.95, seen from the orbit.
+fn cores_scene() -> (Dataset, TransferFunction, Camera) {
     let d = dataset(blob([48, 40, 40], [1.0, 1.0, 1.0]));
-    // Transparent below 0.7 (only the two cores are visible, most bricks
-    // are empty) and opaque enough that some rays pass 0.95.
     let diag = d.bounds().diagonal();
     let pt = |scalar: f64, color: [f64; 3], depth: f64| ControlPoint { scalar, color, attenuation: depth / diag };
     let tf = TransferFunction {
@@ -149,6 +149,12 @@ fn skipping_and_early_termination_keep_the_image_and_save_samples() {
         points: vec![pt(0.7, [0.2, 0.9, 0.4], 0.0), pt(0.8, [1.0, 0.8, 0.2], 60.0), pt(1.1, [1.0, 0.2, 0.1], 300.0)],
     };
     let cam = orbit(&d);
+    (d, tf, cam)
+}
+
+#[test]
+fn skipping_and_early_termination_keep_the_image_and_save_samples() {
+    let (d, tf, cam) = cores_scene();
     for method in ["raycast-fragment", "raycast-compute"] {
         let full = render(&format!("{method}:skip=off,ert=1"), &d, &tf, cam);
         let skip = render(&format!("{method}:skip=on,ert=1"), &d, &tf, cam);
@@ -188,14 +194,7 @@ fn skipping_and_early_termination_keep_the_image_and_save_samples() {
 /// samples, and a leap passes many bricks.
 #[test]
 fn leaps_over_empty_bricks_keep_the_image_at_every_brick_size() {
-    let d = dataset(blob([48, 40, 40], [1.0, 1.0, 1.0]));
-    let diag = d.bounds().diagonal();
-    let pt = |scalar: f64, color: [f64; 3], depth: f64| ControlPoint { scalar, color, attenuation: depth / diag };
-    let tf = TransferFunction {
-        name: "cores".into(),
-        points: vec![pt(0.7, [0.2, 0.9, 0.4], 0.0), pt(0.8, [1.0, 0.8, 0.2], 60.0), pt(1.1, [1.0, 0.2, 0.1], 300.0)],
-    };
-    let cam = orbit(&d);
+    let (d, tf, cam) = cores_scene();
     for (base, bricks) in [("raycast-compute:ert=1", &[1, 2, 3, 8][..]), ("raycast-fragment:ert=1,integrator=preint,step=4", &[1, 2][..])] {
         let full = render(&format!("{base},skip=off"), &d, &tf, cam);
         let mut last_samples = u64::MAX;

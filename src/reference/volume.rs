@@ -384,16 +384,21 @@ mod tests {
         assert!((got[3] - a).abs() < 1e-12, "{got:?}");
     }
 
-    #[test]
-    fn transparent_cells_are_skipped_exactly() {
-        let tf = TransferFunction {
+    /// White, transparent up to `edge`, attenuation rising to `top` at 1.
+    fn transparent_below(edge: f64, top: f64) -> TransferFunction {
+        TransferFunction {
             name: "t".into(),
             points: vec![
                 ControlPoint { scalar: 0.0, color: [1.0; 3], attenuation: 0.0 },
-                ControlPoint { scalar: 0.5, color: [1.0; 3], attenuation: 0.0 },
-                ControlPoint { scalar: 1.0, color: [1.0; 3], attenuation: 4.0 },
+                ControlPoint { scalar: edge, color: [1.0; 3], attenuation: 0.0 },
+                ControlPoint { scalar: 1.0, color: [1.0; 3], attenuation: top },
             ],
-        };
+        }
+    }
+
+    #[test]
+    fn transparent_cells_are_skipped_exactly() {
+        let tf = transparent_below(0.5, 4.0);
         let vol = ramp_volume([8, 3, 3], [1.0; 3], |p| if p[0] > 3.0 { 1.0 } else { 0.0 });
         let w = Walker::new(&vol, &tf);
         let cells = w.visible.iter().filter(|&&v| v).count();
@@ -410,14 +415,7 @@ mod tests {
         fn attenuating_bricks_match_each_bricks_own_range(
             nx in 2usize..12, ny in 2usize..12, nz in 2usize..12, brick in 1usize..6, seed in 0u64..1000
         ) {
-            let tf = TransferFunction {
-                name: "t".into(),
-                points: vec![
-                    ControlPoint { scalar: 0.0, color: [1.0; 3], attenuation: 0.0 },
-                    ControlPoint { scalar: 0.8, color: [1.0; 3], attenuation: 0.0 },
-                    ControlPoint { scalar: 1.0, color: [1.0; 3], attenuation: 1.0 },
-                ],
-            };
+            let tf = transparent_below(0.8, 1.0);
             let hash = |p: [f64; 3]| ((p[0] * 12.9898 + p[1] * 78.233 + p[2] * 37.719 + seed as f64).sin() * 43758.5453).fract().abs();
             let vol = ramp_volume([nx, ny, nz], [1.0; 3], hash);
             let grid = brick_grid([nx, ny, nz], brick);
