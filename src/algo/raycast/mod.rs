@@ -98,7 +98,7 @@ use crate::reference::volume::{attenuating_bricks, brick_grid};
 use crate::scene::TransferFunction;
 use crate::volume::{Samples, Volume};
 use crate::vk::{
-    raw, upload_texture, Buffer, BufferDesc, CommandRecorder, Context, DescriptorKind, DescriptorResource, DescriptorSet,
+    raw, upload_static_texels, upload_texture, Buffer, BufferDesc, CommandRecorder, Context, DescriptorKind, DescriptorResource, DescriptorSet,
     DescriptorSetDesc, MemoryKind, Sampler, TexelBuffer, TextureDesc, UploadClass, UploadCounter,
 };
 
@@ -376,12 +376,7 @@ impl VolumeResources {
         let bricks_visible = distance.iter().filter(|&&d| d == 0).count();
         // A uniform texel buffer: a distance is one texel fetch (as a storage
         // buffer, a per-ray index made llvmpipe loop over the SIMD lanes).
-        let mut bricks = TexelBuffer::new(
-            ctx,
-            BufferDesc::upload("brick distances", distance.len() as u64, raw::BufferUsageFlags::UNIFORM_TEXEL_BUFFER),
-            raw::Format::R8_UINT,
-        )?;
-        bricks.buffer.write(0, &distance, counter, UploadClass::Static)?;
+        let bricks = upload_static_texels(ctx, "brick distances", &distance, raw::Format::R8_UINT, counter)?;
 
         let spacing = vol.spacing();
         // t = (v - offset) * scale / (hi - lo), offset lo / scale for the
