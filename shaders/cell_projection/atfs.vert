@@ -9,6 +9,7 @@
 // interval's bounds and its exactly linear colour and attenuation go to the
 // fragment stage flat.
 #include "common/frame.glsl"
+#include "common/clip.glsl"
 #include "cell_projection/record.glsl"
 #define KNOWN_EXITS_VERTEX
 #include "cell_projection/known_exits_io.glsl"

@@ -7,6 +7,7 @@
 // (With EXACT_PERSPECTIVE the CPU sends, in the same two slots, the plane
 // ratio u and the gradient term; see common/exit.glsl.)
 #include "common/frame.glsl"
+#include "common/clip.glsl"
 #include "cell_projection/record.glsl"
 #define KNOWN_EXITS_VERTEX
 #include "cell_projection/known_exits_io.glsl"

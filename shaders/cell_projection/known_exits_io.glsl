@@ -1,7 +1,8 @@
 // The varyings of the balanced family (balanced.vert, resident.vert and
 // atfs.vert feed balanced.frag and atfs.frag), declared once for both
-// stages: define KNOWN_EXITS_VERTEX in the vertex stage; the fragment stage
-// includes common/exit.glsl first. The exit planes are known per tet (a
+// stages: define KNOWN_EXITS_VERTEX in the vertex stage (which includes
+// common/clip.glsl first); the fragment stage includes common/exit.glsl
+// first. The exit planes are known per tet (a
 // flat mask, cell_projection/record.glsl), so only what the exit distance
 // and scalar need is interpolated: 9 floats with exact interpolation, 12
 // with the papers' (the robust choice from derivatives needed 17).

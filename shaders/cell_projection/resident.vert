@@ -8,6 +8,7 @@
 // emits its own values exactly as balanced.vert does, so balanced.frag
 // integrates them unchanged.
 #include "common/frame.glsl"
+#include "common/clip.glsl"
 #define KNOWN_EXITS_VERTEX
 #include "cell_projection/known_exits_io.glsl"
 

@@ -4,6 +4,7 @@
 // intersects the view ray with the plane of the face opposite this vertex;
 // the vertex lies on the face's two other planes (distance 0, scalar s_v).
 #include "common/frame.glsl"
+#include "common/clip.glsl"
 
 layout(location = 0) in vec3 in_pos;     // v
 layout(location = 1) in float in_s;      // s_v

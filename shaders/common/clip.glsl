@@ -24,6 +24,21 @@ float far_distance(vec3 rel, vec3 dir) {
     return plane_distance(clip_row(2) - clip_row(3), rel, dir);
 }
 
+// The one clip plane of the cell pipelines (gl_ClipDistance[0] of the
+// vertex stage), which draw without near/far clipping (depth clamp): just in
+// front of the eye, at a ten-thousandth of the longest cell edge but at
+// most half the near distance, so that no vertex at or behind the eye (clip
+// w <= 0, e.g. the eye on a mesh vertex) reaches the rasterizer and nothing
+// behind the near plane is clipped. Clip w is the depth along the view
+// direction; orthographic views have no eye plane.
+float eye_plane_distance(vec4 clip_pos) {
+    if (frame.eye.w < 0.5) {
+        return 1.0;
+    }
+    float near = near_distance(vec3(0.0), frame.view_dir.xyz);
+    return clip_pos.w - min(1e-4 * frame.view_dir.w, 0.5 * near);
+}
+
 // Starts the segment [0, len] from the fragment at the near plane when the
 // fragment lies in front of it, the scalar at its start moved alike. The
 // cell pipelines draw without near/far clipping (depth clamp), so a cell

@@ -42,20 +42,3 @@ float distance_to_opposite_plane(vec3 plane3, vec3 dir) {
 float perspective_plane_ratio(vec3 plane3, vec3 rel) {
     return clamp(1.0 / (1.0 - dot(plane3, rel)), -frame.limits.y, frame.limits.y);
 }
-
-// The one clip plane of the cell pipelines (gl_ClipDistance[0]), which draw
-// without near/far clipping (depth clamp): just in front of the eye, at a
-// ten-thousandth of the longest cell edge but at most half the near
-// distance, so that no vertex at or behind the eye (clip w <= 0, e.g. the
-// eye on a mesh vertex) reaches the rasterizer and nothing behind the near
-// plane is clipped. Orthographic views have no eye plane.
-float eye_plane_distance(vec4 clip_pos) {
-    if (frame.eye.w < 0.5) {
-        return 1.0;
-    }
-    // The near plane's depth: clip z = 0 there (row 2 of view_proj); clip w
-    // is the depth along the view direction.
-    vec4 row2 = vec4(frame.view_proj[0][2], frame.view_proj[1][2], frame.view_proj[2][2], frame.view_proj[3][2]);
-    float near = -dot(row2, vec4(frame.eye.xyz, 1.0)) / dot(row2.xyz, frame.view_dir.xyz);
-    return clip_pos.w - min(1e-4 * frame.view_dir.w, 0.5 * near);
-}

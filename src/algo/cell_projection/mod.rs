@@ -490,7 +490,7 @@ pub(crate) fn build_pipeline(
             // integrates from the near plane where its point lies in front
             // of it (common/clip.glsl `start_at_near`). The one clip plane
             // is the vertex stage's, just in front of the eye
-            // (common/frame.glsl `eye_plane_distance`).
+            // (common/clip.glsl `eye_plane_distance`).
             depth_clamp: true,
         },
         push_constant_bytes: std::mem::size_of::<FrameConstants>() as u32,
