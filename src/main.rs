@@ -56,6 +56,85 @@ enum Command {
     /// standard settings: results/<run-id>/ with summary.json, summary.csv,
     /// report.md, plots and a montage.
     Suite(SuiteArgs),
+    /// Paired A/B timing of two volbench binaries (or git revisions, built
+    /// here): the same benchmarks alternately in one sitting, each one's
+    /// speed ratio NEW/BASE with a 95 % interval; fails on a slowdown.
+    Ab(AbArgs),
+    /// Scaling study: red-refine a tet mesh level by level (x8 tets each)
+    /// and run each method on every level in a fresh process: time, phases,
+    /// tets/s, bytes, peak RSS; JSON, CSV, Markdown and log-log plots.
+    Scale(ScaleArgs),
+}
+
+#[derive(Args)]
+struct ScaleArgs {
+    /// A shipped tet mesh (`volbench list`) or a mesh file.
+    #[arg(long, value_name = "NAME|PATH")]
+    data: String,
+    /// Refinements after the input (level 0); each multiplies the tets by 8.
+    #[arg(long, default_value_t = 1)]
+    levels: usize,
+    /// A method spec to run (repeat); default: every tet-mesh method at its defaults.
+    #[arg(long = "method", value_name = "SPEC")]
+    methods: Vec<String>,
+    /// Image size, WxH.
+    #[arg(long, default_value = "512x512", value_parser = parse_size)]
+    size: (u32, u32),
+    /// Timed frames per run.
+    #[arg(long, default_value_t = 3)]
+    frames: usize,
+    /// Untimed warm-up frames per run.
+    #[arg(long, default_value_t = 1)]
+    warmup: usize,
+    /// Time the f64 reference on levels with at most this many tets (0: never).
+    #[arg(long, default_value_t = 1_000_000)]
+    reference_max_cells: u64,
+    /// Also run these peers on every level (`vtk`: its projected tetrahedra).
+    #[arg(long, value_name = "PEER", value_delimiter = ',')]
+    peers: Vec<String>,
+    /// Output directory (default results/scale-<dataset>).
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
+#[derive(Args)]
+struct AbArgs {
+    /// The baseline: a volbench binary, or a git revision to build.
+    #[arg(value_name = "BASE")]
+    base: String,
+    /// The candidate: a volbench binary, or a git revision to build.
+    #[arg(value_name = "NEW")]
+    new: String,
+    /// Only benchmarks of these methods or datasets (repeat; as the suite's).
+    #[arg(long, value_name = "NAME")]
+    filter: Vec<String>,
+    /// Run these specs instead of every method at its defaults (repeat).
+    #[arg(long, value_name = "SPEC")]
+    spec: Vec<String>,
+    /// Runs per binary and benchmark (each a fresh process).
+    #[arg(long, default_value_t = 10)]
+    pairs: usize,
+    /// Slowdown threshold in percent: fail where the interval lies wholly above 1 + this.
+    #[arg(long, default_value_t = 3.0)]
+    threshold: f64,
+    /// Image size of each run, WxH.
+    #[arg(long, default_value = "128x128", value_parser = parse_size)]
+    size: (u32, u32),
+    /// Timed frames per run (the run's sample is their median).
+    #[arg(long, default_value_t = 5)]
+    frames: usize,
+    /// Untimed warm-up frames per run.
+    #[arg(long, default_value_t = 1)]
+    warmup: usize,
+    /// Seed of the per-pair order (default: from the clock; recorded).
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Target directory for building revisions (default: CARGO_TARGET_DIR or ./target).
+    #[arg(long)]
+    target_dir: Option<PathBuf>,
+    /// Write ab.json and ab.md here.
+    #[arg(long)]
+    out: Option<PathBuf>,
 }
 
 #[derive(Args)]
@@ -561,6 +640,98 @@ fn suite(cli: &Cli, registry: &Registry, args: &SuiteArgs) -> Result<()> {
     Ok(())
 }
 
+fn ab(registry: &Registry, args: &AbArgs) -> Result<()> {
+    use volbench::harness::ab;
+    let seed = args.seed.unwrap_or_else(|| {
+        std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_nanos() as u64)
+    });
+    let settings = ab::AbSettings {
+        width: args.size.0,
+        height: args.size.1,
+        frames: args.frames,
+        warmup: args.warmup,
+        pairs: args.pairs,
+        threshold: args.threshold / 100.0,
+        seed,
+    };
+    settings.validate()?;
+    let benches = ab::benchmarks(registry, &args.filter, &args.spec)?;
+    if let Some(dir) = &args.out {
+        check_out_dir(dir, &["ab.json", "ab.md"])?;
+    }
+    let target = args
+        .target_dir
+        .clone()
+        .or_else(|| std::env::var_os("CARGO_TARGET_DIR").map(PathBuf::from))
+        .unwrap_or_else(|| PathBuf::from("target"));
+    let base = ab::resolve(&args.base, "BASE", &target)?;
+    let new = ab::resolve(&args.new, "NEW", &target)?;
+    let report = ab::run(&base, &new, &benches, &settings, |b, p| {
+        eprintln!("volbench: ab: [{}/{}] {} on {}, pair {}/{}", b + 1, benches.len(), benches[b].label, benches[b].dataset, p + 1, settings.pairs);
+    })?;
+    let table = ab::markdown(&report);
+    print!("{table}");
+    if let Some(dir) = &args.out {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        let (json, md) = (dir.join("ab.json"), dir.join("ab.md"));
+        let json_bytes = report::json_bytes(&report)?;
+        fsio::write_all(&[(json.as_path(), json_bytes.as_slice()), (md.as_path(), table.as_bytes())])?;
+    }
+    let (slower, failed) = (report.regressions(), report.failures());
+    if failed > 0 {
+        bail!("{failed} of {} benchmarks failed (see the table)", report.rows.len());
+    }
+    if slower > 0 {
+        bail!("{slower} of {} benchmarks slower beyond the {} % threshold", report.rows.len(), args.threshold);
+    }
+    Ok(())
+}
+
+fn scale(registry: &Registry, args: &ScaleArgs) -> Result<()> {
+    use volbench::algo::method::DataKind;
+    use volbench::harness::scale;
+    anyhow::ensure!(args.levels <= 4, "--levels {}: at most 4 (x8 tets per level: 4096 times the input)", args.levels);
+    anyhow::ensure!(args.frames >= 1, "--frames must be at least 1");
+    let specs = if args.methods.is_empty() {
+        registry.for_kind(DataKind::TetMesh).into_iter().map(|m| registry.parse_spec(m.name, &[])).collect::<Result<Vec<_>>>()?
+    } else {
+        args.methods.iter().map(|m| registry.parse_spec(m, &[]).with_context(|| format!("--method {m}"))).collect::<Result<Vec<_>>>()?
+    };
+    for s in &specs {
+        s.check_renders(DataKind::TetMesh, &args.data)?;
+    }
+    let out = args.out.clone().unwrap_or_else(|| PathBuf::from(format!("results/scale-{}", Path::new(&args.data).file_stem().map_or(args.data.clone(), |s| s.to_string_lossy().into_owned()))));
+    let files = ["scale.json", "scale.csv", "scale.md", "scale_time.png", "scale_time.svg", "scale_memory.png", "scale_memory.svg"];
+    check_out_dir(&out, &files)?;
+    let settings = scale::ScaleSettings {
+        dataset: args.data.clone(),
+        levels: args.levels,
+        specs: specs.iter().map(|s| (s.canonical(), s.label())).collect(),
+        width: args.size.0,
+        height: args.size.1,
+        frames: args.frames,
+        warmup: args.warmup,
+        reference_max_cells: args.reference_max_cells,
+        peers: args.peers.clone(),
+    };
+    let exe = std::env::current_exe().context("locating this volbench binary")?;
+    std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+    let report = scale::study(&exe, &settings, &out, |what| eprintln!("volbench: scale: {what}"))?;
+    let md = scale::markdown(&report);
+    print!("{md}");
+    let json = report::json_bytes(&report)?;
+    let csv = scale::csv(&report);
+    let (pj, pc, pm) = (out.join("scale.json"), out.join("scale.csv"), out.join("scale.md"));
+    fsio::write_all(&[(pj.as_path(), json.as_slice()), (pc.as_path(), csv.as_bytes()), (pm.as_path(), md.as_bytes())])?;
+    scale::plots(&out, &report)?;
+    println!("written: {}/scale.{{json,csv,md}}, scale_time.{{png,svg}}, scale_memory.{{png,svg}}, meshes/", out.display());
+    let failed = report.rows.iter().filter(|r| r.error.is_some()).count();
+    if failed > 0 {
+        bail!("{failed} of {} scale runs failed (see scale.md)", report.rows.len());
+    }
+    Ok(())
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let registry = registry::builtin();
@@ -572,6 +743,8 @@ fn main() -> ExitCode {
         Command::Pareto(a) => pareto(&cli, &registry, a),
         Command::Stress(a) => stress(&cli, &registry, a),
         Command::Suite(a) => suite(&cli, &registry, a),
+        Command::Ab(a) => ab(&registry, a),
+        Command::Scale(a) => scale(&registry, a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -324,38 +324,7 @@ pub fn scene(
 pub fn write_dataset(dataset: &Dataset, path: &Path) -> Result<PeerDataset> {
     let format = match &dataset.data {
         DatasetData::TetMesh { mesh, .. } => {
-            fsio::write_output_with(path, |w| {
-                write!(
-                    w,
-                    "# vtk DataFile Version 3.0\nvolbench peer copy of {}\nBINARY\nDATASET UNSTRUCTURED_GRID\nPOINTS {} double\n",
-                    dataset.name,
-                    mesh.points.len()
-                )?;
-                for p in &mesh.points {
-                    for c in p {
-                        w.write_all(&c.to_be_bytes())?;
-                    }
-                }
-                let size = mesh.tets.len().checked_mul(5).context("too many tets for a VTK file")?;
-                write!(w, "\nCELLS {} {size}\n", mesh.tets.len())?;
-                for t in &mesh.tets {
-                    w.write_all(&4i32.to_be_bytes())?;
-                    for &i in t {
-                        let i = i32::try_from(i).context("a point index beyond VTK's 32-bit legacy format")?;
-                        w.write_all(&i.to_be_bytes())?;
-                    }
-                }
-                write!(w, "\nCELL_TYPES {}\n", mesh.tets.len())?;
-                for _ in &mesh.tets {
-                    w.write_all(&10i32.to_be_bytes())?;
-                }
-                write!(w, "\nPOINT_DATA {}\nSCALARS scalars double 1\nLOOKUP_TABLE default\n", mesh.scalars.len())?;
-                for s in &mesh.scalars {
-                    w.write_all(&s.to_be_bytes())?;
-                }
-                w.write_all(b"\n")?;
-                Ok(())
-            })?;
+            write_tet_mesh(mesh, &format!("volbench peer copy of {}", dataset.name), path)?;
             "vtk-legacy-unstructured-grid"
         }
         DatasetData::Volume(v) => {
@@ -386,6 +355,43 @@ pub fn write_dataset(dataset: &Dataset, path: &Path) -> Result<PeerDataset> {
         file: path.to_string_lossy().into_owned(),
         format: format.into(),
         digest: dataset.digest.clone(),
+    })
+}
+
+/// `mesh` as a binary legacy VTK unstructured grid of tetrahedra with f64
+/// point scalars, titled `title` (what every VTK reader and volbench read).
+pub fn write_tet_mesh(mesh: &crate::mesh::TetMesh, title: &str, path: &Path) -> Result<()> {
+    fsio::write_output_with(path, |w| {
+        write!(
+            w,
+            "# vtk DataFile Version 3.0\n{}\nBINARY\nDATASET UNSTRUCTURED_GRID\nPOINTS {} double\n",
+            title,
+            mesh.points.len()
+        )?;
+        for p in &mesh.points {
+            for c in p {
+                w.write_all(&c.to_be_bytes())?;
+            }
+        }
+        let size = mesh.tets.len().checked_mul(5).context("too many tets for a VTK file")?;
+        write!(w, "\nCELLS {} {size}\n", mesh.tets.len())?;
+        for t in &mesh.tets {
+            w.write_all(&4i32.to_be_bytes())?;
+            for &i in t {
+                let i = i32::try_from(i).context("a point index beyond VTK's 32-bit legacy format")?;
+                w.write_all(&i.to_be_bytes())?;
+            }
+        }
+        write!(w, "\nCELL_TYPES {}\n", mesh.tets.len())?;
+        for _ in &mesh.tets {
+            w.write_all(&10i32.to_be_bytes())?;
+        }
+        write!(w, "\nPOINT_DATA {}\nSCALARS scalars double 1\nLOOKUP_TABLE default\n", mesh.scalars.len())?;
+        for s in &mesh.scalars {
+            w.write_all(&s.to_be_bytes())?;
+        }
+        w.write_all(b"\n")?;
+        Ok(())
     })
 }
 

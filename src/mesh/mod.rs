@@ -19,6 +19,7 @@ pub mod byte_order;
 pub mod datasets;
 pub mod geometry;
 pub mod plot3d;
+pub mod refine;
 pub mod split;
 pub mod vtk;
 
