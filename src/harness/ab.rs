@@ -118,6 +118,10 @@ fn build_revision(commit: &str, target_dir: &Path) -> Result<PathBuf> {
         return Ok(binary);
     }
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    // Absolute: cargo runs in the temporary worktree.
+    let target_dir = &target_dir.canonicalize().with_context(|| format!("target directory {}", target_dir.display()))?;
+    let dir = target_dir.join("ab");
+    let binary = dir.join(format!("volbench-{commit}"));
     let tree = dir.join(format!("src-{commit}"));
     let tree_s = tree.to_string_lossy().to_string();
     if tree.exists() {
