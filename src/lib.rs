@@ -14,3 +14,4 @@ pub mod shaders;
 pub mod terrain;
 pub mod vk;
 pub mod volume;
+pub(crate) mod vtk_xml;
