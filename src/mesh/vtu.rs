@@ -363,3 +363,296 @@ fn parse_piece(ctx: &Ctx, name: &str, piece: roxmltree::Node, array: Option<&str
     }
     Ok(RawCells { points, scalars, types, offsets, conn })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::adjacency::FaceAdjacency;
+    use crate::mesh::TetGeometry;
+    use base64::Engine;
+    use std::io::Write;
+
+    /// A 2x2x1 block: a hexahedron, a voxel, two wedges and a pyramid over a
+    /// hex-sized hole... kept exactly space-filling: cells 0..3 fill four
+    /// unit cubes of a 2x2x1 grid (the fourth as two wedges), plus a
+    /// pyramid on top of the first cube (apex above it).
+    struct Grid {
+        points: Vec<[f64; 3]>,
+        scalar: Vec<f64>,
+        velocity: Vec<[f64; 3]>,
+        cells: Vec<(u8, Vec<u32>)>,
+    }
+
+    fn grid() -> Grid {
+        let mut points = Vec::new();
+        for k in 0..2 {
+            for j in 0..3 {
+                for i in 0..3 {
+                    points.push([i as f64, j as f64, k as f64]);
+                }
+            }
+        }
+        points.push([0.5, 0.5, 2.0]); // pyramid apex, point 18
+        let p = |i: u32, j: u32, k: u32| i + 3 * j + 9 * k;
+        let hex = |i: u32, j: u32| {
+            vec![p(i, j, 0), p(i + 1, j, 0), p(i + 1, j + 1, 0), p(i, j + 1, 0), p(i, j, 1), p(i + 1, j, 1), p(i + 1, j + 1, 1), p(i, j + 1, 1)]
+        };
+        let h0 = hex(0, 0);
+        let h1 = hex(1, 0);
+        let h2 = hex(0, 1);
+        let h3 = hex(1, 1);
+        let mut cells = vec![
+            (12u8, h0.clone()),
+            (11u8, vec![h1[0], h1[1], h1[3], h1[2], h1[4], h1[5], h1[7], h1[6]]),
+            (12u8, h2),
+        ];
+        // h3's bottom/top faces are cut 0-2 / 4-6 by the rule (their smallest index is corner 0 / 4).
+        cells.push((13, vec![h3[0], h3[1], h3[2], h3[4], h3[5], h3[6]]));
+        cells.push((13, vec![h3[0], h3[2], h3[3], h3[4], h3[6], h3[7]]));
+        cells.push((14, vec![h0[4], h0[5], h0[6], h0[7], 18]));
+        cells.push((5, vec![0, 1, 2])); // a triangle: skipped
+        let scalar = points.iter().map(|q| q[0] + 2.0 * q[1] + 3.0 * q[2]).collect();
+        let velocity = points.iter().map(|q| [q[0], 0.0, q[2]]).collect();
+        Grid { points, scalar, velocity, cells }
+    }
+
+    #[derive(Clone, Copy, Debug)]
+    enum Format {
+        Ascii,
+        Binary,
+        Appended,
+        AppendedBase64,
+    }
+
+    /// Encodes an array's bytes as VTK does: a header of `word`-byte words
+    /// (`[n]`, or zlib blocks `[blocks, block, last, sizes...]`) and the data.
+    fn stream(data: &[u8], zlib: bool, word: usize, big: bool, block: usize) -> Vec<u8> {
+        let w = |v: usize| -> Vec<u8> {
+            match (word, big) {
+                (4, false) => (v as u32).to_le_bytes().to_vec(),
+                (4, true) => (v as u32).to_be_bytes().to_vec(),
+                (_, false) => (v as u64).to_le_bytes().to_vec(),
+                (_, true) => (v as u64).to_be_bytes().to_vec(),
+            }
+        };
+        if !zlib {
+            return [w(data.len()), data.to_vec()].concat();
+        }
+        let chunks: Vec<&[u8]> = data.chunks(block).collect();
+        let comp: Vec<Vec<u8>> = chunks
+            .iter()
+            .map(|c| {
+                let mut e = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::default());
+                e.write_all(c).unwrap();
+                e.finish().unwrap()
+            })
+            .collect();
+        let last = data.len() % block;
+        let mut out = [w(chunks.len()), w(block), w(last)].concat();
+        for c in &comp {
+            out.extend(w(c.len()));
+        }
+        for c in comp {
+            out.extend(c);
+        }
+        out
+    }
+
+    fn write_vtu(g: &Grid, f: Format, zlib: bool, word: usize, big: bool) -> Vec<u8> {
+        let b64 = |b: &[u8]| base64::engine::general_purpose::STANDARD.encode(b);
+        let mut appended: Vec<u8> = Vec::new();
+        let mut body = String::new();
+        let mut array = |name: &str, ty: &str, comps: usize, text: String, bytes: Vec<u8>| {
+            let s = stream(&bytes, zlib, word, big, 40);
+            let (fmt, inner) = match f {
+                Format::Ascii => ("ascii".to_string(), text),
+                Format::Binary => ("binary".to_string(), b64(&s)),
+                Format::Appended | Format::AppendedBase64 => {
+                    let off = appended.len();
+                    appended.extend(if matches!(f, Format::Appended) { s } else { b64(&s).into_bytes() });
+                    (format!("appended\" offset=\"{off}"), String::new())
+                }
+            };
+            format!("<DataArray type=\"{ty}\" Name=\"{name}\" NumberOfComponents=\"{comps}\" format=\"{fmt}\">{inner}</DataArray>\n")
+        };
+        let f64s = |v: &[f64]| -> (String, Vec<u8>) {
+            let t = v.iter().map(|x| format!("{x}")).collect::<Vec<_>>().join(" ");
+            let b = v.iter().flat_map(|x| if big { x.to_be_bytes() } else { x.to_le_bytes() }).collect();
+            (t, b)
+        };
+        let i64s = |v: &[i64]| -> (String, Vec<u8>) {
+            let t = v.iter().map(|x| x.to_string()).collect::<Vec<_>>().join(" ");
+            let b = v.iter().flat_map(|x| if big { x.to_be_bytes() } else { x.to_le_bytes() }).collect();
+            (t, b)
+        };
+        let np = g.points.len();
+        let nc = g.cells.len();
+        body.push_str(&format!("<Piece NumberOfPoints=\"{np}\" NumberOfCells=\"{nc}\">\n<PointData Scalars=\"temp\">\n"));
+        let (t, b) = f64s(&g.scalar);
+        body.push_str(&array("temp", "Float64", 1, t, b));
+        let (t, b) = f64s(&g.velocity.concat());
+        body.push_str(&array("velocity", "Float64", 3, t, b));
+        body.push_str("</PointData>\n<CellData>\n");
+        let ids: Vec<i64> = (0..nc as i64).collect();
+        let (t, b) = i64s(&ids);
+        body.push_str(&array("cellid", "Int64", 1, t, b));
+        body.push_str("</CellData>\n<Points>\n");
+        let (t, b) = f64s(&g.points.concat());
+        body.push_str(&array("Points", "Float64", 3, t, b));
+        body.push_str("</Points>\n<Cells>\n");
+        let conn: Vec<i64> = g.cells.iter().flat_map(|c| c.1.iter().map(|&v| v as i64)).collect();
+        let offsets: Vec<i64> = g.cells.iter().scan(0, |o, c| { *o += c.1.len() as i64; Some(*o) }).collect();
+        let (t, b) = i64s(&conn);
+        body.push_str(&array("connectivity", "Int64", 1, t, b));
+        let (t, b) = i64s(&offsets);
+        body.push_str(&array("offsets", "Int64", 1, t, b));
+        let types: Vec<u8> = g.cells.iter().map(|c| c.0).collect();
+        let t = types.iter().map(|x| x.to_string()).collect::<Vec<_>>().join(" ");
+        body.push_str(&array("types", "UInt8", 1, t, types.clone()));
+        body.push_str("</Cells>\n</Piece>\n");
+        let order = if big { "BigEndian" } else { "LittleEndian" };
+        let header = if word == 8 { "UInt64" } else { "UInt32" };
+        let comp = if zlib { " compressor=\"vtkZLibDataCompressor\"" } else { "" };
+        let mut out = format!(
+            "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"{order}\" header_type=\"{header}\"{comp}>\n<UnstructuredGrid>\n{body}</UnstructuredGrid>\n"
+        )
+        .into_bytes();
+        if !appended.is_empty() {
+            let enc = if matches!(f, Format::Appended) { "raw" } else { "base64" };
+            out.extend(format!("<AppendedData encoding=\"{enc}\">\n_").into_bytes());
+            out.extend(appended);
+            out.extend(b"\n</AppendedData>\n");
+        }
+        out.extend(b"</VTKFile>\n");
+        out
+    }
+
+    fn check_mesh(m: &TetMesh, what: &str) {
+        // 2 hexes x 5 or 6, a voxel, 2 wedges x 3, a pyramid x 2; the triangle skipped.
+        assert_eq!(m.stats.skipped_lower_dim, 1, "{what}");
+        assert_eq!(m.stats.reoriented, 0, "{what}");
+        let vol = TetGeometry::compute(m).total_volume();
+        assert!((vol - (4.0 + 1.0 / 3.0)).abs() < 1e-12, "{what}: volume {vol}");
+        let adj = FaceAdjacency::build(&m.tets, None, |_| true);
+        // Surface: 2x2 bottom, 3 top quads + 4 pyramid sides, 8 side quads: 2 triangles per quad.
+        assert_eq!(adj.boundary.len(), 2 * (4 + 3 + 8) + 4, "{what}: cracks");
+        assert_eq!(m.scalars.len(), m.points.len());
+    }
+
+    #[test]
+    fn every_encoding_reads_the_same_mesh() {
+        let g = grid();
+        let reference = parse_vtu_bytes("g.vtu", &write_vtu(&g, Format::Ascii, false, 4, false), None).unwrap();
+        check_mesh(&reference, "ascii");
+        assert_eq!(reference.scalars, g.scalar);
+        for f in [Format::Ascii, Format::Binary, Format::Appended, Format::AppendedBase64] {
+            for zlib in [false, true] {
+                for word in [4, 8] {
+                    for big in [false, true] {
+                        let what = format!("{f:?} zlib {zlib} header {word} big-endian {big}");
+                        let bytes = write_vtu(&g, f, zlib, word, big);
+                        let m = parse_vtu_bytes("g.vtu", &bytes, None).unwrap_or_else(|e| panic!("{what}: {e:#}"));
+                        assert_eq!(m.tets, reference.tets, "{what}");
+                        assert_eq!(m.points, reference.points, "{what}");
+                        assert_eq!(m.scalars, reference.scalars, "{what}");
+                        // Every truncation is an error naming the file, never a panic.
+                        for cut in (0..bytes.len()).step_by(97) {
+                            if let Err(e) = parse_vtu_bytes("cut.vtu", &bytes[..cut], None) {
+                                assert!(format!("{e:#}").starts_with("cut.vtu"), "{what}: {e:#}");
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn scalar_choice_and_refusals() {
+        let g = grid();
+        let bytes = write_vtu(&g, Format::Binary, true, 8, false);
+        let m = parse_vtu_bytes("g.vtu", &bytes, Some("velocity")).unwrap();
+        let want: Vec<f64> = g.velocity.iter().map(|v| (v[0] * v[0] + v[2] * v[2]).sqrt()).collect();
+        assert_eq!(m.scalars, want);
+        let e = format!("{:#}", parse_vtu_bytes("g.vtu", &bytes, Some("cellid")).unwrap_err());
+        assert!(e.contains("'cellid' is cell data") && e.contains("Cell Data to Point Data"), "{e}");
+        let e = format!("{:#}", parse_vtu_bytes("g.vtu", &bytes, Some("nope")).unwrap_err());
+        assert!(e.contains("no point array named 'nope'") && e.contains("'temp' (1 components)"), "{e}");
+        // Unsupported cells are named with their counts.
+        let mut q = grid();
+        q.cells.push((24, (0..10).collect()));
+        q.cells.push((24, (0..10).collect()));
+        q.cells.push((42, (0..4).collect()));
+        let e = format!("{:#}", parse_vtu_bytes("q.vtu", &write_vtu(&q, Format::Ascii, false, 4, false), None).unwrap_err());
+        assert!(e.contains("2 cells of type 24 (quadratic tetra)") && e.contains("1 cells of type 42 (polyhedron)"), "{e}");
+        // A hexahedron with 7 vertices.
+        let mut h = grid();
+        h.cells[0].1.pop();
+        let e = format!("{:#}", parse_vtu_bytes("h.vtu", &write_vtu(&h, Format::Ascii, false, 4, false), None).unwrap_err());
+        assert!(e.contains("cell 0 is a hexahedron (type 12) but has 7 vertices"), "{e}");
+        let bad = String::from_utf8(write_vtu(&g, Format::Ascii, false, 4, false)).unwrap().replace("UnstructuredGrid\" version", "ImageData\" version");
+        let e = format!("{:#}", parse_vtu_bytes("i.vtu", bad.as_bytes(), None).unwrap_err());
+        assert!(e.contains("is not UnstructuredGrid"), "{e}");
+    }
+
+    /// Two pieces, each with its own copy of every point: merged, the shared
+    /// points weld and the faces between the pieces close.
+    #[test]
+    fn pvtu_pieces_weld() {
+        let g = grid();
+        let tmp = tempfile::tempdir().unwrap();
+        let (a, b) = g.cells.split_at(3);
+        for (i, cells) in [a, b].iter().enumerate() {
+            let piece = Grid { points: g.points.clone(), scalar: g.scalar.clone(), velocity: g.velocity.clone(), cells: cells.to_vec() };
+            std::fs::write(tmp.path().join(format!("p_{i}.vtu")), write_vtu(&piece, Format::Appended, true, 4, false)).unwrap();
+        }
+        let pvtu = "<?xml version=\"1.0\"?>\n<VTKFile type=\"PUnstructuredGrid\" version=\"1.0\">\n<PUnstructuredGrid GhostLevel=\"0\">\n\
+                    <PPointData Scalars=\"temp\"><PDataArray type=\"Float64\" Name=\"temp\"/></PPointData>\n\
+                    <PPoints><PDataArray type=\"Float64\" NumberOfComponents=\"3\"/></PPoints>\n\
+                    <Piece Source=\"p_0.vtu\"/>\n<Piece Source=\"p_1.vtu\"/>\n</PUnstructuredGrid>\n</VTKFile>\n";
+        let p = tmp.path().join("all.pvtu");
+        std::fs::write(&p, pvtu).unwrap();
+        let m = read_vtu(&p, None).unwrap();
+        assert_eq!(m.name, "all");
+        assert_eq!(m.points.len(), g.points.len());
+        check_mesh(&m, "pvtu");
+        std::fs::remove_file(tmp.path().join("p_1.vtu")).unwrap();
+        let e = format!("{:#}", read_vtu(&p, None).unwrap_err());
+        assert!(e.contains("all.pvtu") && e.contains("p_1.vtu"), "{e}");
+    }
+
+    /// The legacy reader splits the same cells the same way.
+    #[test]
+    fn legacy_file_with_mixed_cells() {
+        let g = grid();
+        let mut s = format!("# vtk DataFile Version 3.0\nmixed\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS {} double\n", g.points.len());
+        for p in &g.points {
+            s += &format!("{} {} {}\n", p[0], p[1], p[2]);
+        }
+        let size: usize = g.cells.iter().map(|c| c.1.len() + 1).sum();
+        s += &format!("CELLS {} {size}\n", g.cells.len());
+        for c in &g.cells {
+            s += &format!("{} {}\n", c.1.len(), c.1.iter().map(|v| v.to_string()).collect::<Vec<_>>().join(" "));
+        }
+        s += &format!("CELL_TYPES {}\n", g.cells.len());
+        for c in &g.cells {
+            s += &format!("{}\n", c.0);
+        }
+        s += &format!("POINT_DATA {}\nSCALARS temp double 1\nLOOKUP_TABLE default\n", g.points.len());
+        for v in &g.scalar {
+            s += &format!("{v}\n");
+        }
+        s += "VECTORS velocity double\n";
+        for v in &g.velocity {
+            s += &format!("{} {} {}\n", v[0], v[1], v[2]);
+        }
+        let m = crate::mesh::vtk::parse_vtk_bytes("m.vtk", s.as_bytes()).unwrap();
+        check_mesh(&m, "legacy");
+        let x = parse_vtu_bytes("g.vtu", &write_vtu(&g, Format::Ascii, false, 4, false), None).unwrap();
+        assert_eq!(m.tets, x.tets);
+        let v = crate::mesh::vtk::parse_vtk_bytes_array("m.vtk", s.as_bytes(), Some("velocity")).unwrap();
+        assert_eq!(v.scalars[4], 1.0);
+        let e = format!("{:#}", crate::mesh::vtk::parse_vtk_bytes_array("m.vtk", s.as_bytes(), Some("nope")).unwrap_err());
+        assert!(e.contains("no point array named 'nope'"), "{e}");
+    }
+}
