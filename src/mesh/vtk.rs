@@ -27,6 +27,7 @@
 //!
 //! All errors name the file, the problem and the byte offset.
 
+use crate::vtk_legacy::Lines as Reader;
 use super::cells::RawCells;
 use super::TetMesh;
 use anyhow::{anyhow, bail, Result};
@@ -167,66 +168,7 @@ fn swapped_hint(binary: bool, v: i64, expected: i32) -> &'static str {
     }
 }
 
-struct Reader<'a> {
-    /// File name (or other source label) quoted in every error.
-    name: &'a str,
-    b: &'a [u8],
-    pos: usize,
-    binary: bool,
-}
-
 impl<'a> Reader<'a> {
-    fn err(&self, msg: impl std::fmt::Display) -> anyhow::Error {
-        anyhow!("{}: {} (at byte {})", self.name, crate::fsio::clip_message(&msg.to_string()), self.pos)
-    }
-
-    fn skip_ws(&mut self) {
-        while self.pos < self.b.len() && self.b[self.pos].is_ascii_whitespace() {
-            self.pos += 1;
-        }
-    }
-
-    fn at_end(&mut self) -> bool {
-        self.skip_ws();
-        self.pos >= self.b.len()
-    }
-
-    /// The rest of the current line (without `\r\n`), consuming the newline.
-    fn raw_line(&mut self, what: &str) -> Result<&'a str> {
-        if self.pos >= self.b.len() {
-            return Err(self.err(format!("truncated file: expected {what}, found end of file")));
-        }
-        let start = self.pos;
-        let end = self.b[start..].iter().position(|&c| c == b'\n').map_or(self.b.len(), |e| start + e);
-        self.pos = (end + 1).min(self.b.len());
-        let line = &self.b[start..end];
-        let line = line.strip_suffix(b"\r").unwrap_or(line);
-        if line.contains(&b'\r') {
-            self.pos = start;
-            return Err(self.err(format!(
-                "expected {what}, found a line broken by a bare carriage return (CR-only line endings, as \
-                 classic Mac OS wrote them); VTK legacy files need LF or CRLF line endings"
-            )));
-        }
-        std::str::from_utf8(line).map_err(|_| {
-            self.pos = start;
-            self.err(format!("expected {what}, found non-text bytes"))
-        })
-    }
-
-    /// Next non-blank line split into words (never empty). Splits on ASCII
-    /// whitespace only, the same set `skip_ws` skips: Unicode-whitespace
-    /// splitting would turn a line starting with e.g. a vertical tab into no
-    /// words at all.
-    fn keyword_line(&mut self, what: &str) -> Result<Vec<&'a str>> {
-        self.skip_ws();
-        let words: Vec<&'a str> = self.raw_line(what)?.split_ascii_whitespace().collect();
-        if words.is_empty() {
-            return Err(self.err(format!("truncated file: expected {what}, found end of file")));
-        }
-        Ok(words)
-    }
-
     fn token(&mut self, what: &str) -> Result<&'a str> {
         self.skip_ws();
         let start = self.pos;
@@ -248,22 +190,6 @@ impl<'a> Reader<'a> {
             end += 1;
         }
         std::str::from_utf8(&self.b[start..end]).unwrap_or("")
-    }
-
-    fn binary_bytes(&mut self, n: usize, dt: DType, what: &str) -> Result<&'a [u8]> {
-        let len = n
-            .checked_mul(dt.size())
-            .filter(|&l| l <= self.b.len() - self.pos)
-            .ok_or_else(|| {
-                self.err(format!(
-                    "truncated file: {what} needs {n} values of {} bytes, only {} bytes remain",
-                    dt.size(),
-                    self.b.len() - self.pos
-                ))
-            })?;
-        let s = &self.b[self.pos..self.pos + len];
-        self.pos += len;
-        Ok(s)
     }
 
     /// The next ASCII value of `what` (value `i` of `n`), checked against
@@ -296,7 +222,7 @@ impl<'a> Reader<'a> {
 
     fn values_f64(&mut self, n: usize, dt: DType, what: &str) -> Result<Vec<f64>> {
         if self.binary {
-            let s = self.binary_bytes(n, dt, what)?;
+            let s = self.binary_bytes(n, dt.size(), what)?;
             if let Some(evidence) = dt.looks_little_endian(s) {
                 self.pos -= s.len();
                 return Err(self.err(format!("{what}: {evidence}")));
@@ -319,7 +245,7 @@ impl<'a> Reader<'a> {
         if self.binary {
             // (Counts, indices and cell types are checked one by one, with a
             // byte-swap hint where they fail: `swapped_hint`.)
-            let s = self.binary_bytes(n, dt, what)?;
+            let s = self.binary_bytes(n, dt.size(), what)?;
             let w = dt.size();
             Ok(s.chunks_exact(w).map(|c| decode_i64(c, dt)).collect())
         } else {
@@ -335,7 +261,7 @@ impl<'a> Reader<'a> {
     /// `dt` like the values that are read).
     fn skip_values(&mut self, n: usize, dt: DType, what: &str) -> Result<()> {
         if self.binary {
-            self.binary_bytes(n, dt, what)?;
+            self.binary_bytes(n, dt.size(), what)?;
         } else {
             for i in 0..n {
                 self.ascii_value(parse_ascii_f64, dt, what, i, n)?;
@@ -344,31 +270,11 @@ impl<'a> Reader<'a> {
         Ok(())
     }
 
-    /// `n * k` values, or an error (a header's counts are untrusted).
-    fn product(&self, n: usize, k: usize, what: &str) -> Result<usize> {
-        n.checked_mul(k).ok_or_else(|| self.err(format!("{what} size {n} x {k} overflows")))
-    }
-
-    fn count(&self, s: Option<&&str>, what: &str) -> Result<usize> {
-        let s = s.ok_or_else(|| self.err(format!("missing {what}")))?;
-        s.parse::<usize>().map_err(|_| self.err(format!("bad {what} '{s}'")))
-    }
-
     fn dtype(&self, s: Option<&&str>, what: &str) -> Result<DType> {
         let s = s.ok_or_else(|| self.err(format!("missing data type for {what}")))?;
         DType::parse(s).ok_or_else(|| self.err(format!("unsupported data type '{s}' for {what}")))
     }
 
-    /// Skips a METADATA block (ends at an empty line or end of file).
-    fn skip_metadata(&mut self) -> Result<()> {
-        while self.pos < self.b.len() {
-            let line = self.raw_line("METADATA")?;
-            if line.trim().is_empty() {
-                break;
-            }
-        }
-        Ok(())
-    }
 }
 
 fn decode_f64(c: &[u8], dt: DType) -> f64 {
