@@ -308,7 +308,7 @@ fn not_legacy_vtk(bytes: &[u8]) -> Option<&'static str> {
     if bytes.starts_with(b"\xef\xbb\xbf") {
         Some("it starts with a UTF-8 byte-order mark; the first line must be '# vtk DataFile Version x.y'")
     } else if text.trim_start().starts_with("<?xml") || text.contains("<VTKFile") {
-        Some("this is an XML VTK file (.vtu/.vtk in XML); only the legacy format is supported")
+        Some("this is an XML VTK file; give it the extension .vtu (or .pvtu) to read it as one")
     } else {
         None
     }
