@@ -4,18 +4,11 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use volbench::mesh::{vtu::parse_vtu_bytes, TetGeometry};
+use volbench::mesh::vtu::parse_vtu_bytes;
+
+#[path = "common/mesh_check.rs"]
+mod mesh_check;
 
 fuzz_target!(|data: &[u8]| {
-    match parse_vtu_bytes("fuzz.vtu", data, None) {
-        Ok(mesh) => {
-            assert!(!mesh.tets.is_empty() && mesh.points.len() == mesh.scalars.len());
-            let g = TetGeometry::compute(&mesh);
-            for c in &g.cells {
-                assert!(c.gradient.iter().chain(c.planes.iter().flatten()).all(|v| v.is_finite()), "{c:?}");
-                assert!(c.volume.is_finite() && c.volume >= 0.0);
-            }
-        }
-        Err(e) => assert!(format!("{e:#}").starts_with("fuzz.vtu"), "{e:#}"),
-    }
+    mesh_check::check("fuzz.vtu", parse_vtu_bytes("fuzz.vtu", data, None));
 });
