@@ -14,3 +14,5 @@ pub mod shaders;
 pub mod terrain;
 pub mod vk;
 pub mod volume;
+pub(crate) mod vtk_legacy;
+pub(crate) mod vtk_xml;

@@ -229,6 +229,10 @@ struct RunArgs {
     /// A shipped dataset (`volbench list`) or a file path.
     #[arg(long, alias = "mesh", value_name = "NAME|PATH")]
     data: String,
+    /// The point array of a VTK unstructured grid (.vtk, .vtu, .pvtu) to
+    /// render (vector arrays by magnitude); the same as `--data FILE#NAME`.
+    #[arg(long, value_name = "NAME")]
+    scalar: Option<String>,
     /// The method: `name` or `name:key=value,...` (`volbench list`).
     #[arg(long, value_name = "SPEC")]
     method: String,
@@ -438,7 +442,17 @@ fn run(cli: &Cli, registry: &Registry, args: &RunArgs) -> Result<()> {
             outputs.add(option, p)?;
         }
     }
-    let dataset = datasets::load(&args.data)?;
+    let data = match &args.scalar {
+        None => args.data.clone(),
+        Some(name) => {
+            let ext = std::path::Path::new(&args.data).extension().map(|e| e.to_string_lossy().to_ascii_lowercase());
+            if !ext.is_some_and(|e| volbench::mesh::datasets::VTK_EXTENSIONS.contains(&e.as_str())) {
+                anyhow::bail!("--scalar {name}: only VTK unstructured grids (.vtk, .vtu, .pvtu) have named point arrays, not '{}'", args.data);
+            }
+            format!("{}#{name}", args.data)
+        }
+    };
+    let dataset = datasets::load(&data)?;
     spec.check_renders(dataset.kind(), &args.data)?;
     let tf = args.frame.transfer_function(&dataset)?;
     let ctx = context(cli)?;

@@ -356,9 +356,17 @@ pub fn load(spec: &str) -> Result<Dataset> {
             Ok(Dataset::from_volume(v, true, format!("data/{file}")))
         }
         path => {
-            // `file.npz#name` picks an array of an archive.
+            // `file.npz#name` picks an array of an archive; `mesh.vtu#name` a point array.
             if let Some((file, array)) = path.rsplit_once('#') {
                 let p = Path::new(file);
+                let ext = p.extension().map(|e| e.to_string_lossy().to_ascii_lowercase());
+                if ext.is_some_and(|e| mesh::datasets::VTK_EXTENSIONS.contains(&e.as_str()))
+                    && std::fs::symlink_metadata(path).is_err()
+                    && !is_volume_path(p)
+                {
+                    let mesh = mesh::datasets::load_path_array(p, Some(array)).with_context(|| format!("loading dataset '{path}'"))?;
+                    return Ok(Dataset::from_mesh(mesh, false, path.to_string()));
+                }
                 if crate::terrain::format_of_extension(p).is_some() && std::fs::symlink_metadata(path).is_err() {
                     let t = crate::terrain::load_heightmap(p, Some(array)).with_context(|| format!("loading dataset '{path}'"))?;
                     return Ok(Dataset::from_heightmap(t, false, path.to_string()));

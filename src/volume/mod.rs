@@ -21,7 +21,7 @@
 //!
 //! Nothing here knows about Vulkan.
 
-mod decode;
+pub(crate) mod decode;
 pub mod datasets;
 pub mod nifti;
 pub mod nrrd;
