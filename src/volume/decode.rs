@@ -223,26 +223,47 @@ pub(crate) enum Wrapper {
 /// promises): reading stops one byte past it, so a bomb costs at most that,
 /// and a stream that is corrupt, ends early or holds more is an error.
 pub(crate) fn inflate_exact(source: &str, what: &str, wrapper: Wrapper, input: &[u8], expected: usize) -> Result<Vec<u8>> {
-    let mut out = Vec::with_capacity(expected.min(max_inflated(input.len())));
-    let limit = expected as u64 + 1;
-    let read = match wrapper {
-        Wrapper::Gzip => flate2::read::MultiGzDecoder::new(input).take(limit).read_to_end(&mut out),
-        Wrapper::Zlib => flate2::read::ZlibDecoder::new(input).take(limit).read_to_end(&mut out),
-    };
+    inflate_after(source, what, wrapper, input, 0, expected)
+}
+
+/// Decompresses `input`, whose first `skip` bytes (a header offset) are
+/// read and dropped, to exactly `expected` bytes after them. Memory is
+/// bounded by `expected` alone, whatever the offset; a promise the stream
+/// cannot hold (deflate expands at most ~1032:1) is refused before any
+/// inflating.
+pub(crate) fn inflate_after(source: &str, what: &str, wrapper: Wrapper, input: &[u8], skip: usize, expected: usize) -> Result<Vec<u8>> {
     let kind = match wrapper {
         Wrapper::Gzip => "gzip",
         Wrapper::Zlib => "zlib",
     };
-    if let Err(e) = read {
+    let promised = skip.saturating_add(expected);
+    if promised > max_inflated(input.len()) {
+        bail!(
+            "{source}: {kind} data in {what}: {} compressed bytes cannot hold the {promised} bytes the header promises \
+             ({skip} skipped + {expected} of data)",
+            input.len()
+        );
+    }
+    let mut reader: Box<dyn Read> = match wrapper {
+        Wrapper::Gzip => Box::new(flate2::read::MultiGzDecoder::new(input)),
+        Wrapper::Zlib => Box::new(flate2::read::ZlibDecoder::new(input)),
+    };
+    let skipped = std::io::copy(&mut (&mut reader).take(skip as u64), &mut std::io::sink());
+    let skipped = skipped.map_err(|e| anyhow!("{source}: corrupt {kind} data in {what}: {e}"))?;
+    if skipped < skip as u64 {
+        bail!("{source}: {kind} data in {what} decompresses to {skipped} bytes, shorter than the {skip}-byte offset before the data");
+    }
+    let mut out = Vec::with_capacity(expected.min(max_inflated(input.len())));
+    if let Err(e) = reader.take(expected as u64 + 1).read_to_end(&mut out) {
         bail!("{source}: corrupt {kind} data in {what}: {e}");
     }
     if out.len() > expected {
-        bail!("{source}: {kind} data in {what} decompresses to more than the {expected} bytes the header promises");
+        bail!("{source}: {kind} data in {what} decompresses to more than the {promised} bytes the header promises");
     }
     if out.len() < expected {
         bail!(
-            "{source}: {kind} data in {what} decompresses to {} bytes, {expected} expected (truncated or corrupt stream)",
-            out.len()
+            "{source}: {kind} data in {what} decompresses to {} bytes, {promised} expected (truncated or corrupt stream)",
+            out.len() + skip
         );
     }
     Ok(out)
@@ -259,6 +280,59 @@ pub(crate) fn gunzip_prefix(source: &str, what: &str, input: &[u8], n: usize) ->
         bail!("{source}: gzip data decompresses to only {} bytes, shorter than the {n}-byte {what}", out.len());
     }
     Ok(out)
+}
+
+/// Deepest element nesting an XML input may have: VTK files nest five
+/// levels; a parser walking 20,000 levels overflows the stack.
+pub(crate) const MAX_XML_DEPTH: usize = 64;
+
+/// Refuse XML nested deeper than [`MAX_XML_DEPTH`] before it is parsed
+/// (a scan of the tags: comments, CDATA, declarations and quoted
+/// attribute values are skipped).
+pub(crate) fn check_xml_depth(source: &str, text: &str) -> Result<()> {
+    let b = text.as_bytes();
+    let skip_to = |from: usize, end: &[u8]| find_from(b, from, end).map_or(b.len(), |e| e + end.len());
+    let (mut depth, mut i) = (0usize, 0usize);
+    while let Some(off) = b[i..].iter().position(|&c| c == b'<') {
+        let at = i + off;
+        let rest = &b[at..];
+        if rest.starts_with(b"<!--") {
+            i = skip_to(at, b"-->");
+            continue;
+        }
+        if rest.starts_with(b"<![CDATA[") {
+            i = skip_to(at, b"]]>");
+            continue;
+        }
+        // The tag's end, outside quoted attribute values.
+        let (mut j, mut quote) = (at + 1, None);
+        while j < b.len() {
+            match (quote, b[j]) {
+                (Some(q), c) if c == q => quote = None,
+                (None, c @ (b'"' | b'\'')) => quote = Some(c),
+                (None, b'>') => break,
+                _ => {}
+            }
+            j += 1;
+        }
+        if rest.starts_with(b"</") {
+            depth = depth.saturating_sub(1);
+        } else if !(rest.starts_with(b"<?") || rest.starts_with(b"<!") || b[j.saturating_sub(1)] == b'/') {
+            depth += 1;
+            if depth > MAX_XML_DEPTH {
+                bail!("{source}: XML elements nested more than {MAX_XML_DEPTH} deep (at byte {at}); not a VTK file");
+            }
+        }
+        i = j + 1;
+        if i >= b.len() {
+            break;
+        }
+    }
+    Ok(())
+}
+
+fn find_from(hay: &[u8], from: usize, needle: &[u8]) -> Option<usize> {
+    hay.get(from..)?.windows(needle.len()).position(|w| w == needle).map(|p| p + from)
 }
 
 /// Base64 text (ASCII whitespace ignored) as bytes. Padding may end any
@@ -347,5 +421,18 @@ mod tests {
         assert_eq!(base64_concat("f", "a", b" AQI=\n AwQF ").unwrap(), vec![1, 2, 3, 4, 5]);
         assert!(base64_concat("f", "a", b"AQI").unwrap_err().to_string().contains("multiple of 4"));
         assert!(base64_concat("f", "a", b"A*I=").unwrap_err().to_string().contains("bad base64"));
+    }
+
+    #[test]
+    fn xml_nesting_is_bounded_before_parsing() {
+        let ok = "<?xml version=\"1.0\"?><!-- <a><a><a> --><VTKFile a='<x>'><ImageData><Piece/></ImageData></VTKFile>";
+        check_xml_depth("f", ok).unwrap();
+        for n in [MAX_XML_DEPTH + 1, 20_000] {
+            let deep = format!("{}{}", "<a>".repeat(n), "</a>".repeat(n));
+            let e = check_xml_depth("f.vti", &deep).unwrap_err().to_string();
+            assert!(e.contains("f.vti") && e.contains("nested more than"), "{e}");
+        }
+        let flat = "<a></a>".repeat(100_000);
+        check_xml_depth("f", &flat).unwrap();
     }
 }

@@ -192,6 +192,7 @@ pub fn parse_vti_bytes(name: &str, bytes: &[u8], array: Option<&str>) -> Result<
     if appended.is_some() {
         xml.push_str("</VTKFile>");
     }
+    super::decode::check_xml_depth(name, &xml)?;
     let doc = roxmltree::Document::parse(&xml).map_err(|e| anyhow!("{name}: bad XML: {e}"))?;
     let root = doc.root_element();
     if root.tag_name().name() != "VTKFile" {
