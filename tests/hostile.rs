@@ -8,6 +8,8 @@ use std::os::unix::fs::PermissionsExt as _;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 
+mod common;
+
 fn volbench() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_volbench"));
     c.env("VOLBENCH_VALIDATION", "1");
@@ -97,16 +99,7 @@ fn options_that_do_not_apply_and_bad_environment_are_errors() {
 fn loose_and_hostile_files_are_refused_with_what_is_wrong() {
     let d = tempfile::tempdir().unwrap();
     let npy = |descr: &str, shape: &str, extra_key: &str, data: &[u8]| {
-        let mut h = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape}, {extra_key}}}");
-        while (h.len() + 11) % 64 != 0 {
-            h.push(' ');
-        }
-        h.push('\n');
-        let mut b = b"\x93NUMPY\x01\x00".to_vec();
-        b.extend((h.len() as u16).to_le_bytes());
-        b.extend(h.as_bytes());
-        b.extend(data);
-        b
+        common::npy_bytes(&format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape}, {extra_key}}}"), data)
     };
     let heights: Vec<u8> = (0..9u8).flat_map(|i| (f64::from(i) * 10.0).to_le_bytes()).collect();
     let mut trailing = heights.clone();
