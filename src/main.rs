@@ -21,6 +21,23 @@ use volbench::harness::sweep;
 use volbench::scene::{Projection, TransferFunction};
 use volbench::vk::{Context, ContextDesc};
 
+/// `print!` that returns the write error instead of panicking (a closed
+/// pipe or a full device; see `exit_code`).
+macro_rules! out {
+    ($($t:tt)*) => { write_stdout(&format!($($t)*))? };
+}
+
+macro_rules! outln {
+    () => { write_stdout("\n")? };
+    ($($t:tt)*) => { write_stdout(&format!("{}\n", format_args!($($t)*)))? };
+}
+
+fn write_stdout(text: &str) -> Result<()> {
+    use std::io::Write as _;
+    let mut out = std::io::stdout().lock();
+    out.write_all(text.as_bytes()).and_then(|()| out.flush()).context("writing to standard output")
+}
+
 #[derive(Parser)]
 #[command(name = "volbench", version, about = "Measure GPU volume-rendering algorithms: bytes moved, frame time, image error")]
 struct Cli {
@@ -370,24 +387,24 @@ fn context(cli: &Cli) -> Result<std::sync::Arc<Context>> {
 
 fn info(cli: &Cli) -> Result<()> {
     for (i, (name, kind)) in volbench::vk::list_devices().context("listing Vulkan devices")?.iter().enumerate() {
-        println!("device [{i}] {name} ({kind})");
+        outln!("device [{i}] {name} ({kind})");
     }
     let ctx = context(cli)?;
-    println!("selected: {}", serde_json::to_string_pretty(&ctx.info)?);
+    outln!("selected: {}", serde_json::to_string_pretty(&ctx.info)?);
     Ok(())
 }
 
 fn list(registry: &Registry) -> Result<()> {
-    println!("Methods (spec: name:key=value,...; [b] = changes shader code, [r] = run-time parameter):");
+    outln!("Methods (spec: name:key=value,...; [b] = changes shader code, [r] = run-time parameter):");
     for m in registry.methods() {
-        println!("\n  {} ({} datasets): {}", m.name, m.data.name(), m.summary);
+        outln!("\n  {} ({} datasets): {}", m.name, m.data.name(), m.summary);
         if !m.features.is_empty() {
             let f: Vec<&str> = m.features.iter().map(|f| f.name()).collect();
-            println!("    needs: {}", f.join(", "));
+            outln!("    needs: {}", f.join(", "));
         }
         for o in m.options {
             let unit = if o.unit.is_empty() { String::new() } else { format!(" ({})", o.unit) };
-            println!(
+            outln!(
                 "    {}={} [{}] {}{unit}: {}",
                 o.name,
                 o.default,
@@ -397,22 +414,35 @@ fn list(registry: &Registry) -> Result<()> {
             );
         }
     }
-    println!("\nDatasets (--data NAME, or a file path):");
+    outln!("\nDatasets (--data NAME, or a file path):");
     for d in datasets::NAMED {
-        println!("  {:<12} {:<9} {}", d.name, d.kind.name(), d.description);
+        outln!("  {:<12} {:<9} {}", d.name, d.kind.name(), d.description);
     }
     Ok(())
 }
 
-/// Before any work: `dir` is a directory or can be made one, and the files
-/// a command writes there under fixed names can be written.
-fn check_out_dir(dir: &Path, files: &[&str]) -> Result<()> {
+/// Before any work: `dir` is a directory or can be made one, the files a
+/// command writes there under fixed names can be written, and each of the
+/// subdirectories it writes into is a directory that takes new files (or
+/// does not exist yet).
+fn check_out_dir(dir: &Path, files: &[&str], subdirs: &[&str]) -> Result<()> {
     match std::fs::metadata(dir) {
         Ok(m) if !m.is_dir() => bail!("--out {}: exists and is not a directory", dir.display()),
         Ok(_) => {
             let mut set = OutputSet::new();
             for f in files {
                 set.add("--out", &dir.join(f))?;
+            }
+            for sub in subdirs {
+                let sub = dir.join(sub);
+                match std::fs::metadata(&sub) {
+                    Ok(m) if !m.is_dir() => bail!("--out {}: {} exists and is not a directory", dir.display(), sub.display()),
+                    Ok(_) => set.add("--out", &sub.join(".volbench-out-probe"))?,
+                    Err(_) if std::fs::symlink_metadata(&sub).is_ok() => {
+                        bail!("--out {}: {} is a dangling symbolic link", dir.display(), sub.display())
+                    }
+                    Err(_) => {}
+                }
             }
             Ok(())
         }
@@ -436,12 +466,6 @@ fn check_out_dir(dir: &Path, files: &[&str]) -> Result<()> {
 fn run(cli: &Cli, registry: &Registry, args: &RunArgs) -> Result<()> {
     let cfg = args.frame.config()?;
     let spec = registry.parse_spec(&args.method, &args.frame.method.pairs()).with_context(|| format!("--method {}", args.method))?;
-    let mut outputs = OutputSet::new();
-    for (option, path) in [("--png", &args.png), ("--json", &args.json), ("--diff-png", &args.diff_png)] {
-        if let Some(p) = path {
-            outputs.add(option, p)?;
-        }
-    }
     let data = match &args.scalar {
         None => args.data.clone(),
         Some(name) => {
@@ -452,9 +476,17 @@ fn run(cli: &Cli, registry: &Registry, args: &RunArgs) -> Result<()> {
             format!("{}#{name}", args.data)
         }
     };
-    let dataset = datasets::load(&data)?;
+    let dataset = datasets::load(&data)
+        .with_context(|| format!("--method {} renders {} datasets", spec.info.name, spec.info.data.name()))?;
     spec.check_renders(dataset.kind(), &args.data)?;
     let tf = args.frame.transfer_function(&dataset)?;
+    // After the inputs are read, so that an output naming one is refused.
+    let mut outputs = OutputSet::new();
+    for (option, path) in [("--png", &args.png), ("--json", &args.json), ("--diff-png", &args.diff_png)] {
+        if let Some(p) = path {
+            outputs.add(option, p)?;
+        }
+    }
     let ctx = context(cli)?;
     cfg.check_device(&ctx.info)?;
     let with_reference = args.reference || args.diff_png.is_some();
@@ -469,11 +501,11 @@ fn run(cli: &Cli, registry: &Registry, args: &RunArgs) -> Result<()> {
     let row = ComparisonRow { label: spec.label(), dataset: dataset.name.clone(), outcome: Ok(&out.result), rmse_vs_first: None };
     // The table goes to stderr when an output goes to stdout.
     let table = report::comparison_table(&[row], registry);
-    let to_stdout = [&args.json, &args.png, &args.diff_png].iter().any(|p| p.as_deref() == Some(Path::new("-")));
+    let to_stdout = [&args.json, &args.png, &args.diff_png].iter().any(|p| p.as_deref().is_some_and(fsio::is_stdout));
     if to_stdout {
         eprint!("{table}");
     } else {
-        print!("{table}");
+        out!("{table}");
     }
     // All outputs or none.
     let mut files: Vec<(&Path, Vec<u8>)> = Vec::new();
@@ -493,6 +525,13 @@ fn compare(cli: &Cli, registry: &Registry, args: &CompareArgs) -> Result<()> {
     if let [baseline, new] = args.summaries.as_slice() {
         return track(baseline, new, args);
     }
+    // The tracking options mean nothing to a comparison run: refuse them
+    // rather than run for minutes and not write what was asked.
+    for (option, given) in [("--no-times", args.no_times), ("--bmf", args.bmf.is_some()), ("--gha", args.gha.is_some())] {
+        if given {
+            bail!("{option} applies only to benchmark tracking (`compare BASELINE NEW`, two summary.json files), not to a comparison run");
+        }
+    }
     let cfg = RunConfig { diagnostics: true, ..args.frame.config()? };
     // Load (and so validate) every dataset, transfer function and spec
     // before any output is written or Vulkan starts.
@@ -505,7 +544,7 @@ fn compare(cli: &Cli, registry: &Registry, args: &CompareArgs) -> Result<()> {
     }
     sweep::check_compare_outputs(&jobs)?;
     if let Some(dir) = &args.out {
-        check_out_dir(dir, &["comparison.md"])?;
+        check_out_dir(dir, &["comparison.md"], &[])?;
     }
     let ctx = context(cli)?;
     cfg.check_device(&ctx.info)?;
@@ -513,8 +552,8 @@ fn compare(cli: &Cli, registry: &Registry, args: &CompareArgs) -> Result<()> {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
     let rows = sweep::compare(&ctx, registry, &jobs, &cfg, args.out.as_deref())?;
-    println!("device: {} ({}, {})", ctx.info.name, ctx.info.driver_name, ctx.info.driver_info);
-    print!("{}", sweep::comparison_markdown(&rows, registry)?);
+    outln!("device: {} ({}, {})", ctx.info.name, ctx.info.driver_name, ctx.info.driver_info);
+    out!("{}", sweep::comparison_markdown(&rows, registry)?);
     let failed = rows.iter().filter(|r| r.outcome.is_err() && !r.skipped).count();
     if failed > 0 {
         bail!("{failed} of {} runs failed (see the table)", rows.len());
@@ -534,8 +573,8 @@ fn track(baseline: &Path, new: &Path, args: &CompareArgs) -> Result<()> {
     }
     let tol = track::Tolerances { times: !args.no_times, ..track::Tolerances::default() };
     let c = track::compare(&b, &n, &tol)?;
-    println!("baseline {} ({}), new {} ({})", baseline.display(), b.environment.git_sha, new.display(), n.environment.git_sha);
-    print!("{}", c.table());
+    outln!("baseline {} ({}), new {} ({})", baseline.display(), b.environment.git_sha, new.display(), n.environment.git_sha);
+    out!("{}", c.table());
     let mut files: Vec<(&Path, Vec<u8>)> = Vec::new();
     if let Some(p) = &args.bmf {
         files.push((p, report::json_bytes(&track::bmf(&n))?));
@@ -557,13 +596,13 @@ fn pareto(cli: &Cli, registry: &Registry, args: &ParetoArgs) -> Result<()> {
     let tf = args.frame.transfer_function(&dataset)?;
     let specs = sweep::pareto_specs(registry, &args.methods, dataset.kind(), &args.frame.method.pairs())?;
     let out_dir = args.out.clone().unwrap_or_else(|| PathBuf::from(format!("results/runs/pareto-{}", dataset.name)));
-    check_out_dir(&out_dir, &["pareto.csv", "pareto.md", "pareto.json", "pareto.png"])?;
+    check_out_dir(&out_dir, &["pareto.csv", "pareto.md", "pareto.json", "pareto.png"], &[])?;
     let ctx = context(cli)?;
     cfg.check_device(&ctx.info)?;
     std::fs::create_dir_all(&out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
     let points = sweep::pareto(&ctx, &dataset, &tf, &specs, &cfg, &out_dir)?;
-    print!("{}", volbench::harness::pareto::markdown(&dataset.name, &points));
-    println!("written: {}/pareto.{{csv,md,json,png}}", out_dir.display());
+    out!("{}", volbench::harness::pareto::markdown(&dataset.name, &points));
+    outln!("written: {}/pareto.{{csv,md,json,png}}", out_dir.display());
     let failed = points.iter().filter(|p| p.error.is_some() && !p.skipped).count();
     if failed > 0 {
         bail!("{failed} of {} sweep runs failed (see pareto.md)", points.len());
@@ -577,7 +616,7 @@ fn stress(cli: &Cli, registry: &Registry, args: &StressArgs) -> Result<()> {
         bail!("--size must be even and within 16..=2048 (the f64 reference renders every pixel on the CPU), got {}", args.size);
     }
     if args.describe {
-        print!("{}", describe_cases(args.size));
+        out!("{}", describe_cases(args.size));
         return Ok(());
     }
     if let Some(p) = &args.json {
@@ -605,10 +644,10 @@ fn stress(cli: &Cli, registry: &Registry, args: &StressArgs) -> Result<()> {
             None => Ok(()),
         }
     })?;
-    print!("{}", stress_table(&rows));
+    out!("{}", stress_table(&rows));
     let failed = failures(&rows);
     let non_finite: usize = rows.iter().map(|r| r.nan_pixels + r.inf_pixels).sum();
-    println!("{} renders, {} NaN/Inf pixels, {} failed", rows.len(), non_finite, failed);
+    outln!("{} renders, {} NaN/Inf pixels, {} failed", rows.len(), non_finite, failed);
     if failed > 0 {
         bail!("{failed} stress renders failed or exceeded their bounds");
     }
@@ -620,7 +659,7 @@ fn suite(cli: &Cli, registry: &Registry, args: &SuiteArgs) -> Result<()> {
     let settings = SuiteSettings { peers: args.peers.clone(), ..SuiteSettings::standard(args.quick, args.filter.clone()) };
     let plan = plan(registry, &settings)?;
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from(format!("results/{}", utc_now())));
-    check_out_dir(&out, &["summary.json", "summary.csv", "report.md", "montage.png"])?;
+    check_out_dir(&out, &["summary.json", "summary.csv", "report.md", "montage.png"], &["runs", "plots", "peers"])?;
     let ctx = context(cli)?;
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
     // A progress bar with ETA on a terminal, plain lines otherwise.
@@ -644,7 +683,7 @@ fn suite(cli: &Cli, registry: &Registry, args: &SuiteArgs) -> Result<()> {
     bar.finish_and_clear();
     let failed = summary.runs.iter().filter(|r| r.status == "failed").count();
     let peers_failed = summary.peers.iter().filter(|r| r.status == "failed").count();
-    println!("results: {}", out.display());
+    outln!("results: {}", out.display());
     if failed > 0 {
         bail!("{failed} of {} suite runs failed (see report.md)", summary.runs.len());
     }
@@ -671,7 +710,7 @@ fn ab(registry: &Registry, args: &AbArgs) -> Result<()> {
     settings.validate()?;
     let benches = ab::benchmarks(registry, &args.filter, &args.spec)?;
     if let Some(dir) = &args.out {
-        check_out_dir(dir, &["ab.json", "ab.md"])?;
+        check_out_dir(dir, &["ab.json", "ab.md"], &[])?;
     }
     let target = args
         .target_dir
@@ -716,7 +755,7 @@ fn scale(registry: &Registry, args: &ScaleArgs) -> Result<()> {
     }
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from(format!("results/scale-{}", Path::new(&args.data).file_stem().map_or(args.data.clone(), |s| s.to_string_lossy().into_owned()))));
     let files = ["scale.json", "scale.csv", "scale.md", "scale_time.png", "scale_time.svg", "scale_memory.png", "scale_memory.svg"];
-    check_out_dir(&out, &files)?;
+    check_out_dir(&out, &files, &["meshes"])?;
     let settings = scale::ScaleSettings {
         dataset: args.data.clone(),
         levels: args.levels,
@@ -746,6 +785,11 @@ fn scale(registry: &Registry, args: &ScaleArgs) -> Result<()> {
     Ok(())
 }
 
+/// Whether `e` comes from writing to a pipe whose reader has closed it.
+fn broken_pipe(e: &anyhow::Error) -> bool {
+    e.chain().any(|c| c.downcast_ref::<std::io::Error>().is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe))
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let registry = registry::builtin();
@@ -762,8 +806,12 @@ fn main() -> ExitCode {
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
+        // The reader went away (`volbench list | head -1`): what it wanted
+        // it has; stop quietly, as a filter does.
+        Err(e) if broken_pipe(&e) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("volbench: error: {e:#}");
+            use std::io::Write as _;
+            let _ = writeln!(std::io::stderr(), "volbench: error: {e:#}");
             ExitCode::FAILURE
         }
     }

@@ -79,30 +79,57 @@ pub(crate) fn split_appended<'a>(name: &str, bytes: &'a [u8]) -> Result<XmlParts
     Ok(XmlParts { xml, appended })
 }
 
-/// Element nesting accepted before parsing (VTK's own files use 6).
-pub(crate) const MAX_DEPTH: usize = 256;
+/// Deepest element nesting an XML input may have: VTK files nest five
+/// levels; a parser walking 20,000 levels overflows the stack.
+pub(crate) const MAX_DEPTH: usize = 64;
 
-/// Errors if elements nest deeper than [`MAX_DEPTH`]. Counts start tags
-/// (`<name`) up and end tags (`</`, `/>`) down; comments, processing
-/// instructions and declarations (`<!`, `<?`) are not elements. An
-/// over-count can only refuse a file, never let a deep one through.
-fn check_depth(name: &str, xml: &str) -> Result<()> {
-    let b = xml.as_bytes();
-    let mut depth = 0usize;
-    for i in 0..b.len() {
-        match (b[i], b.get(i + 1)) {
-            (b'<', Some(b'/')) => depth = depth.saturating_sub(1),
-            (b'<', Some(c)) if *c != b'!' && *c != b'?' => {
-                depth += 1;
-                if depth > MAX_DEPTH {
-                    bail!("{name}: XML elements nest more than {MAX_DEPTH} deep (at byte {i}); VTK files nest a few levels");
-                }
+/// Refuse XML nested deeper than [`MAX_DEPTH`] before it is parsed
+/// (a scan of the tags: comments, CDATA, declarations and quoted
+/// attribute values are skipped).
+pub(crate) fn check_depth(source: &str, text: &str) -> Result<()> {
+    let b = text.as_bytes();
+    let skip_to = |from: usize, end: &[u8]| find_from(b, from, end).map_or(b.len(), |e| e + end.len());
+    let (mut depth, mut i) = (0usize, 0usize);
+    while let Some(off) = b[i..].iter().position(|&c| c == b'<') {
+        let at = i + off;
+        let rest = &b[at..];
+        if rest.starts_with(b"<!--") {
+            i = skip_to(at, b"-->");
+            continue;
+        }
+        if rest.starts_with(b"<![CDATA[") {
+            i = skip_to(at, b"]]>");
+            continue;
+        }
+        // The tag's end, outside quoted attribute values.
+        let (mut j, mut quote) = (at + 1, None);
+        while j < b.len() {
+            match (quote, b[j]) {
+                (Some(q), c) if c == q => quote = None,
+                (None, c @ (b'"' | b'\'')) => quote = Some(c),
+                (None, b'>') => break,
+                _ => {}
             }
-            (b'/', Some(b'>')) => depth = depth.saturating_sub(1),
-            _ => {}
+            j += 1;
+        }
+        if rest.starts_with(b"</") {
+            depth = depth.saturating_sub(1);
+        } else if !(rest.starts_with(b"<?") || rest.starts_with(b"<!") || b[j.saturating_sub(1)] == b'/') {
+            depth += 1;
+            if depth > MAX_DEPTH {
+                bail!("{source}: XML elements nested more than {MAX_DEPTH} deep (at byte {at}); not a VTK file");
+            }
+        }
+        i = j + 1;
+        if i >= b.len() {
+            break;
         }
     }
     Ok(())
+}
+
+fn find_from(hay: &[u8], from: usize, needle: &[u8]) -> Option<usize> {
+    hay.get(from..)?.windows(needle.len()).position(|w| w == needle).map(|p| p + from)
 }
 
 /// How binary arrays are laid out, from the `<VTKFile>` root.
@@ -294,5 +321,18 @@ mod tests {
         // A normal depth with comments, self-closing tags and a '/>' pair passes.
         let ok = format!("<?xml version=\"1.0\"?><!-- c --><VTKFile>{}<b/>{}</VTKFile>", "<a x=\"1\">".repeat(200), "</a>".repeat(200));
         split_appended("ok.vtu", ok.as_bytes()).unwrap();
+    }
+
+    #[test]
+    fn xml_nesting_is_bounded_before_parsing() {
+        let ok = "<?xml version=\"1.0\"?><!-- <a><a><a> --><VTKFile a='<x>'><ImageData><Piece/></ImageData></VTKFile>";
+        check_depth("f", ok).unwrap();
+        for n in [MAX_DEPTH + 1, 20_000] {
+            let deep = format!("{}{}", "<a>".repeat(n), "</a>".repeat(n));
+            let e = check_depth("f.vti", &deep).unwrap_err().to_string();
+            assert!(e.contains("f.vti") && e.contains("nested more than"), "{e}");
+        }
+        let flat = "<a></a>".repeat(100_000);
+        check_depth("f", &flat).unwrap();
     }
 }

@@ -565,7 +565,16 @@ fn check_image(image: &RgbaImage, dataset: &Dataset, tf: &TransferFunction, cfg:
     // Images of a few pixels a side may legitimately miss a dataset between
     // their pixel centres; the check needs at least 8 on each side.
     let big_enough = image.width >= 8 && image.height >= 8;
-    if image.covered_pixels() == 0 && big_enough && cfg.fixed_camera.is_none() && tf.visible_over(lo, hi, dataset.bounds().diagonal()) {
+    if image.covered_pixels() == 0 && big_enough && cfg.fixed_camera.is_none() && !tf.visible_over(lo, hi, dataset.bounds().diagonal()) {
+        // Right, but no result: a blank picture measures nothing.
+        anyhow::bail!(
+            "'{}' rendered an empty image: transfer function '{}' is transparent over the data's scalar range [{lo}, {hi}] \
+             (give a transfer function that is opaque somewhere in it, --tf)",
+            dataset.name,
+            tf.name
+        );
+    }
+    if image.covered_pixels() == 0 && big_enough && cfg.fixed_camera.is_none() {
         anyhow::bail!(
             "'{}' rendered an empty image although the camera frames it and transfer function '{}' is not \
              transparent over its scalar range [{lo}, {hi}]",

@@ -321,7 +321,7 @@ pub fn run_suite(
     if !located.is_empty() {
         std::fs::create_dir_all(&peers_dir).with_context(|| format!("creating {}", peers_dir.display()))?;
     }
-    let mut loaded: Option<(&str, Dataset)> = None;
+    let mut loaded: Option<(&str, std::result::Result<Dataset, String>)> = None;
     // Peer renderers still to run on the current dataset, and its exported copy.
     let mut pending: Vec<(&LocatedPeer, &'static PeerRenderer)> = Vec::new();
     let mut export: Option<(std::path::PathBuf, super::peers::PeerDataset)> = None;
@@ -332,9 +332,29 @@ pub fn run_suite(
         let first_of_dataset = i == 0 || plan[i - 1].dataset != p.dataset;
         let last_of_dataset = plan.get(i + 1).is_none_or(|n| n.dataset != p.dataset);
         if loaded.as_ref().is_none_or(|(n, _)| *n != p.dataset) {
-            loaded = Some((p.dataset, datasets::load(p.dataset)?));
+            loaded = Some((p.dataset, datasets::load(p.dataset).map_err(|e| format!("{e:#}"))));
         }
-        let Some((_, dataset)) = &loaded else { continue };
+        let Some((_, loaded_dataset)) = &loaded else { continue };
+        // A dataset that cannot be loaded fails its rows; the suite goes on.
+        let dataset = match loaded_dataset {
+            Ok(d) => d,
+            Err(why) => {
+                pending.clear();
+                summary.runs.push(SuiteRow {
+                    dataset: p.dataset.into(),
+                    method: p.spec.info.name.into(),
+                    label: p.label(),
+                    scene: p.scene,
+                    status: "failed",
+                    message: Some(format!("loading {}: {why}", p.dataset)),
+                    sequence,
+                    result: None,
+                });
+                sequence += 1;
+                fsio::write_output(&out.join("summary.json"), &super::report::json_bytes(&summary)?)?;
+                continue;
+            }
+        };
         if first_of_dataset {
             // Popped from the end: reversed so they run in their listed order.
             pending = located.iter().flat_map(|l| l.renderers_for(dataset.kind()).map(move |r| (l, r))).collect();
@@ -477,6 +497,14 @@ fn run_peer_row(
         let reference_camera = scene.reference_camera;
         let (result, image) = pe::run_peer(peer, &scene, &peers_dir.join(format!("{stem}.scene.json")))?;
         let reference = reference_image(dataset, &tf, &reference_camera, cfg.width, cfg.height)?;
+        // A blank picture is a failure, not a result (docs/bad-input.md).
+        let expected = reference.image.covered_pixels();
+        anyhow::ensure!(
+            image.covered_pixels() > 0 || expected == 0,
+            "peer {}/{} returned an empty image although the f64 reference covers {expected} pixels",
+            peer.peer.name,
+            renderer.name
+        );
         let error = image.compare(&reference.image)?;
         let diff = image.difference(&reference.image);
         let (png, dpng) = (runs_dir.join(format!("{stem}.png")), runs_dir.join(format!("{stem}-diff.png")));

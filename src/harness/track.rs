@@ -58,6 +58,10 @@ impl Default for Tolerances {
 /// older and newer summaries of schema 2 both load).
 #[derive(Debug, Deserialize)]
 pub struct SummaryFile {
+    /// Absent in the summaries written so far (the version is per result);
+    /// when present it must be one this build reads.
+    #[serde(default)]
+    pub schema_version: Option<u32>,
     pub environment: EnvironmentFile,
     pub settings: SettingsFile,
     pub runs: Vec<RowFile>,
@@ -102,6 +106,7 @@ pub struct RowFile {
 
 #[derive(Debug, Deserialize)]
 pub struct ResultFile {
+    pub schema_version: u32,
     pub spec: String,
     pub upload: UploadFile,
     #[serde(default)]
@@ -144,11 +149,48 @@ pub fn load(path: &Path) -> Result<SummaryFile> {
     let text = fsio::read_input_text(path, "suite summary", 256 << 20)?;
     let s: SummaryFile = serde_json::from_str(&text)
         .with_context(|| format!("{}: not a volbench suite summary.json (schema 2)", path.display()))?;
+    validate(&s).with_context(|| format!("{}: not a valid volbench suite summary", path.display()))?;
+    Ok(s)
+}
+
+/// Largest frame or phase time a summary may hold, in milliseconds (a
+/// day): far above any frame, and small enough that every figure derived
+/// from it (nanoseconds, ratios, bands) stays finite.
+pub const MAX_TIME_MS: f64 = 86_400_000.0;
+
+/// Refuse what no run writes: another schema version, two rows with one
+/// name, negative or non-finite errors and times.
+fn validate(s: &SummaryFile) -> Result<()> {
+    let supported = crate::harness::run::SCHEMA_VERSION;
+    if let Some(v) = s.schema_version {
+        ensure!(v == supported, "schema_version {v} is not supported (this build reads schema_version {supported})");
+    }
     let mut seen = std::collections::BTreeSet::new();
     for r in &s.runs {
-        ensure!(seen.insert(key(r)), "{}: two rows for {}", path.display(), key(r));
+        let k = key(r);
+        ensure!(seen.insert(k.clone()), "two rows for {k}");
+        let Some(x) = &r.result else { continue };
+        ensure!(
+            x.schema_version == supported,
+            "{k}: schema_version {} is not supported (this build reads schema_version {supported})",
+            x.schema_version
+        );
+        if let Some(e) = &x.error {
+            ensure!(e.rmse.is_finite() && e.rmse >= 0.0, "{k}: error.rmse {} is not a finite non-negative number", e.rmse);
+        }
+        if let Some(b) = x.upload.bytes_per_cell {
+            ensure!(b.is_finite() && b >= 0.0, "{k}: upload.bytes_per_cell {b} is not a finite non-negative number");
+        }
+        for (phase, samples) in &x.time_ms.samples {
+            for t in samples {
+                ensure!(
+                    t.is_finite() && (0.0..=MAX_TIME_MS).contains(t),
+                    "{k}: time_ms.samples.{phase} holds {t}, expected milliseconds in [0, {MAX_TIME_MS}]"
+                );
+            }
+        }
     }
-    Ok(s)
+    Ok(())
 }
 
 /// A row's name: `dataset/method` or `dataset/method:options`.
@@ -403,16 +445,18 @@ pub fn median_band(samples: &[f64]) -> Option<Band> {
     let median = super::stats::Summary::of(&s).median;
     // Largest k with P(Binomial(n, 1/2) < k) <= 0.025: the band is
     // [x_(k), x_(n+1-k)] (1-based), which covers the median with >= 95 %.
+    // The pmf is carried as its logarithm: 0.5^n underflows from n = 1075.
     let mut k = 0usize;
     let mut cdf = 0.0f64;
-    let mut pmf = 0.5f64.powi(n as i32);
-    for j in 0..n {
+    let mut ln_pmf = -(n as f64) * std::f64::consts::LN_2;
+    for j in 0..n / 2 {
+        let pmf = ln_pmf.exp();
         if cdf + pmf > 0.025 {
             break;
         }
         cdf += pmf;
         k = j + 1;
-        pmf *= (n - j) as f64 / (j + 1) as f64;
+        ln_pmf += ((n - j) as f64).ln() - ((j + 1) as f64).ln();
     }
     let (lo, hi) = if k == 0 { (s[0], s[n - 1]) } else { (s[k - 1], s[n - k]) };
     Some(Band { median, lo, hi })
@@ -441,8 +485,10 @@ fn time_why(v: Verdict, margin: f64) -> String {
     }
 }
 
-/// Frame-time ratios between every pair of runs on a dataset, within each
-/// summary, compared across the two.
+/// Frame-time ratios on each dataset, within each summary, compared across
+/// the two: every run against the dataset's reference run (the first by
+/// name that both summaries time), so the lines grow linearly with the runs
+/// (every pair made 4.5 million lines of 3,000 runs).
 fn compare_ratios(c: &mut Comparison, base: &SummaryFile, new: &SummaryFile, tol: &Tolerances) {
     let bands = |s: &SummaryFile| -> BTreeMap<(String, String), Band> {
         s.runs
@@ -454,13 +500,17 @@ fn compare_ratios(c: &mut Comparison, base: &SummaryFile, new: &SummaryFile, tol
             .collect()
     };
     let (bb, nb) = (bands(base), bands(new));
-    for ((d, m1), b1) in &bb {
-        for ((d2, m2), b2) in &bb {
-            if d != d2 || m1 >= m2 {
-                continue;
-            }
-            let (Some(n1), Some(n2)) = (nb.get(&(d.clone(), m1.clone())), nb.get(&(d.clone(), m2.clone()))) else { continue };
-            let (Some(rb), Some(rn)) = (ratio_band(*b1, *b2), ratio_band(*n1, *n2)) else { continue };
+    // Runs timed in both, by dataset, in name order.
+    let mut by_dataset: BTreeMap<&str, Vec<(&str, Band, Band)>> = BTreeMap::new();
+    for ((d, m), b) in &bb {
+        if let Some(n) = nb.get(&(d.clone(), m.clone())) {
+            by_dataset.entry(d).or_default().push((m, *b, *n));
+        }
+    }
+    for (d, runs) in by_dataset {
+        let Some(((m0, b0, n0), rest)) = runs.split_first() else { continue };
+        for (m, b, n) in rest {
+            let (Some(rb), Some(rn)) = (ratio_band(*b, *b0), ratio_band(*n, *n0)) else { continue };
             let v = time_verdict(rb, rn, tol.time_margin);
             // A ratio moving either way means one method changed relative to
             // the other; which one, only absolute times on one device can say.
@@ -470,7 +520,7 @@ fn compare_ratios(c: &mut Comparison, base: &SummaryFile, new: &SummaryFile, tol
             } else {
                 String::new()
             };
-            c.push(v, &format!("{d}/{m1} ÷ {d}/{m2}"), "frame-time ratio", rb.show(), rn.show(), why);
+            c.push(v, &format!("{d}/{m} ÷ {d}/{m0}"), "frame-time ratio", rb.show(), rn.show(), why);
         }
     }
 }
@@ -567,5 +617,67 @@ mod tests {
         assert_eq!(time_verdict(b, Band { median: 108.0, lo: 106.0, hi: 110.0 }, 0.1), Verdict::Ok);
         assert_eq!(time_verdict(b, Band { median: 130.0, lo: 100.0, hi: 140.0 }, 0.1), Verdict::Ok);
         assert_eq!(time_verdict(b, Band { median: 70.0, lo: 60.0, hi: 80.0 }, 0.1), Verdict::Improved);
+    }
+
+    /// A summary of `runs` rows on one dataset, each with `samples` frame times.
+    fn summary(runs: usize, samples: &[f64], schema: u32, rmse: f64) -> SummaryFile {
+        let rows: Vec<Value> = (0..runs)
+            .map(|i| {
+                json!({"dataset": "d", "method": format!("m{i:05}"), "status": "ok", "result": {
+                    "schema_version": schema, "spec": "m", "work": {},
+                    "upload": {"bytes_per_frame": 1, "cell_bytes_per_frame": 1, "constant_bytes_per_frame": 0, "static_bytes": 1},
+                    "time_ms": {"samples": {"frame": samples}},
+                    "image": {"covered_pixels": 1, "non_finite_pixels": 0},
+                    "error": {"rmse": rmse}}})
+            })
+            .collect();
+        let v = json!({"environment": {"device": {"name": "x", "driver_info": "y"}},
+            "settings": {"width": 1, "height": 1, "orbit_step_deg": 5.0, "quick": true}, "runs": rows});
+        serde_json::from_value(v).unwrap()
+    }
+
+    #[test]
+    fn bands_stay_finite_and_ordered_at_any_sample_count_and_size() {
+        for n in [1usize, 7, 1074, 1075, 5000] {
+            for scale in [1.0, 1e-300, 8e7] {
+                let s: Vec<f64> = (0..n).map(|i| scale * (1.0 + (i * 7919 % n) as f64)).collect();
+                let b = median_band(&s).unwrap();
+                assert!(b.lo <= b.median && b.median <= b.hi, "n={n} scale={scale}: {b:?}");
+            }
+        }
+        let s = summary(2, &vec![80_000_000.0; 1100], 2, 0.1);
+        validate(&s).unwrap();
+        for v in [bmf(&s), gha(&s)] {
+            let text = serde_json::to_string(&v).unwrap();
+            assert!(!text.contains("null"), "{text}");
+        }
+        let lat = &bmf(&s)["d/m00000"]["latency"];
+        assert!(lat["lower_value"].as_f64() <= lat["value"].as_f64() && lat["value"].as_f64() <= lat["upper_value"].as_f64());
+    }
+
+    #[test]
+    fn summaries_no_run_writes_are_refused() {
+        let e = format!("{:#}", validate(&summary(1, &[1.0], 99, 0.1)).unwrap_err());
+        assert!(e.contains("schema_version 99") && e.contains("reads schema_version 2"), "{e}");
+        let mut s = summary(1, &[1.0], 2, 0.1);
+        s.schema_version = Some(3);
+        assert!(validate(&s).is_err());
+        let e = format!("{:#}", validate(&summary(1, &[1.0], 2, -0.5)).unwrap_err());
+        assert!(e.contains("error.rmse -0.5"), "{e}");
+        for t in [-1.0, 1e308] {
+            let e = format!("{:#}", validate(&summary(1, &[1.0, t], 2, 0.1)).unwrap_err());
+            assert!(e.contains("time_ms.samples.frame"), "{e}");
+        }
+    }
+
+    #[test]
+    fn a_comparison_grows_linearly_with_the_runs() {
+        for runs in [30usize, 3000] {
+            let s = summary(runs, &[1.0, 2.0, 3.0], 2, 0.1);
+            let c = compare(&s, &s, &Tolerances::default()).unwrap();
+            let ratios = c.lines.iter().filter(|l| l.figure == "frame-time ratio").count();
+            assert_eq!(ratios, runs - 1);
+            assert_eq!(c.regressions(), 0);
+        }
     }
 }

@@ -45,6 +45,12 @@ impl ContextDesc {
     /// Device from `VOLBENCH_DEVICE`, validation from `VOLBENCH_VALIDATION`
     /// (see [`parse_env_flag`]); an unusable value is an error.
     pub fn from_env() -> VkResult<Self> {
+        // A value that is not UTF-8 is an error, never "unset".
+        for var in [DEVICE_VAR, VALIDATION_VAR] {
+            if let Err(std::env::VarError::NotUnicode(v)) = std::env::var(var) {
+                return Err(VkError::Env { var, value: v.to_string_lossy().into_owned(), expected: "a UTF-8 value" });
+            }
+        }
         Self::from_vars(&|name| std::env::var(name).ok())
     }
 
@@ -52,7 +58,7 @@ impl ContextDesc {
     /// mutating the process environment).
     pub fn from_vars(get: &dyn Fn(&str) -> Option<String>) -> VkResult<Self> {
         Ok(ContextDesc {
-            device: get("VOLBENCH_DEVICE").filter(|s| !s.is_empty()),
+            device: get(DEVICE_VAR).filter(|s| !s.is_empty()),
             validation: match get(VALIDATION_VAR) {
                 Some(v) => parse_env_flag(VALIDATION_VAR, &v)?,
                 None => false,
@@ -61,6 +67,8 @@ impl ContextDesc {
     }
 }
 
+/// The variable that picks the device.
+pub const DEVICE_VAR: &str = "VOLBENCH_DEVICE";
 /// The variable that turns the validation layer on.
 pub const VALIDATION_VAR: &str = "VOLBENCH_VALIDATION";
 /// The variable that bounds every fence wait, in seconds.
