@@ -60,6 +60,16 @@ fn text_width(text: &str, size: u32) -> u32 {
     font.box_size(text).map_or(text.chars().count() as u32 * size * 6 / 10, |(w, _)| w)
 }
 
+/// `v` with three significant digits (0.0206, 64.0, 1592): bars of any
+/// magnitude keep a readable value.
+fn three_digits(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() {
+        return format!("{v}");
+    }
+    let decimals = (2 - v.abs().log10().floor() as i32).max(0) as usize;
+    format!("{v:.decimals$}")
+}
+
 /// One bar: a median with the min–max spread of the samples behind it.
 #[derive(Debug, Clone)]
 pub struct Bar {
@@ -98,56 +108,51 @@ pub fn bar_chart(dir: &Path, name: &str, title: &str, bars: &[Bar]) -> Result<()
 
 fn draw_bars<B: plotters::prelude::DrawingBackend>(backend: B, title: &str, label_width: u32, bars: &[Bar]) -> Result<()> {
     use plotters::prelude::*;
+    use plotters::style::text_anchor::{HPos, Pos, VPos};
     let root = backend.into_drawing_area();
     let draw = || -> Result<(), Box<dyn std::error::Error>> {
         root.fill(&WHITE).map_err(|e| e.to_string())?;
         let top = bars.iter().map(|b| b.spread.map_or(b.median, |s| s.1).max(b.median)).fold(0.0, f64::max);
         let max = top.max(1e-9) * 1.2;
-        let n = bars.len() as i32;
-        // One segment per bar: labels at the segments' centres, first bar on top.
+        let n = bars.len() as f64;
+        // Bar i spans [n-1-i, n-i] on a continuous axis (first bar on top);
+        // its label is drawn at its centre, right-aligned to the axis.
         let mut chart = ChartBuilder::on(&root)
             .caption(title, ("sans-serif", 20))
             .margin(15)
             .x_label_area_size(35)
             .y_label_area_size(label_width)
-            .build_cartesian_2d(0.0..max, (0..n).into_segmented())
+            .build_cartesian_2d(0.0..max, 0.0..n)
             .map_err(|e| e.to_string())?;
-        let row = |i: usize| n - 1 - i as i32;
+        let centre = |i: usize| n - 0.5 - i as f64;
         chart
             .configure_mesh()
             .disable_y_mesh()
-            .y_labels(bars.len())
-            .y_label_formatter(&|y| match y {
-                SegmentValue::CenterOf(i) => bars.get((n - 1 - *i) as usize).map(|b| b.label.clone()).unwrap_or_default(),
-                _ => String::new(),
-            })
+            .y_labels(0)
             .label_style(("sans-serif", 14))
             .draw()
             .map_err(|e| e.to_string())?;
-        chart
-            .draw_series(bars.iter().enumerate().map(|(i, b)| {
-                let colour = if b.peer { PEER_COLOUR } else { PALETTE[0] };
-                let mut r = Rectangle::new([(0.0, SegmentValue::Exact(row(i))), (b.median, SegmentValue::Exact(row(i) + 1))], colour.mix(0.85).filled());
-                r.set_margin(3, 3, 0, 0);
-                r
-            }))
-            .map_err(|e| e.to_string())?;
-        // Whiskers from min to max, through the bar's centre.
+        let label_style = ("sans-serif", 14).into_font().into_text_style(&root).pos(Pos::new(HPos::Right, VPos::Center));
+        let value_style = ("sans-serif", 13).into_font().into_text_style(&root).pos(Pos::new(HPos::Left, VPos::Center));
         for (i, b) in bars.iter().enumerate() {
-            let Some((lo, hi)) = b.spread else { continue };
-            let c = || SegmentValue::CenterOf(row(i));
-            chart.draw_series(std::iter::once(PathElement::new(vec![(lo, c()), (hi, c())], BLACK.stroke_width(2)))).map_err(|e| e.to_string())?;
-            for x in [lo, hi] {
-                let (px, py) = chart.backend_coord(&(x, SegmentValue::CenterOf(row(i))));
-                root.draw(&PathElement::new(vec![(px, py - 5), (px, py + 5)], BLACK.stroke_width(2))).map_err(|e| e.to_string())?;
+            let colour = if b.peer { PEER_COLOUR } else { PALETTE[0] };
+            let (lo_y, hi_y) = (centre(i) - 0.38, centre(i) + 0.38);
+            chart.draw_series(std::iter::once(Rectangle::new([(0.0, lo_y), (b.median, hi_y)], colour.mix(0.85).filled()))).map_err(|e| e.to_string())?;
+            let (ax, ay) = chart.backend_coord(&(0.0, centre(i)));
+            root.draw(&Text::new(b.label.clone(), (ax - 8, ay), label_style.clone())).map_err(|e| e.to_string())?;
+            // The whisker: min to max, through the bar's centre.
+            if let Some((lo, hi)) = b.spread {
+                let (x0, y) = chart.backend_coord(&(lo, centre(i)));
+                let (x1, _) = chart.backend_coord(&(hi, centre(i)));
+                root.draw(&PathElement::new(vec![(x0, y), (x1, y)], BLACK.stroke_width(2))).map_err(|e| e.to_string())?;
+                for x in [x0, x1] {
+                    root.draw(&PathElement::new(vec![(x, y - 5), (x, y + 5)], BLACK.stroke_width(2))).map_err(|e| e.to_string())?;
+                }
             }
+            let end = b.spread.map_or(b.median, |s| s.1.max(b.median));
+            let (vx, vy) = chart.backend_coord(&(end, centre(i)));
+            root.draw(&Text::new(three_digits(b.median), (vx + 6, vy), value_style.clone())).map_err(|e| e.to_string())?;
         }
-        chart
-            .draw_series(bars.iter().enumerate().map(|(i, b)| {
-                let x = b.spread.map_or(b.median, |s| s.1.max(b.median));
-                Text::new(format!("  {:.1}", b.median), (x, SegmentValue::CenterOf(row(i))), ("sans-serif", 13).into_font())
-            }))
-            .map_err(|e| e.to_string())?;
         if bars.iter().any(|b| b.peer) {
             let (w, _) = root.dim_in_pixel();
             let x = w as i32 - 230;
@@ -198,8 +203,12 @@ pub fn montage(path: &Path, title: &str, reference: Option<&RgbaImage>, tiles: &
         let root = BitMapBackend::with_buffer(&mut rgb, (w, h)).into_drawing_area();
         let err = |e: DrawingAreaErrorKind<_>| anyhow::anyhow!("montage {}: {e}", path.display());
         root.fill(&WHITE).map_err(err)?;
-        root.draw(&Text::new(format!("{title}  (each run: image | ×10 difference from the reference)"), (gap as i32, 8), ("sans-serif", 17).into_font()))
-            .map_err(err)?;
+        let note = if reference.is_some() || tiles.iter().any(|t| t.diff.is_some()) {
+            "each run: image | ×10 difference from the f64 reference"
+        } else {
+            "no image reference: these methods report their own error measure"
+        };
+        root.draw(&Text::new(format!("{title}  ({note})"), (gap as i32, 8), ("sans-serif", 17).into_font())).map_err(err)?;
         for (k, (label, image, diff)) in cells.iter().enumerate() {
             let (cx, cy) = ((k as u32 % MONTAGE_COLUMNS) * cell_w + gap, header + (k as u32 / MONTAGE_COLUMNS) * cell_h);
             // A caption longer than the cell is cut with an ellipsis, never overdrawn.
@@ -395,6 +404,11 @@ mod tests {
         time_error_scatter(&dir.join("s.png"), "t", "RMSE", "", &pts).unwrap();
         assert!(dir.join("s.png").exists());
         let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn values_keep_three_significant_digits() {
+        assert_eq!([three_digits(0.02064), three_digits(64.0), three_digits(1591.8), three_digits(0.0)], ["0.0206", "64.0", "1592", "0"]);
     }
 
     #[test]
