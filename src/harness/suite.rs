@@ -192,7 +192,6 @@ pub fn plan(registry: &Registry, settings: &SuiteSettings) -> Result<Vec<Planned
         if CULL_SCENE_DATASETS.contains(&d.name) {
             let culling: Vec<_> = registry
                 .for_kind(d.kind)
-                .into_iter()
                 .filter(|m| (keep(d.name) || keep(m.name)) && m.options.iter().any(|o| o.name == "cull"))
                 .take(if settings.quick { 1 } else { 2 })
                 .collect();

@@ -246,7 +246,7 @@ impl TexelBuffer {
                 what: format!("{format:?} as {features:?} for texel buffer '{}'", desc.name),
             });
         }
-        if desc.size == 0 || desc.size % texel != 0 {
+        if desc.size == 0 || !desc.size.is_multiple_of(texel) {
             return Err(VkError::Invalid(format!(
                 "texel buffer '{}': {} bytes is not a whole, non-zero number of {texel}-byte texels",
                 desc.name, desc.size

@@ -611,7 +611,7 @@ impl CommandRecorder {
     /// 20 bytes) the device reads from `args` at `offset` (e.g. written by
     /// a compute pass).
     pub fn draw_indexed_indirect(&self, args: &Buffer, offset: u64) -> VkResult<()> {
-        if offset % 4 != 0 || offset.checked_add(20).is_none_or(|end| end > args.size()) {
+        if !offset.is_multiple_of(4) || offset.checked_add(20).is_none_or(|end| end > args.size()) {
             return Err(VkError::Invalid(format!(
                 "indirect draw arguments at byte {offset} of buffer '{}' ({} bytes)",
                 args.desc.name,

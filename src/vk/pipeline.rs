@@ -145,7 +145,7 @@ fn create_layout(
     set_layouts: &[vk::DescriptorSetLayout],
 ) -> VkResult<vk::PipelineLayout> {
     let info = &ctx.info;
-    if push_constant_bytes % 4 != 0 || push_constant_bytes > info.max_push_constants_size {
+    if !push_constant_bytes.is_multiple_of(4) || push_constant_bytes > info.max_push_constants_size {
         return Err(VkError::Invalid(format!(
             "pipeline '{name}': {push_constant_bytes} bytes of push constants (a multiple of 4, at most {})",
             info.max_push_constants_size
