@@ -132,7 +132,7 @@ criterion_group!(benches, sort, tables, frames);
 // criterion_main!, plus the font criterion's plots need: plotters is built
 // with ab_glyph (for volbench's own plots), which finds no system fonts.
 fn main() {
-    volbench::harness::pareto::register_font().expect("a font for the plots (scripts/setup.sh installs one)");
+    volbench::harness::plots::register_font().expect("a font for the plots (scripts/setup.sh installs one)");
     benches();
     Criterion::default().configure_from_args().final_summary();
 }

@@ -5,6 +5,7 @@
 //! Vulkan). `mesh` and `scene` are plain data shared by all of them.
 
 pub mod algo;
+pub mod data_dir;
 pub mod fsio;
 pub mod harness;
 pub mod mesh;

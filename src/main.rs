@@ -659,7 +659,7 @@ fn suite(cli: &Cli, registry: &Registry, args: &SuiteArgs) -> Result<()> {
     let settings = SuiteSettings { peers: args.peers.clone(), ..SuiteSettings::standard(args.quick, args.filter.clone()) };
     let plan = plan(registry, &settings)?;
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from(format!("results/{}", utc_now())));
-    check_out_dir(&out, &["summary.json", "summary.csv", "report.md", "montage.png"], &["runs", "plots", "peers"])?;
+    check_out_dir(&out, &["summary.json", "summary.csv", "report.md"], &["runs", "plots", "peers"])?;
     let ctx = context(cli)?;
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
     // A progress bar with ETA on a terminal, plain lines otherwise.

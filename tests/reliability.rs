@@ -283,7 +283,7 @@ fn rmse(v: &serde_json::Value) -> f64 {
 }
 
 /// The documented bound on every integrator's RMSE against the reference
-/// with `exact` interpolation (README, "Run time against error").
+/// with `exact` interpolation (results/HISTORY.md, "Run time against error: what the sweep shows").
 const DOCUMENTED_RMSE: f64 = 2e-3;
 
 #[test]

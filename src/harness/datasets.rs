@@ -5,7 +5,7 @@
 //! never served for different data under the same name).
 
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use anyhow::{Context as _, Result};
 use serde::Serialize;
@@ -58,13 +58,7 @@ pub const NAMED: &[NamedDataset] = &[
 /// The named meshes (kept for callers that only take meshes).
 pub const NAMED_MESHES: [&str; 3] = ["bluntfin", "oxygenpost", "post-small"];
 
-/// `data/` of this checkout, or `VOLBENCH_DATA` when set.
-pub fn data_dir() -> PathBuf {
-    match std::env::var_os("VOLBENCH_DATA") {
-        Some(d) if !d.is_empty() => PathBuf::from(d),
-        _ => Path::new(env!("CARGO_MANIFEST_DIR")).join("data"),
-    }
-}
+pub use crate::data_dir::data_dir;
 
 /// The loaded data, by kind.
 pub enum DatasetData {
@@ -367,7 +361,7 @@ pub fn supported_formats() -> String {
 pub fn load(spec: &str) -> Result<Dataset> {
     let dir = data_dir();
     let named = |name: &str, mesh: Result<TetMesh>, source: String| -> Result<Dataset> {
-        let mut mesh = mesh.with_context(|| format!("loading dataset '{name}'"))?;
+        let mut mesh = mesh.with_context(|| format!("loading dataset '{name}' ({})", crate::data_dir::search_note()))?;
         // Results name a shipped dataset the way the command line does.
         mesh.name = name.to_string();
         Ok(Dataset::from_mesh(mesh, true, source))
@@ -377,12 +371,14 @@ pub fn load(spec: &str) -> Result<Dataset> {
         "oxygenpost" => named(spec, mesh::datasets::load_oxygenpost(&dir), "data/plot3d/post{xyz,q}.bin".into()),
         "post-small" => named(spec, mesh::datasets::load_post_small(&dir), "data/unstructured/post_tets_vtkdata.vtk".into()),
         name if crate::terrain::datasets::NAMES.contains(&name) => {
-            let t = crate::terrain::datasets::load_named(name, &dir).with_context(|| format!("loading dataset '{name}'"))?;
+            let t = crate::terrain::datasets::load_named(name, &dir)
+                .with_context(|| format!("loading dataset '{name}' ({})", crate::data_dir::search_note()))?;
             let file = crate::terrain::datasets::file_of(name).unwrap_or_default();
             Ok(Dataset::from_heightmap(t, true, format!("data/{file}")))
         }
         name if crate::volume::datasets::NAMES.contains(&name) => {
-            let mut v = crate::volume::datasets::load_named(name, &dir).with_context(|| format!("loading dataset '{name}'"))?;
+            let mut v = crate::volume::datasets::load_named(name, &dir)
+                .with_context(|| format!("loading dataset '{name}' ({})", crate::data_dir::search_note()))?;
             v.name = name.to_string();
             let file = crate::volume::datasets::file_of(name).unwrap_or_default();
             Ok(Dataset::from_volume(v, true, format!("data/{file}")))

@@ -4,7 +4,7 @@
 //!
 //! The runner owns what every method shares: the target image, the command
 //! recorder, timestamp and statistics queries, warm-up, CPU/device overlap,
-//! timing, readback and the result record (`schema/result.schema.json`). A
+//! timing, readback and the result record (`results/schema/run.schema.json`). A
 //! method (`algo::method::RenderMethod`) owns its passes and per-frame data.
 //!
 //! Per frame, host wall time is split into the method's own CPU phases
@@ -30,7 +30,7 @@ use crate::algo::registry::MethodSpec;
 use crate::scene::{Camera, Projection, TransferFunction};
 use crate::vk::{CommandRecorder, Context, DeviceInfo, FrameQueries, Image, PipelineStats, UploadCounter};
 
-/// The version of the result record (`schema/result.schema.json`).
+/// The version of the result record (`results/schema/run.schema.json`).
 pub const SCHEMA_VERSION: u32 = 2;
 
 /// How a run is driven: image size, frames, camera. Method options live in

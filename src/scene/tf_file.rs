@@ -395,6 +395,6 @@ pub fn to_json(tf: &TransferFunction, units: JsonUnits) -> Result<String> {
 
 /// The preset file of a shipped mesh (`data/tf/<name>.json`), if there is one.
 pub fn preset_path(mesh_name: &str) -> Option<PathBuf> {
-    let p = crate::harness::datasets::data_dir().join("tf").join(format!("{mesh_name}.json"));
+    let p = crate::data_dir::data_dir().join("tf").join(format!("{mesh_name}.json"));
     p.is_file().then_some(p)
 }

@@ -908,7 +908,7 @@ mod tests {
     use super::*;
 
     fn jacksboro() -> Heightmap {
-        crate::terrain::datasets::load_named("jacksboro", &crate::harness::datasets::data_dir()).unwrap()
+        crate::terrain::datasets::load_named("jacksboro", &crate::data_dir::data_dir()).unwrap()
     }
 
     /// Signed x-y area of a triangle list (grid units).

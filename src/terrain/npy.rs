@@ -346,7 +346,7 @@ mod tests {
 
     #[test]
     fn shipped_npz_reads() {
-        let path = crate::harness::datasets::data_dir().join("terrain/jacksboro_fault_dem.npz");
+        let path = crate::data_dir::data_dir().join("terrain/jacksboro_fault_dem.npz");
         let bytes = std::fs::read(path).unwrap();
         let (m, s) = parse_npz_grid("j.npz", &bytes, None).unwrap();
         assert_eq!((m.nx, m.ny), (403, 344));

@@ -72,6 +72,10 @@ impl FrameQueries {
     pub fn new(ctx: &Arc<Context>) -> VkResult<Self> {
         let d = &ctx.device;
         let ts_info = vk::QueryPoolCreateInfo::default().query_type(vk::QueryType::TIMESTAMP).query_count(2);
+        // SAFETY: the create info and everything it points to live for the
+        // call; the device outlives the handle (the owner holds the Context in
+        // an Arc) and the handle is destroyed once, by its owner's Drop or the
+        // error path below.
         let timestamps = unsafe { d.create_query_pool(&ts_info, None) }.check("vkCreateQueryPool(timestamps)")?;
         let geometry = ctx.info.features.geometry_shader;
         let stat_flags: Vec<_> = STATS
@@ -89,9 +93,16 @@ impl FrameQueries {
                 .query_type(vk::QueryType::PIPELINE_STATISTICS)
                 .query_count(1)
                 .pipeline_statistics(flags);
+            // SAFETY: the create info and everything it points to live for the
+            // call; the device outlives the handle (the owner holds the Context in
+            // an Arc) and the handle is destroyed once, by its owner's Drop or the
+            // error path below.
             match unsafe { d.create_query_pool(&info, None) } {
                 Ok(p) => Some(p),
                 Err(result) => {
+                    // SAFETY: the handle was created just above, was never used or
+                    // submitted, and is destroyed once here, on the error path (the wrapper
+                    // that would own it is not built).
                     unsafe { d.destroy_query_pool(timestamps, None) };
                     return Err(super::VkError::Call { what: "vkCreateQueryPool(statistics)", result });
                 }
@@ -107,6 +118,10 @@ impl FrameQueries {
     /// Reset both pools; record outside a render pass, before `begin`.
     pub fn reset(&self, rec: &CommandRecorder) {
         let cmd = rec.raw;
+        // SAFETY: the command buffer is a recorder's own, recording between its
+        // `begin` and submit (the recorder's state machine); every handle recorded
+        // is live, borrowed for the call and kept alive by its owner until the
+        // submission is waited for.
         unsafe {
             self.ctx.device.cmd_reset_query_pool(cmd, self.timestamps, 0, 2);
             if let Some(p) = self.stats {
@@ -117,6 +132,10 @@ impl FrameQueries {
 
     pub fn begin(&self, rec: &CommandRecorder) {
         let cmd = rec.raw;
+        // SAFETY: the command buffer is a recorder's own, recording between its
+        // `begin` and submit (the recorder's state machine); every handle recorded
+        // is live, borrowed for the call and kept alive by its owner until the
+        // submission is waited for.
         unsafe {
             self.ctx.device.cmd_write_timestamp2(cmd, vk::PipelineStageFlags2::TOP_OF_PIPE, self.timestamps, 0);
             if let Some(p) = self.stats {
@@ -127,6 +146,10 @@ impl FrameQueries {
 
     pub fn end(&self, rec: &CommandRecorder) {
         let cmd = rec.raw;
+        // SAFETY: the command buffer is a recorder's own, recording between its
+        // `begin` and submit (the recorder's state machine); every handle recorded
+        // is live, borrowed for the call and kept alive by its owner until the
+        // submission is waited for.
         unsafe {
             if let Some(p) = self.stats {
                 self.ctx.device.cmd_end_query(cmd, p, 0);
@@ -150,6 +173,10 @@ impl FrameQueries {
             }
         };
         let mut ts = [0u64; 2];
+        // SAFETY: the pool is live on this device and the output holds every
+        // result read (64-bit each, TYPE_64; statistics: one [u64; 8] for at most
+        // 8 counters). Read without WAIT_BIT, an unfinished query is NOT_READY,
+        // an error, never a block.
         unsafe { d.get_query_pool_results(self.timestamps, 0, &mut ts, vk::QueryResultFlags::TYPE_64) }
             .map_err(not_ready("vkGetQueryPoolResults(timestamps)"))?;
         let ticks = (ts[1] & self.valid_mask).wrapping_sub(ts[0] & self.valid_mask) & self.valid_mask;
@@ -160,6 +187,10 @@ impl FrameQueries {
                 let n = self.stat_flags.len();
                 // One query (a one-element slice of [u64; 8]) whose result is
                 // `n` <= 8 consecutive u64 values.
+                // SAFETY: the pool is live on this device and the output holds every
+                // result read (64-bit each, TYPE_64; statistics: one [u64; 8] for at most
+                // 8 counters). Read without WAIT_BIT, an unfinished query is NOT_READY,
+                // an error, never a block.
                 unsafe {
                     d.get_query_pool_results(p, 0, std::slice::from_mut(&mut v), vk::QueryResultFlags::TYPE_64)
                 }
@@ -178,6 +209,10 @@ impl FrameQueries {
 
 impl Drop for FrameQueries {
     fn drop(&mut self) {
+        // SAFETY: the owner is being dropped: nothing else holds the handle,
+        // no pending submission uses it (owners wait for their recorders before
+        // dropping resources: the sync model of `context.rs`), and it is
+        // destroyed once, here.
         unsafe {
             self.ctx.device.destroy_query_pool(self.timestamps, None);
             if let Some(p) = self.stats {

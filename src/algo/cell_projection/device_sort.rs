@@ -267,7 +267,7 @@ impl DeviceCentroidSort {
         let rec = CommandRecorder::new(ctx, "device sort order readback")?;
         rec.begin()?;
         if bytes > 0 {
-            rec.copy_buffer(&self.order, &readback, bytes);
+            rec.copy_buffer(&self.order, &readback, bytes)?;
         }
         rec.transfer_to_host();
         rec.submit_and_wait()?;

@@ -279,7 +279,7 @@ impl RenderMethod for HmCompute {
         rec.begin()?;
         if count > 0 {
             rec.compute_to_transfer();
-            rec.copy_buffer(&self.output, &readback, 4 * count);
+            rec.copy_buffer(&self.output, &readback, 4 * count)?;
             rec.transfer_to_host();
         }
         rec.submit_and_wait()?;
