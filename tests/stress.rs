@@ -65,7 +65,7 @@ fn config(methods: &[&str], integrators: &[&str], interpolations: &[&str], sorts
             }
         }
     }
-    StressConfig { size: SIZE, specs }
+    StressConfig { size: SIZE, specs, images: None }
 }
 
 const INTEGRATORS: [&str; 4] = ["average", "preint", "ppi", "linear-exact"];

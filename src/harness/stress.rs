@@ -15,6 +15,7 @@
 //! allowance applied, `fail` otherwise. [`describe_cases`] lists every case
 //! and allowance.
 
+use std::path::PathBuf;
 use std::sync::Arc;
 
 use anyhow::{Context as _, Result};
@@ -907,6 +908,9 @@ pub fn bound(case: &StressCase, spec: &MethodSpec) -> Option<(f64, bool)> {
 pub struct StressConfig {
     pub size: u32,
     pub specs: Vec<MethodSpec>,
+    /// Where to write each case's reference and each row's image and
+    /// |image - reference| x10 as PNG (none: no images).
+    pub images: Option<PathBuf>,
 }
 
 impl StressConfig {
@@ -920,7 +924,7 @@ impl StressConfig {
                 specs.push(registry.variant(&base, v)?);
             }
         }
-        Ok(StressConfig { size, specs })
+        Ok(StressConfig { size, specs, images: None })
     }
 }
 
@@ -956,6 +960,9 @@ pub fn run_cases_with_progress(
         let dataset = case.data.dataset(&case.name);
         let reference = reference_image(&dataset, &case.tf, &case.camera, cfg.size, cfg.size)
             .with_context(|| format!("stress case '{}': reference", case.name))?;
+        if let Some(dir) = &cfg.images {
+            reference.image.write_png(&dir.join(format!("{}.reference.png", case.name)))?;
+        }
         for spec in specs {
             let opt = |k: &str| spec.options.text(k).unwrap_or_else(|_| "-".into());
             let Some((b, documented)) = bound(case, spec) else { continue };
@@ -984,8 +991,14 @@ pub fn run_cases_with_progress(
                 status: "fail",
                 bound: b,
             };
-            let measured = run(ctx, spec, &dataset, &case.tf, &rc)
-                .and_then(|out| Ok((non_finite_pixels(&out.image), out.image.compare(&reference.image)?)));
+            let measured = run(ctx, spec, &dataset, &case.tf, &rc).and_then(|out| {
+                if let Some(dir) = &cfg.images {
+                    let stem = format!("{}.{}.{}", case.name, spec.info.name, row.options.replace(['=', ','], "-"));
+                    out.image.write_png(&dir.join(format!("{stem}.png")))?;
+                    out.image.difference(&reference.image).write_png(&dir.join(format!("{stem}.diff.png")))?;
+                }
+                Ok((non_finite_pixels(&out.image), out.image.compare(&reference.image)?))
+            });
             match measured {
                 Ok(((nan_pixels, inf_pixels), e)) => {
                     // NaN compares false: a NaN error is never within the bound.
