@@ -481,7 +481,16 @@ fn camera_inside() -> StressCase {
     StressCase {
         name: "camera-inside".into(),
         description: "eye inside the 8^3 grid, near plane 1e-3, 60 degree field of view".into(),
-        allowances: Vec::new(),
+        allowances: vec![Allowance {
+            when: &[("interpolation", &["paper"])],
+            extra: 5e-2,
+            reason: "model error of the papers' interpolation under perspective (README: \"Perspective\"), not \
+                     numerics: it is wrong over whole faces (RMSE 4.6e-2 at every size), and its max over the image \
+                     is the sup of that error field, approached as the pixels sample it more finely: 0.221 at \
+                     64x64, 0.262 at 256x256, 0.268 at 512x512 (vicp, balanced, resident, atfs alike; bound 0.25). \
+                     Allowance rounded up; exact interpolation meets the accuracy bound at every size"
+                .into(),
+        }],
         data: CaseData::TetMesh(mesh),
         camera,
         tf,
@@ -713,6 +722,18 @@ fn opaque(tau: f64) -> StressCase {
                          resolve such a medium: one scalar step is an attenuation step of tau/127 and the first \
                          length sample is already opaque, so short segments get alpha interpolated between 0 and 1 \
                          (measured 0.92). Only finiteness is asserted"
+                    .into(),
+            },
+            Allowance {
+                when: &[("integrator", &["average", "ppi", "linear-exact"])],
+                extra: 1.0,
+                reason: "no useful bound at single silhouette pixels: where a ray grazes a corner of the mesh its \
+                         segment through the corner is set by the rasterizer (coverage snapped to 1/256 pixel) and \
+                         by the f32 interpolation of the exit (rounding ~1e-7 of a cell's size), and at 1e6 per unit \
+                         length a segment of 1e-6 is already opaque. Measured on one pixel each: 5.9e-3 at 256x256 \
+                         (alpha 0.93 from a 3e-6 segment, its length off by 4e-8), 0.77 at 512x512 (a pixel the \
+                         render leaves empty); RMSE 1.1e-3 at most. At 64x64 tests/stress.rs holds ppi to the \
+                         accuracy bound alone"
                     .into(),
             },
             Allowance {
