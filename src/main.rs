@@ -329,6 +329,12 @@ struct StressArgs {
     /// Only these methods (repeat; default every method).
     #[arg(long = "method", value_name = "NAME")]
     methods: Vec<String>,
+    /// Only these cases (repeat; default every case, see --describe).
+    #[arg(long = "case", value_name = "NAME")]
+    cases: Vec<String>,
+    /// Write each case's reference and each render with its |image - reference| x10 as PNG into this directory.
+    #[arg(long, value_name = "DIR")]
+    images: Option<PathBuf>,
     /// Write {"cases": [...]} as JSON (rewritten as each row completes).
     #[arg(long)]
     json: Option<PathBuf>,
@@ -630,11 +636,22 @@ fn stress(cli: &Cli, registry: &Registry, args: &StressArgs) -> Result<()> {
         cfg.specs.retain(|s| args.methods.iter().any(|m| m == s.info.name));
         anyhow::ensure!(!cfg.specs.is_empty(), "--method: none of {:?} has stress option sets", args.methods);
     }
+    let mut cases = stress_cases(args.size);
+    if !args.cases.is_empty() {
+        for c in &args.cases {
+            anyhow::ensure!(cases.iter().any(|k| &k.name == c), "--case: no stress case '{c}' (see --describe)");
+        }
+        cases.retain(|k| args.cases.contains(&k.name));
+    }
+    if let Some(dir) = &args.images {
+        std::fs::create_dir_all(dir).with_context(|| format!("--images: creating {}", dir.display()))?;
+        cfg.images = Some(dir.clone());
+    }
     let ctx = context(cli)?;
     let mut done = Vec::new();
     // The JSON is rewritten as each row completes; a write that fails ends
     // the run at once (the path was probed up front, so this is rare).
-    let rows = run_cases_with_progress(&ctx, &stress_cases(args.size), &cfg, |row| {
+    let rows = run_cases_with_progress(&ctx, &cases, &cfg, |row| {
         done.push(row.clone());
         if done.len() % 50 == 0 {
             eprintln!("volbench: stress: {} renders ({} ...)", done.len(), row.case);

@@ -15,6 +15,7 @@
 //! allowance applied, `fail` otherwise. [`describe_cases`] lists every case
 //! and allowance.
 
+use std::path::PathBuf;
 use std::sync::Arc;
 
 use anyhow::{Context as _, Result};
@@ -480,7 +481,16 @@ fn camera_inside() -> StressCase {
     StressCase {
         name: "camera-inside".into(),
         description: "eye inside the 8^3 grid, near plane 1e-3, 60 degree field of view".into(),
-        allowances: Vec::new(),
+        allowances: vec![Allowance {
+            when: &[("interpolation", &["paper"])],
+            extra: 5e-2,
+            reason: "model error of the papers' interpolation under perspective (README: \"Perspective\"), not \
+                     numerics: it is wrong over whole faces (RMSE 4.6e-2 at every size), and its max over the image \
+                     is the sup of that error field, approached as the pixels sample it more finely: 0.221 at \
+                     64x64, 0.262 at 256x256, 0.268 at 512x512 (vicp, balanced, resident, atfs alike; bound 0.25). \
+                     Allowance rounded up; exact interpolation meets the accuracy bound at every size"
+                .into(),
+        }],
         data: CaseData::TetMesh(mesh),
         camera,
         tf,
@@ -715,6 +725,18 @@ fn opaque(tau: f64) -> StressCase {
                     .into(),
             },
             Allowance {
+                when: &[("integrator", &["average", "ppi", "linear-exact"])],
+                extra: 1.0,
+                reason: "no useful bound at single silhouette pixels: where a ray grazes a corner of the mesh its \
+                         segment through the corner is set by the rasterizer (coverage snapped to 1/256 pixel) and \
+                         by the f32 interpolation of the exit (rounding ~1e-7 of a cell's size), and at 1e6 per unit \
+                         length a segment of 1e-6 is already opaque. Measured on one pixel each: 5.9e-3 at 256x256 \
+                         (alpha 0.93 from a 3e-6 segment, its length off by 4e-8), 0.77 at 512x512 (a pixel the \
+                         render leaves empty); RMSE 1.1e-3 at most. At 64x64 tests/stress.rs holds ppi to the \
+                         accuracy bound alone"
+                    .into(),
+            },
+            Allowance {
                 when: &[("integrator", &["average"])],
                 extra: 0.1,
                 reason: "model error: averaging the two ends' attenuation (0 at one end, huge at the other) \
@@ -907,6 +929,9 @@ pub fn bound(case: &StressCase, spec: &MethodSpec) -> Option<(f64, bool)> {
 pub struct StressConfig {
     pub size: u32,
     pub specs: Vec<MethodSpec>,
+    /// Where to write each case's reference and each row's image and
+    /// |image - reference| x10 as PNG (none: no images).
+    pub images: Option<PathBuf>,
 }
 
 impl StressConfig {
@@ -920,7 +945,7 @@ impl StressConfig {
                 specs.push(registry.variant(&base, v)?);
             }
         }
-        Ok(StressConfig { size, specs })
+        Ok(StressConfig { size, specs, images: None })
     }
 }
 
@@ -956,6 +981,9 @@ pub fn run_cases_with_progress(
         let dataset = case.data.dataset(&case.name);
         let reference = reference_image(&dataset, &case.tf, &case.camera, cfg.size, cfg.size)
             .with_context(|| format!("stress case '{}': reference", case.name))?;
+        if let Some(dir) = &cfg.images {
+            reference.image.write_png(&dir.join(format!("{}.reference.png", case.name)))?;
+        }
         for spec in specs {
             let opt = |k: &str| spec.options.text(k).unwrap_or_else(|_| "-".into());
             let Some((b, documented)) = bound(case, spec) else { continue };
@@ -984,8 +1012,14 @@ pub fn run_cases_with_progress(
                 status: "fail",
                 bound: b,
             };
-            let measured = run(ctx, spec, &dataset, &case.tf, &rc)
-                .and_then(|out| Ok((non_finite_pixels(&out.image), out.image.compare(&reference.image)?)));
+            let measured = run(ctx, spec, &dataset, &case.tf, &rc).and_then(|out| {
+                if let Some(dir) = &cfg.images {
+                    let stem = format!("{}.{}.{}", case.name, spec.info.name, row.options.replace(['=', ','], "-"));
+                    out.image.write_png(&dir.join(format!("{stem}.png")))?;
+                    out.image.difference(&reference.image).write_png(&dir.join(format!("{stem}.diff.png")))?;
+                }
+                Ok((non_finite_pixels(&out.image), out.image.compare(&reference.image)?))
+            });
             match measured {
                 Ok(((nan_pixels, inf_pixels), e)) => {
                     // NaN compares false: a NaN error is never within the bound.
