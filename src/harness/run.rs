@@ -65,6 +65,10 @@ pub struct RunConfig {
     pub fixed_frames: usize,
 }
 
+/// The phases the runner itself times (every other phase is the method's
+/// own): tables that list a method's phases leave these out.
+pub const RUNNER_PHASES: &[&str] = &["frame", "gpu", "upload", "record", "submit", "wait", "fixed", "fixed_gpu"];
+
 /// Frames and warm-up together may not exceed this: a run is a benchmark,
 /// not a soak test, and sample vectors are sized from it.
 pub const MAX_FRAMES: usize = 100_000;
