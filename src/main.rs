@@ -233,6 +233,10 @@ struct FrameArgs {
     /// Run each frame's phases strictly one after another (no CPU/device overlap).
     #[arg(long)]
     no_overlap: bool,
+    /// Frames with nothing in view (the camera turned away) after the timed
+    /// ones: the frame's fixed cost, reported as `fixed` and `fixed_gpu` (0: none).
+    #[arg(long, default_value_t = 5)]
+    fixed_frames: usize,
     /// A transfer-function file (JSON, see data/tf/README.md); default: the
     /// dataset's preset.
     #[arg(long)]
@@ -290,7 +294,7 @@ struct CompareArgs {
     #[arg(
         value_name = "SUMMARY",
         num_args = 2,
-        conflicts_with_all = ["data", "methods", "out", "size", "frames", "warmup", "projection", "orbit_step", "zoom", "no_overlap", "tf", "integrator", "table_size", "sort", "interpolation"]
+        conflicts_with_all = ["data", "methods", "out", "size", "frames", "warmup", "projection", "orbit_step", "zoom", "no_overlap", "fixed_frames", "tf", "integrator", "table_size", "sort", "interpolation"]
     )]
     summaries: Vec<PathBuf>,
     /// Tracking: compare counts and errors only, not times (shared CI runners).
@@ -371,6 +375,7 @@ impl FrameArgs {
             orbit_step: self.orbit_step.to_radians(),
             zoom: self.zoom,
             overlap: !self.no_overlap,
+            fixed_frames: self.fixed_frames,
             projection: match self.projection {
                 ProjectionArg::Perspective => Projection::Perspective { fovy_deg: 30.0 },
                 ProjectionArg::Orthographic => Projection::Orthographic { height: 1.0 },

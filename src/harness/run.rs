@@ -13,7 +13,11 @@
 //! of frame N+1 runs while the device draws frame N (`overlap`), and `frame`
 //! is then the interval between frame completions; with `overlap` off each
 //! frame's phases run strictly one after another. Bytes come from the
-//! counters in `vk::upload`, read before and after each frame.
+//! counters in `vk::upload`, read before and after each frame. Pipeline
+//! statistics are collected in the reference-view frame only (the one
+//! reported). After the timed frames, the
+//! same cameras turned away from the dataset measure the frame's fixed cost
+//! (`fixed`, `fixed_gpu`; docs/frame-cost.md).
 
 use std::collections::BTreeMap;
 use std::sync::Arc;
@@ -55,7 +59,15 @@ pub struct RunConfig {
     pub overlap: bool,
     /// Ask the method for its (possibly costly) reference-view diagnostics.
     pub diagnostics: bool,
+    /// Frames with nothing in view (each timed frame's camera turned away
+    /// from the dataset) after the timed ones: the frame's fixed cost,
+    /// reported as the phases `fixed` and `fixed_gpu` (0: not measured).
+    pub fixed_frames: usize,
 }
+
+/// The phases the runner itself times (every other phase is the method's
+/// own): tables that list a method's phases leave these out.
+pub const RUNNER_PHASES: &[&str] = &["frame", "gpu", "upload", "record", "submit", "wait", "fixed", "fixed_gpu"];
 
 /// Frames and warm-up together may not exceed this: a run is a benchmark,
 /// not a soak test, and sample vectors are sized from it.
@@ -74,6 +86,7 @@ impl Default for RunConfig {
             fixed_camera: None,
             overlap: true,
             diagnostics: false,
+            fixed_frames: 5,
         }
     }
 }
@@ -83,10 +96,11 @@ impl RunConfig {
     pub fn validate(&self) -> Result<()> {
         anyhow::ensure!(self.frames >= 1, "--frames must be at least 1");
         anyhow::ensure!(
-            self.frames.checked_add(self.warmup).is_some_and(|n| n <= MAX_FRAMES),
-            "--frames {} + --warmup {} exceeds the limit of {MAX_FRAMES} frames per run",
+            self.frames.checked_add(self.warmup).and_then(|n| n.checked_add(self.fixed_frames)).is_some_and(|n| n <= MAX_FRAMES),
+            "--frames {} + --warmup {} + --fixed-frames {} exceeds the limit of {MAX_FRAMES} frames per run",
             self.frames,
-            self.warmup
+            self.warmup,
+            self.fixed_frames
         );
         anyhow::ensure!(self.width > 0 && self.height > 0, "--size must be positive, got {}x{}", self.width, self.height);
         anyhow::ensure!(self.orbit_step.is_finite(), "--orbit-step must be a finite number of degrees");
@@ -175,7 +189,9 @@ pub struct UploadReport {
 }
 
 /// Median/min/max per phase (`frame`, `gpu`, the method's own phases,
-/// `upload`, `record`, `submit`, `wait`), set-up times, and every raw sample.
+/// `upload`, `record`, `submit`, `wait`; `fixed` and `fixed_gpu`, the frame
+/// and GPU time of a frame with nothing in view), set-up times, and every
+/// raw sample.
 #[derive(Debug, Clone, Serialize)]
 pub struct TimeReport {
     #[serde(flatten)]
@@ -431,6 +447,13 @@ impl MethodSession {
         })
     }
 
+    /// Whether frames collect pipeline statistics (on when built). Only the
+    /// reference-view frame's statistics are reported, so `run` switches
+    /// them off for the timed and fixed-cost frames.
+    pub fn set_statistics(&mut self, on: bool) {
+        self.queries.set_statistics(on);
+    }
+
     pub fn method(&self) -> &dyn RenderMethod {
         self.method.as_ref()
     }
@@ -526,6 +549,21 @@ impl MethodSession {
         Ok(out)
     }
 
+    /// Run `cameras` overlapped (`run_overlapped`) or each frame's phases
+    /// one after another (`frame`); the timing and bytes of every frame.
+    pub fn run_frames(&mut self, cameras: &[Camera], overlap: bool, counter: &mut UploadCounter) -> Result<Vec<(FrameTiming, UploadCounter)>> {
+        if overlap {
+            return self.run_overlapped(cameras, counter);
+        }
+        let mut out = Vec::with_capacity(cameras.len());
+        for (f, camera) in cameras.iter().enumerate() {
+            let before = *counter;
+            let (timing, _) = self.frame(camera, counter).with_context(|| format!("frame {f}"))?;
+            out.push((timing, counter.since(&before)));
+        }
+        Ok(out)
+    }
+
     /// The last frame's image.
     pub fn read_image(&self, ctx: &Arc<Context>) -> Result<RgbaImage> {
         let pixels = self.target.read_rgba32f(ctx).context("reading back the image")?;
@@ -552,6 +590,17 @@ impl Samples {
         add("wait", t.wait);
         add("frame", t.frame);
         add("gpu", t.gpu);
+    }
+
+    /// A frame with nothing in view: its frame and GPU time as `fixed` and
+    /// `fixed_gpu`, its counts as `fixed.<name>` (e.g. `fixed.cells_drawn`,
+    /// which says whether the view was really empty).
+    fn push_fixed(&mut self, t: &FrameTiming) {
+        for &(name, n) in &t.method.1 {
+            self.1.entry(format!("fixed.{name}")).or_default().push(n);
+        }
+        self.0.entry("fixed".into()).or_default().push(t.frame);
+        self.0.entry("fixed_gpu".into()).or_default().push(t.gpu);
     }
 }
 
@@ -592,27 +641,25 @@ pub fn run(ctx: &Arc<Context>, spec: &MethodSpec, dataset: &Dataset, tf: &Transf
     let mut samples = Samples::default();
     let mut last_frame_counters = UploadCounter::default();
 
-    if cfg.overlap {
-        let cameras: Vec<Camera> = (0..cfg.warmup + cfg.frames).map(|f| cfg.frame_camera(dataset, session.method(), f)).collect();
-        for (f, (timing, bytes)) in session.run_overlapped(&cameras, &mut counter)?.into_iter().enumerate() {
-            if f >= cfg.warmup {
-                samples.push(&timing);
-                last_frame_counters = bytes;
-            }
+    session.set_statistics(false);
+    let cameras: Vec<Camera> = (0..cfg.warmup + cfg.frames).map(|f| cfg.frame_camera(dataset, session.method(), f)).collect();
+    for (f, (timing, bytes)) in session.run_frames(&cameras, cfg.overlap, &mut counter)?.into_iter().enumerate() {
+        if f >= cfg.warmup {
+            samples.push(&timing);
+            last_frame_counters = bytes;
         }
-    } else {
-        for f in 0..cfg.warmup + cfg.frames {
-            let before = counter;
-            let camera = cfg.frame_camera(dataset, session.method(), f);
-            let (timing, _) = session.frame(&camera, &mut counter).with_context(|| format!("frame {f}"))?;
-            if f >= cfg.warmup {
-                samples.push(&timing);
-                last_frame_counters = counter.since(&before);
-            }
-        }
+    }
+    // The fixed cost: the timed frames' cameras turned away from the
+    // dataset, so no cell, ray hit or terrain tile is in view and what is
+    // left is what every frame pays (clear, queries, submit, fence, the
+    // method's per-pixel and per-frame passes). Bytes are not counted.
+    let empty: Vec<Camera> = cameras.iter().skip(cfg.warmup).cycle().take(cfg.fixed_frames).map(Camera::turned_away).collect();
+    for (timing, _) in session.run_frames(&empty, cfg.overlap, &mut UploadCounter::default()).context("fixed-cost frames")? {
+        samples.push_fixed(&timing);
     }
     // The reference view, untimed: its image and statistics are reported.
     let reference_camera = cfg.frame_camera(dataset, session.method(), 0);
+    session.set_statistics(true);
     let (_, stats) = session.frame(&reference_camera, &mut UploadCounter::default()).context("reference-view frame")?;
     let image = session.read_image(ctx)?;
     ctx.check_validation().context("Vulkan validation")?;

@@ -995,6 +995,8 @@ pub fn run_cases_with_progress(
                 overlap: false,
                 projection: case.camera.projection,
                 fixed_camera: Some(case.camera),
+                // Stress checks images; the fixed cost is not measured here.
+                fixed_frames: 0,
                 ..RunConfig::default()
             };
             let mut row = StressRow {

@@ -911,9 +911,8 @@ fn placement_report(s: &Summary) -> String {
         );
         for (label, x) in runs {
             let (f, g) = (x.time_ms.phase("frame").median, x.time_ms.phase("gpu").median);
-            let runner = ["frame", "gpu", "upload", "record", "submit", "wait"];
             let phases: Vec<String> =
-                x.time_ms.phases.iter().filter(|(k, _)| !runner.contains(&k.as_str())).map(|(k, v)| format!("{k} {:.2}", v.median)).collect();
+                x.time_ms.phases.iter().filter(|(k, _)| !super::run::RUNNER_PHASES.contains(&k.as_str())).map(|(k, v)| format!("{k} {:.2}", v.median)).collect();
             let work: Vec<String> = x.work.counts.iter().map(|(k, v)| format!("{k} {v}")).collect();
             let ratio = |a: f64, b: f64| if b > 0.0 { format!("{:.2}", a / b) } else { "-".into() };
             let _ = writeln!(

@@ -141,6 +141,15 @@ impl Camera {
         Camera { projection, ..*self }
     }
 
+    /// The same eye looking the opposite way (the target mirrored through
+    /// the eye), with the same projection, near and far. A camera outside
+    /// the dataset's bounding sphere that looked at it (the orbit) then has
+    /// the whole dataset behind it: nothing is in view. The runner's `fixed`
+    /// frames use it to measure what a frame costs with nothing to draw.
+    pub fn turned_away(&self) -> Camera {
+        Camera { target: std::array::from_fn(|k| 2.0 * self.eye[k] - self.target[k]), ..*self }
+    }
+
     /// The same camera moved by `by` (eye and target; the view is unchanged).
     pub fn translated(&self, by: [f64; 3]) -> Camera {
         Camera {
@@ -211,6 +220,29 @@ mod tests {
             };
             let (a, b) = (ndc(&cam), ndc(&z));
             assert!((2.0 * a.0 - b.0).abs() < 1e-12 && (2.0 * a.1 - b.1).abs() < 1e-12, "{a:?} {b:?}");
+        }
+    }
+
+    /// The orbit camera turned away sees none of the box: every corner
+    /// lies behind the eye (view-space z > -near), at two orbit angles and
+    /// both projections.
+    #[test]
+    fn turned_away_sees_nothing_of_the_box() {
+        let b = bounds();
+        for projection in [Projection::Perspective { fovy_deg: 30.0 }, Projection::Orthographic { height: 1.0 }] {
+            for angle in [0.0, 2.5] {
+                let cam = Camera::orbit(&b, angle, projection).turned_away();
+                assert_eq!(cam.eye, Camera::orbit(&b, angle, projection).eye);
+                for i in 0..8 {
+                    let p = DVec3::new(
+                        if i & 1 == 0 { b.min[0] } else { b.max[0] },
+                        if i & 2 == 0 { b.min[1] } else { b.max[1] },
+                        if i & 4 == 0 { b.min[2] } else { b.max[2] },
+                    );
+                    let v = cam.view() * p.extend(1.0);
+                    assert!(v.z > -cam.near, "{projection:?} angle {angle}: corner {p} at view z {}", v.z);
+                }
+            }
         }
     }
 

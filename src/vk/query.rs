@@ -63,6 +63,8 @@ pub struct FrameQueries {
     stats: Option<vk::QueryPool>,
     /// The flags of `stats`, in bit order.
     stat_flags: Vec<vk::QueryPipelineStatisticFlags>,
+    /// Record the statistics query (`set_statistics`); timestamps always.
+    statistics: bool,
     period_ns: f64,
     valid_mask: u64,
     ctx: Arc<Context>,
@@ -112,7 +114,21 @@ impl FrameQueries {
         };
         let bits = ctx.info.timestamp_valid_bits;
         let valid_mask = if bits >= 64 { u64::MAX } else { (1u64 << bits) - 1 };
-        Ok(FrameQueries { timestamps, stats, stat_flags, period_ns: ctx.info.timestamp_period_ns as f64, valid_mask, ctx: ctx.clone() })
+        Ok(FrameQueries { timestamps, stats, stat_flags, statistics: true, period_ns: ctx.info.timestamp_period_ns as f64, valid_mask, ctx: ctx.clone() })
+    }
+
+    /// Whether the following recordings begin and end the statistics query
+    /// (on at creation). Off, a frame carries timestamps only and `results`
+    /// gives no statistics: frames whose statistics nobody reads need not
+    /// make the device count (docs/frame-cost.md has what it measured to).
+    /// Change it only between a frame's `results` and the next `begin`.
+    pub fn set_statistics(&mut self, on: bool) {
+        self.statistics = on;
+    }
+
+    /// The statistics pool, when this device has one and it is switched on.
+    fn active_stats(&self) -> Option<vk::QueryPool> {
+        self.stats.filter(|_| self.statistics)
     }
 
     /// Reset both pools; record outside a render pass, before `begin`.
@@ -138,7 +154,7 @@ impl FrameQueries {
         // submission is waited for.
         unsafe {
             self.ctx.device.cmd_write_timestamp2(cmd, vk::PipelineStageFlags2::TOP_OF_PIPE, self.timestamps, 0);
-            if let Some(p) = self.stats {
+            if let Some(p) = self.active_stats() {
                 self.ctx.device.cmd_begin_query(cmd, p, 0, vk::QueryControlFlags::empty());
             }
         }
@@ -151,14 +167,15 @@ impl FrameQueries {
         // is live, borrowed for the call and kept alive by its owner until the
         // submission is waited for.
         unsafe {
-            if let Some(p) = self.stats {
+            if let Some(p) = self.active_stats() {
                 self.ctx.device.cmd_end_query(cmd, p, 0);
             }
             self.ctx.device.cmd_write_timestamp2(cmd, vk::PipelineStageFlags2::BOTTOM_OF_PIPE, self.timestamps, 1);
         }
     }
 
-    /// GPU milliseconds between `begin` and `end`, and the statistics, after
+    /// GPU milliseconds between `begin` and `end`, and the statistics (none
+    /// while `set_statistics(false)`), after
     /// the frame's fence has signalled. Results are read without
     /// VK_QUERY_RESULT_WAIT_BIT, which could block forever on a query that
     /// was never submitted: called too early, this is an error instead.
@@ -181,7 +198,7 @@ impl FrameQueries {
             .map_err(not_ready("vkGetQueryPoolResults(timestamps)"))?;
         let ticks = (ts[1] & self.valid_mask).wrapping_sub(ts[0] & self.valid_mask) & self.valid_mask;
         let gpu_ms = ticks as f64 * self.period_ns * 1e-6;
-        let stats = match self.stats {
+        let stats = match self.active_stats() {
             Some(p) => {
                 let mut v = [0u64; STATS.len()];
                 let n = self.stat_flags.len();
