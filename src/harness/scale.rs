@@ -407,7 +407,7 @@ pub fn markdown(r: &ScaleReport) -> String {
 /// Log-log plots of frame time and peak RSS against tets, one line per
 /// method: `<dir>/scale_time.{png,svg}` and `<dir>/scale_memory.{png,svg}`.
 pub fn plots(dir: &Path, r: &ScaleReport) -> Result<()> {
-    super::pareto::register_font()?;
+    super::plots::register_font()?;
     let mut methods: Vec<&str> = r.rows.iter().map(|x| x.method.as_str()).collect();
     methods.dedup();
     let mut seen = Vec::new();
