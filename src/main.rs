@@ -13,6 +13,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 
 use volbench::algo::registry::{self, Registry};
 use volbench::fsio::{self, OutputSet};
+use volbench::harness::count;
 use volbench::harness::datasets::{self, Dataset};
 use volbench::harness::reference_cache::reference_image;
 use volbench::harness::report::{self, ComparisonRow};
@@ -73,6 +74,11 @@ struct SuiteArgs {
     /// runs (`vtk`: VTK's Python wheel, installed by scripts/install-vtk.sh).
     #[arg(long, value_name = "PEER", value_delimiter = ',')]
     peers: Vec<String>,
+    /// Count instead of timing: run under valgrind (callgrind) and report
+    /// each timed frame's instructions per phase (`count` in each result;
+    /// docs/tracking.md). No peers, no CPU reference.
+    #[arg(long, conflicts_with = "peers")]
+    count: bool,
 }
 
 /// Options of a method given as flags: shorthands for `method:key=value`.
@@ -167,6 +173,11 @@ struct RunArgs {
     /// Write |image - reference| x10 as PNG (implies --reference).
     #[arg(long)]
     diff_png: Option<PathBuf>,
+    /// Count instead of timing: run under valgrind (callgrind) and report
+    /// each timed frame's instructions per phase (`count` in the result;
+    /// docs/tracking.md). Frames run without overlap.
+    #[arg(long)]
+    count: bool,
 }
 
 #[derive(Args)]
@@ -196,6 +207,10 @@ struct CompareArgs {
     /// Tracking: compare counts and errors only, not times (shared CI runners).
     #[arg(long, requires = "summaries")]
     no_times: bool,
+    /// Tracking: also compare absolute frame times (same device, driver and
+    /// CPU model only; off by default: the same model is not the same machine).
+    #[arg(long, requires = "summaries", conflicts_with = "no_times")]
+    absolute_times: bool,
     /// Tracking: write NEW's figures in Bencher Metric Format.
     #[arg(long, requires = "summaries", value_name = "FILE")]
     bmf: Option<PathBuf>,
@@ -351,7 +366,9 @@ fn check_out_dir(dir: &Path, files: &[&str]) -> Result<()> {
 }
 
 fn run(cli: &Cli, registry: &Registry, args: &RunArgs) -> Result<()> {
-    let cfg = args.frame.config()?;
+    let count_dir = count::child_dir(args.count)?;
+    let cfg = RunConfig { overlap: args.frame.no_overlap.then_some(false).unwrap_or(count_dir.is_none()), count_dir, ..args.frame.config()? };
+    cfg.validate()?;
     let spec = registry.parse_spec(&args.method, &args.frame.method.pairs()).with_context(|| format!("--method {}", args.method))?;
     let mut outputs = OutputSet::new();
     for (option, path) in [("--png", &args.png), ("--json", &args.json), ("--diff-png", &args.diff_png)] {
@@ -439,7 +456,7 @@ fn track(baseline: &Path, new: &Path, args: &CompareArgs) -> Result<()> {
             outputs.add(option, p)?;
         }
     }
-    let tol = track::Tolerances { times: !args.no_times, ..track::Tolerances::default() };
+    let tol = track::Tolerances { times: !args.no_times, absolute_times: args.absolute_times, ..track::Tolerances::default() };
     let c = track::compare(&b, &n, &tol)?;
     println!("baseline {} ({}), new {} ({})", baseline.display(), b.environment.git_sha, new.display(), n.environment.git_sha);
     print!("{}", c.table());
@@ -524,7 +541,12 @@ fn stress(cli: &Cli, registry: &Registry, args: &StressArgs) -> Result<()> {
 
 fn suite(cli: &Cli, registry: &Registry, args: &SuiteArgs) -> Result<()> {
     use volbench::harness::suite::{plan, run_suite, utc_now, SuiteSettings};
-    let settings = SuiteSettings { peers: args.peers.clone(), ..SuiteSettings::standard(args.quick, args.filter.clone()) };
+    let settings = SuiteSettings {
+        peers: args.peers.clone(),
+        count_dir: count::child_dir(args.count)?,
+        counted: args.count,
+        ..SuiteSettings::standard(args.quick, args.filter.clone())
+    };
     let plan = plan(registry, &settings)?;
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from(format!("results/{}", utc_now())));
     check_out_dir(&out, &["summary.json", "summary.csv", "report.md", "montage.png"])?;
@@ -563,6 +585,18 @@ fn suite(cli: &Cli, registry: &Registry, args: &SuiteArgs) -> Result<()> {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    // `--count`: the same command again, under valgrind.
+    let count = match &cli.command {
+        Command::Run(a) => a.count,
+        Command::Suite(a) => a.count,
+        _ => false,
+    };
+    if count::needs_reexec(count) {
+        return count::reexec().unwrap_or_else(|e| {
+            eprintln!("volbench: error: {e:#}");
+            ExitCode::FAILURE
+        });
+    }
     let registry = registry::builtin();
     let result = match &cli.command {
         Command::Info => info(&cli),

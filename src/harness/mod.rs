@@ -3,6 +3,7 @@
 //! are written. It drives `algo` through the registry (it never names a
 //! method) and never calls Vulkan directly beyond creating the context.
 
+pub mod count;
 pub mod datasets;
 pub mod image;
 pub mod pareto;

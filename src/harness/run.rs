@@ -22,6 +22,7 @@ use std::time::Instant;
 use anyhow::{Context as _, Result};
 use serde::Serialize;
 
+use super::count::{self, CountReport};
 use super::datasets::{Dataset, DatasetSummary};
 use super::image::RgbaImage;
 use super::stats::Summary;
@@ -55,6 +56,9 @@ pub struct RunConfig {
     pub overlap: bool,
     /// Ask the method for its (possibly costly) reference-view diagnostics.
     pub diagnostics: bool,
+    /// Counted run (`--count`, under callgrind): the directory callgrind
+    /// dumps into (`harness::count`). Frames then run without overlap.
+    pub count_dir: Option<std::path::PathBuf>,
 }
 
 /// Frames and warm-up together may not exceed this: a run is a benchmark,
@@ -74,6 +78,7 @@ impl Default for RunConfig {
             fixed_camera: None,
             overlap: true,
             diagnostics: false,
+            count_dir: None,
         }
     }
 }
@@ -89,6 +94,10 @@ impl RunConfig {
             self.warmup
         );
         anyhow::ensure!(self.width > 0 && self.height > 0, "--size must be positive, got {}x{}", self.width, self.height);
+        anyhow::ensure!(
+            self.count_dir.is_none() || self.warmup >= 1,
+            "--count needs --warmup 1 or more: the first frame compiles llvmpipe's shader variants, which is not counted"
+        );
         anyhow::ensure!(self.orbit_step.is_finite(), "--orbit-step must be a finite number of degrees");
         anyhow::ensure!(
             self.zoom.is_finite() && (1e-3..=1e3).contains(&self.zoom),
@@ -297,6 +306,9 @@ pub struct RunResult {
     pub details: serde_json::Value,
     /// The method's reference-view diagnostics, when asked for.
     pub diagnostics: Option<serde_json::Value>,
+    /// Instructions per phase of the timed frames (`--count`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub count: Option<CountReport>,
     pub device: DeviceInfo,
     pub volbench_version: &'static str,
     /// The commit the binary was built from (`-dirty` with local changes).
@@ -460,6 +472,7 @@ impl MethodSession {
         let view = self.view(camera);
         let mut timing = FrameTiming::default();
         self.method.prepare(&view, &mut timing.method)?;
+        count::phase_end("prepare");
         self.prepared = Some(view);
         Ok(timing)
     }
@@ -470,6 +483,7 @@ impl MethodSession {
         let view = self.prepared.take().context("submit without a prepared frame")?;
         let t0 = Instant::now();
         self.method.upload(counter)?;
+        count::phase_end("upload");
         let t1 = Instant::now();
         let rec = &self.recorder;
         rec.begin()?;
@@ -477,6 +491,7 @@ impl MethodSession {
         self.queries.begin(rec);
         self.method.record(rec, &self.target, &view, counter)?;
         self.queries.end(rec);
+        count::phase_end("record");
         let t2 = Instant::now();
         timing.upload = ms(t1 - t0);
         timing.record = ms(t2 - t1);
@@ -487,9 +502,11 @@ impl MethodSession {
     /// Wait for the submitted frame and read its GPU time and statistics.
     pub fn wait(&mut self, timing: &mut FrameTiming) -> Result<Option<PipelineStats>> {
         timing.wait = ms(self.recorder.wait()?);
+        count::phase_end("device");
         let (gpu, stats) = self.queries.results()?;
         timing.gpu = gpu;
         self.method.after_frame(&mut timing.method)?;
+        count::phase_end("finish");
         Ok(stats)
     }
 
@@ -582,8 +599,33 @@ pub fn run(ctx: &Arc<Context>, spec: &MethodSpec, dataset: &Dataset, tf: &Transf
     let mut counter = UploadCounter::default();
     let mut samples = Samples::default();
     let mut last_frame_counters = UploadCounter::default();
+    let mut counted = None;
 
-    if cfg.overlap {
+    if let Some(dir) = &cfg.count_dir {
+        // Counted: the warm-up uncounted, then each timed frame's phases
+        // one after another, dumped at each boundary (`harness::count`).
+        for f in 0..cfg.warmup + cfg.frames {
+            let before = counter;
+            let camera = cfg.frame_camera(dataset, session.method(), f);
+            if f == cfg.warmup {
+                count::take_dumps(dir)?;
+                crate::vk::valgrind::start();
+            }
+            if f >= cfg.warmup {
+                count::frame_start();
+            }
+            let frame = session.frame(&camera, &mut counter).with_context(|| format!("frame {f}"));
+            if f + 1 == cfg.warmup + cfg.frames || frame.is_err() {
+                crate::vk::valgrind::stop();
+            }
+            let (timing, _) = frame?;
+            if f >= cfg.warmup {
+                samples.push(&timing);
+                last_frame_counters = counter.since(&before);
+            }
+        }
+        counted = Some(count::report(&count::take_dumps(dir)?, cfg.frames)?);
+    } else if cfg.overlap {
         let cameras: Vec<Camera> = (0..cfg.warmup + cfg.frames).map(|f| cfg.frame_camera(dataset, session.method(), f)).collect();
         for (f, (timing, bytes)) in session.run_overlapped(&cameras, &mut counter)?.into_iter().enumerate() {
             if f >= cfg.warmup {
@@ -691,6 +733,7 @@ pub fn run(ctx: &Arc<Context>, spec: &MethodSpec, dataset: &Dataset, tf: &Transf
         }),
         details: method.details(),
         diagnostics,
+        count: counted,
         device: ctx.info.clone(),
         volbench_version: env!("CARGO_PKG_VERSION"),
         git_sha: env!("VOLBENCH_GIT_SHA"),
