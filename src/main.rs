@@ -541,12 +541,8 @@ fn stress(cli: &Cli, registry: &Registry, args: &StressArgs) -> Result<()> {
 
 fn suite(cli: &Cli, registry: &Registry, args: &SuiteArgs) -> Result<()> {
     use volbench::harness::suite::{plan, run_suite, utc_now, SuiteSettings};
-    let settings = SuiteSettings {
-        peers: args.peers.clone(),
-        count_dir: count::child_dir(args.count)?,
-        counted: args.count,
-        ..SuiteSettings::standard(args.quick, args.filter.clone())
-    };
+    let settings = SuiteSettings { peers: args.peers.clone(), ..SuiteSettings::standard(args.quick, args.filter.clone()) }
+        .counted(count::child_dir(args.count)?);
     let plan = plan(registry, &settings)?;
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from(format!("results/{}", utc_now())));
     check_out_dir(&out, &["summary.json", "summary.csv", "report.md", "montage.png"])?;
@@ -591,6 +587,10 @@ fn main() -> ExitCode {
         Command::Suite(a) => a.count,
         _ => false,
     };
+    if count && cli.validation {
+        eprintln!("volbench: error: --count with --validation: the layer's work would be counted as the method's; validate an uncounted run");
+        return ExitCode::FAILURE;
+    }
     if count::needs_reexec(count) {
         return count::reexec().unwrap_or_else(|e| {
             eprintln!("volbench: error: {e:#}");

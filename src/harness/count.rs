@@ -23,7 +23,10 @@
 //!   (no idle worker spins between jobs).
 //! - What changes code paths is pinned and recorded in the result:
 //!   `LP_NUM_THREADS`, `LP_NATIVE_VECTOR_WIDTH`, Mesa's shader disk cache
-//!   off, rayon's thread count, no overlap.
+//!   off, rayon's thread count, one malloc arena without thread caches,
+//!   valgrind's fair scheduling, no overlap. The validation layer is off (its
+//!   work would count as the method's; `--validation` with `--count` is an
+//!   error).
 //!
 //! The device's work: lavapipe executes a submission on its queue thread
 //! while the host waits on the fence. The `device` phase is every thread's
@@ -51,6 +54,20 @@ pub const PINNED_ENV: &[(&str, &str)] = &[
     ("LP_NATIVE_VECTOR_WIDTH", "128"),
     ("MESA_SHADER_CACHE_DISABLE", "true"),
     ("RAYON_NUM_THREADS", "1"),
+    // One malloc arena and no per-thread caches: lavapipe's queue thread
+    // freeing while the host allocates otherwise leaves the host's free
+    // lists, and so its malloc paths, in an order that varies run to run.
+    ("GLIBC_TUNABLES", "glibc.malloc.arena_max=1:glibc.malloc.tcache_count=0"),
+];
+/// valgrind's options besides the output file.
+const VALGRIND_ARGS: &[&str] = &[
+    "--tool=callgrind",
+    "-q",
+    "--instr-atstart=no",
+    // llvmpipe writes code at run time (LLVM's JIT) into anonymous memory.
+    "--smc-check=all-non-file",
+    // Threads take valgrind's lock in the order they ask for it.
+    "--fair-sched=yes",
 ];
 /// The dump files' prefix inside the count directory.
 const DUMP_PREFIX: &str = "callgrind.out";
@@ -97,18 +114,17 @@ pub fn reexec() -> Result<ExitCode> {
     std::fs::create_dir_all(&dir).with_context(|| format!("--count: creating {}", dir.display()))?;
     let args: Vec<OsString> = std::env::args_os().skip(1).collect();
     let mut cmd = Command::new("valgrind");
-    cmd.args([
-        "--tool=callgrind",
-        "-q",
-        "--instr-atstart=no",
-        // llvmpipe writes code at run time (LLVM's JIT) into anonymous memory.
-        "--smc-check=all-non-file",
-    ])
+    cmd.args(VALGRIND_ARGS)
     .arg(format!("--callgrind-out-file={}", dir.join(DUMP_PREFIX).display()))
     .arg(&exe)
     .args(&args)
     .env(DIR_VAR, &dir)
-    .envs(PINNED_ENV.iter().copied());
+    .envs(PINNED_ENV.iter().copied())
+    // The validation layer's own work would be counted as the method's
+    // (the same frames are validated in the uncounted runs).
+    .env_remove(crate::vk::VALIDATION_VAR)
+    .env_remove("VK_LAYER_ENABLES")
+    .env_remove("VK_INSTANCE_LAYERS");
     let status = cmd.status().context("--count: starting valgrind")?;
     let _ = std::fs::remove_dir_all(&dir);
     Ok(match status.code() {
@@ -228,6 +244,7 @@ pub fn report(dumps: &[Dump], frames: usize) -> Result<CountReport> {
     let mut pinned: BTreeMap<String, String> = PINNED_ENV.iter().map(|(k, v)| (k.to_string(), v.to_string())).collect();
     pinned.insert("overlap".into(), "off".into());
     pinned.insert("rayon_pool".into(), "the main thread alone".into());
+    pinned.insert("valgrind".into(), VALGRIND_ARGS.join(" "));
     Ok(CountReport {
         tool: "callgrind".into(),
         event: "Ir".into(),

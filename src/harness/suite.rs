@@ -55,6 +55,19 @@ impl SuiteSettings {
         }
     }
 
+    /// The counted suite (`--count`): the quick one at 64x64 and 2 timed
+    /// frames (a count repeats without many samples; CI's budget).
+    pub fn counted(mut self, count_dir: Option<std::path::PathBuf>) -> Self {
+        if count_dir.is_some() {
+            if self.quick {
+                (self.width, self.height, self.frames, self.warmup) = (64, 64, 2, 1);
+            }
+            self.counted = true;
+            self.count_dir = count_dir;
+        }
+        self
+    }
+
     fn run_config(&self) -> RunConfig {
         RunConfig {
             width: self.width,

@@ -50,8 +50,11 @@ pub struct Tolerances {
     /// outside both noise bands, to count.
     pub time_margin: f64,
     /// An instruction count (per phase, per frame) may move by this
-    /// fraction either way.
+    /// fraction either way...
     pub count_rel: f64,
+    /// ...or by this many instructions (a phase of a few thousand, such as
+    /// reading the query results, jitters by a few hundred).
+    pub count_abs: f64,
     /// Compare times at all (CI on shared runners compares counts and errors only).
     pub times: bool,
     /// Compare absolute frame times too (same device, driver and CPU only).
@@ -60,7 +63,7 @@ pub struct Tolerances {
 
 impl Default for Tolerances {
     fn default() -> Self {
-        Tolerances { rmse_abs: 1e-4, rmse_rel: 0.05, count_rel_other_device: 1e-3, time_margin: 0.10, count_rel: 0.01, times: true, absolute_times: false }
+        Tolerances { rmse_abs: 1e-4, rmse_rel: 0.05, count_rel_other_device: 1e-3, time_margin: 0.10, count_rel: 0.01, count_abs: 10_000.0, times: true, absolute_times: false }
     }
 }
 
@@ -94,6 +97,9 @@ pub struct SettingsFile {
     pub height: u32,
     pub orbit_step_deg: f64,
     pub quick: bool,
+    /// A counted suite (`--count`; absent before counting existed).
+    #[serde(default)]
+    pub counted: bool,
 }
 
 #[derive(Debug, Deserialize)]
@@ -406,17 +412,20 @@ fn compare_instructions(c: &mut Comparison, k: &str, b: &ResultFile, n: &ResultF
     let names: std::collections::BTreeSet<&String> = bc.keys().chain(nc.keys()).collect();
     for name in names {
         let (x, y) = (bc.get(name).copied().unwrap_or(0.0), nc.get(name).copied().unwrap_or(0.0));
-        let (v, why) = instruction_verdict(x, y, tol.count_rel);
+        let (v, why) = instruction_verdict(x, y, tol);
         c.push(v, k, &format!("{name} (per frame)"), format!("{x:.0}"), format!("{y:.0}"), why);
     }
 }
 
-fn instruction_verdict(base: f64, new: f64, rel: f64) -> (Verdict, String) {
+fn instruction_verdict(base: f64, new: f64, tol: &Tolerances) -> (Verdict, String) {
     let change = new - base;
     let pct = if base > 0.0 { format!("{:+.2} %", 100.0 * change / base) } else { "new phase".into() };
-    let allowed = rel * base;
+    let allowed = (tol.count_rel * base).max(tol.count_abs);
     if change > allowed {
-        (Verdict::Regression, format!("{change:+.0} instructions ({pct}), beyond the {:.0} % tolerance", rel * 100.0))
+        (
+            Verdict::Regression,
+            format!("{change:+.0} instructions ({pct}), beyond the tolerance (max({:.0} %, {:.0} instructions))", tol.count_rel * 100.0, tol.count_abs),
+        )
     } else if -change > allowed {
         (Verdict::Improved, format!("{change:+.0} instructions ({pct})"))
     } else {
@@ -571,9 +580,11 @@ fn metrics(s: &SummaryFile) -> Vec<(String, Vec<Measure>)> {
         if let Some(e) = &x.error {
             m.push(("rmse".into(), e.rmse, None));
         }
-        // Instructions per frame, each phase its own measure.
+        // Instructions per frame, each phase its own measure
+        // (`instructions-<phase>`: BMF measure names are kebab-case).
         if let Some(cf) = &x.count {
-            m.extend(cf.per_frame().into_iter().map(|(name, v)| (name, v, None)));
+            let kebab = |n: &str| n.chars().map(|c| if c.is_ascii_alphanumeric() { c.to_ascii_lowercase() } else { '-' }).collect::<String>();
+            m.extend(cf.per_frame().into_iter().map(|(name, v)| (kebab(&name), v, None)));
         }
         out.push((key(r), m));
     }
@@ -606,7 +617,7 @@ pub fn gha(s: &SummaryFile) -> Value {
             let (unit, value, range) = match name.as_str() {
                 "latency" | "gpu-latency" => ("ms", v / 1e6, band.map(|(lo, hi)| format!("[{:.3}, {:.3}]", lo / 1e6, hi / 1e6))),
                 "rmse" => ("rmse", v, None),
-                n if n.starts_with("instructions.") => ("instructions", v, None),
+                n if n.starts_with("instructions-") => ("instructions", v, None),
                 _ => ("bytes", v, None),
             };
             let mut o = json!({ "name": format!("{bench} {name}"), "unit": unit, "value": value });
@@ -650,11 +661,14 @@ mod tests {
 
     #[test]
     fn instructions_regress_beyond_the_tolerance() {
-        assert_eq!(instruction_verdict(1e6, 1.009e6, 0.01).0, Verdict::Ok);
-        assert_eq!(instruction_verdict(1e6, 0.991e6, 0.01).0, Verdict::Ok);
-        let (v, why) = instruction_verdict(1e6, 1.05e6, 0.01);
+        let tol = Tolerances::default();
+        assert_eq!(instruction_verdict(1e6, 1.009e6, &tol).0, Verdict::Ok);
+        assert_eq!(instruction_verdict(1e6, 0.991e6, &tol).0, Verdict::Ok);
+        let (v, why) = instruction_verdict(1e6, 1.05e6, &tol);
         assert_eq!(v, Verdict::Regression);
         assert!(why.contains("+50000 instructions (+5.00 %)"), "{why}");
-        assert_eq!(instruction_verdict(1e6, 0.9e6, 0.01).0, Verdict::Improved);
+        assert_eq!(instruction_verdict(1e6, 0.9e6, &tol).0, Verdict::Improved);
+        // A small phase's jitter stays under the absolute floor.
+        assert_eq!(instruction_verdict(7_000.0, 7_500.0, &tol).0, Verdict::Ok);
     }
 }
