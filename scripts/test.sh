@@ -5,7 +5,7 @@
 # suite and `volbench compare` against the committed baseline
 # (results/baseline/quick/): counts must match exactly and errors must not
 # grow; times are not compared (shared runners are noisy). Then the counted
-# suite (`suite --quick --count` on the cheapest dataset of each kind, under
+# suite (`suite --quick --count` on the cheapest tet mesh and volume, under
 # callgrind) against results/baseline/count/: instructions per phase within
 # 1 % (docs/tracking.md): this is where CI tracks speed.
 # Arguments go to `cargo test` and skip the suite step (a developer's subset).

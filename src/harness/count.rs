@@ -69,6 +69,8 @@ const VALGRIND_ARGS: &[&str] = &[
     // Threads take valgrind's lock in the order they ask for it.
     "--fair-sched=yes",
 ];
+/// The fence time-out of a counted run, seconds, unless the user set one.
+const COUNTED_FENCE_TIMEOUT_S: &str = "3600";
 /// The dump files' prefix inside the count directory.
 const DUMP_PREFIX: &str = "callgrind.out";
 /// The harness's boundary between frames; what precedes it is not counted.
@@ -125,6 +127,11 @@ pub fn reexec() -> Result<ExitCode> {
     .env_remove(crate::vk::VALIDATION_VAR)
     .env_remove("VK_LAYER_ENABLES")
     .env_remove("VK_INSTANCE_LAYERS");
+    // Under valgrind a warm-up frame (llvmpipe compiling its variants) can
+    // take minutes on a loaded machine: not a hung device.
+    if std::env::var_os(crate::vk::FENCE_TIMEOUT_VAR).is_none() {
+        cmd.env(crate::vk::FENCE_TIMEOUT_VAR, COUNTED_FENCE_TIMEOUT_S);
+    }
     let status = cmd.status().context("--count: starting valgrind")?;
     let _ = std::fs::remove_dir_all(&dir);
     Ok(match status.code() {
