@@ -367,7 +367,8 @@ fn check_out_dir(dir: &Path, files: &[&str]) -> Result<()> {
 
 fn run(cli: &Cli, registry: &Registry, args: &RunArgs) -> Result<()> {
     let count_dir = count::child_dir(args.count)?;
-    let cfg = RunConfig { overlap: args.frame.no_overlap.then_some(false).unwrap_or(count_dir.is_none()), count_dir, ..args.frame.config()? };
+    // A counted run's phases must not interleave: no overlap.
+    let cfg = RunConfig { overlap: !args.frame.no_overlap && count_dir.is_none(), count_dir, ..args.frame.config()? };
     cfg.validate()?;
     let spec = registry.parse_spec(&args.method, &args.frame.method.pairs()).with_context(|| format!("--method {}", args.method))?;
     let mut outputs = OutputSet::new();
