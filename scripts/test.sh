@@ -4,7 +4,10 @@
 # validation message, including synchronization validation), then the quick
 # suite and `volbench compare` against the committed baseline
 # (results/baseline/quick/): counts must match exactly and errors must not
-# grow; times are not compared (shared runners are noisy).
+# grow; times are not compared (shared runners are noisy). Then the counted
+# suite (`suite --quick --count` on the cheapest tet mesh and volume, under
+# callgrind) against results/baseline/count/: instructions per phase within
+# 1 % (docs/tracking.md): this is where CI tracks speed.
 # Arguments go to `cargo test` and skip the suite step (a developer's subset).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -17,4 +20,7 @@ if [ $# -eq 0 ]; then
     out="$(mktemp -d)/quick"
     ./target/debug/volbench suite --quick --out "$out"
     ./target/debug/volbench compare results/baseline/quick/summary.json "$out/summary.json" --no-times
+    counted="$(dirname "$out")/count"
+    ./target/debug/volbench suite --quick --count $(cat results/baseline/count/filter) --out "$counted"
+    ./target/debug/volbench compare results/baseline/count/summary.json "$counted/summary.json" --no-times
 fi

@@ -13,6 +13,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 
 use volbench::algo::registry::{self, Registry};
 use volbench::fsio::{self, OutputSet};
+use volbench::harness::count;
 use volbench::harness::datasets::{self, Dataset};
 use volbench::harness::reference_cache::reference_image;
 use volbench::harness::report::{self, ComparisonRow};
@@ -169,6 +170,11 @@ struct SuiteArgs {
     /// runs (`vtk`: VTK's Python wheel, installed by scripts/install-vtk.sh).
     #[arg(long, value_name = "PEER", value_delimiter = ',')]
     peers: Vec<String>,
+    /// Count instead of timing: run under valgrind (callgrind) and report
+    /// each timed frame's instructions per phase (`count` in each result;
+    /// docs/tracking.md). No peers, no CPU reference.
+    #[arg(long, conflicts_with = "peers")]
+    count: bool,
 }
 
 /// Options of a method given as flags: shorthands for `method:key=value`.
@@ -271,6 +277,11 @@ struct RunArgs {
     /// Write |image - reference| x10 as PNG (implies --reference).
     #[arg(long)]
     diff_png: Option<PathBuf>,
+    /// Count instead of timing: run under valgrind (callgrind) and report
+    /// each timed frame's instructions per phase (`count` in the result;
+    /// docs/tracking.md). Frames run without overlap.
+    #[arg(long)]
+    count: bool,
 }
 
 #[derive(Args)]
@@ -300,6 +311,10 @@ struct CompareArgs {
     /// Tracking: compare counts and errors only, not times (shared CI runners).
     #[arg(long, requires = "summaries")]
     no_times: bool,
+    /// Tracking: also compare absolute frame times (same device, driver and
+    /// CPU model only; off by default: the same model is not the same machine).
+    #[arg(long, requires = "summaries", conflicts_with = "no_times")]
+    absolute_times: bool,
     /// Tracking: write NEW's figures in Bencher Metric Format.
     #[arg(long, requires = "summaries", value_name = "FILE")]
     bmf: Option<PathBuf>,
@@ -475,7 +490,10 @@ fn check_out_dir(dir: &Path, files: &[&str], subdirs: &[&str]) -> Result<()> {
 }
 
 fn run(cli: &Cli, registry: &Registry, args: &RunArgs) -> Result<()> {
-    let cfg = args.frame.config()?;
+    let count_dir = count::child_dir(args.count)?;
+    // A counted run's phases must not interleave: no overlap.
+    let cfg = RunConfig { overlap: !args.frame.no_overlap && count_dir.is_none(), count_dir, ..args.frame.config()? };
+    cfg.validate()?;
     let spec = registry.parse_spec(&args.method, &args.frame.method.pairs()).with_context(|| format!("--method {}", args.method))?;
     let data = match &args.scalar {
         None => args.data.clone(),
@@ -582,7 +600,7 @@ fn track(baseline: &Path, new: &Path, args: &CompareArgs) -> Result<()> {
             outputs.add(option, p)?;
         }
     }
-    let tol = track::Tolerances { times: !args.no_times, ..track::Tolerances::default() };
+    let tol = track::Tolerances { times: !args.no_times, absolute_times: args.absolute_times, ..track::Tolerances::default() };
     let c = track::compare(&b, &n, &tol)?;
     outln!("baseline {} ({}), new {} ({})", baseline.display(), b.environment.git_sha, new.display(), n.environment.git_sha);
     out!("{}", c.table());
@@ -678,7 +696,8 @@ fn stress(cli: &Cli, registry: &Registry, args: &StressArgs) -> Result<()> {
 
 fn suite(cli: &Cli, registry: &Registry, args: &SuiteArgs) -> Result<()> {
     use volbench::harness::suite::{plan, run_suite, utc_now, SuiteSettings};
-    let settings = SuiteSettings { peers: args.peers.clone(), ..SuiteSettings::standard(args.quick, args.filter.clone()) };
+    let settings = SuiteSettings { peers: args.peers.clone(), ..SuiteSettings::standard(args.quick, args.filter.clone()) }
+        .counted(count::child_dir(args.count)?);
     let plan = plan(registry, &settings)?;
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from(format!("results/{}", utc_now())));
     check_out_dir(&out, &["summary.json", "summary.csv", "report.md"], &["runs", "plots", "peers"])?;
@@ -814,6 +833,22 @@ fn broken_pipe(e: &anyhow::Error) -> bool {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    // `--count`: the same command again, under valgrind.
+    let count = match &cli.command {
+        Command::Run(a) => a.count,
+        Command::Suite(a) => a.count,
+        _ => false,
+    };
+    if count && cli.validation {
+        eprintln!("volbench: error: --count with --validation: the layer's work would be counted as the method's; validate an uncounted run");
+        return ExitCode::FAILURE;
+    }
+    if count::needs_reexec(count) {
+        return count::reexec().unwrap_or_else(|e| {
+            eprintln!("volbench: error: {e:#}");
+            ExitCode::FAILURE
+        });
+    }
     let registry = registry::builtin();
     let result = match &cli.command {
         Command::Info => info(&cli),

@@ -26,6 +26,7 @@ use std::time::Instant;
 use anyhow::{Context as _, Result};
 use serde::Serialize;
 
+use super::count::{self, CountReport};
 use super::datasets::{Dataset, DatasetSummary};
 use super::image::RgbaImage;
 use super::stats::Summary;
@@ -63,6 +64,9 @@ pub struct RunConfig {
     /// from the dataset) after the timed ones: the frame's fixed cost,
     /// reported as the phases `fixed` and `fixed_gpu` (0: not measured).
     pub fixed_frames: usize,
+    /// Counted run (`--count`, under callgrind): the directory callgrind
+    /// dumps into (`harness::count`). Frames then run without overlap.
+    pub count_dir: Option<std::path::PathBuf>,
 }
 
 /// The phases the runner itself times (every other phase is the method's
@@ -87,6 +91,7 @@ impl Default for RunConfig {
             overlap: true,
             diagnostics: false,
             fixed_frames: 5,
+            count_dir: None,
         }
     }
 }
@@ -103,6 +108,10 @@ impl RunConfig {
             self.fixed_frames
         );
         anyhow::ensure!(self.width > 0 && self.height > 0, "--size must be positive, got {}x{}", self.width, self.height);
+        anyhow::ensure!(
+            self.count_dir.is_none() || self.warmup >= 1,
+            "--count needs --warmup 1 or more: the first frame compiles llvmpipe's shader variants, which is not counted"
+        );
         anyhow::ensure!(self.orbit_step.is_finite(), "--orbit-step must be a finite number of degrees");
         anyhow::ensure!(
             self.zoom.is_finite() && (1e-3..=1e3).contains(&self.zoom),
@@ -313,6 +322,9 @@ pub struct RunResult {
     pub details: serde_json::Value,
     /// The method's reference-view diagnostics, when asked for.
     pub diagnostics: Option<serde_json::Value>,
+    /// Instructions per phase of the timed frames (`--count`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub count: Option<CountReport>,
     pub device: DeviceInfo,
     pub volbench_version: &'static str,
     /// The commit the binary was built from (`-dirty` with local changes).
@@ -483,6 +495,7 @@ impl MethodSession {
         let view = self.view(camera);
         let mut timing = FrameTiming::default();
         self.method.prepare(&view, &mut timing.method)?;
+        count::phase_end("prepare");
         self.prepared = Some(view);
         Ok(timing)
     }
@@ -493,6 +506,7 @@ impl MethodSession {
         let view = self.prepared.take().context("submit without a prepared frame")?;
         let t0 = Instant::now();
         self.method.upload(counter)?;
+        count::phase_end("upload");
         let t1 = Instant::now();
         let rec = &self.recorder;
         rec.begin()?;
@@ -500,6 +514,7 @@ impl MethodSession {
         self.queries.begin(rec);
         self.method.record(rec, &self.target, &view, counter)?;
         self.queries.end(rec);
+        count::phase_end("record");
         let t2 = Instant::now();
         timing.upload = ms(t1 - t0);
         timing.record = ms(t2 - t1);
@@ -510,9 +525,11 @@ impl MethodSession {
     /// Wait for the submitted frame and read its GPU time and statistics.
     pub fn wait(&mut self, timing: &mut FrameTiming) -> Result<Option<PipelineStats>> {
         timing.wait = ms(self.recorder.wait()?);
+        count::phase_end("device");
         let (gpu, stats) = self.queries.results()?;
         timing.gpu = gpu;
         self.method.after_frame(&mut timing.method)?;
+        count::phase_end("finish");
         Ok(stats)
     }
 
@@ -640,20 +657,48 @@ pub fn run(ctx: &Arc<Context>, spec: &MethodSpec, dataset: &Dataset, tf: &Transf
     let mut counter = UploadCounter::default();
     let mut samples = Samples::default();
     let mut last_frame_counters = UploadCounter::default();
+    let mut counted = None;
 
     session.set_statistics(false);
     let cameras: Vec<Camera> = (0..cfg.warmup + cfg.frames).map(|f| cfg.frame_camera(dataset, session.method(), f)).collect();
-    for (f, (timing, bytes)) in session.run_frames(&cameras, cfg.overlap, &mut counter)?.into_iter().enumerate() {
-        if f >= cfg.warmup {
-            samples.push(&timing);
-            last_frame_counters = bytes;
+    if let Some(dir) = &cfg.count_dir {
+        // Counted: the warm-up uncounted, then each timed frame's phases
+        // one after another, dumped at each boundary (`harness::count`).
+        for (f, camera) in cameras.iter().enumerate() {
+            let before = counter;
+            if f == cfg.warmup {
+                count::take_dumps(dir)?;
+                crate::vk::valgrind::start();
+            }
+            if f >= cfg.warmup {
+                count::frame_start();
+            }
+            let frame = session.frame(camera, &mut counter).with_context(|| format!("frame {f}"));
+            if f + 1 == cameras.len() || frame.is_err() {
+                crate::vk::valgrind::stop();
+            }
+            let (timing, _) = frame?;
+            if f >= cfg.warmup {
+                samples.push(&timing);
+                last_frame_counters = counter.since(&before);
+            }
+        }
+        counted = Some(count::report(&count::take_dumps(dir)?, cfg.frames)?);
+    } else {
+        for (f, (timing, bytes)) in session.run_frames(&cameras, cfg.overlap, &mut counter)?.into_iter().enumerate() {
+            if f >= cfg.warmup {
+                samples.push(&timing);
+                last_frame_counters = bytes;
+            }
         }
     }
     // The fixed cost: the timed frames' cameras turned away from the
     // dataset, so no cell, ray hit or terrain tile is in view and what is
     // left is what every frame pays (clear, queries, submit, fence, the
     // method's per-pixel and per-frame passes). Bytes are not counted.
-    let empty: Vec<Camera> = cameras.iter().skip(cfg.warmup).cycle().take(cfg.fixed_frames).map(Camera::turned_away).collect();
+    // A counted run counts only the timed frames: its fixed frames are skipped.
+    let fixed_frames = if cfg.count_dir.is_some() { 0 } else { cfg.fixed_frames };
+    let empty: Vec<Camera> = cameras.iter().skip(cfg.warmup).cycle().take(fixed_frames).map(Camera::turned_away).collect();
     for (timing, _) in session.run_frames(&empty, cfg.overlap, &mut UploadCounter::default()).context("fixed-cost frames")? {
         samples.push_fixed(&timing);
     }
@@ -747,6 +792,7 @@ pub fn run(ctx: &Arc<Context>, spec: &MethodSpec, dataset: &Dataset, tf: &Transf
         }),
         details: method.details(),
         diagnostics,
+        count: counted,
         device: ctx.info.clone(),
         volbench_version: env!("CARGO_PKG_VERSION"),
         git_sha: env!("VOLBENCH_GIT_SHA"),

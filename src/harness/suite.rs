@@ -39,15 +39,34 @@ pub struct SuiteSettings {
     /// Peers (`--peers`, see `harness::peers`) run on the same datasets,
     /// alternating with volbench's runs.
     pub peers: Vec<String>,
+    /// Counted (`--count`): each run counts its timed frames' instructions
+    /// (`harness::count`); no CPU reference, no diagnostics.
+    pub counted: bool,
+    /// The counted child's dump directory.
+    #[serde(skip)]
+    pub count_dir: Option<std::path::PathBuf>,
 }
 
 impl SuiteSettings {
     pub fn standard(quick: bool, filter: Vec<String>) -> Self {
         if quick {
-            SuiteSettings { width: 256, height: 256, frames: 3, warmup: 1, orbit_step_deg: 5.0, quick, filter, peers: Vec::new() }
+            SuiteSettings { width: 256, height: 256, frames: 3, warmup: 1, orbit_step_deg: 5.0, quick, filter, peers: Vec::new(), counted: false, count_dir: None }
         } else {
-            SuiteSettings { width: 512, height: 512, frames: 20, warmup: 3, orbit_step_deg: 5.0, quick, filter, peers: Vec::new() }
+            SuiteSettings { width: 512, height: 512, frames: 20, warmup: 3, orbit_step_deg: 5.0, quick, filter, peers: Vec::new(), counted: false, count_dir: None }
         }
+    }
+
+    /// The counted suite (`--count`): the quick one at 64x64 and 2 timed
+    /// frames (a count repeats without many samples; CI's budget).
+    pub fn counted(mut self, count_dir: Option<std::path::PathBuf>) -> Self {
+        if count_dir.is_some() {
+            if self.quick {
+                (self.width, self.height, self.frames, self.warmup) = (64, 64, 2, 1);
+            }
+            self.counted = true;
+            self.count_dir = count_dir;
+        }
+        self
     }
 
     fn run_config(&self) -> RunConfig {
@@ -57,7 +76,9 @@ impl SuiteSettings {
             frames: self.frames,
             warmup: self.warmup,
             orbit_step: self.orbit_step_deg.to_radians(),
-            diagnostics: true,
+            diagnostics: self.count_dir.is_none(),
+            overlap: self.count_dir.is_none(),
+            count_dir: self.count_dir.clone(),
             ..RunConfig::default()
         }
     }
@@ -394,7 +415,7 @@ pub fn run_suite(
                 let stem = format!("{}-{}", p.dataset, p.file_stem());
                 let (json, png, dpng) = (runs_dir.join(format!("{stem}.json")), runs_dir.join(format!("{stem}.png")), runs_dir.join(format!("{stem}-diff.png")));
                 // A method with its own error (terrain) has no image reference.
-                let diff = if r.result.error.is_none() {
+                let diff = if r.result.error.is_none() && settings.count_dir.is_none() {
                     let reference = reference_image(dataset, &tf, &r.result.image.camera, cfg.width, cfg.height)?;
                     if !references.iter().any(|(g, _)| *g == group) {
                         references.push((group.clone(), reference.image.clone()));

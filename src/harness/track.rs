@@ -12,12 +12,17 @@
 //!   [`Tolerances::count_rel_other_device`] and the line says why.
 //! - **errors** (RMSE against the f64 reference) must not grow by more than
 //!   `max(rmse_abs, rmse_rel × baseline)`; non-finite pixels must stay zero.
+//! - **instruction counts** (`count`, from `suite --count`: instructions per
+//!   phase of the timed frames under callgrind, see `harness::count`) repeat
+//!   to a few parts in a million; each phase and the frame total is its own
+//!   figure, and regresses when it grows by more than `count_rel` (1 %).
 //! - **times** are compared as ratios between methods on one dataset inside
 //!   each run (machines differ by 30 % and more; ratios inside a run do not),
-//!   each with a distribution-free 95 % confidence band of its medians, and
-//!   absolute frame times only when the device, driver and CPU match. A time
-//!   regresses when the bands do not overlap and the change exceeds
-//!   `time_margin`.
+//!   each with a distribution-free 95 % confidence band of its medians;
+//!   absolute frame times only when asked (`--absolute-times`: the same
+//!   CPU model string is not the same machine, nor the same load) and the
+//!   device, driver and CPU match. A time regresses when the bands do not
+//!   overlap and the change exceeds `time_margin`.
 //!
 //! It also exports the new summary in Bencher Metric Format and as
 //! github-action-benchmark's `customSmallerIsBetter` JSON.
@@ -44,13 +49,21 @@ pub struct Tolerances {
     /// A time (ratio or absolute) must move by more than this fraction,
     /// outside both noise bands, to count.
     pub time_margin: f64,
+    /// An instruction count (per phase, per frame) may move by this
+    /// fraction either way...
+    pub count_rel: f64,
+    /// ...or by this many instructions (a phase of a few thousand, such as
+    /// reading the query results, jitters by a few hundred).
+    pub count_abs: f64,
     /// Compare times at all (CI on shared runners compares counts and errors only).
     pub times: bool,
+    /// Compare absolute frame times too (same device, driver and CPU only).
+    pub absolute_times: bool,
 }
 
 impl Default for Tolerances {
     fn default() -> Self {
-        Tolerances { rmse_abs: 1e-4, rmse_rel: 0.05, count_rel_other_device: 1e-3, time_margin: 0.10, times: true }
+        Tolerances { rmse_abs: 1e-4, rmse_rel: 0.05, count_rel_other_device: 1e-3, time_margin: 0.10, count_rel: 0.01, count_abs: 10_000.0, times: true, absolute_times: false }
     }
 }
 
@@ -88,6 +101,9 @@ pub struct SettingsFile {
     pub height: u32,
     pub orbit_step_deg: f64,
     pub quick: bool,
+    /// A counted suite (`--count`; absent before counting existed).
+    #[serde(default)]
+    pub counted: bool,
 }
 
 #[derive(Debug, Deserialize)]
@@ -116,6 +132,32 @@ pub struct ResultFile {
     pub image: ImageFile,
     #[serde(default)]
     pub error: Option<ErrorFile>,
+    #[serde(default)]
+    pub count: Option<CountFile>,
+}
+
+/// A counted run's instructions (`harness::count::CountReport`).
+#[derive(Debug, Deserialize)]
+pub struct CountFile {
+    pub frames: usize,
+    pub phases: BTreeMap<String, CountTotal>,
+    pub frame: CountTotal,
+}
+
+#[derive(Debug, Deserialize)]
+pub struct CountTotal {
+    pub total: u64,
+}
+
+impl CountFile {
+    /// Instructions per frame by figure (`instructions.<phase>`, and
+    /// `instructions.frame` for every phase together).
+    fn per_frame(&self) -> BTreeMap<String, f64> {
+        let n = self.frames.max(1) as f64;
+        let mut m: BTreeMap<String, f64> = self.phases.iter().map(|(k, v)| (format!("instructions.{k}"), v.total as f64 / n)).collect();
+        m.insert("instructions.frame".into(), self.frame.total as f64 / n);
+        m
+    }
 }
 
 #[derive(Debug, Deserialize)]
@@ -382,13 +424,54 @@ fn compare_row(c: &mut Comparison, k: &str, b: &ResultFile, n: &ResultFile, same
     }
     let nf = (b.image.non_finite_pixels, n.image.non_finite_pixels);
     c.push(verdict(nf.1 <= nf.0), k, "image.non_finite_pixels", nf.0.to_string(), nf.1.to_string(), if nf.1 > nf.0 { "NaN/Inf pixels appeared" } else { "" });
-    if tol.times && same_device {
+    compare_instructions(c, k, b, n, tol);
+    if tol.times && tol.absolute_times && same_device {
         if let (Some(bs), Some(ns)) = (b.time_ms.samples.get("frame"), n.time_ms.samples.get("frame")) {
             if let (Some(bb), Some(nb)) = (median_band(bs), median_band(ns)) {
                 let v = time_verdict(bb, nb, tol.time_margin);
                 c.push(v, k, "time_ms.frame (same device)", bb.show(), nb.show(), time_why(v, tol.time_margin));
             }
         }
+    }
+}
+
+/// Instructions per frame of each phase (counted runs): within
+/// `count_rel` either way, a regression beyond it naming the phase and the
+/// change in instructions.
+fn compare_instructions(c: &mut Comparison, k: &str, b: &ResultFile, n: &ResultFile, tol: &Tolerances) {
+    let (bc, nc) = match (&b.count, &n.count) {
+        (None, None) => return,
+        (Some(_), None) => {
+            c.push(Verdict::Regression, k, "instructions", "counted".into(), "-".into(), "the baseline is counted, the new run is not (suite --count)");
+            return;
+        }
+        (None, Some(_)) => {
+            c.push(Verdict::Info, k, "instructions", "-".into(), "counted".into(), "the baseline has no counts");
+            return;
+        }
+        (Some(x), Some(y)) => (x.per_frame(), y.per_frame()),
+    };
+    let names: std::collections::BTreeSet<&String> = bc.keys().chain(nc.keys()).collect();
+    for name in names {
+        let (x, y) = (bc.get(name).copied().unwrap_or(0.0), nc.get(name).copied().unwrap_or(0.0));
+        let (v, why) = instruction_verdict(x, y, tol);
+        c.push(v, k, &format!("{name} (per frame)"), format!("{x:.0}"), format!("{y:.0}"), why);
+    }
+}
+
+fn instruction_verdict(base: f64, new: f64, tol: &Tolerances) -> (Verdict, String) {
+    let change = new - base;
+    let pct = if base > 0.0 { format!("{:+.2} %", 100.0 * change / base) } else { "new phase".into() };
+    let allowed = (tol.count_rel * base).max(tol.count_abs);
+    if change > allowed {
+        (
+            Verdict::Regression,
+            format!("{change:+.0} instructions ({pct}), beyond the tolerance (max({:.0} %, {:.0} instructions))", tol.count_rel * 100.0, tol.count_abs),
+        )
+    } else if -change > allowed {
+        (Verdict::Improved, format!("{change:+.0} instructions ({pct})"))
+    } else {
+        (Verdict::Ok, String::new())
     }
 }
 
@@ -526,7 +609,7 @@ fn compare_ratios(c: &mut Comparison, base: &SummaryFile, new: &SummaryFile, tol
 }
 
 /// One exported measure: name, value, and its band when it has one.
-type Measure = (&'static str, f64, Option<(f64, f64)>);
+type Measure = (String, f64, Option<(f64, f64)>);
 
 /// The run's figures by benchmark name (`dataset/method`): frame and GPU
 /// latency in nanoseconds with their bands, bytes, RMSE.
@@ -537,15 +620,21 @@ fn metrics(s: &SummaryFile) -> Vec<(String, Vec<Measure>)> {
         let mut m = Vec::new();
         for (phase, name) in [("frame", "latency"), ("gpu", "gpu-latency")] {
             if let Some(b) = x.time_ms.samples.get(phase).and_then(|v| median_band(v)) {
-                m.push((name, b.median * 1e6, Some((b.lo * 1e6, b.hi * 1e6))));
+                m.push((name.into(), b.median * 1e6, Some((b.lo * 1e6, b.hi * 1e6))));
             }
         }
-        m.push(("bytes-per-frame", x.upload.bytes_per_frame as f64, None));
+        m.push(("bytes-per-frame".into(), x.upload.bytes_per_frame as f64, None));
         if let Some(v) = x.upload.bytes_per_cell {
-            m.push(("bytes-per-cell", v, None));
+            m.push(("bytes-per-cell".into(), v, None));
         }
         if let Some(e) = &x.error {
-            m.push(("rmse", e.rmse, None));
+            m.push(("rmse".into(), e.rmse, None));
+        }
+        // Instructions per frame, each phase its own measure
+        // (`instructions-<phase>`: BMF measure names are kebab-case).
+        if let Some(cf) = &x.count {
+            let kebab = |n: &str| n.chars().map(|c| if c.is_ascii_alphanumeric() { c.to_ascii_lowercase() } else { '-' }).collect::<String>();
+            m.extend(cf.per_frame().into_iter().map(|(name, v)| (kebab(&name), v, None)));
         }
         out.push((key(r), m));
     }
@@ -563,7 +652,7 @@ pub fn bmf(s: &SummaryFile) -> Value {
                 o["lower_value"] = json!(lo);
                 o["upper_value"] = json!(hi);
             }
-            measures.insert(name.into(), o);
+            measures.insert(name, o);
         }
         root.insert(bench, Value::Object(measures));
     }
@@ -575,9 +664,10 @@ pub fn gha(s: &SummaryFile) -> Value {
     let mut out = Vec::new();
     for (bench, ms) in metrics(s) {
         for (name, v, band) in ms {
-            let (unit, value, range) = match name {
+            let (unit, value, range) = match name.as_str() {
                 "latency" | "gpu-latency" => ("ms", v / 1e6, band.map(|(lo, hi)| format!("[{:.3}, {:.3}]", lo / 1e6, hi / 1e6))),
                 "rmse" => ("rmse", v, None),
+                n if n.starts_with("instructions-") => ("instructions", v, None),
                 _ => ("bytes", v, None),
             };
             let mut o = json!({ "name": format!("{bench} {name}"), "unit": unit, "value": value });
@@ -679,5 +769,18 @@ mod tests {
             assert_eq!(ratios, runs - 1);
             assert_eq!(c.regressions(), 0);
         }
+    }
+
+    #[test]
+    fn instructions_regress_beyond_the_tolerance() {
+        let tol = Tolerances::default();
+        assert_eq!(instruction_verdict(1e6, 1.009e6, &tol).0, Verdict::Ok);
+        assert_eq!(instruction_verdict(1e6, 0.991e6, &tol).0, Verdict::Ok);
+        let (v, why) = instruction_verdict(1e6, 1.05e6, &tol);
+        assert_eq!(v, Verdict::Regression);
+        assert!(why.contains("+50000 instructions (+5.00 %)"), "{why}");
+        assert_eq!(instruction_verdict(1e6, 0.9e6, &tol).0, Verdict::Improved);
+        // A small phase's jitter stays under the absolute floor.
+        assert_eq!(instruction_verdict(7_000.0, 7_500.0, &tol).0, Verdict::Ok);
     }
 }
