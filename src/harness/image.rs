@@ -33,6 +33,13 @@ impl RgbaImage {
 
     /// RMSE, max |difference| and PSNR over RGBA with values clamped to [0, 1].
     pub fn compare(&self, other: &RgbaImage) -> Result<ImageError> {
+        self.compare_excluding(other, &[])
+    }
+
+    /// [`Self::compare`] with the pixels marked in `exclude` (indexed like
+    /// `pixels`; shorter: the rest count) left out of the max |difference|
+    /// only: RMSE and PSNR still cover every pixel.
+    pub fn compare_excluding(&self, other: &RgbaImage, exclude: &[bool]) -> Result<ImageError> {
         anyhow::ensure!(
             self.width == other.width && self.height == other.height,
             "cannot compare a {}x{} image with a {}x{} one",
@@ -42,11 +49,14 @@ impl RgbaImage {
             other.height
         );
         let (mut sum, mut max) = (0f64, 0f64);
-        for (a, b) in self.pixels.iter().zip(&other.pixels) {
+        for (i, (a, b)) in self.pixels.iter().zip(&other.pixels).enumerate() {
+            let counted = !exclude.get(i).copied().unwrap_or(false);
             for c in 0..4 {
                 let d = (a[c].clamp(0.0, 1.0) as f64 - b[c].clamp(0.0, 1.0) as f64).abs();
                 sum += d * d;
-                max = max.max(d);
+                if counted {
+                    max = max.max(d);
+                }
             }
         }
         let n = (self.pixels.len() * 4).max(1) as f64;
