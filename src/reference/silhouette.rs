@@ -26,12 +26,14 @@ use crate::mesh::adjacency::FACE_VERTS;
 use crate::mesh::TetMesh;
 use crate::scene::{Camera, Projection};
 
-/// The tolerance the stress suite uses, in pixels: half of lavapipe's
-/// sub-pixel grid (8 bits), the distance by which snapping a vertex can move
-/// an edge across a pixel centre. Far below a pixel: a silhouette line of
-/// `L` pixels holds about `2 · L · tolerance` such centres (~2 at 512x512
-/// for this suite's meshes).
-pub const SILHOUETTE_TOLERANCE_PX: f64 = 1.0 / 512.0;
+/// The tolerance the stress suite uses, in pixels: how far snapping to
+/// lavapipe's sub-pixel grid (8 bits: each vertex coordinate moves up to
+/// 1/512 pixel) can move an edge across a pixel centre, √2/512 ≈ 2.8e-3.
+/// Far below a pixel: a silhouette line of `L` pixels holds about
+/// `2 · L · tolerance` such centres (2 or 3 in `opaque-1e6` at 64x64 to
+/// 512x512). The f32 ray of a ray caster is placed to ~1e-4 pixel, well
+/// within it.
+pub const SILHOUETTE_TOLERANCE_PX: f64 = std::f64::consts::SQRT_2 / 512.0;
 
 /// Per pixel (row 0 at the top, as the images): whether its centre is within
 /// `tolerance` pixels of a silhouette edge of `mesh` seen by `camera`.
