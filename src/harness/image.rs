@@ -124,6 +124,16 @@ mod tests {
     use super::*;
 
     #[test]
+    fn excluded_pixels_leave_the_max_but_not_the_rmse() {
+        let a = RgbaImage { width: 2, height: 1, pixels: vec![[0.0; 4], [0.0; 4]] };
+        let b = RgbaImage { width: 2, height: 1, pixels: vec![[0.1, 0.0, 0.0, 0.0], [0.5, 0.0, 0.0, 0.0]] };
+        let all = a.compare(&b).unwrap();
+        let kept = a.compare_excluding(&b, &[false, true]).unwrap();
+        assert!((all.max_abs - 0.5).abs() < 1e-6 && (kept.max_abs - 0.1).abs() < 1e-6);
+        assert_eq!(all.rmse, kept.rmse);
+    }
+
+    #[test]
     fn compare_counts_all_channels() {
         let a = RgbaImage { width: 1, height: 2, pixels: vec![[0.0; 4], [1.0, 0.0, 0.0, 1.0]] };
         let b = RgbaImage { width: 1, height: 2, pixels: vec![[0.0; 4], [0.0, 0.0, 0.0, 1.0]] };

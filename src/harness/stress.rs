@@ -12,7 +12,9 @@
 //! apply to it: nothing here names a method or its options. Its `status` is
 //! `ok` when the image has no NaN or Inf pixel and its max |error| against
 //! the reference is within the bound, `documented` for the same with an
-//! allowance applied, `fail` otherwise. [`describe_cases`] lists every case
+//! allowance applied, `fail` otherwise. The max error of a mesh case leaves
+//! out the pixels on the mesh's silhouette up to the rasterizer's rounding
+//! (`reference::silhouette`), counted in the row. [`describe_cases`] lists every case
 //! and allowance.
 
 use std::path::PathBuf;

@@ -223,6 +223,20 @@ impl Camera {
 mod tests {
     use super::*;
 
+    // A point along the ray through a pixel's centre lands on that centre.
+    #[test]
+    fn image_position_inverts_ray() {
+        for projection in [Projection::Perspective { fovy_deg: 30.0 }, Projection::Orthographic { height: 2.5 }] {
+            let c = Camera { eye: [2.3, 1.7, 2.9], target: [0.5, 0.5, 0.5], up: [0.0, 1.0, 0.0], projection, near: 0.9, far: 9.0 };
+            for (x, y) in [(0.0, 0.0), (17.0, 5.0), (47.0, 31.0)] {
+                let (o, d) = c.ray(x, y, 48, 32);
+                let (px, py, depth) = c.image_position(o + 3.0 * d, 48, 32);
+                assert!((px - x).abs() < 1e-9 && (py - y).abs() < 1e-9, "{projection:?}: ({x}, {y}) -> ({px}, {py})");
+                assert!(depth > 0.0);
+            }
+        }
+    }
+
     fn bounds() -> Bounds {
         Bounds { min: [-1.0, -2.0, 0.0], max: [3.0, 1.0, 2.0] }
     }
