@@ -179,6 +179,8 @@ fn report_is_json_with_a_cases_array() {
         nan_pixels: 0,
         inf_pixels: 0,
         max_abs_error: 3e-5,
+        silhouette_pixels: 2,
+        silhouette_max_error: 0.5,
         rmse: 3e-7,
         status: "ok",
         bound: 1e-3,
@@ -196,6 +198,8 @@ fn report_is_json_with_a_cases_array() {
         "nan_pixels",
         "inf_pixels",
         "max_abs_error",
+        "silhouette_pixels",
+        "silhouette_max_error",
         "rmse",
         "status",
         "bound",
@@ -205,7 +209,7 @@ fn report_is_json_with_a_cases_array() {
     let table = stress::stress_table(&[row]);
     assert!(stress::describe_cases(SIZE).contains("- **camera-inside**"));
     assert!(
-        table.lines().nth(2).unwrap().starts_with("| baseline | vicp | ppi | exact | centroid | 0 | 0 | 3.00e-5 |"),
+        table.lines().nth(2).unwrap().starts_with("| baseline | vicp | ppi | exact | centroid | 0 | 0 | 3.00e-5 | 2 (5.00e-1) |"),
         "{table}"
     );
 }
@@ -317,8 +321,9 @@ fn near_and_far_plane_cases_meet_the_bounds_with_every_tet_method() {
 /// (faces through the eye were slivers covering single pixels, 5.4e-2 at
 /// 128x128 before clip positions were taken relative to the eye), the
 /// camera inside (the papers' interpolation, 0.262 at 256x256) and the
-/// opaque medium (single silhouette pixels). Exact interpolation on the
-/// first two meets the accuracy bound alone.
+/// opaque medium (single silhouette pixels, 5.9e-3 at 256x256 before they
+/// were left out as ambiguous: `reference::silhouette`). Exact
+/// interpolation meets the accuracy bound alone on all three.
 #[test]
 fn size_sensitive_cases_hold_at_a_second_size() {
     let names = ["eye-on-vertex", "camera-inside", "opaque-1e6"];
@@ -328,20 +333,25 @@ fn size_sensitive_cases_hold_at_a_second_size() {
     let rows = run(&selected, &config_at(SECOND_SIZE, &["balanced", "vicp"], &["ppi"], &["exact", "paper"], &["mpvo"]));
     assert_eq!(rows.len(), 12);
     assert_all_pass(&rows);
-    for r in rows.iter().filter(|r| r.case != "opaque-1e6" && r.interpolation == "exact") {
+    for r in rows.iter().filter(|r| r.interpolation == "exact") {
         assert_eq!(r.status, "ok", "{} {} {}: {}", r.case, r.method, r.options, r.max_abs_error);
+    }
+    // Pixels set aside on the silhouette: a handful, not a band.
+    for r in rows.iter().filter(|r| r.case == "opaque-1e6") {
+        assert!((1..=16).contains(&r.silhouette_pixels), "{} {}: {}", r.method, r.options, r.silhouette_pixels);
     }
 }
 
-/// The opaque medium's silhouette allowance is for single pixels at large
-/// sizes: at 64x64 the exact integrators meet the accuracy bound alone.
+/// The opaque medium carries no allowance for the exact integrators: at
+/// 64x64 they are within 1e-3 (the 2 silhouette pixels included).
 #[test]
 fn opaque_medium_meets_the_accuracy_bound_at_64() {
     let selected: Vec<StressCase> = cases().into_iter().filter(|c| c.name == "opaque-1e6").collect();
     let rows = run(&selected, &config(&["balanced", "vicp"], &["ppi", "linear-exact"], &["exact"], &["mpvo"]));
     assert_eq!(rows.len(), 4);
     for r in &rows {
-        assert!(r.max_abs_error <= 1e-3, "{} {}: {}", r.method, r.options, r.max_abs_error);
+        assert_eq!(r.status, "ok", "{} {}", r.method, r.options);
+        assert!(r.max_abs_error.max(r.silhouette_max_error) <= 1e-3, "{} {}: {}", r.method, r.options, r.max_abs_error);
     }
 }
 

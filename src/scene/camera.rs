@@ -173,6 +173,27 @@ impl Camera {
         self.translated(origin.map(|c| -c)).view_proj(width, height)
     }
 
+    /// Where `p` lands in the image, the inverse of [`Self::ray`]: (x, y)
+    /// with pixel (x, y)'s centre at integers, and the view depth
+    /// `(p − eye)·forward` (perspective: only meaningful when positive).
+    pub fn image_position(&self, p: DVec3, width: u32, height: u32) -> (f64, f64, f64) {
+        let aspect = width as f64 / height as f64;
+        let fwd = self.forward();
+        let right = fwd.cross(DVec3::from(self.up)).normalize();
+        let up = right.cross(fwd);
+        let v = p - DVec3::from(self.eye);
+        let depth = v.dot(fwd);
+        let (sx, sy) = match self.projection {
+            Projection::Perspective { fovy_deg } => {
+                let t = (0.5 * fovy_deg.to_radians()).tan();
+                (depth * t * aspect, depth * t)
+            }
+            Projection::Orthographic { height: h } => (0.5 * h * aspect, 0.5 * h),
+        };
+        let (ndc_x, ndc_y) = (v.dot(right) / sx, -v.dot(up) / sy);
+        ((ndc_x + 1.0) * 0.5 * width as f64 - 0.5, (ndc_y + 1.0) * 0.5 * height as f64 - 0.5, depth)
+    }
+
     /// The ray through the centre of pixel (x, y): origin and unit direction.
     /// For perspective the origin is the eye; for orthographic it lies on the
     /// near plane's parallel through the eye.
@@ -201,6 +222,20 @@ impl Camera {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    // A point along the ray through a pixel's centre lands on that centre.
+    #[test]
+    fn image_position_inverts_ray() {
+        for projection in [Projection::Perspective { fovy_deg: 30.0 }, Projection::Orthographic { height: 2.5 }] {
+            let c = Camera { eye: [2.3, 1.7, 2.9], target: [0.5, 0.5, 0.5], up: [0.0, 1.0, 0.0], projection, near: 0.9, far: 9.0 };
+            for (x, y) in [(0.0, 0.0), (17.0, 5.0), (47.0, 31.0)] {
+                let (o, d) = c.ray(x, y, 48, 32);
+                let (px, py, depth) = c.image_position(o + 3.0 * d, 48, 32);
+                assert!((px - x).abs() < 1e-9 && (py - y).abs() < 1e-9, "{projection:?}: ({x}, {y}) -> ({px}, {py})");
+                assert!(depth > 0.0);
+            }
+        }
+    }
 
     fn bounds() -> Bounds {
         Bounds { min: [-1.0, -2.0, 0.0], max: [3.0, 1.0, 2.0] }
