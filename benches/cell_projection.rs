@@ -17,6 +17,7 @@
 //!   methods.
 //! - `tables/<integrator>/<size>`: the cell-projection integration tables
 //!   (pre-integration, partial pre-integration's Psi) at their default sizes.
+//!
 //! Every shipped dataset (`datasets::NAMED`) is benched with every method of
 //! its kind. Frames are 256x256 so that `cargo bench` finishes in minutes.
 

@@ -14,6 +14,11 @@ cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 export VOLBENCH_VALIDATION=1
 export VK_LAYER_ENABLES=VK_VALIDATION_FEATURE_ENABLE_SYNCHRONIZATION_VALIDATION_EXT
+# Lints first: clippy on every target, any warning an error (the toolchain's
+# clippy component; rustup installs it with the default profile).
+if [ $# -eq 0 ]; then
+    cargo clippy --locked --all-targets -- -D warnings
+fi
 cargo test --locked "$@"
 if [ $# -eq 0 ]; then
     # cargo test built target/debug/volbench for the CLI tests: the same binary.

@@ -391,7 +391,7 @@ impl OutputSet {
 
     /// Add an output named by `option` (for the message).
     pub fn add(&mut self, option: &str, path: &Path) -> Result<()> {
-        let target = OutputTarget::of(path).with_context(|| format!("{option}"))?;
+        let target = OutputTarget::of(path).with_context(|| option.to_string())?;
         target.probe().with_context(|| option.to_string())?;
         let key = match &target {
             OutputTarget::Stdout => PathBuf::from("-"),
@@ -465,7 +465,7 @@ mod tests {
         // A directory, a trailing slash, a missing parent: clear errors.
         for bad in [d.path().to_path_buf(), d.path().join("x/"), d.path().join("nope/x.png")] {
             let e = write_output(&bad, b"x").unwrap_err().to_string();
-            assert!(e.contains(&*bad.to_string_lossy().trim_end_matches('/')), "{e}");
+            assert!(e.contains(bad.to_string_lossy().trim_end_matches('/')), "{e}");
         }
         assert_eq!(fs::read_dir(d.path()).unwrap().count(), 2);
     }

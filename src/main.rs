@@ -641,7 +641,7 @@ fn pareto(cli: &Cli, registry: &Registry, args: &ParetoArgs) -> Result<()> {
 
 fn stress(cli: &Cli, registry: &Registry, args: &StressArgs) -> Result<()> {
     use volbench::harness::stress::{describe_cases, failures, run_cases_with_progress, stress_cases, stress_table, StressConfig, StressReport};
-    if !(16..=2048).contains(&args.size) || args.size % 2 != 0 {
+    if !(16..=2048).contains(&args.size) || !args.size.is_multiple_of(2) {
         bail!("--size must be even and within 16..=2048 (the f64 reference renders every pixel on the CPU), got {}", args.size);
     }
     if args.describe {
@@ -787,7 +787,7 @@ fn scale(registry: &Registry, args: &ScaleArgs) -> Result<()> {
     anyhow::ensure!(args.levels <= 4, "--levels {}: at most 4 (x8 tets per level: 4096 times the input)", args.levels);
     anyhow::ensure!(args.frames >= 1, "--frames must be at least 1");
     let specs = if args.methods.is_empty() {
-        registry.for_kind(DataKind::TetMesh).into_iter().map(|m| registry.parse_spec(m.name, &[])).collect::<Result<Vec<_>>>()?
+        registry.for_kind(DataKind::TetMesh).map(|m| registry.parse_spec(m.name, &[])).collect::<Result<Vec<_>>>()?
     } else {
         args.methods.iter().map(|m| registry.parse_spec(m, &[]).with_context(|| format!("--method {m}"))).collect::<Result<Vec<_>>>()?
     };

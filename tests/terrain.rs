@@ -138,7 +138,7 @@ fn elevation_files_load_by_path_and_bad_ones_are_named() {
     assert_eq!((m.nx, m.ny), (24, 20));
     // The hybrid model builds on an unseen grid too.
     let model = HybridModel::build(m).unwrap();
-    assert!(model.levels.len() >= 1 && !model.tin_indices.is_empty());
+    assert!(!model.levels.is_empty() && !model.tin_indices.is_empty());
     // Truncated, and an array name that is not there.
     let t = dir.path().join("cut.npy");
     std::fs::write(&t, &bytes[..200]).unwrap();

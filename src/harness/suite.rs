@@ -911,7 +911,8 @@ fn error_legend(s: &Summary) -> String {
 /// time, device time and per-frame bytes as ratios inside this run, with
 /// the work counts that must agree between them.
 fn placement_report(s: &Summary) -> String {
-    let mut groups: Vec<(String, String, Vec<(&str, &RunResult)>)> = Vec::new();
+    type Group<'a> = (String, String, Vec<(&'a str, &'a RunResult)>);
+    let mut groups: Vec<Group> = Vec::new();
     for r in &s.runs {
         let Some(x) = &r.result else { continue };
         let Some(work) = x.details.get("same_work").and_then(|w| w.as_str()) else { continue };

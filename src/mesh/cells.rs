@@ -491,7 +491,9 @@ mod tests {
     /// A structured block of `n³` unit cells, each randomly a hexahedron, a
     /// voxel, two wedges or six pyramids on an extra centre point. Global
     /// indices are shuffled so the cuts vary from face to face.
-    fn mixed_block(n: usize, seed: u64, warp: bool) -> (Vec<[f64; 3]>, Vec<(u8, Vec<u32>)>) {
+    type Block = (Vec<[f64; 3]>, Vec<(u8, Vec<u32>)>);
+
+    fn mixed_block(n: usize, seed: u64, warp: bool) -> Block {
         let mut rng = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
         let mut next = move || {
             rng ^= rng << 13;

@@ -28,7 +28,7 @@ pub fn context() -> std::sync::MutexGuard<'static, std::sync::Arc<volbench::vk::
 /// A NumPy `.npy` (format 1.0) of `dict`, the header dict's text, and `data`.
 pub fn npy_bytes(dict: &str, data: &[u8]) -> Vec<u8> {
     let mut h = dict.to_string();
-    while (h.len() + 11) % 64 != 0 {
+    while !(h.len() + 11).is_multiple_of(64) {
         h.push(' ');
     }
     h.push('\n');

@@ -472,6 +472,7 @@ fn extra_fragment_work() -> VkResult<Option<String>> {
 /// The pipeline every cell-projection method uses: premultiplied "over"
 /// into RGBA32F, entry faces only, the integration tables bound at set 0
 /// and `extra_sets` at sets 1, 2, ...
+#[allow(clippy::too_many_arguments)] // one pipeline description; a struct for it is issue 23 item 1
 pub(crate) fn build_pipeline(
     ctx: &Arc<Context>,
     vertex_path: &str,
