@@ -317,11 +317,10 @@ fn head_of(p: &Path) -> Vec<u8> {
 
 /// What kind of data a file holds, by its content: the magic bytes of each
 /// format (and for VTK, the DATASET line or XML type), whatever its name.
-fn kind_by_content(p: &Path) -> Option<DataKind> {
+fn kind_by_content(head: &[u8]) -> Option<DataKind> {
     use crate::volume::Format;
-    let head = head_of(p);
-    let text = String::from_utf8_lossy(&head).to_ascii_uppercase();
-    match crate::volume::sniff(&head) {
+    let text = String::from_utf8_lossy(head).to_ascii_uppercase();
+    match crate::volume::sniff(head) {
         Some(Format::Nrrd | Format::Nifti) => return Some(DataKind::Volume),
         Some(Format::VtkLegacy) => {
             return Some(if text.contains("STRUCTURED_POINTS") { DataKind::Volume } else { DataKind::TetMesh });
@@ -331,7 +330,7 @@ fn kind_by_content(p: &Path) -> Option<DataKind> {
         Some(Format::Vti) => return None,
         None => {}
     }
-    crate::terrain::sniff(&head).map(|_| DataKind::Terrain)
+    crate::terrain::sniff(head).map(|_| DataKind::Terrain)
 }
 
 /// What kind of data a file's extension says it holds.
@@ -390,7 +389,7 @@ pub fn load(spec: &str) -> Result<Dataset> {
                 let ext = p.extension().map(|e| e.to_string_lossy().to_ascii_lowercase());
                 if ext.is_some_and(|e| mesh::datasets::VTK_EXTENSIONS.contains(&e.as_str()))
                     && std::fs::symlink_metadata(path).is_err()
-                    && kind_by_content(p) != Some(DataKind::Volume)
+                    && kind_by_content(&head_of(p)) != Some(DataKind::Volume)
                 {
                     let mesh = mesh::datasets::load_path_array(p, Some(array)).with_context(|| format!("loading dataset '{path}'"))?;
                     return Ok(Dataset::from_mesh(mesh, false, path.to_string()));
@@ -409,7 +408,8 @@ pub fn load(spec: &str) -> Result<Dataset> {
             }
             // The content decides where it is recognised; the extension
             // only where it is not (a PLOT3D file has no magic).
-            let by_content = kind_by_content(p);
+            let head = head_of(p);
+            let by_content = kind_by_content(&head);
             match by_content.or_else(|| kind_by_extension(p)) {
                 Some(DataKind::Terrain) => {
                     let t = crate::terrain::load_heightmap(p, None).with_context(|| format!("loading dataset '{path}'"))?;
@@ -421,11 +421,12 @@ pub fn load(spec: &str) -> Result<Dataset> {
                 }
                 Some(DataKind::TetMesh) => {
                     // A known mesh extension picks its reader; otherwise the content does.
-                    let known = kind_by_extension(p) == Some(DataKind::TetMesh);
-                    let mesh = match crate::volume::sniff(&head_of(p)) {
-                        _ if known => mesh::datasets::load_path(p),
-                        Some(crate::volume::Format::Vti) => mesh::vtu::read_vtu(p, None),
-                        _ => mesh::vtk::read_vtk_legacy(p),
+                    let mesh = if kind_by_extension(p) == Some(DataKind::TetMesh) {
+                        mesh::datasets::load_path(p)
+                    } else if crate::volume::sniff(&head) == Some(crate::volume::Format::Vti) {
+                        mesh::vtu::read_vtu(p, None)
+                    } else {
+                        mesh::vtk::read_vtk_legacy(p)
                     };
                     let mesh = mesh.with_context(|| format!("loading dataset '{path}'"))?;
                     Ok(Dataset::from_mesh(mesh, false, path.to_string()))
