@@ -34,7 +34,7 @@ pub fn attenuating(vol: &Volume, tf: &TransferFunction, brick: usize) -> Vec<boo
     // before when it is that brick's last layer.
     let owners = |i: usize, g: usize| {
         let own = (i / brick).min(g - 1);
-        let before = (i % brick == 0 && i > 0 && i / brick <= g).then(|| i / brick - 1);
+        let before = (i > 0 && i.is_multiple_of(brick)).then(|| i / brick - 1);
         [Some(own), before.filter(|&b| b != own)]
     };
     let mut range = vec![(f64::INFINITY, f64::NEG_INFINITY); grid[0] * grid[1] * grid[2]];

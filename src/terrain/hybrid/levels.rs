@@ -114,9 +114,7 @@ impl HybridModel {
             let ec = &edge_cell[pi];
             let n = ec.len();
             // Start at an edge whose predecessor lies in another cell.
-            let Some(first) = (0..n).find(|&i| ec[(i + n - 1) % n] != ec[i]) else {
-                return None;
-            };
+            let first = (0..n).find(|&i| ec[(i + n - 1) % n] != ec[i])?;
             let mut i = 0;
             while i < n {
                 let e0 = (first + i) % n;
