@@ -1,6 +1,8 @@
 //! Ray integration on the GPU: which integrator the fragment stage compiles
 //! in (a build-time parameter, `shaders/common/integrate.glsl`) and the tables
-//! it reads, built once on the CPU in f64: the transfer function sampled for
+//! it reads, built once on the CPU in f64 (with the method side's own Ψ and
+//! segment integral, `algo::psi` and `algo::segment`, not the CPU
+//! reference's): the transfer function sampled for
 //! linear lookup, plus per integrator the partial pre-integration table
 //! Psi(gamma_f, gamma_b) (Moreland & Angel 2004; independent of the transfer
 //! function) or the classic pre-integration table over (s_f, s_b, D) (rebuilt
@@ -169,7 +171,7 @@ pub fn preint_table(
             let sb = range.0 + (range.1 - range.0) * b as f64 / (n - 1) as f64;
             for f in 0..n {
                 let sf = range.0 + (range.1 - range.0) * f as f64 / (n - 1) as f64;
-                let seg = crate::reference::integrate::integrate_segment(tf, sf, sb, len);
+                let seg = super::segment::integrate_segment(tf, sf, sb, len);
                 slab[b * n + f] = seg.rgba().map(|v| v as f32);
             }
         }
@@ -197,7 +199,7 @@ pub fn psi_table(m: usize) -> anyhow::Result<Vec<f32>> {
             let tf = tau_d(jf as f64 / (m - 1) as f64);
             // Infinite attenuation at either end makes the average
             // transmittance vanish (its limit is 0).
-            *v = if tf.is_infinite() || tb.is_infinite() { 0.0 } else { crate::reference::psi::psi(tf, tb) as f32 };
+            *v = if tf.is_infinite() || tb.is_infinite() { 0.0 } else { super::psi::psi(tf, tb) as f32 };
         }
     });
     Ok(out)

@@ -59,7 +59,7 @@ use super::integrate::{check_table_size, IntegrationTables, Integrator};
 use super::method::{DataKind, MethodInfo, MethodInputs, OptionSpec, OptionValues, Options, Phases, RenderMethod, SceneData, View, Work};
 use crate::mesh::adjacency::{FACE_VERTS, NONE};
 use crate::mesh::{TetGeometry, TetMesh};
-use crate::reference::topology::Topology;
+use crate::mesh::topology::Topology;
 use crate::scene::{Camera, Projection};
 use crate::vk::raw::Handle as _;
 use crate::vk::{

@@ -22,6 +22,7 @@ pub mod geometry;
 pub mod plot3d;
 pub mod refine;
 pub mod split;
+pub mod topology;
 pub mod vtk;
 pub mod vtu;
 

@@ -84,7 +84,6 @@ pub mod integrate;
 pub mod psi;
 pub mod silhouette;
 mod raycast;
-pub(crate) mod topology;
 pub mod volume;
 
 use anyhow::{bail, ensure, Result};
@@ -176,7 +175,7 @@ pub fn render_reference_with_stats(
     height: u32,
 ) -> Result<(ReferenceImage, ReferenceStats)> {
     validate(mesh, camera, tf, width, height)?;
-    let topo = topology::Topology::build(mesh);
+    let topo = crate::mesh::topology::Topology::build(mesh);
     let bins = raycast::Bins::build(mesh, &topo, camera, width, height);
     let diag = mesh_diagonal(mesh);
     let tracer = raycast::Tracer {

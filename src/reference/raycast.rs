@@ -7,7 +7,7 @@ use crate::mesh::TetMesh;
 use crate::scene::{Camera, TransferFunction};
 
 use super::integrate::{integrate_segment, Segment};
-use super::topology::Topology;
+use crate::mesh::topology::Topology;
 use crate::mesh::adjacency::{FACE_VERTS, NONE};
 use super::ReferenceStats;
 

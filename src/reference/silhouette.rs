@@ -21,7 +21,7 @@ use std::collections::HashMap;
 
 use glam::DVec3;
 
-use super::topology::Topology;
+use crate::mesh::topology::Topology;
 use crate::mesh::adjacency::FACE_VERTS;
 use crate::mesh::TetMesh;
 use crate::scene::{Camera, Projection};

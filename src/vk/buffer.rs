@@ -225,7 +225,7 @@ impl TexelBuffer {
     /// Usage, format features, whole texels and the device's element limit;
     /// the number of texels.
     fn check(ctx: &Context, desc: &BufferDesc, format: vk::Format) -> VkResult<u64> {
-        let texel = super::image::texel_bytes(format)
+        let texel = super::format::texel_bytes(format)
             .ok_or_else(|| VkError::Invalid(format!("texel buffer '{}': format {format:?} is not supported here", desc.name)))?;
         let mut features = vk::FormatFeatureFlags::empty();
         if desc.usage.contains(vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER) {

@@ -381,7 +381,7 @@ impl CommandRecorder {
     /// Start dynamic rendering into `target` with the depth buffer `depth`
     /// (`Image::depth_target`), both cleared (colour to `clear`, depth to 1).
     pub fn begin_rendering_with_depth(&self, target: &Image, clear: [f32; 4], depth: &Image) -> VkResult<()> {
-        if (depth.width, depth.height) != (target.width, target.height) || depth.format != super::image::DEPTH_FORMAT {
+        if (depth.width, depth.height) != (target.width, target.height) || depth.format != super::format::DEPTH_FORMAT {
             return Err(VkError::Invalid(format!(
                 "depth buffer '{}' ({}x{} {:?}) does not match target '{}' ({}x{})",
                 depth.name(),

@@ -7,7 +7,8 @@
 //!
 //! What is here: device and features (`context`), buffers and texel buffers
 //! (`buffer`), images, samplers, texture upload and readback (`image`),
-//! descriptor sets (`descriptors`), graphics and compute pipelines
+//! the fixed formats and texel sizes (`format`), host–image copies that
+//! record commands (`transfer`), descriptor sets (`descriptors`), graphics and compute pipelines
 //! (`pipeline`) and their cache (`pipeline_cache`), command recording with
 //! bounded fence waits, dispatch and barriers (`commands`), timestamps and
 //! statistics (`query`), a method's own timestamps (`timestamps`), shader compilation (`shader`), the byte
@@ -22,12 +23,14 @@ pub mod commands;
 pub mod context;
 pub mod descriptors;
 pub mod error;
+pub mod format;
 pub mod image;
 pub mod pipeline;
 pub mod pipeline_cache;
 pub mod query;
 pub mod shader;
 pub mod timestamps;
+pub mod transfer;
 pub mod upload;
 pub mod valgrind;
 
@@ -43,7 +46,9 @@ pub use descriptors::{
     StorageBufferSet,
 };
 pub use error::{VkError, VkResult};
-pub use image::{texel_bytes, upload_texture, Filter, Image, ImageDim, ImageState, ImageUse, Sampler, TextureDesc, TARGET_FORMAT};
+pub use format::{texel_bytes, TARGET_FORMAT};
+pub use image::{Filter, Image, ImageDim, ImageState, ImageUse, Sampler, TextureDesc};
+pub use transfer::upload_texture;
 pub use pipeline::{Blend, ColorTarget, ComputePipelineDesc, GraphicsPipelineDesc, Pipeline, VertexAttribute};
 pub use pipeline_cache::{
     fnv1a64, ComputePipelineKey, GraphicsPipelineKey, GraphicsState, PipelineCache, PipelineKey, ShaderKey,

@@ -16,7 +16,7 @@ use ash::vk;
 
 use super::descriptors::DescriptorSetLayout;
 use super::error::{Check, VkError, VkResult};
-use super::image::TARGET_FORMAT;
+use super::format::{DEPTH_FORMAT, TARGET_FORMAT};
 use super::shader::{ShaderModule, ShaderStage};
 use super::Context;
 
@@ -264,7 +264,7 @@ impl Pipeline {
         let mut rendering = vk::PipelineRenderingCreateInfo::default().color_attachment_formats(&formats);
         let mut depth = vk::PipelineDepthStencilStateCreateInfo::default();
         if desc.depth_test {
-            rendering = rendering.depth_attachment_format(super::image::DEPTH_FORMAT);
+            rendering = rendering.depth_attachment_format(DEPTH_FORMAT);
             depth = depth.depth_test_enable(true).depth_write_enable(true).depth_compare_op(vk::CompareOp::LESS);
         }
         let info = vk::GraphicsPipelineCreateInfo::default()

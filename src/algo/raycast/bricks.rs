@@ -1,13 +1,68 @@
-//! Empty-space skipping's distances (see the module note of `super`): the
+//! Empty-space skipping's bricks (see the module note of `super`): the
 //! volume is cut into bricks of `brick`³ voxels, each flagged when the
-//! transfer function may give attenuation somewhere in it
-//! (`reference::volume::attenuating_bricks`), and every unflagged brick
+//! transfer function may give attenuation somewhere in it ([`attenuating`];
+//! the CPU reference flags its cells with its own code,
+//! `reference::volume::attenuating_bricks`, and `tests/reference_agrees.rs`
+//! compares the two), and every unflagged brick
 //! holds its Chebyshev (L∞) distance, in bricks, to the nearest flagged
 //! one. A ray in an unflagged brick at distance d lies in an empty cube of
 //! 2d − 1 bricks a side centred on it and leaps to the cube's exit in one
 //! iteration. On llvmpipe a skipped brick costs a loop iteration as dear as
 //! a sample (both sides of every branch run), so without the distances small
 //! bricks would cost more iterations than the samples they save.
+
+use crate::scene::TransferFunction;
+use crate::volume::Volume;
+
+use super::super::segment::transfer_at;
+
+/// Bricks along x, y, z for `dims` samples. Brick b along an axis holds the
+/// samples b·brick ..= (b + 1)·brick (its own and the next brick's first
+/// layer: every sample a trilinear lookup inside it may read).
+pub fn grid_of(dims: [usize; 3], brick: usize) -> [usize; 3] {
+    dims.map(|n| n.saturating_sub(1).div_ceil(brick).max(1))
+}
+
+/// Per brick (x fastest): whether the transfer function has attenuation
+/// anywhere over the range of the brick's samples (a trilinear value stays
+/// within its corners' range). One pass over the samples, each widening the
+/// range of the (up to 8) bricks that hold it.
+pub fn attenuating(vol: &Volume, tf: &TransferFunction, brick: usize) -> Vec<bool> {
+    let dims = vol.dims();
+    let grid = grid_of(dims, brick);
+    // The bricks holding sample i along an axis: its own, and the one
+    // before when it is that brick's last layer.
+    let owners = |i: usize, g: usize| {
+        let own = (i / brick).min(g - 1);
+        let before = (i > 0 && i.is_multiple_of(brick)).then(|| i / brick - 1);
+        [Some(own), before.filter(|&b| b != own)]
+    };
+    let mut range = vec![(f64::INFINITY, f64::NEG_INFINITY); grid[0] * grid[1] * grid[2]];
+    for k in 0..dims[2] {
+        for j in 0..dims[1] {
+            for i in 0..dims[0] {
+                let v = vol.value(i, j, k);
+                for bz in owners(k, grid[2]).into_iter().flatten() {
+                    for by in owners(j, grid[1]).into_iter().flatten() {
+                        for bx in owners(i, grid[0]).into_iter().flatten() {
+                            let r = &mut range[bx + grid[0] * (by + grid[1] * bz)];
+                            *r = (r.0.min(v), r.1.max(v));
+                        }
+                    }
+                }
+            }
+        }
+    }
+    range.iter().map(|&(lo, hi)| attenuates_over(tf, lo, hi)).collect()
+}
+
+/// Whether τ > 0 somewhere on scalars [lo, hi]: τ is piecewise linear, so
+/// at an end or at a control point between them.
+fn attenuates_over(tf: &TransferFunction, lo: f64, hi: f64) -> bool {
+    transfer_at(tf, lo).1 > 0.0
+        || transfer_at(tf, hi).1 > 0.0
+        || tf.points.iter().any(|p| p.scalar >= lo && p.scalar <= hi && p.attenuation > 0.0)
+}
 
 /// Largest distance stored (one byte per brick); farther bricks store this
 /// (a smaller cube than possible: still empty).

@@ -26,7 +26,8 @@
 //! α' = 1 − (1 − α)^{Δs/Δs0} with α given per unit length. Front to back,
 //! premultiplied. `integrator=preint` looks segments up in a 2D
 //! pre-integration table over (front, back) scalar (Engel, Kraus, Ertl 2001)
-//! built in f64 with the reference's exact segment integral for a segment of
+//! built in f64 with the exact segment integral (`algo::segment`, not the
+//! CPU reference's code) for a segment of
 //! [`preint_length`] world units; optical depth is scaled to the actual step
 //! (exact), colour per unit opacity is kept (exact when the world step equals
 //! the table's length: along the axis of smallest spacing at the full step).
@@ -51,7 +52,7 @@
 //! "Ray casting at its speed limit"), each flagged on the
 //! CPU when the transfer function has attenuation somewhere over its sample
 //! range (its samples and the next layer: the trilinear neighbourhood;
-//! `reference::volume::attenuating_bricks`). A point sample in an unflagged
+//! [`bricks::attenuating`]). A point sample in an unflagged
 //! brick reads only samples whose attenuation is zero, so it can be stepped
 //! over and the image is unchanged. For `preint` the flags are dilated by
 //! ⌈step / (2·brick)⌉ bricks, so a segment whose middle lies in an unflagged
@@ -93,8 +94,7 @@ use glam::{DMat4, DVec3};
 use serde_json::json;
 
 use super::method::{OptionSpec, OptionValues, Options, Published, PublishedFigure, View, Work};
-use crate::reference::integrate::integrate_segment;
-use crate::reference::volume::{attenuating_bricks, brick_grid};
+use super::segment::integrate_segment;
 use crate::scene::TransferFunction;
 use crate::volume::{Samples, Volume};
 use crate::vk::{
@@ -349,7 +349,7 @@ impl VolumeResources {
         let tf_img = upload_texture(ctx, &TextureDesc::d1("transfer function", TABLE_SIZE as u32, raw::Format::R32G32B32A32_SFLOAT), &f32_bytes(&table), counter)?;
         // Pre-integration table over (front, back) in [lo, hi]^2, texel
         // centres at the ends: premultiplied colour and optical depth of a
-        // segment of `d0` world units, exact (reference integral).
+        // segment of `d0` world units, exact (`algo::segment`).
         let d0 = preint_length(vol, s.step);
         let n = if s.preint { PREINT_SIZE } else { 2 };
         let mut pre = Vec::with_capacity(n * n * 4);
@@ -367,8 +367,8 @@ impl VolumeResources {
         // Brick distances (module note): 0 on a flagged brick, else the
         // Chebyshev distance to the nearest one; for `preint` the flags are
         // dilated by the bricks half a step may reach into.
-        let grid = brick_grid(dims, s.brick);
-        let flagged = attenuating_bricks(vol, tf, s.brick);
+        let grid = bricks::grid_of(dims, s.brick);
+        let flagged = bricks::attenuating(vol, tf, s.brick);
         let dilation = if s.preint { (s.step / (2.0 * s.brick as f64)).ceil().max(1.0) as u8 } else { 0 };
         let distance: Vec<u8> = bricks::distances(&flagged, grid).iter().map(|d| d.saturating_sub(dilation)).collect();
         let table_build_ms = t0.elapsed().as_secs_f64() * 1e3;

@@ -1,9 +1,12 @@
-//! The reference walk's view of the mesh, built once per render: face
-//! adjacency and which cells are solid.
+//! A ray walk's view of the mesh, built once per render: face adjacency and
+//! which cells are solid. Both walks use it: the CPU reference's
+//! (`reference::raycast`) and tet-raycast's (`algo::tet_raycast`), so they
+//! agree on which faces are boundary and which cells are flat; it is mesh
+//! structure, not integration (each walk integrates with its own code).
 //!
 //! Adjacency comes from the shared builder ([`FaceAdjacency`], matching by
 //! vertex *index* triple: no welding, so an unmerged seam stays two
-//! boundaries, see the parent module docs). The reference's policies on top:
+//! boundaries, see `reference`'s module docs). The policies on top:
 //! - Cells with a repeated vertex index carry no volume and no usable faces:
 //!   they are left out entirely (their would-be neighbours pair with each
 //!   other or become boundary) and counted.
@@ -20,7 +23,7 @@ use crate::mesh::adjacency::FaceAdjacency;
 use crate::mesh::geometry::tet_det;
 use crate::mesh::TetMesh;
 
-pub(crate) struct Topology {
+pub struct Topology {
     /// `neighbor[4·t + f]` = `4·t' + f'`: face `f` of tet `t` is face `f'` of
     /// tet `t'`; `NONE` on the boundary.
     pub neighbor: Vec<u32>,
