@@ -7,5 +7,6 @@ pub mod method;
 pub mod pipelines;
 pub mod raycast;
 pub mod registry;
+pub mod settings;
 pub mod terrain;
 pub mod tet_raycast;
