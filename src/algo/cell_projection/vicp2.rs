@@ -1,0 +1,147 @@
+//! View-independent cell projection (Weiler, Kraus, Ertl 2002): every tet is
+//! sent as 12 vertex records (4 faces x 3 vertices) of 11 floats,
+//! (v: 3, s_v: 1, P_v: 3, g: 3, i: 1) = 132 floats; all view-dependent work
+//! happens in the vertex stage. Records don't depend on the view, so they are
+//! built once; per frame the CPU only gathers them in sorted order.
+
+use std::sync::Arc;
+
+use ash::vk as raw;
+use rayon::prelude::*;
+
+use super::render;
+use crate::algo::method::{MethodInfo, MethodInputs, RenderMethod};
+use super::{build_pipeline, cells_f32, CellProjector, FrameSetup, Interpolation, FACES};
+use crate::algo::integrate::IntegrationTables;
+use crate::mesh::{TetGeometry, TetMesh};
+use crate::vk::{Buffer, BufferDesc, CommandRecorder, Context, Pipeline, PipelineKey, UploadClass, UploadCounter, VertexAttribute, VkResult};
+
+pub const FLOATS_PER_VERTEX: usize = 11;
+pub const VERTICES_PER_CELL: usize = 12;
+pub const FLOATS_PER_CELL: usize = FLOATS_PER_VERTEX * VERTICES_PER_CELL;
+
+/// The registry entry.
+pub const METHOD: MethodInfo = render::method_info(
+    "vicp2",
+    "throwaway copy of vicp (counting the files a new method touches)",
+    render::OPTIONS,
+    &[],
+    create,
+);
+
+fn create(inputs: MethodInputs) -> anyhow::Result<Box<dyn RenderMethod>> {
+    let bytes = render::DeviceBytesPerCell { frame: FLOATS_PER_CELL * 4, fixed: 0 };
+    render::CellProjection::create(inputs, bytes, |ctx, mesh, geometry, tables, draw, _counter| {
+        Ok(Box::new(Vicp::new(ctx, mesh, geometry, tables, draw.interpolation)?))
+    })
+}
+
+pub struct Vicp {
+    /// The view-independent records, FLOATS_PER_CELL per tet, in mesh order.
+    records: Vec<f32>,
+    /// This frame's records in draw order.
+    packed: Vec<f32>,
+    vertex_buffer: Buffer,
+    pipeline: Arc<Pipeline>,
+    pipeline_key: PipelineKey,
+    cells: usize,
+    /// Cells in the last `pack`.
+    drawn: usize,
+}
+
+/// The 12 records of one tet.
+pub fn cell_records(c: &super::CellF32, out: &mut [f32]) {
+    let mut w = 0;
+    for face in FACES {
+        for (i, &v) in face.iter().enumerate() {
+            let rec = [
+                c.pos[v][0], c.pos[v][1], c.pos[v][2],
+                c.scalar[v],
+                c.plane3[v][0], c.plane3[v][1], c.plane3[v][2],
+                c.gradient[0], c.gradient[1], c.gradient[2],
+                i as f32,
+            ];
+            out[w..w + FLOATS_PER_VERTEX].copy_from_slice(&rec);
+            w += FLOATS_PER_VERTEX;
+        }
+    }
+}
+
+impl Vicp {
+    pub fn new(
+        ctx: &Arc<Context>,
+        mesh: &TetMesh,
+        geometry: &TetGeometry,
+        tables: &IntegrationTables,
+        interpolation: Interpolation,
+    ) -> VkResult<Self> {
+        let cells = cells_f32(mesh, geometry);
+        let n = cells.len();
+        let mut records = vec![0f32; n * FLOATS_PER_CELL];
+        records.par_chunks_mut(FLOATS_PER_CELL).zip(cells.par_iter()).for_each(|(out, c)| cell_records(c, out));
+        let bytes = (n * FLOATS_PER_CELL * 4) as u64;
+        let vertex_buffer = Buffer::new(ctx, BufferDesc::upload("vicp vertex records", bytes, raw::BufferUsageFlags::VERTEX_BUFFER))?;
+        let f = |location, format, floats: u32| VertexAttribute { location, format, offset: floats * 4 };
+        let attributes = [
+            f(0, raw::Format::R32G32B32_SFLOAT, 0),
+            f(1, raw::Format::R32_SFLOAT, 3),
+            f(2, raw::Format::R32G32B32_SFLOAT, 4),
+            f(3, raw::Format::R32G32B32_SFLOAT, 7),
+            f(4, raw::Format::R32_SFLOAT, 10),
+        ];
+        let (pipeline, pipeline_key) = build_pipeline(
+            ctx,
+            "cell_projection/vicp.vert",
+            "cell_projection/vicp2.frag",
+            (FLOATS_PER_VERTEX * 4) as u32,
+            &attributes,
+            raw::PrimitiveTopology::TRIANGLE_LIST,
+            false,
+            tables,
+            interpolation,
+            &[],
+        )?;
+        Ok(Vicp { packed: vec![0f32; records.len()], records, vertex_buffer, pipeline, pipeline_key, cells: n, drawn: n })
+    }
+}
+
+impl CellProjector for Vicp {
+    fn cells(&self) -> usize {
+        self.cells
+    }
+    fn vertices_per_cell(&self) -> usize {
+        VERTICES_PER_CELL
+    }
+    fn floats_per_cell(&self) -> usize {
+        FLOATS_PER_CELL
+    }
+    fn pipeline_key(&self) -> &PipelineKey {
+        &self.pipeline_key
+    }
+
+    fn drawn(&self) -> usize {
+        self.drawn
+    }
+
+    fn pack(&mut self, order: &[u32], _frame: &FrameSetup) {
+        self.drawn = order.len().min(self.cells);
+        let records = &self.records;
+        self.packed.par_chunks_mut(FLOATS_PER_CELL).zip(order.par_iter()).for_each(|(dst, &t)| {
+            let t = t as usize * FLOATS_PER_CELL;
+            dst.copy_from_slice(&records[t..t + FLOATS_PER_CELL]);
+        });
+    }
+
+    fn upload(&mut self, counter: &mut UploadCounter) -> VkResult<()> {
+        let packed = &self.packed[..self.drawn * FLOATS_PER_CELL];
+        self.vertex_buffer.write(0, bytemuck::cast_slice(packed), counter, UploadClass::FrameCells)
+    }
+
+    fn record_draw(&self, rec: &CommandRecorder, tables: &IntegrationTables, frame: &FrameSetup, counter: &mut UploadCounter) -> VkResult<()> {
+        rec.bind_pipeline(&self.pipeline, Some(&tables.set));
+        rec.push_constants(&self.pipeline, bytemuck::bytes_of(&frame.constants), counter);
+        rec.bind_vertex_buffer(&self.vertex_buffer);
+        rec.draw((self.drawn * VERTICES_PER_CELL) as u32);
+        Ok(())
+    }
+}
