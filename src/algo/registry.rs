@@ -16,7 +16,6 @@ pub fn builtin() -> Registry {
     Registry {
         methods: vec![
             super::cell_projection::vicp::METHOD,
-            super::cell_projection::vicp2::METHOD,
             super::cell_projection::balanced::METHOD,
             super::cell_projection::resident::METHOD,
             super::cell_projection::resident_gpusort::METHOD,

@@ -18,7 +18,6 @@ pub mod resident;
 pub mod resident_gpusort;
 pub mod sort;
 pub mod vicp;
-pub mod vicp2;
 
 use std::sync::Arc;
 
