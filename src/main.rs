@@ -181,16 +181,16 @@ struct SuiteArgs {
 /// Each applies only where given; a method without that option is an error.
 #[derive(Args, Clone, Default)]
 struct MethodFlags {
-    /// Shorthand for the `integrator` option (average, preint, ppi, linear-exact).
+    /// Shorthand for the `integrator` option (its values per method: `volbench list`).
     #[arg(long)]
     integrator: Option<String>,
     /// Shorthand for the `table_size` option.
     #[arg(long)]
     table_size: Option<String>,
-    /// Shorthand for the `sort` option (centroid, mpvo).
+    /// Shorthand for the `sort` option (its values per method: `volbench list`).
     #[arg(long)]
     sort: Option<String>,
-    /// Shorthand for the `interpolation` option (exact, paper).
+    /// Shorthand for the `interpolation` option (its values per method: `volbench list`).
     #[arg(long)]
     interpolation: Option<String>,
 }

@@ -12,7 +12,7 @@ use anyhow::Result;
 use ash::vk as raw;
 
 use volbench::algo::method::{
-    DataKind, Feature, MethodInfo, MethodInputs, OptionSpec, OptionValues, Phases, RenderMethod, SceneData, View, Work,
+    DataKind, Family, Feature, MethodInfo, MethodInputs, OptionSpec, OptionValues, Phases, RenderMethod, SceneData, View, Work,
 };
 use volbench::algo::registry::{self, Registry};
 use volbench::harness::datasets;
@@ -148,9 +148,8 @@ const SOLID_BOX: MethodInfo = MethodInfo {
     compare: &[""],
     stress: &[],
     suite: &[],
-    accuracy_bound: |_, _| Some(1e-3),
     published: &[],
-    check: volbench::algo::method::no_check,
+    family: Family { accuracy_bound: |_, _| Some(1e-3), ..Family::plain("test") },
     create: create_box,
 };
 
@@ -279,12 +278,17 @@ fn the_suite_runs_every_registered_method_on_the_shipped_datasets_of_its_kind() 
     let settings = SuiteSettings { width: 48, height: 48, frames: 1, warmup: 0, ..SuiteSettings::standard(true, vec!["post-small".into()]) };
     let planned = plan(&registry, &settings).unwrap();
     let names: Vec<&str> = planned.iter().map(|p| p.spec.info.name).collect();
-    // balanced twice: its defaults and its own suite set (the thesis's strip indices).
-    assert_eq!(
-        names,
-        ["vicp", "balanced", "balanced", "resident", "resident-gpusort", "atfs", "tet-raycast", "test-solid-box"],
-        "the new method is in the suite with no change there"
-    );
+    // Every registered method of the kind, in registry order, the new one
+    // last (no change in the suite for it); a method runs its defaults and
+    // at most its own suite sets and published figures' sets besides.
+    let mut methods = names.clone();
+    methods.dedup();
+    assert_eq!(methods, registry.for_kind(DataKind::TetMesh).map(|m| m.name).collect::<Vec<_>>());
+    assert_eq!(methods.last(), Some(&"test-solid-box"), "the new method is in the suite with no change there");
+    for m in registry.for_kind(DataKind::TetMesh) {
+        let n = names.iter().filter(|x| **x == m.name).count();
+        assert!((1..=1 + m.suite.len() + m.published.len()).contains(&n), "{}: {n} runs", m.name);
+    }
     assert!(plan(&registry, &SuiteSettings::standard(true, vec!["nosuch".into()])).unwrap_err().to_string().contains("nosuch"));
     let dir = tempfile::tempdir().unwrap();
     let ctx = context();
@@ -308,23 +312,25 @@ fn the_suite_runs_the_option_sets_published_figures_name_and_reports_the_ratios(
     let labels = |filter: &str| -> Vec<String> {
         plan(&registry, &SuiteSettings::standard(true, vec![filter.into()])).unwrap().iter().map(|p| p.label()).collect()
     };
-    // Thesis Table 6.4 names the integrators on the blunt fin only.
-    assert_eq!(
-        labels("bluntfin"),
-        [
-            "vicp", "balanced", "balanced:integrator=average", "balanced:integrator=linear-exact",
-            "balanced:primitives=strip", "resident", "resident-gpusort", "atfs", "tet-raycast",
-        ]
-    );
+    // Every tetrahedral method at its defaults, in registry order, and the
+    // option sets published figures name: thesis Table 6.4 names the
+    // integrators on the blunt fin only.
+    let tet: Vec<String> = registry.for_kind(DataKind::TetMesh).map(|m| m.name.to_string()).collect();
+    let defaults = |labels: &[String]| -> Vec<String> { labels.iter().filter(|l| !l.contains([':', '@'])).cloned().collect() };
+    let bluntfin = labels("bluntfin");
+    assert_eq!(defaults(&bluntfin), tet);
+    for l in ["balanced:integrator=average", "balanced:integrator=linear-exact", "balanced:primitives=strip"] {
+        assert!(bluntfin.contains(&l.to_string()), "{l} missing from {bluntfin:?}");
+    }
     // The oxygen post also has the culling scenes, culling on and off
-    // (--quick: the first method with a `cull` option, no zoomed scene).
+    // (--quick: the first method with a culling option, no zoomed scene).
+    let oxygen = labels("oxygenpost");
+    assert_eq!(defaults(&oxygen), tet);
+    let first = registry.for_kind(DataKind::TetMesh).find_map(|m| m.culling_option().map(|o| (m.name, o))).unwrap();
+    let (m, o) = first;
     assert_eq!(
-        labels("oxygenpost"),
-        [
-            "vicp", "balanced", "balanced:primitives=strip", "resident", "resident-gpusort", "atfs", "tet-raycast",
-            "vicp @transparent", "vicp:cull=off @transparent",
-            "vicp @still", "vicp:cull=off @still",
-        ]
+        oxygen[oxygen.len() - 4..],
+        [format!("{m} @transparent"), format!("{m}:{o}=off @transparent"), format!("{m} @still"), format!("{m}:{o}=off @still")]
     );
     // Krüger & Westermann's claim is about any volume.
     let ct = labels("chest-ct");

@@ -103,30 +103,23 @@ pub fn check_table_size_within(integrator: Integrator, table_size: usize, limit:
     )
 }
 
-/// How the fragment stage integrates a segment.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, clap::ValueEnum, Default)]
-#[serde(rename_all = "kebab-case")]
-pub enum Integrator {
-    /// Average colour and attenuation (Shirley-Tuchman style): fast, colour bleeding.
-    Average,
-    /// Classic pre-integration: a table over (front scalar, back scalar, length).
-    Preint,
-    /// Partial pre-integration (Moreland & Angel): a Psi table over gamma.
-    #[default]
-    Ppi,
-    /// Linear colour and attenuation, Psi in closed form (erf, Dawson).
-    LinearExact,
+crate::choices! {
+    /// How the fragment stage integrates a segment.
+    #[derive(Default)]
+    pub enum Integrator {
+        /// Average colour and attenuation (Shirley-Tuchman style): fast, colour bleeding.
+        Average = "average",
+        /// Classic pre-integration: a table over (front scalar, back scalar, length).
+        Preint = "preint",
+        /// Partial pre-integration (Moreland & Angel): a Psi table over gamma.
+        #[default]
+        Ppi = "ppi",
+        /// Linear colour and attenuation, Psi in closed form (erf, Dawson).
+        LinearExact = "linear-exact",
+    }
 }
 
 impl Integrator {
-    pub fn name(self) -> &'static str {
-        match self {
-            Integrator::Average => "average",
-            Integrator::Preint => "preint",
-            Integrator::Ppi => "ppi",
-            Integrator::LinearExact => "linear-exact",
-        }
-    }
 
     /// The shader define selecting it (`ppi` is the default branch).
     pub fn define(self) -> Option<(&'static str, &'static str)> {

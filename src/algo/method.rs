@@ -441,24 +441,46 @@ pub struct MethodInfo {
     /// published figures' sets: the cheaper end of the method's accuracy
     /// trade-off, so a report can set it beside a peer at matched error.
     pub suite: &'static [&'static str],
-    /// The max |error| against the f64 reference the stress suite holds a
-    /// render with these options to where a case documents no limitation
-    /// (`perspective`: the case's view is), measured by the method's family;
-    /// `None` when for such a view the option set computes the same as
-    /// another of its stress sets (rendered once).
-    pub accuracy_bound: fn(&Options, bool) -> Option<f64>,
     /// Published figures for this method (reports).
     pub published: &'static [Published],
-    /// Checks a complete option set beyond each option's own range (e.g. a
-    /// table size against the memory its integrator's table implies), so
-    /// that every spec is refused when parsed, before any Vulkan work.
-    pub check: fn(&Options) -> Result<()>,
+    /// What the method's family registers once (checks, bounds, its roles
+    /// in the suite).
+    pub family: Family,
     pub create: fn(MethodInputs) -> Result<Box<dyn RenderMethod>>,
 }
 
-/// [`MethodInfo::check`] for methods whose options are independent.
-pub fn no_check(_: &Options) -> Result<()> {
-    Ok(())
+/// What a family of methods registers once for all its members, so that
+/// the harness names none of their options or detail keys.
+#[derive(Debug, Clone, Copy)]
+pub struct Family {
+    pub name: &'static str,
+    /// Checks a complete option set beyond each option's own range (e.g. a
+    /// table size against the memory its integrator's table implies), so
+    /// that every spec is refused when parsed, before any Vulkan work
+    /// (`settings::check` of the family's settings type).
+    pub check: fn(&Options) -> Result<()>,
+    /// The max |error| against the f64 reference the stress suite holds a
+    /// render with these options to where a case documents no limitation
+    /// (`perspective`: the case's view is); `None` when for such a view the
+    /// option set computes the same as another of its stress sets (rendered
+    /// once), or when the family has no image reference.
+    pub accuracy_bound: fn(&Options, bool) -> Option<f64>,
+    /// An on/off option that leaves the image unchanged and saves work: the
+    /// suite's culling scenes run the first methods that have it both ways,
+    /// compare the images and report the saving.
+    pub culling_option: Option<&'static str>,
+    /// The work the family's methods share, each placed differently (e.g.
+    /// where the terrain's PC cells are tessellated): the report sets their
+    /// runs on one dataset side by side.
+    pub placement: Option<&'static str>,
+}
+
+impl Family {
+    /// A family with independent options, no error bound and no role in
+    /// the suite beyond its runs.
+    pub const fn plain(name: &'static str) -> Self {
+        Family { name, check: |_| Ok(()), accuracy_bound: |_, _| None, culling_option: None, placement: None }
+    }
 }
 
 impl std::fmt::Debug for MethodInfo {
@@ -492,8 +514,13 @@ impl MethodInfo {
             out.insert(k.to_string(), spec.parse(self.name, v)?);
         }
         let options = Options(out);
-        (self.check)(&options).map_err(|e| anyhow::anyhow!("method '{}': {e:#}", self.name))?;
+        (self.family.check)(&options).map_err(|e| anyhow::anyhow!("method '{}': {e:#}", self.name))?;
         Ok(options)
+    }
+
+    /// The family's culling option, when this method has it.
+    pub fn culling_option(&self) -> Option<&'static str> {
+        self.family.culling_option.filter(|o| self.option(o).is_some())
     }
 
     /// Why this device cannot run the method, if it cannot.

@@ -9,5 +9,6 @@ pub mod psi;
 pub mod raycast;
 pub mod registry;
 pub mod segment;
+pub mod settings;
 pub mod terrain;
 pub mod tet_raycast;

@@ -53,10 +53,11 @@ use std::sync::Arc;
 use anyhow::{bail, Context as _, Result};
 use serde_json::json;
 
-use super::cell_projection::render::{self, enum_option};
+use super::cell_projection::render;
+use super::settings::{choice, float, int, MethodSettings};
 use super::cell_projection::{render_origin, scalar_map, ExitTolerances, FrameSetup, Interpolation, MeshScale};
 use super::integrate::{check_table_size, IntegrationTables, Integrator};
-use super::method::{DataKind, MethodInfo, MethodInputs, OptionSpec, OptionValues, Options, Phases, RenderMethod, SceneData, View, Work};
+use super::method::{DataKind, Family, MethodInfo, MethodInputs, OptionSpec, Options, Phases, RenderMethod, SceneData, View, Work};
 use crate::mesh::adjacency::{FACE_VERTS, NONE};
 use crate::mesh::{TetGeometry, TetMesh};
 use crate::mesh::topology::Topology;
@@ -84,21 +85,28 @@ const COUNTER_WORDS: usize = 12;
 /// The BVH's depth bound the shader's traversal stack holds (48 entries).
 const MAX_BVH_DEPTH: usize = 40;
 
-/// Integrator and table size as the cell-projection methods take them, plus
-/// the termination threshold.
-pub const OPTIONS: &[OptionSpec] = &[
-    render::OPTIONS[0],
-    render::OPTIONS[1],
-    OptionSpec {
-        name: "ert",
-        default: "0.999",
-        unit: "opacity",
-        values: OptionValues::Float { min: 0.5, max: 1.0 },
-        build_time: false,
-        help: "early ray termination: stop once the ray's opacity reaches this (1 = only when fully opaque); \
-               adds at most 1 - ert to a pixel's error",
-    },
-];
+crate::settings! {
+    /// Integrator and table size as the cell-projection methods take them,
+    /// plus the termination threshold.
+    pub struct Settings {
+        integrator: Integrator = "ppi", choice::<Integrator>(), build, "", render::INTEGRATOR_HELP;
+        table_size: usize = "0", int(0, 4096), run, "samples per side", render::TABLE_SIZE_HELP;
+        ert: f64 = "0.999", float(0.5, 1.0), run, "opacity",
+            "early ray termination: stop once the ray's opacity reaches this (1 = only when fully opaque); \
+             adds at most 1 - ert to a pixel's error";
+    }
+    impl {
+        fn check(&self) -> Result<()> {
+            check_table_size(self.integrator, self.table_size)
+        }
+
+        fn defines(&self) -> Vec<(&'static str, &'static str)> {
+            self.integrator.define().into_iter().collect()
+        }
+    }
+}
+
+pub const OPTIONS: &[OptionSpec] = Settings::OPTIONS;
 
 pub const METHOD: MethodInfo = MethodInfo {
     name: "tet-raycast",
@@ -120,9 +128,14 @@ pub const METHOD: MethodInfo = MethodInfo {
     compare: &["", "ert=1"],
     stress: &["integrator=average", "integrator=preint", "integrator=ppi", "integrator=linear-exact"],
     suite: &[],
-    accuracy_bound,
     published: &[],
-    check: check_options,
+    family: Family {
+        name: "tet-raycast",
+        check: crate::algo::settings::check::<Settings>,
+        accuracy_bound,
+        culling_option: None,
+        placement: None,
+    },
     create,
 };
 
@@ -130,36 +143,8 @@ pub const METHOD: MethodInfo = MethodInfo {
 /// (the segments are exact along each ray, as that interpolation's are),
 /// plus what early termination may drop (1 - ert).
 pub fn accuracy_bound(options: &Options, _perspective: bool) -> Option<f64> {
-    let integrator = options.text("integrator").unwrap_or_default();
-    let exact = Options(
-        [("integrator".to_string(), super::method::OptionValue::Text(integrator)), ("interpolation".to_string(), super::method::OptionValue::Text("exact".into()))]
-            .into_iter()
-            .collect(),
-    );
-    let base = render::accuracy_bound(&exact, true)?;
-    let ert = options.float("ert").unwrap_or(1.0);
-    Some(base + (1.0 - ert).max(0.0))
-}
-
-fn check_options(options: &Options) -> Result<()> {
-    Settings::from_options(options).map(|_| ())
-}
-
-/// The typed options.
-#[derive(Debug, Clone, Copy)]
-pub struct Settings {
-    pub integrator: Integrator,
-    pub table_size: usize,
-    pub ert: f64,
-}
-
-impl Settings {
-    pub fn from_options(options: &Options) -> Result<Self> {
-        let integrator: Integrator = enum_option(options, "integrator")?;
-        let table_size = options.int("table_size")? as usize;
-        check_table_size(integrator, table_size)?;
-        Ok(Settings { integrator, table_size, ert: options.float("ert")? })
-    }
+    let s = Settings::from_options(options).ok()?;
+    Some(render::integrator_bound(s.integrator) + (1.0 - s.ert).max(0.0))
 }
 
 /// A BVH over boundary faces, as the shader reads it.
@@ -391,7 +376,7 @@ impl TetRaycast {
         let mesh_set = DescriptorSet::new(ctx, "tet-raycast mesh", &mesh_desc, &resources)?;
         let target_desc = DescriptorSetDesc::new(&[(DescriptorKind::StorageImage, raw::ShaderStageFlags::COMPUTE)]);
         let wg = WORKGROUP.map(|v| v.to_string());
-        let mut defines: Vec<(&str, &str)> = settings.integrator.define().into_iter().collect();
+        let mut defines: Vec<(&str, &str)> = settings.defines();
         defines.push(("WG_X", &wg[0]));
         defines.push(("WG_Y", &wg[1]));
         let key = PipelineKey::Compute(ComputePipelineKey {

@@ -7,7 +7,7 @@
 //! Each case is a scene (mesh or volume, camera, transfer function) plus its
 //! documented limitations ([`Allowance`]); a method renders the cases of its
 //! data kind. A row (case x method with an option set) is held to the
-//! method's accuracy bound (`MethodInfo::accuracy_bound`, measured by its
+//! method's accuracy bound (`Family::accuracy_bound`, measured by its
 //! family on a benign "baseline" case, with margin) plus the allowances that
 //! apply to it: nothing here names a method or its options. Its `status` is
 //! `ok` when the image has no NaN or Inf pixel and its max |error| against
@@ -909,11 +909,11 @@ pub fn stress_cases(size: u32) -> Vec<StressCase> {
 // Bounds
 
 /// The bound a row is held to (the method's accuracy bound, see
-/// `MethodInfo::accuracy_bound`, plus the allowances that apply), and whether
+/// `Family::accuracy_bound`, plus the allowances that apply), and whether
 /// a documented limitation applies; `None` when the method renders this
 /// option set's computation for the case's view under another set.
 pub fn bound(case: &StressCase, spec: &MethodSpec) -> Option<(f64, bool)> {
-    let base = (spec.info.accuracy_bound)(&spec.options, case.camera.is_perspective())?;
+    let base = (spec.info.family.accuracy_bound)(&spec.options, case.camera.is_perspective())?;
     let applicable: Vec<&Allowance> = case.allowances.iter().filter(|a| a.applies(&spec.options)).collect();
     Some((base + applicable.iter().map(|a| a.extra).sum::<f64>(), !applicable.is_empty()))
 }

@@ -206,22 +206,24 @@ pub fn plan(registry: &Registry, settings: &SuiteSettings) -> Result<Vec<Planned
                 out.extend(specs.into_iter().map(|spec| PlannedRun { dataset: d.name, spec, scene: Scene::Standard }));
             }
         }
-        // The culling scenes: the first methods with a `cull` option (the
-        // papers' VICP and balanced; --quick: the first only), culling on
-        // and off (the unchanged-image check and the speed-up). Every method
-        // culls alike (tests/cull.rs); more would not fit the suite's budget.
+        // The culling scenes: the first methods with their family's culling
+        // option (`Family::culling_option`: the papers' VICP and balanced;
+        // --quick: the first only), culling on and off (the unchanged-image
+        // check and the speed-up). Every method culls alike (tests/cull.rs);
+        // more would not fit the suite's budget.
         if CULL_SCENE_DATASETS.contains(&d.name) {
             let culling: Vec<_> = registry
                 .for_kind(d.kind)
-                .filter(|m| (keep(d.name) || keep(m.name)) && m.options.iter().any(|o| o.name == "cull"))
+                .filter(|m| (keep(d.name) || keep(m.name)) && m.culling_option().is_some())
                 .take(if settings.quick { 1 } else { 2 })
                 .collect();
             // --quick leaves out the zoomed scene: magnified cells cost many
             // more fragments (the CI budget).
             for scene in Scene::CULLING.into_iter().filter(|&s| !(settings.quick && s == Scene::Zoomed)) {
                 for m in &culling {
+                    let option = m.culling_option().unwrap_or_default();
                     for cull in ["on", "off"] {
-                        let spec = registry.parse_spec(&format!("{}:cull={cull}", m.name), &[])?;
+                        let spec = registry.parse_spec(&format!("{}:{option}={cull}", m.name), &[])?;
                         out.push(PlannedRun { dataset: d.name, spec, scene });
                     }
                 }
@@ -298,6 +300,10 @@ pub struct SuiteRow {
     /// Position in the suite's run order (peers' runs counted too).
     pub sequence: usize,
     pub result: Option<RunResult>,
+    /// The work the method's family shares with other placements of it
+    /// (`Family::placement`; the placement report groups by it).
+    #[serde(skip)]
+    pub placement: Option<&'static str>,
 }
 
 /// What `summary.json` holds.
@@ -314,19 +320,29 @@ pub struct Summary {
 }
 
 /// The unchanged-image check of one culling scene: the reference-view image
-/// of a method with `cull=on` against the same with `cull=off`.
+/// of a method with its culling option on against the same with it off.
 #[derive(Debug, Clone, Serialize)]
 pub struct CullCheck {
     pub dataset: String,
     pub scene: Scene,
     pub method: String,
+    /// The option toggled (`Family::culling_option`).
+    #[serde(skip)]
+    pub option: &'static str,
     pub rmse: f64,
     pub max_abs: f64,
 }
 
-/// `spec` with `cull=on`.
+/// `spec` with its culling option on.
 fn cull_on(registry: &Registry, spec: &MethodSpec) -> Result<MethodSpec> {
-    registry.parse_spec(&format!("{}:cull=on", spec.info.name), &[])
+    let option = spec.info.culling_option().unwrap_or_default();
+    registry.parse_spec(&format!("{}:{option}=on", spec.info.name), &[])
+}
+
+/// Whether a run of `info` with `options` culls (`None`: the method has no
+/// culling option).
+fn culling(info: &crate::algo::method::MethodInfo, options: &crate::algo::method::Options) -> Option<bool> {
+    info.culling_option().and_then(|o| options.flag(o).ok())
 }
 
 /// Run the plan; each row's JSON, PNG and difference PNG go to
@@ -382,6 +398,7 @@ pub fn run_suite(
                     message: Some(format!("loading {}: {why}", p.dataset)),
                     sequence,
                     result: None,
+                    placement: p.spec.info.family.placement,
                 });
                 sequence += 1;
                 fsio::write_output(&out.join("summary.json"), &super::report::json_bytes(&summary)?)?;
@@ -402,6 +419,7 @@ pub fn run_suite(
             message: None,
             sequence,
             result: None,
+            placement: p.spec.info.family.placement,
         };
         sequence += 1;
         if let Some(why) = skip_reason(&p.spec, &ctx.info) {
@@ -435,7 +453,7 @@ pub fn run_suite(
                 Ok((r, diff)) => {
                     // A culling scene's pair: the culled image against the
                     // unculled one (the unchanged-image check).
-                    if p.scene != Scene::Standard && p.spec.options.flag("cull").ok() == Some(false) {
+                    if p.scene != Scene::Standard && culling(&p.spec.info, &p.spec.options) == Some(false) {
                         let on = PlannedRun { dataset: p.dataset, spec: cull_on(registry, &p.spec)?, scene: p.scene };
                         let on_label = format!("{} on {}", on.label(), p.dataset);
                         if let Some((_, _, on)) = images.iter().find(|(_, l, _)| *l == on_label) {
@@ -444,6 +462,7 @@ pub fn run_suite(
                                 dataset: p.dataset.into(),
                                 scene: p.scene,
                                 method: p.spec.info.name.into(),
+                                option: p.spec.info.culling_option().unwrap_or_default(),
                                 rmse: e.rmse,
                                 max_abs: e.max_abs,
                             });
@@ -904,8 +923,8 @@ fn error_legend(s: &Summary) -> String {
     t
 }
 
-/// Runs that do the same work in different places (a method's
-/// `details.same_work` names the work; e.g. the terrain methods' PC-cell
+/// Runs that do the same work in different places (a method's family
+/// names the work, `Family::placement`; e.g. the terrain methods' PC-cell
 /// tessellation on the CPU, in a geometry shader, in a compute pass), per
 /// dataset, set side by side with the first such run as the base: frame
 /// time, device time and per-frame bytes as ratios inside this run, with
@@ -915,7 +934,7 @@ fn placement_report(s: &Summary) -> String {
     let mut groups: Vec<Group> = Vec::new();
     for r in &s.runs {
         let Some(x) = &r.result else { continue };
-        let Some(work) = x.details.get("same_work").and_then(|w| w.as_str()) else { continue };
+        let Some(work) = r.placement else { continue };
         match groups.iter_mut().find(|g| g.0 == r.dataset && g.1 == work) {
             Some(g) => g.2.push((&r.label, x)),
             None => groups.push((r.dataset.clone(), work.to_string(), vec![(&r.label, x)])),
@@ -961,7 +980,7 @@ pub fn cull_report(s: &Summary) -> String {
         return String::new();
     }
     let find = |c: &CullCheck, on: bool| {
-        s.runs.iter().find(|r| r.dataset == c.dataset && r.scene == c.scene && r.method == c.method && r.result.as_ref().is_some_and(|x| x.options.flag("cull").ok() == Some(on)))
+        s.runs.iter().find(|r| r.dataset == c.dataset && r.scene == c.scene && r.method == c.method && r.result.as_ref().is_some_and(|x| x.options.flag(c.option).ok() == Some(on)))
     };
     let per_frame = |x: &RunResult, k: &str| x.frame_counts.get(k).filter(|c| c.frames > 0).map_or(0.0, |c| c.total as f64 / c.frames as f64);
     let mut t = String::from(

@@ -33,29 +33,24 @@ use crate::vk::{
     ShaderStage, UploadCounter, VertexAttribute, VkResult,
 };
 
-/// How view-dependent exit data is carried across a face under perspective.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, clap::ValueEnum, Default)]
-#[serde(rename_all = "lowercase")]
-pub enum Interpolation {
-    /// As the papers do: ray-plane distance and exit scalar at each vertex,
-    /// interpolated across the face (exact for orthographic views only).
-    Paper,
-    /// The same records with the plane ratio u = h/e and g.(v - eye) in the
-    /// two view-dependent slots, which interpolate exactly under perspective
-    /// (`shaders/common/exit.glsl`). Identical to `paper` for orthographic
-    /// views. The default: same records and bytes, within the error bar.
-    #[default]
-    Exact,
+crate::choices! {
+    /// How view-dependent exit data is carried across a face under perspective.
+    #[derive(Default)]
+    pub enum Interpolation {
+        /// The same records as `paper` with the plane ratio u = h/e and
+        /// g.(v - eye) in the two view-dependent slots, which interpolate
+        /// exactly under perspective (`shaders/common/exit.glsl`). Identical
+        /// to `paper` for orthographic views. The default: same records and
+        /// bytes, within the error bar.
+        #[default]
+        Exact = "exact",
+        /// As the papers do: ray-plane distance and exit scalar at each vertex,
+        /// interpolated across the face (exact for orthographic views only).
+        Paper = "paper",
+    }
 }
 
 impl Interpolation {
-    pub fn name(self) -> &'static str {
-        match self {
-            Interpolation::Paper => "paper",
-            Interpolation::Exact => "exact",
-        }
-    }
-
     fn defines(self) -> &'static [(&'static str, &'static str)] {
         match self {
             Interpolation::Paper => &[],
@@ -76,19 +71,21 @@ pub const ENTRY_FACE_WINDING: raw::FrontFace = raw::FrontFace::CLOCKWISE;
 /// (3,1,0) opposite 2.
 pub const FACES: [[usize; 3]; 4] = [[0, 1, 2], [1, 3, 2], [2, 3, 0], [3, 1, 0]];
 
-/// How the balanced family draws each tet's four faces from its static,
-/// device-local index buffer (tet slot k's vertices are 4k..4k+3).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, clap::ValueEnum, Default)]
-#[serde(rename_all = "lowercase")]
-pub enum Primitives {
-    /// The thesis's: the strip 0,1,2,3,0,1 closed by a primitive-restart
-    /// marker, 7 u32 per tet.
-    Strip,
-    /// The same four faces (`FACES`) as a triangle list, 12 u32 per tet, no
-    /// restart. Same triangles, same image; on lavapipe the frame is ~15 %
-    /// faster (README: the balanced method at its speed limit), so the default.
-    #[default]
-    List,
+crate::choices! {
+    /// How the balanced family draws each tet's four faces from its static,
+    /// device-local index buffer (tet slot k's vertices are 4k..4k+3).
+    #[derive(Default)]
+    pub enum Primitives {
+        /// The four faces (`FACES`) as a triangle list, 12 u32 per tet, no
+        /// restart. Same triangles, same image as `strip`; on lavapipe the
+        /// frame is ~15 % faster (README: the balanced method at its speed
+        /// limit), so the default.
+        #[default]
+        List = "list",
+        /// The thesis's: the strip 0,1,2,3,0,1 closed by a primitive-restart
+        /// marker, 7 u32 per tet.
+        Strip = "strip",
+    }
 }
 
 /// The strip's 6 indices of tet slot 0 (plus the restart marker).
@@ -98,13 +95,6 @@ pub const RESTART: u32 = u32::MAX;
 pub const MAX_INDICES_PER_CELL: usize = 12;
 
 impl Primitives {
-    pub fn name(self) -> &'static str {
-        match self {
-            Primitives::Strip => "strip",
-            Primitives::List => "list",
-        }
-    }
-
     pub fn indices_per_cell(self) -> usize {
         match self {
             Primitives::Strip => STRIP.len() + 1,
@@ -469,6 +459,12 @@ fn extra_fragment_work() -> VkResult<Option<String>> {
     }
 }
 
+/// The defines of cell projection's build-time choices
+/// (`render::Settings::defines`); `primitives` changes pipeline state only.
+pub fn shader_defines(interpolation: Interpolation, integrator: crate::algo::integrate::Integrator) -> Vec<(&'static str, &'static str)> {
+    interpolation.defines().iter().copied().chain(integrator.define()).collect()
+}
+
 /// The pipeline every cell-projection method uses: premultiplied "over"
 /// into RGBA32F, entry faces only, the integration tables bound at set 0
 /// and `extra_sets` at sets 1, 2, ...
@@ -485,8 +481,7 @@ pub(crate) fn build_pipeline(
     interpolation: Interpolation,
     extra_sets: &[DescriptorSetDesc],
 ) -> VkResult<(Arc<Pipeline>, PipelineKey)> {
-    let mut defines: Vec<(&str, &str)> =
-        interpolation.defines().iter().copied().chain(tables.integrator.define()).collect();
+    let mut defines = shader_defines(interpolation, tables.integrator);
     let extra = extra_fragment_work()?;
     if let Some(n) = &extra {
         defines.push(("EXTRA_WORK", n));

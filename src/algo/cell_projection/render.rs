@@ -11,7 +11,6 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use anyhow::{Context as _, Result};
-use clap::ValueEnum;
 use serde_json::json;
 
 use super::cull::{Culler, FrameCull, LookupGrid};
@@ -19,103 +18,80 @@ use super::mpvo::MpvoSort;
 use super::sort::{CentroidSort, SortKind, Sorter};
 use super::{centroids_relative_f32, render_origin, CellProjector, DrawSettings, ExitTolerances, FrameSetup, Interpolation, MeshScale, Primitives};
 use crate::algo::integrate::{IntegrationTables, Integrator};
+use crate::algo::settings::{check, choice, flag, float, int, pick, MethodSettings};
 use crate::algo::method::{
-    DataKind, Feature, MethodInfo, MethodInputs, OptionSpec, OptionValues, Options, Phases, Published, PublishedFigure, RenderMethod, SceneData, View, Work,
+    DataKind, Family, Feature, MethodInfo, MethodInputs, OptionSpec, Options, Phases, Published, PublishedFigure, RenderMethod, SceneData, View, Work,
 };
 use crate::mesh::{TetGeometry, TetMesh};
 use crate::vk::{CommandRecorder, Context, Image, UploadCounter, VkResult};
 
-/// Every cell-projection method's options. VICP chooses exit planes in the
-/// fragment stage and takes `edge_eps`; the balanced family knows them per
-/// tet (`balanced::exit_mask`), where the edge epsilon has nothing to
-/// correct (`KNOWN_EXITS_OPTIONS`). `cull` is left out where a method draws
-/// every cell in its own order, e.g. sorted on the device
-/// (`KNOWN_EXITS_OPTIONS_WITHOUT_CULL`).
-pub const OPTIONS: &[OptionSpec] = &[
-    SHARED_OPTIONS[0], SHARED_OPTIONS[1], SHARED_OPTIONS[2], SHARED_OPTIONS[3], SHARED_OPTIONS[4], SHARED_OPTIONS[5], EDGE_EPS_OPTION,
-    CULL_OPTION,
-];
-pub const KNOWN_EXITS_OPTIONS: &[OptionSpec] = &[
-    SHARED_OPTIONS[0], SHARED_OPTIONS[1], SHARED_OPTIONS[2], SHARED_OPTIONS[3], SHARED_OPTIONS[4], SHARED_OPTIONS[5], PRIMITIVES_OPTION,
-    CULL_OPTION,
-];
-pub const KNOWN_EXITS_OPTIONS_WITHOUT_CULL: &[OptionSpec] = &[
-    SHARED_OPTIONS[0], SHARED_OPTIONS[1], SHARED_OPTIONS[2], SHARED_OPTIONS[3], SHARED_OPTIONS[4], SHARED_OPTIONS[5], PRIMITIVES_OPTION,
-];
-const SHARED_OPTIONS: [OptionSpec; 6] = [
-    OptionSpec {
-        name: "integrator",
-        default: "ppi",
-        unit: "",
-        values: OptionValues::Choice { values: &["average", "preint", "ppi", "linear-exact"] },
-        build_time: true,
-        help: "how the fragment stage integrates a cell's segment (see README: integrators)",
-    },
-    OptionSpec {
-        name: "table_size",
-        default: "0",
-        unit: "samples per side",
-        values: OptionValues::Int { min: 0, max: 4096 },
-        build_time: false,
-        help: "side of the integrator's table; 0 = its default (ppi 512, preint 128 with 32 lengths)",
-    },
-    OptionSpec {
-        name: "sort",
-        default: "centroid",
-        unit: "",
-        values: OptionValues::Choice { values: &["centroid", "mpvo"] },
-        build_time: false,
-        help: "visibility order: centroid distance (radix sort) or MPVO from face adjacency",
-    },
-    OptionSpec {
-        name: "interpolation",
-        default: "exact",
-        unit: "",
-        values: OptionValues::Choice { values: &["exact", "paper"] },
-        build_time: true,
-        help: "exit data across a face under perspective: exact (plane ratio), or as the papers do",
-    },
-    OptionSpec {
-        name: "distance_clamp",
-        default: "1000",
-        unit: "mesh diagonals",
-        values: OptionValues::Float { min: 1.0, max: 1e6 },
-        build_time: false,
-        help: "clamp of vertex ray-plane distances (planes nearly parallel to the ray)",
-    },
-    OptionSpec {
-        name: "plane_ratio_max",
-        default: "1000",
-        unit: "",
-        values: OptionValues::Float { min: 1.0, max: 1e6 },
-        build_time: false,
-        help: "clamp of the plane ratio u = h/e (exact interpolation)",
-    },
-];
-const EDGE_EPS_OPTION: OptionSpec = OptionSpec {
-        name: "edge_eps",
-        default: "0",
-        unit: "barycentric weight",
-        values: OptionValues::Float { min: 0.0, max: 0.1 },
-        build_time: false,
-        help: "a plane whose weight is below this is an exit at distance 0 (off: drops grazing segments)",
-};
-const PRIMITIVES_OPTION: OptionSpec = OptionSpec {
-    name: "primitives",
-    default: "list",
-    unit: "",
-    values: OptionValues::Choice { values: &["list", "strip"] },
-    build_time: true,
-    help: "static indices of a tet's four faces: a triangle list (12 u32) or the thesis's strip with restart (7 u32)",
-};
-const CULL_OPTION: OptionSpec = OptionSpec {
-    name: "cull",
-    default: "on",
-    unit: "",
-    values: OptionValues::Bool,
-    build_time: false,
-    help: "skip fully transparent and off-screen cells, re-use an unchanged frame (exact: the image is unchanged)",
-};
+crate::settings! {
+    /// The typed settings of a cell-projection run: every option of the
+    /// family. VICP chooses exit planes in the fragment stage and takes
+    /// `edge_eps`; the balanced family knows them per tet
+    /// (`balanced::exit_mask`), where the edge epsilon has nothing to correct,
+    /// and takes `primitives` instead. `cull` is left out where a method draws
+    /// every cell in its own order, e.g. sorted on the device. An option a
+    /// method leaves out takes its default (a device sort culls nothing
+    /// whatever `cull` says: `CellProjection::create`).
+    pub struct Settings {
+        integrator: Integrator = "ppi", choice::<Integrator>(), build, "", INTEGRATOR_HELP;
+        table_size: usize = "0", int(0, 4096), run, "samples per side", TABLE_SIZE_HELP;
+        sort: SortKind = "centroid", choice::<SortKind>(), run, "",
+            "visibility order: centroid distance (radix sort) or MPVO from face adjacency";
+        interpolation: Interpolation = "exact", choice::<Interpolation>(), build, "",
+            "exit data across a face under perspective: exact (plane ratio), or as the papers do";
+        distance_clamp: f64 = "1000", float(1.0, 1e6), run, "mesh diagonals",
+            "clamp of vertex ray-plane distances (planes nearly parallel to the ray)";
+        plane_ratio_max: f64 = "1000", float(1.0, 1e6), run, "", "clamp of the plane ratio u = h/e (exact interpolation)";
+        edge_eps: f64 = "0", float(0.0, 0.1), run, "barycentric weight",
+            "a plane whose weight is below this is an exit at distance 0 (off: drops grazing segments)";
+        primitives: Primitives = "list", choice::<Primitives>(), build, "",
+            "static indices of a tet's four faces: a triangle list (12 u32) or the thesis's strip with restart (7 u32)";
+        cull: bool = "on", flag(), run, "",
+            "skip fully transparent and off-screen cells, re-use an unchanged frame (exact: the image is unchanged)";
+    }
+    impl {
+        /// The table size fits the integrator's table limit.
+        fn check(&self) -> Result<()> {
+            crate::algo::integrate::check_table_size(self.integrator, self.table_size)
+        }
+
+        fn defines(&self) -> Vec<(&'static str, &'static str)> {
+            super::shader_defines(self.interpolation, self.integrator)
+        }
+    }
+}
+
+/// Help of the options tet-raycast shares with cell projection.
+pub const INTEGRATOR_HELP: &str = "how the fragment stage integrates a cell's segment (see README: integrators)";
+pub const TABLE_SIZE_HELP: &str = "side of the integrator's table; 0 = its default (ppi 512, preint 128 with 32 lengths)";
+
+impl Settings {
+    pub fn tolerances(&self) -> ExitTolerances {
+        ExitTolerances {
+            distance_clamp_diagonals: self.distance_clamp,
+            plane_ratio_max: self.plane_ratio_max as f32,
+            edge_eps: self.edge_eps as f32,
+        }
+    }
+}
+
+/// VICP's options.
+pub const OPTIONS: &[OptionSpec] = &pick(
+    Settings::OPTIONS,
+    ["integrator", "table_size", "sort", "interpolation", "distance_clamp", "plane_ratio_max", "edge_eps", "cull"],
+);
+/// The balanced family's.
+pub const KNOWN_EXITS_OPTIONS: &[OptionSpec] = &pick(
+    Settings::OPTIONS,
+    ["integrator", "table_size", "sort", "interpolation", "distance_clamp", "plane_ratio_max", "primitives", "cull"],
+);
+/// A method that draws every cell in its own order (a device sort).
+pub const KNOWN_EXITS_OPTIONS_WITHOUT_CULL: &[OptionSpec] = &pick(
+    Settings::OPTIONS,
+    ["integrator", "table_size", "sort", "interpolation", "distance_clamp", "plane_ratio_max", "primitives"],
+);
 
 /// The run-time-against-error sweep: every integrator (tables at three
 /// sizes for ppi) under both interpolations and both sorts.
@@ -190,12 +166,21 @@ pub const fn method_info(
         compare: COMPARE,
         stress: STRESS,
         suite: &[],
-        accuracy_bound,
         published,
-        check: check_options,
+        family: FAMILY,
         create,
     }
 }
+
+/// What the cell-projection methods register once: their settings' checks,
+/// their bounds, and `cull`, which the suite's culling scenes toggle.
+pub const FAMILY: Family = Family {
+    name: "cell-projection",
+    check: check::<Settings>,
+    accuracy_bound,
+    culling_option: Some("cull"),
+    placement: None,
+};
 
 /// The max |error| each integrator is held to in the stress suite where no
 /// limitation is documented. Measured on the control scene ("baseline", exact
@@ -213,19 +198,24 @@ pub const fn method_info(
 /// Orthographic views use the exact bounds, and there `exact` interpolation
 /// is the same computation as `paper` (None: rendered once).
 pub fn accuracy_bound(options: &Options, perspective: bool) -> Option<f64> {
-    let opt = |k: &str| options.text(k).unwrap_or_default();
-    if !perspective && opt("interpolation") == "exact" {
+    let s = Settings::from_options(options).ok()?;
+    if !perspective && s.interpolation == Interpolation::Exact {
         return None;
     }
-    if perspective && opt("interpolation") == "paper" {
+    if perspective && s.interpolation == Interpolation::Paper {
         return Some(0.25);
     }
-    Some(match opt("integrator").as_str() {
-        "average" => 5e-3,
-        "preint" => 2e-3,
-        // ppi, linear-exact.
-        _ => 1e-3,
-    })
+    Some(integrator_bound(s.integrator))
+}
+
+/// The bound of an integrator where interpolation is exact (see
+/// `accuracy_bound`).
+pub fn integrator_bound(integrator: Integrator) -> f64 {
+    match integrator {
+        Integrator::Average => 5e-3,
+        Integrator::Preint => 2e-3,
+        Integrator::Ppi | Integrator::LinearExact => 1e-3,
+    }
 }
 
 
@@ -260,56 +250,6 @@ pub const fn table_6_4(options: &'static str, fps: f64) -> Published {
         note: "The integrators differ only in fragment work. Where per-triangle work dominates the frame (lavapipe's \
                serial front end), their relative cost shrinks towards 1; a 2004 GPU spent most of its time in the \
                fragment stage, where the exact form's erf/Dawson evaluations cost an order of magnitude.",
-    }
-}
-
-/// A `ValueEnum` from an option's text (the option was validated against
-/// the same names, so a miss is a programming error reported as such).
-pub fn enum_option<T: ValueEnum>(options: &Options, name: &str) -> Result<T> {
-    let text = options.text(name)?;
-    T::from_str(&text, false).map_err(|_| anyhow::anyhow!("option '{name}': unknown value '{text}'"))
-}
-
-/// `MethodInfo::check`: the options make valid [`Settings`] (e.g. the
-/// table size fits the integrator's table limit).
-fn check_options(options: &Options) -> Result<()> {
-    Settings::from_options(options).map(|_| ())
-}
-
-/// The typed settings of a cell-projection run, from its options.
-#[derive(Debug, Clone, Copy)]
-pub struct Settings {
-    pub integrator: Integrator,
-    pub table_size: usize,
-    pub sort: SortKind,
-    pub interpolation: Interpolation,
-    pub primitives: Primitives,
-    pub tolerances: ExitTolerances,
-    /// Culling on (`cull`).
-    pub cull: bool,
-}
-
-impl Settings {
-    pub fn from_options(options: &Options) -> Result<Self> {
-        let integrator: Integrator = enum_option(options, "integrator")?;
-        let table_size = options.int("table_size")? as usize;
-        crate::algo::integrate::check_table_size(integrator, table_size)?;
-        Ok(Settings {
-            integrator,
-            table_size,
-            sort: enum_option(options, "sort")?,
-            interpolation: enum_option(options, "interpolation")?,
-            // Absent for VICP, which draws its own face lists.
-            primitives: if options.0.contains_key("primitives") { enum_option(options, "primitives")? } else { Primitives::default() },
-            tolerances: ExitTolerances {
-                distance_clamp_diagonals: options.float("distance_clamp")?,
-                plane_ratio_max: options.float("plane_ratio_max")? as f32,
-                // Absent for the balanced family (KNOWN_EXITS_OPTIONS): off.
-                edge_eps: if options.0.contains_key("edge_eps") { options.float("edge_eps")? as f32 } else { 0.0 },
-            },
-            // Absent for methods without the option (KNOWN_EXITS_OPTIONS_WITHOUT_CULL).
-            cull: options.flag("cull").unwrap_or(false),
-        })
     }
 }
 
@@ -418,7 +358,7 @@ impl CellProjection {
             &self.tables,
             &self.scale,
             self.settings.interpolation,
-            &self.settings.tolerances,
+            &self.settings.tolerances(),
         )
     }
 }
@@ -522,7 +462,7 @@ impl RenderMethod for CellProjection {
             "floats_per_cell_by_construction": self.projector.floats_per_cell(),
             "table_size": self.tables.table_size,
             "pipeline": { "key": self.projector.pipeline_key().id(), "name": self.projector.pipeline_key().name() },
-            "tolerances": self.settings.tolerances,
+            "tolerances": self.settings.tolerances(),
             "mesh_stats": self.mesh_stats,
             "cull": {
                 "enabled": self.culler.enabled(),

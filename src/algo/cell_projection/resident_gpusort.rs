@@ -23,7 +23,7 @@ use super::resident::{cells_and_order_set, resident_pipeline, upload_cells, FLOA
 use super::sort::SortKind;
 use super::{cells_f32, centroids_relative_f32, render_origin, CellProjector, FrameSetup, DrawSettings, StaticIndices, MAX_INDICES_PER_CELL};
 use crate::algo::integrate::IntegrationTables;
-use crate::algo::method::{DataKind, Feature, MethodInfo, MethodInputs, Options, RenderMethod};
+use crate::algo::method::{DataKind, Family, Feature, MethodInfo, MethodInputs, Options, RenderMethod};
 use crate::mesh::{TetGeometry, TetMesh};
 use crate::vk::{
     CommandRecorder, Context, DescriptorSet, Pipeline, PipelineKey, TexelBuffer, UploadCounter,
@@ -45,9 +45,9 @@ pub const METHOD: MethodInfo = MethodInfo {
     compare: render::COMPARE,
     stress: STRESS,
     suite: &[],
-    accuracy_bound: render::accuracy_bound,
     published: &[],
-    check,
+    // Draws every cell in its own order: no culling option.
+    family: Family { check, ..render::FAMILY },
     create,
 };
 
@@ -81,7 +81,7 @@ const STRESS: &[&str] = &[
 
 /// Cell projection's checks, and the centroid order only.
 fn check(options: &Options) -> Result<()> {
-    let settings = render::Settings::from_options(options)?;
+    let settings = <render::Settings as crate::algo::settings::MethodSettings>::from_options(options)?;
     anyhow::ensure!(
         settings.sort == SortKind::Centroid,
         "option 'sort' = {}: the device sort builds the centroid order only (sort=centroid; MPVO runs on the CPU: \

@@ -120,24 +120,16 @@ mod tests {
     }
 }
 
-/// Which visibility order a run draws in.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, clap::ValueEnum, Default)]
-#[serde(rename_all = "lowercase")]
-pub enum SortKind {
-    /// Back to front by centroid distance (VTK's default): fast, not exact.
-    #[default]
-    Centroid,
-    /// MPVO from face adjacency (exact for connected convex meshes) with the
-    /// MPVONC heuristic elsewhere; see `mpvo`.
-    Mpvo,
-}
-
-impl SortKind {
-    pub fn name(self) -> &'static str {
-        match self {
-            SortKind::Centroid => "centroid",
-            SortKind::Mpvo => "mpvo",
-        }
+crate::choices! {
+    /// Which visibility order a run draws in.
+    #[derive(Default)]
+    pub enum SortKind {
+        /// Back to front by centroid distance (VTK's default): fast, not exact.
+        #[default]
+        Centroid = "centroid",
+        /// MPVO from face adjacency (exact for connected convex meshes) with the
+        /// MPVONC heuristic elsewhere; see `mpvo`.
+        Mpvo = "mpvo",
     }
 }
 

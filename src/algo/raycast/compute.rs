@@ -8,7 +8,8 @@ use anyhow::{bail, Result};
 use serde_json::json;
 use crate::vk::raw::Handle as _;
 
-use super::{set0_desc, Settings, VolumeResources, accuracy_bound, COMPARE, OPTIONS, PUSH_BYTES, STRESS, SUITE, SWEEP};
+use crate::algo::settings::MethodSettings;
+use super::{set0_desc, Settings, VolumeResources, COMPARE, OPTIONS, PUSH_BYTES, STRESS, SUITE, SWEEP};
 use crate::algo::method::{DataKind, MethodInfo, MethodInputs, Phases, RenderMethod, SceneData, View, Work};
 use crate::vk::{
     raw, CommandRecorder, ComputePipelineKey, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc, Image, ImageUse,
@@ -28,9 +29,8 @@ pub const METHOD: MethodInfo = MethodInfo {
     compare: COMPARE,
     stress: STRESS,
     suite: SUITE,
-    accuracy_bound,
     published: &[super::kruger_westermann("raycast-compute")],
-    check: crate::algo::method::no_check,
+    family: super::FAMILY,
     create,
 };
 

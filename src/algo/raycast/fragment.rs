@@ -10,7 +10,8 @@ use std::sync::Arc;
 use anyhow::{bail, Result};
 use serde_json::json;
 
-use super::{set0_desc, Settings, VolumeResources, accuracy_bound, COMPARE, OPTIONS, PUSH_BYTES, STRESS, SUITE, SWEEP};
+use crate::algo::settings::MethodSettings;
+use super::{set0_desc, Settings, VolumeResources, COMPARE, OPTIONS, PUSH_BYTES, STRESS, SUITE, SWEEP};
 use crate::algo::method::{DataKind, Feature, MethodInfo, MethodInputs, Phases, RenderMethod, SceneData, View, Work};
 use crate::vk::{
     raw, Blend, ColorAttachment, ColorTarget, CommandRecorder, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc,
@@ -28,9 +29,8 @@ pub const METHOD: MethodInfo = MethodInfo {
     compare: COMPARE,
     stress: STRESS,
     suite: SUITE,
-    accuracy_bound,
     published: &[super::kruger_westermann("raycast-fragment")],
-    check: crate::algo::method::no_check,
+    family: super::FAMILY,
     create,
 };
 

@@ -93,8 +93,9 @@ use anyhow::{bail, Context as _, Result};
 use glam::{DMat4, DVec3};
 use serde_json::json;
 
-use super::method::{OptionSpec, OptionValues, Options, Published, PublishedFigure, View, Work};
+use super::method::{Family, OptionSpec, Options, Published, PublishedFigure, View, Work};
 use super::segment::integrate_segment;
+use super::settings::{choice, flag, float, int, MethodSettings};
 use crate::scene::TransferFunction;
 use crate::volume::{Samples, Volume};
 use crate::vk::{
@@ -106,57 +107,49 @@ use crate::vk::{
 pub const TABLE_SIZE: usize = 1024;
 pub const PREINT_SIZE: usize = 256;
 
-/// The options both variants share.
-pub const OPTIONS: &[OptionSpec] = &[
-    OptionSpec {
-        name: "step",
-        default: "0.5",
-        unit: "voxels",
-        values: OptionValues::Float { min: 0.05, max: 8.0 },
-        build_time: false,
-        help: "largest distance between samples along a ray, in voxel units",
-    },
-    OptionSpec {
-        name: "ert",
-        default: "0.95",
-        unit: "",
-        values: OptionValues::Float { min: 0.5, max: 1.0 },
-        build_time: false,
-        help: "early ray termination: stop once the accumulated opacity passes this (1 = off)",
-    },
-    OptionSpec {
-        name: "shade",
-        default: "off",
-        unit: "",
-        values: OptionValues::Bool,
-        build_time: true,
-        help: "Blinn-Phong lighting from central-difference gradients",
-    },
-    OptionSpec {
-        name: "integrator",
-        default: "point",
-        unit: "",
-        values: OptionValues::Choice { values: &["point", "preint"] },
-        build_time: true,
-        help: "point samples (the lab) or pre-integrated segments (Engel, Kraus, Ertl 2001)",
-    },
-    OptionSpec {
-        name: "skip",
-        default: "on",
-        unit: "",
-        values: OptionValues::Bool,
-        build_time: true,
-        help: "empty-space skipping: bricks classified against the transfer function, leaps over empty cubes of bricks",
-    },
-    OptionSpec {
-        name: "brick",
-        default: "2",
-        unit: "voxels",
-        values: OptionValues::Int { min: 1, max: 64 },
-        build_time: false,
-        help: "edge of the empty-space skipping bricks",
-    },
-];
+crate::choices! {
+    /// How a ray's samples are turned into colour and opacity.
+    pub enum RayIntegrator {
+        /// Point samples at each step's middle (the lab).
+        Point = "point",
+        /// Pre-integrated segments (Engel, Kraus, Ertl 2001).
+        Preint = "preint",
+    }
+}
+
+crate::settings! {
+    /// The options both variants share, as typed values.
+    pub struct Settings {
+        step: f64 = "0.5", float(0.05, 8.0), run, "voxels", "largest distance between samples along a ray, in voxel units";
+        ert: f64 = "0.95", float(0.5, 1.0), run, "",
+            "early ray termination: stop once the accumulated opacity passes this (1 = off)";
+        shade: bool = "off", flag(), build, "", "Blinn-Phong lighting from central-difference gradients";
+        integrator: RayIntegrator = "point", choice::<RayIntegrator>(), build, "",
+            "point samples (the lab) or pre-integrated segments (Engel, Kraus, Ertl 2001)";
+        skip: bool = "on", flag(), build, "",
+            "empty-space skipping: bricks classified against the transfer function, leaps over empty cubes of bricks";
+        brick: usize = "2", int(1, 64), run, "voxels", "edge of the empty-space skipping bricks";
+    }
+    impl {
+        /// The build-time options as shader defines.
+        fn defines(&self) -> Vec<(&'static str, &'static str)> {
+            let mut d = Vec::new();
+            if self.shade {
+                d.push(("SHADE", "1"));
+            }
+            if self.preint() {
+                d.push(("PREINT", "1"));
+            }
+            if self.skip {
+                d.push(("SKIP", "1"));
+            }
+            d
+        }
+    }
+}
+
+/// Both variants' options.
+pub const OPTIONS: &[OptionSpec] = Settings::OPTIONS;
 
 /// Sweep: step size x integrator, and at one step per integrator skipping
 /// and early termination each off and both off (their speed-ups and image
@@ -189,6 +182,15 @@ pub const SUITE: &[&str] = &["step=1"];
 /// (lighting is not compared: the reference does not shade).
 pub const STRESS: &[&str] = &["", "integrator=preint", "skip=off,ert=1"];
 
+/// What both variants register once.
+pub const FAMILY: Family = Family {
+    name: "raycast",
+    check: crate::algo::settings::check::<Settings>,
+    accuracy_bound,
+    culling_option: None,
+    placement: None,
+};
+
 /// The stress suite's bound on max |error| against the f64 reference (any
 /// view, both integrators) where a case documents no limitation, at the
 /// default step (0.5 voxel): measured on the "vol-baseline" case at 64x64,
@@ -214,42 +216,10 @@ pub const fn kruger_westermann(method: &'static str) -> Published {
     }
 }
 
-/// The options as typed values.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Settings {
-    pub step: f64,
-    pub ert: f64,
-    pub shade: bool,
-    pub preint: bool,
-    pub skip: bool,
-    pub brick: usize,
-}
-
 impl Settings {
-    pub fn from_options(o: &Options) -> Result<Settings> {
-        Ok(Settings {
-            step: o.float("step")?,
-            ert: o.float("ert")?,
-            shade: o.flag("shade")?,
-            preint: o.text("integrator")? == "preint",
-            skip: o.flag("skip")?,
-            brick: o.int("brick")? as usize,
-        })
-    }
-
-    /// The build-time options as shader defines.
-    pub fn defines(&self) -> Vec<(&'static str, &'static str)> {
-        let mut d = Vec::new();
-        if self.shade {
-            d.push(("SHADE", "1"));
-        }
-        if self.preint {
-            d.push(("PREINT", "1"));
-        }
-        if self.skip {
-            d.push(("SKIP", "1"));
-        }
-        d
+    /// Pre-integrated segments (`integrator=preint`).
+    pub fn preint(&self) -> bool {
+        self.integrator == RayIntegrator::Preint
     }
 }
 
@@ -351,7 +321,7 @@ impl VolumeResources {
         // centres at the ends: premultiplied colour and optical depth of a
         // segment of `d0` world units, exact (`algo::segment`).
         let d0 = preint_length(vol, s.step);
-        let n = if s.preint { PREINT_SIZE } else { 2 };
+        let n = if s.preint() { PREINT_SIZE } else { 2 };
         let mut pre = Vec::with_capacity(n * n * 4);
         for b in 0..n {
             for f in 0..n {
@@ -369,7 +339,7 @@ impl VolumeResources {
         // dilated by the bricks half a step may reach into.
         let grid = bricks::grid_of(dims, s.brick);
         let flagged = bricks::attenuating(vol, tf, s.brick);
-        let dilation = if s.preint { (s.step / (2.0 * s.brick as f64)).ceil().max(1.0) as u8 } else { 0 };
+        let dilation = if s.preint() { (s.step / (2.0 * s.brick as f64)).ceil().max(1.0) as u8 } else { 0 };
         let distance: Vec<u8> = bricks::distances(&flagged, grid).iter().map(|d| d.saturating_sub(dilation)).collect();
         let table_build_ms = t0.elapsed().as_secs_f64() * 1e3;
         let bricks_visible = distance.iter().filter(|&&d| d == 0).count();
@@ -384,7 +354,7 @@ impl VolumeResources {
         let tscale = scale / (hi - lo);
         let params: [f32; 28] = [
             (dims[0] - 1) as f32, (dims[1] - 1) as f32, (dims[2] - 1) as f32, s.brick as f32,
-            1.0 / dims[0] as f32, 1.0 / dims[1] as f32, 1.0 / dims[2] as f32, if s.preint { n as f32 } else { TABLE_SIZE as f32 },
+            1.0 / dims[0] as f32, 1.0 / dims[1] as f32, 1.0 / dims[2] as f32, if s.preint() { n as f32 } else { TABLE_SIZE as f32 },
             spacing[0] as f32, spacing[1] as f32, spacing[2] as f32, s.step as f32,
             tscale as f32, offset as f32, s.ert as f32, d0 as f32,
             grid[0] as f32, grid[1] as f32, grid[2] as f32, 0.0,
@@ -509,7 +479,7 @@ impl VolumeResources {
             "dims": self.dims,
             "step_voxels": s.step,
             "ert": s.ert,
-            "table_size": if s.preint { PREINT_SIZE } else { TABLE_SIZE },
+            "table_size": if s.preint() { PREINT_SIZE } else { TABLE_SIZE },
             "brick": s.brick,
             "brick_grid": self.brick_grid,
             "bricks_visible": self.bricks_visible,

@@ -43,9 +43,8 @@ pub const METHOD: MethodInfo = MethodInfo {
     compare: COMPARE,
     suite: &[],
     stress: &[],
-    accuracy_bound: |_, _| None,
     published: &[],
-    check: crate::algo::method::no_check,
+    family: super::FAMILY,
     create,
 };
 

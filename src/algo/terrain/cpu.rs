@@ -24,9 +24,8 @@ pub const METHOD: MethodInfo = MethodInfo {
     suite: &[],
     stress: &[],
     // No stress cases for terrains (their error is the method's own).
-    accuracy_bound: |_, _| None,
     published: &[],
-    check: crate::algo::method::no_check,
+    family: super::FAMILY,
     create,
 };
 

@@ -37,7 +37,8 @@ use anyhow::Result;
 use glam::DVec3;
 use serde_json::json;
 
-use crate::algo::method::{OptionSpec, OptionValues, Options, OwnError, Phases, View};
+use crate::algo::method::{Family, OptionSpec, Options, OwnError, Phases, View};
+use crate::algo::settings::{choice, flag, float, int, MethodSettings};
 use crate::scene::{Camera, Projection};
 use crate::terrain::hybrid::HybridModel;
 use crate::terrain::Heightmap;
@@ -46,40 +47,64 @@ use crate::vk::{
     Image, Pipeline, PipelineKey, ShaderKey, ShaderStage, TexelBuffer, UploadClass, UploadCounter, VertexAttribute,
 };
 
-pub const OPTIONS: &[OptionSpec] = &[
-    OptionSpec {
-        name: "lod_error",
-        default: "2",
-        unit: "px",
-        values: OptionValues::Float { min: 0.01, max: 100000.0 },
-        build_time: false,
-        help: "largest projected height error a block's level may have (view-dependent level of detail)",
-    },
-    OptionSpec {
-        name: "level",
-        default: "-1",
-        unit: "",
-        values: OptionValues::Int { min: -1, max: 4 },
-        build_time: false,
-        help: "draw every block at this level (0 = finest; -1: view-dependent, by lod_error)",
-    },
-    OptionSpec {
-        name: "colour",
-        default: "shaded",
-        unit: "",
-        values: OptionValues::Choice { values: &["shaded", "classes"] },
-        build_time: false,
-        help: "shaded by height, or tinted by class (NC grid green, PC tessellation orange, TIN blue)",
-    },
-    OptionSpec {
-        name: "coverage",
-        default: "off",
-        unit: "",
-        values: OptionValues::Bool,
-        build_time: true,
-        help: "count covering triangles per pixel (additive, no depth test): the coverage test's target",
-    },
-];
+crate::choices! {
+    /// How the terrain is coloured.
+    pub enum Colour {
+        /// Shaded by height.
+        Shaded = "shaded",
+        /// Tinted by class (NC grid green, PC tessellation orange, TIN blue).
+        Classes = "classes",
+    }
+}
+
+crate::settings! {
+    /// The options as typed values.
+    pub struct Settings {
+        lod_error: f64 = "2", float(0.01, 100000.0), run, "px",
+            "largest projected height error a block's level may have (view-dependent level of detail)";
+        level: i64 = "-1", int(-1, 4), run, "", "draw every block at this level (0 = finest; -1: view-dependent, by lod_error)";
+        colour: Colour = "shaded", choice::<Colour>(), run, "",
+            "shaded by height, or tinted by class (NC grid green, PC tessellation orange, TIN blue)";
+        coverage: bool = "off", flag(), build, "",
+            "count covering triangles per pixel (additive, no depth test): the coverage test's target";
+    }
+    impl {
+        fn defines(&self) -> Vec<(&'static str, &'static str)> {
+            if self.coverage {
+                vec![("COVERAGE", "1")]
+            } else {
+                Vec::new()
+            }
+        }
+    }
+}
+
+pub const OPTIONS: &[OptionSpec] = Settings::OPTIONS;
+
+/// What the terrain methods register once: no image reference (they measure
+/// their own height error), and one tessellation placed three ways.
+pub const FAMILY: Family = Family {
+    name: "terrain",
+    check: crate::algo::settings::check::<Settings>,
+    accuracy_bound: |_, _| None,
+    culling_option: None,
+    placement: Some(PLACEMENT),
+};
+
+/// The work the three methods share (`Family::placement`).
+pub const PLACEMENT: &str = "PC-cell tessellation (NC cells, TINs and skirts drawn alike)";
+
+impl Settings {
+    /// The level every block is drawn at, when one is forced (`level` >= 0).
+    pub fn forced_level(&self) -> Option<usize> {
+        usize::try_from(self.level).ok()
+    }
+
+    /// Tinted by class.
+    pub fn classes(&self) -> bool {
+        self.colour == Colour::Classes
+    }
+}
 
 /// Time against geometric error: the projected-error threshold.
 pub const SWEEP: &[&str] = &["lod_error=0.5", "lod_error=1", "lod_error=2", "lod_error=4", "lod_error=8", "lod_error=16", "lod_error=64"];
@@ -93,27 +118,6 @@ const TINT_TIN: [f32; 3] = [0.25, 0.45, 1.0];
 /// Push constants: mat4, tint, light, range (range.zw: the grid's first
 /// geometry index and row length, as u32 bits, for the PC tessellators).
 pub const PUSH_BYTES: u32 = 112;
-
-/// The options as typed values.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Settings {
-    pub lod_error: f64,
-    pub level: Option<usize>,
-    pub classes: bool,
-    pub coverage: bool,
-}
-
-impl Settings {
-    pub fn from_options(o: &Options) -> Result<Self> {
-        let level = o.int("level")?;
-        Ok(Settings {
-            lod_error: o.float("lod_error")?,
-            level: (level >= 0).then_some(level as usize),
-            classes: o.text("colour")? == "classes",
-            coverage: o.flag("coverage")?,
-        })
-    }
-}
 
 /// The camera of frame `frame` of the fly-over: once around an ellipse
 /// over the middle of the terrain every 120 frames, 0.25 of the terrain's
@@ -165,7 +169,7 @@ pub fn mesh_key(
     PipelineKey::Graphics(GraphicsPipelineKey {
         vertex,
         geometry,
-        fragment: ShaderKey::new("terrain/mesh.frag", ShaderStage::Fragment, if settings.coverage { &[("COVERAGE", "1")] } else { &[] }),
+        fragment: ShaderKey::new("terrain/mesh.frag", ShaderStage::Fragment, &settings.defines()),
         state: GraphicsState {
             vertex_stride: 16,
             attributes: vec![attribute],
@@ -236,7 +240,7 @@ impl TerrainScene {
         let t0 = Instant::now();
         let model = HybridModel::build(map)?;
         let build_ms = t0.elapsed().as_secs_f64() * 1e3;
-        if let Some(l) = settings.level {
+        if let Some(l) = settings.forced_level() {
             anyhow::ensure!(l < model.levels.len(), "option 'level' = {l}: '{}' has levels 0 to {}", map.name, model.levels.len() - 1);
         }
         let geo = bytes_of(&model.vertices);
@@ -324,7 +328,7 @@ impl TerrainScene {
         let mut a = ActiveSet { levels: vec![0; nblocks], ..Default::default() };
         let mut sse = 0.0;
         for b in 0..nblocks {
-            let level = match self.settings.level {
+            let level = match self.settings.forced_level() {
                 Some(l) => l,
                 None => {
                     let (lo, hi) = self.block_bounds[b];
@@ -368,7 +372,7 @@ impl TerrainScene {
         let m = view.camera.view_proj(view.width, view.height);
         let light = (-view.camera.forward() + DVec3::new(0.3, 0.2, 1.0)).normalize();
         let mut v: Vec<f32> = m.to_cols_array().iter().map(|&x| x as f32).collect();
-        v.extend([tint[0], tint[1], tint[2], if self.settings.classes { 0.85 } else { 0.0 }]);
+        v.extend([tint[0], tint[1], tint[2], if self.settings.classes() { 0.85 } else { 0.0 }]);
         v.extend([light.x as f32, light.y as f32, light.z as f32, 0.0]);
         let (base, width) = (self.model.grid_base, self.model.domain[0] + 1);
         v.extend([self.range.0 as f32, self.range.1 as f32, f32::from_bits(base), f32::from_bits(width)]);
@@ -424,7 +428,7 @@ impl TerrainScene {
         json!({
             "family": "terrain",
             // The suite sets the three placements of this work side by side.
-            "same_work": "PC-cell tessellation (NC cells, TINs and skirts drawn alike)",
+            "same_work": PLACEMENT,
             "variant": variant,
             "domain_cells": m.domain,
             "cropped": m.cropped,
@@ -437,7 +441,7 @@ impl TerrainScene {
             "tin_triangles": self.tin_triangles(),
             "patches": m.patches.iter().map(|p| json!({ "name": p.name, "polygon_vertices": p.polygon.len(), "tb_vertices": p.tb.end - p.tb.start })).collect::<Vec<_>>(),
             "lod_error_px": self.settings.lod_error,
-            "forced_level": self.settings.level,
+            "forced_level": self.settings.forced_level(),
             "blocks_per_level": histogram,
             "active_nc_cells": self.active.nc_cells,
             "active_pc_cells": self.active.pc_cells.len(),
