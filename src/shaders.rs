@@ -11,6 +11,8 @@ const SOURCES: &[(&str, &str)] = &[
     ("cell_projection/vicp.frag", include_str!("../shaders/cell_projection/vicp.frag")),
     ("cell_projection/record.glsl", include_str!("../shaders/cell_projection/record.glsl")),
     ("cell_projection/known_exits_io.glsl", include_str!("../shaders/cell_projection/known_exits_io.glsl")),
+    ("cell_projection/stored_cell.glsl", include_str!("../shaders/cell_projection/stored_cell.glsl")),
+    ("cell_projection/pt_composite.comp", include_str!("../shaders/cell_projection/pt_composite.comp")),
     ("cell_projection/balanced.vert", include_str!("../shaders/cell_projection/balanced.vert")),
     ("cell_projection/resident.vert", include_str!("../shaders/cell_projection/resident.vert")),
     ("cell_projection/balanced.frag", include_str!("../shaders/cell_projection/balanced.frag")),

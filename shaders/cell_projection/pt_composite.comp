@@ -1,0 +1,159 @@
+#version 450
+// Projected tetrahedra in compute (pt-compute): one workgroup per screen
+// tile of TILE_W x TILE_H pixels, one invocation per pixel. The tile's list
+// holds the cells whose screen box meets it, in visibility order (back to
+// front, binned on the CPU in sort order: pt_compute.rs); the invocation
+// walks it from the back of the list, i.e. front to back, and composites
+// under what it has, so it can stop once its pixel is opaque (early
+// termination). Per cell, the pixel's ray is clipped by the tet's four
+// planes; where it enters, the tet's barycentric weights give exactly what
+// the rasterizer interpolates there for balanced's entry face, and
+// balanced's fragment colour (known_exits_io.glsl `segment_color`)
+// integrates it unchanged.
+#ifndef TILE_W
+#define TILE_W 4
+#define TILE_H 2
+#endif
+layout(local_size_x = TILE_W, local_size_y = TILE_H) in;
+
+#ifndef ERT_TRANSMITTANCE
+#define ERT_TRANSMITTANCE 1e-5
+#endif
+#include "common/frame.glsl"
+#include "common/integrate.glsl"
+#include "common/clip.glsl"
+#define EXIT_VEC vec4
+#define EXIT_N 4
+#define KNOWN_EXITS_ONLY
+#include "common/exit.glsl"
+#define KNOWN_EXITS_COMPUTE
+#include "cell_projection/known_exits_io.glsl"
+#include "cell_projection/stored_cell.glsl"
+
+// Tile k's entries are [first[k], first[k + 1]); an entry is (cell, its
+// pixel box inside the tile: x0 | y0 << 8 | x1 << 16 | y1 << 24, inclusive).
+layout(set = 1, binding = 1) uniform usamplerBuffer tile_first;
+layout(set = 1, binding = 2) uniform usamplerBuffer entries;
+layout(std430, set = 1, binding = 3) buffer Counters {
+    uint integrated_lo;    // (pixel, cell) segments integrated (64 bits: lo, hi)
+    uint integrated_hi;
+    uint terminated;       // pixels that stopped early (opaque)
+    uint covered;          // pixels with at least one segment
+} counters;
+layout(set = 2, binding = 0, rgba32f) uniform writeonly image2D target;
+
+const float INF = 3.0e38;
+
+// The ray through NDC (x, y), i.e. the pixel centre the rasterizer samples,
+// from the rows of view_proj: under perspective the line through the eye
+// where clip x = x w and clip y = y w (the eye has clip x = y = w = 0), so
+// its direction is normal to both planes' normals; orthographic views have
+// w = 1 and the planes x, y are the image axes, perpendicular to each other.
+void pixel_ray(vec2 ndc, out vec3 o, out vec3 d) {
+    vec4 r0 = clip_row(0);
+    vec4 r1 = clip_row(1);
+    vec4 r3 = clip_row(3);
+    vec3 fwd = frame.view_dir.xyz;
+    if (frame.eye.w > 0.5) {
+        o = frame.eye.xyz;
+        d = normalize(cross(r0.xyz - ndc.x * r3.xyz, r1.xyz - ndc.y * r3.xyz));
+    } else {
+        vec4 e = vec4(frame.eye.xyz, 1.0);
+        o = frame.eye.xyz + (ndc.x - dot(r0, e)) * r0.xyz / dot(r0.xyz, r0.xyz) + (ndc.y - dot(r1, e)) * r1.xyz / dot(r1.xyz, r1.xyz);
+        d = fwd;
+    }
+    d = dot(d, fwd) < 0.0 ? -d : d;
+}
+
+void main() {
+    uvec2 tile = gl_WorkGroupID.xy;
+    uvec2 local = gl_LocalInvocationID.xy;
+    ivec2 px = ivec2(tile * uvec2(TILE_W, TILE_H) + local);
+    ivec2 size = imageSize(target);
+    bool inside = px.x < size.x && px.y < size.y;
+    vec3 ray_o;
+    vec3 ray_d;
+    pixel_ray((vec2(px) + 0.5) / vec2(size) * 2.0 - 1.0, ray_o, ray_d);
+    vec4 w_row = clip_row(3);
+
+    uint k = tile.y * gl_NumWorkGroups.x + tile.x;
+    uint first = texelFetch(tile_first, int(k)).x;
+    uint last = texelFetch(tile_first, int(k) + 1).x;
+    vec3 acc = vec3(0.0);
+    float trans = 1.0;
+    uint integrated = 0u;
+    bool done = !inside;
+    for (uint e = last; e > first && !done; --e) {
+        uvec2 entry = texelFetch(entries, int(e - 1u)).xy;
+        uvec4 box = (uvec4(entry.y) >> uvec4(0u, 8u, 16u, 24u)) & 255u;
+        if (local.x < box.x || local.y < box.y || local.x > box.z || local.y > box.w) {
+            continue;
+        }
+        uint t = entry.x;
+        // lambda_j along the ray: a_j + s b_j (1 at vertex j, 0 on its
+        // opposite plane, resident.rs `stored`: plane3 . (x - v_j) + 1).
+        vec4 a;
+        vec4 b;
+        for (int j = 0; j < 4; ++j) {
+            vec3 n = cell_plane(t, j).xyz;
+            a[j] = 1.0 + dot(n, ray_o - cell_pos(t, j).xyz);
+            b[j] = dot(n, ray_d);
+        }
+        // Entered where the last entering plane (b > 0) is crossed, left
+        // where the first leaving one is; a ray parallel to a plane outside
+        // it misses. A flat cell (zero planes) is never entered.
+        vec4 s = -a / b;
+        vec4 s_in = mix(vec4(-INF), s, greaterThan(b, vec4(0.0)));
+        vec4 s_out = mix(vec4(INF), s, lessThan(b, vec4(0.0)));
+        float t_in = max(max(s_in.x, s_in.y), max(s_in.z, s_in.w));
+        float t_out = min(min(s_out.x, s_out.y), min(s_out.z, s_out.w));
+        bvec4 outside = lessThan(a, vec4(0.0));
+        bvec4 parallel = equal(b, vec4(0.0));
+        bool outside_parallel = (outside.x && parallel.x) || (outside.y && parallel.y) || (outside.z && parallel.z) || (outside.w && parallel.w);
+        if (!(t_in > -INF && t_in < t_out) || outside_parallel) {
+            continue;
+        }
+        vec3 p = ray_o + t_in * ray_d;
+        // balanced clips its faces at the eye plane (common/clip.glsl); the
+        // near caps (drawn after this pass) integrate what lies before it.
+        if (eye_plane_distance(vec4(0.0, 0.0, 0.0, dot(w_row, vec4(p, 1.0)))) < 0.0) {
+            continue;
+        }
+        vec4 lambda = max(a + t_in * b, vec4(0.0));
+        lambda /= lambda.x + lambda.y + lambda.z + lambda.w;
+        uint exits;
+        vec4 c = cell_view_values(t, exits);
+        vec4 sv = vec4(cell_pos(t, 0).w, cell_pos(t, 1).w, cell_pos(t, 2).w, cell_pos(t, 3).w);
+        vec3 g = cell_gradient(t);
+        vec4 bv;
+        for (int j = 0; j < 4; ++j) {
+            bv[j] = cell_vertex_b(g, cell_pos(t, j).xyz, sv[j], c[j]);
+        }
+        // What the rasterizer interpolates at p (known_exits_io.glsl's
+        // emit_vertex: slot j carries lambda_j times vertex j's value).
+        v_sf = dot(lambda, sv);
+        v_d = lambda * c;
+#ifdef EXACT_PERSPECTIVE
+        v_g = dot(lambda, bv);
+#else
+        v_s = vec4(v_sf) + lambda * (bv - sv);
+#endif
+        v_rel = p - frame.eye.xyz;
+        v_exits = exits;
+        vec4 color = segment_color();
+        integrated += 1u;
+        // Front to back: this segment lies behind what is composited so far.
+        acc += trans * color.rgb;
+        trans *= 1.0 - color.a;
+        done = trans < ERT_TRANSMITTANCE;
+    }
+    if (inside) {
+        imageStore(target, px, vec4(acc, 1.0 - trans));
+        if (integrated > 0u) {
+            uint old = atomicAdd(counters.integrated_lo, integrated);
+            if (old > 0xFFFFFFFFu - integrated) atomicAdd(counters.integrated_hi, 1u);
+            atomicAdd(counters.covered, 1u);
+        }
+        if (done) atomicAdd(counters.terminated, 1u);
+    }
+}
