@@ -75,6 +75,11 @@ void main() {
     vec3 ray_d;
     pixel_ray((vec2(px) + 0.5) / vec2(size) * 2.0 - 1.0, ray_o, ray_d);
     vec4 w_row = clip_row(3);
+    // A direction in the image plane, generic (no face of a regular grid
+    // is normal to it): the tie rule's.
+    vec3 nudge = clip_row(0).xyz + 1e-3 * clip_row(1).xyz;
+    vec4 lambda_a;
+    vec4 lambda_b;
 
     uint k = tile.y * gl_NumWorkGroups.x + tile.x;
     uint first = texelFetch(tile_first, int(k)).x;
@@ -92,25 +97,36 @@ void main() {
         uint t = entry.x;
         // lambda_j along the ray: a_j + s b_j (1 at vertex j, 0 on its
         // opposite plane, resident.rs `stored`: plane3 . (x - v_j) + 1).
-        vec4 a;
-        vec4 b;
+        // Entered where the last entering plane (b > 0) is crossed, left
+        // where the first leaving one is. A plane parallel to the ray keeps
+        // it inside where a > 0; a ray in such a plane (a face or edge seen
+        // edge-on, axis-aligned orthographic views: stress case
+        // "axis-ortho") is on the boundary of every cell around it, and
+        // goes to the cell the ray moved a little along `nudge` would be in,
+        // so exactly one of them integrates it (the rasterizer's tie rule
+        // likewise gives such a pixel to one face). A flat cell (zero
+        // planes) is never entered.
+        float t_in = -INF;
+        float t_out = INF;
+        bool miss = false;
         for (int j = 0; j < 4; ++j) {
             vec3 n = cell_plane(t, j).xyz;
-            a[j] = 1.0 + dot(n, ray_o - cell_pos(t, j).xyz);
-            b[j] = dot(n, ray_d);
+            float offset = dot(n, ray_o - cell_pos(t, j).xyz);
+            float a = 1.0 + offset;
+            float b = dot(n, ray_d);
+            lambda_a[j] = a;
+            lambda_b[j] = b;
+            float scale = length(n);
+            if (abs(b) <= 1e-6 * scale) {
+                bool on_plane = abs(a) <= 1e-6 * (1.0 + abs(offset));
+                miss = miss || (on_plane ? dot(n, nudge) <= 0.0 : a < 0.0);
+            } else if (b > 0.0) {
+                t_in = max(t_in, -a / b);
+            } else {
+                t_out = min(t_out, -a / b);
+            }
         }
-        // Entered where the last entering plane (b > 0) is crossed, left
-        // where the first leaving one is; a ray parallel to a plane outside
-        // it misses. A flat cell (zero planes) is never entered.
-        vec4 s = -a / b;
-        vec4 s_in = mix(vec4(-INF), s, greaterThan(b, vec4(0.0)));
-        vec4 s_out = mix(vec4(INF), s, lessThan(b, vec4(0.0)));
-        float t_in = max(max(s_in.x, s_in.y), max(s_in.z, s_in.w));
-        float t_out = min(min(s_out.x, s_out.y), min(s_out.z, s_out.w));
-        bvec4 outside = lessThan(a, vec4(0.0));
-        bvec4 parallel = equal(b, vec4(0.0));
-        bool outside_parallel = (outside.x && parallel.x) || (outside.y && parallel.y) || (outside.z && parallel.z) || (outside.w && parallel.w);
-        if (!(t_in > -INF && t_in < t_out) || outside_parallel) {
+        if (miss || !(t_in > -INF && t_in < t_out)) {
             continue;
         }
         vec3 p = ray_o + t_in * ray_d;
@@ -119,7 +135,7 @@ void main() {
         if (eye_plane_distance(vec4(0.0, 0.0, 0.0, dot(w_row, vec4(p, 1.0)))) < 0.0) {
             continue;
         }
-        vec4 lambda = max(a + t_in * b, vec4(0.0));
+        vec4 lambda = max(lambda_a + t_in * lambda_b, vec4(0.0));
         lambda /= lambda.x + lambda.y + lambda.z + lambda.w;
         uint exits;
         vec4 c = cell_view_values(t, exits);
