@@ -282,7 +282,7 @@ fn the_suite_runs_every_registered_method_on_the_shipped_datasets_of_its_kind() 
     // balanced twice: its defaults and its own suite set (the thesis's strip indices).
     assert_eq!(
         names,
-        ["vicp", "balanced", "balanced", "resident", "resident-gpusort", "atfs", "tet-raycast", "test-solid-box"],
+        ["vicp", "balanced", "balanced", "resident", "resident-gpusort", "atfs", "pt-compute", "tet-raycast", "test-solid-box"],
         "the new method is in the suite with no change there"
     );
     assert!(plan(&registry, &SuiteSettings::standard(true, vec!["nosuch".into()])).unwrap_err().to_string().contains("nosuch"));
@@ -313,7 +313,7 @@ fn the_suite_runs_the_option_sets_published_figures_name_and_reports_the_ratios(
         labels("bluntfin"),
         [
             "vicp", "balanced", "balanced:integrator=average", "balanced:integrator=linear-exact",
-            "balanced:primitives=strip", "resident", "resident-gpusort", "atfs", "tet-raycast",
+            "balanced:primitives=strip", "resident", "resident-gpusort", "atfs", "pt-compute", "tet-raycast",
         ]
     );
     // The oxygen post also has the culling scenes, culling on and off
@@ -321,7 +321,7 @@ fn the_suite_runs_the_option_sets_published_figures_name_and_reports_the_ratios(
     assert_eq!(
         labels("oxygenpost"),
         [
-            "vicp", "balanced", "balanced:primitives=strip", "resident", "resident-gpusort", "atfs", "tet-raycast",
+            "vicp", "balanced", "balanced:primitives=strip", "resident", "resident-gpusort", "atfs", "pt-compute", "tet-raycast",
             "vicp @transparent", "vicp:cull=off @transparent",
             "vicp @still", "vicp:cull=off @still",
         ]
