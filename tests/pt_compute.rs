@@ -5,7 +5,8 @@
 //! its work counts are consistent. Correctness and deterministic counts
 //! only, no timings.
 
-use std::sync::{Arc, Mutex, OnceLock};
+mod common;
+use common::context;
 
 use volbench::algo::cell_projection::pt_compute::{BIN_PHASE, COMPOSITE_PHASE};
 use volbench::algo::registry;
@@ -15,17 +16,6 @@ use volbench::harness::run::{run as run_method, RunConfig, RunOutput};
 use volbench::mesh::split::hex_grid_to_tets;
 use volbench::mesh::TetMesh;
 use volbench::scene::{Camera, ControlPoint, Projection, TransferFunction};
-use volbench::vk::{Context, ContextDesc};
-
-fn context() -> std::sync::MutexGuard<'static, Arc<Context>> {
-    static CTX: OnceLock<Mutex<Arc<Context>>> = OnceLock::new();
-    CTX.get_or_init(|| {
-        let ctx = Context::new(&ContextDesc { device: None, validation: true }).expect("a Vulkan device (run scripts/setup.sh)");
-        Mutex::new(ctx)
-    })
-    .lock()
-    .unwrap_or_else(|p| p.into_inner())
-}
 
 fn run(mesh: &TetMesh, tf: &TransferFunction, spec: &str, cfg: &RunConfig) -> RunOutput {
     let dataset = Dataset::from_mesh(mesh.clone(), false, "test".into());
