@@ -89,7 +89,7 @@ fn culled_equals_unculled(dataset: &Dataset, tf: &TransferFunction, spec: &str, 
     (t[0], f[0])
 }
 
-const METHODS: &[&str] = &["vicp", "balanced", "resident", "balanced:sort=mpvo", "atfs", "pt-compute"];
+const METHODS: &[&str] = &["vicp", "balanced", "resident", "balanced:sort=mpvo", "atfs"];
 
 #[test]
 fn a_transparent_transfer_function_culls_most_cells_and_changes_no_pixel() {
