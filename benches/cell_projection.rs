@@ -17,6 +17,7 @@
 //!   methods.
 //! - `tables/<integrator>/<size>`: the cell-projection integration tables
 //!   (pre-integration, partial pre-integration's Psi) at their default sizes.
+//!
 //! Every shipped dataset (`datasets::NAMED`) is benched with every method of
 //! its kind. Frames are 256x256 so that `cargo bench` finishes in minutes.
 
@@ -132,7 +133,7 @@ criterion_group!(benches, sort, tables, frames);
 // criterion_main!, plus the font criterion's plots need: plotters is built
 // with ab_glyph (for volbench's own plots), which finds no system fonts.
 fn main() {
-    volbench::harness::pareto::register_font().expect("a font for the plots (scripts/setup.sh installs one)");
+    volbench::harness::plots::register_font().expect("a font for the plots (scripts/setup.sh installs one)");
     benches();
     Criterion::default().configure_from_args().final_summary();
 }

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The longer sweeps behind the README's tables (not part of the main job):
+# The longer sweeps behind the tables of results/HISTORY.md (not part of the main job):
 #   1. VICP against balanced cell projection on the blunt fin and the oxygen
 #      post at 512x512 (JSON per run, PNGs of the reference view and their
 #      difference from the f64 reference, comparison.md);

@@ -4,17 +4,28 @@
 # validation message, including synchronization validation), then the quick
 # suite and `volbench compare` against the committed baseline
 # (results/baseline/quick/): counts must match exactly and errors must not
-# grow; times are not compared (shared runners are noisy).
+# grow; times are not compared (shared runners are noisy). Then the counted
+# suite (`suite --quick --count` on the cheapest tet mesh and volume, under
+# callgrind) against results/baseline/count/: instructions per phase within
+# 1 % (docs/tracking.md): this is where CI tracks speed.
 # Arguments go to `cargo test` and skip the suite step (a developer's subset).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 export VOLBENCH_VALIDATION=1
 export VK_LAYER_ENABLES=VK_VALIDATION_FEATURE_ENABLE_SYNCHRONIZATION_VALIDATION_EXT
+# Lints first: clippy on every target, any warning an error (the toolchain's
+# clippy component; rustup installs it with the default profile).
+if [ $# -eq 0 ]; then
+    cargo clippy --locked --all-targets -- -D warnings
+fi
 cargo test --locked "$@"
 if [ $# -eq 0 ]; then
     # cargo test built target/debug/volbench for the CLI tests: the same binary.
     out="$(mktemp -d)/quick"
     ./target/debug/volbench suite --quick --out "$out"
     ./target/debug/volbench compare results/baseline/quick/summary.json "$out/summary.json" --no-times
+    counted="$(dirname "$out")/count"
+    ./target/debug/volbench suite --quick --count $(cat results/baseline/count/filter) --out "$counted"
+    ./target/debug/volbench compare results/baseline/count/summary.json "$counted/summary.json" --no-times
 fi

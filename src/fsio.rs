@@ -1,18 +1,27 @@
 //! Every file volbench reads or writes goes through here, so the rules hold
-//! in one place:
+//! in one place (docs/bad-input.md states them for users):
 //!
 //! - **Inputs** must be regular files (a FIFO, a device or a directory is
 //!   refused before anything is read: `--mesh fifo.vtk` would block forever,
 //!   `--tf /dev/zero` never end) and no larger than a stated cap, checked
 //!   from the file's metadata before reading (a 2 GiB sparse file is refused,
-//!   not read whole).
-//! - **Outputs** are all-or-nothing: bytes are written to a uniquely named
-//!   temporary file beside the target and renamed over it, so a failure
-//!   leaves the old file (or nothing) and never a partial one or a `*.tmp`.
-//!   A target that exists but is not a regular file (a FIFO, `/dev/null`, a
-//!   symlink to one) is never replaced: it is written through, as a shell
-//!   redirection would. A symlink to a regular file is followed and its
-//!   target replaced. `-` means standard output.
+//!   not read whole). Each input read is remembered (device and inode) for
+//!   the rest of the process.
+//! - **Outputs** follow one rule for every path, decided by what the path
+//!   is, not how it is spelled:
+//!   - `-`, or any path that is the file this process's standard output
+//!     (or error) already goes to (`/dev/stdout`, `/proc/self/fd/1`, the
+//!     file a shell redirected it to): written to that stream.
+//!   - a regular file (through symlinks) or a new name: replaced whole. The
+//!     bytes go to a uniquely named temporary file beside the real target,
+//!     which takes the replaced file's permission bits, and are renamed over
+//!     it: a failure leaves the old file (or nothing), never a partial,
+//!     mixed or widened one, and never a `*.tmp`.
+//!   - a character device (`/dev/null`, `/dev/full`): written through; a
+//!     failing device is a clean error.
+//!   - a directory, a FIFO or socket (would block), a dangling symlink: refused.
+//!   - a file that is (or links to) an input of this command: refused, so
+//!     an input is never replaced by an output.
 //! - `OutputSet` checks a run's outputs before any work starts: no two the
 //!   same, each one's directory exists, none is a directory, and each can be
 //!   written (a temporary file can be created beside it, a special file
@@ -22,7 +31,9 @@ use std::collections::HashSet;
 use std::fs;
 use std::io::{Read as _, Write as _};
 use std::path::{Path, PathBuf};
+use std::os::unix::fs::MetadataExt as _;
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Mutex;
 
 use anyhow::{bail, Context as _, Result};
 
@@ -36,6 +47,7 @@ pub const MAX_INPUT_BYTES: u64 = 1 << 30;
 /// (after following symlinks) and holds at most `max_bytes`. Returns its size.
 pub fn check_input(path: &Path, what: &str, max_bytes: u64) -> Result<u64> {
     let meta = fs::metadata(path).with_context(|| format!("{}: cannot read {what}", path.display()))?;
+    remember_input(path, &meta);
     if meta.is_dir() {
         bail!("{}: is a directory, expected a {what} file", path.display());
     }
@@ -68,6 +80,26 @@ pub fn read_input(path: &Path, what: &str, max_bytes: u64) -> Result<Vec<u8>> {
     Ok(bytes)
 }
 
+/// The inputs this process has read: (device, inode) and the path given.
+static INPUTS: Mutex<Vec<(u64, u64, PathBuf)>> = Mutex::new(Vec::new());
+
+fn remember_input(path: &Path, meta: &fs::Metadata) {
+    if let Ok(mut inputs) = INPUTS.lock() {
+        if !inputs.iter().any(|(d, i, _)| (*d, *i) == (meta.dev(), meta.ino())) {
+            inputs.push((meta.dev(), meta.ino(), path.to_path_buf()));
+        }
+    }
+}
+
+/// The input of this process that `meta` is, if any.
+fn input_named_by(meta: &fs::Metadata) -> Option<PathBuf> {
+    let inputs = INPUTS.lock().ok()?;
+    // The input's path must still name that file: an inode freed by a
+    // removed input may be reused by an unrelated new file.
+    let still = |p: &Path| fs::metadata(p).is_ok_and(|m| (m.dev(), m.ino()) == (meta.dev(), meta.ino()));
+    inputs.iter().find(|(d, i, p)| (*d, *i) == (meta.dev(), meta.ino()) && still(p)).map(|(_, _, p)| p.clone())
+}
+
 /// `read_input` as UTF-8 text.
 pub fn read_input_text(path: &Path, what: &str, max_bytes: u64) -> Result<String> {
     let bytes = read_input(path, what, max_bytes)?;
@@ -94,17 +126,32 @@ pub fn clip_message(text: &str) -> String {
 /// Where an output goes.
 #[derive(Debug, Clone, PartialEq, Eq, Hash)]
 pub enum OutputTarget {
+    /// This process's standard output (`-`, `/dev/stdout`, ...).
     Stdout,
+    /// This process's standard error (`/dev/stderr`, ...).
+    Stderr,
     /// A path that does not exist yet, or a regular file (possibly through a
     /// symlink): replaced atomically.
     File(PathBuf),
-    /// Something that exists and is not a regular file: written through.
+    /// A character device: written through.
     Special(PathBuf),
 }
 
+/// (device, inode) of the file standard output (1) or error (2) goes to.
+fn stream_identity(fd: i32) -> Option<(u64, u64)> {
+    use std::os::fd::AsFd as _;
+    let owned = match fd {
+        1 => std::io::stdout().as_fd().try_clone_to_owned().ok()?,
+        _ => std::io::stderr().as_fd().try_clone_to_owned().ok()?,
+    };
+    let m = fs::File::from(owned).metadata().ok()?;
+    Some((m.dev(), m.ino()))
+}
+
 impl OutputTarget {
-    /// Classify `path` (`-` is standard output). Fails for a directory, a
-    /// path ending in `/`, or a parent directory that does not exist.
+    /// Classify `path` (see the module note). Fails for a directory, a path
+    /// ending in `/`, a parent directory that does not exist, a FIFO or
+    /// socket, a dangling symlink, or an input of this process.
     pub fn of(path: &Path) -> Result<Self> {
         if path.as_os_str() == "-" {
             return Ok(OutputTarget::Stdout);
@@ -116,24 +163,30 @@ impl OutputTarget {
         if text.ends_with('/') || text.ends_with("/.") || text.ends_with("/..") || text == "." || text == ".." {
             bail!("{}: names a directory, expected a file name", path.display());
         }
-        // /dev/stdout, /proc/self/fd/1 and the like name an open file of
-        // this process: written through, never replaced by a rename.
-        if text.starts_with("/dev/") || text.starts_with("/proc/") {
-            return match fs::metadata(path) {
-                Ok(m) if m.is_dir() => bail!("{}: is a directory, expected a file name", path.display()),
-                Ok(m) if is_blocking_special(&m) => bail!("{}: is a FIFO or socket; refusing to block on it", path.display()),
-                Ok(_) => Ok(OutputTarget::Special(path.to_path_buf())),
-                Err(e) => bail!("{}: cannot be written ({e})", path.display()),
-            };
-        }
         match fs::metadata(path) {
-            Ok(m) if m.is_dir() => bail!("{}: is a directory, expected a file name", path.display()),
-            Ok(m) if m.is_file() => Ok(OutputTarget::File(path.to_path_buf())),
-            // A FIFO without a reader would block the process forever.
-            Ok(m) if is_blocking_special(&m) => {
-                bail!("{}: is a FIFO or socket; refusing to block on it (write to a regular file)", path.display())
+            Ok(m) => {
+                let id = Some((m.dev(), m.ino()));
+                if id == stream_identity(1) {
+                    return Ok(OutputTarget::Stdout);
+                }
+                if id == stream_identity(2) {
+                    return Ok(OutputTarget::Stderr);
+                }
+                if m.is_dir() {
+                    bail!("{}: is a directory, expected a file name", path.display());
+                }
+                if let Some(input) = input_named_by(&m) {
+                    bail!("{}: is an input of this command ({}); refusing to overwrite it", path.display(), input.display());
+                }
+                if m.is_file() {
+                    Ok(OutputTarget::File(path.to_path_buf()))
+                } else if is_blocking_special(&m) {
+                    // A FIFO without a reader would block the process forever.
+                    bail!("{}: is a FIFO or socket; refusing to block on it (write to a regular file)", path.display())
+                } else {
+                    Ok(OutputTarget::Special(path.to_path_buf()))
+                }
             }
-            Ok(_) => Ok(OutputTarget::Special(path.to_path_buf())),
             Err(_) => {
                 if fs::symlink_metadata(path).is_ok() {
                     bail!("{}: is a dangling symbolic link; refusing to write through it", path.display());
@@ -147,31 +200,48 @@ impl OutputTarget {
             }
         }
     }
-}
 
-impl OutputTarget {
     /// Try, before any work, what writing will do: create (and remove) a
     /// temporary file beside a regular-file target, where the real one will
     /// be made (catches a read-only file system or directory), or open a
     /// special file for writing. Writes nothing to the target.
     pub fn probe(&self) -> Result<()> {
         match self {
-            OutputTarget::Stdout => Ok(()),
+            OutputTarget::Stdout | OutputTarget::Stderr => Ok(()),
             OutputTarget::Special(p) => fs::OpenOptions::new()
                 .write(true)
                 .open(p)
                 .map(drop)
                 .with_context(|| format!("{}: cannot be opened for writing", p.display())),
-            OutputTarget::File(p) => {
-                let real = fs::canonicalize(p).unwrap_or_else(|_| p.clone());
-                let tmp = temp_path(&real);
-                let _guard = TempGuard(Some(tmp.clone()));
-                fs::OpenOptions::new().write(true).create_new(true).open(&tmp).map(drop).with_context(|| {
-                    format!("{}: cannot be written (no file can be created in {})", p.display(), parent_dir(&real).display())
-                })
-            }
+            OutputTarget::File(p) => Staged::new(p).map(drop),
         }
     }
+
+    /// Write `bytes` to a target that cannot be staged (a stream or device).
+    fn write_through(&self, bytes: &[u8]) -> Result<()> {
+        match self {
+            OutputTarget::Stdout => {
+                let mut out = std::io::stdout().lock();
+                out.write_all(bytes).and_then(|()| out.flush()).context("writing to standard output")
+            }
+            OutputTarget::Stderr => {
+                let mut out = std::io::stderr().lock();
+                out.write_all(bytes).and_then(|()| out.flush()).context("writing to standard error")
+            }
+            OutputTarget::Special(p) => {
+                let mut f = fs::OpenOptions::new().write(true).open(p).with_context(|| format!("{}: cannot open for writing", p.display()))?;
+                f.write_all(bytes).and_then(|()| f.flush()).with_context(|| format!("{}: write failed", p.display()))
+            }
+            OutputTarget::File(p) => Staged::new(p)?.commit_bytes(bytes),
+        }
+    }
+}
+
+/// Whether `path` names this process's standard output (`-`,
+/// `/dev/stdout`, the file stdout is redirected to, ...).
+pub fn is_stdout(path: &Path) -> bool {
+    path.as_os_str() == "-"
+        || fs::metadata(path).ok().is_some_and(|m| Some((m.dev(), m.ino())) == stream_identity(1))
 }
 
 fn is_blocking_special(m: &fs::Metadata) -> bool {
@@ -196,12 +266,55 @@ fn temp_path(target: &Path) -> PathBuf {
     parent_dir(target).join(format!(".{name}.{}.{n}.{nanos}.tmp", std::process::id()))
 }
 
-/// Removes the temporary file unless disarmed (any early return or panic).
-struct TempGuard(Option<PathBuf>);
+/// A regular-file output being written: a temporary file beside the real
+/// target (a symlink's target is replaced, not the link) with the replaced
+/// file's permission bits; removed unless committed (any early return or
+/// panic).
+struct Staged {
+    tmp: Option<PathBuf>,
+    real: PathBuf,
+    shown: PathBuf,
+    file: Option<fs::File>,
+}
 
-impl Drop for TempGuard {
+impl Staged {
+    fn new(p: &Path) -> Result<Self> {
+        let real = fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf());
+        let tmp = temp_path(&real);
+        let file = fs::OpenOptions::new().write(true).create_new(true).open(&tmp).with_context(|| {
+            format!("{}: cannot be written (no file can be created in {})", p.display(), parent_dir(&real).display())
+        })?;
+        let staged = Staged { tmp: Some(tmp), real, shown: p.to_path_buf(), file: Some(file) };
+        if let Ok(m) = fs::metadata(&staged.real) {
+            if let Some(f) = &staged.file {
+                f.set_permissions(m.permissions()).with_context(|| format!("{}: cannot keep its permissions", p.display()))?;
+            }
+        }
+        Ok(staged)
+    }
+
+    fn commit_bytes(mut self, bytes: &[u8]) -> Result<()> {
+        if let Some(f) = &mut self.file {
+            f.write_all(bytes).with_context(|| format!("{}: write failed", self.shown.display()))?;
+        }
+        self.commit()
+    }
+
+    fn commit(mut self) -> Result<()> {
+        if let Some(f) = self.file.take() {
+            f.sync_all().ok();
+        }
+        if let Some(tmp) = &self.tmp {
+            fs::rename(tmp, &self.real).with_context(|| format!("{}: cannot replace it", self.shown.display()))?;
+        }
+        self.tmp = None;
+        Ok(())
+    }
+}
+
+impl Drop for Staged {
     fn drop(&mut self) {
-        if let Some(p) = self.0.take() {
+        if let Some(p) = self.tmp.take() {
             let _ = fs::remove_file(p);
         }
     }
@@ -216,36 +329,19 @@ pub fn write_output(path: &Path, bytes: &[u8]) -> Result<()> {
 /// target unless `fill` succeeds.
 pub fn write_output_with(path: &Path, fill: impl FnOnce(&mut dyn std::io::Write) -> Result<()>) -> Result<()> {
     match OutputTarget::of(path)? {
-        OutputTarget::Stdout => {
-            let mut buf = Vec::new();
-            fill(&mut buf)?;
-            let mut out = std::io::stdout().lock();
-            out.write_all(&buf).and_then(|()| out.flush()).context("writing to standard output")
-        }
-        OutputTarget::Special(p) => {
-            let mut buf = Vec::new();
-            fill(&mut buf)?;
-            let mut f = fs::OpenOptions::new().write(true).open(&p).with_context(|| format!("{}: cannot open for writing", p.display()))?;
-            f.write_all(&buf).with_context(|| format!("{}: write failed", p.display()))
-        }
         OutputTarget::File(p) => {
-            // Replace what a symlink points to, not the link.
-            let real = fs::canonicalize(&p).unwrap_or_else(|_| p.clone());
-            let tmp = temp_path(&real);
-            let mut guard = TempGuard(Some(tmp.clone()));
-            let file = fs::OpenOptions::new()
-                .write(true)
-                .create_new(true)
-                .open(&tmp)
-                .with_context(|| format!("{}: cannot create a temporary file beside it", p.display()))?;
+            let mut staged = Staged::new(&p)?;
+            let file = staged.file.take().context("a staged output has its file")?;
             let mut w = std::io::BufWriter::new(file);
             fill(&mut w).with_context(|| format!("writing {}", p.display()))?;
             let file = w.into_inner().map_err(|e| anyhow::anyhow!("{}: write failed: {}", p.display(), e.error()))?;
-            file.sync_all().ok();
-            drop(file);
-            fs::rename(&tmp, &real).with_context(|| format!("{}: cannot replace it", p.display()))?;
-            guard.0 = None;
-            Ok(())
+            staged.file = Some(file);
+            staged.commit()
+        }
+        other => {
+            let mut buf = Vec::new();
+            fill(&mut buf)?;
+            other.write_through(&buf)
         }
     }
 }
@@ -256,21 +352,16 @@ pub fn write_output_with(path: &Path, fill: impl FnOnce(&mut dyn std::io::Write)
 /// targets and standard output are written through, which cannot be undone).
 /// If any write fails, no target is touched and no temporary file is left.
 pub fn write_all(outputs: &[(&Path, &[u8])]) -> Result<()> {
-    let mut staged: Vec<(TempGuard, PathBuf, &Path)> = Vec::new();
+    let mut staged: Vec<Staged> = Vec::new();
     let mut later: Vec<(OutputTarget, &[u8])> = Vec::new();
     for &(path, bytes) in outputs {
         match OutputTarget::of(path)? {
             OutputTarget::File(p) => {
-                let real = fs::canonicalize(&p).unwrap_or_else(|_| p.clone());
-                let tmp = temp_path(&real);
-                let guard = TempGuard(Some(tmp.clone()));
-                let mut f = fs::OpenOptions::new()
-                    .write(true)
-                    .create_new(true)
-                    .open(&tmp)
-                    .with_context(|| format!("{}: cannot create a temporary file beside it", p.display()))?;
-                f.write_all(bytes).with_context(|| format!("{}: write failed", p.display()))?;
-                staged.push((guard, real, path));
+                let mut s = Staged::new(&p)?;
+                if let Some(f) = &mut s.file {
+                    f.write_all(bytes).with_context(|| format!("{}: write failed", p.display()))?;
+                }
+                staged.push(s);
             }
             other => later.push((other, bytes)),
         }
@@ -278,22 +369,10 @@ pub fn write_all(outputs: &[(&Path, &[u8])]) -> Result<()> {
     // What cannot be undone (devices, standard output) first: if it fails,
     // no regular target has been touched yet.
     for (target, bytes) in later {
-        match target {
-            OutputTarget::Stdout => {
-                let mut out = std::io::stdout().lock();
-                out.write_all(bytes).and_then(|()| out.flush()).context("writing to standard output")?;
-            }
-            OutputTarget::Special(p) => {
-                let mut f = fs::OpenOptions::new().write(true).open(&p).with_context(|| format!("{}: cannot open for writing", p.display()))?;
-                f.write_all(bytes).with_context(|| format!("{}: write failed", p.display()))?;
-            }
-            OutputTarget::File(_) => {}
-        }
+        target.write_through(bytes)?;
     }
-    for (mut guard, real, path) in staged {
-        if let Some(tmp) = guard.0.take() {
-            fs::rename(&tmp, &real).with_context(|| format!("{}: cannot replace it", path.display()))?;
-        }
+    for s in staged {
+        s.commit()?;
     }
     Ok(())
 }
@@ -312,10 +391,11 @@ impl OutputSet {
 
     /// Add an output named by `option` (for the message).
     pub fn add(&mut self, option: &str, path: &Path) -> Result<()> {
-        let target = OutputTarget::of(path).with_context(|| format!("{option}"))?;
+        let target = OutputTarget::of(path).with_context(|| option.to_string())?;
         target.probe().with_context(|| option.to_string())?;
         let key = match &target {
-            OutputTarget::Stdout => identity(Path::new("/dev/stdout")).unwrap_or_else(|| PathBuf::from("-")),
+            OutputTarget::Stdout => PathBuf::from("-"),
+            OutputTarget::Stderr => PathBuf::from("/dev/stderr"),
             OutputTarget::File(p) | OutputTarget::Special(p) => identity(p).unwrap_or_else(|| canonical_for_compare(p)),
         };
         if !self.seen.insert(key) {
@@ -385,7 +465,7 @@ mod tests {
         // A directory, a trailing slash, a missing parent: clear errors.
         for bad in [d.path().to_path_buf(), d.path().join("x/"), d.path().join("nope/x.png")] {
             let e = write_output(&bad, b"x").unwrap_err().to_string();
-            assert!(e.contains(&*bad.to_string_lossy().trim_end_matches('/')), "{e}");
+            assert!(e.contains(bad.to_string_lossy().trim_end_matches('/')), "{e}");
         }
         assert_eq!(fs::read_dir(d.path()).unwrap().count(), 2);
     }
@@ -447,5 +527,46 @@ mod tests {
         set.add("--json", &d.path().join("a.json")).unwrap();
         let e = set.add("--diff-png", &d.path().join("./a.png")).unwrap_err().to_string();
         assert!(e.contains("--diff-png") && e.contains("same file"), "{e}");
+    }
+
+    #[test]
+    fn an_output_never_replaces_an_input_by_any_name() {
+        let d = tempfile::tempdir().unwrap();
+        let input = d.path().join("in.vtk");
+        fs::write(&input, b"mesh").unwrap();
+        read_input(&input, "mesh", 100).unwrap();
+        let link = d.path().join("link.json");
+        std::os::unix::fs::symlink(&input, &link).unwrap();
+        let hard = d.path().join("hard.json");
+        fs::hard_link(&input, &hard).unwrap();
+        for out in [input.clone(), link, hard, d.path().join("./in.vtk")] {
+            let e = write_output(&out, b"json").unwrap_err().to_string();
+            assert!(e.contains("is an input of this command"), "{e}");
+            assert!(OutputSet::new().add("--json", &out).is_err());
+        }
+        assert_eq!(fs::read(&input).unwrap(), b"mesh");
+    }
+
+    #[test]
+    fn a_replaced_file_keeps_its_mode_and_is_never_mixed() {
+        use std::os::unix::fs::PermissionsExt as _;
+        let d = tempfile::tempdir().unwrap();
+        for mode in [0o600, 0o640, 0o755] {
+            let p = d.path().join(format!("o{mode:o}.json"));
+            fs::write(&p, vec![b'x'; 200_000]).unwrap();
+            fs::set_permissions(&p, fs::Permissions::from_mode(mode)).unwrap();
+            write_all(&[(&p, b"{}")]).unwrap();
+            assert_eq!(fs::read(&p).unwrap(), b"{}");
+            assert_eq!(fs::metadata(&p).unwrap().permissions().mode() & 0o777, mode);
+            write_output(&p, b"[]").unwrap();
+            assert_eq!(fs::metadata(&p).unwrap().permissions().mode() & 0o777, mode);
+        }
+        // A regular file under /dev/shm is a regular file like any other.
+        if Path::new("/dev/shm").is_dir() {
+            let f = tempfile::NamedTempFile::new_in("/dev/shm").unwrap();
+            fs::write(f.path(), vec![b'x'; 200_000]).unwrap();
+            write_output(f.path(), b"{}").unwrap();
+            assert_eq!(fs::read(f.path()).unwrap(), b"{}");
+        }
     }
 }

@@ -5,6 +5,7 @@
 //! Vulkan). `mesh` and `scene` are plain data shared by all of them.
 
 pub mod algo;
+pub mod data_dir;
 pub mod fsio;
 pub mod harness;
 pub mod mesh;
@@ -14,3 +15,5 @@ pub mod shaders;
 pub mod terrain;
 pub mod vk;
 pub mod volume;
+pub(crate) mod vtk_legacy;
+pub(crate) mod vtk_xml;

@@ -13,6 +13,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 
 use volbench::algo::registry::{self, Registry};
 use volbench::fsio::{self, OutputSet};
+use volbench::harness::count;
 use volbench::harness::datasets::{self, Dataset};
 use volbench::harness::reference_cache::reference_image;
 use volbench::harness::report::{self, ComparisonRow};
@@ -20,6 +21,23 @@ use volbench::harness::run::{run as run_method, RunConfig};
 use volbench::harness::sweep;
 use volbench::scene::{Projection, TransferFunction};
 use volbench::vk::{Context, ContextDesc};
+
+/// `print!` that returns the write error instead of panicking (a closed
+/// pipe or a full device; see `exit_code`).
+macro_rules! out {
+    ($($t:tt)*) => { write_stdout(&format!($($t)*))? };
+}
+
+macro_rules! outln {
+    () => { write_stdout("\n")? };
+    ($($t:tt)*) => { write_stdout(&format!("{}\n", format_args!($($t)*)))? };
+}
+
+fn write_stdout(text: &str) -> Result<()> {
+    use std::io::Write as _;
+    let mut out = std::io::stdout().lock();
+    out.write_all(text.as_bytes()).and_then(|()| out.flush()).context("writing to standard output")
+}
 
 #[derive(Parser)]
 #[command(name = "volbench", version, about = "Measure GPU volume-rendering algorithms: bytes moved, frame time, image error")]
@@ -56,6 +74,85 @@ enum Command {
     /// standard settings: results/<run-id>/ with summary.json, summary.csv,
     /// report.md, plots and a montage.
     Suite(SuiteArgs),
+    /// Paired A/B timing of two volbench binaries (or git revisions, built
+    /// here): the same benchmarks alternately in one sitting, each one's
+    /// speed ratio NEW/BASE with a 95 % interval; fails on a slowdown.
+    Ab(AbArgs),
+    /// Scaling study: red-refine a tet mesh level by level (x8 tets each)
+    /// and run each method on every level in a fresh process: time, phases,
+    /// tets/s, bytes, peak RSS; JSON, CSV, Markdown and log-log plots.
+    Scale(ScaleArgs),
+}
+
+#[derive(Args)]
+struct ScaleArgs {
+    /// A shipped tet mesh (`volbench list`) or a mesh file.
+    #[arg(long, value_name = "NAME|PATH")]
+    data: String,
+    /// Refinements after the input (level 0); each multiplies the tets by 8.
+    #[arg(long, default_value_t = 1)]
+    levels: usize,
+    /// A method spec to run (repeat); default: every tet-mesh method at its defaults.
+    #[arg(long = "method", value_name = "SPEC")]
+    methods: Vec<String>,
+    /// Image size, WxH.
+    #[arg(long, default_value = "512x512", value_parser = parse_size)]
+    size: (u32, u32),
+    /// Timed frames per run.
+    #[arg(long, default_value_t = 3)]
+    frames: usize,
+    /// Untimed warm-up frames per run.
+    #[arg(long, default_value_t = 1)]
+    warmup: usize,
+    /// Time the f64 reference on levels with at most this many tets (0: never).
+    #[arg(long, default_value_t = 1_000_000)]
+    reference_max_cells: u64,
+    /// Also run these peers on every level (`vtk`: its projected tetrahedra).
+    #[arg(long, value_name = "PEER", value_delimiter = ',')]
+    peers: Vec<String>,
+    /// Output directory (default results/scale-<dataset>).
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
+#[derive(Args)]
+struct AbArgs {
+    /// The baseline: a volbench binary, or a git revision to build.
+    #[arg(value_name = "BASE")]
+    base: String,
+    /// The candidate: a volbench binary, or a git revision to build.
+    #[arg(value_name = "NEW")]
+    new: String,
+    /// Only benchmarks of these methods or datasets (repeat; as the suite's).
+    #[arg(long, value_name = "NAME")]
+    filter: Vec<String>,
+    /// Run these specs instead of every method at its defaults (repeat).
+    #[arg(long, value_name = "SPEC")]
+    spec: Vec<String>,
+    /// Runs per binary and benchmark (each a fresh process).
+    #[arg(long, default_value_t = 10)]
+    pairs: usize,
+    /// Slowdown threshold in percent: fail where the interval lies wholly above 1 + this.
+    #[arg(long, default_value_t = 3.0)]
+    threshold: f64,
+    /// Image size of each run, WxH.
+    #[arg(long, default_value = "128x128", value_parser = parse_size)]
+    size: (u32, u32),
+    /// Timed frames per run (the run's sample is their median).
+    #[arg(long, default_value_t = 5)]
+    frames: usize,
+    /// Untimed warm-up frames per run.
+    #[arg(long, default_value_t = 1)]
+    warmup: usize,
+    /// Seed of the per-pair order (default: from the clock; recorded).
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Target directory for building revisions (default: CARGO_TARGET_DIR or ./target).
+    #[arg(long)]
+    target_dir: Option<PathBuf>,
+    /// Write ab.json and ab.md here.
+    #[arg(long)]
+    out: Option<PathBuf>,
 }
 
 #[derive(Args)]
@@ -73,6 +170,11 @@ struct SuiteArgs {
     /// runs (`vtk`: VTK's Python wheel, installed by scripts/install-vtk.sh).
     #[arg(long, value_name = "PEER", value_delimiter = ',')]
     peers: Vec<String>,
+    /// Count instead of timing: run under valgrind (callgrind) and report
+    /// each timed frame's instructions per phase (`count` in each result;
+    /// docs/tracking.md). No peers, no CPU reference.
+    #[arg(long, conflicts_with = "peers")]
+    count: bool,
 }
 
 /// Options of a method given as flags: shorthands for `method:key=value`.
@@ -137,6 +239,10 @@ struct FrameArgs {
     /// Run each frame's phases strictly one after another (no CPU/device overlap).
     #[arg(long)]
     no_overlap: bool,
+    /// Frames with nothing in view (the camera turned away) after the timed
+    /// ones: the frame's fixed cost, reported as `fixed` and `fixed_gpu` (0: none).
+    #[arg(long, default_value_t = 5)]
+    fixed_frames: usize,
     /// A transfer-function file (JSON, see data/tf/README.md); default: the
     /// dataset's preset.
     #[arg(long)]
@@ -150,6 +256,10 @@ struct RunArgs {
     /// A shipped dataset (`volbench list`) or a file path.
     #[arg(long, alias = "mesh", value_name = "NAME|PATH")]
     data: String,
+    /// The point array of a VTK unstructured grid (.vtk, .vtu, .pvtu) to
+    /// render (vector arrays by magnitude); the same as `--data FILE#NAME`.
+    #[arg(long, value_name = "NAME")]
+    scalar: Option<String>,
     /// The method: `name` or `name:key=value,...` (`volbench list`).
     #[arg(long, value_name = "SPEC")]
     method: String,
@@ -167,6 +277,11 @@ struct RunArgs {
     /// Write |image - reference| x10 as PNG (implies --reference).
     #[arg(long)]
     diff_png: Option<PathBuf>,
+    /// Count instead of timing: run under valgrind (callgrind) and report
+    /// each timed frame's instructions per phase (`count` in the result;
+    /// docs/tracking.md). Frames run without overlap.
+    #[arg(long)]
+    count: bool,
 }
 
 #[derive(Args)]
@@ -190,12 +305,16 @@ struct CompareArgs {
     #[arg(
         value_name = "SUMMARY",
         num_args = 2,
-        conflicts_with_all = ["data", "methods", "out", "size", "frames", "warmup", "projection", "orbit_step", "zoom", "no_overlap", "tf", "integrator", "table_size", "sort", "interpolation"]
+        conflicts_with_all = ["data", "methods", "out", "size", "frames", "warmup", "projection", "orbit_step", "zoom", "no_overlap", "fixed_frames", "tf", "integrator", "table_size", "sort", "interpolation"]
     )]
     summaries: Vec<PathBuf>,
     /// Tracking: compare counts and errors only, not times (shared CI runners).
     #[arg(long, requires = "summaries")]
     no_times: bool,
+    /// Tracking: also compare absolute frame times (same device, driver and
+    /// CPU model only; off by default: the same model is not the same machine).
+    #[arg(long, requires = "summaries", conflicts_with = "no_times")]
+    absolute_times: bool,
     /// Tracking: write NEW's figures in Bencher Metric Format.
     #[arg(long, requires = "summaries", value_name = "FILE")]
     bmf: Option<PathBuf>,
@@ -229,6 +348,12 @@ struct StressArgs {
     /// Only these methods (repeat; default every method).
     #[arg(long = "method", value_name = "NAME")]
     methods: Vec<String>,
+    /// Only these cases (repeat; default every case, see --describe).
+    #[arg(long = "case", value_name = "NAME")]
+    cases: Vec<String>,
+    /// Write each case's reference and each render with its |image - reference| x10 as PNG into this directory.
+    #[arg(long, value_name = "DIR")]
+    images: Option<PathBuf>,
     /// Write {"cases": [...]} as JSON (rewritten as each row completes).
     #[arg(long)]
     json: Option<PathBuf>,
@@ -265,6 +390,7 @@ impl FrameArgs {
             orbit_step: self.orbit_step.to_radians(),
             zoom: self.zoom,
             overlap: !self.no_overlap,
+            fixed_frames: self.fixed_frames,
             projection: match self.projection {
                 ProjectionArg::Perspective => Projection::Perspective { fovy_deg: 30.0 },
                 ProjectionArg::Orthographic => Projection::Orthographic { height: 1.0 },
@@ -287,24 +413,24 @@ fn context(cli: &Cli) -> Result<std::sync::Arc<Context>> {
 
 fn info(cli: &Cli) -> Result<()> {
     for (i, (name, kind)) in volbench::vk::list_devices().context("listing Vulkan devices")?.iter().enumerate() {
-        println!("device [{i}] {name} ({kind})");
+        outln!("device [{i}] {name} ({kind})");
     }
     let ctx = context(cli)?;
-    println!("selected: {}", serde_json::to_string_pretty(&ctx.info)?);
+    outln!("selected: {}", serde_json::to_string_pretty(&ctx.info)?);
     Ok(())
 }
 
 fn list(registry: &Registry) -> Result<()> {
-    println!("Methods (spec: name:key=value,...; [b] = changes shader code, [r] = run-time parameter):");
+    outln!("Methods (spec: name:key=value,...; [b] = changes shader code, [r] = run-time parameter):");
     for m in registry.methods() {
-        println!("\n  {} ({} datasets): {}", m.name, m.data.name(), m.summary);
+        outln!("\n  {} ({} datasets): {}", m.name, m.data.name(), m.summary);
         if !m.features.is_empty() {
             let f: Vec<&str> = m.features.iter().map(|f| f.name()).collect();
-            println!("    needs: {}", f.join(", "));
+            outln!("    needs: {}", f.join(", "));
         }
         for o in m.options {
             let unit = if o.unit.is_empty() { String::new() } else { format!(" ({})", o.unit) };
-            println!(
+            outln!(
                 "    {}={} [{}] {}{unit}: {}",
                 o.name,
                 o.default,
@@ -314,22 +440,35 @@ fn list(registry: &Registry) -> Result<()> {
             );
         }
     }
-    println!("\nDatasets (--data NAME, or a file path):");
+    outln!("\nDatasets (--data NAME, or a file path):");
     for d in datasets::NAMED {
-        println!("  {:<12} {:<9} {}", d.name, d.kind.name(), d.description);
+        outln!("  {:<12} {:<9} {}", d.name, d.kind.name(), d.description);
     }
     Ok(())
 }
 
-/// Before any work: `dir` is a directory or can be made one, and the files
-/// a command writes there under fixed names can be written.
-fn check_out_dir(dir: &Path, files: &[&str]) -> Result<()> {
+/// Before any work: `dir` is a directory or can be made one, the files a
+/// command writes there under fixed names can be written, and each of the
+/// subdirectories it writes into is a directory that takes new files (or
+/// does not exist yet).
+fn check_out_dir(dir: &Path, files: &[&str], subdirs: &[&str]) -> Result<()> {
     match std::fs::metadata(dir) {
         Ok(m) if !m.is_dir() => bail!("--out {}: exists and is not a directory", dir.display()),
         Ok(_) => {
             let mut set = OutputSet::new();
             for f in files {
                 set.add("--out", &dir.join(f))?;
+            }
+            for sub in subdirs {
+                let sub = dir.join(sub);
+                match std::fs::metadata(&sub) {
+                    Ok(m) if !m.is_dir() => bail!("--out {}: {} exists and is not a directory", dir.display(), sub.display()),
+                    Ok(_) => set.add("--out", &sub.join(".volbench-out-probe"))?,
+                    Err(_) if std::fs::symlink_metadata(&sub).is_ok() => {
+                        bail!("--out {}: {} is a dangling symbolic link", dir.display(), sub.display())
+                    }
+                    Err(_) => {}
+                }
             }
             Ok(())
         }
@@ -351,17 +490,32 @@ fn check_out_dir(dir: &Path, files: &[&str]) -> Result<()> {
 }
 
 fn run(cli: &Cli, registry: &Registry, args: &RunArgs) -> Result<()> {
-    let cfg = args.frame.config()?;
+    let count_dir = count::child_dir(args.count)?;
+    // A counted run's phases must not interleave: no overlap.
+    let cfg = RunConfig { overlap: !args.frame.no_overlap && count_dir.is_none(), count_dir, ..args.frame.config()? };
+    cfg.validate()?;
     let spec = registry.parse_spec(&args.method, &args.frame.method.pairs()).with_context(|| format!("--method {}", args.method))?;
+    let data = match &args.scalar {
+        None => args.data.clone(),
+        Some(name) => {
+            let ext = std::path::Path::new(&args.data).extension().map(|e| e.to_string_lossy().to_ascii_lowercase());
+            if !ext.is_some_and(|e| volbench::mesh::datasets::VTK_EXTENSIONS.contains(&e.as_str())) {
+                anyhow::bail!("--scalar {name}: only VTK unstructured grids (.vtk, .vtu, .pvtu) have named point arrays, not '{}'", args.data);
+            }
+            format!("{}#{name}", args.data)
+        }
+    };
+    let dataset = datasets::load(&data)
+        .with_context(|| format!("--method {} renders {} datasets", spec.info.name, spec.info.data.name()))?;
+    spec.check_renders(dataset.kind(), &args.data)?;
+    let tf = args.frame.transfer_function(&dataset)?;
+    // After the inputs are read, so that an output naming one is refused.
     let mut outputs = OutputSet::new();
     for (option, path) in [("--png", &args.png), ("--json", &args.json), ("--diff-png", &args.diff_png)] {
         if let Some(p) = path {
             outputs.add(option, p)?;
         }
     }
-    let dataset = datasets::load(&args.data)?;
-    spec.check_renders(dataset.kind(), &args.data)?;
-    let tf = args.frame.transfer_function(&dataset)?;
     let ctx = context(cli)?;
     cfg.check_device(&ctx.info)?;
     let with_reference = args.reference || args.diff_png.is_some();
@@ -376,11 +530,11 @@ fn run(cli: &Cli, registry: &Registry, args: &RunArgs) -> Result<()> {
     let row = ComparisonRow { label: spec.label(), dataset: dataset.name.clone(), outcome: Ok(&out.result), rmse_vs_first: None };
     // The table goes to stderr when an output goes to stdout.
     let table = report::comparison_table(&[row], registry);
-    let to_stdout = [&args.json, &args.png, &args.diff_png].iter().any(|p| p.as_deref() == Some(Path::new("-")));
+    let to_stdout = [&args.json, &args.png, &args.diff_png].iter().any(|p| p.as_deref().is_some_and(fsio::is_stdout));
     if to_stdout {
         eprint!("{table}");
     } else {
-        print!("{table}");
+        out!("{table}");
     }
     // All outputs or none.
     let mut files: Vec<(&Path, Vec<u8>)> = Vec::new();
@@ -400,6 +554,13 @@ fn compare(cli: &Cli, registry: &Registry, args: &CompareArgs) -> Result<()> {
     if let [baseline, new] = args.summaries.as_slice() {
         return track(baseline, new, args);
     }
+    // The tracking options mean nothing to a comparison run: refuse them
+    // rather than run for minutes and not write what was asked.
+    for (option, given) in [("--no-times", args.no_times), ("--bmf", args.bmf.is_some()), ("--gha", args.gha.is_some())] {
+        if given {
+            bail!("{option} applies only to benchmark tracking (`compare BASELINE NEW`, two summary.json files), not to a comparison run");
+        }
+    }
     let cfg = RunConfig { diagnostics: true, ..args.frame.config()? };
     // Load (and so validate) every dataset, transfer function and spec
     // before any output is written or Vulkan starts.
@@ -412,7 +573,7 @@ fn compare(cli: &Cli, registry: &Registry, args: &CompareArgs) -> Result<()> {
     }
     sweep::check_compare_outputs(&jobs)?;
     if let Some(dir) = &args.out {
-        check_out_dir(dir, &["comparison.md"])?;
+        check_out_dir(dir, &["comparison.md"], &[])?;
     }
     let ctx = context(cli)?;
     cfg.check_device(&ctx.info)?;
@@ -420,8 +581,8 @@ fn compare(cli: &Cli, registry: &Registry, args: &CompareArgs) -> Result<()> {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
     let rows = sweep::compare(&ctx, registry, &jobs, &cfg, args.out.as_deref())?;
-    println!("device: {} ({}, {})", ctx.info.name, ctx.info.driver_name, ctx.info.driver_info);
-    print!("{}", sweep::comparison_markdown(&rows, registry)?);
+    outln!("device: {} ({}, {})", ctx.info.name, ctx.info.driver_name, ctx.info.driver_info);
+    out!("{}", sweep::comparison_markdown(&rows, registry)?);
     let failed = rows.iter().filter(|r| r.outcome.is_err() && !r.skipped).count();
     if failed > 0 {
         bail!("{failed} of {} runs failed (see the table)", rows.len());
@@ -439,10 +600,10 @@ fn track(baseline: &Path, new: &Path, args: &CompareArgs) -> Result<()> {
             outputs.add(option, p)?;
         }
     }
-    let tol = track::Tolerances { times: !args.no_times, ..track::Tolerances::default() };
+    let tol = track::Tolerances { times: !args.no_times, absolute_times: args.absolute_times, ..track::Tolerances::default() };
     let c = track::compare(&b, &n, &tol)?;
-    println!("baseline {} ({}), new {} ({})", baseline.display(), b.environment.git_sha, new.display(), n.environment.git_sha);
-    print!("{}", c.table());
+    outln!("baseline {} ({}), new {} ({})", baseline.display(), b.environment.git_sha, new.display(), n.environment.git_sha);
+    out!("{}", c.table());
     let mut files: Vec<(&Path, Vec<u8>)> = Vec::new();
     if let Some(p) = &args.bmf {
         files.push((p, report::json_bytes(&track::bmf(&n))?));
@@ -464,13 +625,13 @@ fn pareto(cli: &Cli, registry: &Registry, args: &ParetoArgs) -> Result<()> {
     let tf = args.frame.transfer_function(&dataset)?;
     let specs = sweep::pareto_specs(registry, &args.methods, dataset.kind(), &args.frame.method.pairs())?;
     let out_dir = args.out.clone().unwrap_or_else(|| PathBuf::from(format!("results/runs/pareto-{}", dataset.name)));
-    check_out_dir(&out_dir, &["pareto.csv", "pareto.md", "pareto.json", "pareto.png"])?;
+    check_out_dir(&out_dir, &["pareto.csv", "pareto.md", "pareto.json", "pareto.png"], &[])?;
     let ctx = context(cli)?;
     cfg.check_device(&ctx.info)?;
     std::fs::create_dir_all(&out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
     let points = sweep::pareto(&ctx, &dataset, &tf, &specs, &cfg, &out_dir)?;
-    print!("{}", volbench::harness::pareto::markdown(&dataset.name, &points));
-    println!("written: {}/pareto.{{csv,md,json,png}}", out_dir.display());
+    out!("{}", volbench::harness::pareto::markdown(&dataset.name, &points));
+    outln!("written: {}/pareto.{{csv,md,json,png}}", out_dir.display());
     let failed = points.iter().filter(|p| p.error.is_some() && !p.skipped).count();
     if failed > 0 {
         bail!("{failed} of {} sweep runs failed (see pareto.md)", points.len());
@@ -480,11 +641,11 @@ fn pareto(cli: &Cli, registry: &Registry, args: &ParetoArgs) -> Result<()> {
 
 fn stress(cli: &Cli, registry: &Registry, args: &StressArgs) -> Result<()> {
     use volbench::harness::stress::{describe_cases, failures, run_cases_with_progress, stress_cases, stress_table, StressConfig, StressReport};
-    if !(16..=2048).contains(&args.size) || args.size % 2 != 0 {
+    if !(16..=2048).contains(&args.size) || !args.size.is_multiple_of(2) {
         bail!("--size must be even and within 16..=2048 (the f64 reference renders every pixel on the CPU), got {}", args.size);
     }
     if args.describe {
-        print!("{}", describe_cases(args.size));
+        out!("{}", describe_cases(args.size));
         return Ok(());
     }
     if let Some(p) = &args.json {
@@ -498,11 +659,22 @@ fn stress(cli: &Cli, registry: &Registry, args: &StressArgs) -> Result<()> {
         cfg.specs.retain(|s| args.methods.iter().any(|m| m == s.info.name));
         anyhow::ensure!(!cfg.specs.is_empty(), "--method: none of {:?} has stress option sets", args.methods);
     }
+    let mut cases = stress_cases(args.size);
+    if !args.cases.is_empty() {
+        for c in &args.cases {
+            anyhow::ensure!(cases.iter().any(|k| &k.name == c), "--case: no stress case '{c}' (see --describe)");
+        }
+        cases.retain(|k| args.cases.contains(&k.name));
+    }
+    if let Some(dir) = &args.images {
+        std::fs::create_dir_all(dir).with_context(|| format!("--images: creating {}", dir.display()))?;
+        cfg.images = Some(dir.clone());
+    }
     let ctx = context(cli)?;
     let mut done = Vec::new();
     // The JSON is rewritten as each row completes; a write that fails ends
     // the run at once (the path was probed up front, so this is rare).
-    let rows = run_cases_with_progress(&ctx, &stress_cases(args.size), &cfg, |row| {
+    let rows = run_cases_with_progress(&ctx, &cases, &cfg, |row| {
         done.push(row.clone());
         if done.len() % 50 == 0 {
             eprintln!("volbench: stress: {} renders ({} ...)", done.len(), row.case);
@@ -512,10 +684,10 @@ fn stress(cli: &Cli, registry: &Registry, args: &StressArgs) -> Result<()> {
             None => Ok(()),
         }
     })?;
-    print!("{}", stress_table(&rows));
+    out!("{}", stress_table(&rows));
     let failed = failures(&rows);
     let non_finite: usize = rows.iter().map(|r| r.nan_pixels + r.inf_pixels).sum();
-    println!("{} renders, {} NaN/Inf pixels, {} failed", rows.len(), non_finite, failed);
+    outln!("{} renders, {} NaN/Inf pixels, {} failed", rows.len(), non_finite, failed);
     if failed > 0 {
         bail!("{failed} stress renders failed or exceeded their bounds");
     }
@@ -524,10 +696,11 @@ fn stress(cli: &Cli, registry: &Registry, args: &StressArgs) -> Result<()> {
 
 fn suite(cli: &Cli, registry: &Registry, args: &SuiteArgs) -> Result<()> {
     use volbench::harness::suite::{plan, run_suite, utc_now, SuiteSettings};
-    let settings = SuiteSettings { peers: args.peers.clone(), ..SuiteSettings::standard(args.quick, args.filter.clone()) };
+    let settings = SuiteSettings { peers: args.peers.clone(), ..SuiteSettings::standard(args.quick, args.filter.clone()) }
+        .counted(count::child_dir(args.count)?);
     let plan = plan(registry, &settings)?;
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from(format!("results/{}", utc_now())));
-    check_out_dir(&out, &["summary.json", "summary.csv", "report.md", "montage.png"])?;
+    check_out_dir(&out, &["summary.json", "summary.csv", "report.md"], &["runs", "plots", "peers"])?;
     let ctx = context(cli)?;
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
     // A progress bar with ETA on a terminal, plain lines otherwise.
@@ -551,7 +724,7 @@ fn suite(cli: &Cli, registry: &Registry, args: &SuiteArgs) -> Result<()> {
     bar.finish_and_clear();
     let failed = summary.runs.iter().filter(|r| r.status == "failed").count();
     let peers_failed = summary.peers.iter().filter(|r| r.status == "failed").count();
-    println!("results: {}", out.display());
+    outln!("results: {}", out.display());
     if failed > 0 {
         bail!("{failed} of {} suite runs failed (see report.md)", summary.runs.len());
     }
@@ -561,8 +734,121 @@ fn suite(cli: &Cli, registry: &Registry, args: &SuiteArgs) -> Result<()> {
     Ok(())
 }
 
+fn ab(registry: &Registry, args: &AbArgs) -> Result<()> {
+    use volbench::harness::ab;
+    let seed = args.seed.unwrap_or_else(|| {
+        std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_nanos() as u64)
+    });
+    let settings = ab::AbSettings {
+        width: args.size.0,
+        height: args.size.1,
+        frames: args.frames,
+        warmup: args.warmup,
+        pairs: args.pairs,
+        threshold: args.threshold / 100.0,
+        seed,
+    };
+    settings.validate()?;
+    let benches = ab::benchmarks(registry, &args.filter, &args.spec)?;
+    if let Some(dir) = &args.out {
+        check_out_dir(dir, &["ab.json", "ab.md"], &[])?;
+    }
+    let target = args
+        .target_dir
+        .clone()
+        .or_else(|| std::env::var_os("CARGO_TARGET_DIR").map(PathBuf::from))
+        .unwrap_or_else(|| PathBuf::from("target"));
+    let base = ab::resolve(&args.base, "BASE", &target)?;
+    let new = ab::resolve(&args.new, "NEW", &target)?;
+    let report = ab::run(&base, &new, &benches, &settings, |b, p| {
+        eprintln!("volbench: ab: [{}/{}] {} on {}, pair {}/{}", b + 1, benches.len(), benches[b].label, benches[b].dataset, p + 1, settings.pairs);
+    })?;
+    let table = ab::markdown(&report);
+    print!("{table}");
+    if let Some(dir) = &args.out {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        let (json, md) = (dir.join("ab.json"), dir.join("ab.md"));
+        let json_bytes = report::json_bytes(&report)?;
+        fsio::write_all(&[(json.as_path(), json_bytes.as_slice()), (md.as_path(), table.as_bytes())])?;
+    }
+    let (slower, failed) = (report.regressions(), report.failures());
+    if failed > 0 {
+        bail!("{failed} of {} benchmarks failed (see the table)", report.rows.len());
+    }
+    if slower > 0 {
+        bail!("{slower} of {} benchmarks slower beyond the {} % threshold", report.rows.len(), args.threshold);
+    }
+    Ok(())
+}
+
+fn scale(registry: &Registry, args: &ScaleArgs) -> Result<()> {
+    use volbench::algo::method::DataKind;
+    use volbench::harness::scale;
+    anyhow::ensure!(args.levels <= 4, "--levels {}: at most 4 (x8 tets per level: 4096 times the input)", args.levels);
+    anyhow::ensure!(args.frames >= 1, "--frames must be at least 1");
+    let specs = if args.methods.is_empty() {
+        registry.for_kind(DataKind::TetMesh).map(|m| registry.parse_spec(m.name, &[])).collect::<Result<Vec<_>>>()?
+    } else {
+        args.methods.iter().map(|m| registry.parse_spec(m, &[]).with_context(|| format!("--method {m}"))).collect::<Result<Vec<_>>>()?
+    };
+    for s in &specs {
+        s.check_renders(DataKind::TetMesh, &args.data)?;
+    }
+    let out = args.out.clone().unwrap_or_else(|| PathBuf::from(format!("results/scale-{}", Path::new(&args.data).file_stem().map_or(args.data.clone(), |s| s.to_string_lossy().into_owned()))));
+    let files = ["scale.json", "scale.csv", "scale.md", "scale_time.png", "scale_time.svg", "scale_memory.png", "scale_memory.svg"];
+    check_out_dir(&out, &files, &["meshes"])?;
+    let settings = scale::ScaleSettings {
+        dataset: args.data.clone(),
+        levels: args.levels,
+        specs: specs.iter().map(|s| (s.canonical(), s.label())).collect(),
+        width: args.size.0,
+        height: args.size.1,
+        frames: args.frames,
+        warmup: args.warmup,
+        reference_max_cells: args.reference_max_cells,
+        peers: args.peers.clone(),
+    };
+    let exe = std::env::current_exe().context("locating this volbench binary")?;
+    std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+    let report = scale::study(&exe, &settings, &out, |what| eprintln!("volbench: scale: {what}"))?;
+    let md = scale::markdown(&report);
+    print!("{md}");
+    let json = report::json_bytes(&report)?;
+    let csv = scale::csv(&report);
+    let (pj, pc, pm) = (out.join("scale.json"), out.join("scale.csv"), out.join("scale.md"));
+    fsio::write_all(&[(pj.as_path(), json.as_slice()), (pc.as_path(), csv.as_bytes()), (pm.as_path(), md.as_bytes())])?;
+    scale::plots(&out, &report)?;
+    println!("written: {}/scale.{{json,csv,md}}, scale_time.{{png,svg}}, scale_memory.{{png,svg}}, meshes/", out.display());
+    let failed = report.rows.iter().filter(|r| r.error.is_some()).count();
+    if failed > 0 {
+        bail!("{failed} of {} scale runs failed (see scale.md)", report.rows.len());
+    }
+    Ok(())
+}
+
+/// Whether `e` comes from writing to a pipe whose reader has closed it.
+fn broken_pipe(e: &anyhow::Error) -> bool {
+    e.chain().any(|c| c.downcast_ref::<std::io::Error>().is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe))
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    // `--count`: the same command again, under valgrind.
+    let count = match &cli.command {
+        Command::Run(a) => a.count,
+        Command::Suite(a) => a.count,
+        _ => false,
+    };
+    if count && cli.validation {
+        eprintln!("volbench: error: --count with --validation: the layer's work would be counted as the method's; validate an uncounted run");
+        return ExitCode::FAILURE;
+    }
+    if count::needs_reexec(count) {
+        return count::reexec().unwrap_or_else(|e| {
+            eprintln!("volbench: error: {e:#}");
+            ExitCode::FAILURE
+        });
+    }
     let registry = registry::builtin();
     let result = match &cli.command {
         Command::Info => info(&cli),
@@ -572,11 +858,17 @@ fn main() -> ExitCode {
         Command::Pareto(a) => pareto(&cli, &registry, a),
         Command::Stress(a) => stress(&cli, &registry, a),
         Command::Suite(a) => suite(&cli, &registry, a),
+        Command::Ab(a) => ab(&registry, a),
+        Command::Scale(a) => scale(&registry, a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
+        // The reader went away (`volbench list | head -1`): what it wanted
+        // it has; stop quietly, as a filter does.
+        Err(e) if broken_pipe(&e) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("volbench: error: {e:#}");
+            use std::io::Write as _;
+            let _ = writeln!(std::io::stderr(), "volbench: error: {e:#}");
             ExitCode::FAILURE
         }
     }

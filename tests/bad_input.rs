@@ -258,8 +258,9 @@ fn vtk_corrupt_headers_counts_and_values() {
         (ASCII.replace("4 1 3 2 4", "4 1 3 3 4"), "repeats a vertex"),
         (ASCII.replace("4 1 3 2 4", "4 1 3 2 x"), "value 'x' in CELLS (value 9 of 10) is not an integer"),
         // Cell types and sizes.
-        (ASCII.replace("10\n10\n", "10\n12\n"), "unsupported cell type 12 (hexahedron)"),
-        (ASCII.replace("10\n10\n", "10\n-3\n"), "unsupported cell type -3"),
+        (ASCII.replace("10\n10\n", "10\n12\n"), "cell 1 is a hexahedron (type 12) but has 4 vertices, not 8"),
+        (ASCII.replace("10\n10\n", "10\n-3\n"), "unknown cell type -3 at cell 1"),
+        (ASCII.replace("10\n10\n", "10\n24\n"), "unsupported cells: 1 cells of type 24 (quadratic tetra)"),
         (ASCII.replace("CELLS 2 10", "CELLS 2 9").replace("4 1 3 2 4", "3 1 3 2"), "has 3 vertices"),
         // Missing or out-of-order sections, empty meshes.
         (ASCII.replace("CELL_TYPES 2\n10\n10\n", ""), "no CELL_TYPES"),
@@ -524,7 +525,7 @@ fn vtk_little_endian_binary_is_recognised() {
     let e = err_of(n, parse_vtk_bytes(n, &binary_vtk_ordered(&UNIT_TET, &[[0, 1, 2, 3]], &[10], &s, false, true)));
     assert!(e.contains("claims 67108864 vertices") && e.contains("the file looks little-endian"), "{e}");
     let e = err_of(n, parse_vtk_bytes(n, &binary_vtk(&UNIT_TET, &[[0, 1, 2, 3]], &[10i32.swap_bytes()], &s)));
-    assert!(e.contains("unsupported cell type 167772160") && e.contains("the file looks little-endian"), "{e}");
+    assert!(e.contains("unknown cell type 167772160") && e.contains("the file looks little-endian"), "{e}");
     // The same mesh big-endian loads, as does the shipped binary file.
     parse_vtk_bytes(n, &binary_vtk(&pts, &[[0, 1, 2, 3]], &[10], &s)).unwrap();
     parse_vtk_bytes("post.vtk", &post_vtk()).unwrap();

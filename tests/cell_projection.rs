@@ -92,7 +92,7 @@ fn work_counts_per_tet() {
     let v = run(&mesh, &tf, "vicp", &small_config(64)).result;
     let b_out = run(&mesh, &tf, "balanced", &small_config(64));
     let b = &b_out.result;
-    let (vs, bs) = (v.stats.expect("pipeline statistics"), b.stats.clone().expect("pipeline statistics"));
+    let (vs, bs) = (v.stats.expect("pipeline statistics"), b.stats.expect("pipeline statistics"));
     // 4 triangles per tet either way.
     assert_eq!(vs.input_primitives, 4 * n);
     assert_eq!(bs.input_primitives, 4 * n);
@@ -167,7 +167,7 @@ fn homogeneous_cube_matches_the_analytic_answer() {
         near: 1.0,
         far: 10.0,
     };
-    let expected_alpha = 1.0 - (-tau as f64).exp();
+    let expected_alpha = 1.0 - (-tau).exp();
     for method in ["vicp", "balanced"] {
         let cfg = RunConfig { fixed_camera: Some(camera), ..small_config(64) };
         let out = run(&mesh, &tf, method, &cfg);
@@ -270,7 +270,8 @@ fn homogeneous_cube_under_perspective_exact_interpolation() {
 #[test]
 fn edge_epsilon_drops_cells_at_pixels_on_edges() {
     assert_eq!(ExitTolerances::default().edge_eps, 0.0);
-    for method in ["vicp"] {
+    {
+        let method = "vicp";
         let (rmse, max) = perspective_cube_error(method, "exact", Some(1e-5));
         assert!(max > 1e-2, "{method:?}: expected dropped cells, max error {max}");
         assert!(rmse < 5e-3 && max < 0.25, "{method:?}: alpha error rmse {rmse} max {max}");

@@ -74,6 +74,14 @@ fn run_writes_the_documented_json() {
     assert_eq!(v["upload"]["floats_per_cell"], 28.0);
     assert_eq!((v["width"].as_u64(), v["height"].as_u64()), (Some(64), Some(48)));
     assert!(png.exists());
+    // The fixed cost: 5 frames with the camera turned away, in which
+    // culling leaves every cell out (nothing is in view).
+    assert_eq!(v["time_ms"]["samples"]["fixed"].as_array().map(Vec::len), Some(5));
+    assert!(v["time_ms"]["fixed_gpu"]["median"].as_f64().is_some_and(|t| t >= 0.0));
+    assert_eq!(v["frame_counts"]["fixed.cells_drawn"]["total"], 0);
+    assert_eq!(v["frame_counts"]["fixed.cull.frustum"]["per_frame"][0], 8750);
+    // The reference view's statistics are still collected.
+    assert!(v["stats"]["fragment_invocations"].as_u64().is_some_and(|n| n > 0));
 }
 
 #[test]

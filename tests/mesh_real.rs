@@ -250,5 +250,11 @@ fn non_tet_cell_type_vtk() {
     b[data + 4 * 7..data + 4 * 8].copy_from_slice(&12i32.to_be_bytes());
     let p = write(tmp.path(), "post.vtk", &b);
     let e = err_text(read_vtk_legacy(&p));
-    assert!(e.contains(&p.display().to_string()) && e.contains("cell type 12") && e.contains("cell 7"), "{e}");
+    // A tetra's 4 vertices cannot make a hexahedron.
+    assert!(e.contains(&p.display().to_string()) && e.contains("cell 7 is a hexahedron (type 12) but has 4 vertices"), "{e}");
+    // A quadratic tetra is refused with its count.
+    b[data + 4 * 7..data + 4 * 8].copy_from_slice(&24i32.to_be_bytes());
+    let p = write(tmp.path(), "post.vtk", &b);
+    let e = err_text(read_vtk_legacy(&p));
+    assert!(e.contains("unsupported cells: 1 cells of type 24 (quadratic tetra)"), "{e}");
 }

@@ -147,7 +147,8 @@ fn the_result_parser_rejects_bad_results_naming_the_problem() {
     let ok = good_result(&scene);
     let r = peers::parse_result(&ok.to_string(), &scene, "r.json").unwrap();
     assert_eq!(r.frame_ms, [3.0, 3.5, 2.5]);
-    let cases: Vec<(&str, Box<dyn Fn(&mut serde_json::Value)>, &str)> = vec![
+    type Case = (&'static str, Box<dyn Fn(&mut serde_json::Value)>, &'static str);
+    let cases: Vec<Case> = vec![
         ("not JSON", Box::new(|v| *v = serde_json::json!("x")), "not a peer result"),
         ("wrong format", Box::new(|v| v["format"] = "other".into()), "format 'other'"),
         ("newer version", Box::new(|v| v["version"] = 2.into()), "version 2"),

@@ -290,7 +290,7 @@ fn the_suite_runs_every_registered_method_on_the_shipped_datasets_of_its_kind() 
     let ctx = context();
     let summary = run_suite(&ctx, &registry, &planned, &settings, dir.path(), |_, _| {}).unwrap();
     assert!(summary.runs.iter().all(|r| r.status == "ok"), "{:?}", summary.runs.iter().map(|r| &r.message).collect::<Vec<_>>());
-    for f in ["summary.json", "summary.csv", "report.md", "montage.png", "plots/frame_time.png", "plots/frame_time.svg", "plots/bytes_per_frame.svg"] {
+    for f in ["summary.json", "summary.csv", "report.md", "montage-post-small.png", "plots/frame_time-post-small.png", "plots/frame_time-post-small.svg", "plots/bytes_per_frame-post-small.svg", "plots/time_error-post-small.png"] {
         assert!(dir.path().join(f).is_file(), "{f}");
     }
     let v: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.path().join("summary.json")).unwrap()).unwrap();

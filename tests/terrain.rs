@@ -8,6 +8,8 @@
 //! and on generated terrains with generated TIN patches, and the elevation
 //! readers behind `--data`.
 
+mod common;
+
 use std::sync::{Arc, Mutex, OnceLock};
 
 use volbench::algo::registry;
@@ -123,14 +125,7 @@ fn elevation_files_load_by_path_and_bad_ones_are_named() {
     assert_eq!(d.summary().counts["samples"], 403 * 344);
     let dir = tempfile::tempdir().unwrap();
     // A small .npy grid by path.
-    let mut h = String::from("{'descr': '<f4', 'fortran_order': False, 'shape': (20, 24), }");
-    while (h.len() + 11) % 64 != 0 {
-        h.push(' ');
-    }
-    h.push('\n');
-    let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
-    bytes.extend((h.len() as u16).to_le_bytes());
-    bytes.extend(h.as_bytes());
+    let mut bytes = common::npy_bytes("{'descr': '<f4', 'fortran_order': False, 'shape': (20, 24), }", &[]);
     for j in 0..20 {
         for i in 0..24 {
             bytes.extend(((i * j) as f32 * 0.5).to_le_bytes());
@@ -143,7 +138,7 @@ fn elevation_files_load_by_path_and_bad_ones_are_named() {
     assert_eq!((m.nx, m.ny), (24, 20));
     // The hybrid model builds on an unseen grid too.
     let model = HybridModel::build(m).unwrap();
-    assert!(model.levels.len() >= 1 && !model.tin_indices.is_empty());
+    assert!(!model.levels.is_empty() && !model.tin_indices.is_empty());
     // Truncated, and an array name that is not there.
     let t = dir.path().join("cut.npy");
     std::fs::write(&t, &bytes[..200]).unwrap();

@@ -345,3 +345,17 @@ fn common_schema(out: &RunOutput) {
     let v = serde_json::to_value(&out.result).unwrap();
     common::assert_matches_schema("run.schema.json", &v, "a tet-raycast result");
 }
+
+/// A view turned away from the mesh (the runner's fixed-cost frames) walks
+/// no cell: every ray's line meets the mesh only behind the eye, and the
+/// walk there would be clipped away (before the box test it walked them).
+#[test]
+fn a_view_turned_away_walks_no_cell() {
+    let mesh = datasets::load_mesh("post-small").unwrap();
+    let tf = preset(&mesh, "post-small");
+    let out = run(&mesh, &tf, "tet-raycast", orbit(&mesh, 30.0).turned_away(), 48);
+    assert_eq!(out.image.covered_pixels(), 0);
+    for name in ["cells_visited", "rays_hit", "walks"] {
+        assert_eq!(count(&out, name), 0, "{name}");
+    }
+}

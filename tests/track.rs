@@ -36,7 +36,11 @@ fn write(dir: &Path, name: &str, v: &Value) -> PathBuf {
 }
 
 fn track(new: &Value, extra: &[&str]) -> (Output, String) {
-    let (dir, base) = baseline();
+    track_pair(&baseline().1, new, extra)
+}
+
+fn track_pair(base: &Value, new: &Value, extra: &[&str]) -> (Output, String) {
+    let (dir, _) = baseline();
     let tmp = tempfile::tempdir_in(dir.path()).unwrap();
     let (b, n) = (write(tmp.path(), "base.json", base), write(tmp.path(), "new.json", new));
     let out = volbench().arg("compare").arg(&b).arg(&n).args(extra).output().unwrap();
@@ -107,7 +111,11 @@ fn a_moved_time_ratio_fails_only_when_times_are_compared() {
     *samples = samples.as_array().unwrap().iter().map(|t| Value::from(t.as_f64().unwrap() * 5.0)).collect();
     let (out, text) = track(&v, &[]);
     assert_eq!(out.status.code(), Some(1), "{text}");
-    assert!(text.contains("| REGRESSION | post-small/balanced ÷ post-small/vicp | frame-time ratio |"), "{text}");
+    // Each run's ratio is to the dataset's first run by name.
+    assert!(text.lines().any(|l| l.starts_with("| REGRESSION | post-small/balanced ÷ post-small/") && l.contains("| frame-time ratio |")), "{text}");
+    // Absolute times only when asked for.
+    assert!(!text.contains("time_ms.frame (same device)"), "{text}");
+    let (_, text) = track(&v, &["--absolute-times"]);
     assert!(text.contains("| REGRESSION | post-small/balanced | time_ms.frame (same device) |"), "{text}");
     let (out, text) = track(&v, &["--no-times"]);
     assert!(out.status.success(), "{text}");
@@ -163,4 +171,48 @@ fn bmf_and_gha_exports_have_the_documented_shape() {
     let (out, text) = track(&baseline().1, &["--bmf", same.to_str().unwrap(), "--gha", same.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(1), "{text}");
     assert!(!same.exists());
+}
+
+/// The baseline with a counted section in every row: `device` and `sort`
+/// instructions over 2 frames.
+fn counted(device: u64, sort: u64) -> Value {
+    let mut v = baseline().1.clone();
+    v["settings"]["counted"] = true.into();
+    for r in v["runs"].as_array_mut().unwrap() {
+        r["result"]["count"] = serde_json::json!({
+            "frames": 2,
+            "phases": { "device": { "total": device, "per_frame": [device / 2, device / 2] },
+                        "sort": { "total": sort, "per_frame": [sort / 2, sort / 2] } },
+            "frame": { "total": device + sort, "per_frame": [(device + sort) / 2, (device + sort) / 2] },
+        });
+    }
+    v
+}
+
+#[test]
+fn instruction_counts_are_compared_per_phase_within_one_percent() {
+    let base = counted(100_000_000, 4_000_000);
+    // 0.5 % more in one phase: within the tolerance.
+    let (out, text) = track_pair(&base, &counted(100_500_000, 4_000_000), &["--no-times"]);
+    assert!(out.status.success(), "{text}");
+    // 5 % more device work: a regression naming the run, the phase and the change.
+    let (out, text) = track_pair(&base, &counted(105_000_000, 4_000_000), &["--no-times"]);
+    assert_eq!(out.status.code(), Some(1), "{text}");
+    assert!(
+        text.contains("| REGRESSION | post-small/balanced | instructions.device (per frame) | 50000000 | 52500000 | +2500000 instructions (+5.00 %), beyond the tolerance (max(1 %, 10000 instructions)) |"),
+        "{text}"
+    );
+    // A counted baseline against an uncounted summary: different settings.
+    let (out, text) = track_pair(&base, &baseline().1, &["--no-times"]);
+    assert_eq!(out.status.code(), Some(1), "{text}");
+    assert!(text.contains("different settings"), "{text}");
+    // --bmf exports the counts as their own measures.
+    let tmp = tempfile::tempdir_in(baseline().0.path()).unwrap();
+    let bmf = tmp.path().join("bmf.json");
+    let (out, text) = track_pair(&base, &base, &["--no-times", "--bmf", bmf.to_str().unwrap()]);
+    assert!(out.status.success(), "{text}");
+    let b: Value = serde_json::from_slice(&std::fs::read(&bmf).unwrap()).unwrap();
+    common::assert_matches_schema("bmf.schema.json", &b, "the BMF export");
+    assert_eq!(b["post-small/balanced"]["instructions-device"]["value"], 50_000_000.0);
+    assert_eq!(b["post-small/balanced"]["instructions-frame"]["value"], 52_000_000.0);
 }

@@ -272,8 +272,8 @@ fn dispatch_beyond_the_group_limit_runs_every_group_once() {
     let grid = rec.dispatch_groups(groups).unwrap();
     queries.end(&rec);
     rec.compute_to_transfer();
-    rec.copy_buffer(&hits, &readback, bytes);
-    rec.copy_buffer(&groups_run, &readback_groups, 4);
+    rec.copy_buffer(&hits, &readback, bytes).unwrap();
+    rec.copy_buffer(&groups_run, &readback_groups, 4).unwrap();
     rec.transfer_to_host();
     rec.submit_and_wait().unwrap();
     assert_no_validation(&ctx);
@@ -1012,4 +1012,29 @@ fn validation_switch_accepts_the_usual_spellings_and_rejects_the_rest() {
     assert!(!ContextDesc::from_vars(&env(&[("VOLBENCH_VALIDATION", "off")])).unwrap().validation);
     let err = ContextDesc::from_vars(&env(&[("VOLBENCH_VALIDATION", "sure")])).unwrap_err().to_string();
     assert!(err.contains("VOLBENCH_VALIDATION") && err.contains("\"sure\""), "{err}");
+}
+
+/// The copy helpers check sizes before recording: a copy larger than either
+/// buffer, or of zero bytes, is an error naming both buffers, and nothing
+/// reaches the device (no validation message).
+#[test]
+fn buffer_copies_check_their_sizes() {
+    let ctx = context();
+    let mut counter = UploadCounter::default();
+    let small = Buffer::new(&ctx, BufferDesc::readback("small readback", 16)).unwrap();
+    let mut big = Buffer::new(&ctx, BufferDesc::upload("big source", 64, raw::BufferUsageFlags::TRANSFER_SRC)).unwrap();
+    big.write(0, &[7u8; 64], &mut counter, UploadClass::Static).unwrap();
+    let rec = CommandRecorder::new(&ctx, "copy sizes").unwrap();
+    rec.begin().unwrap();
+    for bytes in [0, 32, 65] {
+        let e = rec.copy_buffer(&big, &small, bytes).unwrap_err().to_string();
+        assert!(e.contains("big source") && e.contains("small readback") && e.contains(&format!("{bytes} bytes")), "{e}");
+    }
+    let e = rec.copy_to_device(&big, &small, 17, &mut counter, UploadClass::Static).unwrap_err().to_string();
+    assert!(e.contains("more than a buffer holds"), "{e}");
+    rec.copy_buffer(&big, &small, 16).unwrap();
+    rec.transfer_to_host();
+    rec.submit_and_wait().unwrap();
+    assert_eq!(small.read().unwrap()[..16], [7u8; 16]);
+    assert_no_validation(&ctx);
 }

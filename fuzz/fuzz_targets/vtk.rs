@@ -4,18 +4,11 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use volbench::mesh::{vtk::parse_vtk_bytes, TetGeometry};
+use volbench::mesh::vtk::parse_vtk_bytes;
+
+#[path = "common/mesh_check.rs"]
+mod mesh_check;
 
 fuzz_target!(|data: &[u8]| {
-    match parse_vtk_bytes("fuzz.vtk", data) {
-        Ok(mesh) => {
-            assert!(!mesh.tets.is_empty() && mesh.points.len() == mesh.scalars.len());
-            let g = TetGeometry::compute(&mesh);
-            for c in &g.cells {
-                assert!(c.gradient.iter().chain(c.planes.iter().flatten()).all(|v| v.is_finite()), "{c:?}");
-                assert!(c.volume.is_finite() && c.volume >= 0.0);
-            }
-        }
-        Err(e) => assert!(format!("{e:#}").starts_with("fuzz.vtk: "), "{e:#}"),
-    }
+    mesh_check::check("fuzz.vtk: ", parse_vtk_bytes("fuzz.vtk", data));
 });

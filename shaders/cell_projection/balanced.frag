@@ -15,4 +15,15 @@ layout(location = 0) out vec4 out_color;
 
 void main() {
     out_color = segment_color();
+#ifdef EXTRA_WORK
+    // Test-only deliberate cost (VOLBENCH_TEST_EXTRA_FRAGMENT_WORK,
+    // docs/tracking.md): a chain the compiler cannot drop.
+    float w = out_color.a + gl_FragCoord.x;
+    for (int i = 0; i < EXTRA_WORK; i++) {
+        w = w * 1.0000001 + 1e-9;
+    }
+    if (w == -1.0) {
+        out_color.r += 1e-7;
+    }
+#endif
 }

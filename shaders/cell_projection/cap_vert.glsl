@@ -7,6 +7,7 @@
 // affine in the point, so they interpolate exactly. With CAP_PIECES the
 // record's code selects an atfs interval as atfs.vert does.
 #include "common/frame.glsl"
+#include "common/clip.glsl"
 #include "cell_projection/record.glsl"
 
 layout(location = 0) in vec3 in_pos;
@@ -52,5 +53,5 @@ void main() {
     out_base = iv.base;
     out_slope = iv.slope;
 #endif
-    gl_Position = frame.view_proj * vec4(in_pos, 1.0);
+    gl_Position = clip_position(in_pos);
 }

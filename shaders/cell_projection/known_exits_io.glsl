@@ -49,7 +49,7 @@ void emit_vertex(vec3 pos, int k, float c, float sf, float b, uint exits) {
 #endif
     v_rel = pos - frame.eye.xyz;
     v_exits = exits;
-    gl_Position = frame.view_proj * vec4(pos, 1.0);
+    gl_Position = clip_position(pos);
     gl_ClipDistance[0] = eye_plane_distance(gl_Position);
 }
 #else

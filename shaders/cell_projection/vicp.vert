@@ -43,6 +43,6 @@ void main() {
     out_w = w;
     out_g = dot(in_grad, rel);
     out_rel = rel;
-    gl_Position = frame.view_proj * vec4(in_pos, 1.0);
+    gl_Position = clip_position(in_pos);
     gl_ClipDistance[0] = eye_plane_distance(gl_Position);
 }

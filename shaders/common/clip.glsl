@@ -24,6 +24,27 @@ float far_distance(vec3 rel, vec3 dir) {
     return plane_distance(clip_row(2) - clip_row(3), rel, dir);
 }
 
+// Clip-space position of world point `pos`. Under perspective it is taken
+// relative to the eye: view_proj (x, y, w rows) vanishes at the eye exactly,
+// but in f32 view_proj * (eye, 1) leaves rounding of ~1e-7 of the
+// coordinates' magnitude in x, y and w. A vertex at or next to the eye is
+// clipped at the eye plane (eye_plane_distance), w ~ 1e-5 there, and that
+// rounding divided by w moved clipped points by up to half a pixel at
+// 128x128: a face through the eye (seen edge-on, no area) became a sliver
+// that covered pixel centres along its line and added its cell a second
+// time (stress case "eye-on-vertex", single pixels off by 5e-2). From
+// pos - eye the rounding is relative to the distance from the eye and the
+// projection of a point near it keeps its direction. The eye's own depth
+// (row 2) is the one coordinate that does not vanish there.
+vec4 clip_position(vec3 pos) {
+    if (frame.eye.w < 0.5) {
+        return frame.view_proj * vec4(pos, 1.0);
+    }
+    vec4 c = frame.view_proj * vec4(pos - frame.eye.xyz, 0.0);
+    c.z += dot(clip_row(2), vec4(frame.eye.xyz, 1.0));
+    return c;
+}
+
 // The one clip plane of the cell pipelines (gl_ClipDistance[0] of the
 // vertex stage), which draw without near/far clipping (depth clamp): just in
 // front of the eye, at a ten-thousandth of the longest cell edge but at

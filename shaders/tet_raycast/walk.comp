@@ -160,12 +160,27 @@ bool before(float t, uint id, float t2, uint id2) {
     return t < t2 || (t == t2 && id < id2);
 }
 
+// 1 / ray_d per axis for the slab test; axis-parallel rays: a tiny
+// component instead of 0 keeps the slabs finite.
+vec3 inverse_direction() {
+    return 1.0 / mix(ray_d, vec3(1e-20), lessThan(abs(ray_d), vec3(1e-20)));
+}
+
+// The ray line's parameter span [t_near, t_far] through node `n`'s box
+// (t_near > t_far: missed); `inv` from inverse_direction().
+vec2 box_span(Node n, vec3 inv) {
+    vec3 a = (n.lo.xyz - ray_o) * inv;
+    vec3 b = (n.hi.xyz - ray_o) * inv;
+    vec3 tmin3 = min(a, b);
+    vec3 tmax3 = max(a, b);
+    return vec2(max(tmin3.x, max(tmin3.y, tmin3.z)), min(tmax3.x, min(tmax3.y, tmax3.z)));
+}
+
 // The next boundary entry along the ray: the least (t, face) after
 // (t_prev, id_prev) (any when !have_prev) with t >= t_lo. Depth-first
 // through the BVH, nearer child first, pruned by the best entry so far.
 bool next_entry(float t_lo, bool have_prev, float t_prev, uint id_prev, out float t_best, out float s_best, out uint id_best) {
-    // Axis-parallel rays: a tiny component instead of 0 keeps the slabs finite.
-    vec3 inv = 1.0 / mix(ray_d, vec3(1e-20), lessThan(abs(ray_d), vec3(1e-20)));
+    vec3 inv = inverse_direction();
     t_best = INF;
     s_best = 0.0;
     id_best = NONE;
@@ -174,12 +189,9 @@ bool next_entry(float t_lo, bool have_prev, float t_prev, uint id_prev, out floa
     stack[sp++] = 0u;
     while (sp > 0) {
         Node n = nodes[stack[--sp]];
-        vec3 a = (n.lo.xyz - ray_o) * inv;
-        vec3 b = (n.hi.xyz - ray_o) * inv;
-        vec3 tmin3 = min(a, b);
-        vec3 tmax3 = max(a, b);
-        float tn = max(tmin3.x, max(tmin3.y, tmin3.z));
-        float tf = min(tmax3.x, min(tmax3.y, tmax3.z));
+        vec2 span = box_span(n, inv);
+        float tn = span.x;
+        float tf = span.y;
         if (tn > tf || tf < t_lo || tn > t_best) continue;
         uint count = floatBitsToUint(n.hi.w);
         uint first = floatBitsToUint(n.lo.w);
@@ -423,7 +435,14 @@ void main() {
     uint walks = 0u;
     uint searches = 0u;
     bool terminated = false;
-    while (true) {
+    // A ray whose line meets the mesh's box only outside [t_min, t_max]
+    // (behind the eye, beyond the far plane) has nothing to integrate: skip
+    // the search and the walk through cells it would clip away (a view
+    // turned away from the mesh walked every cell behind the eye). The
+    // margin keeps a box ending within f32 rounding of a clip depth.
+    vec2 root = box_span(nodes[0], inverse_direction());
+    bool in_depth = root.y >= t_min - 1e-4 * abs(t_min) && root.x <= t_max + 1e-4 * abs(t_max);
+    while (in_depth) {
         float t_e;
         float s_e;
         uint id_e;

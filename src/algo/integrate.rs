@@ -224,7 +224,8 @@ pub fn psi_quads(table: &[f32], m: usize) -> Vec<[f32; 4]> {
 pub fn psi_quads_cached(m: usize) -> anyhow::Result<Arc<Vec<[f32; 4]>>> {
     use std::collections::HashMap;
     use std::sync::{Mutex, OnceLock};
-    static CACHE: OnceLock<Mutex<HashMap<usize, Arc<Vec<[f32; 4]>>>>> = OnceLock::new();
+    type Tables = Mutex<HashMap<usize, Arc<Vec<[f32; 4]>>>>;
+    static CACHE: OnceLock<Tables> = OnceLock::new();
     let cache = CACHE.get_or_init(Default::default);
     if let Some(t) = cache.lock().ok().and_then(|c| c.get(&m).cloned()) {
         return Ok(t);

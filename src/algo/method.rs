@@ -285,6 +285,14 @@ impl Phases {
         self.0.push((name, ms));
     }
 
+    /// A CPU phase that ends now and took `ms`: recorded as `add` does, and
+    /// under `volbench run --count` the instructions since the previous
+    /// phase boundary are counted as `name` (`vk::valgrind::mark`).
+    pub fn ended(&mut self, name: &'static str, ms: f64) {
+        crate::vk::valgrind::mark(name);
+        self.add(name, ms);
+    }
+
     pub fn count(&mut self, name: &'static str, n: u64) {
         self.1.push((name, n));
     }

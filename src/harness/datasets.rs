@@ -5,7 +5,7 @@
 //! never served for different data under the same name).
 
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use anyhow::{Context as _, Result};
 use serde::Serialize;
@@ -58,13 +58,7 @@ pub const NAMED: &[NamedDataset] = &[
 /// The named meshes (kept for callers that only take meshes).
 pub const NAMED_MESHES: [&str; 3] = ["bluntfin", "oxygenpost", "post-small"];
 
-/// `data/` of this checkout, or `VOLBENCH_DATA` when set.
-pub fn data_dir() -> PathBuf {
-    match std::env::var_os("VOLBENCH_DATA") {
-        Some(d) if !d.is_empty() => PathBuf::from(d),
-        _ => Path::new(env!("CARGO_MANIFEST_DIR")).join("data"),
-    }
-}
+pub use crate::data_dir::data_dir;
 
 /// The loaded data, by kind.
 pub enum DatasetData {
@@ -308,34 +302,65 @@ pub fn terrain_colour_ramp(t: &Heightmap) -> TransferFunction {
     }
 }
 
-/// Whether a path names a volume rather than a mesh: by extension, and for
-/// `.vtk` (both kinds use it) by the DATASET line of its header.
-fn is_volume_path(p: &Path) -> bool {
-    use crate::volume::Format;
-    match crate::volume::format_of_extension(p) {
-        Some(Format::VtkLegacy) => {
-            let head = crate::fsio::check_input(p, "VTK file", crate::fsio::MAX_INPUT_BYTES)
-                .ok()
-                .and_then(|_| std::fs::File::open(p).ok())
-                .map(|f| {
-                    use std::io::Read as _;
-                    let mut buf = Vec::new();
-                    let _ = f.take(1024).read_to_end(&mut buf);
-                    String::from_utf8_lossy(&buf).to_ascii_uppercase()
-                })
-                .unwrap_or_default();
-            head.contains("STRUCTURED_POINTS")
+/// The first 64 KiB of an input (a VTK title line may be 256 bytes and
+/// more; the DATASET line follows it).
+fn head_of(p: &Path) -> Vec<u8> {
+    use std::io::Read as _;
+    let mut buf = Vec::new();
+    if crate::fsio::check_input(p, "dataset", crate::fsio::MAX_INPUT_BYTES).is_ok() {
+        if let Ok(f) = std::fs::File::open(p) {
+            let _ = f.take(1 << 16).read_to_end(&mut buf);
         }
-        Some(_) => true,
-        None => false,
     }
+    buf
+}
+
+/// What kind of data a file holds, by its content: the magic bytes of each
+/// format (and for VTK, the DATASET line or XML type), whatever its name.
+fn kind_by_content(head: &[u8]) -> Option<DataKind> {
+    use crate::volume::Format;
+    let text = String::from_utf8_lossy(head).to_ascii_uppercase();
+    match crate::volume::sniff(head) {
+        Some(Format::Nrrd | Format::Nifti) => return Some(DataKind::Volume),
+        Some(Format::VtkLegacy) => {
+            return Some(if text.contains("STRUCTURED_POINTS") { DataKind::Volume } else { DataKind::TetMesh });
+        }
+        Some(Format::Vti) if text.contains("IMAGEDATA") => return Some(DataKind::Volume),
+        Some(Format::Vti) if text.contains("UNSTRUCTUREDGRID") => return Some(DataKind::TetMesh),
+        Some(Format::Vti) => return None,
+        None => {}
+    }
+    crate::terrain::sniff(head).map(|_| DataKind::Terrain)
+}
+
+/// What kind of data a file's extension says it holds.
+fn kind_by_extension(p: &Path) -> Option<DataKind> {
+    let ext = p.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+    if crate::terrain::format_of_extension(p).is_some() {
+        Some(DataKind::Terrain)
+    } else if ext != "vtk" && crate::volume::format_of_extension(p).is_some() {
+        Some(DataKind::Volume)
+    } else if mesh::datasets::VTK_EXTENSIONS.contains(&ext.as_str()) || mesh::datasets::PLOT3D_EXTENSIONS.contains(&ext.as_str()) {
+        Some(DataKind::TetMesh)
+    } else {
+        None
+    }
+}
+
+/// Every format a path may hold, by kind (for the error when none fits).
+pub fn supported_formats() -> String {
+    format!(
+        "tet meshes: .vtk (VTK legacy UNSTRUCTURED_GRID of tetrahedra), PLOT3D grid/solution pairs (.bin, .xyz, .x, .q); \
+         volumes: {}; terrain: .npy, .npz (NumPy), .tif/.tiff (GeoTIFF)",
+        crate::volume::SUPPORTED_FORMATS
+    )
 }
 
 /// Load a dataset by shipped name or path.
 pub fn load(spec: &str) -> Result<Dataset> {
     let dir = data_dir();
     let named = |name: &str, mesh: Result<TetMesh>, source: String| -> Result<Dataset> {
-        let mut mesh = mesh.with_context(|| format!("loading dataset '{name}'"))?;
+        let mut mesh = mesh.with_context(|| format!("loading dataset '{name}' ({})", crate::data_dir::search_note()))?;
         // Results name a shipped dataset the way the command line does.
         mesh.name = name.to_string();
         Ok(Dataset::from_mesh(mesh, true, source))
@@ -345,20 +370,30 @@ pub fn load(spec: &str) -> Result<Dataset> {
         "oxygenpost" => named(spec, mesh::datasets::load_oxygenpost(&dir), "data/plot3d/post{xyz,q}.bin".into()),
         "post-small" => named(spec, mesh::datasets::load_post_small(&dir), "data/unstructured/post_tets_vtkdata.vtk".into()),
         name if crate::terrain::datasets::NAMES.contains(&name) => {
-            let t = crate::terrain::datasets::load_named(name, &dir).with_context(|| format!("loading dataset '{name}'"))?;
+            let t = crate::terrain::datasets::load_named(name, &dir)
+                .with_context(|| format!("loading dataset '{name}' ({})", crate::data_dir::search_note()))?;
             let file = crate::terrain::datasets::file_of(name).unwrap_or_default();
             Ok(Dataset::from_heightmap(t, true, format!("data/{file}")))
         }
         name if crate::volume::datasets::NAMES.contains(&name) => {
-            let mut v = crate::volume::datasets::load_named(name, &dir).with_context(|| format!("loading dataset '{name}'"))?;
+            let mut v = crate::volume::datasets::load_named(name, &dir)
+                .with_context(|| format!("loading dataset '{name}' ({})", crate::data_dir::search_note()))?;
             v.name = name.to_string();
             let file = crate::volume::datasets::file_of(name).unwrap_or_default();
             Ok(Dataset::from_volume(v, true, format!("data/{file}")))
         }
         path => {
-            // `file.npz#name` picks an array of an archive.
+            // `file.npz#name` picks an array of an archive; `mesh.vtu#name` a point array.
             if let Some((file, array)) = path.rsplit_once('#') {
                 let p = Path::new(file);
+                let ext = p.extension().map(|e| e.to_string_lossy().to_ascii_lowercase());
+                if ext.is_some_and(|e| mesh::datasets::VTK_EXTENSIONS.contains(&e.as_str()))
+                    && std::fs::symlink_metadata(path).is_err()
+                    && kind_by_content(&head_of(p)) != Some(DataKind::Volume)
+                {
+                    let mesh = mesh::datasets::load_path_array(p, Some(array)).with_context(|| format!("loading dataset '{path}'"))?;
+                    return Ok(Dataset::from_mesh(mesh, false, path.to_string()));
+                }
                 if crate::terrain::format_of_extension(p).is_some() && std::fs::symlink_metadata(path).is_err() {
                     let t = crate::terrain::load_heightmap(p, Some(array)).with_context(|| format!("loading dataset '{path}'"))?;
                     return Ok(Dataset::from_heightmap(t, false, path.to_string()));
@@ -371,16 +406,36 @@ pub fn load(spec: &str) -> Result<Dataset> {
                     NAMED.iter().map(|d| d.name).collect::<Vec<_>>().join(", ")
                 );
             }
-            if crate::terrain::format_of_extension(p).is_some() {
-                let t = crate::terrain::load_heightmap(p, None).with_context(|| format!("loading dataset '{path}'"))?;
-                return Ok(Dataset::from_heightmap(t, false, path.to_string()));
+            // The content decides where it is recognised; the extension
+            // only where it is not (a PLOT3D file has no magic).
+            let head = head_of(p);
+            let by_content = kind_by_content(&head);
+            match by_content.or_else(|| kind_by_extension(p)) {
+                Some(DataKind::Terrain) => {
+                    let t = crate::terrain::load_heightmap(p, None).with_context(|| format!("loading dataset '{path}'"))?;
+                    Ok(Dataset::from_heightmap(t, false, path.to_string()))
+                }
+                Some(DataKind::Volume) => {
+                    let v = crate::volume::load_volume(p).with_context(|| format!("loading dataset '{path}'"))?;
+                    Ok(Dataset::from_volume(v, false, path.to_string()))
+                }
+                Some(DataKind::TetMesh) => {
+                    // A known mesh extension picks its reader; otherwise the content does.
+                    let mesh = if kind_by_extension(p) == Some(DataKind::TetMesh) {
+                        mesh::datasets::load_path(p)
+                    } else if crate::volume::sniff(&head) == Some(crate::volume::Format::Vti) {
+                        mesh::vtu::read_vtu(p, None)
+                    } else {
+                        mesh::vtk::read_vtk_legacy(p)
+                    };
+                    let mesh = mesh.with_context(|| format!("loading dataset '{path}'"))?;
+                    Ok(Dataset::from_mesh(mesh, false, path.to_string()))
+                }
+                None => anyhow::bail!(
+                    "dataset '{path}': neither its content nor its extension is a format volbench reads; {}",
+                    supported_formats()
+                ),
             }
-            if is_volume_path(p) {
-                let v = crate::volume::load_volume(p).with_context(|| format!("loading dataset '{path}'"))?;
-                return Ok(Dataset::from_volume(v, false, path.to_string()));
-            }
-            let mesh = mesh::datasets::load_path(p).with_context(|| format!("loading dataset '{path}'"))?;
-            Ok(Dataset::from_mesh(mesh, false, path.to_string()))
         }
     }
 }

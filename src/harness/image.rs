@@ -33,6 +33,13 @@ impl RgbaImage {
 
     /// RMSE, max |difference| and PSNR over RGBA with values clamped to [0, 1].
     pub fn compare(&self, other: &RgbaImage) -> Result<ImageError> {
+        self.compare_excluding(other, &[])
+    }
+
+    /// [`Self::compare`] with the pixels marked in `exclude` (indexed like
+    /// `pixels`; shorter: the rest count) left out of the max |difference|
+    /// only: RMSE and PSNR still cover every pixel.
+    pub fn compare_excluding(&self, other: &RgbaImage, exclude: &[bool]) -> Result<ImageError> {
         anyhow::ensure!(
             self.width == other.width && self.height == other.height,
             "cannot compare a {}x{} image with a {}x{} one",
@@ -42,11 +49,14 @@ impl RgbaImage {
             other.height
         );
         let (mut sum, mut max) = (0f64, 0f64);
-        for (a, b) in self.pixels.iter().zip(&other.pixels) {
+        for (i, (a, b)) in self.pixels.iter().zip(&other.pixels).enumerate() {
+            let counted = !exclude.get(i).copied().unwrap_or(false);
             for c in 0..4 {
                 let d = (a[c].clamp(0.0, 1.0) as f64 - b[c].clamp(0.0, 1.0) as f64).abs();
                 sum += d * d;
-                max = max.max(d);
+                if counted {
+                    max = max.max(d);
+                }
             }
         }
         let n = (self.pixels.len() * 4).max(1) as f64;
@@ -112,6 +122,16 @@ fn encode_rgb8_png(out: &mut dyn std::io::Write, width: u32, height: u32, rgb: &
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn excluded_pixels_leave_the_max_but_not_the_rmse() {
+        let a = RgbaImage { width: 2, height: 1, pixels: vec![[0.0; 4], [0.0; 4]] };
+        let b = RgbaImage { width: 2, height: 1, pixels: vec![[0.1, 0.0, 0.0, 0.0], [0.5, 0.0, 0.0, 0.0]] };
+        let all = a.compare(&b).unwrap();
+        let kept = a.compare_excluding(&b, &[false, true]).unwrap();
+        assert!((all.max_abs - 0.5).abs() < 1e-6 && (kept.max_abs - 0.1).abs() < 1e-6);
+        assert_eq!(all.rmse, kept.rmse);
+    }
 
     #[test]
     fn compare_counts_all_channels() {

@@ -3,6 +3,8 @@
 //! are written. It drives `algo` through the registry (it never names a
 //! method) and never calls Vulkan directly beyond creating the context.
 
+pub mod ab;
+pub mod count;
 pub mod datasets;
 pub mod image;
 pub mod pareto;
@@ -11,6 +13,7 @@ pub mod plots;
 pub mod reference_cache;
 pub mod report;
 pub mod run;
+pub mod scale;
 pub mod stats;
 pub mod stress;
 pub mod suite;

@@ -83,13 +83,7 @@ impl ParetoPoint {
 /// Mark the points no other point dominates (faster or equal and more
 /// accurate or equal, strictly better in one).
 pub fn mark_front(points: &mut [ParetoPoint]) {
-    let snapshot: Vec<(f64, f64, bool)> = points.iter().map(|p| (p.frame_ms, p.rmse, p.ok())).collect();
-    for (i, p) in points.iter_mut().enumerate() {
-        p.on_front = p.ok()
-            && !snapshot.iter().enumerate().any(|(j, &(t, e, ok))| {
-                ok && j != i && t <= snapshot[i].0 && e <= snapshot[i].1 && (t < snapshot[i].0 || e < snapshot[i].1)
-            });
-    }
+    super::plots::mark_front(points, |p| p.ok().then_some((p.frame_ms, p.rmse)), |p, on| p.on_front = on);
 }
 
 pub fn write_csv(path: &Path, points: &[ParetoPoint]) -> Result<()> {
@@ -142,43 +136,6 @@ pub fn markdown(mesh: &str, points: &[ParetoPoint]) -> String {
     s
 }
 
-const FONT_PATHS: [&str; 2] =
-    ["/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf", "/usr/share/fonts/dejavu/DejaVuSans.ttf"];
-
-/// Register a TrueType font for plot labels (plotters is built with
-/// `ab_glyph`, which has no system font lookup; criterion's plots need it
-/// too). Idempotent.
-pub fn register_font() -> Result<()> {
-    use std::sync::OnceLock;
-    static REGISTERED: OnceLock<bool> = OnceLock::new();
-    let ok = *REGISTERED.get_or_init(|| {
-        FONT_PATHS.iter().any(|p| {
-            std::fs::read(p)
-                .ok()
-                .map(|bytes| {
-                    let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
-                    plotters::style::register_font("sans-serif", plotters::style::FontStyle::Normal, bytes).is_ok()
-                })
-                .unwrap_or(false)
-        })
-    });
-    anyhow::ensure!(ok, "no font for plot labels: install fonts-dejavu-core (scripts/setup.sh does), looked in {FONT_PATHS:?}");
-    Ok(())
-}
-
-/// A fixed colour per integrator name (any method family's), grey otherwise.
-fn integrator_colour(name: &str) -> plotters::style::RGBColor {
-    use plotters::style::RGBColor;
-    match name {
-        "average" => RGBColor(200, 60, 60),
-        "preint" => RGBColor(60, 140, 60),
-        "ppi" => RGBColor(40, 90, 200),
-        "linear-exact" => RGBColor(150, 60, 180),
-        "point" => RGBColor(230, 140, 20),
-        _ => RGBColor(110, 110, 110),
-    }
-}
-
 /// The sweep as JSON: what was swept (dataset, image size, device) and every
 /// row, failed ones with their error and no numbers (null).
 pub fn write_json(path: &Path, dataset: &str, width: u32, height: u32, device: &str, points: &[ParetoPoint]) -> Result<()> {
@@ -188,103 +145,29 @@ pub fn write_json(path: &Path, dataset: &str, width: u32, height: u32, device: &
     crate::fsio::write_output(path, &bytes)
 }
 
-/// Frame time (x) against RMSE (y), both logarithmic; the front is joined
-/// by a line and its points labelled.
+/// Frame time (x) against RMSE (y), both logarithmic, coloured by
+/// integrator, one marker per method; the front joined and labelled.
 pub fn plot_png(path: &Path, title: &str, points: &[ParetoPoint]) -> Result<()> {
-    use plotters::prelude::*;
-    register_font()?;
-    let points: Vec<&ParetoPoint> = points.iter().filter(|p| p.ok()).collect();
-    anyhow::ensure!(!points.is_empty(), "nothing to plot: every run of the sweep failed");
-    let mut methods: Vec<&str> = points.iter().map(|p| p.method.as_str()).collect();
-    methods.dedup();
+    use super::plots::{Marker, ScatterPoint};
+    let ok: Vec<&ParetoPoint> = points.iter().filter(|p| p.ok()).collect();
+    anyhow::ensure!(!ok.is_empty(), "nothing to plot: every run of the sweep failed");
+    let mut methods: Vec<&str> = ok.iter().map(|p| p.method.as_str()).collect();
     methods.sort();
     methods.dedup();
-    let (mut t0, mut t1, mut e0, mut e1) = (f64::MAX, 0f64, f64::MAX, 0f64);
-    for p in &points {
-        t0 = t0.min(p.frame_ms);
-        t1 = t1.max(p.frame_ms);
-        e0 = e0.min(p.rmse.max(1e-9));
-        e1 = e1.max(p.rmse.max(1e-9));
-    }
-    // Explicit ticks at 1, 2, 5 x 10^k: a sweep often spans less than a
-    // decade, where the log axis would otherwise show no labels at all.
-    let ticks = |lo: f64, hi: f64| -> Vec<f64> {
-        let mut v = Vec::new();
-        let mut decade = 10f64.powf(lo.log10().floor());
-        while decade <= hi {
-            for m in [1.0, 2.0, 3.0, 5.0, 7.0] {
-                let t = m * decade;
-                if t >= lo && t <= hi {
-                    v.push(t);
-                }
-            }
-            decade *= 10.0;
-        }
-        v
-    };
-    let (x_range, y_range) = ((t0 / 1.3, t1 * 1.3), (e0 / 1.5, e1 * 1.5));
-    let (w, h) = (1100u32, 750u32);
-    let mut rgb = vec![0u8; (w * h * 3) as usize];
-    let root = BitMapBackend::with_buffer(&mut rgb, (w, h)).into_drawing_area();
-    let draw = || -> Result<(), Box<dyn std::error::Error>> {
-        root.fill(&WHITE)?;
-        let mut chart = ChartBuilder::on(&root)
-            .caption(title, ("sans-serif", 24))
-            .margin(20)
-            .x_label_area_size(50)
-            .y_label_area_size(80)
-            .build_cartesian_2d(
-                (x_range.0..x_range.1).log_scale().with_key_points(ticks(x_range.0, x_range.1)),
-                (y_range.0..y_range.1).log_scale().with_key_points(ticks(y_range.0, y_range.1)),
-            )?;
-        chart
-            .configure_mesh()
-            .x_desc("median frame time (ms)")
-            .y_desc("RMSE against the f64 reference")
-            .label_style(("sans-serif", 15))
-            .axis_desc_style(("sans-serif", 18))
-            .x_label_formatter(&|v| format!("{v:.0}"))
-            .y_label_formatter(&|v| format!("{v:.1e}"))
-            .draw()?;
-        let colour = |p: &ParetoPoint| integrator_colour(&p.integrator);
-        for p in &points {
-            let c = colour(p);
-            // Each method its own marker: filled, ring, then larger ring.
-            let m = methods.iter().position(|&n| n == p.method).unwrap_or(0);
-            let style = if m % 2 == 0 { c.filled() } else { c.stroke_width(2) };
-            chart.draw_series(std::iter::once(Circle::new((p.frame_ms, p.rmse.max(1e-9)), 5, style)))?;
-        }
-        let mut front: Vec<&ParetoPoint> = points.iter().copied().filter(|p| p.on_front).collect();
-        front.sort_by(|a, b| a.frame_ms.total_cmp(&b.frame_ms));
-        chart.draw_series(LineSeries::new(front.iter().map(|p| (p.frame_ms, p.rmse.max(1e-9))), BLACK.stroke_width(1)))?;
-        // Labels stacked upward from each front point so neighbours don't overlap.
-        for (i, p) in front.iter().enumerate() {
-            let anchor = chart.backend_coord(&(p.frame_ms, p.rmse.max(1e-9)));
-            root.draw(&Text::new(
-                p.label.clone(),
-                (anchor.0 + 8, anchor.1 - 16 * (i as i32 % 3) - 4),
-                ("sans-serif", 13).into_font().color(&BLACK),
-            ))?;
-        }
-        // Legend: colours are integrators (those in the sweep); markers are methods.
-        let mut integrators: Vec<&str> = points.iter().map(|p| p.integrator.as_str()).collect();
-        integrators.sort();
-        integrators.dedup();
-        for (i, name) in integrators.iter().enumerate() {
-            let y = 560 + 22 * i as i32;
-            root.draw(&Circle::new((900, y), 5, integrator_colour(name).filled()))?;
-            root.draw(&Text::new(if name.is_empty() { "-" } else { *name }, (912, y - 8), ("sans-serif", 15).into_font()))?;
-        }
-        let markers: Vec<String> =
-            methods.iter().enumerate().map(|(i, m)| format!("{}: {m}", if i % 2 == 0 { "filled" } else { "ring" })).collect();
-        root.draw(&Text::new(markers.join(", "), (700, 650), ("sans-serif", 15).into_font()))?;
-        root.draw(&Text::new("line: Pareto front", (850, 670), ("sans-serif", 15).into_font()))?;
-        root.present()?;
-        Ok(())
-    };
-    draw().map_err(|e| anyhow::anyhow!("drawing {}: {e}", path.display()))?;
-    drop(root);
-    super::image::write_rgb8_png(path, w, h, &rgb)
+    let marker = |m: &str| if methods.iter().position(|&n| n == m).unwrap_or(0) % 2 == 0 { Marker::Filled } else { Marker::Ring };
+    let scatter: Vec<ScatterPoint> = ok
+        .iter()
+        .map(|p| ScatterPoint {
+            label: p.label.clone(),
+            series: if p.integrator.is_empty() { "-".into() } else { p.integrator.clone() },
+            marker: marker(&p.method),
+            time_ms: p.frame_ms,
+            error: p.rmse,
+            on_front: p.on_front,
+        })
+        .collect();
+    let note: Vec<String> = methods.iter().map(|m| format!("{}: {m}", if marker(m) == Marker::Filled { "filled" } else { "ring" })).collect();
+    super::plots::time_error_scatter(path, title, "RMSE against the f64 reference", &format!("colours: integrators\n{}", note.join("\n")), &scatter)
 }
 
 #[cfg(test)]

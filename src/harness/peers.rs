@@ -34,6 +34,7 @@
 //! what the error against the f64 reference measures.
 
 use std::io::Read as _;
+use std::os::unix::process::CommandExt as _;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
@@ -324,38 +325,7 @@ pub fn scene(
 pub fn write_dataset(dataset: &Dataset, path: &Path) -> Result<PeerDataset> {
     let format = match &dataset.data {
         DatasetData::TetMesh { mesh, .. } => {
-            fsio::write_output_with(path, |w| {
-                write!(
-                    w,
-                    "# vtk DataFile Version 3.0\nvolbench peer copy of {}\nBINARY\nDATASET UNSTRUCTURED_GRID\nPOINTS {} double\n",
-                    dataset.name,
-                    mesh.points.len()
-                )?;
-                for p in &mesh.points {
-                    for c in p {
-                        w.write_all(&c.to_be_bytes())?;
-                    }
-                }
-                let size = mesh.tets.len().checked_mul(5).context("too many tets for a VTK file")?;
-                write!(w, "\nCELLS {} {size}\n", mesh.tets.len())?;
-                for t in &mesh.tets {
-                    w.write_all(&4i32.to_be_bytes())?;
-                    for &i in t {
-                        let i = i32::try_from(i).context("a point index beyond VTK's 32-bit legacy format")?;
-                        w.write_all(&i.to_be_bytes())?;
-                    }
-                }
-                write!(w, "\nCELL_TYPES {}\n", mesh.tets.len())?;
-                for _ in &mesh.tets {
-                    w.write_all(&10i32.to_be_bytes())?;
-                }
-                write!(w, "\nPOINT_DATA {}\nSCALARS scalars double 1\nLOOKUP_TABLE default\n", mesh.scalars.len())?;
-                for s in &mesh.scalars {
-                    w.write_all(&s.to_be_bytes())?;
-                }
-                w.write_all(b"\n")?;
-                Ok(())
-            })?;
+            write_tet_mesh(mesh, &format!("volbench peer copy of {}", dataset.name), path)?;
             "vtk-legacy-unstructured-grid"
         }
         DatasetData::Volume(v) => {
@@ -386,6 +356,43 @@ pub fn write_dataset(dataset: &Dataset, path: &Path) -> Result<PeerDataset> {
         file: path.to_string_lossy().into_owned(),
         format: format.into(),
         digest: dataset.digest.clone(),
+    })
+}
+
+/// `mesh` as a binary legacy VTK unstructured grid of tetrahedra with f64
+/// point scalars, titled `title` (what every VTK reader and volbench read).
+pub fn write_tet_mesh(mesh: &crate::mesh::TetMesh, title: &str, path: &Path) -> Result<()> {
+    fsio::write_output_with(path, |w| {
+        write!(
+            w,
+            "# vtk DataFile Version 3.0\n{}\nBINARY\nDATASET UNSTRUCTURED_GRID\nPOINTS {} double\n",
+            title,
+            mesh.points.len()
+        )?;
+        for p in &mesh.points {
+            for c in p {
+                w.write_all(&c.to_be_bytes())?;
+            }
+        }
+        let size = mesh.tets.len().checked_mul(5).context("too many tets for a VTK file")?;
+        write!(w, "\nCELLS {} {size}\n", mesh.tets.len())?;
+        for t in &mesh.tets {
+            w.write_all(&4i32.to_be_bytes())?;
+            for &i in t {
+                let i = i32::try_from(i).context("a point index beyond VTK's 32-bit legacy format")?;
+                w.write_all(&i.to_be_bytes())?;
+            }
+        }
+        write!(w, "\nCELL_TYPES {}\n", mesh.tets.len())?;
+        for _ in &mesh.tets {
+            w.write_all(&10i32.to_be_bytes())?;
+        }
+        write!(w, "\nPOINT_DATA {}\nSCALARS scalars double 1\nLOOKUP_TABLE default\n", mesh.scalars.len())?;
+        for s in &mesh.scalars {
+            w.write_all(&s.to_be_bytes())?;
+        }
+        w.write_all(b"\n")?;
+        Ok(())
     })
 }
 
@@ -490,6 +497,9 @@ pub const DEFAULT_TIMEOUT_S: u64 = 900;
 
 fn timeout() -> Result<Duration> {
     match std::env::var("VOLBENCH_PEER_TIMEOUT_S") {
+        Err(std::env::VarError::NotUnicode(v)) => {
+            bail!("VOLBENCH_PEER_TIMEOUT_S={}: not UTF-8; expected a positive number of seconds", v.to_string_lossy())
+        }
         Ok(v) if !v.is_empty() => {
             let s: u64 =
                 v.parse().ok().filter(|&s| s > 0).with_context(|| format!("VOLBENCH_PEER_TIMEOUT_S={v}: expected a positive number of seconds"))?;
@@ -499,11 +509,20 @@ fn timeout() -> Result<Duration> {
     }
 }
 
+/// Send SIGKILL to process group `group` (the peer and all it started).
+/// Through kill(1): signals need `unsafe` outside `src/vk/`. A group
+/// already gone is not an error.
+fn kill_group(group: u32) {
+    let _ = Command::new("kill").arg("-KILL").arg("--").arg(format!("-{group}")).stderr(Stdio::null()).status();
+}
+
 /// Run one peer renderer on a scene written to `scene_path`; returns the
 /// checked result and the image.
 pub fn run_peer(peer: &LocatedPeer, scene: &PeerScene, scene_path: &Path) -> Result<(PeerResult, RgbaImage)> {
     fsio::write_output(scene_path, &serde_json::to_vec_pretty(scene)?)?;
     let limit = timeout()?;
+    // The peer runs in a process group of its own, so that what it starts
+    // (and what keeps its stderr open) is stopped with it.
     let mut child = Command::new(&peer.python)
         .arg(&peer.script)
         .arg("--scene")
@@ -512,16 +531,19 @@ pub fn run_peer(peer: &LocatedPeer, scene: &PeerScene, scene_path: &Path) -> Res
         .stdin(Stdio::null())
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
+        .process_group(0)
         .spawn()
         .with_context(|| format!("starting {} {}", peer.python.display(), peer.script.display()))?;
+    let group = child.id();
     let mut stderr = child.stderr.take();
     // Drain stderr on a thread so a chatty peer cannot block on a full pipe.
-    let reader = std::thread::spawn(move || {
+    let (sent, received) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
         let mut s = String::new();
         if let Some(e) = stderr.as_mut() {
             let _ = e.take(1 << 20).read_to_string(&mut s);
         }
-        s
+        let _ = sent.send(s);
     });
     let start = Instant::now();
     let status = loop {
@@ -529,13 +551,19 @@ pub fn run_peer(peer: &LocatedPeer, scene: &PeerScene, scene_path: &Path) -> Res
             break status;
         }
         if start.elapsed() > limit {
-            let _ = child.kill();
+            kill_group(group);
             let _ = child.wait();
             bail!("{} {}: stopped after {} s (VOLBENCH_PEER_TIMEOUT_S)", peer.peer.name, scene.renderer, limit.as_secs());
         }
         std::thread::sleep(Duration::from_millis(20));
     };
-    let err = reader.join().unwrap_or_default();
+    // Whatever the peer left running belongs to no one: stop it, so that
+    // stderr closes; the wait for it is bounded by the time-out all the same.
+    kill_group(group);
+    let left = limit.saturating_sub(start.elapsed()).max(Duration::from_secs(1));
+    let Ok(err) = received.recv_timeout(left) else {
+        bail!("{} {}: its standard error stayed open past {} s (VOLBENCH_PEER_TIMEOUT_S)", peer.peer.name, scene.renderer, limit.as_secs());
+    };
     // The last lines say why (VTK's own warnings come first).
     let tail: Vec<&str> = err.lines().filter(|l| !l.trim().is_empty()).collect();
     let tail = tail[tail.len().saturating_sub(3)..].join(" / ");

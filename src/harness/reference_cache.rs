@@ -66,6 +66,12 @@ fn pixel_bytes(image: &RgbaImage) -> Vec<u8> {
     image.pixels.iter().flat_map(|p| p.iter().flat_map(|c| c.to_le_bytes())).collect()
 }
 
+/// The size of the entry `encode` writes for `key` at `width`x`height`:
+/// the read limit, so that every entry written can be read back.
+fn entry_bytes(key: &str, width: u32, height: u32) -> u64 {
+    (MAGIC.len() + 12 + key.len() + 32) as u64 + 16 * width as u64 * height as u64
+}
+
 /// Layout: MAGIC, u32 width, u32 height, u32 key length, key, 32-byte
 /// checksum, RGBA f32 pixels (little-endian).
 fn encode(key: &str, image: &RgbaImage) -> Vec<u8> {
@@ -109,7 +115,13 @@ fn decode(bytes: &[u8], key: &str, width: u32, height: u32) -> Result<RgbaImage,
         return Err("checksum mismatch (corrupted)".into());
     }
     let f = |c: &[u8]| f32::from_le_bytes([c[0], c[1], c[2], c[3]]);
-    let pixels = pixels.chunks_exact(16).map(|c| [f(&c[0..4]), f(&c[4..8]), f(&c[8..12]), f(&c[12..16])]).collect();
+    let pixels: Vec<[f32; 4]> = pixels.chunks_exact(16).map(|c| [f(&c[0..4]), f(&c[4..8]), f(&c[8..12]), f(&c[12..16])]).collect();
+    // A checksum proves the bytes were not damaged, not that whoever wrote
+    // them wrote an image: every channel must be finite and in [0, 1]
+    // (with room for rounding).
+    if let Some(i) = pixels.iter().position(|p| p.iter().any(|c| !(-1e-3..=1.0 + 1e-3).contains(c))) {
+        return Err(format!("pixel {i} is {:?}, not a colour in [0, 1] (forged or foreign)", pixels[i]));
+    }
     Ok(RgbaImage { width, height, pixels })
 }
 
@@ -131,17 +143,26 @@ pub fn reference_image(dataset: &Dataset, tf: &TransferFunction, camera: &Camera
         tf.name
     );
     let mut recomputed = None;
-    if std::fs::symlink_metadata(&path).is_ok() {
-        // Something is there: use it only if it is a valid entry for this key.
-        let limit = 16 * (width as u64 * height as u64) + (1 << 20);
-        let why = match crate::fsio::read_input(&path, "reference cache entry", limit) {
-            Ok(bytes) => match decode(&bytes, &key, width, height) {
-                Ok(image) => return Ok(Reference { image, what, compute_ms: 0.0, cached: true, recomputed: None }),
-                Err(why) => why,
-            },
-            Err(e) => format!("{e:#}"),
+    if let Ok(meta) = std::fs::symlink_metadata(&path) {
+        // Something is there: use it only if it is a regular file (never a
+        // link: the cache reads and replaces its own entries only) holding
+        // a valid entry for this key. An unusable one is removed, so that
+        // the new entry replaces it and not what a link points to.
+        let why = if meta.file_type().is_symlink() {
+            "a symbolic link, not an entry the cache wrote".to_string()
+        } else {
+            match crate::fsio::read_input(&path, "reference cache entry", entry_bytes(&key, width, height)) {
+                Ok(bytes) => match decode(&bytes, &key, width, height) {
+                    Ok(image) => return Ok(Reference { image, what, compute_ms: 0.0, cached: true, recomputed: None }),
+                    Err(why) => why,
+                },
+                Err(e) => format!("{e:#}"),
+            }
         };
         eprintln!("volbench: reference cache entry {} not used: {why}; recomputing", path.display());
+        if !meta.is_dir() {
+            let _ = std::fs::remove_file(&path);
+        }
         recomputed = Some(why);
     }
     let start = Instant::now();
@@ -179,5 +200,19 @@ mod tests {
         assert!(decode(&bad, "key A", 2, 1).unwrap_err().contains("checksum"));
         assert!(decode(b"garbage", "key A", 2, 1).is_err());
         assert!(decode(&bytes[..bytes.len() - 1], "key A", 2, 1).is_err());
+    }
+
+    #[test]
+    fn forged_pixels_are_refused_and_the_read_limit_fits_what_is_written() {
+        let key = "k".repeat(3 << 20);
+        let img = RgbaImage { width: 2, height: 1, pixels: vec![[0.5; 4], [f32::NAN, 0.0, 0.0, 1.0]] };
+        let bytes = encode(&key, &img);
+        assert!(decode(&bytes, &key, 2, 1).unwrap_err().contains("pixel 1"));
+        let img = RgbaImage { width: 2, height: 1, pixels: vec![[0.5; 4], [1.0, 0.0, 0.0, 1.0]] };
+        assert_eq!(encode(&key, &img).len() as u64, entry_bytes(&key, 2, 1));
+        for px in [[-0.5, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 2.0], [0.0, f32::INFINITY, 0.0, 0.0]] {
+            let img = RgbaImage { width: 1, height: 1, pixels: vec![px] };
+            assert!(decode(&encode("a", &img), "a", 1, 1).is_err(), "{px:?}");
+        }
     }
 }

@@ -69,8 +69,7 @@ pub fn comparison_table(rows: &[ComparisonRow], registry: &Registry) -> String {
         }
         // The method's own CPU phases (sort, pack, ...) together; not the
         // device passes it times itself (`*_gpu`, part of `gpu`).
-        let runner = ["frame", "gpu", "upload", "record", "submit", "wait"];
-        let cpu = |k: &str| !runner.contains(&k) && !k.ends_with(crate::algo::method::DEVICE_PHASE_SUFFIX);
+        let cpu = |k: &str| !super::run::RUNNER_PHASES.contains(&k) && !k.ends_with(crate::algo::method::DEVICE_PHASE_SUFFIX);
         // (+ 0.0: an empty float sum is -0.0.)
         let prep: f64 = t.phases.iter().filter(|(k, _)| cpu(k)).map(|(_, v)| v.median).sum::<f64>() + 0.0;
         let frame = t.phase("frame");

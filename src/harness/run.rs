@@ -4,7 +4,7 @@
 //!
 //! The runner owns what every method shares: the target image, the command
 //! recorder, timestamp and statistics queries, warm-up, CPU/device overlap,
-//! timing, readback and the result record (`schema/result.schema.json`). A
+//! timing, readback and the result record (`results/schema/run.schema.json`). A
 //! method (`algo::method::RenderMethod`) owns its passes and per-frame data.
 //!
 //! Per frame, host wall time is split into the method's own CPU phases
@@ -13,7 +13,11 @@
 //! of frame N+1 runs while the device draws frame N (`overlap`), and `frame`
 //! is then the interval between frame completions; with `overlap` off each
 //! frame's phases run strictly one after another. Bytes come from the
-//! counters in `vk::upload`, read before and after each frame.
+//! counters in `vk::upload`, read before and after each frame. Pipeline
+//! statistics are collected in the reference-view frame only (the one
+//! reported). After the timed frames, the
+//! same cameras turned away from the dataset measure the frame's fixed cost
+//! (`fixed`, `fixed_gpu`; docs/frame-cost.md).
 
 use std::collections::BTreeMap;
 use std::sync::Arc;
@@ -22,6 +26,7 @@ use std::time::Instant;
 use anyhow::{Context as _, Result};
 use serde::Serialize;
 
+use super::count::{self, CountReport};
 use super::datasets::{Dataset, DatasetSummary};
 use super::image::RgbaImage;
 use super::stats::Summary;
@@ -30,7 +35,7 @@ use crate::algo::registry::MethodSpec;
 use crate::scene::{Camera, Projection, TransferFunction};
 use crate::vk::{CommandRecorder, Context, DeviceInfo, FrameQueries, Image, PipelineStats, UploadCounter};
 
-/// The version of the result record (`schema/result.schema.json`).
+/// The version of the result record (`results/schema/run.schema.json`).
 pub const SCHEMA_VERSION: u32 = 2;
 
 /// How a run is driven: image size, frames, camera. Method options live in
@@ -55,7 +60,18 @@ pub struct RunConfig {
     pub overlap: bool,
     /// Ask the method for its (possibly costly) reference-view diagnostics.
     pub diagnostics: bool,
+    /// Frames with nothing in view (each timed frame's camera turned away
+    /// from the dataset) after the timed ones: the frame's fixed cost,
+    /// reported as the phases `fixed` and `fixed_gpu` (0: not measured).
+    pub fixed_frames: usize,
+    /// Counted run (`--count`, under callgrind): the directory callgrind
+    /// dumps into (`harness::count`). Frames then run without overlap.
+    pub count_dir: Option<std::path::PathBuf>,
 }
+
+/// The phases the runner itself times (every other phase is the method's
+/// own): tables that list a method's phases leave these out.
+pub const RUNNER_PHASES: &[&str] = &["frame", "gpu", "upload", "record", "submit", "wait", "fixed", "fixed_gpu"];
 
 /// Frames and warm-up together may not exceed this: a run is a benchmark,
 /// not a soak test, and sample vectors are sized from it.
@@ -74,6 +90,8 @@ impl Default for RunConfig {
             fixed_camera: None,
             overlap: true,
             diagnostics: false,
+            fixed_frames: 5,
+            count_dir: None,
         }
     }
 }
@@ -83,12 +101,17 @@ impl RunConfig {
     pub fn validate(&self) -> Result<()> {
         anyhow::ensure!(self.frames >= 1, "--frames must be at least 1");
         anyhow::ensure!(
-            self.frames.checked_add(self.warmup).is_some_and(|n| n <= MAX_FRAMES),
-            "--frames {} + --warmup {} exceeds the limit of {MAX_FRAMES} frames per run",
+            self.frames.checked_add(self.warmup).and_then(|n| n.checked_add(self.fixed_frames)).is_some_and(|n| n <= MAX_FRAMES),
+            "--frames {} + --warmup {} + --fixed-frames {} exceeds the limit of {MAX_FRAMES} frames per run",
             self.frames,
-            self.warmup
+            self.warmup,
+            self.fixed_frames
         );
         anyhow::ensure!(self.width > 0 && self.height > 0, "--size must be positive, got {}x{}", self.width, self.height);
+        anyhow::ensure!(
+            self.count_dir.is_none() || self.warmup >= 1,
+            "--count needs --warmup 1 or more: the first frame compiles llvmpipe's shader variants, which is not counted"
+        );
         anyhow::ensure!(self.orbit_step.is_finite(), "--orbit-step must be a finite number of degrees");
         anyhow::ensure!(
             self.zoom.is_finite() && (1e-3..=1e3).contains(&self.zoom),
@@ -175,7 +198,9 @@ pub struct UploadReport {
 }
 
 /// Median/min/max per phase (`frame`, `gpu`, the method's own phases,
-/// `upload`, `record`, `submit`, `wait`), set-up times, and every raw sample.
+/// `upload`, `record`, `submit`, `wait`; `fixed` and `fixed_gpu`, the frame
+/// and GPU time of a frame with nothing in view), set-up times, and every
+/// raw sample.
 #[derive(Debug, Clone, Serialize)]
 pub struct TimeReport {
     #[serde(flatten)]
@@ -297,6 +322,9 @@ pub struct RunResult {
     pub details: serde_json::Value,
     /// The method's reference-view diagnostics, when asked for.
     pub diagnostics: Option<serde_json::Value>,
+    /// Instructions per phase of the timed frames (`--count`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub count: Option<CountReport>,
     pub device: DeviceInfo,
     pub volbench_version: &'static str,
     /// The commit the binary was built from (`-dirty` with local changes).
@@ -431,6 +459,13 @@ impl MethodSession {
         })
     }
 
+    /// Whether frames collect pipeline statistics (on when built). Only the
+    /// reference-view frame's statistics are reported, so `run` switches
+    /// them off for the timed and fixed-cost frames.
+    pub fn set_statistics(&mut self, on: bool) {
+        self.queries.set_statistics(on);
+    }
+
     pub fn method(&self) -> &dyn RenderMethod {
         self.method.as_ref()
     }
@@ -460,6 +495,7 @@ impl MethodSession {
         let view = self.view(camera);
         let mut timing = FrameTiming::default();
         self.method.prepare(&view, &mut timing.method)?;
+        count::phase_end("prepare");
         self.prepared = Some(view);
         Ok(timing)
     }
@@ -470,6 +506,7 @@ impl MethodSession {
         let view = self.prepared.take().context("submit without a prepared frame")?;
         let t0 = Instant::now();
         self.method.upload(counter)?;
+        count::phase_end("upload");
         let t1 = Instant::now();
         let rec = &self.recorder;
         rec.begin()?;
@@ -477,6 +514,7 @@ impl MethodSession {
         self.queries.begin(rec);
         self.method.record(rec, &self.target, &view, counter)?;
         self.queries.end(rec);
+        count::phase_end("record");
         let t2 = Instant::now();
         timing.upload = ms(t1 - t0);
         timing.record = ms(t2 - t1);
@@ -487,9 +525,11 @@ impl MethodSession {
     /// Wait for the submitted frame and read its GPU time and statistics.
     pub fn wait(&mut self, timing: &mut FrameTiming) -> Result<Option<PipelineStats>> {
         timing.wait = ms(self.recorder.wait()?);
+        count::phase_end("device");
         let (gpu, stats) = self.queries.results()?;
         timing.gpu = gpu;
         self.method.after_frame(&mut timing.method)?;
+        count::phase_end("finish");
         Ok(stats)
     }
 
@@ -526,6 +566,21 @@ impl MethodSession {
         Ok(out)
     }
 
+    /// Run `cameras` overlapped (`run_overlapped`) or each frame's phases
+    /// one after another (`frame`); the timing and bytes of every frame.
+    pub fn run_frames(&mut self, cameras: &[Camera], overlap: bool, counter: &mut UploadCounter) -> Result<Vec<(FrameTiming, UploadCounter)>> {
+        if overlap {
+            return self.run_overlapped(cameras, counter);
+        }
+        let mut out = Vec::with_capacity(cameras.len());
+        for (f, camera) in cameras.iter().enumerate() {
+            let before = *counter;
+            let (timing, _) = self.frame(camera, counter).with_context(|| format!("frame {f}"))?;
+            out.push((timing, counter.since(&before)));
+        }
+        Ok(out)
+    }
+
     /// The last frame's image.
     pub fn read_image(&self, ctx: &Arc<Context>) -> Result<RgbaImage> {
         let pixels = self.target.read_rgba32f(ctx).context("reading back the image")?;
@@ -553,6 +608,17 @@ impl Samples {
         add("frame", t.frame);
         add("gpu", t.gpu);
     }
+
+    /// A frame with nothing in view: its frame and GPU time as `fixed` and
+    /// `fixed_gpu`, its counts as `fixed.<name>` (e.g. `fixed.cells_drawn`,
+    /// which says whether the view was really empty).
+    fn push_fixed(&mut self, t: &FrameTiming) {
+        for &(name, n) in &t.method.1 {
+            self.1.entry(format!("fixed.{name}")).or_default().push(n);
+        }
+        self.0.entry("fixed".into()).or_default().push(t.frame);
+        self.0.entry("fixed_gpu".into()).or_default().push(t.gpu);
+    }
 }
 
 /// A picture that cannot be right is a failed run, not a result: NaN or Inf
@@ -565,7 +631,16 @@ fn check_image(image: &RgbaImage, dataset: &Dataset, tf: &TransferFunction, cfg:
     // Images of a few pixels a side may legitimately miss a dataset between
     // their pixel centres; the check needs at least 8 on each side.
     let big_enough = image.width >= 8 && image.height >= 8;
-    if image.covered_pixels() == 0 && big_enough && cfg.fixed_camera.is_none() && tf.visible_over(lo, hi, dataset.bounds().diagonal()) {
+    if image.covered_pixels() == 0 && big_enough && cfg.fixed_camera.is_none() && !tf.visible_over(lo, hi, dataset.bounds().diagonal()) {
+        // Right, but no result: a blank picture measures nothing.
+        anyhow::bail!(
+            "'{}' rendered an empty image: transfer function '{}' is transparent over the data's scalar range [{lo}, {hi}] \
+             (give a transfer function that is opaque somewhere in it, --tf)",
+            dataset.name,
+            tf.name
+        );
+    }
+    if image.covered_pixels() == 0 && big_enough && cfg.fixed_camera.is_none() {
         anyhow::bail!(
             "'{}' rendered an empty image although the camera frames it and transfer function '{}' is not \
              transparent over its scalar range [{lo}, {hi}]",
@@ -582,28 +657,54 @@ pub fn run(ctx: &Arc<Context>, spec: &MethodSpec, dataset: &Dataset, tf: &Transf
     let mut counter = UploadCounter::default();
     let mut samples = Samples::default();
     let mut last_frame_counters = UploadCounter::default();
+    let mut counted = None;
 
-    if cfg.overlap {
-        let cameras: Vec<Camera> = (0..cfg.warmup + cfg.frames).map(|f| cfg.frame_camera(dataset, session.method(), f)).collect();
-        for (f, (timing, bytes)) in session.run_overlapped(&cameras, &mut counter)?.into_iter().enumerate() {
-            if f >= cfg.warmup {
-                samples.push(&timing);
-                last_frame_counters = bytes;
-            }
-        }
-    } else {
-        for f in 0..cfg.warmup + cfg.frames {
+    session.set_statistics(false);
+    let cameras: Vec<Camera> = (0..cfg.warmup + cfg.frames).map(|f| cfg.frame_camera(dataset, session.method(), f)).collect();
+    if let Some(dir) = &cfg.count_dir {
+        // Counted: the warm-up uncounted, then each timed frame's phases
+        // one after another, dumped at each boundary (`harness::count`).
+        for (f, camera) in cameras.iter().enumerate() {
             let before = counter;
-            let camera = cfg.frame_camera(dataset, session.method(), f);
-            let (timing, _) = session.frame(&camera, &mut counter).with_context(|| format!("frame {f}"))?;
+            if f == cfg.warmup {
+                count::take_dumps(dir)?;
+                crate::vk::valgrind::start();
+            }
+            if f >= cfg.warmup {
+                count::frame_start();
+            }
+            let frame = session.frame(camera, &mut counter).with_context(|| format!("frame {f}"));
+            if f + 1 == cameras.len() || frame.is_err() {
+                crate::vk::valgrind::stop();
+            }
+            let (timing, _) = frame?;
             if f >= cfg.warmup {
                 samples.push(&timing);
                 last_frame_counters = counter.since(&before);
             }
         }
+        counted = Some(count::report(&count::take_dumps(dir)?, cfg.frames)?);
+    } else {
+        for (f, (timing, bytes)) in session.run_frames(&cameras, cfg.overlap, &mut counter)?.into_iter().enumerate() {
+            if f >= cfg.warmup {
+                samples.push(&timing);
+                last_frame_counters = bytes;
+            }
+        }
+    }
+    // The fixed cost: the timed frames' cameras turned away from the
+    // dataset, so no cell, ray hit or terrain tile is in view and what is
+    // left is what every frame pays (clear, queries, submit, fence, the
+    // method's per-pixel and per-frame passes). Bytes are not counted.
+    // A counted run counts only the timed frames: its fixed frames are skipped.
+    let fixed_frames = if cfg.count_dir.is_some() { 0 } else { cfg.fixed_frames };
+    let empty: Vec<Camera> = cameras.iter().skip(cfg.warmup).cycle().take(fixed_frames).map(Camera::turned_away).collect();
+    for (timing, _) in session.run_frames(&empty, cfg.overlap, &mut UploadCounter::default()).context("fixed-cost frames")? {
+        samples.push_fixed(&timing);
     }
     // The reference view, untimed: its image and statistics are reported.
     let reference_camera = cfg.frame_camera(dataset, session.method(), 0);
+    session.set_statistics(true);
     let (_, stats) = session.frame(&reference_camera, &mut UploadCounter::default()).context("reference-view frame")?;
     let image = session.read_image(ctx)?;
     ctx.check_validation().context("Vulkan validation")?;
@@ -691,6 +792,7 @@ pub fn run(ctx: &Arc<Context>, spec: &MethodSpec, dataset: &Dataset, tf: &Transf
         }),
         details: method.details(),
         diagnostics,
+        count: counted,
         device: ctx.info.clone(),
         volbench_version: env!("CARGO_PKG_VERSION"),
         git_sha: env!("VOLBENCH_GIT_SHA"),

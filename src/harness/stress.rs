@@ -12,9 +12,12 @@
 //! apply to it: nothing here names a method or its options. Its `status` is
 //! `ok` when the image has no NaN or Inf pixel and its max |error| against
 //! the reference is within the bound, `documented` for the same with an
-//! allowance applied, `fail` otherwise. [`describe_cases`] lists every case
+//! allowance applied, `fail` otherwise. The max error of a mesh case leaves
+//! out the pixels on the mesh's silhouette up to the rasterizer's rounding
+//! (`reference::silhouette`), counted in the row. [`describe_cases`] lists every case
 //! and allowance.
 
+use std::path::PathBuf;
 use std::sync::Arc;
 
 use anyhow::{Context as _, Result};
@@ -24,6 +27,7 @@ use super::datasets::Dataset;
 use super::image::RgbaImage;
 use super::reference_cache::reference_image;
 use super::run::{run, RunConfig};
+use crate::reference::silhouette::{silhouette_pixels, SILHOUETTE_TOLERANCE_PX};
 use crate::algo::method::{DataKind, Options};
 use crate::algo::registry::{MethodSpec, Registry};
 use crate::mesh::split::hex_grid_to_tets;
@@ -135,7 +139,13 @@ pub struct StressRow {
     pub error: Option<String>,
     pub nan_pixels: usize,
     pub inf_pixels: usize,
+    /// Max |error| over the pixels not set aside as on the silhouette.
     pub max_abs_error: f64,
+    /// Pixels within `SILHOUETTE_TOLERANCE_PX` of the mesh's silhouette,
+    /// left out of `max_abs_error` (see `reference::silhouette`), and the
+    /// max |error| over them (0 when none).
+    pub silhouette_pixels: usize,
+    pub silhouette_max_error: f64,
     pub rmse: f64,
     pub status: &'static str,
     pub bound: f64,
@@ -480,7 +490,16 @@ fn camera_inside() -> StressCase {
     StressCase {
         name: "camera-inside".into(),
         description: "eye inside the 8^3 grid, near plane 1e-3, 60 degree field of view".into(),
-        allowances: Vec::new(),
+        allowances: vec![Allowance {
+            when: &[("interpolation", &["paper"])],
+            extra: 5e-2,
+            reason: "model error of the papers' interpolation under perspective (README: \"Perspective\"), not \
+                     numerics: it is wrong over whole faces (RMSE 4.6e-2 at every size), and its max over the image \
+                     is the sup of that error field, approached as the pixels sample it more finely: 0.221 at \
+                     64x64, 0.262 at 256x256, 0.268 at 512x512 (vicp, balanced, resident, atfs alike; bound 0.25). \
+                     Allowance rounded up; exact interpolation meets the accuracy bound at every size"
+                .into(),
+        }],
         data: CaseData::TetMesh(mesh),
         camera,
         tf,
@@ -907,6 +926,9 @@ pub fn bound(case: &StressCase, spec: &MethodSpec) -> Option<(f64, bool)> {
 pub struct StressConfig {
     pub size: u32,
     pub specs: Vec<MethodSpec>,
+    /// Where to write each case's reference and each row's image and
+    /// |image - reference| x10 as PNG (none: no images).
+    pub images: Option<PathBuf>,
 }
 
 impl StressConfig {
@@ -920,7 +942,7 @@ impl StressConfig {
                 specs.push(registry.variant(&base, v)?);
             }
         }
-        Ok(StressConfig { size, specs })
+        Ok(StressConfig { size, specs, images: None })
     }
 }
 
@@ -956,6 +978,16 @@ pub fn run_cases_with_progress(
         let dataset = case.data.dataset(&case.name);
         let reference = reference_image(&dataset, &case.tf, &case.camera, cfg.size, cfg.size)
             .with_context(|| format!("stress case '{}': reference", case.name))?;
+        if let Some(dir) = &cfg.images {
+            reference.image.write_png(&dir.join(format!("{}.reference.png", case.name)))?;
+        }
+        // Pixels on the mesh's silhouette up to rounding: left out of the max error.
+        let ambiguous = match &case.data {
+            CaseData::TetMesh(m) => silhouette_pixels(m, &case.camera, cfg.size, cfg.size, SILHOUETTE_TOLERANCE_PX),
+            CaseData::Volume(_) => Vec::new(),
+        };
+        let silhouette_count = ambiguous.iter().filter(|&&a| a).count();
+        let not_ambiguous: Vec<bool> = ambiguous.iter().map(|a| !a).collect();
         for spec in specs {
             let opt = |k: &str| spec.options.text(k).unwrap_or_else(|_| "-".into());
             let Some((b, documented)) = bound(case, spec) else { continue };
@@ -967,6 +999,8 @@ pub fn run_cases_with_progress(
                 overlap: false,
                 projection: case.camera.projection,
                 fixed_camera: Some(case.camera),
+                // Stress checks images; the fixed cost is not measured here.
+                fixed_frames: 0,
                 ..RunConfig::default()
             };
             let mut row = StressRow {
@@ -980,14 +1014,25 @@ pub fn run_cases_with_progress(
                 nan_pixels: 0,
                 inf_pixels: 0,
                 max_abs_error: f64::NAN,
+                silhouette_pixels: silhouette_count,
+                silhouette_max_error: 0.0,
                 rmse: f64::NAN,
                 status: "fail",
                 bound: b,
             };
-            let measured = run(ctx, spec, &dataset, &case.tf, &rc)
-                .and_then(|out| Ok((non_finite_pixels(&out.image), out.image.compare(&reference.image)?)));
+            let measured = run(ctx, spec, &dataset, &case.tf, &rc).and_then(|out| {
+                if let Some(dir) = &cfg.images {
+                    let stem = format!("{}.{}.{}", case.name, spec.info.name, row.options.replace(['=', ','], "-"));
+                    out.image.write_png(&dir.join(format!("{stem}.png")))?;
+                    out.image.difference(&reference.image).write_png(&dir.join(format!("{stem}.diff.png")))?;
+                }
+                let e = out.image.compare_excluding(&reference.image, &ambiguous)?;
+                let on_silhouette = out.image.compare_excluding(&reference.image, &not_ambiguous)?;
+                Ok((non_finite_pixels(&out.image), e, on_silhouette.max_abs))
+            });
             match measured {
-                Ok(((nan_pixels, inf_pixels), e)) => {
+                Ok(((nan_pixels, inf_pixels), e, silhouette_max)) => {
+                    row.silhouette_max_error = if silhouette_count > 0 { silhouette_max } else { 0.0 };
                     // NaN compares false: a NaN error is never within the bound.
                     let within = nan_pixels == 0 && inf_pixels == 0 && e.max_abs <= b && e.rmse.is_finite();
                     row.status = match (within, documented) {
@@ -1048,12 +1093,12 @@ pub fn describe_cases(size: u32) -> String {
 /// The Markdown table `volbench stress` prints: one row per render.
 pub fn stress_table(rows: &[StressRow]) -> String {
     let mut s = String::from(
-        "| case | method | integrator | interpolation | sort | NaN px | Inf px | max error | RMSE | bound | status |\n\
-         |---|---|---|---|---|---:|---:|---:|---:|---:|---|\n",
+        "| case | method | integrator | interpolation | sort | NaN px | Inf px | max error | silhouette px (max error) | RMSE | bound | status |\n\
+         |---|---|---|---|---|---:|---:|---:|---:|---:|---:|---|\n",
     );
     for r in rows {
         s.push_str(&format!(
-            "| {} | {} | {} | {} | {} | {} | {} | {:.2e} | {:.2e} | {:.2e} | {} |\n",
+            "| {} | {} | {} | {} | {} | {} | {} | {:.2e} | {} ({:.2e}) | {:.2e} | {:.2e} | {} |\n",
             r.case,
             r.method,
             r.integrator,
@@ -1062,6 +1107,8 @@ pub fn stress_table(rows: &[StressRow]) -> String {
             r.nan_pixels,
             r.inf_pixels,
             r.max_abs_error,
+            r.silhouette_pixels,
+            r.silhouette_max_error,
             r.rmse,
             r.bound,
             match &r.error {

@@ -17,6 +17,7 @@ use serde::Serialize;
 use super::datasets::{self, Dataset};
 use super::peers::{LocatedPeer, PeerRenderer, PeerRow};
 use super::image::RgbaImage;
+use super::plots::{Bar, Marker, ScatterPoint, Tile};
 use super::reference_cache::reference_image;
 use super::run::{run, RunConfig, RunOutput, RunResult};
 use super::sweep::skip_reason;
@@ -38,15 +39,34 @@ pub struct SuiteSettings {
     /// Peers (`--peers`, see `harness::peers`) run on the same datasets,
     /// alternating with volbench's runs.
     pub peers: Vec<String>,
+    /// Counted (`--count`): each run counts its timed frames' instructions
+    /// (`harness::count`); no CPU reference, no diagnostics.
+    pub counted: bool,
+    /// The counted child's dump directory.
+    #[serde(skip)]
+    pub count_dir: Option<std::path::PathBuf>,
 }
 
 impl SuiteSettings {
     pub fn standard(quick: bool, filter: Vec<String>) -> Self {
         if quick {
-            SuiteSettings { width: 256, height: 256, frames: 3, warmup: 1, orbit_step_deg: 5.0, quick, filter, peers: Vec::new() }
+            SuiteSettings { width: 256, height: 256, frames: 3, warmup: 1, orbit_step_deg: 5.0, quick, filter, peers: Vec::new(), counted: false, count_dir: None }
         } else {
-            SuiteSettings { width: 512, height: 512, frames: 20, warmup: 3, orbit_step_deg: 5.0, quick, filter, peers: Vec::new() }
+            SuiteSettings { width: 512, height: 512, frames: 20, warmup: 3, orbit_step_deg: 5.0, quick, filter, peers: Vec::new(), counted: false, count_dir: None }
         }
+    }
+
+    /// The counted suite (`--count`): the quick one at 64x64 and 2 timed
+    /// frames (a count repeats without many samples; CI's budget).
+    pub fn counted(mut self, count_dir: Option<std::path::PathBuf>) -> Self {
+        if count_dir.is_some() {
+            if self.quick {
+                (self.width, self.height, self.frames, self.warmup) = (64, 64, 2, 1);
+            }
+            self.counted = true;
+            self.count_dir = count_dir;
+        }
+        self
     }
 
     fn run_config(&self) -> RunConfig {
@@ -56,7 +76,9 @@ impl SuiteSettings {
             frames: self.frames,
             warmup: self.warmup,
             orbit_step: self.orbit_step_deg.to_radians(),
-            diagnostics: true,
+            diagnostics: self.count_dir.is_none(),
+            overlap: self.count_dir.is_none(),
+            count_dir: self.count_dir.clone(),
             ..RunConfig::default()
         }
     }
@@ -78,6 +100,15 @@ impl PlannedRun {
         match self.scene {
             Scene::Standard => self.spec.label(),
             s => format!("{} @{}", self.spec.label(), s.name()),
+        }
+    }
+
+    /// The montage a run's image goes to: its dataset, and the scene when
+    /// it is not the standard one (another view, another reference).
+    fn montage_group(&self) -> String {
+        match self.scene {
+            Scene::Standard => self.dataset.to_string(),
+            s => format!("{}@{}", self.dataset, s.name()),
         }
     }
 
@@ -140,7 +171,7 @@ impl Scene {
     fn transfer_function(self, dataset: &Dataset) -> Result<crate::scene::TransferFunction> {
         match self {
             Scene::Transparent => {
-                let path = datasets::data_dir().join("tf").join(format!("{}-band.json", dataset.name));
+                let path = crate::data_dir::data_dir().join("tf").join(format!("{}-band.json", dataset.name));
                 dataset.load_transfer_function(&path)
             }
             _ => Ok(dataset.default_transfer_function()),
@@ -182,7 +213,6 @@ pub fn plan(registry: &Registry, settings: &SuiteSettings) -> Result<Vec<Planned
         if CULL_SCENE_DATASETS.contains(&d.name) {
             let culling: Vec<_> = registry
                 .for_kind(d.kind)
-                .into_iter()
                 .filter(|m| (keep(d.name) || keep(m.name)) && m.options.iter().any(|o| o.name == "cull"))
                 .take(if settings.quick { 1 } else { 2 })
                 .collect();
@@ -315,13 +345,16 @@ pub fn run_suite(
     std::fs::create_dir_all(&runs_dir).with_context(|| format!("creating {}", runs_dir.display()))?;
     let mut summary =
         Summary { environment: Environment::of(ctx), settings: settings.clone(), runs: Vec::new(), peers: Vec::new(), cull_checks: Vec::new() };
-    let mut images: Vec<(String, RgbaImage, Option<RgbaImage>)> = Vec::new();
+    // Every image shown, by montage group, with the run's label; and the
+    // reference image of each group.
+    let mut images: Vec<(String, String, Tile)> = Vec::new();
+    let mut references: Vec<(String, RgbaImage)> = Vec::new();
     let located: Vec<LocatedPeer> = settings.peers.iter().map(|p| super::peers::locate(p)).collect::<Result<_>>()?;
     let peers_dir = out.join("peers");
     if !located.is_empty() {
         std::fs::create_dir_all(&peers_dir).with_context(|| format!("creating {}", peers_dir.display()))?;
     }
-    let mut loaded: Option<(&str, Dataset)> = None;
+    let mut loaded: Option<(&str, std::result::Result<Dataset, String>)> = None;
     // Peer renderers still to run on the current dataset, and its exported copy.
     let mut pending: Vec<(&LocatedPeer, &'static PeerRenderer)> = Vec::new();
     let mut export: Option<(std::path::PathBuf, super::peers::PeerDataset)> = None;
@@ -332,9 +365,29 @@ pub fn run_suite(
         let first_of_dataset = i == 0 || plan[i - 1].dataset != p.dataset;
         let last_of_dataset = plan.get(i + 1).is_none_or(|n| n.dataset != p.dataset);
         if loaded.as_ref().is_none_or(|(n, _)| *n != p.dataset) {
-            loaded = Some((p.dataset, datasets::load(p.dataset)?));
+            loaded = Some((p.dataset, datasets::load(p.dataset).map_err(|e| format!("{e:#}"))));
         }
-        let Some((_, dataset)) = &loaded else { continue };
+        let Some((_, loaded_dataset)) = &loaded else { continue };
+        // A dataset that cannot be loaded fails its rows; the suite goes on.
+        let dataset = match loaded_dataset {
+            Ok(d) => d,
+            Err(why) => {
+                pending.clear();
+                summary.runs.push(SuiteRow {
+                    dataset: p.dataset.into(),
+                    method: p.spec.info.name.into(),
+                    label: p.label(),
+                    scene: p.scene,
+                    status: "failed",
+                    message: Some(format!("loading {}: {why}", p.dataset)),
+                    sequence,
+                    result: None,
+                });
+                sequence += 1;
+                fsio::write_output(&out.join("summary.json"), &super::report::json_bytes(&summary)?)?;
+                continue;
+            }
+        };
         if first_of_dataset {
             // Popped from the end: reversed so they run in their listed order.
             pending = located.iter().flat_map(|l| l.renderers_for(dataset.kind()).map(move |r| (l, r))).collect();
@@ -354,6 +407,7 @@ pub fn run_suite(
         if let Some(why) = skip_reason(&p.spec, &ctx.info) {
             (row.status, row.message) = ("skipped", Some(why));
         } else {
+            let group = p.montage_group();
             let outcome = (|| -> Result<(RunOutput, Option<RgbaImage>)> {
                 let tf = p.scene.transfer_function(dataset)?;
                 let cfg = p.scene.config(&cfg);
@@ -361,8 +415,11 @@ pub fn run_suite(
                 let stem = format!("{}-{}", p.dataset, p.file_stem());
                 let (json, png, dpng) = (runs_dir.join(format!("{stem}.json")), runs_dir.join(format!("{stem}.png")), runs_dir.join(format!("{stem}-diff.png")));
                 // A method with its own error (terrain) has no image reference.
-                let diff = if r.result.error.is_none() {
+                let diff = if r.result.error.is_none() && settings.count_dir.is_none() {
                     let reference = reference_image(dataset, &tf, &r.result.image.camera, cfg.width, cfg.height)?;
+                    if !references.iter().any(|(g, _)| *g == group) {
+                        references.push((group.clone(), reference.image.clone()));
+                    }
                     Some(r.attach_error(&reference)?)
                 } else {
                     None
@@ -381,8 +438,8 @@ pub fn run_suite(
                     if p.scene != Scene::Standard && p.spec.options.flag("cull").ok() == Some(false) {
                         let on = PlannedRun { dataset: p.dataset, spec: cull_on(registry, &p.spec)?, scene: p.scene };
                         let on_label = format!("{} on {}", on.label(), p.dataset);
-                        if let Some((_, on_image, _)) = images.iter().find(|(l, _, _)| *l == on_label) {
-                            let e = on_image.compare(&r.image)?;
+                        if let Some((_, _, on)) = images.iter().find(|(_, l, _)| *l == on_label) {
+                            let e = on.image.compare(&r.image)?;
                             summary.cull_checks.push(CullCheck {
                                 dataset: p.dataset.into(),
                                 scene: p.scene,
@@ -392,7 +449,7 @@ pub fn run_suite(
                             });
                         }
                     }
-                    images.push((label.clone(), r.image, diff));
+                    images.push((group, label.clone(), Tile { label: p.label(), image: r.image, diff }));
                     row.result = Some(r.result);
                 }
                 Err(e) => (row.status, row.message) = ("failed", Some(format!("{e:#}"))),
@@ -410,7 +467,8 @@ pub fn run_suite(
             let (row, shown) = run_peer_row(peer, renderer, dataset, &cfg, &peers_dir, &runs_dir, &mut export, sequence);
             sequence += 1;
             if let Some((image, diff)) = shown {
-                images.push((label, image, Some(diff)));
+                let tile = Tile { label: format!("peer {}/{}", peer.peer.name, renderer.name), image, diff: Some(diff) };
+                images.push((p.dataset.to_string(), label, tile));
             }
             summary.peers.push(row);
         }
@@ -425,11 +483,89 @@ pub fn run_suite(
     fsio::write_output(&out.join("summary.json"), &super::report::json_bytes(&summary)?)?;
     fsio::write_output(&out.join("summary.csv"), csv(&summary).as_bytes())?;
     fsio::write_output(&out.join("report.md"), report(&summary, registry).as_bytes())?;
-    super::plots::bar_charts(&out.join("plots"), &summary)?;
-    if !images.is_empty() {
-        super::plots::montage(&out.join("montage.png"), &images)?;
-    }
+    figures(out, &summary, &images, &references)?;
     Ok(summary)
+}
+
+/// The suite's pictures, per dataset: `montage-<group>.png` (the reference,
+/// then each run beside its ×10 difference), and in `plots/` the frame time
+/// with its min–max spread (`frame_time-<dataset>`, peers in their own
+/// colour), the bytes per frame (`bytes_per_frame-<dataset>`) and the frame
+/// time against the error with the Pareto front (`time_error-<dataset>.png`,
+/// standard scene, peers included).
+fn figures(out: &Path, s: &Summary, images: &[(String, String, Tile)], references: &[(String, RgbaImage)]) -> Result<()> {
+    use super::run::ErrorKind;
+    let mut groups: Vec<&str> = Vec::new();
+    for (g, _, _) in images {
+        if !groups.contains(&g.as_str()) {
+            groups.push(g);
+        }
+    }
+    for g in groups {
+        let tiles: Vec<Tile> = images.iter().filter(|(x, _, _)| x == g).map(|(_, _, t)| t.clone()).collect();
+        let reference = references.iter().find(|(x, _)| x == g).map(|(_, r)| r);
+        super::plots::montage(&out.join(format!("montage-{g}.png")), g, reference, &tiles)?;
+    }
+    let plots = out.join("plots");
+    let device = &s.environment.device.name;
+    let mut datasets: Vec<&str> = Vec::new();
+    for d in s.runs.iter().map(|r| r.dataset.as_str()).chain(s.peers.iter().map(|p| p.dataset.as_str())) {
+        if !datasets.contains(&d) {
+            datasets.push(d);
+        }
+    }
+    for d in datasets {
+        let ok = || s.runs.iter().filter(move |r| r.dataset == d).filter_map(|r| Some((r, r.result.as_ref()?)));
+        let peers = || s.peers.iter().filter(move |p| p.dataset == d).filter_map(|p| Some((p, p.frame_ms.as_ref()?)));
+        let times: Vec<Bar> = ok()
+            .map(|(r, x)| {
+                let f = x.time_ms.phase("frame");
+                Bar { label: r.label.clone(), median: f.median, spread: Some((f.min, f.max)), peer: false }
+            })
+            .chain(peers().map(|(p, f)| Bar { label: format!("peer {}/{}", p.peer, p.renderer), median: f.median, spread: Some((f.min, f.max)), peer: true }))
+            .collect();
+        let size = format!("{}x{}", s.settings.width, s.settings.height);
+        let title = format!("{d}: frame time (ms), median and min–max of {} frames, {size}, {device}", s.settings.frames);
+        super::plots::bar_chart(&plots, &format!("frame_time-{d}"), &title, &times)?;
+        let bytes: Vec<Bar> =
+            ok().map(|(r, x)| Bar { label: r.label.clone(), median: x.upload.bytes_per_frame as f64 / 1e6, spread: None, peer: false }).collect();
+        super::plots::bar_chart(&plots, &format!("bytes_per_frame-{d}"), &format!("{d}: bytes crossing to the device per frame (MB)"), &bytes)?;
+        // Standard scene only: the culling scenes have other views and references.
+        let mut points: Vec<ScatterPoint> = ok()
+            .filter(|(r, _)| r.scene == Scene::Standard)
+            .filter_map(|(r, x)| {
+                let e = x.error.as_ref()?;
+                Some(ScatterPoint {
+                    label: r.label.clone(),
+                    series: r.method.clone(),
+                    marker: if e.compared == ErrorKind::Image { Marker::Filled } else { Marker::Ring },
+                    time_ms: x.time_ms.phase("frame").median,
+                    error: e.rmse,
+                    on_front: false,
+                })
+            })
+            .chain(peers().filter_map(|(p, f)| {
+                Some(ScatterPoint {
+                    label: format!("peer {}/{}", p.peer, p.renderer),
+                    series: format!("peer {}/{}", p.peer, p.renderer),
+                    marker: Marker::Triangle,
+                    time_ms: f.median,
+                    error: p.error.as_ref()?.rmse,
+                    on_front: false,
+                })
+            }))
+            .collect();
+        if points.is_empty() {
+            continue;
+        }
+        super::plots::mark_front(&mut points, |p| Some((p.time_ms, p.error)), |p, on| p.on_front = on);
+        // A method with its own error (terrain) says what it measures.
+        let own = ok().find_map(|(_, x)| x.error.as_ref().filter(|e| e.compared == ErrorKind::Own));
+        let y_desc = if own.is_some() { "RMSE (the method's own measure, see report)" } else { "RMSE against the f64 reference image" };
+        let note = "filled: volbench run\nring: own error measure\ntriangle: peer (same run)";
+        super::plots::time_error_scatter(&plots.join(format!("time_error-{d}.png")), &format!("{d}: frame time against error, {size}"), y_desc, note, &points)?;
+    }
+    Ok(())
 }
 
 /// One peer renderer on one dataset: the dataset exported once per dataset
@@ -477,6 +613,14 @@ fn run_peer_row(
         let reference_camera = scene.reference_camera;
         let (result, image) = pe::run_peer(peer, &scene, &peers_dir.join(format!("{stem}.scene.json")))?;
         let reference = reference_image(dataset, &tf, &reference_camera, cfg.width, cfg.height)?;
+        // A blank picture is a failure, not a result (docs/bad-input.md).
+        let expected = reference.image.covered_pixels();
+        anyhow::ensure!(
+            image.covered_pixels() > 0 || expected == 0,
+            "peer {}/{} returned an empty image although the f64 reference covers {expected} pixels",
+            peer.peer.name,
+            renderer.name
+        );
         let error = image.compare(&reference.image)?;
         let diff = image.difference(&reference.image);
         let (png, dpng) = (runs_dir.join(format!("{stem}.png")), runs_dir.join(format!("{stem}-diff.png")));
@@ -730,7 +874,9 @@ pub fn report(s: &Summary, registry: &Registry) -> String {
     t += &placement_report(s);
     t += &cull_report(s);
     t += &peer_report(s);
-    t += "\nPlots: `plots/frame_time.{png,svg}`, `plots/bytes_per_frame.{png,svg}`; images and their ×10 difference from the f64 reference: `montage.png`, `runs/`.\n";
+    t += "\nPictures, per dataset: `plots/time_error-<dataset>.png` (frame time against error, the Pareto front joined, peers included), \
+          `plots/frame_time-<dataset>.{png,svg}` (median with the min–max spread), `plots/bytes_per_frame-<dataset>.{png,svg}`; \
+          `montage-<dataset>.png`: the f64 reference, then each run beside its ×10 difference from it; every image in `runs/`.\n";
     t
 }
 
@@ -765,7 +911,8 @@ fn error_legend(s: &Summary) -> String {
 /// time, device time and per-frame bytes as ratios inside this run, with
 /// the work counts that must agree between them.
 fn placement_report(s: &Summary) -> String {
-    let mut groups: Vec<(String, String, Vec<(&str, &RunResult)>)> = Vec::new();
+    type Group<'a> = (String, String, Vec<(&'a str, &'a RunResult)>);
+    let mut groups: Vec<Group> = Vec::new();
     for r in &s.runs {
         let Some(x) = &r.result else { continue };
         let Some(work) = x.details.get("same_work").and_then(|w| w.as_str()) else { continue };
@@ -786,9 +933,8 @@ fn placement_report(s: &Summary) -> String {
         );
         for (label, x) in runs {
             let (f, g) = (x.time_ms.phase("frame").median, x.time_ms.phase("gpu").median);
-            let runner = ["frame", "gpu", "upload", "record", "submit", "wait"];
             let phases: Vec<String> =
-                x.time_ms.phases.iter().filter(|(k, _)| !runner.contains(&k.as_str())).map(|(k, v)| format!("{k} {:.2}", v.median)).collect();
+                x.time_ms.phases.iter().filter(|(k, _)| !super::run::RUNNER_PHASES.contains(&k.as_str())).map(|(k, v)| format!("{k} {:.2}", v.median)).collect();
             let work: Vec<String> = x.work.counts.iter().map(|(k, v)| format!("{k} {v}")).collect();
             let ratio = |a: f64, b: f64| if b > 0.0 { format!("{:.2}", a / b) } else { "-".into() };
             let _ = writeln!(

@@ -12,12 +12,17 @@
 //!   [`Tolerances::count_rel_other_device`] and the line says why.
 //! - **errors** (RMSE against the f64 reference) must not grow by more than
 //!   `max(rmse_abs, rmse_rel × baseline)`; non-finite pixels must stay zero.
+//! - **instruction counts** (`count`, from `suite --count`: instructions per
+//!   phase of the timed frames under callgrind, see `harness::count`) repeat
+//!   to a few parts in a million; each phase and the frame total is its own
+//!   figure, and regresses when it grows by more than `count_rel` (1 %).
 //! - **times** are compared as ratios between methods on one dataset inside
 //!   each run (machines differ by 30 % and more; ratios inside a run do not),
-//!   each with a distribution-free 95 % confidence band of its medians, and
-//!   absolute frame times only when the device, driver and CPU match. A time
-//!   regresses when the bands do not overlap and the change exceeds
-//!   `time_margin`.
+//!   each with a distribution-free 95 % confidence band of its medians;
+//!   absolute frame times only when asked (`--absolute-times`: the same
+//!   CPU model string is not the same machine, nor the same load) and the
+//!   device, driver and CPU match. A time regresses when the bands do not
+//!   overlap and the change exceeds `time_margin`.
 //!
 //! It also exports the new summary in Bencher Metric Format and as
 //! github-action-benchmark's `customSmallerIsBetter` JSON.
@@ -44,13 +49,21 @@ pub struct Tolerances {
     /// A time (ratio or absolute) must move by more than this fraction,
     /// outside both noise bands, to count.
     pub time_margin: f64,
+    /// An instruction count (per phase, per frame) may move by this
+    /// fraction either way...
+    pub count_rel: f64,
+    /// ...or by this many instructions (a phase of a few thousand, such as
+    /// reading the query results, jitters by a few hundred).
+    pub count_abs: f64,
     /// Compare times at all (CI on shared runners compares counts and errors only).
     pub times: bool,
+    /// Compare absolute frame times too (same device, driver and CPU only).
+    pub absolute_times: bool,
 }
 
 impl Default for Tolerances {
     fn default() -> Self {
-        Tolerances { rmse_abs: 1e-4, rmse_rel: 0.05, count_rel_other_device: 1e-3, time_margin: 0.10, times: true }
+        Tolerances { rmse_abs: 1e-4, rmse_rel: 0.05, count_rel_other_device: 1e-3, time_margin: 0.10, count_rel: 0.01, count_abs: 10_000.0, times: true, absolute_times: false }
     }
 }
 
@@ -58,6 +71,10 @@ impl Default for Tolerances {
 /// older and newer summaries of schema 2 both load).
 #[derive(Debug, Deserialize)]
 pub struct SummaryFile {
+    /// Absent in the summaries written so far (the version is per result);
+    /// when present it must be one this build reads.
+    #[serde(default)]
+    pub schema_version: Option<u32>,
     pub environment: EnvironmentFile,
     pub settings: SettingsFile,
     pub runs: Vec<RowFile>,
@@ -84,6 +101,9 @@ pub struct SettingsFile {
     pub height: u32,
     pub orbit_step_deg: f64,
     pub quick: bool,
+    /// A counted suite (`--count`; absent before counting existed).
+    #[serde(default)]
+    pub counted: bool,
 }
 
 #[derive(Debug, Deserialize)]
@@ -102,6 +122,7 @@ pub struct RowFile {
 
 #[derive(Debug, Deserialize)]
 pub struct ResultFile {
+    pub schema_version: u32,
     pub spec: String,
     pub upload: UploadFile,
     #[serde(default)]
@@ -111,6 +132,32 @@ pub struct ResultFile {
     pub image: ImageFile,
     #[serde(default)]
     pub error: Option<ErrorFile>,
+    #[serde(default)]
+    pub count: Option<CountFile>,
+}
+
+/// A counted run's instructions (`harness::count::CountReport`).
+#[derive(Debug, Deserialize)]
+pub struct CountFile {
+    pub frames: usize,
+    pub phases: BTreeMap<String, CountTotal>,
+    pub frame: CountTotal,
+}
+
+#[derive(Debug, Deserialize)]
+pub struct CountTotal {
+    pub total: u64,
+}
+
+impl CountFile {
+    /// Instructions per frame by figure (`instructions.<phase>`, and
+    /// `instructions.frame` for every phase together).
+    fn per_frame(&self) -> BTreeMap<String, f64> {
+        let n = self.frames.max(1) as f64;
+        let mut m: BTreeMap<String, f64> = self.phases.iter().map(|(k, v)| (format!("instructions.{k}"), v.total as f64 / n)).collect();
+        m.insert("instructions.frame".into(), self.frame.total as f64 / n);
+        m
+    }
 }
 
 #[derive(Debug, Deserialize)]
@@ -144,11 +191,48 @@ pub fn load(path: &Path) -> Result<SummaryFile> {
     let text = fsio::read_input_text(path, "suite summary", 256 << 20)?;
     let s: SummaryFile = serde_json::from_str(&text)
         .with_context(|| format!("{}: not a volbench suite summary.json (schema 2)", path.display()))?;
+    validate(&s).with_context(|| format!("{}: not a valid volbench suite summary", path.display()))?;
+    Ok(s)
+}
+
+/// Largest frame or phase time a summary may hold, in milliseconds (a
+/// day): far above any frame, and small enough that every figure derived
+/// from it (nanoseconds, ratios, bands) stays finite.
+pub const MAX_TIME_MS: f64 = 86_400_000.0;
+
+/// Refuse what no run writes: another schema version, two rows with one
+/// name, negative or non-finite errors and times.
+fn validate(s: &SummaryFile) -> Result<()> {
+    let supported = crate::harness::run::SCHEMA_VERSION;
+    if let Some(v) = s.schema_version {
+        ensure!(v == supported, "schema_version {v} is not supported (this build reads schema_version {supported})");
+    }
     let mut seen = std::collections::BTreeSet::new();
     for r in &s.runs {
-        ensure!(seen.insert(key(r)), "{}: two rows for {}", path.display(), key(r));
+        let k = key(r);
+        ensure!(seen.insert(k.clone()), "two rows for {k}");
+        let Some(x) = &r.result else { continue };
+        ensure!(
+            x.schema_version == supported,
+            "{k}: schema_version {} is not supported (this build reads schema_version {supported})",
+            x.schema_version
+        );
+        if let Some(e) = &x.error {
+            ensure!(e.rmse.is_finite() && e.rmse >= 0.0, "{k}: error.rmse {} is not a finite non-negative number", e.rmse);
+        }
+        if let Some(b) = x.upload.bytes_per_cell {
+            ensure!(b.is_finite() && b >= 0.0, "{k}: upload.bytes_per_cell {b} is not a finite non-negative number");
+        }
+        for (phase, samples) in &x.time_ms.samples {
+            for t in samples {
+                ensure!(
+                    t.is_finite() && (0.0..=MAX_TIME_MS).contains(t),
+                    "{k}: time_ms.samples.{phase} holds {t}, expected milliseconds in [0, {MAX_TIME_MS}]"
+                );
+            }
+        }
     }
-    Ok(s)
+    Ok(())
 }
 
 /// A row's name: `dataset/method` or `dataset/method:options`.
@@ -340,13 +424,54 @@ fn compare_row(c: &mut Comparison, k: &str, b: &ResultFile, n: &ResultFile, same
     }
     let nf = (b.image.non_finite_pixels, n.image.non_finite_pixels);
     c.push(verdict(nf.1 <= nf.0), k, "image.non_finite_pixels", nf.0.to_string(), nf.1.to_string(), if nf.1 > nf.0 { "NaN/Inf pixels appeared" } else { "" });
-    if tol.times && same_device {
+    compare_instructions(c, k, b, n, tol);
+    if tol.times && tol.absolute_times && same_device {
         if let (Some(bs), Some(ns)) = (b.time_ms.samples.get("frame"), n.time_ms.samples.get("frame")) {
             if let (Some(bb), Some(nb)) = (median_band(bs), median_band(ns)) {
                 let v = time_verdict(bb, nb, tol.time_margin);
                 c.push(v, k, "time_ms.frame (same device)", bb.show(), nb.show(), time_why(v, tol.time_margin));
             }
         }
+    }
+}
+
+/// Instructions per frame of each phase (counted runs): within
+/// `count_rel` either way, a regression beyond it naming the phase and the
+/// change in instructions.
+fn compare_instructions(c: &mut Comparison, k: &str, b: &ResultFile, n: &ResultFile, tol: &Tolerances) {
+    let (bc, nc) = match (&b.count, &n.count) {
+        (None, None) => return,
+        (Some(_), None) => {
+            c.push(Verdict::Regression, k, "instructions", "counted".into(), "-".into(), "the baseline is counted, the new run is not (suite --count)");
+            return;
+        }
+        (None, Some(_)) => {
+            c.push(Verdict::Info, k, "instructions", "-".into(), "counted".into(), "the baseline has no counts");
+            return;
+        }
+        (Some(x), Some(y)) => (x.per_frame(), y.per_frame()),
+    };
+    let names: std::collections::BTreeSet<&String> = bc.keys().chain(nc.keys()).collect();
+    for name in names {
+        let (x, y) = (bc.get(name).copied().unwrap_or(0.0), nc.get(name).copied().unwrap_or(0.0));
+        let (v, why) = instruction_verdict(x, y, tol);
+        c.push(v, k, &format!("{name} (per frame)"), format!("{x:.0}"), format!("{y:.0}"), why);
+    }
+}
+
+fn instruction_verdict(base: f64, new: f64, tol: &Tolerances) -> (Verdict, String) {
+    let change = new - base;
+    let pct = if base > 0.0 { format!("{:+.2} %", 100.0 * change / base) } else { "new phase".into() };
+    let allowed = (tol.count_rel * base).max(tol.count_abs);
+    if change > allowed {
+        (
+            Verdict::Regression,
+            format!("{change:+.0} instructions ({pct}), beyond the tolerance (max({:.0} %, {:.0} instructions))", tol.count_rel * 100.0, tol.count_abs),
+        )
+    } else if -change > allowed {
+        (Verdict::Improved, format!("{change:+.0} instructions ({pct})"))
+    } else {
+        (Verdict::Ok, String::new())
     }
 }
 
@@ -403,16 +528,18 @@ pub fn median_band(samples: &[f64]) -> Option<Band> {
     let median = super::stats::Summary::of(&s).median;
     // Largest k with P(Binomial(n, 1/2) < k) <= 0.025: the band is
     // [x_(k), x_(n+1-k)] (1-based), which covers the median with >= 95 %.
+    // The pmf is carried as its logarithm: 0.5^n underflows from n = 1075.
     let mut k = 0usize;
     let mut cdf = 0.0f64;
-    let mut pmf = 0.5f64.powi(n as i32);
-    for j in 0..n {
+    let mut ln_pmf = -(n as f64) * std::f64::consts::LN_2;
+    for j in 0..n / 2 {
+        let pmf = ln_pmf.exp();
         if cdf + pmf > 0.025 {
             break;
         }
         cdf += pmf;
         k = j + 1;
-        pmf *= (n - j) as f64 / (j + 1) as f64;
+        ln_pmf += ((n - j) as f64).ln() - ((j + 1) as f64).ln();
     }
     let (lo, hi) = if k == 0 { (s[0], s[n - 1]) } else { (s[k - 1], s[n - k]) };
     Some(Band { median, lo, hi })
@@ -441,8 +568,10 @@ fn time_why(v: Verdict, margin: f64) -> String {
     }
 }
 
-/// Frame-time ratios between every pair of runs on a dataset, within each
-/// summary, compared across the two.
+/// Frame-time ratios on each dataset, within each summary, compared across
+/// the two: every run against the dataset's reference run (the first by
+/// name that both summaries time), so the lines grow linearly with the runs
+/// (every pair made 4.5 million lines of 3,000 runs).
 fn compare_ratios(c: &mut Comparison, base: &SummaryFile, new: &SummaryFile, tol: &Tolerances) {
     let bands = |s: &SummaryFile| -> BTreeMap<(String, String), Band> {
         s.runs
@@ -454,13 +583,17 @@ fn compare_ratios(c: &mut Comparison, base: &SummaryFile, new: &SummaryFile, tol
             .collect()
     };
     let (bb, nb) = (bands(base), bands(new));
-    for ((d, m1), b1) in &bb {
-        for ((d2, m2), b2) in &bb {
-            if d != d2 || m1 >= m2 {
-                continue;
-            }
-            let (Some(n1), Some(n2)) = (nb.get(&(d.clone(), m1.clone())), nb.get(&(d.clone(), m2.clone()))) else { continue };
-            let (Some(rb), Some(rn)) = (ratio_band(*b1, *b2), ratio_band(*n1, *n2)) else { continue };
+    // Runs timed in both, by dataset, in name order.
+    let mut by_dataset: BTreeMap<&str, Vec<(&str, Band, Band)>> = BTreeMap::new();
+    for ((d, m), b) in &bb {
+        if let Some(n) = nb.get(&(d.clone(), m.clone())) {
+            by_dataset.entry(d).or_default().push((m, *b, *n));
+        }
+    }
+    for (d, runs) in by_dataset {
+        let Some(((m0, b0, n0), rest)) = runs.split_first() else { continue };
+        for (m, b, n) in rest {
+            let (Some(rb), Some(rn)) = (ratio_band(*b, *b0), ratio_band(*n, *n0)) else { continue };
             let v = time_verdict(rb, rn, tol.time_margin);
             // A ratio moving either way means one method changed relative to
             // the other; which one, only absolute times on one device can say.
@@ -470,13 +603,13 @@ fn compare_ratios(c: &mut Comparison, base: &SummaryFile, new: &SummaryFile, tol
             } else {
                 String::new()
             };
-            c.push(v, &format!("{d}/{m1} ÷ {d}/{m2}"), "frame-time ratio", rb.show(), rn.show(), why);
+            c.push(v, &format!("{d}/{m} ÷ {d}/{m0}"), "frame-time ratio", rb.show(), rn.show(), why);
         }
     }
 }
 
 /// One exported measure: name, value, and its band when it has one.
-type Measure = (&'static str, f64, Option<(f64, f64)>);
+type Measure = (String, f64, Option<(f64, f64)>);
 
 /// The run's figures by benchmark name (`dataset/method`): frame and GPU
 /// latency in nanoseconds with their bands, bytes, RMSE.
@@ -487,15 +620,21 @@ fn metrics(s: &SummaryFile) -> Vec<(String, Vec<Measure>)> {
         let mut m = Vec::new();
         for (phase, name) in [("frame", "latency"), ("gpu", "gpu-latency")] {
             if let Some(b) = x.time_ms.samples.get(phase).and_then(|v| median_band(v)) {
-                m.push((name, b.median * 1e6, Some((b.lo * 1e6, b.hi * 1e6))));
+                m.push((name.into(), b.median * 1e6, Some((b.lo * 1e6, b.hi * 1e6))));
             }
         }
-        m.push(("bytes-per-frame", x.upload.bytes_per_frame as f64, None));
+        m.push(("bytes-per-frame".into(), x.upload.bytes_per_frame as f64, None));
         if let Some(v) = x.upload.bytes_per_cell {
-            m.push(("bytes-per-cell", v, None));
+            m.push(("bytes-per-cell".into(), v, None));
         }
         if let Some(e) = &x.error {
-            m.push(("rmse", e.rmse, None));
+            m.push(("rmse".into(), e.rmse, None));
+        }
+        // Instructions per frame, each phase its own measure
+        // (`instructions-<phase>`: BMF measure names are kebab-case).
+        if let Some(cf) = &x.count {
+            let kebab = |n: &str| n.chars().map(|c| if c.is_ascii_alphanumeric() { c.to_ascii_lowercase() } else { '-' }).collect::<String>();
+            m.extend(cf.per_frame().into_iter().map(|(name, v)| (kebab(&name), v, None)));
         }
         out.push((key(r), m));
     }
@@ -513,7 +652,7 @@ pub fn bmf(s: &SummaryFile) -> Value {
                 o["lower_value"] = json!(lo);
                 o["upper_value"] = json!(hi);
             }
-            measures.insert(name.into(), o);
+            measures.insert(name, o);
         }
         root.insert(bench, Value::Object(measures));
     }
@@ -525,9 +664,10 @@ pub fn gha(s: &SummaryFile) -> Value {
     let mut out = Vec::new();
     for (bench, ms) in metrics(s) {
         for (name, v, band) in ms {
-            let (unit, value, range) = match name {
+            let (unit, value, range) = match name.as_str() {
                 "latency" | "gpu-latency" => ("ms", v / 1e6, band.map(|(lo, hi)| format!("[{:.3}, {:.3}]", lo / 1e6, hi / 1e6))),
                 "rmse" => ("rmse", v, None),
+                n if n.starts_with("instructions-") => ("instructions", v, None),
                 _ => ("bytes", v, None),
             };
             let mut o = json!({ "name": format!("{bench} {name}"), "unit": unit, "value": value });
@@ -567,5 +707,80 @@ mod tests {
         assert_eq!(time_verdict(b, Band { median: 108.0, lo: 106.0, hi: 110.0 }, 0.1), Verdict::Ok);
         assert_eq!(time_verdict(b, Band { median: 130.0, lo: 100.0, hi: 140.0 }, 0.1), Verdict::Ok);
         assert_eq!(time_verdict(b, Band { median: 70.0, lo: 60.0, hi: 80.0 }, 0.1), Verdict::Improved);
+    }
+
+    /// A summary of `runs` rows on one dataset, each with `samples` frame times.
+    fn summary(runs: usize, samples: &[f64], schema: u32, rmse: f64) -> SummaryFile {
+        let rows: Vec<Value> = (0..runs)
+            .map(|i| {
+                json!({"dataset": "d", "method": format!("m{i:05}"), "status": "ok", "result": {
+                    "schema_version": schema, "spec": "m", "work": {},
+                    "upload": {"bytes_per_frame": 1, "cell_bytes_per_frame": 1, "constant_bytes_per_frame": 0, "static_bytes": 1},
+                    "time_ms": {"samples": {"frame": samples}},
+                    "image": {"covered_pixels": 1, "non_finite_pixels": 0},
+                    "error": {"rmse": rmse}}})
+            })
+            .collect();
+        let v = json!({"environment": {"device": {"name": "x", "driver_info": "y"}},
+            "settings": {"width": 1, "height": 1, "orbit_step_deg": 5.0, "quick": true}, "runs": rows});
+        serde_json::from_value(v).unwrap()
+    }
+
+    #[test]
+    fn bands_stay_finite_and_ordered_at_any_sample_count_and_size() {
+        for n in [1usize, 7, 1074, 1075, 5000] {
+            for scale in [1.0, 1e-300, 8e7] {
+                let s: Vec<f64> = (0..n).map(|i| scale * (1.0 + (i * 7919 % n) as f64)).collect();
+                let b = median_band(&s).unwrap();
+                assert!(b.lo <= b.median && b.median <= b.hi, "n={n} scale={scale}: {b:?}");
+            }
+        }
+        let s = summary(2, &vec![80_000_000.0; 1100], 2, 0.1);
+        validate(&s).unwrap();
+        for v in [bmf(&s), gha(&s)] {
+            let text = serde_json::to_string(&v).unwrap();
+            assert!(!text.contains("null"), "{text}");
+        }
+        let lat = &bmf(&s)["d/m00000"]["latency"];
+        assert!(lat["lower_value"].as_f64() <= lat["value"].as_f64() && lat["value"].as_f64() <= lat["upper_value"].as_f64());
+    }
+
+    #[test]
+    fn summaries_no_run_writes_are_refused() {
+        let e = format!("{:#}", validate(&summary(1, &[1.0], 99, 0.1)).unwrap_err());
+        assert!(e.contains("schema_version 99") && e.contains("reads schema_version 2"), "{e}");
+        let mut s = summary(1, &[1.0], 2, 0.1);
+        s.schema_version = Some(3);
+        assert!(validate(&s).is_err());
+        let e = format!("{:#}", validate(&summary(1, &[1.0], 2, -0.5)).unwrap_err());
+        assert!(e.contains("error.rmse -0.5"), "{e}");
+        for t in [-1.0, 1e308] {
+            let e = format!("{:#}", validate(&summary(1, &[1.0, t], 2, 0.1)).unwrap_err());
+            assert!(e.contains("time_ms.samples.frame"), "{e}");
+        }
+    }
+
+    #[test]
+    fn a_comparison_grows_linearly_with_the_runs() {
+        for runs in [30usize, 3000] {
+            let s = summary(runs, &[1.0, 2.0, 3.0], 2, 0.1);
+            let c = compare(&s, &s, &Tolerances::default()).unwrap();
+            let ratios = c.lines.iter().filter(|l| l.figure == "frame-time ratio").count();
+            assert_eq!(ratios, runs - 1);
+            assert_eq!(c.regressions(), 0);
+        }
+    }
+
+    #[test]
+    fn instructions_regress_beyond_the_tolerance() {
+        let tol = Tolerances::default();
+        assert_eq!(instruction_verdict(1e6, 1.009e6, &tol).0, Verdict::Ok);
+        assert_eq!(instruction_verdict(1e6, 0.991e6, &tol).0, Verdict::Ok);
+        let (v, why) = instruction_verdict(1e6, 1.05e6, &tol);
+        assert_eq!(v, Verdict::Regression);
+        assert!(why.contains("+50000 instructions (+5.00 %)"), "{why}");
+        assert_eq!(instruction_verdict(1e6, 0.9e6, &tol).0, Verdict::Improved);
+        // A small phase's jitter stays under the absolute floor.
+        assert_eq!(instruction_verdict(7_000.0, 7_500.0, &tol).0, Verdict::Ok);
     }
 }

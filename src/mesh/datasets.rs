@@ -16,7 +16,8 @@
 
 use super::plot3d::{read_q, read_xyz};
 use super::split::hex_grid_to_tets;
-use super::vtk::read_vtk_legacy;
+use super::vtk::{read_vtk_legacy, read_vtk_legacy_array};
+use super::vtu::read_vtu;
 use super::TetMesh;
 use anyhow::{bail, Result};
 use std::path::{Path, PathBuf};
@@ -96,23 +97,43 @@ pub fn load_builtin(name: &str, data_dir: &Path) -> Result<TetMesh> {
 /// Extensions [`load_path`] reads as one file of a PLOT3D grid + solution pair.
 pub const PLOT3D_EXTENSIONS: [&str; 4] = ["bin", "xyz", "x", "q"];
 
+/// Extensions [`load_path`] reads as VTK unstructured grids.
+pub const VTK_EXTENSIONS: [&str; 3] = ["vtk", "vtu", "pvtu"];
+
 /// A mesh file chosen by its extension:
-/// - `.vtk`: VTK legacy UNSTRUCTURED_GRID of tetrahedra with point scalars,
-///   ASCII or BINARY;
+/// - `.vtk`: VTK legacy UNSTRUCTURED_GRID, ASCII or BINARY;
+/// - `.vtu` / `.pvtu`: VTK XML unstructured grid, or a parallel one's pieces
+///   (see `vtu`); in all three every linear 3-D cell type is split into
+///   tets conformingly (`cells`);
 /// - a PLOT3D grid or solution file (`.bin`, `.xyz`, `.x`, `.q`): the other
 ///   file of the pair is found next to it by name (see [`plot3d_pair`]); the
 ///   hexahedra are split into 5 tets each and the scalar is the density, or the
 ///   velocity magnitude when the density is constant over the grid (as in the
 ///   oxygen post), so that the mesh shows something.
 pub fn load_path(path: impl AsRef<Path>) -> Result<TetMesh> {
+    load_path_array(path, None)
+}
+
+/// [`load_path`] with the point array `array` (a VTK file's array by name;
+/// vectors by magnitude) as the scalar. PLOT3D pairs have no named arrays.
+pub fn load_path_array(path: impl AsRef<Path>, array: Option<&str>) -> Result<TetMesh> {
     let path = path.as_ref();
     let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase());
     match ext.as_deref() {
-        Some("vtk") => read_vtk_legacy(path),
-        Some(e) if PLOT3D_EXTENSIONS.contains(&e) => load_plot3d_path(path),
+        Some("vtk") => read_vtk_legacy_array(path, array),
+        Some("vtu" | "pvtu") => read_vtu(path, array),
+        Some(e) if PLOT3D_EXTENSIONS.contains(&e) => match array {
+            None => load_plot3d_path(path),
+            Some(a) => bail!(
+                "{}: a PLOT3D pair has no named arrays (asked for '{a}'); its scalar is the density, or the \
+                 velocity magnitude when the density is constant",
+                path.display()
+            ),
+        },
         _ => bail!(
             "{}: unsupported mesh format (extension {}); supported: .vtk (VTK legacy \
-             UNSTRUCTURED_GRID of tetrahedra with point scalars, ASCII or BINARY) and \
+             UNSTRUCTURED_GRID), .vtu and .pvtu (VTK XML unstructured grids), each with \
+             tetra, voxel, hexahedron, wedge and pyramid cells, and \
              PLOT3D grid/solution pairs (NAMExyz.bin + NAMEq.bin, or NAME.xyz / NAME.x + \
              NAME.q: give either file); built-in meshes: {}",
             path.display(),

@@ -92,6 +92,28 @@ pub const MIN_EXTENT: f64 = 1e-15;
 /// Largest accepted bounding-box diagonal (module docs, "Supported ranges").
 pub const MAX_EXTENT: f64 = 1e15;
 
+/// The supported ranges for any dataset's box (meshes, volumes, terrain):
+/// every corner within ±[`MAX_COORDINATE`] and the diagonal within
+/// [`MIN_EXTENT`, `MAX_EXTENT`], checked when the data is loaded so that a
+/// box the renderers cannot resolve in f32 is an error naming it, not an
+/// empty image later. `what` names the data ("volume", "terrain").
+pub fn check_box(source: &str, what: &str, min: [f64; 3], max: [f64; 3]) -> Result<()> {
+    if let Some(c) = min.iter().chain(&max).find(|c| !c.is_finite() || c.abs() > MAX_COORDINATE) {
+        bail!(
+            "{source}: the {what} reaches coordinate {c:e}, outside the supported [-{MAX_COORDINATE:e}, {MAX_COORDINATE:e}] \
+             (box {min:?} to {max:?}; the renderers compute in f32): check its origin and spacing"
+        );
+    }
+    let d = sub(max, min).iter().map(|v| v * v).sum::<f64>().sqrt();
+    if !(MIN_EXTENT..=MAX_EXTENT).contains(&d) {
+        bail!(
+            "{source}: the {what}'s extent (box diagonal) {d:e} is outside the supported {MIN_EXTENT:e} to {MAX_EXTENT:e} \
+             (box {min:?} to {max:?}; the renderers compute in f32): check its spacing"
+        );
+    }
+    Ok(())
+}
+
 /// Small f64 vector helpers shared by the geometry and the CPU reference.
 #[inline]
 pub(crate) fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {

@@ -16,11 +16,14 @@
 
 pub mod adjacency;
 pub mod byte_order;
+pub mod cells;
 pub mod datasets;
 pub mod geometry;
 pub mod plot3d;
+pub mod refine;
 pub mod split;
 pub mod vtk;
+pub mod vtu;
 
 pub use geometry::{TetGeometry, TetPrecomputed};
 
@@ -35,6 +38,9 @@ pub struct MeshStats {
     /// PLOT3D grids with IBLANK: hexahedra with IBLANK = 0 at any corner.
     /// They are still split and kept (0 for other sources).
     pub blanked_cells: usize,
+    /// 0-, 1- and 2-D cells (vertices, lines, triangles, quads ...) in an
+    /// unstructured file: no volume, skipped (see `cells`).
+    pub skipped_lower_dim: usize,
 }
 
 /// A tetrahedral mesh with one scalar per vertex.

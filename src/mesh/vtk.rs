@@ -1,14 +1,20 @@
-//! VTK legacy (`.vtk`) reader for tetrahedral `UNSTRUCTURED_GRID` files.
+//! VTK legacy (`.vtk`) reader for `UNSTRUCTURED_GRID` files.
 //!
 //! Both ASCII and BINARY (big-endian) encodings, file versions up to 4.x
 //! (`CELLS n size` with a count before each cell) and 5.x (`OFFSETS` /
 //! `CONNECTIVITY`). Every section of the format is parsed (so unfamiliar but
 //! legal content such as `FIELD` blocks, `METADATA`, vectors or cell data is
-//! skipped correctly); only tetrahedra (cell type 10) are accepted. The
-//! scalar is the first one-component `SCALARS` array of `POINT_DATA`; files
-//! that store their point data only as a `FIELD` (such as VTK's own `post.vtk`,
-//! whose point data is `FIELD FieldData 1` / `Pressure 1 2288 float`) fall back
-//! to the first one-component field array of the right length.
+//! skipped correctly). Cells: every linear 3-D type (tetra, voxel,
+//! hexahedron, wedge, pyramid) is split into tets conformingly by `cells`;
+//! vertex, line and surface cells are skipped and counted; other types are
+//! refused, named with their counts. The scalar is the point array the
+//! caller names (a `SCALARS`, `VECTORS` or `FIELD` array; several
+//! components by magnitude; a cell array of that name is refused as cell
+//! data), else the first one-component `SCALARS` array of `POINT_DATA`;
+//! files that store their point data only as a `FIELD` (such as VTK's own
+//! `post.vtk`, whose point data is `FIELD FieldData 1` / `Pressure 1 2288
+//! float`) fall back to the first one-component field array of the right
+//! length.
 //!
 //! Every value must fit the type the file declares for its array (or, for
 //! `CELLS` and `CELL_TYPES` in files before 5.x, the `int` the format
@@ -21,12 +27,14 @@
 //!
 //! All errors name the file, the problem and the byte offset.
 
-use super::{MeshStats, TetMesh};
+use crate::vtk_legacy::Lines as Reader;
+use super::cells::RawCells;
+use super::TetMesh;
 use anyhow::{anyhow, bail, Result};
 use std::path::Path;
 
 /// VTK cell type of a linear tetrahedron.
-pub const VTK_TETRA: i64 = 10;
+pub const VTK_TETRA: i64 = super::cells::VTK_TETRA as i64;
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum DType {
@@ -160,87 +168,7 @@ fn swapped_hint(binary: bool, v: i64, expected: i32) -> &'static str {
     }
 }
 
-fn cell_type_name(t: i64) -> &'static str {
-    match t {
-        1 => "vertex",
-        2 => "poly-vertex",
-        3 => "line",
-        4 => "poly-line",
-        5 => "triangle",
-        6 => "triangle strip",
-        7 => "polygon",
-        8 => "pixel",
-        9 => "quad",
-        10 => "tetra",
-        11 => "voxel",
-        12 => "hexahedron",
-        13 => "wedge",
-        14 => "pyramid",
-        24 => "quadratic tetra",
-        _ => "unknown",
-    }
-}
-
-struct Reader<'a> {
-    /// File name (or other source label) quoted in every error.
-    name: &'a str,
-    b: &'a [u8],
-    pos: usize,
-    binary: bool,
-}
-
 impl<'a> Reader<'a> {
-    fn err(&self, msg: impl std::fmt::Display) -> anyhow::Error {
-        anyhow!("{}: {} (at byte {})", self.name, crate::fsio::clip_message(&msg.to_string()), self.pos)
-    }
-
-    fn skip_ws(&mut self) {
-        while self.pos < self.b.len() && self.b[self.pos].is_ascii_whitespace() {
-            self.pos += 1;
-        }
-    }
-
-    fn at_end(&mut self) -> bool {
-        self.skip_ws();
-        self.pos >= self.b.len()
-    }
-
-    /// The rest of the current line (without `\r\n`), consuming the newline.
-    fn raw_line(&mut self, what: &str) -> Result<&'a str> {
-        if self.pos >= self.b.len() {
-            return Err(self.err(format!("truncated file: expected {what}, found end of file")));
-        }
-        let start = self.pos;
-        let end = self.b[start..].iter().position(|&c| c == b'\n').map_or(self.b.len(), |e| start + e);
-        self.pos = (end + 1).min(self.b.len());
-        let line = &self.b[start..end];
-        let line = line.strip_suffix(b"\r").unwrap_or(line);
-        if line.contains(&b'\r') {
-            self.pos = start;
-            return Err(self.err(format!(
-                "expected {what}, found a line broken by a bare carriage return (CR-only line endings, as \
-                 classic Mac OS wrote them); VTK legacy files need LF or CRLF line endings"
-            )));
-        }
-        std::str::from_utf8(line).map_err(|_| {
-            self.pos = start;
-            self.err(format!("expected {what}, found non-text bytes"))
-        })
-    }
-
-    /// Next non-blank line split into words (never empty). Splits on ASCII
-    /// whitespace only, the same set `skip_ws` skips: Unicode-whitespace
-    /// splitting would turn a line starting with e.g. a vertical tab into no
-    /// words at all.
-    fn keyword_line(&mut self, what: &str) -> Result<Vec<&'a str>> {
-        self.skip_ws();
-        let words: Vec<&'a str> = self.raw_line(what)?.split_ascii_whitespace().collect();
-        if words.is_empty() {
-            return Err(self.err(format!("truncated file: expected {what}, found end of file")));
-        }
-        Ok(words)
-    }
-
     fn token(&mut self, what: &str) -> Result<&'a str> {
         self.skip_ws();
         let start = self.pos;
@@ -262,22 +190,6 @@ impl<'a> Reader<'a> {
             end += 1;
         }
         std::str::from_utf8(&self.b[start..end]).unwrap_or("")
-    }
-
-    fn binary_bytes(&mut self, n: usize, dt: DType, what: &str) -> Result<&'a [u8]> {
-        let len = n
-            .checked_mul(dt.size())
-            .filter(|&l| l <= self.b.len() - self.pos)
-            .ok_or_else(|| {
-                self.err(format!(
-                    "truncated file: {what} needs {n} values of {} bytes, only {} bytes remain",
-                    dt.size(),
-                    self.b.len() - self.pos
-                ))
-            })?;
-        let s = &self.b[self.pos..self.pos + len];
-        self.pos += len;
-        Ok(s)
     }
 
     /// The next ASCII value of `what` (value `i` of `n`), checked against
@@ -310,7 +222,7 @@ impl<'a> Reader<'a> {
 
     fn values_f64(&mut self, n: usize, dt: DType, what: &str) -> Result<Vec<f64>> {
         if self.binary {
-            let s = self.binary_bytes(n, dt, what)?;
+            let s = self.binary_bytes(n, dt.size(), what)?;
             if let Some(evidence) = dt.looks_little_endian(s) {
                 self.pos -= s.len();
                 return Err(self.err(format!("{what}: {evidence}")));
@@ -333,7 +245,7 @@ impl<'a> Reader<'a> {
         if self.binary {
             // (Counts, indices and cell types are checked one by one, with a
             // byte-swap hint where they fail: `swapped_hint`.)
-            let s = self.binary_bytes(n, dt, what)?;
+            let s = self.binary_bytes(n, dt.size(), what)?;
             let w = dt.size();
             Ok(s.chunks_exact(w).map(|c| decode_i64(c, dt)).collect())
         } else {
@@ -349,7 +261,7 @@ impl<'a> Reader<'a> {
     /// `dt` like the values that are read).
     fn skip_values(&mut self, n: usize, dt: DType, what: &str) -> Result<()> {
         if self.binary {
-            self.binary_bytes(n, dt, what)?;
+            self.binary_bytes(n, dt.size(), what)?;
         } else {
             for i in 0..n {
                 self.ascii_value(parse_ascii_f64, dt, what, i, n)?;
@@ -358,31 +270,11 @@ impl<'a> Reader<'a> {
         Ok(())
     }
 
-    /// `n * k` values, or an error (a header's counts are untrusted).
-    fn product(&self, n: usize, k: usize, what: &str) -> Result<usize> {
-        n.checked_mul(k).ok_or_else(|| self.err(format!("{what} size {n} x {k} overflows")))
-    }
-
-    fn count(&self, s: Option<&&str>, what: &str) -> Result<usize> {
-        let s = s.ok_or_else(|| self.err(format!("missing {what}")))?;
-        s.parse::<usize>().map_err(|_| self.err(format!("bad {what} '{s}'")))
-    }
-
     fn dtype(&self, s: Option<&&str>, what: &str) -> Result<DType> {
         let s = s.ok_or_else(|| self.err(format!("missing data type for {what}")))?;
         DType::parse(s).ok_or_else(|| self.err(format!("unsupported data type '{s}' for {what}")))
     }
 
-    /// Skips a METADATA block (ends at an empty line or end of file).
-    fn skip_metadata(&mut self) -> Result<()> {
-        while self.pos < self.b.len() {
-            let line = self.raw_line("METADATA")?;
-            if line.trim().is_empty() {
-                break;
-            }
-        }
-        Ok(())
-    }
 }
 
 fn decode_f64(c: &[u8], dt: DType) -> f64 {
@@ -416,7 +308,7 @@ fn not_legacy_vtk(bytes: &[u8]) -> Option<&'static str> {
     if bytes.starts_with(b"\xef\xbb\xbf") {
         Some("it starts with a UTF-8 byte-order mark; the first line must be '# vtk DataFile Version x.y'")
     } else if text.trim_start().starts_with("<?xml") || text.contains("<VTKFile") {
-        Some("this is an XML VTK file (.vtu/.vtk in XML); only the legacy format is supported")
+        Some("this is an XML VTK file; give it the extension .vtu (or .pvtu) to read it as one")
     } else {
         None
     }
@@ -443,9 +335,15 @@ enum Owner {
 /// (ASCII or big-endian BINARY) and validates it. The mesh is named after the
 /// file stem.
 pub fn read_vtk_legacy(path: impl AsRef<Path>) -> Result<TetMesh> {
+    read_vtk_legacy_array(path, None)
+}
+
+/// [`read_vtk_legacy`] with the point array `array` (a `SCALARS`, `VECTORS`
+/// or `FIELD` array; vectors by magnitude) as the scalar.
+pub fn read_vtk_legacy_array(path: impl AsRef<Path>, array: Option<&str>) -> Result<TetMesh> {
     let path = path.as_ref();
     let bytes = crate::fsio::read_input(path, "VTK file", crate::fsio::MAX_INPUT_BYTES)?;
-    parse_vtk_bytes(&path.display().to_string(), &bytes)
+    parse_vtk_bytes_array(&path.display().to_string(), &bytes, array)
 }
 
 /// [`read_vtk_legacy`] on the bytes of a file already in memory. `name` (the
@@ -453,6 +351,11 @@ pub fn read_vtk_legacy(path: impl AsRef<Path>) -> Result<TetMesh> {
 /// the mesh. Never panics on malformed input: every count is checked against
 /// the bytes that remain before anything is allocated from it.
 pub fn parse_vtk_bytes(name: &str, bytes: &[u8]) -> Result<TetMesh> {
+    parse_vtk_bytes_array(name, bytes, None)
+}
+
+/// [`parse_vtk_bytes`] with the point array `want` as the scalar.
+pub fn parse_vtk_bytes_array(name: &str, bytes: &[u8], want: Option<&str>) -> Result<TetMesh> {
     let mut r = Reader { name, b: bytes, pos: 0, binary: false };
 
     // Header: version line, title, encoding, DATASET.
@@ -494,10 +397,9 @@ pub fn parse_vtk_bytes(name: &str, bytes: &[u8]) -> Result<TetMesh> {
     }
 
     let mut points: Option<Vec<[f64; 3]>> = None;
-    let mut cells: Option<Vec<[u32; 4]>> = None; // only 4-vertex cells survive
-    let mut cell_sizes_bad: Option<(usize, usize)> = None; // (cell, size) of first non-4 cell
+    let mut cells: Option<(Vec<usize>, Vec<u32>)> = None; // offsets, connectivity
     let mut n_cells: Option<usize> = None;
-    let mut types_seen = false;
+    let mut types: Option<Vec<u8>> = None;
     let mut owner = Owner::None;
     let mut owner_count = 0usize;
     let mut scalars: Option<Vec<f64>> = None;
@@ -532,8 +434,15 @@ pub fn parse_vtk_bytes(name: &str, bytes: &[u8]) -> Result<TetMesh> {
                         .checked_mul(ntup)
                         .ok_or_else(|| r.err(format!("FIELD array '{}' size overflows", h[0])))?;
                     let what = format!("FIELD array '{}'", h[0]);
-                    if owner == Owner::Points && ncomp == 1 && ntup == n_points && field_scalars.is_none() {
-                        field_scalars = Some(r.values_f64(n, dt, &what)?);
+                    let named = want.is_some_and(|w| w == h[0]);
+                    if named && owner == Owner::Cells {
+                        bail!(r.err(cell_data_refusal(h[0])));
+                    }
+                    if owner == Owner::Points && ntup == n_points && (named || (want.is_none() && ncomp == 1 && field_scalars.is_none())) {
+                        field_scalars = Some(magnitudes(r.values_f64(n, dt, &what)?, ncomp));
+                        if named {
+                            scalars = field_scalars.clone();
+                        }
                     } else {
                         r.skip_values(n, dt, &what)?;
                     }
@@ -637,7 +546,7 @@ pub fn parse_vtk_bytes(name: &str, bytes: &[u8]) -> Result<TetMesh> {
                     (offsets, conn)
                 };
                 let nc = offsets.len().saturating_sub(1);
-                let mut tets = Vec::with_capacity(nc);
+                let mut conn32 = Vec::with_capacity(conn.len());
                 for c in 0..nc {
                     let (s, e) = (offsets[c] as usize, offsets[c + 1] as usize);
                     for &v in &conn[s..e] {
@@ -646,16 +555,11 @@ pub fn parse_vtk_bytes(name: &str, bytes: &[u8]) -> Result<TetMesh> {
                                 "cell {c} has vertex index {v} out of range (file has {np} points)"
                             )));
                         }
-                    }
-                    if e - s == 4 {
-                        tets.push([conn[s] as u32, conn[s + 1] as u32, conn[s + 2] as u32, conn[s + 3] as u32]);
-                    } else {
-                        cell_sizes_bad.get_or_insert((c, e - s));
-                        tets.push([0; 4]);
+                        conn32.push(v as u32);
                     }
                 }
                 n_cells = Some(nc);
-                cells = Some(tets);
+                cells = Some((offsets.iter().map(|&o| o as usize).collect(), conn32));
             }
             "CELL_TYPES" => {
                 let n = r.count(line.get(1), "CELL_TYPES count")?;
@@ -663,19 +567,13 @@ pub fn parse_vtk_bytes(name: &str, bytes: &[u8]) -> Result<TetMesh> {
                 if n != nc {
                     bail!(r.err(format!("count mismatch: CELL_TYPES has {n} entries but CELLS has {nc} cells")));
                 }
-                let types = r.values_i64(n, DType::I32, "CELL_TYPES")?;
-                if let Some(c) = types.iter().position(|&t| t != VTK_TETRA) {
-                    bail!(r.err(format!(
-                        "unsupported cell type {} ({}) at cell {c}: only tetrahedra (type 10) are supported{}",
-                        types[c],
-                        cell_type_name(types[c]),
-                        swapped_hint(r.binary, types[c], VTK_TETRA as i32)
-                    )));
+                let t = r.values_i64(n, DType::I32, "CELL_TYPES")?;
+                // Types beyond a byte are no VTK cell; a byte-swapped 10..14 says why.
+                if let Some(c) = t.iter().position(|&t| !(0..=255).contains(&t)) {
+                    let hint = (VTK_TETRA..=14).map(|k| swapped_hint(r.binary, t[c], k as i32)).find(|h| !h.is_empty());
+                    bail!(r.err(format!("unknown cell type {} at cell {c}{}", t[c], hint.unwrap_or(""))));
                 }
-                if let Some((c, k)) = cell_sizes_bad {
-                    bail!(r.err(format!("cell {c} is a tetra (type 10) but has {k} vertices")));
-                }
-                types_seen = true;
+                types = Some(t.iter().map(|&t| t as u8).collect());
             }
             "POINT_DATA" | "CELL_DATA" => {
                 let n = r.count(line.get(1), &format!("{kw} count"))?;
@@ -709,8 +607,12 @@ pub fn parse_vtk_bytes(name: &str, bytes: &[u8]) -> Result<TetMesh> {
                 if owner == Owner::Points {
                     seen_point_arrays.push(format!("SCALARS {name} ({ncomp} components)"));
                 }
-                if owner == Owner::Points && ncomp == 1 && scalars.is_none() {
-                    scalars = Some(r.values_f64(n, dt, &what)?);
+                let named = want == Some(name);
+                if named && owner == Owner::Cells {
+                    bail!(r.err(cell_data_refusal(name)));
+                }
+                if owner == Owner::Points && (named || (want.is_none() && ncomp == 1 && scalars.is_none())) {
+                    scalars = Some(magnitudes(r.values_f64(r.product(n, ncomp, &what)?, dt, &what)?, ncomp));
                 } else {
                     r.skip_values(r.product(n, ncomp, &what)?, dt, &what)?;
                 }
@@ -736,7 +638,18 @@ pub fn parse_vtk_bytes(name: &str, bytes: &[u8]) -> Result<TetMesh> {
                     _ => 1,
                 };
                 let dt = r.dtype(line.get(2), &kw)?;
-                r.skip_values(r.product(n, k, &kw)?, dt, &kw)?;
+                let aname = line.get(1).copied().unwrap_or("?");
+                if owner == Owner::Points {
+                    seen_point_arrays.push(format!("{kw} {aname} ({k} components)"));
+                }
+                if want == Some(aname) && owner == Owner::Cells {
+                    bail!(r.err(cell_data_refusal(aname)));
+                }
+                if want == Some(aname) && owner == Owner::Points {
+                    scalars = Some(magnitudes(r.values_f64(r.product(n, k, &kw)?, dt, &kw)?, k));
+                } else {
+                    r.skip_values(r.product(n, k, &kw)?, dt, &kw)?;
+                }
             }
             "TEXTURE_COORDINATES" => {
                 let n = need_owner(&r, &kw)?;
@@ -749,9 +662,15 @@ pub fn parse_vtk_bytes(name: &str, bytes: &[u8]) -> Result<TetMesh> {
     }
 
     let points = points.ok_or_else(|| r.err("no POINTS section"))?;
-    let tets = cells.ok_or_else(|| r.err("no CELLS section"))?;
-    if !types_seen {
-        bail!(r.err("no CELL_TYPES section"));
+    let (offsets, conn) = cells.ok_or_else(|| r.err("no CELLS section"))?;
+    let types = types.ok_or_else(|| r.err("no CELL_TYPES section"))?;
+    if let Some(w) = want {
+        if scalars.is_none() {
+            bail!(r.err(format!(
+                "no point array named '{w}'; point arrays: {}",
+                if seen_point_arrays.is_empty() { "none".to_string() } else { seen_point_arrays.join(", ") }
+            )));
+        }
     }
     let scalars = scalars.or(field_scalars).ok_or_else(|| {
         r.err(format!(
@@ -760,9 +679,23 @@ pub fn parse_vtk_bytes(name: &str, bytes: &[u8]) -> Result<TetMesh> {
         ))
     })?;
     let stem = Path::new(name).file_stem().map_or_else(|| "vtk".to_string(), |s| s.to_string_lossy().into_owned());
-    let mut mesh = TetMesh { name: stem, points, scalars, tets, stats: MeshStats::default() };
-    mesh.validate(name)?;
-    Ok(mesh)
+    RawCells { points, scalars, types, offsets, conn }.into_tet_mesh(name, stem)
+}
+
+/// The error for a `--scalar` that names a cell array.
+pub(crate) fn cell_data_refusal(array: &str) -> String {
+    format!(
+        "'{array}' is cell data (one value per cell); volbench needs a point array (one value per point: \
+         convert with VTK's vtkCellDataToPointData, ParaView's 'Cell Data to Point Data')"
+    )
+}
+
+/// One value per tuple: the value itself, or the magnitude of a vector.
+fn magnitudes(v: Vec<f64>, ncomp: usize) -> Vec<f64> {
+    if ncomp <= 1 {
+        return v;
+    }
+    v.chunks_exact(ncomp).map(|c| c.iter().map(|x| x * x).sum::<f64>().sqrt()).collect()
 }
 
 #[cfg(test)]

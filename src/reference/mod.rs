@@ -82,6 +82,7 @@
 pub mod gauss_legendre;
 pub mod integrate;
 pub mod psi;
+pub mod silhouette;
 mod raycast;
 pub(crate) mod topology;
 pub mod volume;

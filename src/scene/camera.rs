@@ -141,6 +141,15 @@ impl Camera {
         Camera { projection, ..*self }
     }
 
+    /// The same eye looking the opposite way (the target mirrored through
+    /// the eye), with the same projection, near and far. A camera outside
+    /// the dataset's bounding sphere that looked at it (the orbit) then has
+    /// the whole dataset behind it: nothing is in view. The runner's `fixed`
+    /// frames use it to measure what a frame costs with nothing to draw.
+    pub fn turned_away(&self) -> Camera {
+        Camera { target: std::array::from_fn(|k| 2.0 * self.eye[k] - self.target[k]), ..*self }
+    }
+
     /// The same camera moved by `by` (eye and target; the view is unchanged).
     pub fn translated(&self, by: [f64; 3]) -> Camera {
         Camera {
@@ -162,6 +171,27 @@ impl Camera {
     /// points near it) before projecting or converting to f32.
     pub fn view_proj_relative(&self, origin: [f64; 3], width: u32, height: u32) -> DMat4 {
         self.translated(origin.map(|c| -c)).view_proj(width, height)
+    }
+
+    /// Where `p` lands in the image, the inverse of [`Self::ray`]: (x, y)
+    /// with pixel (x, y)'s centre at integers, and the view depth
+    /// `(p − eye)·forward` (perspective: only meaningful when positive).
+    pub fn image_position(&self, p: DVec3, width: u32, height: u32) -> (f64, f64, f64) {
+        let aspect = width as f64 / height as f64;
+        let fwd = self.forward();
+        let right = fwd.cross(DVec3::from(self.up)).normalize();
+        let up = right.cross(fwd);
+        let v = p - DVec3::from(self.eye);
+        let depth = v.dot(fwd);
+        let (sx, sy) = match self.projection {
+            Projection::Perspective { fovy_deg } => {
+                let t = (0.5 * fovy_deg.to_radians()).tan();
+                (depth * t * aspect, depth * t)
+            }
+            Projection::Orthographic { height: h } => (0.5 * h * aspect, 0.5 * h),
+        };
+        let (ndc_x, ndc_y) = (v.dot(right) / sx, -v.dot(up) / sy);
+        ((ndc_x + 1.0) * 0.5 * width as f64 - 0.5, (ndc_y + 1.0) * 0.5 * height as f64 - 0.5, depth)
     }
 
     /// The ray through the centre of pixel (x, y): origin and unit direction.
@@ -205,6 +235,20 @@ impl Camera {
 mod tests {
     use super::*;
 
+    // A point along the ray through a pixel's centre lands on that centre.
+    #[test]
+    fn image_position_inverts_ray() {
+        for projection in [Projection::Perspective { fovy_deg: 30.0 }, Projection::Orthographic { height: 2.5 }] {
+            let c = Camera { eye: [2.3, 1.7, 2.9], target: [0.5, 0.5, 0.5], up: [0.0, 1.0, 0.0], projection, near: 0.9, far: 9.0 };
+            for (x, y) in [(0.0, 0.0), (17.0, 5.0), (47.0, 31.0)] {
+                let (o, d) = c.ray(x, y, 48, 32);
+                let (px, py, depth) = c.image_position(o + 3.0 * d, 48, 32);
+                assert!((px - x).abs() < 1e-9 && (py - y).abs() < 1e-9, "{projection:?}: ({x}, {y}) -> ({px}, {py})");
+                assert!(depth > 0.0);
+            }
+        }
+    }
+
     fn bounds() -> Bounds {
         Bounds { min: [-1.0, -2.0, 0.0], max: [3.0, 1.0, 2.0] }
     }
@@ -223,6 +267,29 @@ mod tests {
             };
             let (a, b) = (ndc(&cam), ndc(&z));
             assert!((2.0 * a.0 - b.0).abs() < 1e-12 && (2.0 * a.1 - b.1).abs() < 1e-12, "{a:?} {b:?}");
+        }
+    }
+
+    /// The orbit camera turned away sees none of the box: every corner
+    /// lies behind the eye (view-space z > -near), at two orbit angles and
+    /// both projections.
+    #[test]
+    fn turned_away_sees_nothing_of_the_box() {
+        let b = bounds();
+        for projection in [Projection::Perspective { fovy_deg: 30.0 }, Projection::Orthographic { height: 1.0 }] {
+            for angle in [0.0, 2.5] {
+                let cam = Camera::orbit(&b, angle, projection).turned_away();
+                assert_eq!(cam.eye, Camera::orbit(&b, angle, projection).eye);
+                for i in 0..8 {
+                    let p = DVec3::new(
+                        if i & 1 == 0 { b.min[0] } else { b.max[0] },
+                        if i & 2 == 0 { b.min[1] } else { b.max[1] },
+                        if i & 4 == 0 { b.min[2] } else { b.max[2] },
+                    );
+                    let v = cam.view() * p.extend(1.0);
+                    assert!(v.z > -cam.near, "{projection:?} angle {angle}: corner {p} at view z {}", v.z);
+                }
+            }
         }
     }
 

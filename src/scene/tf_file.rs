@@ -327,12 +327,15 @@ pub fn parse_tf(
     // Not zero, but too small to show: across the whole mesh no point would
     // reach an opacity f32 resolves (the same rule the runner uses to tell
     // a wrong empty image from a right one).
+    // Only the data's own scalars are ever looked up: a function opaque
+    // only outside [lo, hi] draws a blank image just the same.
     let probe = TransferFunction { name: String::new(), points: points.clone() };
-    let (first, last) = probe.scalar_range();
-    if mesh_diagonal.is_finite() && mesh_diagonal > 0.0 && !probe.visible_over(first.min(lo), last.max(hi), mesh_diagonal) {
+    if mesh_diagonal.is_finite() && mesh_diagonal > 0.0 && !probe.visible_over(lo, hi, mesh_diagonal) {
+        let (first, last) = probe.scalar_range();
         bail!(
-            "{source}: the largest attenuation times the mesh diagonal ({mesh_diagonal:e}) is below 1e-4: nothing \
-             would be visible (attenuation underflows what f32 opacity resolves)"
+            "{source}: over the data's scalar range [{lo}, {hi}] the largest attenuation times the data's diagonal \
+             ({mesh_diagonal:e}) is below 1e-4: nothing would be visible (control points span [{first}, {last}]; \
+             attenuation that small underflows what f32 opacity resolves)"
         );
     }
     Ok(TransferFunction { name: spec.name.unwrap_or_else(|| default_name.to_string()), points })
@@ -392,6 +395,6 @@ pub fn to_json(tf: &TransferFunction, units: JsonUnits) -> Result<String> {
 
 /// The preset file of a shipped mesh (`data/tf/<name>.json`), if there is one.
 pub fn preset_path(mesh_name: &str) -> Option<PathBuf> {
-    let p = crate::harness::datasets::data_dir().join("tf").join(format!("{mesh_name}.json"));
+    let p = crate::data_dir::data_dir().join("tf").join(format!("{mesh_name}.json"));
     p.is_file().then_some(p)
 }

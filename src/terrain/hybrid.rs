@@ -314,6 +314,9 @@ impl HybridModel {
             if spec.polygon.len() < 3 || spec.polygon.iter().flatten().any(|c| !c.is_finite()) {
                 bail!("'{name}': TIN patch '{}' needs at least 3 finite vertices", spec.name);
             }
+            // Arbitrary sub-sample offsets (they only keep patch corners off
+            // grid lines), not 1/pi and e/10.
+            #[allow(clippy::approx_constant)]
             let mut poly: Vec<[f64; 2]> = spec.polygon.iter().map(|p| [p[0] * dw + 0.3183, p[1] * dh + 0.2718]).collect();
             if signed_area(&poly) < 0.0 {
                 poly.reverse();
@@ -609,7 +612,7 @@ impl HybridModel {
         // TB vertices on block borders hang skirts too (PC cells' edges).
         let mut tb_skirt = vec![u32::MAX; self.tb_xy.len()];
         for (t, p) in self.tb_xy.iter().enumerate() {
-            let on = |c: f64| c.fract() == 0.0 && (c as u32) % b == 0;
+            let on = |c: f64| c.fract() == 0.0 && (c as u32).is_multiple_of(b);
             if on(p[0]) || on(p[1]) {
                 let v = self.vertices[t];
                 tb_skirt[t] = self.vertices.len() as u32;
@@ -908,7 +911,7 @@ mod tests {
     use super::*;
 
     fn jacksboro() -> Heightmap {
-        crate::terrain::datasets::load_named("jacksboro", &crate::harness::datasets::data_dir()).unwrap()
+        crate::terrain::datasets::load_named("jacksboro", &crate::data_dir::data_dir()).unwrap()
     }
 
     /// Signed x-y area of a triangle list (grid units).

@@ -67,6 +67,8 @@ impl Heightmap {
         if lowest < -(f32::MAX as f64) || highest > f32::MAX as f64 {
             bail!("{file}: heights [{lowest}, {highest}] do not fit in 32-bit floats");
         }
+        let far = [(nx - 1) as f64 * spacing[0], (ny - 1) as f64 * spacing[1], highest];
+        crate::mesh::geometry::check_box(file, "terrain", [0.0, 0.0, lowest], far)?;
         let mut filled = 0;
         let heights = samples
             .iter()
@@ -107,6 +109,19 @@ pub enum Format {
     GeoTiff,
 }
 
+/// The elevation format `bytes` start like, if any.
+pub fn sniff(bytes: &[u8]) -> Option<Format> {
+    if bytes.starts_with(b"\x93NUMPY") {
+        Some(Format::Npy)
+    } else if bytes.starts_with(b"PK\x03\x04") || bytes.starts_with(b"PK\x05\x06") {
+        Some(Format::Npz)
+    } else if bytes.starts_with(b"II*\0") || bytes.starts_with(b"MM\0*") || bytes.starts_with(b"II+\0") || bytes.starts_with(b"MM\0+") {
+        Some(Format::GeoTiff)
+    } else {
+        None
+    }
+}
+
 pub fn format_of_extension(path: &Path) -> Option<Format> {
     let ext = path.extension()?.to_str()?.to_ascii_lowercase();
     match ext.as_str() {
@@ -123,13 +138,14 @@ pub const MAX_FILE_BYTES: u64 = crate::fsio::MAX_INPUT_BYTES;
 /// Read an elevation grid; `array` picks the array of an `.npz` by name.
 pub fn load_heightmap(path: &Path, array: Option<&str>) -> Result<Heightmap> {
     let name = path.display().to_string();
-    let Some(format) = format_of_extension(path) else {
-        bail!("{name}: not an elevation grid (expected .npy, .npz, .tif or .tiff)");
+    let bytes = crate::fsio::read_input(path, "elevation grid", MAX_FILE_BYTES)?;
+    // The content first: an extension may lie.
+    let Some(format) = sniff(&bytes).or_else(|| format_of_extension(path)) else {
+        bail!("{name}: not an elevation grid (expected NumPy .npy, .npz or GeoTIFF .tif/.tiff content)");
     };
     if array.is_some() && format != Format::Npz {
         bail!("{name}: an array name can only be given for an .npz archive");
     }
-    let bytes = crate::fsio::read_input(path, "elevation grid", MAX_FILE_BYTES)?;
     let mut map = match format {
         Format::Npy => npy::parse_npy_heightmap(&name, &bytes)?,
         Format::Npz => npy::parse_npz_heightmap(&name, &bytes, array)?,

@@ -59,6 +59,13 @@ fn header(name: &str, b: &[u8]) -> Result<Header> {
     };
     let end = start.checked_add(len).filter(|&e| e <= b.len()).with_context(|| format!("{name}: .npy header is truncated"))?;
     let text = std::str::from_utf8(&b[start..end]).map_err(|_| anyhow::anyhow!("{name}: .npy header is not text"))?;
+    // Each key once: with two, which one holds is a guess.
+    for key in ["descr", "fortran_order", "shape"] {
+        let n = text.matches(&format!("'{key}'")).count() + text.matches(&format!("\"{key}\"")).count();
+        if n > 1 {
+            bail!("{name}: .npy header gives '{key}' {n} times");
+        }
+    }
     let descr = dict_value(text, "descr").with_context(|| format!("{name}: .npy header has no 'descr'"))?;
     let descr = descr.trim().trim_matches(|c| c == '\'' || c == '"');
     let fortran = match dict_value(text, "fortran_order").map(str::trim) {
@@ -112,14 +119,37 @@ fn dict_value<'a>(text: &'a str, key: &str) -> Option<&'a str> {
     None
 }
 
+/// Refuse an array bigger than any grid volbench takes before its values
+/// are made (each is an f64): `MAX_SIDE`² elements.
+fn check_shape(name: &str, shape: &[usize]) -> Result<()> {
+    let count = shape.iter().try_fold(1usize, |a, &d| a.checked_mul(d)).unwrap_or(usize::MAX);
+    let max = super::MAX_SIDE * super::MAX_SIDE;
+    if count > max {
+        bail!("{name}: .npy shape {shape:?} has {count} elements, more than the {max} of the largest grid ({0}x{0})", super::MAX_SIDE);
+    }
+    if let [ny, nx] = shape {
+        if *nx > super::MAX_SIDE || *ny > super::MAX_SIDE {
+            bail!("{name}: a {nx}x{ny} grid exceeds {} samples per side", super::MAX_SIDE);
+        }
+    }
+    Ok(())
+}
+
 /// Parse a whole `.npy` file into f64 values (C order).
 pub fn parse_npy(name: &str, bytes: &[u8]) -> Result<Array> {
     let h = header(name, bytes)?;
     let count = h.shape.iter().try_fold(1usize, |a, &d| a.checked_mul(d)).with_context(|| format!("{name}: .npy shape {:?} overflows", h.shape))?;
     let need = count.checked_mul(h.size).with_context(|| format!("{name}: .npy shape {:?} overflows", h.shape))?;
+    check_shape(name, &h.shape)?;
     let data = &bytes[h.data_offset..];
-    if data.len() < need {
-        bail!("{name}: .npy holds {} data bytes, shape {:?} of {}-byte elements needs {need}", data.len(), h.shape, h.size);
+    if data.len() != need {
+        bail!(
+            "{name}: .npy holds {} data bytes, shape {:?} of {}-byte elements needs exactly {need}{}",
+            data.len(),
+            h.shape,
+            h.size,
+            if data.len() > need { " (bytes after the data)" } else { "" }
+        );
     }
     let mut values = Vec::with_capacity(count);
     for chunk in data[..need].chunks_exact(h.size) {
@@ -198,15 +228,25 @@ pub fn parse_npz(name: &str, bytes: &[u8]) -> Result<BTreeMap<String, Array>> {
         if declared > MAX_MEMBER_BYTES {
             bail!("{name}: member '{}' declares {declared} bytes, more than the {MAX_MEMBER_BYTES} read", crate::fsio::clip_message(&member));
         }
-        let mut data = Vec::with_capacity(declared as usize);
+        // The header first: a shape too big for any grid is refused before
+        // the member is inflated.
+        let mut data = Vec::with_capacity(declared.min(1 << 16) as usize);
         (&mut f)
-            .take(declared + 1)
+            .take(declared.min(1 << 16))
+            .read_to_end(&mut data)
+            .map_err(|e| anyhow::anyhow!("{name}: member '{}': {e}", crate::fsio::clip_message(&member)))?;
+        let label = format!("{name}[{}]", crate::fsio::clip_message(key));
+        if let Ok(h) = header(&label, &data) {
+            check_shape(&label, &h.shape)?;
+        }
+        data.reserve_exact((declared as usize).saturating_sub(data.len()));
+        (&mut f)
+            .take(declared + 1 - data.len() as u64)
             .read_to_end(&mut data)
             .map_err(|e| anyhow::anyhow!("{name}: member '{}': {e}", crate::fsio::clip_message(&member)))?;
         if data.len() as u64 != declared {
             bail!("{name}: member '{}' holds {} bytes, its directory entry says {declared}", crate::fsio::clip_message(&member), data.len());
         }
-        let label = format!("{name}[{}]", crate::fsio::clip_message(key));
         let array = parse_npy(&label, &data).map_err(|e| anyhow::anyhow!("{name}: {e:#}"))?;
         out.insert(key.to_string(), array);
     }
@@ -288,7 +328,10 @@ mod tests {
         let cases: Vec<(Vec<u8>, &str)> = vec![
             (b"nope".to_vec(), "magic"),
             (npy("<c16", false, "(2, 2)", &[0; 64]), "element type"),
-            (npy("<i2", false, "(2, 2)", &[0; 6]), "needs 8"),
+            (npy("<i2", false, "(2, 2)", &[0; 6]), "needs exactly 8"),
+            (npy("<i2", false, "(2, 2)", &[0; 10]), "bytes after the data"),
+            (npy("<i2", false, "(2, 2), 'descr': '<f8'", &[0; 8]), "'descr' 2 times"),
+            (npy("<u1", false, "(20000, 20000)", &[]), "more than the"),
             (npy("<i2", false, "(4,)", &[0; 8]), "2D"),
             (npy("<i2", false, "(1, 4)", &[0; 8]), "at least 2x2"),
             (npy("<i8", false, "(4294967296, 4294967296)", &[0; 8]), "overflows"),
@@ -303,7 +346,7 @@ mod tests {
 
     #[test]
     fn shipped_npz_reads() {
-        let path = crate::harness::datasets::data_dir().join("terrain/jacksboro_fault_dem.npz");
+        let path = crate::data_dir::data_dir().join("terrain/jacksboro_fault_dem.npz");
         let bytes = std::fs::read(path).unwrap();
         let (m, s) = parse_npz_grid("j.npz", &bytes, None).unwrap();
         assert_eq!((m.nx, m.ny), (403, 344));

@@ -67,7 +67,12 @@ impl Buffer {
             });
         }
         let info = vk::BufferCreateInfo::default().size(size).usage(desc.usage).sharing_mode(vk::SharingMode::EXCLUSIVE);
+        // SAFETY: the create info and everything it points to live for the
+        // call; the device outlives the handle (the owner holds the Context in
+        // an Arc) and the handle is destroyed once, by its owner's Drop or the
+        // error path below.
         let raw = unsafe { ctx.device.create_buffer(&info, None) }.check("vkCreateBuffer")?;
+        // SAFETY: the handle was created on this device just above and is live.
         let requirements = unsafe { ctx.device.get_buffer_memory_requirements(raw) };
         let location = match desc.memory {
             MemoryKind::Upload => MemoryLocation::CpuToGpu,
@@ -84,13 +89,24 @@ impl Buffer {
         let allocation = match allocation {
             Ok(a) => a,
             Err(source) => {
+                // SAFETY: the handle was created just above, was never used or
+                // submitted, and is destroyed once here, on the error path (the wrapper
+                // that would own it is not built).
                 unsafe { ctx.device.destroy_buffer(raw, None) };
                 return Err(VkError::Alloc { name: desc.name.clone(), source });
             }
         };
+        // SAFETY: the handle is live and unbound; the allocation was made by
+        // this device's allocator for its memory requirements, is owned by the
+        // same wrapper and freed only when the handle is no longer used (Drop,
+        // or the error path below; Vulkan allows freeing memory still bound
+        // to a handle that is then only destroyed).
         let bound = unsafe { ctx.device.bind_buffer_memory(raw, allocation.memory(), allocation.offset()) };
         if let Err(result) = bound {
             let _ = ctx.allocator().free(allocation);
+            // SAFETY: the handle was created just above, was never used or
+            // submitted, and is destroyed once here, on the error path (the wrapper
+            // that would own it is not built).
             unsafe { ctx.device.destroy_buffer(raw, None) };
             return Err(VkError::Call { what: "vkBindBufferMemory", result });
         }
@@ -163,6 +179,10 @@ impl Drop for Buffer {
         if let Some(a) = self.allocation.take() {
             let _ = self.ctx.allocator().free(a);
         }
+        // SAFETY: the owner is being dropped: nothing else holds the handle,
+        // no pending submission uses it (owners wait for their recorders before
+        // dropping resources: the sync model of `context.rs`), and it is
+        // destroyed once, here.
         unsafe { self.ctx.device.destroy_buffer(self.raw, None) };
     }
 }
@@ -193,6 +213,10 @@ impl TexelBuffer {
     pub fn over(ctx: &Arc<Context>, buffer: Buffer, format: vk::Format) -> VkResult<TexelBuffer> {
         let texels = Self::check(ctx, &buffer.desc, format)?;
         let info = vk::BufferViewCreateInfo::default().buffer(buffer.raw).format(format).offset(0).range(buffer.size());
+        // SAFETY: the create info and everything it points to live for the
+        // call; the device outlives the handle (the owner holds the Context in
+        // an Arc) and the handle is destroyed once, by its owner's Drop or the
+        // error path below.
         let view = unsafe { ctx.device.create_buffer_view(&info, None) }.check("vkCreateBufferView")?;
         ctx.set_name(view, &buffer.desc.name);
         Ok(TexelBuffer { buffer, view, format, texels })
@@ -222,7 +246,7 @@ impl TexelBuffer {
                 what: format!("{format:?} as {features:?} for texel buffer '{}'", desc.name),
             });
         }
-        if desc.size == 0 || desc.size % texel != 0 {
+        if desc.size == 0 || !desc.size.is_multiple_of(texel) {
             return Err(VkError::Invalid(format!(
                 "texel buffer '{}': {} bytes is not a whole, non-zero number of {texel}-byte texels",
                 desc.name, desc.size
@@ -243,6 +267,10 @@ impl TexelBuffer {
 impl Drop for TexelBuffer {
     fn drop(&mut self) {
         // The view goes before its buffer (a field, dropped after this).
+        // SAFETY: the owner is being dropped: nothing else holds the handle,
+        // no pending submission uses it (owners wait for their recorders before
+        // dropping resources: the sync model of `context.rs`), and it is
+        // destroyed once, here.
         unsafe { self.buffer.ctx.device.destroy_buffer_view(self.view, None) };
     }
 }

@@ -62,10 +62,20 @@ impl CommandRecorder {
             .command_pool(ctx.command_pool)
             .level(vk::CommandBufferLevel::PRIMARY)
             .command_buffer_count(1);
+        // SAFETY: the create info and everything it points to live for the
+        // call; the device outlives the handle (the owner holds the Context in
+        // an Arc) and the handle is destroyed once, by its owner's Drop or the
+        // error path below.
         let raw = unsafe { ctx.device.allocate_command_buffers(&info) }.check("vkAllocateCommandBuffers")?[0];
+        // SAFETY: the create info and everything it points to live for the
+        // call; the device outlives the handle (the owner holds the Context in
+        // an Arc) and the handle is destroyed once, by its owner's Drop or the
+        // error path below.
         let fence = match unsafe { ctx.device.create_fence(&vk::FenceCreateInfo::default(), None) } {
             Ok(f) => f,
             Err(result) => {
+                // SAFETY: `raw` was allocated just above from this pool, never
+                // recorded or submitted, and is freed once (the recorder is not built).
                 unsafe { ctx.device.free_command_buffers(ctx.command_pool, &[raw]) };
                 return Err(VkError::Call { what: "vkCreateFence", result });
             }
@@ -102,6 +112,10 @@ impl CommandRecorder {
     pub fn begin(&self) -> VkResult<vk::CommandBuffer> {
         self.wait()?;
         let d = &self.ctx.device;
+        // SAFETY: the command buffer is this recorder's own, from a pool created
+        // with RESET_COMMAND_BUFFER; no submission of it is pending (waited for
+        // just above, and `wait` errs rather than return while one is), so it
+        // may be reset and begun.
         unsafe {
             d.reset_command_buffer(self.raw, vk::CommandBufferResetFlags::empty()).check("vkResetCommandBuffer")?;
             let info = vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
@@ -127,6 +141,13 @@ impl CommandRecorder {
         // Whatever happens below, nothing is pending unless the submit succeeds.
         self.state.store(IDLE, Ordering::SeqCst);
         let d = &self.ctx.device;
+        // SAFETY: the command buffer is recording (checked above: state
+        // RECORDING); the fence is this recorder's and not pending (a pending
+        // state makes `begin` wait first), so it may be reset; the queue is
+        // used by one thread at a time under the sync model of `context.rs`
+        // (submissions come from the harness's thread; the type system does
+        // not enforce it). Everything recorded is kept alive by its owner
+        // until this submission is waited for.
         unsafe {
             d.end_command_buffer(self.raw).check("vkEndCommandBuffer")?;
             d.reset_fences(&[self.fence]).check("vkResetFences")?;
@@ -151,6 +172,8 @@ impl CommandRecorder {
         }
         let t0 = Instant::now();
         let nanos = u64::try_from(self.timeout.as_nanos()).unwrap_or(u64::MAX);
+        // SAFETY: the fence is this recorder's live fence on this device; waiting
+        // needs no external synchronisation, and the wait is bounded.
         match unsafe { self.ctx.device.wait_for_fences(&[self.fence], true, nanos) } {
             Ok(()) => {
                 self.state.store(IDLE, Ordering::SeqCst);
@@ -170,7 +193,8 @@ impl CommandRecorder {
     }
 
     /// Record a buffer-to-buffer copy from host-visible `src` and count its
-    /// bytes as crossing to the device.
+    /// bytes as crossing to the device. Sizes are checked as in
+    /// [`Self::copy_buffer`].
     pub fn copy_to_device(
         &self,
         src: &Buffer,
@@ -178,16 +202,35 @@ impl CommandRecorder {
         bytes: u64,
         counter: &mut UploadCounter,
         class: UploadClass,
-    ) {
-        self.copy_buffer(src, dst, bytes);
+    ) -> VkResult<()> {
+        self.copy_buffer(src, dst, bytes)?;
         counter.add_transfer(class, bytes);
+        Ok(())
     }
 
-    /// Record a buffer-to-buffer copy that is not an upload (device to
-    /// device, or device to a readback buffer): nothing is counted.
-    pub fn copy_buffer(&self, src: &Buffer, dst: &Buffer, bytes: u64) {
+    /// Record a buffer-to-buffer copy of the first `bytes` of `src` to the
+    /// start of `dst` that is not an upload (device to device, or device to
+    /// a readback buffer): nothing is counted. `bytes` must be above zero
+    /// and fit both buffers (else `VkError::Invalid`, naming them).
+    pub fn copy_buffer(&self, src: &Buffer, dst: &Buffer, bytes: u64) -> VkResult<()> {
+        if bytes == 0 || bytes > src.size() || bytes > dst.size() {
+            return Err(VkError::Invalid(format!(
+                "copying {bytes} bytes from buffer '{}' ({} bytes) to '{}' ({} bytes): {}",
+                src.desc.name,
+                src.size(),
+                dst.desc.name,
+                dst.size(),
+                if bytes == 0 { "a copy needs at least one byte" } else { "more than a buffer holds" }
+            )));
+        }
         let region = [vk::BufferCopy { src_offset: 0, dst_offset: 0, size: bytes }];
+        // SAFETY: `self.raw` is recording (callers record between `begin`
+        // and submit; the recorder owns the command buffer); both buffers are
+        // live for the call (borrowed) and kept alive by their owners until
+        // the submission is waited for; the region is within both (checked
+        // above), as vkCmdCopyBuffer requires.
         unsafe { self.ctx.device.cmd_copy_buffer(self.raw, src.raw, dst.raw, &region) };
+        Ok(())
     }
 
     /// Fill the whole buffer with the 32-bit `value` on the device (a
@@ -195,6 +238,10 @@ impl CommandRecorder {
     /// TRANSFER_DST usage (device-local buffers have it).
     pub fn fill_buffer(&self, dst: &Buffer, value: u32) {
         // vkCmdFillBuffer with WHOLE_SIZE rounds down to a multiple of 4.
+        // SAFETY: the command buffer is a recorder's own, recording between its
+        // `begin` and submit (the recorder's state machine); every handle recorded
+        // is live, borrowed for the call and kept alive by its owner until the
+        // submission is waited for.
         unsafe { self.ctx.device.cmd_fill_buffer(self.raw, dst.raw, 0, vk::WHOLE_SIZE, value) };
     }
 
@@ -216,6 +263,10 @@ impl CommandRecorder {
         let region = [vk::BufferImageCopy::default()
             .image_subresource(color_layers())
             .image_extent(vk::Extent3D { width: dst.width, height: dst.height, depth: dst.depth })];
+        // SAFETY: the command buffer is a recorder's own, recording between its
+        // `begin` and submit (the recorder's state machine); every handle recorded
+        // is live, borrowed for the call and kept alive by its owner until the
+        // submission is waited for.
         unsafe {
             self.ctx.device.cmd_copy_buffer_to_image(self.raw, src.raw, dst.raw, vk::ImageLayout::TRANSFER_DST_OPTIMAL, &region)
         };
@@ -232,6 +283,9 @@ impl Drop for CommandRecorder {
             // and signal this fence, so neither may be destroyed.
             return;
         }
+        // SAFETY: no submission is pending (waited for above; a timed-out one
+        // returns before this), so the fence and command buffer are unused;
+        // both are this recorder's and are destroyed once, here.
         unsafe {
             self.ctx.device.destroy_fence(self.fence, None);
             self.ctx.device.free_command_buffers(self.ctx.command_pool, &[self.raw]);
@@ -255,7 +309,7 @@ pub fn upload_static(
     let dst = Buffer::new(ctx, BufferDesc::device_local(name, size, usage))?;
     let rec = CommandRecorder::new(ctx, &format!("{name} upload"))?;
     rec.begin()?;
-    rec.copy_to_device(&staging, &dst, size, counter, UploadClass::Static);
+    rec.copy_to_device(&staging, &dst, size, counter, UploadClass::Static)?;
     rec.memory_barrier(
         (vk::PipelineStageFlags2::COPY, vk::AccessFlags2::TRANSFER_WRITE),
         (vk::PipelineStageFlags2::ALL_COMMANDS, vk::AccessFlags2::MEMORY_READ),
@@ -414,6 +468,10 @@ impl CommandRecorder {
         }
         let viewport =
             [vk::Viewport { x: 0.0, y: 0.0, width: width as f32, height: height as f32, min_depth: 0.0, max_depth: 1.0 }];
+        // SAFETY: the command buffer is a recorder's own, recording between its
+        // `begin` and submit (the recorder's state machine); every handle recorded
+        // is live, borrowed for the call and kept alive by its owner until the
+        // submission is waited for.
         unsafe {
             self.ctx.device.cmd_begin_rendering(self.raw, &info);
             self.ctx.device.cmd_set_viewport(self.raw, 0, &viewport);
@@ -422,11 +480,19 @@ impl CommandRecorder {
     }
 
     pub fn end_rendering(&self) {
+        // SAFETY: the command buffer is a recorder's own, recording between its
+        // `begin` and submit (the recorder's state machine); every handle recorded
+        // is live, borrowed for the call and kept alive by its owner until the
+        // submission is waited for.
         unsafe { self.ctx.device.cmd_end_rendering(self.raw) };
     }
 
     /// Bind a graphics pipeline and (optionally) one descriptor set at set 0.
     pub fn bind_pipeline(&self, pipeline: &Pipeline, set: Option<&DescriptorSet>) {
+        // SAFETY: the command buffer is a recorder's own, recording between its
+        // `begin` and submit (the recorder's state machine); every handle recorded
+        // is live, borrowed for the call and kept alive by its owner until the
+        // submission is waited for.
         unsafe {
             self.ctx.device.cmd_bind_pipeline(self.raw, vk::PipelineBindPoint::GRAPHICS, pipeline.raw);
             if let Some(s) = set {
@@ -468,6 +534,10 @@ impl CommandRecorder {
             )));
         }
         let raw: Vec<vk::DescriptorSet> = sets.iter().map(|s| s.raw).collect();
+        // SAFETY: the command buffer is a recorder's own, recording between its
+        // `begin` and submit (the recorder's state machine); every handle recorded
+        // is live, borrowed for the call and kept alive by its owner until the
+        // submission is waited for.
         unsafe {
             self.ctx.device.cmd_bind_pipeline(self.raw, point, pipeline.raw);
             if !raw.is_empty() {
@@ -480,28 +550,60 @@ impl CommandRecorder {
     /// Push constants (recorded into the command buffer, so they cross to
     /// the device with it: counted as per-frame constants).
     pub fn push_constants(&self, pipeline: &Pipeline, data: &[u8], counter: &mut UploadCounter) {
+        // SAFETY: the command buffer is a recorder's own, recording between its
+        // `begin` and submit (the recorder's state machine); every handle recorded
+        // is live, borrowed for the call and kept alive by its owner until the
+        // submission is waited for.
+        // The bytes are the caller's; a range beyond the layout's push-constant
+        // range is a validation error (GPU tests run with the layer on).
         unsafe { self.ctx.device.cmd_push_constants(self.raw, pipeline.layout, pipeline.push_stages, 0, data) };
         counter.add_direct(UploadClass::FrameConstants, data.len() as u64);
     }
 
     pub fn bind_vertex_buffer(&self, buffer: &Buffer) {
+        // SAFETY: the command buffer is a recorder's own, recording between its
+        // `begin` and submit (the recorder's state machine); every handle recorded
+        // is live, borrowed for the call and kept alive by its owner until the
+        // submission is waited for.
         unsafe { self.ctx.device.cmd_bind_vertex_buffers(self.raw, 0, &[buffer.raw], &[0]) };
     }
 
     pub fn bind_index_buffer_u32(&self, buffer: &Buffer) {
+        // SAFETY: the command buffer is a recorder's own, recording between its
+        // `begin` and submit (the recorder's state machine); every handle recorded
+        // is live, borrowed for the call and kept alive by its owner until the
+        // submission is waited for.
         unsafe { self.ctx.device.cmd_bind_index_buffer(self.raw, buffer.raw, 0, vk::IndexType::UINT32) };
     }
 
     pub fn draw(&self, vertices: u32) {
+        // SAFETY: the command buffer is a recorder's own, recording between its
+        // `begin` and submit (the recorder's state machine); every handle recorded
+        // is live, borrowed for the call and kept alive by its owner until the
+        // submission is waited for.
+        // Counts and offsets are the caller's: one beyond the bound buffers
+        // is a validation error, and every GPU test runs with the layer on.
         unsafe { self.ctx.device.cmd_draw(self.raw, vertices, 1, 0, 0) };
     }
 
     pub fn draw_indexed(&self, indices: u32) {
+        // SAFETY: the command buffer is a recorder's own, recording between its
+        // `begin` and submit (the recorder's state machine); every handle recorded
+        // is live, borrowed for the call and kept alive by its owner until the
+        // submission is waited for.
+        // Counts and offsets are the caller's: one beyond the bound buffers
+        // is a validation error, and every GPU test runs with the layer on.
         unsafe { self.ctx.device.cmd_draw_indexed(self.raw, indices, 1, 0, 0, 0) };
     }
 
     /// Draw `count` indices starting at index `first` of the bound buffer.
     pub fn draw_indexed_range(&self, first: u32, count: u32) {
+        // SAFETY: the command buffer is a recorder's own, recording between its
+        // `begin` and submit (the recorder's state machine); every handle recorded
+        // is live, borrowed for the call and kept alive by its owner until the
+        // submission is waited for.
+        // Counts and offsets are the caller's: one beyond the bound buffers
+        // is a validation error, and every GPU test runs with the layer on.
         unsafe { self.ctx.device.cmd_draw_indexed(self.raw, count, 1, first, 0, 0) };
     }
 
@@ -509,13 +611,18 @@ impl CommandRecorder {
     /// 20 bytes) the device reads from `args` at `offset` (e.g. written by
     /// a compute pass).
     pub fn draw_indexed_indirect(&self, args: &Buffer, offset: u64) -> VkResult<()> {
-        if offset % 4 != 0 || offset.checked_add(20).is_none_or(|end| end > args.size()) {
+        if !offset.is_multiple_of(4) || offset.checked_add(20).is_none_or(|end| end > args.size()) {
             return Err(VkError::Invalid(format!(
                 "indirect draw arguments at byte {offset} of buffer '{}' ({} bytes)",
                 args.desc.name,
                 args.size()
             )));
         }
+        // SAFETY: the command buffer is a recorder's own, recording between its
+        // `begin` and submit (the recorder's state machine); every handle recorded
+        // is live, borrowed for the call and kept alive by its owner until the
+        // submission is waited for.
+        // The indirect record fits `args` (checked above).
         unsafe { self.ctx.device.cmd_draw_indexed_indirect(self.raw, args.raw, offset, 1, 20) };
         Ok(())
     }
@@ -530,6 +637,11 @@ impl CommandRecorder {
                 what: format!("a dispatch of {groups:?} workgroups (maxComputeWorkGroupCount is {max:?}; use dispatch_groups)"),
             });
         }
+        // SAFETY: the command buffer is a recorder's own, recording between its
+        // `begin` and submit (the recorder's state machine); every handle recorded
+        // is live, borrowed for the call and kept alive by its owner until the
+        // submission is waited for.
+        // The group counts are within the device's limits (checked above).
         unsafe { self.ctx.device.cmd_dispatch(self.raw, groups[0], groups[1], groups[2]) };
         Ok(())
     }
@@ -561,6 +673,10 @@ impl CommandRecorder {
             .src_access_mask(src.1)
             .dst_stage_mask(dst.0)
             .dst_access_mask(dst.1)];
+        // SAFETY: the command buffer is a recorder's own, recording between its
+        // `begin` and submit (the recorder's state machine); every handle recorded
+        // is live, borrowed for the call and kept alive by its owner until the
+        // submission is waited for.
         unsafe { self.ctx.device.cmd_pipeline_barrier2(self.raw, &vk::DependencyInfo::default().memory_barriers(&barrier)) };
     }
 
@@ -683,10 +799,14 @@ mod tests {
     #[test]
     fn a_fence_wait_times_out_with_the_recorder_name() {
         let ctx = Context::new(&super::super::ContextDesc { device: None, validation: false }).expect("a Vulkan device");
+        // SAFETY: test code on live handles of the test's own device, used
+        // and destroyed within this test.
         let event = unsafe { ctx.device.create_event(&vk::EventCreateInfo::default(), None) }.expect("event");
         let mut rec = CommandRecorder::new(&ctx, "stuck on an event").expect("recorder");
         rec.set_timeout(Duration::from_millis(200));
         let cmd = rec.begin().expect("begin");
+        // SAFETY: test code on live handles of the test's own device, used
+        // and destroyed within this test.
         unsafe {
             ctx.device.cmd_wait_events(
                 cmd,
@@ -705,6 +825,8 @@ mod tests {
         assert!(ctx.is_hung());
         // Let the device finish so the test process does not keep a busy
         // queue thread; the recorder and context leak by design.
+        // SAFETY: test code on live handles of the test's own device, used
+        // and destroyed within this test.
         unsafe { ctx.device.set_event(event).expect("set event") };
         assert!(matches!(rec.wait(), Err(VkError::DeviceHung)));
     }

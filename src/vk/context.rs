@@ -45,6 +45,12 @@ impl ContextDesc {
     /// Device from `VOLBENCH_DEVICE`, validation from `VOLBENCH_VALIDATION`
     /// (see [`parse_env_flag`]); an unusable value is an error.
     pub fn from_env() -> VkResult<Self> {
+        // A value that is not UTF-8 is an error, never "unset".
+        for var in [DEVICE_VAR, VALIDATION_VAR] {
+            if let Err(std::env::VarError::NotUnicode(v)) = std::env::var(var) {
+                return Err(VkError::Env { var, value: v.to_string_lossy().into_owned(), expected: "a UTF-8 value" });
+            }
+        }
         Self::from_vars(&|name| std::env::var(name).ok())
     }
 
@@ -52,7 +58,7 @@ impl ContextDesc {
     /// mutating the process environment).
     pub fn from_vars(get: &dyn Fn(&str) -> Option<String>) -> VkResult<Self> {
         Ok(ContextDesc {
-            device: get("VOLBENCH_DEVICE").filter(|s| !s.is_empty()),
+            device: get(DEVICE_VAR).filter(|s| !s.is_empty()),
             validation: match get(VALIDATION_VAR) {
                 Some(v) => parse_env_flag(VALIDATION_VAR, &v)?,
                 None => false,
@@ -61,6 +67,8 @@ impl ContextDesc {
     }
 }
 
+/// The variable that picks the device.
+pub const DEVICE_VAR: &str = "VOLBENCH_DEVICE";
 /// The variable that turns the validation layer on.
 pub const VALIDATION_VAR: &str = "VOLBENCH_VALIDATION";
 /// The variable that bounds every fence wait, in seconds.
@@ -278,6 +286,8 @@ unsafe extern "system" fn debug_callback(
         // SAFETY: `user` is the `ValidationLog` the Context keeps alive for as
         // long as the messenger exists; `data` is valid for this call.
         let log = unsafe { &*(user as *const ValidationLog) };
+        // SAFETY: `data` is non-null (checked above) and valid for this call, as
+        // the callback's contract says; the message is copied before returning.
         let msg = unsafe { (*data).message_as_c_str() }
             .map(|m| m.to_string_lossy().into_owned())
             .unwrap_or_default();
@@ -298,19 +308,32 @@ fn device_name(props: &vk::PhysicalDeviceProperties) -> String {
 
 /// Everything `volbench info` lists, without creating a logical device.
 pub fn list_devices() -> VkResult<Vec<(String, String)>> {
+    // SAFETY: loading libvulkan runs its initialisers; the loader is the
+    // system's, and the returned Entry keeps the library loaded while any
+    // instance made from it lives (a local here; the Context holds both).
     let entry = unsafe { ash::Entry::load() }.map_err(|e| VkError::Loader(e.to_string()))?;
     let app = vk::ApplicationInfo::default().api_version(vk::API_VERSION_1_3);
+    // SAFETY: the create info and the names it points to live for the call;
+    // the instance is destroyed once, before this function returns.
     let instance = unsafe { entry.create_instance(&vk::InstanceCreateInfo::default().application_info(&app), None) }
         .map_err(|result| VkError::NoDriver { what: "vkCreateInstance", result })?;
+    // SAFETY: queries of live instance/physical-device handles; output
+    // structures are owned here, and any p_next chain points at locals that
+    // outlive the call.
     let devices = unsafe { instance.enumerate_physical_devices() }.check("vkEnumeratePhysicalDevices");
     let out = devices.map(|ds| {
         ds.iter()
             .map(|&d| {
+                // SAFETY: queries of live instance/physical-device handles; output
+                // structures are owned here, and any p_next chain points at locals that
+                // outlive the call.
                 let p = unsafe { instance.get_physical_device_properties(d) };
                 (device_name(&p), format!("{:?}", p.device_type))
             })
             .collect()
     });
+    // SAFETY: the instance was created above, owns no live child object (only
+    // queried) and is destroyed once.
     unsafe { instance.destroy_instance(None) };
     out
 }
@@ -323,6 +346,9 @@ impl Context {
         let fence_timeout = fence_timeout_from_env()?;
         let validation = desc.validation;
         if validation {
+            // SAFETY: queries of live instance/physical-device handles; output
+            // structures are owned here, and any p_next chain points at locals that
+            // outlive the call.
             let layers = unsafe { entry.enumerate_instance_layer_properties() }.check("vkEnumerateInstanceLayerProperties")?;
             let found = layers.iter().any(|l| l.layer_name_as_c_str().is_ok_and(|n| n == VALIDATION_LAYER));
             if !found {
@@ -345,6 +371,9 @@ impl Context {
         if validation {
             ci = ci.enabled_layer_names(&layer_ptrs).enabled_extension_names(&ext_ptrs);
         }
+        // SAFETY: the create info and the layer and extension names it points to
+        // live for the call; the instance is destroyed by `Drop for Context`, or on
+        // the error paths below.
         let instance = unsafe { entry.create_instance(&ci, None) }
             .map_err(|result| VkError::NoDriver { what: "vkCreateInstance", result })?;
 
@@ -362,10 +391,16 @@ impl Context {
                 )
                 .pfn_user_callback(Some(debug_callback))
                 .user_data(Arc::as_ptr(&validation_log) as *mut c_void);
+            // SAFETY: `info` lives for the call; its user data is the `ValidationLog`
+            // the Context keeps (an Arc) for as long as the messenger lives, so the
+            // callback's pointer stays valid; the messenger is destroyed before the
+            // instance (Drop for Context, or the error path below).
             let messenger = unsafe { loader.create_debug_utils_messenger(&info, None) };
             match messenger {
                 Ok(m) => Some((loader, m)),
                 Err(result) => {
+                    // SAFETY: no child object of the instance exists (the messenger failed),
+                    // and the instance is destroyed once: nothing else owns it yet.
                     unsafe { instance.destroy_instance(None) };
                     return Err(VkError::Call { what: "vkCreateDebugUtilsMessengerEXT", result });
                 }
@@ -378,10 +413,14 @@ impl Context {
         // helper and clean up on error.
         match Self::create_device(&entry, &instance, desc, validation) {
             Ok((physical, device, queue_family, info)) => {
+                // SAFETY: the device was created with one queue of `queue_family`.
                 let queue = unsafe { device.get_device_queue(queue_family, 0) };
                 let pool_info = vk::CommandPoolCreateInfo::default()
                     .queue_family_index(queue_family)
                     .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER);
+                // SAFETY: `pool_info` lives for the call; the pool is destroyed by `Drop
+                // for Context` before the device. (On the error path the device and
+                // instance leak: no unsoundness, the process reports the error.)
                 let command_pool = unsafe { device.create_command_pool(&pool_info, None) }.check("vkCreateCommandPool")?;
                 let allocator = Allocator::new(&AllocatorCreateDesc {
                     instance: instance.clone(),
@@ -411,6 +450,10 @@ impl Context {
                 }))
             }
             Err(e) => {
+                // SAFETY: the device was not made (or was destroyed by
+                // `create_device`'s own error path), so the messenger and the
+                // instance have no other user; each is destroyed once, the
+                // messenger first.
                 unsafe {
                     if let Some((loader, m)) = &debug {
                         loader.destroy_debug_utils_messenger(*m, None);
@@ -423,9 +466,15 @@ impl Context {
     }
 
     fn pick_physical(instance: &ash::Instance, wanted: Option<&str>) -> VkResult<(usize, vk::PhysicalDevice)> {
+        // SAFETY: queries of live instance/physical-device handles; output
+        // structures are owned here, and any p_next chain points at locals that
+        // outlive the call.
         let devices = unsafe { instance.enumerate_physical_devices() }.check("vkEnumeratePhysicalDevices")?;
         let names: Vec<String> = devices
             .iter()
+            // SAFETY: queries of live instance/physical-device handles; output
+            // structures are owned here, and any p_next chain points at locals that
+            // outlive the call.
             .map(|&d| device_name(&unsafe { instance.get_physical_device_properties(d) }))
             .collect();
         let available = || {
@@ -463,6 +512,9 @@ impl Context {
     ) -> VkResult<(vk::PhysicalDevice, ash::Device, u32, DeviceInfo)> {
         let _ = entry;
         let (index, physical) = Self::pick_physical(instance, desc.device.as_deref())?;
+        // SAFETY: queries of live instance/physical-device handles; output
+        // structures are owned here, and any p_next chain points at locals that
+        // outlive the call.
         let props = unsafe { instance.get_physical_device_properties(physical) };
         let name = device_name(&props);
         if props.api_version < vk::API_VERSION_1_3 {
@@ -473,10 +525,16 @@ impl Context {
         }
         let mut driver = vk::PhysicalDeviceDriverProperties::default();
         let mut props2 = vk::PhysicalDeviceProperties2::default().push_next(&mut driver);
+        // SAFETY: queries of live instance/physical-device handles; output
+        // structures are owned here, and any p_next chain points at locals that
+        // outlive the call.
         unsafe { instance.get_physical_device_properties2(physical, &mut props2) };
         let driver_name = driver.driver_name_as_c_str().map(|c| c.to_string_lossy().into_owned()).unwrap_or_default();
         let driver_info = driver.driver_info_as_c_str().map(|c| c.to_string_lossy().into_owned()).unwrap_or_default();
 
+        // SAFETY: queries of live instance/physical-device handles; output
+        // structures are owned here, and any p_next chain points at locals that
+        // outlive the call.
         let families = unsafe { instance.get_physical_device_queue_family_properties(physical) };
         let queue_family = families
             .iter()
@@ -485,9 +543,15 @@ impl Context {
             as u32;
         let timestamp_valid_bits = families[queue_family as usize].timestamp_valid_bits;
 
+        // SAFETY: queries of live instance/physical-device handles; output
+        // structures are owned here, and any p_next chain points at locals that
+        // outlive the call.
         let supported = unsafe { instance.get_physical_device_features(physical) };
         let mut f13 = vk::PhysicalDeviceVulkan13Features::default();
         let mut f2 = vk::PhysicalDeviceFeatures2::default().push_next(&mut f13);
+        // SAFETY: queries of live instance/physical-device handles; output
+        // structures are owned here, and any p_next chain points at locals that
+        // outlive the call.
         unsafe { instance.get_physical_device_features2(physical, &mut f2) };
         if f13.dynamic_rendering == vk::FALSE || f13.synchronization2 == vk::FALSE {
             return Err(VkError::Unsupported { device: name, what: "dynamicRendering and synchronization2".into() });
@@ -508,8 +572,14 @@ impl Context {
             .queue_create_infos(&queue_info)
             .enabled_features(&features)
             .push_next(&mut enable13);
+        // SAFETY: `dci` and what it points to (queue infos, priorities, the
+        // feature chain, extension names) are locals that live for the call;
+        // the device is destroyed once, by `Drop for Context`.
         let device = unsafe { instance.create_device(physical, &dci, None) }.check("vkCreateDevice")?;
 
+        // SAFETY: queries of live instance/physical-device handles; output
+        // structures are owned here, and any p_next chain points at locals that
+        // outlive the call.
         let mem = unsafe { instance.get_physical_device_memory_properties(physical) };
         let device_local_heap_bytes = mem.memory_heaps[..mem.memory_heap_count as usize]
             .iter()
@@ -519,6 +589,9 @@ impl Context {
             .unwrap_or(0);
         let mut m3 = vk::PhysicalDeviceMaintenance3Properties::default();
         let mut p2 = vk::PhysicalDeviceProperties2::default().push_next(&mut m3);
+        // SAFETY: queries of live instance/physical-device handles; output
+        // structures are owned here, and any p_next chain points at locals that
+        // outlive the call.
         unsafe { instance.get_physical_device_properties2(physical, &mut p2) };
 
         let limits = &props.limits;
@@ -568,6 +641,8 @@ impl Context {
             if let Ok(c) = CString::new(name) {
                 let info = vk::DebugUtilsObjectNameInfoEXT::default().object_handle(handle).object_name(&c);
                 // Naming is best-effort diagnostics; a failure changes nothing.
+                // SAFETY: the name is a NUL-terminated CString living for the call and
+                // the object handle is live on this device.
                 let _ = unsafe { d.set_debug_utils_object_name(&info) };
             }
         }
@@ -580,6 +655,9 @@ impl Context {
     /// the format's buffer features. E.g. a volume that is to be sampled with
     /// trilinear filtering needs `SAMPLED_IMAGE | SAMPLED_IMAGE_FILTER_LINEAR`.
     pub fn format_supports(&self, format: vk::Format, features: vk::FormatFeatureFlags) -> bool {
+        // SAFETY: queries of live instance/physical-device handles; output
+        // structures are owned here, and any p_next chain points at locals that
+        // outlive the call.
         let props = unsafe { self.instance.get_physical_device_format_properties(self.physical, format) };
         let buffer_bits = vk::FormatFeatureFlags::UNIFORM_TEXEL_BUFFER
             | vk::FormatFeatureFlags::STORAGE_TEXEL_BUFFER
@@ -599,6 +677,9 @@ impl Context {
         ty: vk::ImageType,
         usage: vk::ImageUsageFlags,
     ) -> Option<vk::ImageFormatProperties> {
+        // SAFETY: queries of live instance/physical-device handles; output
+        // structures are owned here, and any p_next chain points at locals that
+        // outlive the call.
         unsafe {
             self.instance.get_physical_device_image_format_properties(
                 self.physical,
@@ -628,6 +709,9 @@ impl Context {
         if self.is_hung() {
             return Err(VkError::DeviceHung);
         }
+        // SAFETY: the device is live (self); vkDeviceWaitIdle needs its queues
+        // externally synchronised, which the sync model (module documentation:
+        // one queue, used from one thread at a time) provides.
         unsafe { self.device.device_wait_idle() }.check("vkDeviceWaitIdle")
     }
 
@@ -654,6 +738,10 @@ impl Drop for Context {
             // the time-out anyway.
             return;
         }
+        // SAFETY: every resource holds an Arc of the Context, so none is left
+        // when this runs; after the idle wait no submission is pending (a hung
+        // device returned above). Children go before parents, each once: pool,
+        // allocator (its memory), device, messenger, instance.
         unsafe {
             let _ = self.device.device_wait_idle();
             self.device.destroy_command_pool(self.command_pool, None);
@@ -679,7 +767,10 @@ mod tests {
         assert!(ctx.check_validation().is_ok());
         // A buffer of size 0 violates VUID-VkBufferCreateInfo-size-00912.
         let info = vk::BufferCreateInfo::default().size(0).usage(vk::BufferUsageFlags::VERTEX_BUFFER);
+        // SAFETY: test code on live handles of the test's own device, used
+        // and destroyed within this test.
         if let Ok(b) = unsafe { ctx.device.create_buffer(&info, None) } {
+            // SAFETY: `b` was just created and never used; destroyed once.
             unsafe { ctx.device.destroy_buffer(b, None) };
         }
         let err = ctx.check_validation().expect_err("the validation layer must report the zero-sized buffer");

@@ -116,6 +116,10 @@ impl DescriptorSetLayout {
                     .stage_flags(b.stages)
             })
             .collect();
+        // SAFETY: the create info and everything it points to live for the
+        // call; the device outlives the handle (the owner holds the Context in
+        // an Arc) and the handle is destroyed once, by its owner's Drop or the
+        // error path below.
         let raw = unsafe {
             ctx.device.create_descriptor_set_layout(&vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings), None)
         }
@@ -126,6 +130,10 @@ impl DescriptorSetLayout {
 
 impl Drop for DescriptorSetLayout {
     fn drop(&mut self) {
+        // SAFETY: the owner is being dropped: nothing else holds the handle,
+        // no pending submission uses it (owners wait for their recorders before
+        // dropping resources: the sync model of `context.rs`), and it is
+        // destroyed once, here.
         unsafe { self.ctx.device.destroy_descriptor_set_layout(self.raw, None) };
     }
 }
@@ -191,6 +199,10 @@ impl DescriptorSet {
             // A pool needs at least one size; an empty set still allocates.
             sizes.push(vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_BUFFER, descriptor_count: 1 });
         }
+        // SAFETY: the create info and everything it points to live for the
+        // call; the device outlives the handle (the owner holds the Context in
+        // an Arc) and the handle is destroyed once, by its owner's Drop or the
+        // error path below.
         let pool = unsafe { d.create_descriptor_pool(&vk::DescriptorPoolCreateInfo::default().max_sets(1).pool_sizes(&sizes), None) }
             .check("vkCreateDescriptorPool")?;
         // The set now owns layout and pool: an early return destroys both.
@@ -204,6 +216,10 @@ impl DescriptorSet {
             _layout: layout,
             ctx: ctx.clone(),
         };
+        // SAFETY: the create info and everything it points to live for the
+        // call; the device outlives the handle (the owner holds the Context in
+        // an Arc) and the handle is destroyed once, by its owner's Drop or the
+        // error path below.
         set.raw = unsafe { d.allocate_descriptor_sets(&vk::DescriptorSetAllocateInfo::default().descriptor_pool(pool).set_layouts(&layouts)) }
             .check("vkAllocateDescriptorSets")?[0];
         set.write(resources);
@@ -270,6 +286,11 @@ impl DescriptorSet {
                 }
             })
             .collect();
+        // SAFETY: the resources' kinds and count match the set's layout
+        // (`check_resources`, run by `new` and `update` before this); each
+        // write points into the info arrays above, which live for the call.
+        // The set is not in use by a pending submission: new, or `update`'s
+        // documented precondition (callers update between waited-for frames).
         unsafe { self.ctx.device.update_descriptor_sets(&writes, &[]) };
     }
 }
@@ -338,6 +359,10 @@ fn check_resources(ctx: &Context, name: &str, desc: &DescriptorSetDesc, resource
 
 impl Drop for DescriptorSet {
     fn drop(&mut self) {
+        // SAFETY: the owner is being dropped: nothing else holds the handle,
+        // no pending submission uses it (owners wait for their recorders before
+        // dropping resources: the sync model of `context.rs`), and it is
+        // destroyed once, here.
         unsafe { self.ctx.device.destroy_descriptor_pool(self.pool, None) };
     }
 }

@@ -286,6 +286,10 @@ impl Image {
             .tiling(vk::ImageTiling::OPTIMAL)
             .usage(usage)
             .initial_layout(vk::ImageLayout::UNDEFINED);
+        // SAFETY: the create info and everything it points to live for the
+        // call; the device outlives the handle (the owner holds the Context in
+        // an Arc) and the handle is destroyed once, by its owner's Drop or the
+        // error path below.
         let raw = unsafe { ctx.device.create_image(&ci, None) }.check("vkCreateImage")?;
         // From here the image owns `raw`: an early return drops it (and frees
         // what exists so far).
@@ -303,6 +307,7 @@ impl Image {
             allocation: None,
             ctx: ctx.clone(),
         };
+        // SAFETY: the handle was created on this device just above and is live.
         let requirements = unsafe { ctx.device.get_image_memory_requirements(raw) };
         let allocation = ctx
             .allocator()
@@ -314,6 +319,11 @@ impl Image {
                 allocation_scheme: AllocationScheme::GpuAllocatorManaged,
             })
             .map_err(|source| VkError::Alloc { name: name.into(), source })?;
+        // SAFETY: the handle is live and unbound; the allocation was made by
+        // this device's allocator for its memory requirements, is owned by the
+        // same wrapper and freed only when the handle is no longer used (Drop,
+        // or the error path below; Vulkan allows freeing memory still bound
+        // to a handle that is then only destroyed).
         let bound = unsafe { ctx.device.bind_image_memory(raw, allocation.memory(), allocation.offset()) };
         image.allocation = Some(allocation);
         bound.check("vkBindImageMemory")?;
@@ -322,6 +332,10 @@ impl Image {
             .view_type(dim.view_type())
             .format(format)
             .subresource_range(range_of(format));
+        // SAFETY: the create info and everything it points to live for the
+        // call; the device outlives the handle (the owner holds the Context in
+        // an Arc) and the handle is destroyed once, by its owner's Drop or the
+        // error path below.
         image.view = unsafe { ctx.device.create_image_view(&view_info, None) }.check("vkCreateImageView")?;
         ctx.set_name(raw, name);
         ctx.set_name(image.view, name);
@@ -380,6 +394,10 @@ impl Image {
             .new_layout(to.layout)
             .image(self.raw)
             .subresource_range(range_of(self.format))];
+        // SAFETY: the command buffer is a recorder's own, recording between its
+        // `begin` and submit (the recorder's state machine); every handle recorded
+        // is live, borrowed for the call and kept alive by its owner until the
+        // submission is waited for.
         unsafe {
             self.ctx.device.cmd_pipeline_barrier2(cmd, &vk::DependencyInfo::default().image_memory_barriers(&barrier));
         }
@@ -398,6 +416,10 @@ impl Image {
         let region = [vk::BufferImageCopy::default()
             .image_subresource(color_layers())
             .image_extent(vk::Extent3D { width: self.width, height: self.height, depth: self.depth })];
+        // SAFETY: the command buffer is a recorder's own, recording between its
+        // `begin` and submit (the recorder's state machine); every handle recorded
+        // is live, borrowed for the call and kept alive by its owner until the
+        // submission is waited for.
         unsafe {
             ctx.device.cmd_copy_image_to_buffer(cmd, self.raw, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, buf.raw, &region);
         }
@@ -483,6 +505,10 @@ impl Drop for Image {
             // The device may still write this memory: leak rather than free.
             return;
         }
+        // SAFETY: the owner is being dropped: nothing else holds the handle,
+        // no pending submission uses it (owners wait for their recorders before
+        // dropping resources: the sync model of `context.rs`), and it is
+        // destroyed once, here.
         unsafe {
             if self.view != vk::ImageView::null() {
                 self.ctx.device.destroy_image_view(self.view, None);
@@ -529,6 +555,10 @@ impl Sampler {
             .min_lod(0.0)
             .max_lod(0.0)
             .unnormalized_coordinates(false);
+        // SAFETY: the create info and everything it points to live for the
+        // call; the device outlives the handle (the owner holds the Context in
+        // an Arc) and the handle is destroyed once, by its owner's Drop or the
+        // error path below.
         let raw = unsafe { ctx.device.create_sampler(&info, None) }.check("vkCreateSampler")?;
         ctx.set_name(raw, name);
         Ok(Sampler { raw, filter, ctx: ctx.clone() })
@@ -545,6 +575,10 @@ impl Sampler {
 
 impl Drop for Sampler {
     fn drop(&mut self) {
+        // SAFETY: the owner is being dropped: nothing else holds the handle,
+        // no pending submission uses it (owners wait for their recorders before
+        // dropping resources: the sync model of `context.rs`), and it is
+        // destroyed once, here.
         unsafe { self.ctx.device.destroy_sampler(self.raw, None) };
     }
 }

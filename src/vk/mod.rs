@@ -10,8 +10,12 @@
 //! descriptor sets (`descriptors`), graphics and compute pipelines
 //! (`pipeline`) and their cache (`pipeline_cache`), command recording with
 //! bounded fence waits, dispatch and barriers (`commands`), timestamps and
-//! statistics (`query`), a method's own timestamps (`timestamps`), shader compilation (`shader`) and the byte
-//! counters (`upload`).
+//! statistics (`query`), a method's own timestamps (`timestamps`), shader compilation (`shader`), the byte
+//! counters (`upload`) and valgrind's client requests for counted runs (`valgrind`).
+
+// The one module where `unsafe` is allowed (denied elsewhere by
+// `[lints.rust]` in Cargo.toml); every block says why it is sound.
+#![allow(unsafe_code)]
 
 pub mod buffer;
 pub mod commands;
@@ -25,6 +29,7 @@ pub mod query;
 pub mod shader;
 pub mod timestamps;
 pub mod upload;
+pub mod valgrind;
 
 pub use ash::vk as raw;
 pub use buffer::{Buffer, BufferDesc, MemoryKind, TexelBuffer};

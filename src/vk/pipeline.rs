@@ -145,7 +145,7 @@ fn create_layout(
     set_layouts: &[vk::DescriptorSetLayout],
 ) -> VkResult<vk::PipelineLayout> {
     let info = &ctx.info;
-    if push_constant_bytes % 4 != 0 || push_constant_bytes > info.max_push_constants_size {
+    if !push_constant_bytes.is_multiple_of(4) || push_constant_bytes > info.max_push_constants_size {
         return Err(VkError::Invalid(format!(
             "pipeline '{name}': {push_constant_bytes} bytes of push constants (a multiple of 4, at most {})",
             info.max_push_constants_size
@@ -162,6 +162,10 @@ fn create_layout(
     if push_constant_bytes > 0 {
         layout_info = layout_info.push_constant_ranges(&ranges);
     }
+    // SAFETY: the create info and everything it points to live for the
+    // call; the device outlives the handle (the owner holds the Context in
+    // an Arc) and the handle is destroyed once, by its owner's Drop or the
+    // error path below.
     unsafe { ctx.device.create_pipeline_layout(&layout_info, None) }.check("vkCreatePipelineLayout")
 }
 
@@ -275,6 +279,10 @@ impl Pipeline {
             .dynamic_state(&dynamic)
             .layout(layout)
             .push_next(&mut rendering);
+        // SAFETY: the create info and everything it points to live for the
+        // call; the device outlives the handle (the owner holds the Context in
+        // an Arc) and the handle is destroyed once, by its owner's Drop or the
+        // error path below.
         pipeline.raw = match unsafe { d.create_graphics_pipelines(cache, &[info], None) } {
             Ok(p) => p[0],
             Err((_, result)) => return Err(VkError::Call { what: "vkCreateGraphicsPipelines", result }),
@@ -308,6 +316,10 @@ impl Pipeline {
             .module(desc.shader.raw)
             .name(c"main");
         let info = vk::ComputePipelineCreateInfo::default().stage(stage).layout(layout);
+        // SAFETY: the create info and everything it points to live for the
+        // call; the device outlives the handle (the owner holds the Context in
+        // an Arc) and the handle is destroyed once, by its owner's Drop or the
+        // error path below.
         pipeline.raw = match unsafe { ctx.device.create_compute_pipelines(cache, &[info], None) } {
             Ok(p) => p[0],
             Err((_, result)) => return Err(VkError::Call { what: "vkCreateComputePipelines", result }),
@@ -324,6 +336,10 @@ impl Pipeline {
 
 impl Drop for Pipeline {
     fn drop(&mut self) {
+        // SAFETY: the owner is being dropped: nothing else holds the handle,
+        // no pending submission uses it (owners wait for their recorders before
+        // dropping resources: the sync model of `context.rs`), and it is
+        // destroyed once, here.
         unsafe {
             if self.raw != vk::Pipeline::null() {
                 self.ctx.device.destroy_pipeline(self.raw, None);

@@ -211,6 +211,10 @@ impl PipelineCache {
     /// `lookup` resolves shader and include paths (volbench passes
     /// `crate::shaders::source`).
     pub fn new(ctx: &Arc<Context>, lookup: impl Fn(&str) -> Option<&'static str> + Send + Sync + 'static) -> VkResult<Self> {
+        // SAFETY: the create info and everything it points to live for the
+        // call; the device outlives the handle (the owner holds the Context in
+        // an Arc) and the handle is destroyed once, by its owner's Drop or the
+        // error path below.
         let raw = unsafe { ctx.device.create_pipeline_cache(&vk::PipelineCacheCreateInfo::default(), None) }
             .check("vkCreatePipelineCache")?;
         ctx.set_name(raw, "volbench pipeline cache");
@@ -298,6 +302,10 @@ impl Drop for PipelineCache {
         if let Ok(mut m) = self.pipelines.lock() {
             m.clear();
         }
+        // SAFETY: the owner is being dropped: nothing else holds the handle,
+        // no pending submission uses it (owners wait for their recorders before
+        // dropping resources: the sync model of `context.rs`), and it is
+        // destroyed once, here.
         unsafe { self.ctx.device.destroy_pipeline_cache(self.raw, None) };
     }
 }

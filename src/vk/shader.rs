@@ -98,6 +98,10 @@ pub struct ShaderModule {
 impl ShaderModule {
     pub fn new(ctx: &Arc<Context>, name: &str, stage: ShaderStage, spirv: &[u32]) -> VkResult<Self> {
         let info = vk::ShaderModuleCreateInfo::default().code(spirv);
+        // SAFETY: the create info and everything it points to live for the
+        // call; the device outlives the handle (the owner holds the Context in
+        // an Arc) and the handle is destroyed once, by its owner's Drop or the
+        // error path below.
         let raw = unsafe { ctx.device.create_shader_module(&info, None) }.check("vkCreateShaderModule")?;
         ctx.set_name(raw, name);
         Ok(ShaderModule { raw, stage, ctx: ctx.clone() })
@@ -106,6 +110,10 @@ impl ShaderModule {
 
 impl Drop for ShaderModule {
     fn drop(&mut self) {
+        // SAFETY: the owner is being dropped: nothing else holds the handle,
+        // no pending submission uses it (owners wait for their recorders before
+        // dropping resources: the sync model of `context.rs`), and it is
+        // destroyed once, here.
         unsafe { self.ctx.device.destroy_shader_module(self.raw, None) };
     }
 }

@@ -29,6 +29,10 @@ impl TimestampPool {
     /// `None` and `elapsed_ms` an error saying so.
     pub fn new(ctx: &Arc<Context>, name: &str, count: u32) -> VkResult<Self> {
         let info = vk::QueryPoolCreateInfo::default().query_type(vk::QueryType::TIMESTAMP).query_count(count.max(1));
+        // SAFETY: the create info and everything it points to live for the
+        // call; the device outlives the handle (the owner holds the Context in
+        // an Arc) and the handle is destroyed once, by its owner's Drop or the
+        // error path below.
         let raw = unsafe { ctx.device.create_query_pool(&info, None) }.check("vkCreateQueryPool(method timestamps)")?;
         ctx.set_name(raw, name);
         let bits = ctx.info.timestamp_valid_bits;
@@ -45,6 +49,10 @@ impl TimestampPool {
 
     /// Reset every timestamp; record outside a render pass, before `write`.
     pub fn reset(&self, rec: &CommandRecorder) {
+        // SAFETY: the command buffer is a recorder's own, recording between its
+        // `begin` and submit (the recorder's state machine); every handle recorded
+        // is live, borrowed for the call and kept alive by its owner until the
+        // submission is waited for.
         unsafe { self.ctx.device.cmd_reset_query_pool(rec.raw, self.raw, 0, self.count) };
     }
 
@@ -53,6 +61,10 @@ impl TimestampPool {
         if index >= self.count {
             return Err(VkError::Invalid(format!("timestamp {index} of '{}', which holds {}", self.name, self.count)));
         }
+        // SAFETY: the command buffer is a recorder's own, recording between its
+        // `begin` and submit (the recorder's state machine); every handle recorded
+        // is live, borrowed for the call and kept alive by its owner until the
+        // submission is waited for.
         unsafe { self.ctx.device.cmd_write_timestamp2(rec.raw, stage, self.raw, index) };
         Ok(())
     }
@@ -69,6 +81,10 @@ impl TimestampPool {
             return Err(VkError::Invalid(format!("timestamps {from}..{to} of '{}', which holds {}", self.name, self.count)));
         }
         let mut ts = vec![0u64; self.count as usize];
+        // SAFETY: the pool is live on this device and the output holds every
+        // result read (64-bit each, TYPE_64; statistics: one [u64; 8] for at most
+        // 8 counters). Read without WAIT_BIT, an unfinished query is NOT_READY,
+        // an error, never a block.
         unsafe { self.ctx.device.get_query_pool_results(self.raw, 0, &mut ts, vk::QueryResultFlags::TYPE_64) }.map_err(
             |result| match result {
                 vk::Result::NOT_READY => VkError::Invalid(format!(
@@ -98,6 +114,10 @@ impl TimestampPool {
 
 impl Drop for TimestampPool {
     fn drop(&mut self) {
+        // SAFETY: the owner is being dropped: nothing else holds the handle,
+        // no pending submission uses it (owners wait for their recorders before
+        // dropping resources: the sync model of `context.rs`), and it is
+        // destroyed once, here.
         unsafe { self.ctx.device.destroy_query_pool(self.raw, None) };
     }
 }

@@ -223,26 +223,47 @@ pub(crate) enum Wrapper {
 /// promises): reading stops one byte past it, so a bomb costs at most that,
 /// and a stream that is corrupt, ends early or holds more is an error.
 pub(crate) fn inflate_exact(source: &str, what: &str, wrapper: Wrapper, input: &[u8], expected: usize) -> Result<Vec<u8>> {
-    let mut out = Vec::with_capacity(expected.min(max_inflated(input.len())));
-    let limit = expected as u64 + 1;
-    let read = match wrapper {
-        Wrapper::Gzip => flate2::read::MultiGzDecoder::new(input).take(limit).read_to_end(&mut out),
-        Wrapper::Zlib => flate2::read::ZlibDecoder::new(input).take(limit).read_to_end(&mut out),
-    };
+    inflate_after(source, what, wrapper, input, 0, expected)
+}
+
+/// Decompresses `input`, whose first `skip` bytes (a header offset) are
+/// read and dropped, to exactly `expected` bytes after them. Memory is
+/// bounded by `expected` alone, whatever the offset; a promise the stream
+/// cannot hold (deflate expands at most ~1032:1) is refused before any
+/// inflating.
+pub(crate) fn inflate_after(source: &str, what: &str, wrapper: Wrapper, input: &[u8], skip: usize, expected: usize) -> Result<Vec<u8>> {
     let kind = match wrapper {
         Wrapper::Gzip => "gzip",
         Wrapper::Zlib => "zlib",
     };
-    if let Err(e) = read {
+    let promised = skip.saturating_add(expected);
+    if promised > max_inflated(input.len()) {
+        bail!(
+            "{source}: {kind} data in {what}: {} compressed bytes cannot hold the {promised} bytes the header promises \
+             ({skip} skipped + {expected} of data)",
+            input.len()
+        );
+    }
+    let mut reader: Box<dyn Read> = match wrapper {
+        Wrapper::Gzip => Box::new(flate2::read::MultiGzDecoder::new(input)),
+        Wrapper::Zlib => Box::new(flate2::read::ZlibDecoder::new(input)),
+    };
+    let skipped = std::io::copy(&mut (&mut reader).take(skip as u64), &mut std::io::sink());
+    let skipped = skipped.map_err(|e| anyhow!("{source}: corrupt {kind} data in {what}: {e}"))?;
+    if skipped < skip as u64 {
+        bail!("{source}: {kind} data in {what} decompresses to {skipped} bytes, shorter than the {skip}-byte offset before the data");
+    }
+    let mut out = Vec::with_capacity(expected.min(max_inflated(input.len())));
+    if let Err(e) = reader.take(expected as u64 + 1).read_to_end(&mut out) {
         bail!("{source}: corrupt {kind} data in {what}: {e}");
     }
     if out.len() > expected {
-        bail!("{source}: {kind} data in {what} decompresses to more than the {expected} bytes the header promises");
+        bail!("{source}: {kind} data in {what} decompresses to more than the {promised} bytes the header promises");
     }
     if out.len() < expected {
         bail!(
-            "{source}: {kind} data in {what} decompresses to {} bytes, {expected} expected (truncated or corrupt stream)",
-            out.len()
+            "{source}: {kind} data in {what} decompresses to {} bytes, {promised} expected (truncated or corrupt stream)",
+            out.len() + skip
         );
     }
     Ok(out)

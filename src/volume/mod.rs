@@ -21,7 +21,7 @@
 //!
 //! Nothing here knows about Vulkan.
 
-mod decode;
+pub(crate) mod decode;
 pub mod datasets;
 pub mod nifti;
 pub mod nrrd;
@@ -198,6 +198,8 @@ impl Volume {
         if let Some(a) = origin.iter().position(|o| !o.is_finite()) {
             bail!("{source}: origin {} along {} is not finite", origin[a], AXES[a]);
         }
+        let far = std::array::from_fn(|a| origin[a] + spacing[a] * (dims[a].max(2) - 1) as f64);
+        crate::mesh::geometry::check_box(source, "volume", origin, far)?;
         if let Some(i) = samples.first_non_finite() {
             let v = samples.get(i).unwrap_or(f64::NAN);
             let (x, y, z) = (i % dims[0], i / dims[0] % dims[1], i / (dims[0] * dims[1]));

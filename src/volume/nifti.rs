@@ -21,7 +21,7 @@
 use anyhow::{anyhow, bail, Result};
 use std::path::Path;
 
-use super::decode::{byte_len, decode_binary, gunzip_prefix, inflate_exact, Endian, RawType, Wrapper};
+use super::decode::{byte_len, decode_binary, gunzip_prefix, inflate_after, Endian, RawType, Wrapper};
 use super::{check_dims, stem_of, Samples, Volume, AXES};
 
 /// Size of a NIfTI-1 header.
@@ -199,8 +199,9 @@ pub fn parse_nifti_bytes(name: &str, bytes: &[u8]) -> Result<Volume> {
         .ok_or_else(|| anyhow!("{name}: vox_offset {} plus the data overflows", h.vox_offset))?;
     let shape = format!("{}x{}x{} {}", h.dims[0], h.dims[1], h.dims[2], h.ty.name());
     let inflated;
-    let file: &[u8] = if gz {
-        inflated = inflate_exact(name, &format!("the gzip stream ({shape} at vox_offset {})", h.vox_offset), Wrapper::Gzip, bytes, total)?;
+    let data: &[u8] = if gz {
+        let what = format!("the gzip stream ({shape} at vox_offset {})", h.vox_offset);
+        inflated = inflate_after(name, &what, Wrapper::Gzip, bytes, h.vox_offset, needed)?;
         &inflated
     } else {
         if bytes.len() != total {
@@ -210,9 +211,9 @@ pub fn parse_nifti_bytes(name: &str, bytes: &[u8]) -> Result<Volume> {
                 bytes.len()
             );
         }
-        bytes
+        &bytes[h.vox_offset..]
     };
-    let mut samples = decode_binary(name, &file[h.vox_offset..], h.ty, h.endian, count)?;
+    let mut samples = decode_binary(name, data, h.ty, h.endian, count)?;
     if let Some((slope, inter)) = h.scale {
         let f = samples.to_f32();
         samples = Samples::F32(f.into_iter().map(|v| (v as f64 * slope + inter) as f32).collect());

@@ -22,7 +22,7 @@ use std::path::Path;
 
 use anyhow::{anyhow, bail, Result};
 
-use super::decode::{byte_len, decode_binary, inflate_exact, parse_ascii, Endian, RawType, Tokens, Wrapper};
+use super::decode::{byte_len, decode_binary, inflate_after, parse_ascii, Endian, RawType, Tokens, Wrapper};
 use super::{check_dims, from_steps, stem_of, Volume, AXES};
 
 /// Reads a NRRD file (`.nrrd` or `.nhdr`); a detached data file is read
@@ -339,9 +339,8 @@ pub fn parse_nrrd_bytes(name: &str, bytes: &[u8], load_data: &mut dyn FnMut(&str
             decode_binary(name, body, ty, endian, count)?
         }
         Enc::Gzip => {
-            let total = skip.checked_add(needed).ok_or_else(|| anyhow!("{name}: byte skip {skip} overflows"))?;
-            let all = inflate_exact(name, &what, Wrapper::Gzip, data, total)?;
-            decode_binary(name, &all[skip..], ty, endian, count)?
+            let body = inflate_after(name, &what, Wrapper::Gzip, data, skip, needed)?;
+            decode_binary(name, &body, ty, endian, count)?
         }
         Enc::Ascii => {
             let text = data.get(skip..).ok_or_else(|| anyhow!("{name}: byte skip {skip} runs past the end of {what}"))?;

@@ -8,23 +8,14 @@
 //! `ascii`, inline `binary` (base64) or `appended` (raw or base64), of type
 //! UInt8, Int16, UInt16, Float32 (Int8 and Int32 convert, see `decode`).
 //!
-//! Binary data is a header then the bytes: uncompressed, one word with the
-//! byte count; zlib-compressed, VTK's block header `[blocks, block size, last
-//! block size (0: full), compressed size of each block]`, then each block as
-//! its own zlib stream. Every count is checked against the extent and the
-//! bytes present before any block is inflated, and each block inflates to
-//! exactly its promised size.
-//!
-//! Raw appended data is not XML text, so the file is cut at `<AppendedData`:
-//! the XML before it is parsed (closed with `</VTKFile>`), the bytes after
-//! its `_` marker are the appended data.
+//! The file layer (appended data, binary headers, zlib blocks) is
+//! `crate::vtk_xml`, shared with the `.vtu` mesh reader.
 
 use anyhow::{anyhow, bail, Result};
 use std::path::Path;
 
-use super::decode::{
-    base64_concat, byte_len, decode_binary, inflate_exact, parse_ascii, Endian, RawType, Tokens, Wrapper,
-};
+use super::decode::{byte_len, decode_binary, parse_ascii, RawType, Tokens};
+use crate::vtk_xml::{array_payload, numbers, root_layout, split_appended};
 use super::{check_dims, from_steps, stem_of, Volume};
 
 /// Reads a `.vti` file's point array `array` (`None`: see the module note).
@@ -32,27 +23,6 @@ pub fn read_vti(path: impl AsRef<Path>, array: Option<&str>) -> Result<Volume> {
     let path = path.as_ref();
     let bytes = crate::fsio::read_input(path, "VTK XML ImageData file", crate::fsio::MAX_INPUT_BYTES)?;
     parse_vti_bytes(&path.display().to_string(), &bytes, array)
-}
-
-fn find(hay: &[u8], needle: &[u8]) -> Option<usize> {
-    hay.windows(needle.len()).position(|w| w == needle)
-}
-
-fn rfind(hay: &[u8], needle: &[u8]) -> Option<usize> {
-    hay.windows(needle.len()).rposition(|w| w == needle)
-}
-
-/// The numbers of an attribute, exactly `n` of them.
-fn numbers<T: std::str::FromStr>(name: &str, node: roxmltree::Node, attr: &str, n: usize) -> Result<Option<Vec<T>>> {
-    let Some(text) = node.attribute(attr) else { return Ok(None) };
-    let v = text
-        .split_ascii_whitespace()
-        .map(|t| t.parse::<T>().map_err(|_| anyhow!("{name}: bad number '{t}' in {attr}=\"{text}\"")))
-        .collect::<Result<Vec<T>>>()?;
-    if v.len() != n {
-        bail!("{name}: {attr}=\"{text}\" has {} numbers, expected {n}", v.len());
-    }
-    Ok(Some(v))
 }
 
 fn raw_type(name: &str, t: &str) -> Result<RawType> {
@@ -67,155 +37,16 @@ fn raw_type(name: &str, t: &str) -> Result<RawType> {
     })
 }
 
-/// Reads header words of `word` bytes from a byte stream.
-struct Words<'a> {
-    b: &'a [u8],
-    pos: usize,
-    word: usize,
-    endian: Endian,
-}
-
-impl Words<'_> {
-    fn next(&mut self, name: &str, what: &str) -> Result<usize> {
-        let c = self
-            .b
-            .get(self.pos..self.pos + self.word)
-            .ok_or_else(|| anyhow!("{name}: truncated {what}: its header ends after {} bytes", self.b.len()))?;
-        self.pos += self.word;
-        let v = match (self.word, self.endian) {
-            (4, Endian::Little) => u32::from_le_bytes([c[0], c[1], c[2], c[3]]) as u64,
-            (4, Endian::Big) => u32::from_be_bytes([c[0], c[1], c[2], c[3]]) as u64,
-            (_, e) => {
-                let w: [u8; 8] = std::array::from_fn(|i| c[i]);
-                if e == Endian::Little {
-                    u64::from_le_bytes(w)
-                } else {
-                    u64::from_be_bytes(w)
-                }
-            }
-        };
-        usize::try_from(v).map_err(|_| anyhow!("{name}: header value {v} in {what} is too large"))
-    }
-}
-
-/// The `expected` data bytes of one array from its binary stream (header +
-/// data), compressed or not.
-fn binary_payload(name: &str, what: &str, stream: &[u8], word: usize, endian: Endian, zlib: bool, expected: usize) -> Result<Vec<u8>> {
-    let mut w = Words { b: stream, pos: 0, word, endian };
-    if !zlib {
-        let n = w.next(name, what)?;
-        if n != expected {
-            bail!("{name}: header/size mismatch: {what} declares {n} bytes, its extent needs {expected}");
-        }
-        let body = stream
-            .get(w.pos..)
-            .filter(|b| b.len() >= n)
-            .ok_or_else(|| anyhow!("{name}: truncated {what}: {n} bytes declared, {} present", stream.len() - w.pos))?;
-        return Ok(body[..n].to_vec());
-    }
-    let blocks = w.next(name, what)?;
-    let block = w.next(name, what)?;
-    let last = w.next(name, what)?;
-    // The per-block sizes must fit in what remains: bounds the vector.
-    if blocks > (stream.len() - w.pos) / word {
-        bail!("{name}: truncated {what}: {blocks} compressed blocks declared, the header ends first");
-    }
-    if last > block {
-        bail!("{name}: {what}: last block size {last} is larger than the block size {block}");
-    }
-    let total = match (blocks, last) {
-        (0, _) => Some(0),
-        (b, 0) => b.checked_mul(block),
-        (b, l) => (b - 1).checked_mul(block).and_then(|t| t.checked_add(l)),
-    };
-    if total != Some(expected) {
-        bail!(
-            "{name}: header/size mismatch: the block header of {what} ({blocks} blocks of {block} bytes, last \
-             {last}) does not make the {expected} bytes its extent needs"
-        );
-    }
-    let sizes = (0..blocks).map(|_| w.next(name, what)).collect::<Result<Vec<usize>>>()?;
-    let mut at = w.pos;
-    let mut out = Vec::with_capacity(expected.min(stream.len().saturating_mul(1032)));
-    for (i, &c) in sizes.iter().enumerate() {
-        let end = at.checked_add(c).filter(|&e| e <= stream.len()).ok_or_else(|| {
-            anyhow!("{name}: truncated {what}: compressed block {i} of {blocks} ({c} bytes) runs past the data")
-        })?;
-        let size = if i + 1 == blocks && last != 0 { last } else { block };
-        out.extend(inflate_exact(name, &format!("{what}, block {i}"), Wrapper::Zlib, &stream[at..end], size)?);
-        at = end;
-    }
-    Ok(out)
-}
-
 /// Parses a VTK XML ImageData file from its bytes, reading the point array
 /// `array` (`None`: the active scalars, else the first one-component array).
 /// `name` starts every error and its stem names the volume. Never panics on
 /// malformed input.
 pub fn parse_vti_bytes(name: &str, bytes: &[u8], array: Option<&str>) -> Result<Volume> {
-    let body = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
-    let first = body.iter().position(|c| !c.is_ascii_whitespace()).unwrap_or(body.len());
-    if !(body[first..].starts_with(b"<?xml") || body[first..].starts_with(b"<VTKFile")) {
-        bail!("{name}: not a VTK XML file (it does not start with '<?xml' or '<VTKFile')");
-    }
-
-    // ---- split off appended data
-    let (xml_bytes, appended) = match find(body, b"<AppendedData") {
-        None => (body, None),
-        Some(at) => {
-            let tag_end = body[at..]
-                .iter()
-                .position(|&c| c == b'>')
-                .map(|e| at + e)
-                .ok_or_else(|| anyhow!("{name}: truncated <AppendedData> tag"))?;
-            let tag = std::str::from_utf8(&body[at..=tag_end]).map_err(|_| anyhow!("{name}: non-text bytes in <AppendedData>"))?;
-            let tag_doc = format!("{}/>", tag.trim_end_matches('>').trim_end_matches('/'));
-            let tag_xml = roxmltree::Document::parse(&tag_doc).map_err(|e| anyhow!("{name}: bad <AppendedData> tag: {e}"))?;
-            let encoding = tag_xml.root_element().attribute("encoding").unwrap_or("raw").to_string();
-            let rest = &body[tag_end + 1..];
-            let us = rest
-                .iter()
-                .position(|c| !c.is_ascii_whitespace())
-                .filter(|&i| rest[i] == b'_')
-                .ok_or_else(|| anyhow!("{name}: appended data does not start with the '_' marker"))?;
-            let data = &rest[us + 1..];
-            let data = match rfind(data, b"</AppendedData>") {
-                Some(e) => &data[..e],
-                None => data,
-            };
-            (&body[..at], Some((encoding, data)))
-        }
-    };
-    let mut xml = std::str::from_utf8(xml_bytes)
-        .map_err(|e| anyhow!("{name}: the XML is not UTF-8 text (invalid byte at offset {})", e.valid_up_to()))?
-        .to_string();
-    if appended.is_some() {
-        xml.push_str("</VTKFile>");
-    }
-    let doc = roxmltree::Document::parse(&xml).map_err(|e| anyhow!("{name}: bad XML: {e}"))?;
+    let parts = split_appended(name, bytes)?;
+    let appended = parts.appended;
+    let doc = roxmltree::Document::parse(&parts.xml).map_err(|e| anyhow!("{name}: bad XML: {e}"))?;
     let root = doc.root_element();
-    if root.tag_name().name() != "VTKFile" {
-        bail!("{name}: the root element is <{}>, not <VTKFile>", root.tag_name().name());
-    }
-    match root.attribute("type") {
-        Some("ImageData") => {}
-        other => bail!("{name}: VTK XML type '{}' is not ImageData", other.unwrap_or("(missing)")),
-    }
-    let endian = match root.attribute("byte_order").unwrap_or("LittleEndian") {
-        "LittleEndian" => Endian::Little,
-        "BigEndian" => Endian::Big,
-        o => bail!("{name}: bad byte_order '{o}': expected LittleEndian or BigEndian"),
-    };
-    let word = match root.attribute("header_type").unwrap_or("UInt32") {
-        "UInt32" => 4,
-        "UInt64" => 8,
-        o => bail!("{name}: bad header_type '{o}': expected UInt32 or UInt64"),
-    };
-    let zlib = match root.attribute("compressor") {
-        None | Some("") => false,
-        Some("vtkZLibDataCompressor") => true,
-        Some(o) => bail!("{name}: unsupported compressor '{o}'; supported: none, vtkZLibDataCompressor"),
-    };
+    let layout = root_layout(name, root, "ImageData")?;
 
     // ---- grid
     let image = root
@@ -285,8 +116,9 @@ pub fn parse_vti_bytes(name: &str, bytes: &[u8], array: Option<&str>) -> Result<
     let expected = byte_len(name, count, ty)?;
 
     // ---- the data
-    let samples = match chosen.attribute("format").unwrap_or("ascii") {
-        "ascii" => {
+    let samples = match array_payload(name, &what, *chosen, &doc, appended.as_ref(), layout, expected)? {
+        Some(bytes) => decode_binary(name, &bytes, ty, layout.endian, count)?,
+        None => {
             let text = chosen.text().unwrap_or("");
             let mut tokens = Tokens::new(text.as_bytes());
             let s = parse_ascii(name, &what, &mut tokens, ty, ty_name, count, 0)?;
@@ -295,36 +127,6 @@ pub fn parse_vti_bytes(name: &str, bytes: &[u8], array: Option<&str>) -> Result<
             }
             s
         }
-        "binary" => {
-            let text = chosen.text().unwrap_or("");
-            let stream = base64_concat(name, &what, text.as_bytes())?;
-            let data = binary_payload(name, &what, &stream, word, endian, zlib, expected)?;
-            decode_binary(name, &data, ty, endian, count)?
-        }
-        "appended" => {
-            let (encoding, data) = appended.as_ref().ok_or_else(|| anyhow!("{name}: {what} is appended but there is no <AppendedData>"))?;
-            let off_text = chosen.attribute("offset").ok_or_else(|| anyhow!("{name}: appended {what} has no offset"))?;
-            let offset: usize = off_text.trim().parse().map_err(|_| anyhow!("{name}: bad offset '{off_text}' of {what}"))?;
-            // This array's bytes run to the next appended array's offset.
-            let next = doc
-                .descendants()
-                .filter(|n| n.has_tag_name("DataArray") && n.attribute("format") == Some("appended"))
-                .filter_map(|n| n.attribute("offset")?.trim().parse::<usize>().ok())
-                .filter(|&o| o > offset && o <= data.len())
-                .min()
-                .unwrap_or(data.len());
-            let tail = data.get(offset..next).ok_or_else(|| {
-                anyhow!("{name}: offset {offset} of {what} is past the end of the {} bytes of appended data", data.len())
-            })?;
-            let stream = match encoding.as_str() {
-                "raw" => std::borrow::Cow::Borrowed(tail),
-                "base64" => std::borrow::Cow::Owned(base64_concat(name, &what, tail)?),
-                o => bail!("{name}: unsupported AppendedData encoding '{o}'; supported: raw, base64"),
-            };
-            let bytes = binary_payload(name, &what, &stream, word, endian, zlib, expected)?;
-            decode_binary(name, &bytes, ty, endian, count)?
-        }
-        o => bail!("{name}: {what} has format '{o}'; supported: ascii, binary, appended"),
     };
     from_steps(name, stem_of(name), dims, steps, first, samples)
 }

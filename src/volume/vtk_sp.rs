@@ -10,13 +10,14 @@
 //! file is read to its end and a malformed tail is still an error. ASCII
 //! values outside the declared type's range are errors.
 //!
-//! This is a separate reader from the tetrahedral one in `mesh::vtk` (the two
-//! datasets share only the file's outer syntax); errors name the file, the
-//! problem and the byte offset.
+//! The line and token layer (`crate::vtk_legacy`) is shared with the
+//! unstructured-grid reader `mesh::vtk`; errors name the file, the problem
+//! and the byte offset.
 
-use anyhow::{anyhow, bail, Result};
+use anyhow::{bail, Result};
 use std::path::Path;
 
+use crate::vtk_legacy::Lines as Reader;
 use super::decode::{decode_binary, parse_ascii, Endian, RawType, Tokens};
 use super::{check_dims, from_steps, stem_of, Volume};
 
@@ -58,55 +59,7 @@ enum Owner {
     Cells,
 }
 
-struct Reader<'a> {
-    name: &'a str,
-    b: &'a [u8],
-    pos: usize,
-    binary: bool,
-}
-
 impl<'a> Reader<'a> {
-    fn err(&self, msg: impl std::fmt::Display) -> anyhow::Error {
-        anyhow!("{}: {} (at byte {})", self.name, crate::fsio::clip_message(&msg.to_string()), self.pos)
-    }
-
-    fn skip_ws(&mut self) {
-        while self.pos < self.b.len() && self.b[self.pos].is_ascii_whitespace() {
-            self.pos += 1;
-        }
-    }
-
-    fn at_end(&mut self) -> bool {
-        self.skip_ws();
-        self.pos >= self.b.len()
-    }
-
-    /// The rest of the current line (without `\r\n`), consuming the newline.
-    fn raw_line(&mut self, what: &str) -> Result<&'a str> {
-        if self.pos >= self.b.len() {
-            return Err(self.err(format!("truncated file: expected {what}, found end of file")));
-        }
-        let start = self.pos;
-        let end = self.b[start..].iter().position(|&c| c == b'\n').map_or(self.b.len(), |e| start + e);
-        self.pos = (end + 1).min(self.b.len());
-        let line = &self.b[start..end];
-        let line = line.strip_suffix(b"\r").unwrap_or(line);
-        std::str::from_utf8(line).map_err(|_| {
-            self.pos = start;
-            self.err(format!("expected {what}, found non-text bytes"))
-        })
-    }
-
-    /// The next non-blank line split into words (never empty).
-    fn keyword_line(&mut self, what: &str) -> Result<Vec<&'a str>> {
-        self.skip_ws();
-        let words: Vec<&'a str> = self.raw_line(what)?.split_ascii_whitespace().collect();
-        if words.is_empty() {
-            return Err(self.err(format!("truncated file: expected {what}, found end of file")));
-        }
-        Ok(words)
-    }
-
     /// Whether the next word is `kw`, without moving (binary data may start
     /// with a byte that looks like whitespace).
     fn next_is(&self, kw: &str) -> bool {
@@ -116,15 +69,6 @@ impl<'a> Reader<'a> {
         rest.len() >= kw.len()
             && rest[..kw.len()].eq_ignore_ascii_case(kw.as_bytes())
             && rest.get(kw.len()).is_none_or(|c| c.is_ascii_whitespace())
-    }
-
-    fn count(&self, s: Option<&&str>, what: &str) -> Result<usize> {
-        let s = s.ok_or_else(|| self.err(format!("missing {what}")))?;
-        s.parse::<usize>().map_err(|_| self.err(format!("bad {what} '{s}'")))
-    }
-
-    fn product(&self, n: usize, k: usize, what: &str) -> Result<usize> {
-        n.checked_mul(k).ok_or_else(|| self.err(format!("{what} size {n} x {k} overflows")))
     }
 
     fn numbers3(&self, line: &[&str], what: &str) -> Result<[f64; 3]> {
@@ -138,19 +82,8 @@ impl<'a> Reader<'a> {
         Ok(v)
     }
 
-    /// `n` binary values of `size` bytes, checked against what remains.
-    fn binary_bytes(&mut self, n: usize, size: usize, what: &str) -> Result<&'a [u8]> {
-        let remain = self.b.len() - self.pos;
-        let len = n.checked_mul(size).filter(|&l| l <= remain).ok_or_else(|| {
-            self.err(format!("truncated file: {what} needs {n} values of {size} bytes, only {remain} bytes remain"))
-        })?;
-        let s = &self.b[self.pos..self.pos + len];
-        self.pos += len;
-        Ok(s)
-    }
-
     /// Skips `n` values (binary: of `size` bytes; ASCII: tokens).
-    fn skip_values(&mut self, n: usize, size: usize, what: &str) -> Result<()> {
+    fn skip_sized(&mut self, n: usize, size: usize, what: &str) -> Result<()> {
         if self.binary {
             self.binary_bytes(n, size, what)?;
         } else {
@@ -170,18 +103,9 @@ impl<'a> Reader<'a> {
     fn skip_typed(&mut self, n: usize, type_name: Option<&&str>, what: &str) -> Result<()> {
         let t = type_name.ok_or_else(|| self.err(format!("missing data type for {what}")))?;
         let size = type_size(t).ok_or_else(|| self.err(format!("unsupported data type '{t}' for {what}")))?;
-        self.skip_values(n, size, what)
+        self.skip_sized(n, size, what)
     }
 
-    /// Skips a METADATA block (it ends at an empty line or the end of file).
-    fn skip_metadata(&mut self) -> Result<()> {
-        while self.pos < self.b.len() {
-            if self.raw_line("METADATA")?.trim().is_empty() {
-                break;
-            }
-        }
-        Ok(())
-    }
 }
 
 /// Parses a VTK legacy `STRUCTURED_POINTS` file from its bytes. `name` starts
@@ -349,12 +273,12 @@ pub fn parse_structured_points_bytes(name: &str, bytes: &[u8]) -> Result<Volume>
             "LOOKUP_TABLE" => {
                 let size = r.count(line.get(2), "LOOKUP_TABLE size")?;
                 let n = r.product(size, 4, "LOOKUP_TABLE")?;
-                r.skip_values(n, 1, "LOOKUP_TABLE")?;
+                r.skip_sized(n, 1, "LOOKUP_TABLE")?;
             }
             "COLOR_SCALARS" => {
                 let n = need_owner(&r)?;
                 let k = r.count(line.get(2), "COLOR_SCALARS component count")?;
-                r.skip_values(r.product(n, k, "COLOR_SCALARS")?, 1, "COLOR_SCALARS")?;
+                r.skip_sized(r.product(n, k, "COLOR_SCALARS")?, 1, "COLOR_SCALARS")?;
             }
             "VECTORS" | "NORMALS" | "TENSORS" | "TENSORS6" | "GLOBAL_IDS" | "PEDIGREE_IDS" => {
                 let n = need_owner(&r)?;

@@ -24,3 +24,17 @@ pub fn context() -> std::sync::MutexGuard<'static, std::sync::Arc<volbench::vk::
     .lock()
     .unwrap_or_else(|p| p.into_inner())
 }
+
+/// A NumPy `.npy` (format 1.0) of `dict`, the header dict's text, and `data`.
+pub fn npy_bytes(dict: &str, data: &[u8]) -> Vec<u8> {
+    let mut h = dict.to_string();
+    while !(h.len() + 11).is_multiple_of(64) {
+        h.push(' ');
+    }
+    h.push('\n');
+    let mut b = b"\x93NUMPY\x01\x00".to_vec();
+    b.extend((h.len() as u16).to_le_bytes());
+    b.extend(h.as_bytes());
+    b.extend(data);
+    b
+}

@@ -267,7 +267,7 @@ impl DeviceCentroidSort {
         let rec = CommandRecorder::new(ctx, "device sort order readback")?;
         rec.begin()?;
         if bytes > 0 {
-            rec.copy_buffer(&self.order, &readback, bytes);
+            rec.copy_buffer(&self.order, &readback, bytes)?;
         }
         rec.transfer_to_host();
         rec.submit_and_wait()?;
@@ -284,7 +284,7 @@ mod tests {
     fn the_passes_cover_a_u32_key_and_end_where_they_started() {
         assert_eq!(PASSES * RADIX_BITS, 32);
         assert_eq!(PASSES % 2, 0, "the order must end in the buffer the keys started in");
-        assert!(RADIX_BITS == 4 && ITEMS_PER_INVOCATION <= 255, "the packed counters (radix_sort.glsl)");
+        const { assert!(RADIX_BITS == 4 && ITEMS_PER_INVOCATION <= 255, "the packed counters (radix_sort.glsl)") };
         // The scatter's shared memory: RADIX counters per invocation plus the bases.
         let shared = ((1 << RADIX_BITS) * WORKGROUP + (1 << RADIX_BITS)) * 4;
         assert!(shared <= 16 * 1024, "{shared} bytes of shared memory");

@@ -483,9 +483,24 @@ pub trait CellProjector {
     }
 }
 
+/// Test-only switch (docs/tracking.md): `VOLBENCH_TEST_EXTRA_FRAGMENT_WORK=N`
+/// adds N dependent multiply-adds to every fragment of
+/// shaders/cell_projection/balanced.frag (balanced and resident), the
+/// deliberate slowdown the counted compare must catch. Unset in real runs.
+pub const EXTRA_WORK_VAR: &str = "VOLBENCH_TEST_EXTRA_FRAGMENT_WORK";
+
+fn extra_fragment_work() -> VkResult<Option<String>> {
+    match std::env::var(EXTRA_WORK_VAR) {
+        Err(_) => Ok(None),
+        Ok(v) if v.parse::<u16>().is_ok() => Ok(Some(v)),
+        Ok(v) => Err(crate::vk::VkError::Invalid(format!("{EXTRA_WORK_VAR}={v}: not a count of multiply-adds (0..=65535)"))),
+    }
+}
+
 /// The pipeline every cell-projection method uses: premultiplied "over"
 /// into RGBA32F, entry faces only, the integration tables bound at set 0
 /// and `extra_sets` at sets 1, 2, ...
+#[allow(clippy::too_many_arguments)] // one pipeline description; a struct for it is issue 23 item 1
 pub(crate) fn build_pipeline(
     ctx: &Arc<Context>,
     vertex_path: &str,
@@ -498,8 +513,12 @@ pub(crate) fn build_pipeline(
     interpolation: Interpolation,
     extra_sets: &[DescriptorSetDesc],
 ) -> VkResult<(Arc<Pipeline>, PipelineKey)> {
-    let defines: Vec<(&str, &str)> =
+    let mut defines: Vec<(&str, &str)> =
         interpolation.defines().iter().copied().chain(tables.integrator.define()).collect();
+    let extra = extra_fragment_work()?;
+    if let Some(n) = &extra {
+        defines.push(("EXTRA_WORK", n));
+    }
     let key = PipelineKey::Graphics(GraphicsPipelineKey {
         vertex: ShaderKey::new(vertex_path, ShaderStage::Vertex, &defines),
         geometry: None,

@@ -452,6 +452,9 @@ impl RenderMethod for CellProjection {
         if !self.reused {
             let culled = if device_sort { None } else { self.culler.cull(camera, w, h) };
             let t1 = Instant::now();
+            if self.culler.enabled() {
+                phases.ended("cull", ms(t1 - t0));
+            }
             let order: &[u32] = match (device_sort, culled.is_some(), &mut self.sorter) {
                 (true, _, _) => &[],
                 (false, false, sorter) => sorter.sort(camera),
@@ -465,18 +468,14 @@ impl RenderMethod for CellProjection {
                 }
             };
             let t2 = Instant::now();
+            if !device_sort {
+                phases.ended("sort", ms(t2 - t1));
+            }
             self.projector.pack(order, &setup);
             // Near caps are per-frame records too (none unless the eye is in
             // the mesh); a re-used frame keeps the ones on the device.
             self.near.prepare(camera, &setup, &*self.projector);
-            let t3 = Instant::now();
-            if self.culler.enabled() {
-                phases.add("cull", ms(t1 - t0));
-            }
-            if !device_sort {
-                phases.add("sort", ms(t2 - t1));
-            }
-            phases.add("pack", ms(t3 - t2));
+            phases.ended("pack", ms(t2.elapsed()));
             for (name, ms) in self.projector.pack_phases() {
                 phases.add(name, ms);
             }

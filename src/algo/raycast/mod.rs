@@ -105,7 +105,6 @@ use crate::vk::{
 /// Transfer-function table entries (1D) and pre-integration table side (2D).
 pub const TABLE_SIZE: usize = 1024;
 pub const PREINT_SIZE: usize = 256;
-/// Brick side in voxels for empty-space skipping.
 
 /// The options both variants share.
 pub const OPTIONS: &[OptionSpec] = &[

@@ -189,7 +189,7 @@ impl RenderMethod for HmCompute {
             self.active_list.push(self.level_first[level as usize] + i);
             self.pc_triangles += self.tables.cells[level as usize][i as usize][3] as u64;
         }
-        phases.add("pack", t0.elapsed().as_secs_f64() * 1e3);
+        phases.ended("pack", t0.elapsed().as_secs_f64() * 1e3);
         if self.active_list.len() > self.capacity_cells {
             bail!("hm-compute: {} active PC cells exceed the {} sized for", self.active_list.len(), self.capacity_cells);
         }
@@ -279,7 +279,7 @@ impl RenderMethod for HmCompute {
         rec.begin()?;
         if count > 0 {
             rec.compute_to_transfer();
-            rec.copy_buffer(&self.output, &readback, 4 * count);
+            rec.copy_buffer(&self.output, &readback, 4 * count)?;
             rec.transfer_to_host();
         }
         rec.submit_and_wait()?;

@@ -70,7 +70,7 @@ impl RenderMethod for HmCpu {
         for &(level, i) in &self.scene.active.pc_cells {
             m.tessellate(level as usize, &m.levels[level as usize].pc[i as usize], &mut self.indices)?;
         }
-        phases.add("tessellate", t0.elapsed().as_secs_f64() * 1e3);
+        phases.ended("tessellate", t0.elapsed().as_secs_f64() * 1e3);
         if self.indices.len() > self.capacity_indices {
             bail!("hm-cpu: {} PC indices exceed the {} sized for", self.indices.len(), self.capacity_indices);
         }

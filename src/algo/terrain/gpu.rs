@@ -238,7 +238,7 @@ impl RenderMethod for HmGpu {
             f.pc_triangles += self.tables.cells[k][i][3] as u64;
         }
         self.frame = f;
-        phases.add("pack", t0.elapsed().as_secs_f64() * 1e3);
+        phases.ended("pack", t0.elapsed().as_secs_f64() * 1e3);
         if self.active_list.len() > self.capacity {
             bail!("hm-gpu: {} active PC entries exceed the {} sized for", self.active_list.len(), self.capacity);
         }

@@ -360,7 +360,7 @@ impl TerrainScene {
         }
         a.rms_error = (sse / m.samples.max(1) as f64).sqrt();
         self.active = a;
-        phases.add("lod", t0.elapsed().as_secs_f64() * 1e3);
+        phases.ended("lod", t0.elapsed().as_secs_f64() * 1e3);
     }
 
     /// Push constants for a draw tinted `tint`.

@@ -1,0 +1,290 @@
+//! Counted work: `volbench run … --count` and `volbench suite … --count`
+//! run themselves again under callgrind and report, per timed frame and per
+//! phase, the instructions executed (by every thread), instead of the time.
+//! Unlike time, a count repeats to a few parts in a million from run to run
+//! and from a quiet machine to a loaded one (docs/tracking.md).
+//!
+//! How it is made deterministic:
+//! - callgrind starts with instrumentation off (`--instr-atstart=no`): file
+//!   loading, the CPU reference, pipeline creation and the warm-up frames
+//!   (llvmpipe compiles its shader variants at the first draw, LLVM's JIT)
+//!   are not counted. The runner opens the counted section after the
+//!   warm-up (`vk::valgrind::start`) and closes it after the last timed
+//!   frame.
+//! - At each phase boundary the runner (and a method, through
+//!   `Phases::ended`) dumps the counts since the previous boundary under the
+//!   phase's name (`vk::valgrind::mark`); this module reads the dumps back.
+//! - Frames run without CPU/device overlap, so phases never interleave.
+//! - Waits count no work: valgrind runs one thread at a time, and a thread
+//!   blocked on a futex (lavapipe's fence wait, its queue thread) executes
+//!   nothing. Spinning is what would not repeat, so nothing spins:
+//!   `LP_NUM_THREADS=0` (lavapipe rasterises and runs compute on its own
+//!   queue thread, no worker pool) and rayon's pool is the main thread alone
+//!   (no idle worker spins between jobs).
+//! - What changes code paths is pinned and recorded in the result:
+//!   `LP_NUM_THREADS`, `LP_NATIVE_VECTOR_WIDTH`, Mesa's shader disk cache
+//!   off, rayon's thread count, one malloc arena without thread caches,
+//!   valgrind's fair scheduling, no overlap. The validation layer is off (its
+//!   work would count as the method's; `--validation` with `--count` is an
+//!   error).
+//!
+//! The device's work: lavapipe executes a submission on its queue thread
+//! while the host waits on the fence. The `device` phase is every thread's
+//! instructions from vkQueueSubmit until the fence has signalled: the
+//! submission call itself, the rasteriser and shaders, and the host's
+//! return from the wait. vkQueueSubmit is inside it because lavapipe's queue
+//! thread may start on the work before the call returns, and where that
+//! split falls depends on the scheduler.
+
+use std::collections::BTreeMap;
+use std::ffi::OsString;
+use std::path::{Path, PathBuf};
+use std::process::{Command, ExitCode};
+
+use anyhow::{bail, ensure, Context as _, Result};
+use serde::Serialize;
+
+use crate::vk::valgrind;
+
+/// Set by the parent for the counted child: the directory callgrind dumps into.
+pub const DIR_VAR: &str = "VOLBENCH_COUNT_DIR";
+/// What the counted child runs with (also recorded in `count.pinned`).
+pub const PINNED_ENV: &[(&str, &str)] = &[
+    ("LP_NUM_THREADS", "0"),
+    ("LP_NATIVE_VECTOR_WIDTH", "128"),
+    ("MESA_SHADER_CACHE_DISABLE", "true"),
+    ("RAYON_NUM_THREADS", "1"),
+    // One malloc arena and no per-thread caches: lavapipe's queue thread
+    // freeing while the host allocates otherwise leaves the host's free
+    // lists, and so its malloc paths, in an order that varies run to run.
+    ("GLIBC_TUNABLES", "glibc.malloc.arena_max=1:glibc.malloc.tcache_count=0"),
+];
+/// valgrind's options besides the output file.
+const VALGRIND_ARGS: &[&str] = &[
+    "--tool=callgrind",
+    "-q",
+    "--instr-atstart=no",
+    // llvmpipe writes code at run time (LLVM's JIT) into anonymous memory.
+    "--smc-check=all-non-file",
+    // Threads take valgrind's lock in the order they ask for it.
+    "--fair-sched=yes",
+];
+/// The fence time-out of a counted run, seconds, unless the user set one.
+const COUNTED_FENCE_TIMEOUT_S: &str = "3600";
+/// The dump files' prefix inside the count directory.
+const DUMP_PREFIX: &str = "callgrind.out";
+/// The harness's boundary between frames; what precedes it is not counted.
+const BETWEEN: &str = "between-frames";
+
+/// The phases the runner itself marks, in frame order (a method's own CPU
+/// phases come before `prepare`).
+pub const RUNNER_PHASES: &[&str] = &["prepare", "upload", "record", "device", "finish"];
+
+/// The counted child: `--count` given and running under valgrind with the
+/// dump directory set. `None` when `--count` was not given.
+pub fn child_dir(count: bool) -> Result<Option<PathBuf>> {
+    if !count {
+        return Ok(None);
+    }
+    ensure!(valgrind::running_on_valgrind(), "--count: internal error: not running under valgrind");
+    let dir = std::env::var_os(DIR_VAR).with_context(|| format!("--count under valgrind needs {DIR_VAR} (set by volbench itself)"))?;
+    // rayon's pool is this thread alone: no idle worker spins.
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .use_current_thread()
+        .build_global()
+        .context("--count: making rayon's pool the main thread alone")?;
+    Ok(Some(PathBuf::from(dir)))
+}
+
+/// Whether `--count` must re-execute this process under valgrind.
+pub fn needs_reexec(count: bool) -> bool {
+    count && !valgrind::running_on_valgrind()
+}
+
+/// Run this command again under callgrind, with what changes code paths
+/// pinned; its exit status is ours.
+pub fn reexec() -> Result<ExitCode> {
+    ensure!(valgrind::SUPPORTED, "--count needs x86_64 (valgrind client requests)");
+    let version = Command::new("valgrind")
+        .arg("--version")
+        .output()
+        .map_err(|e| anyhow::anyhow!("--count runs volbench under valgrind, which was not found ({e}); scripts/setup.sh installs it"))?;
+    ensure!(version.status.success(), "--count: `valgrind --version` failed");
+    let exe = std::env::current_exe().context("--count: locating the volbench binary to run under valgrind")?;
+    let dir = std::env::temp_dir().join(format!("volbench-count-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).with_context(|| format!("--count: creating {}", dir.display()))?;
+    let args: Vec<OsString> = std::env::args_os().skip(1).collect();
+    let mut cmd = Command::new("valgrind");
+    cmd.args(VALGRIND_ARGS)
+    .arg(format!("--callgrind-out-file={}", dir.join(DUMP_PREFIX).display()))
+    .arg(&exe)
+    .args(&args)
+    .env(DIR_VAR, &dir)
+    .envs(PINNED_ENV.iter().copied())
+    // The validation layer's own work would be counted as the method's
+    // (the same frames are validated in the uncounted runs).
+    .env_remove(crate::vk::VALIDATION_VAR)
+    .env_remove("VK_LAYER_ENABLES")
+    .env_remove("VK_INSTANCE_LAYERS");
+    // Under valgrind a warm-up frame (llvmpipe compiling its variants) can
+    // take minutes on a loaded machine: not a hung device.
+    if std::env::var_os(crate::vk::FENCE_TIMEOUT_VAR).is_none() {
+        cmd.env(crate::vk::FENCE_TIMEOUT_VAR, COUNTED_FENCE_TIMEOUT_S);
+    }
+    let status = cmd.status().context("--count: starting valgrind")?;
+    let _ = std::fs::remove_dir_all(&dir);
+    Ok(match status.code() {
+        Some(0) => ExitCode::SUCCESS,
+        Some(c) => ExitCode::from(u8::try_from(c).unwrap_or(1)),
+        None => bail!("--count: volbench under valgrind was killed by a signal ({status})"),
+    })
+}
+
+/// Instructions of one phase: the timed frames' total and each frame's.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct PhaseCount {
+    pub total: u64,
+    pub per_frame: Vec<u64>,
+}
+
+/// The counted work of a run's timed frames (`count` in the result).
+#[derive(Debug, Clone, Serialize)]
+pub struct CountReport {
+    /// `callgrind` and the event counted (`Ir`: instructions executed).
+    pub tool: String,
+    pub event: String,
+    pub frames: usize,
+    /// Instructions per phase over the timed frames: the method's own CPU
+    /// phases, then `prepare` (the rest of the method's CPU half), `upload`,
+    /// `record`, `device` and `finish` (query results, the method's
+    /// after-frame work).
+    pub phases: BTreeMap<String, PhaseCount>,
+    /// Every phase of each frame together.
+    pub frame: PhaseCount,
+    /// How the device's work is attributed.
+    pub device_attribution: String,
+    /// What was pinned because it changes code paths.
+    pub pinned: BTreeMap<String, String>,
+}
+
+/// One dump: its label and the instructions since the previous one.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Dump {
+    pub label: String,
+    pub instructions: u64,
+}
+
+/// Parse one callgrind dump: the trigger's label and the `totals:` line
+/// (callgrind with its default event set: `Ir` first).
+pub fn parse_dump(text: &str, what: &str) -> Result<Dump> {
+    let label = text
+        .lines()
+        .find_map(|l| l.strip_prefix("desc: Trigger: Client Request: "))
+        .with_context(|| format!("{what}: no client-request trigger line"))?;
+    let totals = text
+        .lines()
+        .find_map(|l| l.strip_prefix("totals:").or_else(|| l.strip_prefix("summary:")))
+        .with_context(|| format!("{what}: no totals line"))?;
+    let instructions = totals
+        .split_whitespace()
+        .next()
+        .and_then(|v| v.parse().ok())
+        .with_context(|| format!("{what}: totals line '{totals}' has no instruction count"))?;
+    Ok(Dump { label: label.trim().to_string(), instructions })
+}
+
+/// Read (and remove) the dumps written into `dir` so far, in order.
+pub fn take_dumps(dir: &Path) -> Result<Vec<Dump>> {
+    let mut files = Vec::new();
+    for e in std::fs::read_dir(dir).with_context(|| format!("reading the count directory {}", dir.display()))? {
+        let path = e?.path();
+        let n = path.file_name().and_then(|n| n.to_str()).and_then(|n| n.strip_prefix(DUMP_PREFIX)?.strip_prefix('.')?.parse::<u64>().ok());
+        if let Some(n) = n {
+            files.push((n, path));
+        }
+    }
+    files.sort();
+    let mut out = Vec::with_capacity(files.len());
+    for (_, path) in files {
+        let text = std::fs::read_to_string(&path).with_context(|| format!("reading callgrind dump {}", path.display()))?;
+        out.push(parse_dump(&text, &path.display().to_string())?);
+        std::fs::remove_file(&path).with_context(|| format!("removing {}", path.display()))?;
+    }
+    Ok(out)
+}
+
+/// The boundary at the start of each counted frame.
+pub fn frame_start() {
+    valgrind::mark(BETWEEN);
+}
+
+/// The end of one of the runner's phases.
+pub fn phase_end(name: &'static str) {
+    valgrind::mark(name);
+}
+
+/// Group the dumps of `frames` counted frames into the report.
+pub fn report(dumps: &[Dump], frames: usize) -> Result<CountReport> {
+    let mut per_frame: Vec<BTreeMap<String, u64>> = Vec::new();
+    for d in dumps {
+        if d.label == BETWEEN {
+            per_frame.push(BTreeMap::new());
+        } else if let Some(f) = per_frame.last_mut() {
+            *f.entry(d.label.clone()).or_default() += d.instructions;
+        }
+    }
+    ensure!(
+        per_frame.len() == frames,
+        "--count: {} counted frames in callgrind's dumps, expected {frames} (is the binary run under callgrind?)",
+        per_frame.len()
+    );
+    let names: std::collections::BTreeSet<&String> = per_frame.iter().flat_map(|f| f.keys()).collect();
+    let phases: BTreeMap<String, PhaseCount> = names
+        .into_iter()
+        .map(|n| {
+            let v: Vec<u64> = per_frame.iter().map(|f| f.get(n).copied().unwrap_or(0)).collect();
+            (n.clone(), PhaseCount { total: v.iter().sum(), per_frame: v })
+        })
+        .collect();
+    let frame_v: Vec<u64> = per_frame.iter().map(|f| f.values().sum()).collect();
+    let mut pinned: BTreeMap<String, String> = PINNED_ENV.iter().map(|(k, v)| (k.to_string(), v.to_string())).collect();
+    pinned.insert("overlap".into(), "off".into());
+    pinned.insert("rayon_pool".into(), "the main thread alone".into());
+    pinned.insert("valgrind".into(), VALGRIND_ARGS.join(" "));
+    Ok(CountReport {
+        tool: "callgrind".into(),
+        event: "Ir".into(),
+        frames,
+        phases,
+        frame: PhaseCount { total: frame_v.iter().sum(), per_frame: frame_v },
+        device_attribution: "every thread's instructions from vkQueueSubmit until the frame's fence signalled \
+                             (the submission, lavapipe's queue thread, the host's return from the wait)"
+            .into(),
+        pinned,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_a_dump() {
+        let text = "version: 1\ncreator: callgrind-3.19.0\npid: 1\ncmd: x\npart: 3\n\ndesc: I1 cache:\ndesc: Timerange: Basic block 1 - 2\n\
+                    desc: Trigger: Client Request: sort\n\npositions: line\nevents: Ir\nsummary: 12345\n\nfn=(1) main\n0 3\n\ntotals: 12345\n";
+        assert_eq!(parse_dump(text, "t").unwrap(), Dump { label: "sort".into(), instructions: 12345 });
+        assert!(parse_dump("events: Ir\n", "t").unwrap_err().to_string().contains("trigger"));
+    }
+
+    #[test]
+    fn groups_frames_and_phases() {
+        let d = |l: &str, n| Dump { label: l.into(), instructions: n };
+        let dumps = [d(BETWEEN, 7), d("sort", 10), d("device", 100), d(BETWEEN, 3), d("sort", 11), d("device", 101), d("device", 1)];
+        let r = report(&dumps, 2).unwrap();
+        assert_eq!(r.phases["sort"].per_frame, vec![10, 11]);
+        assert_eq!(r.phases["device"].total, 202);
+        assert_eq!(r.frame.per_frame, vec![110, 113]);
+        assert!(report(&dumps, 3).is_err());
+    }
+}

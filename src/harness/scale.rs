@@ -1,0 +1,508 @@
+//! The scaling study (`volbench scale`): a tet mesh red-refined level by
+//! level (`mesh::refine`, ×8 cells each), every level written as a binary
+//! legacy VTK file and rendered by each method in a fresh `volbench run`
+//! process (so its peak RSS is that run's alone), optionally by VTK's
+//! projected tetrahedra (`--peers vtk`) on the same file; frame time and
+//! every phase, tets/s, bytes per frame, static device bytes and peak RSS
+//! per level, as JSON, CSV, Markdown and a log-log plot.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, ensure, Context as _, Result};
+use serde::Serialize;
+
+use crate::mesh::refine::{red_refine, refined_bytes};
+use crate::mesh::TetMesh;
+
+/// One row: a method (or peer) on one level.
+#[derive(Debug, Clone, Serialize)]
+pub struct ScaleRow {
+    pub level: usize,
+    pub cells: u64,
+    pub points: u64,
+    /// The method's label, or `peer vtk/projected-tetrahedra`.
+    pub method: String,
+    pub status: &'static str,
+    pub error: Option<String>,
+    /// Median frame time (ms).
+    pub frame_ms: Option<f64>,
+    /// Median of each phase (ms), `frame` included.
+    pub phases_ms: BTreeMap<String, f64>,
+    /// Median frame time per million tets (ms).
+    pub ms_per_mtet: Option<f64>,
+    pub tets_per_second: Option<f64>,
+    pub bytes_per_frame: Option<u64>,
+    /// Bytes uploaded to the device once (device-resident data).
+    pub static_device_bytes: Option<u64>,
+    /// Peak resident set of the run's process (VmHWM), bytes.
+    pub peak_rss_bytes: Option<u64>,
+    pub peak_rss_bytes_per_tet: Option<f64>,
+}
+
+/// A level's mesh and the f64 reference's time on it.
+#[derive(Debug, Clone, Serialize)]
+pub struct ScaleLevel {
+    pub level: usize,
+    pub cells: u64,
+    pub points: u64,
+    pub file: String,
+    pub refine_ms: f64,
+    /// The f64 CPU reference's time for one image at the run size, when run.
+    pub reference_ms: Option<f64>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct ScaleReport {
+    pub schema: &'static str,
+    pub dataset: String,
+    pub width: u32,
+    pub height: u32,
+    pub frames: usize,
+    pub warmup: usize,
+    pub levels: Vec<ScaleLevel>,
+    pub rows: Vec<ScaleRow>,
+}
+
+/// Available host memory (MemAvailable, bytes), if /proc/meminfo says.
+pub fn available_memory() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+/// `mesh` refined once, after checking that the refinement fits in the
+/// host memory available now (`available`: bytes; `None`: unchecked).
+pub fn refine_checked(mesh: &TetMesh, level: usize, available: Option<u64>) -> Result<TetMesh> {
+    let need = refined_bytes(mesh);
+    if let Some(avail) = available {
+        ensure!(
+            need <= avail as u128,
+            "level {level}: refining {} tets to {} needs about {:.1} GiB of host memory, {:.1} GiB are available; use fewer --levels",
+            mesh.tets.len(),
+            mesh.tets.len() as u128 * 8,
+            need as f64 / (1u64 << 30) as f64,
+            avail as f64 / (1u64 << 30) as f64
+        );
+    }
+    red_refine(mesh).with_context(|| format!("refining level {level}"))
+}
+
+/// Runs `cmd` to completion, polling its peak RSS (VmHWM) from /proc while
+/// it runs; returns its output status, stderr and the last VmHWM read.
+pub fn run_measured(mut cmd: Command) -> Result<(std::process::ExitStatus, String, Option<u64>)> {
+    let mut child = cmd.stdout(Stdio::null()).stderr(Stdio::piped()).spawn().context("starting the run")?;
+    let status_path = PathBuf::from(format!("/proc/{}/status", child.id()));
+    let stderr = child.stderr.take();
+    // stderr is drained on a thread so a chatty child never blocks.
+    let reader = std::thread::spawn(move || {
+        let mut s = String::new();
+        if let Some(mut e) = stderr {
+            let _ = std::io::Read::read_to_string(&mut e, &mut s);
+        }
+        s
+    });
+    let mut peak = None;
+    let status = loop {
+        if let Some(status) = child.try_wait().context("waiting for the run")? {
+            break status;
+        }
+        if let Some(kb) = std::fs::read_to_string(&status_path).ok().and_then(|t| vm_hwm_kb(&t)) {
+            peak = Some(peak.unwrap_or(0).max(kb * 1024));
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let err = reader.join().unwrap_or_default();
+    Ok((status, err, peak))
+}
+
+fn vm_hwm_kb(status: &str) -> Option<u64> {
+    status.lines().find(|l| l.starts_with("VmHWM:"))?.split_whitespace().nth(1)?.parse().ok()
+}
+
+/// The row of a `volbench run --json` result.
+pub fn row_from_run(level: usize, method: &str, json: &serde_json::Value, peak: Option<u64>) -> ScaleRow {
+    let cells = json.get("cells").and_then(|c| c.as_u64()).unwrap_or(0);
+    let points = json.get("points").and_then(|c| c.as_u64()).unwrap_or(0);
+    let mut phases_ms = BTreeMap::new();
+    if let Some(t) = json.get("time_ms").and_then(|t| t.as_object()) {
+        for (k, v) in t {
+            if let Some(m) = v.get("median").and_then(|m| m.as_f64()) {
+                phases_ms.insert(k.clone(), m);
+            }
+        }
+    }
+    let frame_ms = phases_ms.get("frame").copied();
+    let per_tet = |v: Option<f64>| v.filter(|_| cells > 0).map(|v| v / cells as f64);
+    ScaleRow {
+        level,
+        cells,
+        points,
+        method: method.to_string(),
+        status: "ok",
+        error: None,
+        frame_ms,
+        ms_per_mtet: per_tet(frame_ms).map(|v| v * 1e6),
+        tets_per_second: frame_ms.filter(|f| *f > 0.0).map(|f| cells as f64 / (f * 1e-3)),
+        phases_ms,
+        bytes_per_frame: json.pointer("/upload/bytes_per_frame").and_then(|b| b.as_u64()),
+        static_device_bytes: json.pointer("/upload/static_bytes").and_then(|b| b.as_u64()),
+        peak_rss_bytes: peak,
+        peak_rss_bytes_per_tet: per_tet(peak.map(|p| p as f64)),
+    }
+}
+
+/// A failed row.
+pub fn failed_row(level: usize, mesh: &TetMesh, method: &str, error: String) -> ScaleRow {
+    ScaleRow {
+        level,
+        cells: mesh.tets.len() as u64,
+        points: mesh.points.len() as u64,
+        method: method.to_string(),
+        status: "failed",
+        error: Some(error),
+        frame_ms: None,
+        phases_ms: BTreeMap::new(),
+        ms_per_mtet: None,
+        tets_per_second: None,
+        bytes_per_frame: None,
+        static_device_bytes: None,
+        peak_rss_bytes: None,
+        peak_rss_bytes_per_tet: None,
+    }
+}
+
+/// One `volbench run` of `spec` on the mesh file, in a fresh process.
+pub fn run_method(exe: &Path, file: &Path, spec: &str, level: usize, label: &str, args: &[String], json: &Path) -> Result<ScaleRow> {
+    let _ = std::fs::remove_file(json);
+    let mut cmd = Command::new(exe);
+    cmd.args(["run", "--data"]).arg(file).args(["--method", spec]).args(args).arg("--json").arg(json);
+    let (status, err, peak) = run_measured(cmd)?;
+    if !status.success() {
+        bail!("{status}: {}", crate::fsio::clip_message(err.trim()));
+    }
+    let text = std::fs::read_to_string(json).with_context(|| format!("reading {}", json.display()))?;
+    let v: serde_json::Value = serde_json::from_str(&text).with_context(|| format!("{}: not JSON", json.display()))?;
+    Ok(row_from_run(level, label, &v, peak))
+}
+
+/// Elapsed milliseconds of `f`.
+pub fn timed<T>(f: impl FnOnce() -> T) -> (T, f64) {
+    let t = Instant::now();
+    let v = f();
+    (v, t.elapsed().as_secs_f64() * 1e3)
+}
+
+/// What `volbench scale` runs.
+#[derive(Debug, Clone)]
+pub struct ScaleSettings {
+    /// A shipped tet mesh or a mesh file.
+    pub dataset: String,
+    /// Refinements after level 0.
+    pub levels: usize,
+    /// (canonical spec, label) per method.
+    pub specs: Vec<(String, String)>,
+    pub width: u32,
+    pub height: u32,
+    pub frames: usize,
+    pub warmup: usize,
+    /// The f64 reference is timed on levels with at most this many tets.
+    pub reference_max_cells: u64,
+    pub peers: Vec<String>,
+}
+
+/// The study: every level refined, written to `out/meshes/`, run by each
+/// method in a fresh process of `exe`, and by the peers.
+pub fn study(exe: &Path, s: &ScaleSettings, out: &Path, mut progress: impl FnMut(&str)) -> Result<ScaleReport> {
+    use super::datasets::{self, Dataset, DatasetData};
+    let loaded = datasets::load(&s.dataset)?;
+    let name = loaded.name.clone();
+    let DatasetData::TetMesh { mesh, .. } = loaded.data else {
+        bail!("--data {}: a {} dataset; scale refines tetrahedral meshes", s.dataset, loaded.kind().name());
+    };
+    let peers = s.peers.iter().map(|p| super::peers::locate(p)).collect::<Result<Vec<_>>>()?;
+    let meshes = out.join("meshes");
+    std::fs::create_dir_all(&meshes).with_context(|| format!("creating {}", meshes.display()))?;
+    let run_args: Vec<String> = vec![
+        "--size".into(),
+        format!("{}x{}", s.width, s.height),
+        "--frames".into(),
+        s.frames.to_string(),
+        "--warmup".into(),
+        s.warmup.to_string(),
+    ];
+    let json = out.join(".run.json");
+    let mut report = ScaleReport {
+        schema: "volbench-scale/1",
+        dataset: name.clone(),
+        width: s.width,
+        height: s.height,
+        frames: s.frames,
+        warmup: s.warmup,
+        levels: Vec::new(),
+        rows: Vec::new(),
+    };
+    let mut mesh = mesh;
+    for level in 0..=s.levels {
+        let refine_ms = if level > 0 {
+            progress(&format!("level {level}: refining {} tets", mesh.tets.len()));
+            let (refined, ms) = timed(|| refine_checked(&mesh, level, available_memory()));
+            mesh = refined?;
+            ms
+        } else {
+            0.0
+        };
+        let file = meshes.join(format!("{name}-L{level}.vtk"));
+        super::peers::write_tet_mesh(&mesh, &format!("volbench scale: {name} red-refined {level} times"), &file)?;
+        let cells = mesh.tets.len() as u64;
+        for (spec, label) in &s.specs {
+            progress(&format!("level {level} ({cells} tets): {label}"));
+            let row = run_method(exe, &file, spec, level, label, &run_args, &json).unwrap_or_else(|e| failed_row(level, &mesh, label, format!("{e:#}")));
+            report.rows.push(row);
+        }
+        let needs_dataset = cells <= s.reference_max_cells || !peers.is_empty();
+        let dataset = needs_dataset.then(|| Dataset::from_mesh(mesh.clone(), false, file.to_string_lossy().into_owned()));
+        let mut reference_ms = None;
+        if let Some(ds) = dataset.as_ref().filter(|_| cells <= s.reference_max_cells) {
+            progress(&format!("level {level}: f64 reference"));
+            let tf = ds.default_transfer_function();
+            let camera = ds.orbit_camera(0.0, crate::scene::Projection::Perspective { fovy_deg: 30.0 });
+            let (image, ms) = timed(|| ds.reference_image(&tf, &camera, s.width, s.height));
+            image?;
+            reference_ms = Some(ms);
+        }
+        for peer in &peers {
+            let Some(ds) = &dataset else { break };
+            // VTK's projected tetrahedra: the cell-projection peer (its
+            // unstructured ray caster is not what the study sets beside).
+            for renderer in peer.renderers_for(ds.kind()).filter(|r| r.name == "projected-tetrahedra") {
+                let label = format!("peer {}/{}", peer.peer.name, renderer.name);
+                progress(&format!("level {level} ({cells} tets): {label}"));
+                let row = run_peer_level(peer, renderer, ds, s, level, &file, out).unwrap_or_else(|e| failed_row(level, &mesh, &label, format!("{e:#}")));
+                report.rows.push(row);
+            }
+        }
+        report.levels.push(ScaleLevel {
+            level,
+            cells,
+            points: mesh.points.len() as u64,
+            file: file.to_string_lossy().into_owned(),
+            refine_ms,
+            reference_ms,
+        });
+    }
+    let _ = std::fs::remove_file(&json);
+    Ok(report)
+}
+
+fn run_peer_level(
+    peer: &super::peers::LocatedPeer,
+    renderer: &'static super::peers::PeerRenderer,
+    ds: &super::datasets::Dataset,
+    s: &ScaleSettings,
+    level: usize,
+    file: &Path,
+    out: &Path,
+) -> Result<ScaleRow> {
+    use super::peers;
+    let cfg = super::run::RunConfig { width: s.width, height: s.height, frames: s.frames, warmup: s.warmup, ..Default::default() };
+    let exported = peers::PeerDataset {
+        name: ds.name.clone(),
+        kind: ds.kind().name().to_string(),
+        file: file.to_string_lossy().into_owned(),
+        format: "vtk-legacy-unstructured-grid".into(),
+        digest: ds.digest.clone(),
+    };
+    let dir = out.join("peers");
+    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    let tf = ds.default_transfer_function();
+    let scene = peers::scene(peer.peer, renderer, ds, &tf, &cfg, &exported, &dir)?;
+    let scene_path = dir.join(format!("{}-L{level}.json", scene.stem()));
+    let (result, _image) = peers::run_peer(peer, &scene, &scene_path)?;
+    let frame = super::stats::Summary::of(&result.frame_ms).median;
+    let v = serde_json::json!({
+        "cells": ds.summary().counts.get("cells"),
+        "points": ds.summary().counts.get("points"),
+        "time_ms": { "frame": { "median": frame } },
+    });
+    Ok(row_from_run(level, &format!("peer {}/{}", peer.peer.name, renderer.name), &v, None))
+}
+
+/// The rows as CSV (one line per method and level, the common phases).
+pub fn csv(r: &ScaleReport) -> String {
+    let mut phases: Vec<&String> = r.rows.iter().flat_map(|row| row.phases_ms.keys()).collect();
+    phases.sort();
+    phases.dedup();
+    let mut out = String::from("level,cells,points,method,status,frame_ms,ms_per_mtet,tets_per_second,bytes_per_frame,static_device_bytes,peak_rss_bytes,peak_rss_bytes_per_tet");
+    for p in &phases {
+        out += &format!(",{p}_ms");
+    }
+    out += "\n";
+    let o = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.6}"));
+    let u = |v: Option<u64>| v.map_or(String::new(), |v| v.to_string());
+    for row in &r.rows {
+        out += &format!(
+            "{},{},{},\"{}\",{},{},{},{},{},{},{},{}",
+            row.level,
+            row.cells,
+            row.points,
+            row.method,
+            row.status,
+            o(row.frame_ms),
+            o(row.ms_per_mtet),
+            o(row.tets_per_second),
+            u(row.bytes_per_frame),
+            u(row.static_device_bytes),
+            u(row.peak_rss_bytes),
+            o(row.peak_rss_bytes_per_tet)
+        );
+        for p in &phases {
+            out += &format!(",{}", o(row.phases_ms.get(*p).copied()));
+        }
+        out += "\n";
+    }
+    out
+}
+
+/// The report as Markdown: levels, then one row per method and level.
+pub fn markdown(r: &ScaleReport) -> String {
+    let mut out = format!(
+        "# Scaling: {} red-refined, {}x{}, {} timed frames (+{} warm-up)\n\n| level | tets | points | refine ms | f64 reference ms |\n|---:|---:|---:|---:|---:|\n",
+        r.dataset, r.width, r.height, r.frames, r.warmup
+    );
+    for l in &r.levels {
+        let reference = l.reference_ms.map_or("-".into(), |v| format!("{v:.0}"));
+        out += &format!("| {} | {} | {} | {:.0} | {reference} |\n", l.level, l.cells, l.points, l.refine_ms);
+    }
+    out += "\n| method | level | tets | frame ms | ms per M tets | M tets/s | bytes/frame | static device bytes | peak RSS MB | RSS bytes/tet | phases (median ms) |\n";
+    out += "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n";
+    let f = |v: Option<f64>, d: usize| v.map_or("-".into(), |v| format!("{v:.d$}"));
+    for row in &r.rows {
+        if let Some(e) = &row.error {
+            out += &format!("| {} | {} | {} | failed: {} | | | | | | | |\n", row.method, row.level, row.cells, e.replace('|', "/").replace('\n', " "));
+            continue;
+        }
+        let phases: Vec<String> = row.phases_ms.iter().filter(|(k, _)| k.as_str() != "frame").map(|(k, v)| format!("{k} {v:.1}")).collect();
+        out += &format!(
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
+            row.method,
+            row.level,
+            row.cells,
+            f(row.frame_ms, 1),
+            f(row.ms_per_mtet, 1),
+            f(row.tets_per_second.map(|t| t / 1e6), 2),
+            row.bytes_per_frame.map_or("-".into(), |b| b.to_string()),
+            row.static_device_bytes.map_or("-".into(), |b| b.to_string()),
+            f(row.peak_rss_bytes.map(|b| b as f64 / 1e6), 0),
+            f(row.peak_rss_bytes_per_tet, 0),
+            phases.join(", ")
+        );
+    }
+    out
+}
+
+/// Log-log plots of frame time and peak RSS against tets, one line per
+/// method: `<dir>/scale_time.{png,svg}` and `<dir>/scale_memory.{png,svg}`.
+pub fn plots(dir: &Path, r: &ScaleReport) -> Result<()> {
+    super::plots::register_font()?;
+    let mut methods: Vec<&str> = r.rows.iter().map(|x| x.method.as_str()).collect();
+    methods.dedup();
+    let mut seen = Vec::new();
+    methods.retain(|m| if seen.contains(m) { false } else { seen.push(*m); true });
+    type Pick = fn(&ScaleRow) -> Option<f64>;
+    let charts: [(&str, String, Pick); 2] = [
+        ("scale_time", format!("median frame time (ms) against tets, {} refined, {}x{}", r.dataset, r.width, r.height), |x| x.frame_ms),
+        ("scale_memory", format!("peak resident memory (MB) against tets, {} refined", r.dataset), |x| x.peak_rss_bytes.map(|b| b as f64 / 1e6)),
+    ];
+    for (name, title, pick) in charts {
+        let series: Vec<(String, Vec<(f64, f64)>)> = methods
+            .iter()
+            .map(|m| {
+                let pts = r.rows.iter().filter(|x| x.method == *m).filter_map(|x| Some((x.cells as f64, pick(x)?))).filter(|p| p.0 > 0.0 && p.1 > 0.0).collect();
+                (m.to_string(), pts)
+            })
+            .filter(|(_, p): &(String, Vec<(f64, f64)>)| !p.is_empty())
+            .collect();
+        if series.is_empty() {
+            continue;
+        }
+        let (w, h) = (900u32, 600u32);
+        let mut rgb = vec![0u8; (w * h * 3) as usize];
+        draw_loglog(plotters::prelude::BitMapBackend::with_buffer(&mut rgb, (w, h)), &title, &series)?;
+        super::image::write_rgb8_png(&dir.join(format!("{name}.png")), w, h, &rgb)?;
+        let mut svg = String::new();
+        draw_loglog(plotters::prelude::SVGBackend::with_string(&mut svg, (w, h)), &title, &series)?;
+        crate::fsio::write_output(&dir.join(format!("{name}.svg")), svg.as_bytes())?;
+    }
+    Ok(())
+}
+
+fn draw_loglog<B: plotters::prelude::DrawingBackend>(backend: B, title: &str, series: &[(String, Vec<(f64, f64)>)]) -> Result<()> {
+    use plotters::prelude::*;
+    let root = backend.into_drawing_area();
+    let draw = || -> Result<(), Box<dyn std::error::Error>> {
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let all = series.iter().flat_map(|s| s.1.iter());
+        let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+        for &(x, y) in all {
+            (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
+        }
+        let mut chart = ChartBuilder::on(&root)
+            .caption(title, ("sans-serif", 18))
+            .margin(20)
+            .x_label_area_size(45)
+            .y_label_area_size(70)
+            .build_cartesian_2d((x0 / 1.5..x1 * 1.5).log_scale(), (y0 / 1.5..y1 * 1.5).log_scale())
+            .map_err(|e| e.to_string())?;
+        chart.configure_mesh().x_desc("tets").label_style(("sans-serif", 14)).draw().map_err(|e| e.to_string())?;
+        for (i, (name, pts)) in series.iter().enumerate() {
+            let color = Palette99::pick(i).to_rgba();
+            chart
+                .draw_series(LineSeries::new(pts.iter().copied(), color.stroke_width(2)))
+                .map_err(|e| e.to_string())?
+                .label(name.as_str())
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
+            chart.draw_series(pts.iter().map(|&p| Circle::new(p, 4, color.filled()))).map_err(|e| e.to_string())?;
+        }
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperLeft)
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 14))
+            .draw()
+            .map_err(|e| e.to_string())?;
+        root.present().map_err(|e| e.to_string())?;
+        Ok(())
+    };
+    draw().map_err(|e| anyhow::anyhow!("drawing '{title}': {e}"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn vm_hwm_is_read_in_kb() {
+        assert_eq!(vm_hwm_kb("Name:\tx\nVmPeak:\t  10 kB\nVmHWM:\t  1234 kB\n"), Some(1234));
+        assert_eq!(vm_hwm_kb("Name:\tx\n"), None);
+    }
+
+    #[test]
+    fn refinement_beyond_memory_is_a_clear_error() {
+        let mut m = TetMesh {
+            name: "t".into(),
+            points: vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+            scalars: vec![0.0; 4],
+            tets: vec![[0, 1, 2, 3]],
+            stats: Default::default(),
+        };
+        m.validate("t").unwrap();
+        let e = refine_checked(&m, 3, Some(100)).unwrap_err().to_string();
+        assert!(e.contains("level 3") && e.contains("host memory") && e.contains("--levels"), "{e}");
+        assert_eq!(refine_checked(&m, 1, None).unwrap().tets.len(), 8);
+    }
+}

@@ -1,0 +1,170 @@
+//! The red team's classes (issue 21), each through the binary with an
+//! input of the class that is not its reproduction: inputs never replaced,
+//! outputs whole and with their mode, blank pictures and loose files
+//! refused, closed pipes quiet. docs/bad-input.md states the rules.
+
+use std::io::Write as _;
+use std::os::unix::fs::PermissionsExt as _;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+
+mod common;
+
+fn volbench() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_volbench"));
+    c.env("VOLBENCH_VALIDATION", "1");
+    c
+}
+
+fn repo(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(rel)
+}
+
+fn text(o: &Output) -> String {
+    format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
+}
+
+/// A refused command: exit 1 (no panic, no signal) and `want` in its message.
+fn refused(o: &Output, want: &str) {
+    assert_eq!(o.status.code(), Some(1), "{}", text(o));
+    assert!(text(o).contains(want), "expected '{want}' in: {}", text(o));
+    assert!(!text(o).contains("panicked"), "{}", text(o));
+}
+
+const RUN: [&str; 7] = ["run", "--size", "16x16", "--frames", "1", "--warmup", "0"];
+
+#[test]
+fn no_output_replaces_an_input_by_any_name() {
+    let d = tempfile::tempdir().unwrap();
+    let mesh = d.path().join("mesh.vtk");
+    std::fs::copy(repo("data/unstructured/post_tets_vtkdata.vtk"), &mesh).unwrap();
+    let tf = d.path().join("tf.json");
+    std::fs::copy(repo("data/tf/post-small.json"), &tf).unwrap();
+    let (mesh_bytes, tf_bytes) = (std::fs::read(&mesh).unwrap(), std::fs::read(&tf).unwrap());
+    let link = d.path().join("link.png");
+    std::os::unix::fs::symlink(&tf, &link).unwrap();
+    for (option, out) in [("--json", mesh.clone()), ("--png", tf.clone()), ("--diff-png", link)] {
+        let o = volbench().args(RUN).args(["--method", "balanced", "--data"]).arg(&mesh).arg("--tf").arg(&tf).arg(option).arg(&out).output().unwrap();
+        refused(&o, "is an input of this command");
+    }
+    assert_eq!(std::fs::read(&mesh).unwrap(), mesh_bytes);
+    assert_eq!(std::fs::read(&tf).unwrap(), tf_bytes);
+}
+
+#[test]
+fn outputs_are_whole_keep_their_mode_and_reach_stdout_by_any_name() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("o.json");
+    std::fs::write(&out, vec![b'x'; 300_000]).unwrap();
+    std::fs::set_permissions(&out, std::fs::Permissions::from_mode(0o600)).unwrap();
+    let o = volbench().args(RUN).args(["--method", "balanced", "--data", "post-small", "--json"]).arg(&out).output().unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&out).unwrap()).expect("the whole file is the JSON");
+    assert_eq!(v["schema_version"], 2);
+    assert_eq!(std::fs::metadata(&out).unwrap().permissions().mode() & 0o777, 0o600);
+    // Standard output named as a path, going to a pipe: written to it.
+    for name in ["/dev/stdout", "/proc/self/fd/1"] {
+        let o = volbench().args(RUN).args(["--method", "balanced", "--data", "post-small", "--json", name]).output().unwrap();
+        assert!(o.status.success(), "{name}: {}", text(&o));
+        let _: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap_or_else(|e| panic!("{name}: stdout is not the JSON alone: {e}"));
+    }
+}
+
+#[test]
+fn closed_and_full_standard_output() {
+    let mut child = volbench().arg("list").stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().unwrap();
+    drop(child.stdout.take());
+    let o = child.wait_with_output().unwrap();
+    assert_eq!(o.status.code(), Some(0), "a closed pipe is a quiet exit: {}", text(&o));
+    assert!(o.stderr.is_empty(), "{}", text(&o));
+    let full = std::fs::OpenOptions::new().write(true).open("/dev/full").unwrap();
+    let o = volbench().arg("list").stdout(full).output().unwrap();
+    refused(&o, "No space left on device");
+}
+
+#[test]
+fn options_that_do_not_apply_and_bad_environment_are_errors() {
+    for extra in [&["--no-times"][..], &["--gha", "g.json"]] {
+        let o = volbench().args(["compare", "--data", "post-small"]).args(extra).output().unwrap();
+        refused(&o, "applies only to benchmark tracking");
+    }
+    use std::os::unix::ffi::OsStrExt as _;
+    for var in ["VOLBENCH_VALIDATION", "VOLBENCH_DEVICE"] {
+        let o = volbench().env(var, std::ffi::OsStr::from_bytes(b"o\xffn")).args(RUN).args(["--method", "balanced", "--data", "post-small"]).output().unwrap();
+        refused(&o, var);
+    }
+}
+
+#[test]
+fn loose_and_hostile_files_are_refused_with_what_is_wrong() {
+    let d = tempfile::tempdir().unwrap();
+    let npy = |descr: &str, shape: &str, extra_key: &str, data: &[u8]| {
+        common::npy_bytes(&format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape}, {extra_key}}}"), data)
+    };
+    let heights: Vec<u8> = (0..9u8).flat_map(|i| (f64::from(i) * 10.0).to_le_bytes()).collect();
+    let mut trailing = heights.clone();
+    trailing.push(0);
+    let deep = format!("<VTKFile type=\"ImageData\">{}{}</VTKFile>", "<x>".repeat(5000), "</x>".repeat(5000));
+    let mut far_heights = Vec::new();
+    for z in [0.0f64, 1.0, 3e38, 2.0] {
+        far_heights.extend(z.to_le_bytes());
+    }
+    let cases: Vec<(&str, Vec<u8>, &str, &str)> = vec![
+        ("trail.npy", npy("<f8", "(3, 3)", "", &trailing), "hm-cpu", "bytes after the data"),
+        ("twice.npy", npy("<f8", "(3, 3)", "'shape': (9,), ", &heights), "hm-cpu", "'shape' 2 times"),
+        ("high.npy", npy("<f8", "(2, 2)", "", &far_heights), "hm-cpu", "outside the supported"),
+        ("deep.vti", deep.into_bytes(), "raycast-compute", "nested more than"),
+        // NRRD content under another name, far outside the supported box.
+        ("vol.raw", b"NRRD0004\ntype: uint8\ndimension: 3\nsizes: 2 2 2\nspacings: 1e300 1 1\nencoding: raw\n\n\x00\x01\x02\x03\x04\x05\x06\x07".to_vec(), "raycast-compute", "outside the supported"),
+        ("brain.slc", b"not a format at all".to_vec(), "raycast-compute", "renders volume datasets"),
+    ];
+    for (name, bytes, method, want) in cases {
+        let p = d.path().join(name);
+        std::fs::File::create(&p).unwrap().write_all(&bytes).unwrap();
+        let o = volbench().args(RUN).args(["--method", method, "--data"]).arg(&p).output().unwrap();
+        refused(&o, want);
+    }
+}
+
+#[test]
+fn a_gzip_offset_is_skipped_not_stored() {
+    // 64 MiB of skipped zeros in a ~64 kB file: the error comes without
+    // holding them (peak RSS well below the offset).
+    let d = tempfile::tempdir().unwrap();
+    let skip = 64usize << 20;
+    let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::best());
+    gz.write_all(&vec![0u8; skip]).unwrap();
+    let mut bytes = format!("NRRD0004\ntype: uint8\ndimension: 3\nsizes: 1 1 1\nencoding: gzip\nbyte skip: {skip}\n\n").into_bytes();
+    bytes.extend(gz.finish().unwrap());
+    let p = d.path().join("skip.nrrd");
+    std::fs::write(&p, bytes).unwrap();
+    let o = Command::new("/usr/bin/time")
+        .args(["-f", "maxrss_kb=%M"])
+        .arg(env!("CARGO_BIN_EXE_volbench"))
+        .args(RUN)
+        .args(["--method", "raycast-compute", "--data"])
+        .arg(&p)
+        .output()
+        .unwrap();
+    let t = text(&o);
+    assert!(t.contains("decompresses to") && !t.contains("panicked"), "{t}");
+    let rss: u64 = t.split("maxrss_kb=").nth(1).and_then(|s| s.trim().parse().ok()).expect("time -f printed the peak");
+    assert!(rss < 48 << 10, "peak RSS {rss} kB holds the 64 MiB offset");
+}
+
+#[test]
+fn a_transfer_function_transparent_over_the_data_is_refused() {
+    let d = tempfile::tempdir().unwrap();
+    let tf = d.path().join("far.json");
+    std::fs::write(
+        &tf,
+        r#"{"points": [{"scalar": 0, "color": [1, 1, 1], "attenuation": 0},
+            {"scalar": 1e9, "color": [1, 1, 1], "attenuation": 0},
+            {"scalar": 2e9, "color": [1, 1, 1], "attenuation": 5}]}"#,
+    )
+    .unwrap();
+    for (method, data) in [("balanced", "post-small"), ("raycast-compute", "headsq")] {
+        let o = volbench().args(RUN).args(["--method", method, "--data", data, "--tf"]).arg(&tf).output().unwrap();
+        refused(&o, "nothing would be visible");
+    }
+}
