@@ -1,15 +1,18 @@
 #version 450
-// Projected tetrahedra in compute (pt-compute): one workgroup per screen
-// tile of TILE_W x TILE_H pixels, one invocation per pixel. The tile's list
-// holds the cells whose screen box meets it, in visibility order (back to
-// front, binned on the CPU in sort order: pt_compute.rs); the invocation
-// walks it from the back of the list, i.e. front to back, and composites
-// under what it has, so it can stop once its pixel is opaque (early
-// termination). Per cell, the pixel's ray is clipped by the tet's four
-// planes; where it enters, the tet's barycentric weights give exactly what
-// the rasterizer interpolates there for balanced's entry face, and
-// balanced's fragment colour (known_exits_io.glsl `segment_color`)
-// integrates it unchanged.
+// Projected tetrahedra in compute (pt-compute): one invocation per pixel,
+// TILE_W x TILE_H pixels per workgroup. Each pixel's list holds the cells
+// covering it (decided on the CPU by the rasterizer's rule: pt_compute.rs
+// `rasterize`) in visibility order, back to front; the invocation walks it
+// from the back, i.e. front to back, and composites under what it has, so
+// it stops once its pixel is opaque (early termination). Every entry is a
+// segment to integrate, so a vector's lanes do not idle on cells that miss
+// them (llvmpipe runs both sides of a branch). Per cell, the pixel's ray is
+// clipped by the tet's four planes; where it enters, the tet's barycentric
+// weights give exactly what the rasterizer interpolates there for
+// balanced's entry face, and balanced's fragment colour
+// (known_exits_io.glsl `segment_color`) integrates it unchanged. Entries
+// with PLANE_TEST_BIT (cells through the eye plane) are listed for their
+// whole pixel box and tested here by their planes.
 #ifndef TILE_W
 #define TILE_W 4
 #define TILE_H 2
@@ -30,10 +33,11 @@ layout(local_size_x = TILE_W, local_size_y = TILE_H) in;
 #include "cell_projection/known_exits_io.glsl"
 #include "cell_projection/stored_cell.glsl"
 
-// Tile k's entries are [first[k], first[k + 1]); an entry is (cell, its
-// pixel box inside the tile: x0 | y0 << 8 | x1 << 16 | y1 << 24, inclusive).
-layout(set = 1, binding = 1) uniform usamplerBuffer tile_first;
+// Pixel i's entries (row-major) are [first[i], first[i + 1]); an entry is a
+// cell, with PLANE_TEST_BIT where its coverage is decided here.
+layout(set = 1, binding = 1) uniform usamplerBuffer pixel_first;
 layout(set = 1, binding = 2) uniform usamplerBuffer entries;
+const uint PLANE_TEST_BIT = 0x80000000u;
 layout(std430, set = 1, binding = 3) buffer Counters {
     uint integrated_lo;    // (pixel, cell) segments integrated (64 bits: lo, hi)
     uint integrated_hi;
@@ -81,31 +85,27 @@ void main() {
     vec4 lambda_a;
     vec4 lambda_b;
 
-    uint k = tile.y * gl_NumWorkGroups.x + tile.x;
-    uint first = texelFetch(tile_first, int(k)).x;
-    uint last = texelFetch(tile_first, int(k) + 1).x;
+    uint k = uint(px.y) * uint(size.x) + uint(px.x);
+    uint first = inside ? texelFetch(pixel_first, int(k)).x : 0u;
+    uint last = inside ? texelFetch(pixel_first, int(k) + 1).x : 0u;
     vec3 acc = vec3(0.0);
     float trans = 1.0;
     uint integrated = 0u;
     bool done = !inside;
     for (uint e = last; e > first && !done; --e) {
-        uvec2 entry = texelFetch(entries, int(e - 1u)).xy;
-        uvec4 box = (uvec4(entry.y) >> uvec4(0u, 8u, 16u, 24u)) & 255u;
-        if (local.x < box.x || local.y < box.y || local.x > box.z || local.y > box.w) {
-            continue;
-        }
-        uint t = entry.x;
+        uint entry = texelFetch(entries, int(e - 1u)).x;
+        uint t = entry & ~PLANE_TEST_BIT;
+        bool plane_test = entry >= PLANE_TEST_BIT;
         // lambda_j along the ray: a_j + s b_j (1 at vertex j, 0 on its
         // opposite plane, resident.rs `stored`: plane3 . (x - v_j) + 1).
         // Entered where the last entering plane (b > 0) is crossed, left
-        // where the first leaving one is. A plane parallel to the ray keeps
-        // it inside where a > 0; a ray in such a plane (a face or edge seen
-        // edge-on, axis-aligned orthographic views: stress case
-        // "axis-ortho") is on the boundary of every cell around it, and
-        // goes to the cell the ray moved a little along `nudge` would be in,
-        // so exactly one of them integrates it (the rasterizer's tie rule
-        // likewise gives such a pixel to one face). A flat cell (zero
-        // planes) is never entered.
+        // where the first leaving one is. Listed cells cover the pixel by
+        // the rasterizer's rule; only PLANE_TEST_BIT entries decide it here:
+        // a plane parallel to the ray keeps it inside where a > 0; a ray in
+        // such a plane (a face or edge seen edge-on) is on the boundary of
+        // every cell around it, and goes to the cell the ray moved a little
+        // along `nudge` would be in. A flat cell (zero planes) is never
+        // entered.
         float t_in = -INF;
         float t_out = INF;
         bool miss = false;
@@ -126,7 +126,7 @@ void main() {
                 t_out = min(t_out, -a / b);
             }
         }
-        if (miss || !(t_in > -INF && t_in < t_out)) {
+        if (!(t_in > -INF) || (plane_test && (miss || !(t_in < t_out)))) {
             continue;
         }
         vec3 p = ray_o + t_in * ray_d;

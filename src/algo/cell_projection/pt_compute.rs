@@ -31,15 +31,17 @@ use crate::vk::{
     VkResult,
 };
 
-/// A screen tile in pixels: one workgroup of TILE[0] x TILE[1]
-/// invocations. llvmpipe runs a workgroup as 8-lane vectors (AVX2) and
-/// executes both sides of a branch under a mask, so every tile entry costs
-/// each of the tile's vectors the whole per-cell work whether or not its
-/// pixels are covered: a tile of one vector (4 x 2) wastes the least
-/// (docs/pt-compute.md: what was tried).
+/// The compositing workgroup in pixels, one invocation each. llvmpipe runs
+/// a workgroup as 8-lane vectors (AVX2) and executes both sides of a branch
+/// under a mask; every entry of a pixel's list is a cell that covers it, so
+/// a vector's lanes idle only where their lists differ in length, least
+/// for a compact 4 x 2 block of neighbours.
 pub const TILE: [u32; 2] = [4, 2];
-/// Bytes per tile entry: the cell and its pixel box inside the tile.
-pub const BYTES_PER_ENTRY: usize = 8;
+/// Bytes per list entry: the cell (and `PLANE_TEST_BIT`).
+pub const BYTES_PER_ENTRY: usize = 4;
+/// Pixels a cell covers, for the memory estimate: about 36 on the oxygen
+/// post at 512^2.
+const PAIRS_PER_CELL: usize = 36;
 /// Early termination: a pixel stops once its transmittance is below this.
 /// What it leaves out is at most the transmittance times the premultiplied
 /// colour and opacity behind, each at most 1 (colours in [0, 1]): at most
@@ -49,7 +51,9 @@ pub const BYTES_PER_ENTRY: usize = 8;
 pub const ERT_TRANSMITTANCE: f32 = 1e-5;
 /// The compositing pass's device phase.
 pub const COMPOSITE_PHASE: &str = "composite_gpu";
-/// The CPU binning inside `pack`.
+/// The CPU projection inside `pack`: each cell's snapped vertices.
+pub const PROJECT_PHASE: &str = "project";
+/// The CPU listing inside `pack`: each pixel's covering cells.
 pub const BIN_PHASE: &str = "bin";
 
 /// The registry entry.
@@ -62,24 +66,13 @@ pub const METHOD: MethodInfo = render::method_info(
 );
 
 fn create(inputs: MethodInputs) -> anyhow::Result<Box<dyn RenderMethod>> {
-    // Per frame: about two tile entries per cell at 512^2 (measured on the
-    // shipped meshes, docs/pt-compute.md); stored: resident's cell.
-    let bytes = render::DeviceBytesPerCell { frame: 2 * BYTES_PER_ENTRY, fixed: FLOATS_PER_STORED_CELL * 4 };
+    // Per frame: a list entry per pixel a cell covers, about 36 per cell on
+    // the oxygen post at 512^2 (18.4 M pairs); stored: resident's cell.
+    let bytes = render::DeviceBytesPerCell { frame: PAIRS_PER_CELL * BYTES_PER_ENTRY, fixed: FLOATS_PER_STORED_CELL * 4 };
     let stages = raw::ShaderStageFlags::FRAGMENT | raw::ShaderStageFlags::COMPUTE;
     render::CellProjection::create_for_stages(inputs, bytes, stages, |ctx, mesh, geometry, tables, draw, counter| {
         Ok(Box::new(PtCompute::new(ctx, mesh, geometry, tables, draw, counter)?))
     })
-}
-
-/// Tile lists: tile k's entries are `entries[first[k]..first[k + 1]]`, in
-/// the order the cells were given; an entry is (cell, box) with the cell's
-/// pixel box inside the tile packed as x0 | y0 << 8 | x1 << 16 | y1 << 24
-/// (inclusive).
-#[derive(Debug, Clone, Default, PartialEq, Eq)]
-pub struct Bins {
-    pub tiles: [u32; 2],
-    pub first: Vec<u32>,
-    pub entries: Vec<[u32; 2]>,
 }
 
 /// The pixels (inclusive, clamped to the image) whose centres a cell with
@@ -130,43 +123,233 @@ pub fn pixel_box(clip: &[[f32; 4]; 4], min_w: f32, size: [u32; 2]) -> Option<[u3
     Some([x0, y0, x1, y1])
 }
 
-impl Bins {
-    /// Bin `boxes` (one per cell slot, `None`: not drawn) into tiles of
-    /// `TILE` pixels, each tile's list in slot order; `cell_of(slot)` is the
-    /// cell an entry names.
-    pub fn build(boxes: &[Option<[u32; 4]>], cell_of: impl Fn(usize) -> u32, size: [u32; 2]) -> Bins {
-        let tiles = [size[0].div_ceil(TILE[0]), size[1].div_ceil(TILE[1])];
-        let n_tiles = (tiles[0] * tiles[1]) as usize;
-        let tile_range = |b: &[u32; 4]| (b[0] / TILE[0], b[1] / TILE[1], b[2] / TILE[0], b[3] / TILE[1]);
-        let mut first = vec![0u32; n_tiles + 1];
-        for b in boxes.iter().flatten() {
-            let (tx0, ty0, tx1, ty1) = tile_range(b);
-            for ty in ty0..=ty1 {
-                for tx in tx0..=tx1 {
-                    first[(ty * tiles[0] + tx) as usize + 1] += 1;
+/// Sub-pixel bits of the snapped vertex positions: lavapipe's rasterizer
+/// snaps to 1/256 pixel (`FIXED_ORDER` 8), and so does the coverage here,
+/// so that a pixel is covered exactly when the rasterizer would cover it.
+pub const SUBPIXEL_BITS: u32 = 8;
+/// Rows of the image one CPU task lists pixels for.
+pub const BAND_ROWS: u32 = 8;
+/// Entries whose cell is not rasterized on the CPU (a vertex behind the eye
+/// plane, or far off screen) carry this bit: the compositing pass decides
+/// their coverage from the cell's planes, per pixel of the cell's box.
+pub const PLANE_TEST_BIT: u32 = 1 << 31;
+/// Vertices further than this many pixels off the image go the plane-test
+/// way (keeps the fixed-point edge functions in range).
+const GUARD_PIXELS: f32 = 8192.0;
+
+/// Where a sorted cell lands on screen.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Footprint {
+    Off,
+    /// Projected vertices in fixed point (pixel units << SUBPIXEL_BITS, y down
+    /// as the rasterizer's framebuffer) and the rows it may cover.
+    Raster { xy: [[i32; 2]; 4], rows: [u32; 2] },
+    /// The pixel box (x0, y0, x1, y1 inclusive) of a cell the pass tests by planes.
+    Planes([u32; 4]),
+}
+
+impl Footprint {
+    /// The footprint of a cell with these clip-space vertices on an image
+    /// of `size`; `min_w` is the eye plane (see `eye_plane_w`).
+    pub fn of(clip: &[[f32; 4]; 4], min_w: f32, size: [u32; 2]) -> Footprint {
+        let one = (1u32 << SUBPIXEL_BITS) as f32;
+        let mut xy = [[0i32; 2]; 4];
+        let mut raster = true;
+        for (v, c) in xy.iter_mut().zip(clip) {
+            if !(c[3] >= min_w && c[3] > 0.0) {
+                raster = false;
+                break;
+            }
+            // The viewport transform as the draw module does it: x / w, then scale and offset.
+            let iw = 1.0 / c[3];
+            for k in 0..2 {
+                let half = size[k] as f32 * 0.5;
+                let p = c[k] * iw * half + half;
+                if !(p.abs() <= GUARD_PIXELS + size[k] as f32) {
+                    raster = false;
+                }
+                v[k] = (p * one).round() as i32;
+            }
+        }
+        if !raster {
+            return pixel_box(clip, min_w, size).map_or(Footprint::Off, Footprint::Planes);
+        }
+        // Pixel i's centre is at (i + 1/2) << SUBPIXEL_BITS.
+        let half = 1i32 << (SUBPIXEL_BITS - 1);
+        let span = |k: usize| -> Option<[u32; 2]> {
+            let lo = xy.iter().map(|v| v[k]).min().unwrap_or(0);
+            let hi = xy.iter().map(|v| v[k]).max().unwrap_or(-1);
+            let a = (lo - half).div_euclid(1 << SUBPIXEL_BITS);
+            let b = (hi - half).div_euclid(1 << SUBPIXEL_BITS) + 1;
+            let n = size[k] as i32;
+            if b < 0 || a > n - 1 || lo > hi {
+                return None;
+            }
+            Some([a.max(0) as u32, b.min(n - 1) as u32])
+        };
+        match (span(0), span(1)) {
+            (Some(_), Some(rows)) => Footprint::Raster { xy, rows },
+            _ => Footprint::Off,
+        }
+    }
+
+    fn rows(&self) -> Option<[u32; 2]> {
+        match self {
+            Footprint::Off => None,
+            Footprint::Raster { rows, .. } => Some(*rows),
+            Footprint::Planes(b) => Some([b[1], b[3]]),
+        }
+    }
+}
+
+/// The faces of a tet, consistently oriented (each edge of the tet runs one
+/// way in one face and the other way in the other): projected, the faces
+/// of positive area cover the tet's silhouette exactly once.
+const FACES: [[usize; 3]; 4] = [[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]];
+
+/// Calls `f(x, y)` for every pixel in rows [row0, row1] whose centre the
+/// tet's projection covers, by the rasterizer's rule: exact edge functions
+/// on the snapped vertices, a centre on an edge belongs to the triangle the
+/// edge is a top or left edge of. A face shared by two cells is the same
+/// edges from the same snapped points, so the two agree on every pixel.
+fn rasterize(xy: &[[i32; 2]; 4], row0: u32, row1: u32, width: u32, mut f: impl FnMut(u32, u32)) {
+    let half = 1i64 << (SUBPIXEL_BITS - 1);
+    let unit = 1i64 << SUBPIXEL_BITS;
+    for face in FACES {
+        let p = face.map(|i| [xy[i][0] as i64, xy[i][1] as i64]);
+        let area = (p[1][0] - p[0][0]) * (p[2][1] - p[0][1]) - (p[1][1] - p[0][1]) * (p[2][0] - p[0][0]);
+        if area <= 0 {
+            continue;
+        }
+        // Edge (a, b): E(q) = (b - a) x (q - a), positive inside; its
+        // gradient (-(b.y - a.y), b.x - a.x) points inward; a top edge
+        // (interior below, y down) or a left edge (interior right) keeps
+        // centres on it.
+        let edges = [0usize, 1, 2].map(|i| {
+            let (a, b) = (p[i], p[(i + 1) % 3]);
+            let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+            let top_left = -dy > 0 || (dy == 0 && dx > 0);
+            (a, dx, dy, if top_left { 0 } else { 1 })
+        });
+        let lo = |k: usize| p.iter().map(|v| v[k]).min().unwrap_or(0);
+        let hi = |k: usize| p.iter().map(|v| v[k]).max().unwrap_or(-1);
+        let first = |v: i64| (v - half + unit - 1).div_euclid(unit);
+        let last = |v: i64| (v - half).div_euclid(unit);
+        let x0 = first(lo(0)).max(0);
+        let x1 = last(hi(0)).min(width as i64 - 1);
+        let y0 = first(lo(1)).max(row0 as i64);
+        let y1 = last(hi(1)).min(row1 as i64);
+        for y in y0..=y1 {
+            let qy = y * unit + half;
+            let qx0 = x0 * unit + half;
+            // E at the row's first centre, and its step per pixel.
+            let mut e = edges.map(|(a, dx, dy, bias)| (dx * (qy - a[1]) - dy * (qx0 - a[0]) - bias, -dy * unit));
+            for x in x0..=x1 {
+                if e.iter().all(|(v, _)| *v >= 0) {
+                    f(x as u32, y as u32);
+                }
+                for (v, step) in &mut e {
+                    *v += *step;
                 }
             }
         }
-        for k in 0..n_tiles {
-            first[k + 1] += first[k];
-        }
-        let mut cursor = first.clone();
-        let mut entries = vec![[0u32; 2]; first[n_tiles] as usize];
-        for (slot, b) in boxes.iter().enumerate() {
-            let Some(b) = b else { continue };
-            let (tx0, ty0, tx1, ty1) = tile_range(b);
-            for ty in ty0..=ty1 {
-                for tx in tx0..=tx1 {
-                    let (ox, oy) = (tx * TILE[0], ty * TILE[1]);
-                    let local = |v: u32, o: u32, k: usize| v.saturating_sub(o).min(TILE[k] - 1);
-                    let packed = local(b[0], ox, 0) | local(b[1], oy, 1) << 8 | local(b[2], ox, 0) << 16 | local(b[3], oy, 1) << 24;
-                    let k = (ty * tiles[0] + tx) as usize;
-                    entries[cursor[k] as usize] = [cell_of(slot), packed];
-                    cursor[k] += 1;
-                }
+    }
+}
+
+/// Per pixel (row-major) the cells covering it, in the order the cells were
+/// given: pixel i's are `cells[first[i]..first[i + 1]]`, an entry being the
+/// cell, with `PLANE_TEST_BIT` set where the pass tests coverage itself.
+/// Built in bands of `BAND_ROWS` rows, one task each; `band_cells[b]`
+/// holds band b's entries, which follow each other in `first`'s order.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct PixelLists {
+    pub size: [u32; 2],
+    pub first: Vec<u32>,
+    pub band_cells: Vec<Vec<u32>>,
+}
+
+impl PixelLists {
+    /// Lists for `footprints` (one per cell slot in sort order);
+    /// `cell_of(slot)` is the cell an entry names. Deterministic.
+    pub fn build(footprints: &[Footprint], cell_of: impl Fn(usize) -> u32 + Sync, size: [u32; 2]) -> PixelLists {
+        let bands = size[1].div_ceil(BAND_ROWS) as usize;
+        // Each band's slots, in slot order (count, prefix sum, fill).
+        let mut band_first = vec![0usize; bands + 1];
+        for rows in footprints.iter().filter_map(Footprint::rows) {
+            for b in rows[0] / BAND_ROWS..=rows[1] / BAND_ROWS {
+                band_first[b as usize + 1] += 1;
             }
         }
-        Bins { tiles, first, entries }
+        for b in 0..bands {
+            band_first[b + 1] += band_first[b];
+        }
+        let mut cursor = band_first.clone();
+        let mut band_slots = vec![0u32; band_first[bands]];
+        for (slot, rows) in footprints.iter().enumerate().filter_map(|(s, f)| Some((s, f.rows()?))) {
+            for b in rows[0] / BAND_ROWS..=rows[1] / BAND_ROWS {
+                band_slots[cursor[b as usize]] = slot as u32;
+                cursor[b as usize] += 1;
+            }
+        }
+        let width = size[0];
+        let per_band: Vec<(Vec<u32>, Vec<u32>)> = (0..bands)
+            .into_par_iter()
+            .map(|b| {
+                let row0 = b as u32 * BAND_ROWS;
+                let row1 = (row0 + BAND_ROWS).min(size[1]) - 1;
+                let pixels = ((row1 - row0 + 1) * width) as usize;
+                let mut pairs: Vec<[u32; 2]> = Vec::new();
+                for &slot in &band_slots[band_first[b]..band_first[b + 1]] {
+                    let cell = cell_of(slot as usize);
+                    match &footprints[slot as usize] {
+                        Footprint::Off => {}
+                        Footprint::Raster { xy, .. } => {
+                            rasterize(xy, row0, row1, width, |x, y| pairs.push([(y - row0) * width + x, cell]));
+                        }
+                        Footprint::Planes(bx) => {
+                            for y in bx[1].max(row0)..=bx[3].min(row1) {
+                                for x in bx[0]..=bx[2] {
+                                    pairs.push([(y - row0) * width + x, cell | PLANE_TEST_BIT]);
+                                }
+                            }
+                        }
+                    }
+                }
+                // Stable counting sort by pixel: each pixel's cells stay in slot order.
+                let mut start = vec![0u32; pixels + 1];
+                for p in &pairs {
+                    start[p[0] as usize + 1] += 1;
+                }
+                let counts = start[1..].to_vec();
+                for i in 0..pixels {
+                    start[i + 1] += start[i];
+                }
+                let mut cells = vec![0u32; pairs.len()];
+                for p in &pairs {
+                    let i = &mut start[p[0] as usize];
+                    cells[*i as usize] = p[1];
+                    *i += 1;
+                }
+                (counts, cells)
+            })
+            .collect();
+        let mut first = Vec::with_capacity((size[0] * size[1]) as usize + 1);
+        let mut total = 0u32;
+        first.push(0);
+        let mut band_cells = Vec::with_capacity(bands);
+        for (counts, cells) in per_band {
+            for c in counts {
+                total = total.saturating_add(c);
+                first.push(total);
+            }
+            band_cells.push(cells);
+        }
+        PixelLists { size, first, band_cells }
+    }
+
+    /// Entries in all.
+    pub fn entries(&self) -> usize {
+        self.band_cells.iter().map(Vec::len).sum()
     }
 }
 
@@ -191,8 +374,9 @@ pub struct PtCompute {
     /// Vertex positions (relative to the render origin) per cell.
     positions: Vec<[[f32; 3]; 4]>,
     drawn: usize,
-    bins: Bins,
-    boxes: Vec<Option<[u32; 4]>>,
+    lists: PixelLists,
+    footprints: Vec<Footprint>,
+    project_ms: f64,
     bin_ms: f64,
     /// An error of the last `pack` (a frame whose tile lists the device cannot hold), reported by `upload`.
     pack_error: Option<String>,
@@ -248,7 +432,7 @@ impl PtCompute {
         let n = cells.len();
         let cell_buffer = upload_cells(ctx, "pt-compute cells", mesh, &cells, counter)?;
         let first = frame_texels(ctx, "pt-compute tile starts", 1, 4, raw::Format::R32_UINT)?;
-        let entries = frame_texels(ctx, "pt-compute tile entries", 2 * n, BYTES_PER_ENTRY, raw::Format::R32G32_UINT)?;
+        let entries = frame_texels(ctx, "pt-compute pixel lists", 8 * n, BYTES_PER_ENTRY, raw::Format::R32_UINT)?;
         let counters = Buffer::new(
             ctx,
             BufferDesc::upload(
@@ -288,8 +472,9 @@ impl PtCompute {
         Ok(PtCompute {
             positions: cells.iter().map(|c| c.pos).collect(),
             drawn: n,
-            bins: Bins::default(),
-            boxes: Vec::new(),
+            lists: PixelLists::default(),
+            footprints: Vec::new(),
+            project_ms: 0.0,
             bin_ms: 0.0,
             pack_error: None,
             _cells: cell_buffer,
@@ -337,9 +522,9 @@ impl CellProjector for PtCompute {
     fn vertices_per_cell(&self) -> usize {
         VERTICES_PER_CELL
     }
-    /// Per frame a cell sends its tile entries (2 u32 each), about two.
+    /// Per frame a cell sends a list entry (one u32) per pixel it covers.
     fn floats_per_cell(&self) -> usize {
-        2 * BYTES_PER_ENTRY / 4
+        PAIRS_PER_CELL * BYTES_PER_ENTRY / 4
     }
     fn pipeline_key(&self) -> &PipelineKey {
         &self.pipeline_key
@@ -363,17 +548,23 @@ impl CellProjector for PtCompute {
                 let clip = positions[t as usize].map(|p| {
                     std::array::from_fn(|r| vp[0][r] * p[0] + vp[1][r] * p[1] + vp[2][r] * p[2] + vp[3][r])
                 });
-                pixel_box(&clip, min_w, size)
+                Footprint::of(&clip, min_w, size)
             })
-            .collect_into_vec(&mut self.boxes);
-        self.bins = Bins::build(&self.boxes, |slot| order[slot], size);
+            .collect_into_vec(&mut self.footprints);
+        let t1 = Instant::now();
+        self.project_ms = (t1 - t0).as_secs_f64() * 1e3;
+        self.lists = PixelLists::build(&self.footprints, |slot| order[slot], size);
+        let limit = self.ctx.info.max_texel_buffer_elements as usize;
+        self.pack_error = (self.lists.entries() >= limit.min(u32::MAX as usize)).then(|| {
+            format!("pt-compute: {} (pixel, cell) pairs this frame, above the device's maxTexelBufferElements ({limit}); use a smaller image", self.lists.entries())
+        });
         self.constants = frame.constants;
         self.size = size;
-        self.bin_ms = t0.elapsed().as_secs_f64() * 1e3;
+        self.bin_ms = t1.elapsed().as_secs_f64() * 1e3;
     }
 
     fn pack_phases(&self) -> Vec<(&'static str, f64)> {
-        vec![(BIN_PHASE, self.bin_ms)]
+        vec![(PROJECT_PHASE, self.project_ms), (BIN_PHASE, self.bin_ms)]
     }
 
     fn upload(&mut self, counter: &mut UploadCounter) -> VkResult<()> {
@@ -381,8 +572,8 @@ impl CellProjector for PtCompute {
             return Err(VkError::Invalid(e));
         }
         let ctx = self.ctx.clone();
-        let grown_first = Self::ensure(&ctx, &mut self.first, self.bins.first.len(), 4, "pt-compute tile starts")?;
-        let grown_entries = Self::ensure(&ctx, &mut self.entries, self.bins.entries.len(), BYTES_PER_ENTRY, "pt-compute tile entries")?;
+        let grown_first = Self::ensure(&ctx, &mut self.first, self.lists.first.len(), 4, "pt-compute pixel starts")?;
+        let grown_entries = Self::ensure(&ctx, &mut self.entries, self.lists.entries(), BYTES_PER_ENTRY, "pt-compute pixel lists")?;
         if grown_first || grown_entries {
             self.set.update(&[
                 DescriptorResource::UniformTexelBuffer(&self._cells),
@@ -391,8 +582,13 @@ impl CellProjector for PtCompute {
                 DescriptorResource::StorageBuffer(&self.counters),
             ])?;
         }
-        self.first.buffer.write(0, bytemuck::cast_slice(&self.bins.first), counter, UploadClass::FrameCells)?;
-        self.entries.buffer.write(0, bytemuck::cast_slice(&self.bins.entries), counter, UploadClass::FrameCells)
+        self.first.buffer.write(0, bytemuck::cast_slice(&self.lists.first), counter, UploadClass::FrameCells)?;
+        let mut offset = 0;
+        for cells in &self.lists.band_cells {
+            self.entries.buffer.write(offset, bytemuck::cast_slice(cells), counter, UploadClass::FrameCells)?;
+            offset += cells.len() * BYTES_PER_ENTRY;
+        }
+        Ok(())
     }
 
     fn record_draw(&self, _rec: &CommandRecorder, _tables: &IntegrationTables, _frame: &FrameSetup, _counter: &mut UploadCounter) -> VkResult<()> {
@@ -436,7 +632,7 @@ impl CellProjector for PtCompute {
         self.timestamps.write(rec, 0, S::TOP_OF_PIPE)?;
         rec.bind_compute(&self.pipeline, &[&tables.set, &self.set, target_set])?;
         rec.push_constants(&self.pipeline, bytemuck::bytes_of(&self.constants), counter);
-        rec.dispatch([self.bins.tiles[0], self.bins.tiles[1], 1])?;
+        rec.dispatch([self.size[0].div_ceil(TILE[0]), self.size[1].div_ceil(TILE[1]), 1])?;
         self.timestamps.write(rec, 1, S::COMPUTE_SHADER)?;
         rec.compute_to_host();
         Ok(true)
@@ -449,9 +645,9 @@ impl CellProjector for PtCompute {
     fn work_counts(&self) -> Vec<(&'static str, u64)> {
         let c = self.counters();
         vec![
-            ("cells_binned", self.boxes.iter().flatten().count() as u64),
-            ("tile_entries", self.bins.entries.len() as u64),
-            ("tiles", self.bins.first.len().saturating_sub(1) as u64),
+            ("cells_binned", self.footprints.iter().filter(|f| **f != Footprint::Off).count() as u64),
+            ("cells_plane_tested", self.footprints.iter().filter(|f| matches!(f, Footprint::Planes(_))).count() as u64),
+            ("pixel_cell_pairs", self.lists.entries() as u64),
             ("pixels_integrated", c[0] | (c[1] << 32)),
             ("pixels_covered", c[3]),
             ("pixels_terminated_early", c[2]),
@@ -469,28 +665,42 @@ mod tests {
         assert!(COMPOSITE_PHASE.ends_with(DEVICE_PHASE_SUFFIX));
     }
 
-    /// Every tile's list keeps the given order; entries name the cell and
-    /// its box inside the tile.
+    /// A grid of two cells sharing a face, seen along it: every pixel centre
+    /// of their joint square covered by exactly one of them, in the order
+    /// given; a cell behind the eye plane is listed for the plane test.
     #[test]
-    fn bins_keep_order_and_boxes() {
-        let [tw, th] = TILE;
-        let size = [3 * tw - 1, 2 * th];
-        let boxes = vec![Some([0, 0, size[0] - 1, size[1] - 1]), None, Some([tw + 1, 1, tw + 1, 1]), Some([1, th, 2 * tw, th])];
-        let b = Bins::build(&boxes, |slot| 100 + slot as u32, size);
-        assert_eq!(b.tiles, [3, 2]);
-        let tile = |k: usize| &b.entries[b.first[k] as usize..b.first[k + 1] as usize];
-        let cells = |k: usize| tile(k).iter().map(|e| e[0]).collect::<Vec<_>>();
-        assert_eq!(cells(0), vec![100]);
-        assert_eq!(cells(1), vec![100, 102]);
-        assert_eq!(cells(2), vec![100]);
-        assert_eq!(cells(3), vec![100, 103]);
-        assert_eq!(cells(5), vec![100, 103]);
-        // Cell 102's box (tw + 1, 1) is (1, 1)-(1, 1) in tile 1.
-        assert_eq!(tile(1)[1][1], 1 | 1 << 8 | 1 << 16 | 1 << 24);
-        // Cell 103's box from x = 1 in tile 3, to the tile's end; in tile 5 up to x = 0.
-        assert_eq!(tile(3)[1][1], 1 | (tw - 1) << 16);
-        assert_eq!(tile(5)[1][1], 0);
-        assert_eq!(b.entries.len(), 6 + 1 + 3);
+    fn lists_partition_shared_faces_and_keep_order() {
+        let size = [16, 16];
+        // Two tets in the plane z = 0.5 (orthographic): a square split along
+        // its diagonal, each with a fourth vertex above its own triangle.
+        let v = |x: f32, y: f32| [x, y, 0.5, 1.0];
+        let a = [v(-1.0, -1.0), v(1.0, -1.0), v(1.0, 1.0), v(0.5, -0.5)];
+        let b = [v(-1.0, -1.0), v(1.0, 1.0), v(-1.0, 1.0), v(-0.5, 0.5)];
+        let c = [v(-1.0, -1.0), v(1.0, -1.0), v(1.0, 1.0), v(0.5, -0.5)];
+        let fp: Vec<Footprint> = [a, b, c].iter().map(|clip| Footprint::of(clip, f32::NEG_INFINITY, size)).collect();
+        let lists = PixelLists::build(&fp, |slot| 10 + slot as u32, size);
+        assert_eq!(lists.first.len(), 257);
+        let all: Vec<u32> = lists.band_cells.concat();
+        let mut ab = 0;
+        for i in 0..256 {
+            let cells = &all[lists.first[i] as usize..lists.first[i + 1] as usize];
+            let (x, y) = (i % 16, i / 16);
+            // a (slot 0) and b (slot 1) partition the square; c (slot 2) repeats a, after it.
+            let in_a = cells.contains(&10);
+            assert!(in_a != cells.contains(&11), "pixel {x},{y}: {cells:?}");
+            assert_eq!(cells.contains(&12), in_a, "pixel {x},{y}: {cells:?}");
+            if in_a {
+                assert_eq!(cells, &[10, 12][..]);
+            }
+            ab += 1;
+        }
+        assert_eq!(ab, 256);
+        // Behind the eye plane: every pixel of its box, marked for the plane test.
+        let straddle = [v(0.0, 0.0), [0.1, 0.0, 0.0, -1.0], v(0.1, 0.1), v(0.0, 0.1)];
+        let fp = [Footprint::of(&straddle, 0.01, size)];
+        assert!(matches!(fp[0], Footprint::Planes(_)));
+        let lists = PixelLists::build(&fp, |_| 7, size);
+        assert!(lists.entries() > 0 && lists.band_cells.concat().iter().all(|&e| e == 7 | PLANE_TEST_BIT));
     }
 
     #[test]
