@@ -351,6 +351,22 @@ impl PixelLists {
     pub fn entries(&self) -> usize {
         self.band_cells.iter().map(Vec::len).sum()
     }
+
+    /// Lane iterations of the compositing pass without early termination:
+    /// a workgroup's vector runs its longest list, so every lane pays for
+    /// it. Entries over this is the share of lanes doing work.
+    pub fn lane_slots(&self) -> u64 {
+        let [w, h] = self.size;
+        let len = |x: u32, y: u32| (self.first[(y * w + x) as usize + 1] - self.first[(y * w + x) as usize]) as u64;
+        let mut slots = 0;
+        for ty in (0..h).step_by(TILE[1] as usize) {
+            for tx in (0..w).step_by(TILE[0] as usize) {
+                let longest = (ty..(ty + TILE[1]).min(h)).flat_map(|y| (tx..(tx + TILE[0]).min(w)).map(move |x| (x, y))).map(|(x, y)| len(x, y)).max();
+                slots += longest.unwrap_or(0) * (TILE[0] * TILE[1]) as u64;
+            }
+        }
+        slots
+    }
 }
 
 /// The eye-plane clip of the cell pipelines as a clip-space w
@@ -648,6 +664,7 @@ impl CellProjector for PtCompute {
             ("cells_binned", self.footprints.iter().filter(|f| **f != Footprint::Off).count() as u64),
             ("cells_plane_tested", self.footprints.iter().filter(|f| matches!(f, Footprint::Planes(_))).count() as u64),
             ("pixel_cell_pairs", self.lists.entries() as u64),
+            ("lane_slots", self.lists.lane_slots()),
             ("pixels_integrated", c[0] | (c[1] << 32)),
             ("pixels_covered", c[3]),
             ("pixels_terminated_early", c[2]),
