@@ -125,7 +125,7 @@ fn a_still_camera_reuses_the_previous_frame() {
     let dataset = datasets::load("post-small").unwrap();
     let tf = dataset.default_transfer_function();
     let cfg = RunConfig { width: 64, height: 64, frames: 3, warmup: 1, orbit_step: 0.0, ..RunConfig::default() };
-    for spec in ["vicp", "balanced", "resident"] {
+    for spec in ["vicp", "balanced", "resident", "pt-compute"] {
         let on = run(&dataset, &tf, spec, &cfg);
         let off = run(&dataset, &tf, &format!("{spec}:cull=off"), &cfg);
         assert_eq!(count(&on, "cull.reused"), vec![1, 1, 1], "{spec}: the warm-up frame prepared, the timed ones re-use it");

@@ -14,15 +14,7 @@
 layout(location = 0) out vec4 out_color;
 
 void main() {
-    float len;
-    float sb;
-    if (known_exit(len, sb)) {
-        float sf = v_sf;
-        start_at_near(v_rel, sf, len, sb);
-        out_color = integrate_segment(sf, sb, len);
-    } else {
-        out_color = vec4(0.0);
-    }
+    out_color = segment_color();
 #ifdef EXTRA_WORK
     // Test-only deliberate cost (VOLBENCH_TEST_EXTRA_FRAGMENT_WORK,
     // docs/tracking.md): a chain the compiler cannot drop.

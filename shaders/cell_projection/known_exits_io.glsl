@@ -6,21 +6,29 @@
 // flat mask, cell_projection/record.glsl), so only what the exit distance
 // and scalar need is interpolated: 9 floats with exact interpolation, 12
 // with the papers' (the robust choice from derivatives needed 17).
-#ifdef KNOWN_EXITS_VERTEX
-#define IO out
+// A compute stage (pt_composite.comp) defines KNOWN_EXITS_COMPUTE: the
+// same names are then plain globals it sets per pixel before known_exit.
+#if defined(KNOWN_EXITS_VERTEX)
+#define IO(n) layout(location = n) out
+#define FLAT_IO(n) layout(location = n) flat out
+#elif defined(KNOWN_EXITS_COMPUTE)
+#define IO(n)
+#define FLAT_IO(n)
 #else
-#define IO in
+#define IO(n) layout(location = n) in
+#define FLAT_IO(n) layout(location = n) flat in
 #endif
-layout(location = 0) IO float v_sf;         // s_f: the scalar at the fragment
-layout(location = 1) IO vec4 v_d;           // lambda_k c_k (c: the vertex's t, or u with exact perspective)
+IO(0) float v_sf;         // s_f: the scalar at the fragment
+IO(1) vec4 v_d;           // lambda_k c_k (c: the vertex's t, or u with exact perspective)
 #ifdef EXACT_PERSPECTIVE
-layout(location = 2) IO float v_g;          // g.(p - eye) under perspective, g.view_dir orthographic
+IO(2) float v_g;          // g.(p - eye) under perspective, g.view_dir orthographic
 #else
-layout(location = 2) IO vec4 v_s;           // s_b where each vertex's ray meets its plane (the papers')
+IO(2) vec4 v_s;           // s_b where each vertex's ray meets its plane (the papers')
 #endif
-layout(location = 3) IO vec3 v_rel;         // p - eye
-layout(location = 4) flat IO uint v_exits;  // bit k: plane k is an exit plane
+IO(3) vec3 v_rel;         // p - eye
+FLAT_IO(4) uint v_exits;  // bit k: plane k is an exit plane
 #undef IO
+#undef FLAT_IO
 
 #ifdef KNOWN_EXITS_VERTEX
 // Vertex k of its tet at `pos` with its view-dependent value c, scalar s_f,
@@ -55,5 +63,19 @@ bool known_exit(out float len, out float s_back) {
     clamp_to_far(v_rel, v_sf, len, s_back);
     return found;
 #endif
+}
+
+// Balanced's fragment colour (also pt-compute's per pixel and cell): the
+// nearest known exit, the segment started at the near plane, integrated
+// (include common/integrate.glsl first).
+vec4 segment_color() {
+    float len;
+    float sb;
+    if (!known_exit(len, sb)) {
+        return vec4(0.0);
+    }
+    float sf = v_sf;
+    start_at_near(v_rel, sf, len, sb);
+    return integrate_segment(sf, sb, len);
 }
 #endif

@@ -35,6 +35,9 @@
 // there s_f + (mu - 1) g.(p - eye), with g.(p - eye) = g_rel interpolated
 // (affine, so exact too).
 
+// Compute stages (no derivatives) define KNOWN_EXITS_ONLY: only
+// exit_point_known below.
+#ifndef KNOWN_EXITS_ONLY
 // Classifying planes through the fragment (stress case "axis-ortho": pixel
 // centres exactly on edges). d[k] and w[k] are both 0 at a fragment on an
 // edge of the face, exactly so when coordinates are exact in binary, and
@@ -112,6 +115,8 @@ bool exit_point(EXIT_VEC d, EXIT_VEC s, EXIT_VEC w, float s_front, float g_rel, 
     }
     return found && len <= frame.view_dir.w;
 }
+
+#endif  // KNOWN_EXITS_ONLY
 
 // The balanced family knows each tet's exit planes: `exits` bit k says
 // plane k is one for every ray through the tet (balanced.rs `exit_mask`:

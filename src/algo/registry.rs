@@ -20,6 +20,7 @@ pub fn builtin() -> Registry {
             super::cell_projection::resident::METHOD,
             super::cell_projection::resident_gpusort::METHOD,
             super::cell_projection::atfs::METHOD,
+            super::cell_projection::pt_compute::METHOD,
             super::tet_raycast::METHOD,
             super::raycast::fragment::METHOD,
             super::raycast::compute::METHOD,

@@ -61,7 +61,7 @@ use super::method::{DataKind, Family, MethodInfo, MethodInputs, OptionSpec, Opti
 use crate::mesh::adjacency::{FACE_VERTS, NONE};
 use crate::mesh::{TetGeometry, TetMesh};
 use crate::mesh::topology::Topology;
-use crate::scene::{Camera, Projection};
+use crate::scene::Camera;
 use crate::vk::raw::Handle as _;
 use crate::vk::{
     raw, upload_static, upload_static_texels, Buffer, BufferDesc, CommandRecorder, ComputePipelineKey, Context, DescriptorKind, DescriptorResource,
@@ -417,23 +417,15 @@ impl TetRaycast {
         let o = self.scale.origin;
         let eye: [f64; 3] = std::array::from_fn(|k| c.eye[k] - o[k]);
         let fwd = c.forward();
-        let right = fwd.cross(glam::DVec3::from(c.up)).normalize();
-        let up = right.cross(fwd);
-        let aspect = f64::from(view.width) / f64::from(view.height);
-        let (sx, sy, persp) = match c.projection {
-            Projection::Perspective { fovy_deg } => {
-                let t = (0.5 * fovy_deg.to_radians()).tan();
-                (t * aspect, t, 1.0)
-            }
-            Projection::Orthographic { height } => (0.5 * height * aspect, 0.5 * height, 0.0),
-        };
+        let (right, up) = c.image_axes(view.width, view.height);
+        let persp = if c.is_perspective() { 1.0 } else { 0.0 };
         let budget = u32::try_from(self.step_budget).unwrap_or(u32::MAX);
         let tol = 1e-5 * self.scale.diagonal;
         let v: [f32; 24] = [
             eye[0] as f32, eye[1] as f32, eye[2] as f32, persp,
             fwd.x as f32, fwd.y as f32, fwd.z as f32, c.near as f32,
-            (right.x * sx) as f32, (right.y * sx) as f32, (right.z * sx) as f32, c.far as f32,
-            (up.x * sy) as f32, (up.y * sy) as f32, (up.z * sy) as f32, self.settings.ert as f32,
+            right.x as f32, right.y as f32, right.z as f32, c.far as f32,
+            up.x as f32, up.y as f32, up.z as f32, self.settings.ert as f32,
             setup.constants.tf_range[0], setup.constants.tf_range[1], setup.constants.tf_range[2], setup.constants.tf_range[3],
             tol as f32, f32::from_bits(budget), f32::from_bits(STALL_LIMIT), setup.constants.limits[3],
         ];

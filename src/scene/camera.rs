@@ -198,24 +198,36 @@ impl Camera {
     /// For perspective the origin is the eye; for orthographic it lies on the
     /// near plane's parallel through the eye.
     pub fn ray(&self, x: f64, y: f64, width: u32, height: u32) -> (DVec3, DVec3) {
-        let aspect = width as f64 / height as f64;
         let ndc_x = 2.0 * (x + 0.5) / width as f64 - 1.0;
         let ndc_y = 2.0 * (y + 0.5) / height as f64 - 1.0;
         let fwd = self.forward();
+        let (right, up) = self.image_axes(width, height);
+        let eye = DVec3::from(self.eye);
+        if self.is_perspective() {
+            (eye, (fwd + right * ndc_x - up * ndc_y).normalize())
+        } else {
+            (eye + right * ndc_x - up * ndc_y, fwd)
+        }
+    }
+
+    /// The image's right and up axes scaled so that NDC x = 1 (y = -1) is
+    /// the image's right (top) edge: at unit distance along `forward` under
+    /// perspective, on the plane through the eye for orthographic views.
+    /// The ray through NDC (x, y) is `forward + right x - up y` from the eye
+    /// (perspective), or `forward` from `eye + right x - up y`.
+    pub fn image_axes(&self, width: u32, height: u32) -> (DVec3, DVec3) {
+        let aspect = width as f64 / height as f64;
+        let fwd = self.forward();
         let right = fwd.cross(DVec3::from(self.up)).normalize();
         let up = right.cross(fwd);
-        let eye = DVec3::from(self.eye);
-        match self.projection {
+        let (sx, sy) = match self.projection {
             Projection::Perspective { fovy_deg } => {
                 let t = (0.5 * fovy_deg.to_radians()).tan();
-                let d = fwd + right * (ndc_x * t * aspect) - up * (ndc_y * t);
-                (eye, d.normalize())
+                (t * aspect, t)
             }
-            Projection::Orthographic { height: h } => {
-                let o = eye + right * (ndc_x * 0.5 * h * aspect) - up * (ndc_y * 0.5 * h);
-                (o, fwd)
-            }
-        }
+            Projection::Orthographic { height: h } => (0.5 * h * aspect, 0.5 * h),
+        };
+        (right * sx, up * sy)
     }
 }
 

@@ -22,7 +22,7 @@ pub fn texel_bytes(format: vk::Format) -> Option<u64> {
         | vk::Format::R16_SINT
         | vk::Format::R16_SFLOAT => 2,
         vk::Format::R32_SFLOAT | vk::Format::R32_UINT | vk::Format::R32_SINT | vk::Format::R8G8B8A8_UNORM | vk::Format::D32_SFLOAT => 4,
-        vk::Format::R32G32_SFLOAT | vk::Format::R16G16B16A16_SFLOAT => 8,
+        vk::Format::R32G32_SFLOAT | vk::Format::R32G32_UINT | vk::Format::R16G16B16A16_SFLOAT => 8,
         vk::Format::R32G32B32A32_SFLOAT | vk::Format::R32G32B32A32_UINT => 16,
         _ => return None,
     })

@@ -12,6 +12,7 @@ pub mod cull;
 pub mod device_sort;
 pub mod mpvo;
 pub mod near;
+pub mod pt_compute;
 pub mod radix;
 pub mod render;
 pub mod resident;
@@ -290,6 +291,9 @@ pub struct FrameSetup {
     /// Bound on |u| (see `ExitTolerances`).
     pub plane_ratio_max: f32,
     pub interpolation: Interpolation,
+    /// The image's size in pixels (pt-compute bins cells into its tiles);
+    /// zero from `for_camera`.
+    pub size: [u32; 2],
 }
 
 impl FrameSetup {
@@ -314,6 +318,7 @@ impl FrameSetup {
         let (lo, hi) = tables.tf_range;
         let lo_rel = (lo - scale.scalar_origin) / scale.scalar_scale;
         let inv_width = scale.scalar_scale / (hi - lo);
+        setup.size = [width, height];
         let (e, v) = (setup.eye, setup.view_dir);
         setup.constants = FrameConstants {
             view_proj: vp.map(|c| c.map(|x| x as f32)),
@@ -347,6 +352,7 @@ impl FrameSetup {
             max_distance: (tolerances.distance_clamp_diagonals * mesh_diagonal).max(1e-30) as f32,
             plane_ratio_max: tolerances.plane_ratio_max,
             interpolation,
+            size: [0, 0],
         }
     }
 
@@ -442,6 +448,28 @@ pub trait CellProjector {
     /// for, as (phase, ms).
     fn device_phases(&self) -> VkResult<Vec<(&'static str, f64)>> {
         Ok(Vec::new())
+    }
+    /// CPU times of the parts of the last `pack` worth their own phase
+    /// (pt-compute's binning), as (phase, ms).
+    fn pack_phases(&self) -> Vec<(&'static str, f64)> {
+        Vec::new()
+    }
+    /// Composite the cells into `target` in compute instead of drawing them
+    /// (every pixel written; the near caps are drawn over it after).
+    /// `false`: the projector draws (`record_draw`).
+    fn record_composite(
+        &mut self,
+        _rec: &CommandRecorder,
+        _target: &crate::vk::Image,
+        _tables: &IntegrationTables,
+        _frame: &FrameSetup,
+        _counter: &mut UploadCounter,
+    ) -> VkResult<bool> {
+        Ok(false)
+    }
+    /// The projector's own work counts of the last frame (results' `work`).
+    fn work_counts(&self) -> Vec<(&'static str, u64)> {
+        Vec::new()
     }
 }
 

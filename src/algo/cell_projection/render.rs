@@ -23,7 +23,7 @@ use crate::algo::method::{
     DataKind, Family, Feature, MethodInfo, MethodInputs, OptionSpec, Options, Phases, Published, PublishedFigure, RenderMethod, SceneData, View, Work,
 };
 use crate::mesh::{TetGeometry, TetMesh};
-use crate::vk::{CommandRecorder, Context, Image, UploadCounter, VkResult};
+use crate::vk::{ColorAttachment, CommandRecorder, Context, Image, UploadCounter, VkResult};
 
 crate::settings! {
     /// The typed settings of a cell-projection run: every option of the
@@ -299,6 +299,18 @@ pub struct CellProjection {
 
 impl CellProjection {
     pub fn create(inputs: MethodInputs, bytes: DeviceBytesPerCell, build: impl ProjectorBuilder) -> Result<Box<dyn RenderMethod>> {
+        Self::create_for_stages(inputs, bytes, ash::vk::ShaderStageFlags::FRAGMENT, build)
+    }
+
+    /// `create` with the integration tables visible to `stages` (a
+    /// projector that integrates in a compute stage adds COMPUTE; the near
+    /// caps keep integrating in the fragment stage).
+    pub fn create_for_stages(
+        inputs: MethodInputs,
+        bytes: DeviceBytesPerCell,
+        stages: ash::vk::ShaderStageFlags,
+        build: impl ProjectorBuilder,
+    ) -> Result<Box<dyn RenderMethod>> {
         let SceneData::TetMesh { mesh, geometry } = inputs.data else {
             anyhow::bail!("cell projection renders tetrahedral meshes only");
         };
@@ -311,13 +323,14 @@ impl CellProjection {
             .with_context(|| format!("mesh '{}' on {}", mesh.name, info.name))?;
         // A typical cell size: the bounding box shared out among the cells.
         let length_scale = mesh.bounds().diagonal() / (mesh.tets.len().max(1) as f64).cbrt();
-        let tables = IntegrationTables::new(
+        let tables = IntegrationTables::for_stages(
             ctx,
             inputs.tf,
             mesh.scalar_range(),
             settings.integrator,
             settings.table_size,
             length_scale,
+            stages,
             inputs.counter,
         )
         .context("building the integration tables")?;
@@ -403,6 +416,9 @@ impl RenderMethod for CellProjection {
             // the mesh); a re-used frame keeps the ones on the device.
             self.near.prepare(camera, &setup, &*self.projector);
             phases.ended("pack", ms(t2.elapsed()));
+            for (name, ms) in self.projector.pack_phases() {
+                phases.add(name, ms);
+            }
             self.last_cull = culled;
             self.culler.remember(camera, w, h);
         } else {
@@ -412,6 +428,9 @@ impl RenderMethod for CellProjection {
                 phases.add("sort", 0.0);
             }
             phases.add("pack", 0.0);
+            for (name, _) in self.projector.pack_phases() {
+                phases.add(name, 0.0);
+            }
         }
         let c = self.last_cull.unwrap_or_default();
         phases.count("cells_drawn", self.projector.drawn() as u64);
@@ -433,6 +452,15 @@ impl RenderMethod for CellProjection {
     fn record(&mut self, rec: &CommandRecorder, target: &Image, _view: &View, counter: &mut UploadCounter) -> Result<()> {
         let setup = self.prepared.take().context("record without a prepared frame")?;
         self.projector.record_before_draw(rec, &setup, counter).context("recording the device sort")?;
+        if self.projector.record_composite(rec, target, &self.tables, &setup, counter).context("recording the compositing pass")? {
+            if self.near.vertices() > 0 {
+                rec.begin_rendering_targets(&[ColorAttachment { image: target, clear: None }])?;
+                let drawn = self.near.record(rec, &self.tables, self.projector.pieces_set(), &setup, counter);
+                rec.end_rendering();
+                drawn?;
+            }
+            return Ok(());
+        }
         rec.begin_rendering(target, [0.0; 4]);
         let drawn = self
             .projector
@@ -449,6 +477,7 @@ impl RenderMethod for CellProjection {
             .with("cells", self.projector.cells() as u64)
             .with("cells_drawn", self.projector.drawn() as u64)
             .with("near_cap_vertices", self.near.vertices() as u64);
+        let work = self.projector.work_counts().into_iter().fold(work, |w, (name, n)| w.with(name, n));
         match self.projector.pieces() {
             Some(p) => work.with("pieces", p as u64).with("pieces_drawn", self.projector.pieces_drawn() as u64),
             None => work,
