@@ -43,7 +43,7 @@ pub use descriptors::{
     StorageBufferSet,
 };
 pub use error::{VkError, VkResult};
-pub use image::{texel_bytes, upload_texture, Filter, Image, ImageDim, ImageState, ImageUse, Sampler, TextureDesc, TARGET_FORMAT};
+pub use image::{texel_bytes, upload_texture, upload_texture_with, Filter, Image, ImageDim, ImageState, ImageUse, Sampler, TextureDesc, TARGET_FORMAT};
 pub use pipeline::{Blend, ColorTarget, ComputePipelineDesc, GraphicsPipelineDesc, Pipeline, VertexAttribute};
 pub use pipeline_cache::{
     fnv1a64, ComputePipelineKey, GraphicsPipelineKey, GraphicsState, PipelineCache, PipelineKey, ShaderKey,
