@@ -155,7 +155,7 @@ impl RunConfig {
         let b = dataset.bounds();
         let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
         for c in 0..8 {
-            let corner = glam::DVec3::from_array(std::array::from_fn(|a| if c >> a & 1 == 0 { b.min[a] } else { b.max[a] }));
+            let corner = glam::DVec3::from_array(std::array::from_fn(|a| if (c >> a) & 1 == 0 { b.min[a] } else { b.max[a] }));
             let q = vp * corner.extend(1.0);
             if !(q.w > 0.0) {
                 // A corner beside or behind the eye: the box is not small in view.
