@@ -50,7 +50,7 @@ fn frames(c: &mut Criterion) {
     let cfg = RunConfig { width: SIZE, height: SIZE, ..RunConfig::default() };
     for name in datasets::NAMED.iter().map(|d| d.name) {
         let dataset = datasets::load(name).expect("shipped dataset");
-        let tf = dataset.default_transfer_function();
+        let tf = dataset.default_transfer_function().expect("preset transfer function");
         for method in registry.for_kind(dataset.kind()) {
             let spec = registry.parse_spec(method.name, &[]).expect("default spec");
             if let Some(why) = method.unsupported_reason(&ctx.info) {
@@ -112,7 +112,7 @@ fn sort(c: &mut Criterion) {
 
 fn tables(c: &mut Criterion) {
     let dataset = datasets::load("oxygenpost").expect("shipped dataset");
-    let tf = dataset.default_transfer_function();
+    let tf = dataset.default_transfer_function().expect("preset transfer function");
     let range = dataset.scalar_range();
     for integrator in [Integrator::Preint, Integrator::Ppi] {
         let n = integrator.default_table_size();

@@ -43,6 +43,22 @@ use anyhow::{bail, Context as _, Result};
 /// size checks come after this one.
 pub const MAX_INPUT_BYTES: u64 = 1 << 30;
 
+/// Puts `/dev/null` on standard input, output or error where the process
+/// was started with one closed (`2>&-`), before anything else is opened:
+/// otherwise the first file opened (an output, the pipeline cache) would
+/// take descriptor 2 and receive the progress messages. Opening takes the
+/// lowest free descriptor, so no descriptor is named and nothing is unsafe.
+pub fn occupy_closed_stdio() {
+    use std::os::fd::{AsRawFd as _, IntoRawFd as _};
+    while let Ok(f) = fs::OpenOptions::new().read(true).write(true).open("/dev/null") {
+        if f.as_raw_fd() > 2 {
+            break;
+        }
+        // Kept open for the process's lifetime as the standard stream.
+        let _ = f.into_raw_fd();
+    }
+}
+
 /// Check that `path` can be read as an input: it exists, is a regular file
 /// (after following symlinks) and holds at most `max_bytes`. Returns its size.
 pub fn check_input(path: &Path, what: &str, max_bytes: u64) -> Result<u64> {

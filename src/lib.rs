@@ -4,6 +4,16 @@
 //! `algo` (one module per method, with its shaders) -> `vk` (all `unsafe`
 //! Vulkan). `mesh` and `scene` are plain data shared by all of them.
 
+/// `eprintln!` for progress and warnings that never panics: a closed,
+/// full or broken standard error loses the message, not the run (issue 21).
+#[macro_export]
+macro_rules! progress {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr(), $($t)*);
+    }};
+}
+
 pub mod algo;
 pub mod data_dir;
 pub mod fsio;

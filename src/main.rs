@@ -377,7 +377,7 @@ impl FrameArgs {
     fn transfer_function(&self, dataset: &Dataset) -> Result<TransferFunction> {
         match &self.tf {
             Some(path) => dataset.load_transfer_function(path),
-            None => Ok(dataset.default_transfer_function()),
+            None => dataset.default_transfer_function(),
         }
     }
 
@@ -516,6 +516,7 @@ fn run(cli: &Cli, registry: &Registry, args: &RunArgs) -> Result<()> {
             outputs.add(option, p)?;
         }
     }
+    cfg.check_framing(&dataset)?;
     let ctx = context(cli)?;
     cfg.check_device(&ctx.info)?;
     let with_reference = args.reference || args.diff_png.is_some();
@@ -532,7 +533,10 @@ fn run(cli: &Cli, registry: &Registry, args: &RunArgs) -> Result<()> {
     let table = report::comparison_table(&[row], registry);
     let to_stdout = [&args.json, &args.png, &args.diff_png].iter().any(|p| p.as_deref().is_some_and(fsio::is_stdout));
     if to_stdout {
-        eprint!("{table}");
+        {
+            use std::io::Write as _;
+            let _ = write!(std::io::stderr(), "{table}");
+        }
     } else {
         out!("{table}");
     }
@@ -677,7 +681,7 @@ fn stress(cli: &Cli, registry: &Registry, args: &StressArgs) -> Result<()> {
     let rows = run_cases_with_progress(&ctx, &cases, &cfg, |row| {
         done.push(row.clone());
         if done.len() % 50 == 0 {
-            eprintln!("volbench: stress: {} renders ({} ...)", done.len(), row.case);
+            volbench::progress!("volbench: stress: {} renders ({} ...)", done.len(), row.case);
         }
         match &args.json {
             Some(p) => report::write_json(p, &StressReport { cases: done.clone() }),
@@ -718,7 +722,7 @@ fn suite(cli: &Cli, registry: &Registry, args: &SuiteArgs) -> Result<()> {
         bar.set_position(i as u64);
         bar.set_message(label.to_string());
         if !terminal {
-            eprintln!("volbench: suite: [{}/{}] {label}", i + 1, plan.len());
+            volbench::progress!("volbench: suite: [{}/{}] {label}", i + 1, plan.len());
         }
     })?;
     bar.finish_and_clear();
@@ -761,10 +765,10 @@ fn ab(registry: &Registry, args: &AbArgs) -> Result<()> {
     let base = ab::resolve(&args.base, "BASE", &target)?;
     let new = ab::resolve(&args.new, "NEW", &target)?;
     let report = ab::run(&base, &new, &benches, &settings, |b, p| {
-        eprintln!("volbench: ab: [{}/{}] {} on {}, pair {}/{}", b + 1, benches.len(), benches[b].label, benches[b].dataset, p + 1, settings.pairs);
+        volbench::progress!("volbench: ab: [{}/{}] {} on {}, pair {}/{}", b + 1, benches.len(), benches[b].label, benches[b].dataset, p + 1, settings.pairs);
     })?;
     let table = ab::markdown(&report);
-    print!("{table}");
+    out!("{table}");
     if let Some(dir) = &args.out {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
         let (json, md) = (dir.join("ab.json"), dir.join("ab.md"));
@@ -810,15 +814,15 @@ fn scale(registry: &Registry, args: &ScaleArgs) -> Result<()> {
     };
     let exe = std::env::current_exe().context("locating this volbench binary")?;
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
-    let report = scale::study(&exe, &settings, &out, |what| eprintln!("volbench: scale: {what}"))?;
+    let report = scale::study(&exe, &settings, &out, |what| volbench::progress!("volbench: scale: {what}"))?;
     let md = scale::markdown(&report);
-    print!("{md}");
+    out!("{md}");
     let json = report::json_bytes(&report)?;
     let csv = scale::csv(&report);
     let (pj, pc, pm) = (out.join("scale.json"), out.join("scale.csv"), out.join("scale.md"));
     fsio::write_all(&[(pj.as_path(), json.as_slice()), (pc.as_path(), csv.as_bytes()), (pm.as_path(), md.as_bytes())])?;
     scale::plots(&out, &report)?;
-    println!("written: {}/scale.{{json,csv,md}}, scale_time.{{png,svg}}, scale_memory.{{png,svg}}, meshes/", out.display());
+    outln!("written: {}/scale.{{json,csv,md}}, scale_time.{{png,svg}}, scale_memory.{{png,svg}}, meshes/", out.display());
     let failed = report.rows.iter().filter(|r| r.error.is_some()).count();
     if failed > 0 {
         bail!("{failed} of {} scale runs failed (see scale.md)", report.rows.len());
@@ -832,6 +836,7 @@ fn broken_pipe(e: &anyhow::Error) -> bool {
 }
 
 fn main() -> ExitCode {
+    fsio::occupy_closed_stdio();
     let cli = Cli::parse();
     // `--count`: the same command again, under valgrind.
     let count = match &cli.command {
@@ -840,12 +845,12 @@ fn main() -> ExitCode {
         _ => false,
     };
     if count && cli.validation {
-        eprintln!("volbench: error: --count with --validation: the layer's work would be counted as the method's; validate an uncounted run");
+        volbench::progress!("volbench: error: --count with --validation: the layer's work would be counted as the method's; validate an uncounted run");
         return ExitCode::FAILURE;
     }
     if count::needs_reexec(count) {
         return count::reexec().unwrap_or_else(|e| {
-            eprintln!("volbench: error: {e:#}");
+            volbench::progress!("volbench: error: {e:#}");
             ExitCode::FAILURE
         });
     }

@@ -107,7 +107,7 @@ fn a_transparent_transfer_function_culls_most_cells_and_changes_no_pixel() {
 #[test]
 fn a_zoomed_camera_culls_off_screen_cells_and_changes_no_pixel() {
     let dataset = datasets::load("post-small").unwrap();
-    let tf = dataset.default_transfer_function();
+    let tf = dataset.default_transfer_function().unwrap();
     let n = dataset.summary().counts["cells"];
     let cfg = RunConfig { width: 96, height: 96, frames: 2, warmup: 0, zoom: 4.0, ..RunConfig::default() };
     for spec in METHODS {
@@ -123,7 +123,7 @@ fn a_zoomed_camera_culls_off_screen_cells_and_changes_no_pixel() {
 #[test]
 fn a_still_camera_reuses_the_previous_frame() {
     let dataset = datasets::load("post-small").unwrap();
-    let tf = dataset.default_transfer_function();
+    let tf = dataset.default_transfer_function().unwrap();
     let cfg = RunConfig { width: 64, height: 64, frames: 3, warmup: 1, orbit_step: 0.0, ..RunConfig::default() };
     for spec in ["vicp", "balanced", "resident", "pt-compute"] {
         let on = run(&dataset, &tf, spec, &cfg);

@@ -168,3 +168,110 @@ fn a_transfer_function_transparent_over_the_data_is_refused() {
         refused(&o, "nothing would be visible");
     }
 }
+
+/// Peak RSS (kB) of `volbench ARGS` as `/usr/bin/time` reports it, and the output.
+fn peak_rss(args: &[&str], data: &Path) -> (Output, u64) {
+    let o = Command::new("/usr/bin/time")
+        .args(["-f", "maxrss_kb=%M"])
+        .arg(env!("CARGO_BIN_EXE_volbench"))
+        .args(args)
+        .arg("--data")
+        .arg(data)
+        .output()
+        .unwrap();
+    let rss = text(&o).split("maxrss_kb=").nth(1).and_then(|s| s.trim().parse().ok()).expect("time -f printed the peak");
+    (o, rss)
+}
+
+#[test]
+fn a_volume_costs_twice_its_bytes_plus_a_fixed_overhead() {
+    // A 256³ 8-bit volume of zeros (16 MiB, a 16 kB gzip NRRD) against a
+    // 2³ one rendered the same way: the difference is the samples and their
+    // texture (2×), the skip map (one byte a 2³ brick) and at most 32 MiB
+    // (the 8 MiB staging slab, allocator slack). It was 16× (268 MB).
+    let d = tempfile::tempdir().unwrap();
+    let nrrd = |n: usize| {
+        let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+        gz.write_all(&vec![0u8; n * n * n]).unwrap();
+        let mut bytes = format!("NRRD0004\ntype: uint8\ndimension: 3\nsizes: {n} {n} {n}\nencoding: gzip\n\n").into_bytes();
+        bytes.extend(gz.finish().unwrap());
+        let p = d.path().join(format!("z{n}.nrrd"));
+        std::fs::write(&p, bytes).unwrap();
+        p
+    };
+    let args = ["run", "--size", "32x32", "--frames", "1", "--warmup", "0", "--method", "raycast-compute"];
+    let (small_out, small) = peak_rss(&args, &nrrd(2));
+    let (big_out, big) = peak_rss(&args, &nrrd(256));
+    assert!(small_out.status.success() && big_out.status.success(), "{}{}", text(&small_out), text(&big_out));
+    let n_kb = (256u64 * 256 * 256) >> 10;
+    let bound = 2 * n_kb + n_kb / 8 + (32 << 10);
+    assert!(big.saturating_sub(small) <= bound, "256³ peaks at {big} kB, 2³ at {small} kB: more than {bound} kB for 16 MiB of samples");
+}
+
+#[test]
+fn closed_or_full_standard_error_loses_messages_not_the_run() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("o.json");
+    // Standard error closed: the JSON (the first file opened) must not take
+    // its descriptor and receive the table.
+    let o = Command::new("sh")
+        .arg("-c")
+        .arg("exec \"$0\" \"$@\" 2>&-")
+        .arg(env!("CARGO_BIN_EXE_volbench"))
+        .env("VOLBENCH_VALIDATION", "1")
+        .args(RUN)
+        .args(["--method", "balanced", "--data", "post-small", "--json"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    let _: serde_json::Value = serde_json::from_slice(&std::fs::read(&out).unwrap()).expect("the JSON alone");
+    // Standard error full: the table sent there (the JSON takes stdout) is lost.
+    let full = std::fs::OpenOptions::new().write(true).open("/dev/full").unwrap();
+    let o = volbench().args(RUN).args(["--method", "balanced", "--data", "post-small", "--json", "-"]).stderr(full).output().unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    let _: serde_json::Value = serde_json::from_slice(&o.stdout).expect("stdout is the JSON");
+}
+
+#[test]
+fn a_view_covering_less_than_a_pixel_is_refused_before_rendering() {
+    for (method, data) in [("balanced", "post-small"), ("raycast-compute", "headsq")] {
+        let o = volbench().args(["run", "--size", "32x32", "--frames", "1", "--zoom", "0.01", "--method", method, "--data", data]).output().unwrap();
+        refused(&o, "less than a pixel");
+    }
+}
+
+#[test]
+fn a_broken_preset_transfer_function_is_named_not_replaced() {
+    let d = tempfile::tempdir().unwrap();
+    std::os::unix::fs::symlink(repo("data/volumes"), d.path().join("volumes")).unwrap();
+    std::fs::create_dir(d.path().join("tf")).unwrap();
+    std::fs::write(d.path().join("tf/headsq.json"), "{\"points\": [").unwrap();
+    let o = volbench().env("VOLBENCH_DATA", d.path()).args(RUN).args(["--method", "raycast-compute", "--data", "headsq"]).output().unwrap();
+    refused(&o, "preset transfer function of 'headsq'");
+}
+
+#[test]
+fn a_gzip_nifti_without_extension_is_read_by_its_content() {
+    let mut header = vec![0u8; 348];
+    header[..4].copy_from_slice(&348i32.to_le_bytes());
+    for (k, d) in [3i16, 4, 4, 4, 1, 1, 1, 1].iter().enumerate() {
+        header[40 + 2 * k..42 + 2 * k].copy_from_slice(&d.to_le_bytes());
+    }
+    header[70..72].copy_from_slice(&2i16.to_le_bytes()); // uint8
+    header[72..74].copy_from_slice(&8i16.to_le_bytes());
+    for k in 0..8 {
+        header[76 + 4 * k..80 + 4 * k].copy_from_slice(&1f32.to_le_bytes());
+    }
+    header[108..112].copy_from_slice(&352f32.to_le_bytes());
+    header[344..348].copy_from_slice(b"n+1\0");
+    header.extend([0u8; 4]);
+    header.extend(0..64u8);
+    let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+    gz.write_all(&header).unwrap();
+    let d = tempfile::tempdir().unwrap();
+    let p = d.path().join("scan");
+    std::fs::write(&p, gz.finish().unwrap()).unwrap();
+    let o = volbench().args(RUN).args(["--method", "raycast-compute", "--data"]).arg(&p).output().unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+}

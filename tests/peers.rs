@@ -21,7 +21,7 @@ fn cfg() -> RunConfig {
 fn scene_for(dataset: &Dataset, kind: DataKind, dir: &Path) -> Vec<(PeerScene, serde_json::Value)> {
     let vtk = PEERS.iter().find(|p| p.name == "vtk").unwrap();
     let exported = peers::write_dataset(dataset, &dir.join(format!("{}.vtk", dataset.name))).unwrap();
-    let tf = dataset.default_transfer_function();
+    let tf = dataset.default_transfer_function().unwrap();
     let renderers: Vec<_> = vtk.renderers.iter().filter(|r| r.kind == kind).collect();
     assert_eq!(renderers.len(), 2, "two VTK renderers per kind");
     renderers
@@ -83,7 +83,7 @@ fn the_mesh_scene_is_complete_and_the_exported_mesh_reads_back_as_the_same_mesh(
         assert_eq!(v["transfer_function"]["opacity_model"], "attenuation");
         assert!(v.get("sample_distance").is_none());
         // Attenuation model: the control points themselves, tau * unit distance.
-        let tf = dataset.default_transfer_function();
+        let tf = dataset.default_transfer_function().unwrap();
         assert_eq!(s.transfer_function.opacity_points.len(), tf.points.len());
         for (p, q) in tf.points.iter().zip(&s.transfer_function.opacity_points) {
             assert!((p.attenuation * s.transfer_function.unit_distance - q[1]).abs() < 1e-12);
@@ -124,7 +124,7 @@ fn a_renderer_of_another_kind_is_refused() {
     let vtk = &PEERS[0];
     let exported = peers::write_dataset(&dataset, &dir.path().join("m.vtk")).unwrap();
     let gpu = vtk.renderers.iter().find(|r| r.kind == DataKind::Volume).unwrap();
-    let e = peers::scene(vtk, gpu, &dataset, &dataset.default_transfer_function(), &cfg(), &exported, dir.path()).unwrap_err().to_string();
+    let e = peers::scene(vtk, gpu, &dataset, &dataset.default_transfer_function().unwrap(), &cfg(), &exported, dir.path()).unwrap_err().to_string();
     assert!(e.contains(gpu.name) && e.contains("tet-mesh"), "{e}");
 }
 

@@ -219,7 +219,7 @@ fn leaps_over_empty_bricks_keep_the_image_at_every_brick_size() {
 #[test]
 fn chest_ct_defaults_within_1e3_of_no_skipping_no_termination() {
     let d = volbench::harness::datasets::load("chest-ct").unwrap();
-    let tf = d.default_transfer_function();
+    let tf = d.default_transfer_function().unwrap();
     let cam = orbit(&d);
     for method in ["raycast-fragment", "raycast-compute"] {
         let full = render_sized(&format!("{method}:skip=off,ert=1"), &d, &tf, cam, 128);

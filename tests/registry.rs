@@ -174,7 +174,7 @@ fn small() -> RunConfig {
 fn a_test_only_method_runs_through_the_runner_with_the_common_schema() {
     let registry = registry_with_box();
     let dataset = datasets::load("post-small").unwrap();
-    let tf = dataset.default_transfer_function();
+    let tf = dataset.default_transfer_function().unwrap();
     let spec = registry.parse_spec("test-solid-box:shade=0.5", &[]).unwrap();
     let ctx = context();
     let out = run(&ctx, &spec, &dataset, &tf, &small()).unwrap();
@@ -197,7 +197,7 @@ fn a_test_only_method_runs_through_the_runner_with_the_common_schema() {
 fn sweeps_iterate_over_the_registry_and_survive_a_failing_row() {
     let registry = registry_with_box().with(FAILS);
     let dataset = datasets::load("post-small").unwrap();
-    let tf = dataset.default_transfer_function();
+    let tf = dataset.default_transfer_function().unwrap();
     let dir = tempfile::tempdir().unwrap();
     let ctx = context();
     // pareto over the box's own sweep, with no harness code naming it.

@@ -38,7 +38,7 @@ fn render(spec: &str, cfg: RunConfig) -> RunOutput {
 fn render_on(d: &Dataset, spec: &str, cfg: RunConfig) -> RunOutput {
     let spec = registry::builtin().parse_spec(spec, &[]).unwrap();
     let ctx = context();
-    let out = run(&ctx, &spec, d, &d.default_transfer_function(), &cfg).unwrap_or_else(|e| panic!("{e:#}"));
+    let out = run(&ctx, &spec, d, &d.default_transfer_function().unwrap(), &cfg).unwrap_or_else(|e| panic!("{e:#}"));
     assert!(ctx.validation_messages().is_empty(), "{:?}", ctx.validation_messages());
     out
 }

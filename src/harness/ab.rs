@@ -129,7 +129,7 @@ fn build_revision(commit: &str, target_dir: &Path) -> Result<PathBuf> {
         let _ = git(&["worktree", "remove", "--force", &tree_s]);
     }
     git(&["worktree", "add", "--detach", &tree_s, commit])?;
-    eprintln!("volbench: ab: building {commit} (cargo build --release, target dir {})", target_dir.display());
+    crate::progress!("volbench: ab: building {commit} (cargo build --release, target dir {})", target_dir.display());
     let status = Command::new(std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into()))
         .args(["build", "--release", "--locked", "--bin", "volbench"])
         .current_dir(&tree)

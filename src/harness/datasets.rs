@@ -143,13 +143,14 @@ impl Dataset {
         }
     }
 
-    /// The transfer function it is shown with unless `--tf` says otherwise.
-    pub fn default_transfer_function(&self) -> TransferFunction {
-        match &self.data {
+    /// The transfer function it is shown with unless `--tf` says otherwise;
+    /// an error when the dataset's preset file cannot be used.
+    pub fn default_transfer_function(&self) -> Result<TransferFunction> {
+        Ok(match &self.data {
             DatasetData::TetMesh { mesh, .. } => mesh_transfer_function(mesh, self.named.then_some(self.name.as_str())),
-            DatasetData::Volume(v) => volume_transfer_function(v, self.named.then_some(self.name.as_str())),
+            DatasetData::Volume(v) => volume_transfer_function(v, self.named.then_some(self.name.as_str()))?,
             DatasetData::Terrain(t) => terrain_colour_ramp(t),
-        }
+        })
     }
 
     /// `--tf FILE` read against this dataset's scalar range and size.
@@ -451,23 +452,23 @@ pub fn load_mesh(spec: &str) -> Result<TetMesh> {
 
 /// The transfer function a volume is shown with: the named volume's preset
 /// file (`data/tf/<name>.json`) when there is one, else a generic ramp
-/// over its range (attenuation per diagonal, as for meshes).
-pub fn volume_transfer_function(v: &Volume, named: Option<&str>) -> TransferFunction {
+/// over its range (attenuation per diagonal, as for meshes). A preset that
+/// exists but cannot be used is an error naming it, not a silent ramp.
+pub fn volume_transfer_function(v: &Volume, named: Option<&str>) -> Result<TransferFunction> {
     let diag = v.bounds().diagonal().max(f64::MIN_POSITIVE);
     if let Some(path) = named.and_then(crate::scene::tf_file::preset_path) {
-        if let Ok(tf) = crate::scene::tf_file::load_tf(&path, v.range(), diag) {
-            return tf;
-        }
+        return crate::scene::tf_file::load_tf(&path, v.range(), diag)
+            .with_context(|| format!("the preset transfer function of '{}' ({})", named.unwrap_or_default(), path.display()));
     }
     let (lo, hi) = crate::scene::effective_scalar_range(v.range().0, v.range().1);
     let stops = [(0.0, [0.2, 0.3, 1.0], 0.0), (0.3, [0.3, 1.0, 0.3], 2.0), (1.0, [1.0, 0.3, 0.1], 8.0)];
-    TransferFunction {
+    Ok(TransferFunction {
         name: "generic-ramp".into(),
         points: stops
             .iter()
             .map(|&(t, color, depth)| ControlPoint { scalar: lo + t * (hi - lo), color, attenuation: depth / diag })
             .collect(),
-    }
+    })
 }
 
 /// The transfer function a mesh is shown with: the named dataset's preset

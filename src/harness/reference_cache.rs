@@ -159,7 +159,7 @@ pub fn reference_image(dataset: &Dataset, tf: &TransferFunction, camera: &Camera
                 Err(e) => format!("{e:#}"),
             }
         };
-        eprintln!("volbench: reference cache entry {} not used: {why}; recomputing", path.display());
+        crate::progress!("volbench: reference cache entry {} not used: {why}; recomputing", path.display());
         if !meta.is_dir() {
             let _ = std::fs::remove_file(&path);
         }
@@ -173,7 +173,7 @@ pub fn reference_image(dataset: &Dataset, tf: &TransferFunction, camera: &Camera
         .with_context(|| format!("creating the cache directory {}", cache_dir().display()))
         .and_then(|()| crate::fsio::write_output(&path, &encode(&key, &image)));
     if let Err(e) = written {
-        eprintln!("volbench: warning: reference cache not written: {e:#}");
+        crate::progress!("volbench: warning: reference cache not written: {e:#}");
     }
     Ok(Reference { image, what, compute_ms, cached: false, recomputed })
 }

@@ -30,7 +30,7 @@ use super::count::{self, CountReport};
 use super::datasets::{Dataset, DatasetSummary};
 use super::image::RgbaImage;
 use super::stats::Summary;
-use crate::algo::method::{MethodInputs, Phases, RenderMethod, View};
+use crate::algo::method::{DataKind, MethodInputs, Phases, RenderMethod, View};
 use crate::algo::registry::MethodSpec;
 use crate::scene::{Camera, Projection, TransferFunction};
 use crate::vk::{CommandRecorder, Context, DeviceInfo, FrameQueries, Image, PipelineStats, UploadCounter};
@@ -140,6 +140,51 @@ impl RunConfig {
             self.height,
             info.max_memory_allocation_size
         );
+        Ok(())
+    }
+
+    /// Refuses, before anything is rendered, a view in which the dataset's
+    /// box covers less than a pixel across (`--zoom 0.01`, data thinner
+    /// than a pixel seen edge-on): the picture would be blank and measure
+    /// nothing. Orbit views only; terrain methods fly their own cameras.
+    pub fn check_framing(&self, dataset: &Dataset) -> Result<()> {
+        if self.fixed_camera.is_some() || dataset.kind() == DataKind::Terrain || self.width < 8 || self.height < 8 {
+            return Ok(());
+        }
+        let vp = self.camera(dataset, 0).view_proj(self.width, self.height);
+        let b = dataset.bounds();
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for c in 0..8 {
+            let corner = glam::DVec3::from_array(std::array::from_fn(|a| if (c >> a) & 1 == 0 { b.min[a] } else { b.max[a] }));
+            let q = vp * corner.extend(1.0);
+            if !(q.w > 0.0) {
+                // A corner beside or behind the eye: the box is not small in view.
+                return Ok(());
+            }
+            for a in 0..2 {
+                let ndc = (q[a] / q.w).clamp(-1.0, 1.0);
+                lo[a] = lo[a].min(ndc);
+                hi[a] = hi[a].max(ndc);
+            }
+        }
+        let across = [0.5 * (hi[0] - lo[0]) * self.width as f64, 0.5 * (hi[1] - lo[1]) * self.height as f64];
+        if across[0] < 1.0 || across[1] < 1.0 {
+            let size: [f64; 3] = std::array::from_fn(|a| b.max[a] - b.min[a]);
+            anyhow::bail!(
+                "'{}' covers {:.2}x{:.2} pixels of the {}x{} image at --zoom {} (its box is {:.3e} x {:.3e} x {:.3e}): \
+                 less than a pixel, so the image would be blank; use --zoom 1 or more, a larger --size, \
+                 or data with an extent along every axis",
+                dataset.name,
+                across[0],
+                across[1],
+                self.width,
+                self.height,
+                self.zoom,
+                size[0],
+                size[1],
+                size[2]
+            );
+        }
         Ok(())
     }
 
@@ -427,6 +472,7 @@ impl MethodSession {
         cfg.validate()?;
         cfg.check_device(&ctx.info)?;
         spec.check_renders(dataset.kind(), &dataset.name)?;
+        cfg.check_framing(dataset)?;
         if let Some(why) = spec.info.unsupported_reason(&ctx.info) {
             anyhow::bail!("method '{}' cannot run here: {why}", spec.info.name);
         }

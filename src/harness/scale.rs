@@ -268,7 +268,7 @@ pub fn study(exe: &Path, s: &ScaleSettings, out: &Path, mut progress: impl FnMut
         let mut reference_ms = None;
         if let Some(ds) = dataset.as_ref().filter(|_| cells <= s.reference_max_cells) {
             progress(&format!("level {level}: f64 reference"));
-            let tf = ds.default_transfer_function();
+            let tf = ds.default_transfer_function()?;
             let camera = ds.orbit_camera(0.0, crate::scene::Projection::Perspective { fovy_deg: 30.0 });
             let (image, ms) = timed(|| ds.reference_image(&tf, &camera, s.width, s.height));
             image?;
@@ -318,7 +318,7 @@ fn run_peer_level(
     };
     let dir = out.join("peers");
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
-    let tf = ds.default_transfer_function();
+    let tf = ds.default_transfer_function()?;
     let scene = peers::scene(peer.peer, renderer, ds, &tf, &cfg, &exported, &dir)?;
     let scene_path = dir.join(format!("{}-L{level}.json", scene.stem()));
     let (result, _image) = peers::run_peer(peer, &scene, &scene_path)?;

@@ -174,7 +174,7 @@ impl Scene {
                 let path = crate::data_dir::data_dir().join("tf").join(format!("{}-band.json", dataset.name));
                 dataset.load_transfer_function(&path)
             }
-            _ => Ok(dataset.default_transfer_function()),
+            _ => dataset.default_transfer_function(),
         }
     }
 }
@@ -626,7 +626,7 @@ fn run_peer_row(
             *export = Some((path, d));
         }
         let Some((_, exported)) = export.as_ref() else { anyhow::bail!("internal: dataset not exported") };
-        let tf = dataset.default_transfer_function();
+        let tf = dataset.default_transfer_function()?;
         let scene = pe::scene(peer.peer, renderer, dataset, &tf, cfg, exported, peers_dir)?;
         let stem = scene.stem();
         let reference_camera = scene.reference_camera;

@@ -135,15 +135,15 @@ pub fn compare(ctx: &Arc<Context>, registry: &Registry, jobs: &[CompareJob], cfg
         let mut reference = None;
         for spec in &job.specs {
             if let Some(why) = skip_reason(spec, &ctx.info) {
-                eprintln!("volbench: {} on {}: {why}", spec.label(), dataset.name);
+                crate::progress!("volbench: {} on {}: {why}", spec.label(), dataset.name);
                 rows.push(CompareRow { dataset: dataset.name.clone(), label: spec.label(), outcome: Err(why), skipped: true });
                 continue;
             }
-            eprintln!("volbench: {} on {}...", spec.label(), dataset.name);
+            crate::progress!("volbench: {} on {}...", spec.label(), dataset.name);
             let outcome = (|| -> Result<RunOutput> {
                 let mut result = run(ctx, spec, dataset, &job.tf, cfg)?;
                 if reference.is_none() && result.result.error.is_none() {
-                    eprintln!("volbench: f64 reference of {}...", dataset.name);
+                    crate::progress!("volbench: f64 reference of {}...", dataset.name);
                     reference = Some(reference_image(dataset, &job.tf, &result.result.image.camera, cfg.width, cfg.height)?);
                 }
                 let diff = match &reference {
@@ -165,7 +165,7 @@ pub fn compare(ctx: &Arc<Context>, registry: &Registry, jobs: &[CompareJob], cfg
                 Ok(result)
             })();
             if let Err(e) = &outcome {
-                eprintln!("volbench: {} on {} failed: {e:#}", spec.label(), dataset.name);
+                crate::progress!("volbench: {} on {} failed: {e:#}", spec.label(), dataset.name);
             }
             let outcome = outcome.map_err(|e| format!("{e:#}"));
             rows.push(CompareRow { dataset: dataset.name.clone(), label: spec.label(), outcome, skipped: false });
@@ -213,13 +213,13 @@ pub fn pareto(
     for spec in specs {
         let label = spec.label();
         if let Some(why) = skip_reason(spec, &ctx.info) {
-            eprintln!("volbench: {label}: {why}");
+            crate::progress!("volbench: {label}: {why}");
             let mut p = ParetoPoint::failed(&label, spec.info.name, &spec.options.to_spec_string(), why);
             p.skipped = true;
             points.push(p);
             continue;
         }
-        eprintln!("volbench: {label}...");
+        crate::progress!("volbench: {label}...");
         let point = (|| -> Result<ParetoPoint> {
             let mut out = run(ctx, spec, dataset, tf, cfg)?;
             // A method's own error (terrain height error) needs no image.
@@ -234,7 +234,7 @@ pub fn pareto(
             ParetoPoint::from_result(&label, &out.result).context("no error against the reference")
         })()
         .unwrap_or_else(|e| {
-            eprintln!("volbench: {label} failed: {e:#}");
+            crate::progress!("volbench: {label} failed: {e:#}");
             ParetoPoint::failed(&label, spec.info.name, &spec.options.to_spec_string(), format!("{e:#}"))
         });
         points.push(point);

@@ -67,57 +67,44 @@ pub fn brick_grid(dims: [usize; 3], brick: usize) -> [usize; 3] {
 /// Per brick (x fastest): whether the transfer function has attenuation
 /// somewhere over the brick's sample range (a trilinear value never leaves
 /// the range of its corners). With `brick` 1 the bricks are the cells.
-/// Min and max are reduced one axis at a time: each sample is read about
-/// once.
+/// One layer of bricks at a time: each layer's sample range per (x brick,
+/// y row), then per (x brick, y brick); memory is two such rows of ranges,
+/// never a multiple of the volume (each sample is read about once).
 pub fn attenuating_bricks(vol: &Volume, tf: &TransferFunction, brick: usize) -> Vec<bool> {
     let dims = vol.dims();
     let grid = brick_grid(dims, brick);
     // The samples of brick b along one axis of n samples.
     let span = |b: usize, n: usize| (b * brick).min(n - 1)..=((b + 1) * brick).min(n - 1);
-    let mut lo = Vec::with_capacity(grid[0] * dims[1] * dims[2]);
-    let mut hi = Vec::with_capacity(lo.capacity());
-    for k in 0..dims[2] {
-        for j in 0..dims[1] {
-            for b in 0..grid[0] {
-                let (mut mn, mut mx) = (f64::INFINITY, f64::NEG_INFINITY);
-                for i in span(b, dims[0]) {
-                    let v = vol.value(i, j, k);
-                    mn = mn.min(v);
-                    mx = mx.max(v);
+    let mut flags = Vec::with_capacity(grid[0] * grid[1] * grid[2]);
+    let rows = grid[0] * dims[1];
+    let (mut lo, mut hi) = (vec![f64::INFINITY; rows], vec![f64::NEG_INFINITY; rows]);
+    for bz in 0..grid[2] {
+        lo.fill(f64::INFINITY);
+        hi.fill(f64::NEG_INFINITY);
+        for k in span(bz, dims[2]) {
+            for j in 0..dims[1] {
+                for bx in 0..grid[0] {
+                    let n = bx + grid[0] * j;
+                    for i in span(bx, dims[0]) {
+                        let v = vol.value(i, j, k);
+                        lo[n] = lo[n].min(v);
+                        hi[n] = hi[n].max(v);
+                    }
                 }
-                lo.push(mn);
-                hi.push(mx);
+            }
+        }
+        for by in 0..grid[1] {
+            for bx in 0..grid[0] {
+                let (mut mn, mut mx) = (f64::INFINITY, f64::NEG_INFINITY);
+                for j in span(by, dims[1]) {
+                    mn = mn.min(lo[bx + grid[0] * j]);
+                    mx = mx.max(hi[bx + grid[0] * j]);
+                }
+                flags.push(max_attenuation(tf, mn, mx) > 0.0);
             }
         }
     }
-    // Reduce along y, then z: [gx, ny, nz] -> [gx, gy, nz] -> [gx, gy, gz].
-    let reduce = |lo: &[f64], hi: &[f64], shape: [usize; 3], axis: usize| {
-        let mut out_shape = shape;
-        out_shape[axis] = grid[axis];
-        let count = out_shape[0] * out_shape[1] * out_shape[2];
-        let (mut olo, mut ohi) = (Vec::with_capacity(count), Vec::with_capacity(count));
-        for z in 0..out_shape[2] {
-            for y in 0..out_shape[1] {
-                for x in 0..out_shape[0] {
-                    let (mut mn, mut mx) = (f64::INFINITY, f64::NEG_INFINITY);
-                    let p = [x, y, z];
-                    for s in span(p[axis], shape[axis]) {
-                        let mut q = p;
-                        q[axis] = s;
-                        let n = q[0] + shape[0] * (q[1] + shape[1] * q[2]);
-                        mn = mn.min(lo[n]);
-                        mx = mx.max(hi[n]);
-                    }
-                    olo.push(mn);
-                    ohi.push(mx);
-                }
-            }
-        }
-        (olo, ohi, out_shape)
-    };
-    let (lo, hi, shape) = reduce(&lo, &hi, [grid[0], dims[1], dims[2]], 1);
-    let (lo, hi, _) = reduce(&lo, &hi, shape, 2);
-    lo.iter().zip(&hi).map(|(&mn, &mx)| max_attenuation(tf, mn, mx) > 0.0).collect()
+    flags
 }
 
 /// The ray's parameter interval inside the axis-aligned box [min, max]

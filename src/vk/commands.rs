@@ -26,7 +26,7 @@ use ash::vk;
 use super::buffer::{Buffer, TexelBuffer};
 use super::descriptors::DescriptorSet;
 use super::error::{Check, VkError, VkResult};
-use super::image::{color_layers, Image, ImageUse};
+use super::image::{color_layers, Image, ImageDim, ImageUse};
 use super::pipeline::Pipeline;
 use super::upload::{UploadClass, UploadCounter};
 use super::Context;
@@ -245,32 +245,38 @@ impl CommandRecorder {
         unsafe { self.ctx.device.cmd_fill_buffer(self.raw, dst.raw, 0, vk::WHOLE_SIZE, value) };
     }
 
-    /// Copy the whole of `dst` from host-visible `src` (texels x fastest,
-    /// tightly packed) and count the bytes. `dst`'s old contents are
-    /// discarded; it is left as a transfer destination (follow with
-    /// `image_barrier(dst, ImageUse::Sampled)` before sampling it).
-    pub fn copy_to_image(&self, src: &Buffer, dst: &Image, counter: &mut UploadCounter, class: UploadClass) -> VkResult<()> {
-        let bytes = dst.byte_size();
-        if src.size() < bytes {
+    /// Copy `count` layers (z slices of a 3D image, rows of a 2D one, the
+    /// whole of a 1D one) from the start of `src` into `dst` from layer
+    /// `first` on: a large upload goes through one small staging buffer.
+    /// The first part (`first` 0) discards what the image held.
+    pub fn copy_layers_to_image(&self, src: &Buffer, dst: &Image, first: u32, count: u32, counter: &mut UploadCounter) -> VkResult<()> {
+        let (layers, offset, extent) = match dst.dim {
+            ImageDim::D3 => (dst.depth, vk::Offset3D { x: 0, y: 0, z: first as i32 }, [dst.width, dst.height, count]),
+            ImageDim::D2 => (dst.height, vk::Offset3D { x: 0, y: first as i32, z: 0 }, [dst.width, count, 1]),
+            ImageDim::D1 => (1, vk::Offset3D::default(), [dst.width, 1, 1]),
+        };
+        let bytes = dst.byte_size() / u64::from(layers) * u64::from(count);
+        if first.checked_add(count).is_none_or(|end| end > layers) || src.size() < bytes {
             return Err(VkError::Invalid(format!(
-                "copy into image '{}' needs {bytes} bytes, buffer '{}' has {}",
+                "copy of layers {first}..+{count} into image '{}' ({layers} layers) from buffer '{}' of {} bytes",
                 dst.name(),
                 src.desc.name,
                 src.size()
             )));
         }
-        dst.barrier(self.raw, ImageUse::TransferDst, false);
+        dst.barrier(self.raw, ImageUse::TransferDst, first > 0);
         let region = [vk::BufferImageCopy::default()
             .image_subresource(color_layers())
-            .image_extent(vk::Extent3D { width: dst.width, height: dst.height, depth: dst.depth })];
+            .image_offset(offset)
+            .image_extent(vk::Extent3D { width: extent[0], height: extent[1], depth: extent[2] })];
         // SAFETY: the command buffer is a recorder's own, recording between its
-        // `begin` and submit (the recorder's state machine); every handle recorded
-        // is live, borrowed for the call and kept alive by its owner until the
-        // submission is waited for.
+        // `begin` and submit; both handles are live and kept alive by their
+        // owners until the submission is waited for; the region lies inside
+        // the image (checked above) and the buffer holds its bytes.
         unsafe {
             self.ctx.device.cmd_copy_buffer_to_image(self.raw, src.raw, dst.raw, vk::ImageLayout::TRANSFER_DST_OPTIMAL, &region)
         };
-        counter.add_transfer(class, bytes);
+        counter.add_transfer(UploadClass::Static, bytes);
         Ok(())
     }
 }

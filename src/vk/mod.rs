@@ -48,7 +48,7 @@ pub use descriptors::{
 pub use error::{VkError, VkResult};
 pub use format::{texel_bytes, TARGET_FORMAT};
 pub use image::{Filter, Image, ImageDim, ImageState, ImageUse, Sampler, TextureDesc};
-pub use transfer::upload_texture;
+pub use transfer::{upload_texture, upload_texture_with};
 pub use pipeline::{Blend, ColorTarget, ComputePipelineDesc, GraphicsPipelineDesc, Pipeline, VertexAttribute};
 pub use pipeline_cache::{
     fnv1a64, ComputePipelineKey, GraphicsPipelineKey, GraphicsState, PipelineCache, PipelineKey, ShaderKey,

@@ -10,8 +10,8 @@ use super::buffer::{Buffer, BufferDesc};
 use super::commands::CommandRecorder;
 use super::error::{VkError, VkResult};
 use super::format::TARGET_FORMAT;
-use super::image::{color_layers, Image, ImageUse, TextureDesc};
-use super::upload::{UploadClass, UploadCounter};
+use super::image::{color_layers, Image, ImageDim, ImageUse, TextureDesc};
+use super::upload::UploadCounter;
 use super::Context;
 
 impl Image {
@@ -56,12 +56,7 @@ impl Image {
 /// the bytes are counted as static at the copy. The image is left ready to
 /// sample (`ImageUse::Sampled`) by any later submission.
 pub fn upload_texture(ctx: &Arc<Context>, desc: &TextureDesc, data: &[u8], counter: &mut UploadCounter) -> VkResult<Image> {
-    let expected = desc.byte_size().ok_or_else(|| {
-        VkError::Invalid(format!(
-            "image '{}': {}x{}x{} texels of {:?} overflow or the format is not supported",
-            desc.name, desc.width, desc.height, desc.depth, desc.format
-        ))
-    })?;
+    let expected = texture_bytes(desc)?;
     if data.len() as u64 != expected {
         return Err(VkError::Invalid(format!(
             "image '{}': {} bytes given, {}x{}x{} texels of {:?} need {expected}",
@@ -73,16 +68,60 @@ pub fn upload_texture(ctx: &Arc<Context>, desc: &TextureDesc, data: &[u8], count
             desc.format
         )));
     }
+    upload_texture_with(ctx, desc, counter, &mut |offset, dst| dst.copy_from_slice(&data[offset..offset + dst.len()]))
+}
+
+/// Staging room a texture upload takes (at least one layer): a texture
+/// goes up in slabs of whole layers, so that uploading a volume costs the
+/// image and this much, never a second copy of the volume.
+pub const UPLOAD_SLAB_BYTES: u64 = 8 << 20;
+
+/// Uploads a texture whose bytes `fill(offset, dst)` writes into `dst`
+/// (the texture's bytes from `offset` on, `dst.len()` of them), slab by
+/// slab through one staging buffer of about [`UPLOAD_SLAB_BYTES`]: a
+/// converted texture (floats from bytes) is never held whole on the host.
+pub fn upload_texture_with(
+    ctx: &Arc<Context>,
+    desc: &TextureDesc,
+    counter: &mut UploadCounter,
+    fill: &mut dyn FnMut(usize, &mut [u8]),
+) -> VkResult<Image> {
+    let expected = texture_bytes(desc)?;
+    let layers = match desc.dim {
+        ImageDim::D3 => desc.depth,
+        ImageDim::D2 => desc.height,
+        ImageDim::D1 => 1,
+    }
+    .max(1);
+    let layer_bytes = expected / u64::from(layers);
+    let per_slab = (UPLOAD_SLAB_BYTES / layer_bytes.max(1)).clamp(1, u64::from(layers)) as u32;
     let image = Image::texture(ctx, desc)?;
     let mut staging = Buffer::new(
         ctx,
-        BufferDesc::upload(&format!("{} (staging)", desc.name), expected, vk::BufferUsageFlags::TRANSFER_SRC),
+        BufferDesc::upload(&format!("{} (staging)", desc.name), u64::from(per_slab) * layer_bytes, vk::BufferUsageFlags::TRANSFER_SRC),
     )?;
-    staging.write_staging(0, data)?;
-    let rec = CommandRecorder::new(ctx, &format!("{} upload", desc.name))?;
-    rec.begin()?;
-    rec.copy_to_image(&staging, &image, counter, UploadClass::Static)?;
-    rec.image_barrier(&image, ImageUse::Sampled);
-    rec.submit_and_wait()?;
+    let mut first = 0u32;
+    while first < layers {
+        let count = per_slab.min(layers - first);
+        let len = (u64::from(count) * layer_bytes) as usize;
+        fill((u64::from(first) * layer_bytes) as usize, &mut staging.mapped_for_write()?[..len]);
+        let rec = CommandRecorder::new(ctx, &format!("{} upload", desc.name))?;
+        rec.begin()?;
+        rec.copy_layers_to_image(&staging, &image, first, count, counter)?;
+        if first + count == layers {
+            rec.image_barrier(&image, ImageUse::Sampled);
+        }
+        rec.submit_and_wait()?;
+        first += count;
+    }
     Ok(image)
+}
+
+fn texture_bytes(desc: &TextureDesc) -> VkResult<u64> {
+    desc.byte_size().filter(|&n| n > 0).ok_or_else(|| {
+        VkError::Invalid(format!(
+            "image '{}': {}x{}x{} texels of {:?} overflow, are empty or the format is not supported",
+            desc.name, desc.width, desc.height, desc.depth, desc.format
+        ))
+    })
 }

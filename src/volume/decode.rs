@@ -7,6 +7,7 @@
 //! when every value fits, else becomes `f32` when every value is exactly
 //! representable, else is an error).
 
+use std::borrow::Cow;
 use std::io::Read;
 
 use anyhow::{anyhow, bail, Result};
@@ -59,8 +60,9 @@ pub(crate) fn byte_len(source: &str, count: usize, ty: RawType) -> Result<usize>
 }
 
 /// Samples from exactly `count` values of `ty` in `bytes` (whose length the
-/// caller has checked to be `count * ty.size()`).
-pub(crate) fn decode_binary(source: &str, bytes: &[u8], ty: RawType, endian: Endian, count: usize) -> Result<Samples> {
+/// caller has checked to be `count * ty.size()`). Bytes given owned (an
+/// inflated stream) become `u8` samples without a copy.
+pub(crate) fn decode_binary(source: &str, bytes: Cow<'_, [u8]>, ty: RawType, endian: Endian, count: usize) -> Result<Samples> {
     let need = byte_len(source, count, ty)?;
     if bytes.len() != need {
         bail!("{source}: {} bytes of {} data where {count} samples need {need}", bytes.len(), ty.name());
@@ -80,7 +82,7 @@ pub(crate) fn decode_binary(source: &str, bytes: &[u8], ty: RawType, endian: End
         };
     }
     Ok(match ty {
-        RawType::U8 => Samples::U8(bytes.to_vec()),
+        RawType::U8 => Samples::U8(bytes.into_owned()),
         RawType::I8 => Samples::I16(bytes.iter().map(|&b| b as i8 as i16).collect()),
         RawType::I16 => Samples::I16(words!(i16, 2)),
         RawType::U16 => Samples::U16(words!(u16, 2)),
@@ -316,14 +318,18 @@ mod tests {
         e.finish().unwrap()
     }
 
+    fn b(x: &[u8]) -> Cow<'_, [u8]> {
+        Cow::Borrowed(x)
+    }
+
     #[test]
     fn binary_both_endians_and_widening() {
-        let s = decode_binary("f", &[1, 2, 3, 4], RawType::I16, Endian::Big, 2).unwrap();
+        let s = decode_binary("f", b(&[1, 2, 3, 4]), RawType::I16, Endian::Big, 2).unwrap();
         assert_eq!(s, Samples::I16(vec![0x0102, 0x0304]));
-        let s = decode_binary("f", &[1, 2, 3, 4], RawType::U16, Endian::Little, 2).unwrap();
+        let s = decode_binary("f", b(&[1, 2, 3, 4]), RawType::U16, Endian::Little, 2).unwrap();
         assert_eq!(s, Samples::U16(vec![0x0201, 0x0403]));
-        assert_eq!(decode_binary("f", &[0xff], RawType::I8, Endian::Big, 1).unwrap(), Samples::I16(vec![-1]));
-        assert!(decode_binary("f", &[1, 2, 3], RawType::I16, Endian::Big, 2).is_err());
+        assert_eq!(decode_binary("f", b(&[0xff]), RawType::I8, Endian::Big, 1).unwrap(), Samples::I16(vec![-1]));
+        assert!(decode_binary("f", b(&[1, 2, 3]), RawType::I16, Endian::Big, 2).is_err());
         assert_eq!(narrow_i32("f", vec![-5, 7]).unwrap(), Samples::I16(vec![-5, 7]));
         assert_eq!(narrow_i32("f", vec![0, 60000]).unwrap(), Samples::U16(vec![0, 60000]));
         assert_eq!(narrow_i32("f", vec![-1, 70000]).unwrap(), Samples::F32(vec![-1.0, 70000.0]));

@@ -432,11 +432,17 @@ pub fn sniff(bytes: &[u8]) -> Option<Format> {
         Some(Format::VtkLegacy)
     } else if first.starts_with(b"<?xml") || first.starts_with(b"<VTKFile") {
         Some(Format::Vti)
-    } else if nifti::is_nifti(bytes) {
+    } else if nifti::is_nifti(bytes) || (bytes.starts_with(&[0x1f, 0x8b]) && gzip_holds_nifti(bytes)) {
         Some(Format::Nifti)
     } else {
         None
     }
+}
+
+/// Whether a gzip stream starts with a NIfTI-1 header (a `.nii.gz` under
+/// another name): only the header's 348 bytes are inflated.
+fn gzip_holds_nifti(bytes: &[u8]) -> bool {
+    decode::gunzip_prefix("", "", bytes, 348).is_ok_and(|h| nifti::is_nifti(&h))
 }
 
 /// The format a file name's extension says, if any.

@@ -213,7 +213,7 @@ pub fn parse_nifti_bytes(name: &str, bytes: &[u8]) -> Result<Volume> {
         }
         &bytes[h.vox_offset..]
     };
-    let mut samples = decode_binary(name, data, h.ty, h.endian, count)?;
+    let mut samples = decode_binary(name, data.into(), h.ty, h.endian, count)?;
     if let Some((slope, inter)) = h.scale {
         let f = samples.to_f32();
         samples = Samples::F32(f.into_iter().map(|v| (v as f64 * slope + inter) as f32).collect());

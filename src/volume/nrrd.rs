@@ -336,11 +336,11 @@ pub fn parse_nrrd_bytes(name: &str, bytes: &[u8], load_data: &mut dyn FnMut(&str
                 }
                 &data[skip..]
             };
-            decode_binary(name, body, ty, endian, count)?
+            decode_binary(name, body.into(), ty, endian, count)?
         }
         Enc::Gzip => {
             let body = inflate_after(name, &what, Wrapper::Gzip, data, skip, needed)?;
-            decode_binary(name, &body, ty, endian, count)?
+            decode_binary(name, body.into(), ty, endian, count)?
         }
         Enc::Ascii => {
             let text = data.get(skip..).ok_or_else(|| anyhow!("{name}: byte skip {skip} runs past the end of {what}"))?;

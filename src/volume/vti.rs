@@ -117,7 +117,7 @@ pub fn parse_vti_bytes(name: &str, bytes: &[u8], array: Option<&str>) -> Result<
 
     // ---- the data
     let samples = match array_payload(name, &what, *chosen, &doc, appended.as_ref(), layout, expected)? {
-        Some(bytes) => decode_binary(name, &bytes, ty, layout.endian, count)?,
+        Some(bytes) => decode_binary(name, bytes.into(), ty, layout.endian, count)?,
         None => {
             let text = chosen.text().unwrap_or("");
             let mut tokens = Tokens::new(text.as_bytes());

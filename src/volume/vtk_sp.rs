@@ -257,7 +257,7 @@ pub fn parse_structured_points_bytes(name: &str, bytes: &[u8]) -> Result<Volume>
                             r.pos -= data.len();
                             bail!(r.err(format!("{what}: {e}")));
                         }
-                        decode_binary(name, data, ty, Endian::Big, n)?
+                        decode_binary(name, data.into(), ty, Endian::Big, n)?
                     } else {
                         let mut t = Tokens::new(&r.b[r.pos..]);
                         let s = parse_ascii(name, &what, &mut t, ty, tname, n, r.pos)?;

@@ -99,7 +99,7 @@ use super::settings::{choice, flag, float, int, MethodSettings};
 use crate::scene::TransferFunction;
 use crate::volume::{Samples, Volume};
 use crate::vk::{
-    raw, upload_static_texels, upload_texture, Buffer, BufferDesc, CommandRecorder, Context, DescriptorKind, DescriptorResource, DescriptorSet,
+    raw, upload_static_texels, upload_texture, upload_texture_with, Buffer, BufferDesc, CommandRecorder, Context, DescriptorKind, DescriptorResource, DescriptorSet,
     DescriptorSetDesc, MemoryKind, Sampler, TexelBuffer, TextureDesc, UploadClass, UploadCounter,
 };
 
@@ -286,12 +286,10 @@ impl VolumeResources {
         let linear = raw::FormatFeatureFlags::SAMPLED_IMAGE | raw::FormatFeatureFlags::SAMPLED_IMAGE_FILTER_LINEAR;
         // Native formats where the device filters them; texel value v maps
         // back to the sample as value = v * scale.
-        let native: Option<(raw::Format, &'static str, f64, Vec<u8>)> = match vol.samples() {
-            Samples::U8(v) => Some((raw::Format::R8_UNORM, "r8-unorm", 255.0, v.clone())),
-            Samples::U16(v) => Some((raw::Format::R16_UNORM, "r16-unorm", 65535.0, v.iter().flat_map(|x| x.to_ne_bytes()).collect())),
-            Samples::I16(v) if !v.contains(&i16::MIN) => {
-                Some((raw::Format::R16_SNORM, "r16-snorm", 32767.0, v.iter().flat_map(|x| x.to_ne_bytes()).collect()))
-            }
+        let native: Option<(raw::Format, &'static str, f64, &[u8])> = match vol.samples() {
+            Samples::U8(v) => Some((raw::Format::R8_UNORM, "r8-unorm", 255.0, v.as_slice())),
+            Samples::U16(v) => Some((raw::Format::R16_UNORM, "r16-unorm", 65535.0, bytemuck::cast_slice(v))),
+            Samples::I16(v) if !v.contains(&i16::MIN) => Some((raw::Format::R16_SNORM, "r16-snorm", 32767.0, bytemuck::cast_slice(v))),
             _ => None,
         };
         let (lo, mut hi) = vol.range();
@@ -300,19 +298,47 @@ impl VolumeResources {
         }
         // Float samples are stored relative to the smallest (subtracted in
         // f64): filtering then works on the range's own bits, not on a large
-        // offset's (1e6 + [0, 1] would be filtered in steps of 1/16).
-        let (format, format_name, scale, offset, bytes) = match native {
-            Some((f, n, s, b)) if ctx.format_supports(f, linear) => (f, n, s, lo / s, b),
-            _ => {
-                let rel: Vec<f32> = vol.to_f32().iter().map(|&v| (v as f64 - lo) as f32).collect();
-                (raw::Format::R32_SFLOAT, "r32-sfloat", 1.0, 0.0, f32_bytes(&rel))
-            }
+        // offset's (1e6 + [0, 1] would be filtered in steps of 1/16). They
+        // are converted slab by slab into the staging buffer, never held
+        // whole beside the volume.
+        let (format, format_name, scale, offset, native_bytes) = match native {
+            Some((f, n, s, b)) if ctx.format_supports(f, linear) => (f, n, s, lo / s, Some(b)),
+            _ => (raw::Format::R32_SFLOAT, "r32-sfloat", 1.0, 0.0, None),
         };
         if !ctx.format_supports(format, linear) {
             bail!("device '{}' cannot filter {format_name} 3D textures linearly", ctx.info.name);
         }
-        let volume = upload_texture(ctx, &TextureDesc::d3(&format!("volume '{}'", vol.name), dims_u32, format), &bytes, counter)
-            .with_context(|| format!("uploading volume '{}'", vol.name))?;
+        // Brick distances (module note): 0 on a flagged brick, else the
+        // Chebyshev distance to the nearest one; for `preint` the flags are
+        // dilated by the bricks half a step may reach into. Computed before
+        // the volume's texture exists, so that their working memory (flags
+        // and prefix counts) never adds to the volume and its texture.
+        let t_bricks = Instant::now();
+        let grid = bricks::grid_of(dims, s.brick);
+        let distance: Vec<u8> = {
+            let flagged = bricks::attenuating(vol, tf, s.brick);
+            let dilation = if s.preint() { (s.step / (2.0 * s.brick as f64)).ceil().max(1.0) as u8 } else { 0 };
+            bricks::distances(&flagged, grid).iter().map(|d| d.saturating_sub(dilation)).collect()
+        };
+        let bricks_ms = t_bricks.elapsed().as_secs_f64() * 1e3;
+        let bricks_visible = distance.iter().filter(|&&d| d == 0).count();
+        // A uniform texel buffer: a distance is one texel fetch (as a storage
+        // buffer, a per-ray index made llvmpipe loop over the SIMD lanes).
+        // Uploaded (and its host copy dropped) before the volume's texture.
+        let bricks = upload_static_texels(ctx, "brick distances", &distance, raw::Format::R8_UINT, counter)?;
+        drop(distance);
+        let desc = TextureDesc::d3(&format!("volume '{}'", vol.name), dims_u32, format);
+        let samples = vol.samples();
+        let volume = match native_bytes {
+            Some(bytes) => upload_texture(ctx, &desc, bytes, counter),
+            None => upload_texture_with(ctx, &desc, counter, &mut |offset, dst| {
+                for (k, texel) in dst.chunks_exact_mut(4).enumerate() {
+                    let v = samples.get(offset / 4 + k).unwrap_or(lo) as f32;
+                    texel.copy_from_slice(&((f64::from(v) - lo) as f32).to_ne_bytes());
+                }
+            }),
+        }
+        .with_context(|| format!("uploading volume '{}'", vol.name))?;
 
         let t0 = Instant::now();
         let table: Vec<f32> = tf.table(TABLE_SIZE, lo, hi).concat();
@@ -334,18 +360,7 @@ impl VolumeResources {
         }
         let preint = upload_texture(ctx, &TextureDesc::d2("pre-integration table", n as u32, n as u32, raw::Format::R32G32B32A32_SFLOAT), &f32_bytes(&pre), counter)?;
 
-        // Brick distances (module note): 0 on a flagged brick, else the
-        // Chebyshev distance to the nearest one; for `preint` the flags are
-        // dilated by the bricks half a step may reach into.
-        let grid = bricks::grid_of(dims, s.brick);
-        let flagged = bricks::attenuating(vol, tf, s.brick);
-        let dilation = if s.preint() { (s.step / (2.0 * s.brick as f64)).ceil().max(1.0) as u8 } else { 0 };
-        let distance: Vec<u8> = bricks::distances(&flagged, grid).iter().map(|d| d.saturating_sub(dilation)).collect();
-        let table_build_ms = t0.elapsed().as_secs_f64() * 1e3;
-        let bricks_visible = distance.iter().filter(|&&d| d == 0).count();
-        // A uniform texel buffer: a distance is one texel fetch (as a storage
-        // buffer, a per-ray index made llvmpipe loop over the SIMD lanes).
-        let bricks = upload_static_texels(ctx, "brick distances", &distance, raw::Format::R8_UINT, counter)?;
+        let table_build_ms = bricks_ms + t0.elapsed().as_secs_f64() * 1e3;
 
         let spacing = vol.spacing();
         // t = (v - offset) * scale / (hi - lo), offset lo / scale for the
