@@ -219,7 +219,7 @@ impl Server {
                 if status.is_some_and(|s| s.code() == Some(2)) && stderr.contains("--serve") {
                     return Err(StartError::Unsupported(format!("{} has no serve mode (`run --serve`: {stderr})", server.name)));
                 }
-                return Err(StartError::Failed(e.context(stderr)));
+                return Err(StartError::Failed(if stderr.is_empty() { e } else { anyhow::anyhow!("{e:#}; its stderr: {stderr}") }));
             }
         };
         let hello: Hello = match serde_json::from_str(&first) {
