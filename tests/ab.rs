@@ -111,12 +111,13 @@ fn script(dir: &Path, name: &str, body: &str) -> String {
 fn an_old_binary_without_serve_mode_falls_back_to_per_run() {
     let exe = env!("CARGO_BIN_EXE_volbench");
     let dir = tempfile::tempdir().unwrap();
-    // Refuses --serve as clap does for an unknown flag; anything else is volbench.
+    // Refuses --serve as clap does for an unknown flag (the flag named on the
+    // first of several lines); anything else is volbench.
     let old = script(
         dir.path(),
         "old",
         &format!(
-            "for a in \"$@\"; do [ \"$a\" = --serve ] && {{ echo \"error: unexpected argument '--serve' found\" >&2; exit 2; }}; done\nexec {exe} \"$@\""
+            "for a in \"$@\"; do [ \"$a\" = --serve ] && {{ printf \"error: unexpected argument '--serve' found\\n\\n  tip: a similar argument exists: '--device'\\n\\nUsage: volbench run --data <NAME|PATH>\\n\\nFor more information, try '--help'.\\n\" >&2; exit 2; }}; done\nexec {exe} \"$@\""
         ),
     );
     let (v, stdout, stderr, _) = self_ab(&old, exe, &[]);

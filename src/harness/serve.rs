@@ -213,11 +213,13 @@ impl Server {
         let first = match server.next_line("its handshake") {
             Ok(line) => line,
             Err(e) => {
-                let stderr = server.stderr_tail();
+                let lines = server.stderr_lines();
+                let stderr = tail(&lines);
                 let status = server.child.try_wait().ok().flatten();
                 // clap's usage error (exit 2) naming the flag: a build from before serve mode.
-                if status.is_some_and(|s| s.code() == Some(2)) && stderr.contains("--serve") {
-                    return Err(StartError::Unsupported(format!("{} has no serve mode (`run --serve`: {stderr})", server.name)));
+                let unknown_flag = lines.iter().any(|l| l.contains("unexpected argument '--serve'"));
+                if status.is_some_and(|s| s.code() == Some(2)) && unknown_flag {
+                    return Err(StartError::Unsupported(format!("{} has no serve mode (`run --serve` is an unknown argument to it)", server.name)));
                 }
                 return Err(StartError::Failed(if stderr.is_empty() { e } else { anyhow::anyhow!("{e:#}; its stderr: {stderr}") }));
             }
@@ -291,12 +293,16 @@ impl Server {
         }
     }
 
-    /// The last lines the server wrote to stderr (why it failed).
-    fn stderr_tail(&self) -> String {
+    /// The non-empty lines the server wrote to stderr so far.
+    fn stderr_lines(&self) -> Vec<String> {
         // The stderr thread may still be draining: a short grace period.
         std::thread::sleep(Duration::from_millis(100));
-        let lines: Vec<String> = self.errors.try_iter().filter(|l| !l.trim().is_empty()).collect();
-        crate::fsio::clip_message(lines[lines.len().saturating_sub(3)..].join(" / ").trim())
+        self.errors.try_iter().filter(|l| !l.trim().is_empty()).collect()
+    }
+
+    /// The last lines the server wrote to stderr (why it failed).
+    fn stderr_tail(&self) -> String {
+        tail(&self.stderr_lines())
     }
 
     fn kill(&mut self) {
@@ -322,6 +328,11 @@ impl Server {
             std::thread::sleep(Duration::from_millis(10));
         }
     }
+}
+
+/// The last three of `lines`, on one line.
+fn tail(lines: &[String]) -> String {
+    crate::fsio::clip_message(lines[lines.len().saturating_sub(3)..].join(" / ").trim())
 }
 
 impl Drop for Server {
