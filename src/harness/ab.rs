@@ -560,7 +560,7 @@ pub fn run(
     let mut rows = Vec::new();
     for (b, bench) in benches.iter().enumerate() {
         let mut tick = |p: usize| {
-            if p % every == 0 {
+            if p.is_multiple_of(every) {
                 progress(b, p)
             }
         };
