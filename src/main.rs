@@ -129,19 +129,30 @@ struct AbArgs {
     /// Run these specs instead of every method at its defaults (repeat).
     #[arg(long, value_name = "SPEC")]
     spec: Vec<String>,
-    /// Runs per binary and benchmark (each a fresh process).
-    #[arg(long, default_value_t = 10)]
-    pairs: usize,
+    /// Samples per binary and benchmark (default: 300 per frame, 10 per run).
+    #[arg(long)]
+    pairs: Option<usize>,
+    /// Alternate whole runs (one fresh process per sample) instead of frames
+    /// between two resident serve processes.
+    #[arg(long)]
+    per_run: bool,
+    /// Per frame: frames per alternation step (the sample is their median).
+    #[arg(long, default_value_t = 1)]
+    batch: usize,
+    /// Per frame: seconds a serve process may take to answer (its start,
+    /// loading and warm-up included) before its process group is killed.
+    #[arg(long, default_value_t = 600.0)]
+    timeout: f64,
     /// Slowdown threshold in percent: fail where the interval lies wholly above 1 + this.
     #[arg(long, default_value_t = 3.0)]
     threshold: f64,
     /// Image size of each run, WxH.
     #[arg(long, default_value = "128x128", value_parser = parse_size)]
     size: (u32, u32),
-    /// Timed frames per run (the run's sample is their median).
+    /// Per run: timed frames per run (the run's sample is their median).
     #[arg(long, default_value_t = 5)]
     frames: usize,
-    /// Untimed warm-up frames per run.
+    /// Untimed warm-up frames per run (per frame: once per serve process).
     #[arg(long, default_value_t = 1)]
     warmup: usize,
     /// Seed of the per-pair order (default: from the clock; recorded).
@@ -282,6 +293,10 @@ struct RunArgs {
     /// docs/tracking.md). Frames run without overlap.
     #[arg(long)]
     count: bool,
+    /// `volbench ab`'s per-frame protocol (docs/ab.md): load, build, warm up,
+    /// then render timed frames on command from stdin ("frame N", "quit").
+    #[arg(long, hide = true, conflicts_with_all = ["png", "json", "reference", "diff_png", "count"])]
+    serve: bool,
 }
 
 #[derive(Args)]
@@ -519,6 +534,10 @@ fn run(cli: &Cli, registry: &Registry, args: &RunArgs) -> Result<()> {
     cfg.check_framing(&dataset)?;
     let ctx = context(cli)?;
     cfg.check_device(&ctx.info)?;
+    if args.serve {
+        return volbench::harness::serve::serve_run(&ctx, &spec, &dataset, &tf, &cfg)
+            .with_context(|| format!("serving {} on {}", spec.canonical(), args.data));
+    }
     let with_reference = args.reference || args.diff_png.is_some();
     let cfg = RunConfig { diagnostics: with_reference, ..cfg };
     let mut out = run_method(&ctx, &spec, &dataset, &tf, &cfg)
@@ -743,12 +762,16 @@ fn ab(registry: &Registry, args: &AbArgs) -> Result<()> {
     let seed = args.seed.unwrap_or_else(|| {
         std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_nanos() as u64)
     });
+    let mode = if args.per_run { ab::Mode::PerRun } else { ab::Mode::PerFrame };
     let settings = ab::AbSettings {
+        mode,
         width: args.size.0,
         height: args.size.1,
         frames: args.frames,
+        batch: args.batch,
         warmup: args.warmup,
-        pairs: args.pairs,
+        pairs: args.pairs.unwrap_or(if args.per_run { 10 } else { 300 }),
+        timeout_s: args.timeout,
         threshold: args.threshold / 100.0,
         seed,
     };
@@ -766,7 +789,7 @@ fn ab(registry: &Registry, args: &AbArgs) -> Result<()> {
     let new = ab::resolve(&args.new, "NEW", &target)?;
     let report = ab::run(&base, &new, &benches, &settings, |b, p| {
         volbench::progress!("volbench: ab: [{}/{}] {} on {}, pair {}/{}", b + 1, benches.len(), benches[b].label, benches[b].dataset, p + 1, settings.pairs);
-    })?;
+    }, |note| volbench::progress!("volbench: ab: {note}"))?;
     let table = ab::markdown(&report);
     out!("{table}");
     if let Some(dir) = &args.out {

@@ -1,9 +1,14 @@
 //! `volbench ab` end to end: bad input is a clear error before anything
-//! runs, and a binary against itself on a tiny case writes the documented
-//! table and JSON. Nothing here depends on timing: the verdict may be any
-//! of the four, and the exit code must agree with it.
+//! runs, a binary against itself on a tiny case writes the documented
+//! table and JSON (per frame and per run), the serve protocol answers,
+//! refuses and stops, a server that stops answering is killed, and a binary
+//! without serve mode falls back to per-run alternation. Nothing here
+//! depends on timing: the verdict may be any of the four, and the exit code
+//! must agree with it.
 
-use std::process::Command;
+use std::io::{BufRead, BufReader, Write};
+use std::path::Path;
+use std::process::{Command, Stdio};
 
 fn volbench() -> Command {
     Command::new(env!("CARGO_BIN_EXE_volbench"))
@@ -36,12 +41,14 @@ fn bad_binaries_and_revisions_are_clear_errors() {
     }
 }
 
-#[test]
-fn a_binary_against_itself_writes_the_table_and_json() {
-    let exe = env!("CARGO_BIN_EXE_volbench");
+/// `ab EXE EXE` on balanced/post-small at 32x32, 3 pairs, plus `extra`:
+/// the report JSON, stdout, stderr and whether it succeeded; checks what
+/// every such run must hold.
+fn self_ab(base: &str, new: &str, extra: &[&str]) -> (serde_json::Value, String, String, bool) {
     let dir = tempfile::tempdir().unwrap();
     let out = volbench()
-        .args(["ab", exe, exe, "--filter", "balanced", "--pairs", "3", "--size", "32x32", "--frames", "2", "--warmup", "0", "--seed", "5"])
+        .args(["ab", base, new, "--filter", "balanced", "--pairs", "3", "--size", "32x32", "--frames", "2", "--warmup", "0", "--seed", "5"])
+        .args(extra)
         .arg("--out")
         .arg(dir.path())
         .env("VOLBENCH_VALIDATION", "1")
@@ -51,7 +58,7 @@ fn a_binary_against_itself_writes_the_table_and_json() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!stderr.contains("panicked"), "{stderr}");
     let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.path().join("ab.json")).unwrap()).unwrap();
-    assert_eq!(v["schema"], "volbench-ab/1");
+    assert_eq!(v["schema"], "volbench-ab/2");
     assert_eq!(v["settings"]["pairs"], 3);
     assert_eq!(v["settings"]["seed"], 5);
     let rows = v["rows"].as_array().unwrap();
@@ -69,6 +76,120 @@ fn a_binary_against_itself_writes_the_table_and_json() {
     assert!(["slower", "faster", "same", "undecided"].contains(&verdict), "{verdict}");
     // The exit code follows the verdict (a self-comparison can, rarely, read slower).
     assert_eq!(out.status.success(), verdict != "slower", "{verdict}: {stderr}");
-    assert!(stdout.contains("| post-small | balanced | 3 |") && stdout.contains("95 % interval"), "{stdout}");
+    assert!(stdout.contains("| post-small | balanced | ") && stdout.contains("95 % interval"), "{stdout}");
     assert_eq!(std::fs::read_to_string(dir.path().join("ab.md")).unwrap(), stdout);
+    (v, stdout.into_owned(), stderr.into_owned(), out.status.success())
+}
+
+#[test]
+fn a_binary_against_itself_writes_the_table_and_json() {
+    let exe = env!("CARGO_BIN_EXE_volbench");
+    let (v, stdout, _, _) = self_ab(exe, exe, &[]);
+    assert_eq!(v["settings"]["mode"], "per-frame");
+    let row = &v["rows"][0];
+    assert_eq!(row["mode"], "per-frame");
+    assert!(row["fallback"].is_null());
+    // 3 pairs: 2 batch means (batches_for).
+    assert_eq!(row["estimate"]["batches"], 2);
+    assert!(stdout.contains("| post-small | balanced | per frame | 3 | 2 |"), "{stdout}");
+    let (v, stdout, _, _) = self_ab(exe, exe, &["--per-run"]);
+    assert_eq!((v["settings"]["mode"].as_str(), v["rows"][0]["mode"].as_str()), (Some("per-run"), Some("per-run")));
+    assert_eq!(v["rows"][0]["estimate"]["batches"], 3);
+    assert!(stdout.contains("| post-small | balanced | per run | 3 | 3 |"), "{stdout}");
+}
+
+/// An executable shell script `name` in `dir` with `body`.
+fn script(dir: &Path, name: &str, body: &str) -> String {
+    use std::os::unix::fs::PermissionsExt as _;
+    let path = dir.join(name);
+    std::fs::write(&path, format!("#!/bin/sh\n{body}\n")).unwrap();
+    std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o755)).unwrap();
+    path.to_string_lossy().into_owned()
+}
+
+#[test]
+fn an_old_binary_without_serve_mode_falls_back_to_per_run() {
+    let exe = env!("CARGO_BIN_EXE_volbench");
+    let dir = tempfile::tempdir().unwrap();
+    // Refuses --serve as clap does for an unknown flag (the flag named on the
+    // first of several lines); anything else is volbench.
+    let old = script(
+        dir.path(),
+        "old",
+        &format!(
+            "for a in \"$@\"; do [ \"$a\" = --serve ] && {{ printf \"error: unexpected argument '--serve' found\\n\\n  tip: a similar argument exists: '--device'\\n\\nUsage: volbench run --data <NAME|PATH>\\n\\nFor more information, try '--help'.\\n\" >&2; exit 2; }}; done\nexec {exe} \"$@\""
+        ),
+    );
+    let (v, stdout, stderr, _) = self_ab(&old, exe, &[]);
+    let row = &v["rows"][0];
+    assert_eq!(row["mode"], "per-run", "{row}");
+    assert!(row["fallback"].as_str().unwrap().contains("has no serve mode"), "{row}");
+    assert!(stderr.contains("falling back to per-run alternation"), "{stderr}");
+    assert!(stdout.contains("per run (fallback: no serve mode)"), "{stdout}");
+    assert_eq!(row["estimate"]["batches"], 3);
+    // One that speaks another protocol version falls back too.
+    let other = script(
+        dir.path(),
+        "other",
+        &format!("case \"$*\" in *--serve*) echo '{{\"protocol\":\"volbench-serve/99\",\"version\":\"\",\"git_sha\":\"\",\"spec\":\"\",\"dataset\":\"\"}}'; exit 0;; esac\nexec {exe} \"$@\""),
+    );
+    let (v, _, stderr, _) = self_ab(exe, &other, &[]);
+    assert!(v["rows"][0]["fallback"].as_str().unwrap().contains("volbench-serve/99"), "{stderr}");
+}
+
+#[test]
+fn a_server_that_stops_answering_is_killed_with_a_clear_error() {
+    let dir = tempfile::tempdir().unwrap();
+    // Says it is volbench, then never answers (its child keeps stdout open:
+    // only killing the process group ends the wait for it).
+    let mute = script(dir.path(), "mute", "[ \"$1\" = --version ] && { echo 'volbench 0.1.0'; exit 0; }\nsleep 300 & wait");
+    let exe = env!("CARGO_BIN_EXE_volbench");
+    let start = std::time::Instant::now();
+    let out = volbench().args(["ab", exe, &mute, "--filter", "balanced", "--pairs", "2", "--size", "32x32", "--warmup", "0", "--timeout", "2"]).output().unwrap();
+    assert!(start.elapsed().as_secs() < 120, "{:?}", start.elapsed());
+    assert_eq!(out.status.code(), Some(1));
+    let (stdout, stderr) = (String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    assert!(stdout.contains("no answer to its handshake within 2 s (--timeout); killed its process group"), "{stdout}");
+    assert!(stderr.contains("1 of 1 benchmarks failed"), "{stderr}");
+}
+
+#[test]
+fn a_serve_process_answers_refuses_bad_commands_and_exits_on_eof() {
+    let mut child = volbench()
+        .args(["run", "--data", "post-small", "--method", "balanced", "--size", "32x32", "--warmup", "1", "--serve"])
+        .env("VOLBENCH_VALIDATION", "1")
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
+    let mut next = || -> serde_json::Value { serde_json::from_str(&lines.next().unwrap().unwrap()).unwrap() };
+    let hello = next();
+    assert_eq!(hello["protocol"], "volbench-serve/1");
+    assert!(hello["version"].as_str().unwrap().starts_with("volbench "));
+    assert_eq!(hello["dataset"], "post-small");
+    assert!(hello["spec"].as_str().unwrap().starts_with("balanced:"));
+    let mut ask = |line: &str| writeln!(stdin, "{line}").and_then(|()| stdin.flush()).unwrap();
+    ask("frame 3");
+    let frames = next();
+    assert_eq!(frames["frame_ms"].as_array().unwrap().len(), 3);
+    assert_eq!(frames["gpu_ms"].as_array().unwrap().len(), 3);
+    assert!(frames["frame_ms"].as_array().unwrap().iter().all(|t| t.as_f64().unwrap() > 0.0));
+    for bad in ["render 2", "frame 0", "frame x"] {
+        ask(bad);
+        assert!(next()["error"].is_string(), "{bad}");
+    }
+    ask("frame 1");
+    assert_eq!(next()["frame_ms"].as_array().unwrap().len(), 1);
+    drop(stdin);
+    let status = child.wait().unwrap();
+    let mut err = String::new();
+    std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut err).unwrap();
+    assert!(status.success(), "{status}: {err}");
+    assert!(err.trim().is_empty(), "{err}");
+    // Serve mode writes nothing but its answers: no outputs beside it.
+    let out = volbench().args(["run", "--data", "post-small", "--method", "balanced", "--serve", "--json", "x.json"]).output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
 }

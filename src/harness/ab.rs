@@ -2,25 +2,36 @@
 //! git revisions, built here) run the same benchmarks alternately in one
 //! sitting, so whatever else loads the machine hits both alike.
 //!
-//! Each benchmark runs `pairs` times per binary, each run a fresh process
-//! (`volbench run … --json`), the two runs of a pair back to back in an
-//! order drawn per pair from a seeded generator (no position bias). A run's
-//! sample is the median of its timed frames' `frame` times (process start,
-//! dataset loading and pipeline compilation are outside it). The estimate
-//! is a paired t interval on the log ratios `ln(new_i / base_i)` of the
-//! pairs: ratio `exp(mean)`, 95 % interval `exp(mean ± t(0.975, n-1)·sd/√n)`.
-//! The verdict holds the interval against a slowdown threshold `T`:
-//! wholly above `1+T` slower (a regression: the command fails), wholly
-//! below `1/(1+T)` faster, wholly inside both "same", and otherwise
-//! undecided: the machine was too noisy for this many pairs.
+//! Two ways to alternate. **Per frame** (the default): each binary serves
+//! each benchmark from one long-lived process (`run --serve`,
+//! `harness::serve`) that has loaded the data, built its pipelines and
+//! warmed up; both are resident at once and `ab` asks them in turn for one
+//! frame (or a small batch), in an order drawn per pair from a seeded
+//! generator, so the two samples of a pair are taken milliseconds apart and
+//! see the same camera. **Per run** (`--per-run`, and the fallback for a
+//! binary without serve mode): a pair is one fresh `volbench run` process
+//! of each, the sample the median of its timed frames.
+//!
+//! The estimate is a t interval on the pairs' log ratios
+//! `ln(new_i / base_i)`: ratio `exp(mean)`, 95 % interval
+//! `exp(mean ± t(0.975, b-1)·sd_b/√b)` over `b` non-overlapping batch means
+//! of consecutive log ratios (batch means, because consecutive frames of
+//! one sitting are correlated: a load spike spans several; per run, every
+//! pair is its own batch). The verdict holds the interval against a
+//! slowdown threshold `T`: wholly above `1+T` slower (a regression: the
+//! command fails), wholly below `1/(1+T)` faster, wholly inside both
+//! "same", and otherwise undecided: the machine was too noisy for this many
+//! pairs.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
+use std::time::Duration;
 
 use anyhow::{bail, ensure, Context as _, Result};
 use serde::{Deserialize, Serialize};
 
 use super::datasets::NAMED;
+use super::serve::{Server, StartError};
 use crate::algo::registry::Registry;
 
 /// The shipped dataset each kind's benchmarks run on by default: the
@@ -149,15 +160,33 @@ fn build_revision(commit: &str, target_dir: &Path) -> Result<PathBuf> {
     Ok(binary)
 }
 
+/// How the two binaries alternate.
+#[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "kebab-case")]
+pub enum Mode {
+    /// One resident serve process per binary; pairs of single frames (or batches).
+    PerFrame,
+    /// One fresh process per sample.
+    PerRun,
+}
+
 /// How the runs are made.
 #[derive(Debug, Clone, Serialize)]
 pub struct AbSettings {
+    pub mode: Mode,
     pub width: u32,
     pub height: u32,
+    /// Per run: timed frames per run (the sample is their median).
     pub frames: usize,
+    /// Per frame: frames per alternation step (the sample is their median).
+    pub batch: usize,
+    /// Untimed frames first (per run: in every run; per frame: once per server).
     pub warmup: usize,
-    /// Runs per binary and benchmark.
+    /// Samples per binary and benchmark.
     pub pairs: usize,
+    /// How long a serve process may take to answer (its handshake included)
+    /// before it is killed.
+    pub timeout_s: f64,
     /// The slowdown threshold, as a fraction (0.03: 3 %).
     pub threshold: f64,
     /// Seeds the per-pair order (recorded so a sitting can be repeated).
@@ -170,6 +199,17 @@ impl AbSettings {
         ensure!(self.pairs <= 10_000, "--pairs {} is more than 10000", self.pairs);
         ensure!(self.frames >= 1, "--frames must be at least 1");
         ensure!(
+            (1..=super::serve::MAX_BATCH).contains(&self.batch),
+            "--batch must be from 1 to {}, got {}",
+            super::serve::MAX_BATCH,
+            self.batch
+        );
+        ensure!(
+            self.timeout_s.is_finite() && self.timeout_s >= 0.1 && self.timeout_s <= 86_400.0,
+            "--timeout must be from 0.1 to 86400 seconds, got {}",
+            self.timeout_s
+        );
+        ensure!(
             self.threshold.is_finite() && self.threshold > 0.0 && self.threshold < 10.0,
             "--threshold must be a percentage above 0 and below 1000, got {}",
             self.threshold * 100.0
@@ -178,7 +218,8 @@ impl AbSettings {
     }
 }
 
-/// One pair's samples (ms: median frame time of each run).
+/// One pair's samples (ms: the median frame time of each run, or of each
+/// batch per frame).
 #[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq)]
 pub struct Pair {
     pub base_ms: f64,
@@ -191,12 +232,21 @@ pub struct Pair {
 #[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq)]
 pub struct Estimate {
     pub pairs: usize,
+    /// Batches of consecutive pairs whose mean log ratios the interval is on.
+    pub batches: usize,
+    /// Lag-1 autocorrelation of the pairs' log ratios in sitting order (how
+    /// much consecutive pairs share; none below 3 pairs or without spread).
+    pub lag1_autocorrelation: Option<f64>,
     /// exp(mean log ratio): the geometric mean of the pairs' ratios.
     pub ratio: f64,
     pub ci_low: f64,
     pub ci_high: f64,
     pub mean_log_ratio: f64,
+    /// Standard deviation of the batch means of the log ratios.
     pub sd_log_ratio: f64,
+    /// Standard deviation of the pairs' own log ratios (the spread of one
+    /// pair: 0.05 is about ±5 %).
+    pub sd_pair_log_ratio: f64,
 }
 
 /// What an interval says against the threshold.
@@ -237,9 +287,19 @@ pub fn t_975(df: usize) -> f64 {
         + (3.0 * z7 + 19.0 * z5 + 17.0 * z3 - 15.0 * z) / (384.0 * v * v * v)
 }
 
-/// The paired estimate from `pairs` (at least two, every sample positive).
-pub fn estimate(pairs: &[Pair]) -> Result<Estimate> {
+/// How many batches per-frame pairs are grouped into: about √n (batches
+/// long enough to hold a load spike, and enough of them for the t
+/// interval), at least 2 and at most 30.
+pub fn batches_for(pairs: usize) -> usize {
+    ((pairs as f64).sqrt().round() as usize).clamp(2, 30).min(pairs)
+}
+
+/// The paired estimate from `pairs` (at least two, every sample positive)
+/// over `batches` batches of consecutive pairs (2 ≤ batches ≤ pairs; equal
+/// to `pairs`: every pair its own).
+pub fn estimate(pairs: &[Pair], batches: usize) -> Result<Estimate> {
     ensure!(pairs.len() >= 2, "{} pair(s): an interval needs at least two", pairs.len());
+    ensure!((2..=pairs.len()).contains(&batches), "{batches} batches of {} pairs", pairs.len());
     let mut logs = Vec::with_capacity(pairs.len());
     for p in pairs {
         ensure!(
@@ -250,18 +310,44 @@ pub fn estimate(pairs: &[Pair]) -> Result<Estimate> {
         );
         logs.push((p.new_ms / p.base_ms).ln());
     }
-    let n = logs.len() as f64;
-    let mean = logs.iter().sum::<f64>() / n;
-    let sd = (logs.iter().map(|l| (l - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
-    let half = t_975(pairs.len() - 1) * sd / n.sqrt();
+    // Batch j holds pairs [j·n/b, (j+1)·n/b): sizes differ by at most one.
+    let n = logs.len();
+    let means: Vec<f64> = (0..batches)
+        .map(|j| {
+            let part = &logs[j * n / batches..(j + 1) * n / batches];
+            part.iter().sum::<f64>() / part.len() as f64
+        })
+        .collect();
+    let sd_pair = {
+        let m = logs.iter().sum::<f64>() / n as f64;
+        (logs.iter().map(|l| (l - m).powi(2)).sum::<f64>() / (n as f64 - 1.0)).sqrt()
+    };
+    let b = batches as f64;
+    let mean = means.iter().sum::<f64>() / b;
+    let sd = (means.iter().map(|l| (l - mean).powi(2)).sum::<f64>() / (b - 1.0)).sqrt();
+    let half = t_975(batches - 1) * sd / b.sqrt();
     Ok(Estimate {
-        pairs: pairs.len(),
+        pairs: n,
+        batches,
+        lag1_autocorrelation: lag1(&logs),
         ratio: mean.exp(),
         ci_low: (mean - half).exp(),
         ci_high: (mean + half).exp(),
         mean_log_ratio: mean,
         sd_log_ratio: sd,
+        sd_pair_log_ratio: sd_pair,
     })
+}
+
+/// Lag-1 autocorrelation of `x` (none below 3 values or without spread).
+pub fn lag1(x: &[f64]) -> Option<f64> {
+    if x.len() < 3 {
+        return None;
+    }
+    let m = x.iter().sum::<f64>() / x.len() as f64;
+    let var: f64 = x.iter().map(|v| (v - m).powi(2)).sum();
+    let cov: f64 = x.windows(2).map(|w| (w[0] - m) * (w[1] - m)).sum();
+    (var > 0.0).then(|| cov / var)
 }
 
 /// The interval held against a slowdown `threshold` (fraction).
@@ -300,6 +386,10 @@ impl Order {
 pub struct AbRow {
     #[serde(flatten)]
     pub benchmark: Benchmark,
+    /// How this benchmark alternated (per run after a fallback).
+    pub mode: Mode,
+    /// Why per-frame alternation fell back to per run.
+    pub fallback: Option<String>,
     pub samples: Vec<Pair>,
     pub estimate: Option<Estimate>,
     pub verdict: Option<Verdict>,
@@ -315,11 +405,21 @@ pub struct AbReport {
     pub new: Binary,
     pub settings: AbSettings,
     /// How the interval is computed (the module note, in short).
-    pub statistic: &'static str,
+    pub statistic: String,
     pub rows: Vec<AbRow>,
 }
 
-pub const STATISTIC: &str = "paired t interval (95 %) on ln(new/base) of per-run median frame times, one fresh process per run, pair order randomised";
+/// The statistic of `mode`, as reports state it.
+pub fn statistic(mode: Mode) -> String {
+    match mode {
+        Mode::PerFrame => "per frame: one resident serve process per binary, single frames (or batches) alternated in random pair order; \
+                           95 % t interval on ln(new/base) over batch means of about sqrt(pairs) consecutive pairs"
+            .into(),
+        Mode::PerRun => "per run: one fresh process per sample (median of its frames), pair order randomised; \
+                         paired 95 % t interval on ln(new/base)"
+            .into(),
+    }
+}
 
 impl AbReport {
     pub fn regressions(&self) -> usize {
@@ -360,62 +460,149 @@ fn sample(binary: &Path, bench: &Benchmark, s: &AbSettings, scratch: &Path) -> R
     Ok(super::stats::Summary::of(&frames).median)
 }
 
-/// Every benchmark, `pairs` times per binary, alternating; `progress` gets
-/// (benchmark index, pair index) before each pair.
+/// The arguments of `run --serve` for `bench`.
+fn serve_args(bench: &Benchmark, s: &AbSettings) -> Vec<String> {
+    [
+        "--data",
+        &bench.dataset,
+        "--method",
+        &bench.spec,
+        "--size",
+        &format!("{}x{}", s.width, s.height),
+        "--warmup",
+        &s.warmup.to_string(),
+        "--fixed-frames",
+        "0",
+    ]
+    .iter()
+    .map(|a| a.to_string())
+    .collect()
+}
+
+/// Per frame: both binaries' servers, then `pairs` batches of each in
+/// seeded order. `Err(Ok(reason))`: a binary has no serve mode (fall back).
+fn frame_pairs(
+    base: &Binary,
+    new: &Binary,
+    bench: &Benchmark,
+    s: &AbSettings,
+    order: &mut Order,
+    mut progress: impl FnMut(usize),
+) -> std::result::Result<Vec<Pair>, std::result::Result<String, anyhow::Error>> {
+    let timeout = Duration::from_secs_f64(s.timeout_s);
+    let args = serve_args(bench, s);
+    let start = |b: &Binary| match Server::start(&b.path, &args, timeout) {
+        Ok(server) => Ok(server),
+        Err(StartError::Unsupported(why)) => Err(Ok(why)),
+        Err(StartError::Failed(e)) => Err(Err(e)),
+    };
+    // Both resident before the first timed frame.
+    let mut base_server = start(base)?;
+    let mut new_server = start(new)?;
+    let median = |v: Vec<f64>| super::stats::Summary::of(&v).median;
+    let mut pairs = Vec::with_capacity(s.pairs);
+    for p in 0..s.pairs {
+        progress(p);
+        let new_first = order.new_first();
+        let (first, second) = if new_first { (&mut new_server, &mut base_server) } else { (&mut base_server, &mut new_server) };
+        let a = median(first.frames(s.batch).map_err(Err)?);
+        let b = median(second.frames(s.batch).map_err(Err)?);
+        let (new_ms, base_ms) = if new_first { (a, b) } else { (b, a) };
+        pairs.push(Pair { base_ms, new_ms, new_first });
+    }
+    base_server.quit().map_err(Err)?;
+    new_server.quit().map_err(Err)?;
+    Ok(pairs)
+}
+
+/// Per run: `pairs` fresh runs of each binary, in seeded order.
+fn run_pairs(
+    base: &Binary,
+    new: &Binary,
+    bench: &Benchmark,
+    s: &AbSettings,
+    order: &mut Order,
+    scratch: &Path,
+    mut progress: impl FnMut(usize),
+) -> Result<Vec<Pair>> {
+    let mut pairs = Vec::with_capacity(s.pairs);
+    for p in 0..s.pairs {
+        progress(p);
+        let new_first = order.new_first();
+        let pair = if new_first {
+            let new_ms = sample(&new.path, bench, s, scratch)?;
+            Pair { new_ms, base_ms: sample(&base.path, bench, s, scratch)?, new_first }
+        } else {
+            let base_ms = sample(&base.path, bench, s, scratch)?;
+            Pair { base_ms, new_ms: sample(&new.path, bench, s, scratch)?, new_first }
+        };
+        pairs.push(pair);
+    }
+    Ok(pairs)
+}
+
+/// Every benchmark, `pairs` samples per binary, alternating; `progress`
+/// gets (benchmark index, pair index) now and then, and `note` the
+/// fallbacks.
 pub fn run(
     base: &Binary,
     new: &Binary,
     benches: &[Benchmark],
     settings: &AbSettings,
     mut progress: impl FnMut(usize, usize),
+    mut note: impl FnMut(&str),
 ) -> Result<AbReport> {
     settings.validate()?;
     let scratch = std::env::temp_dir().join(format!("volbench-ab-{}", std::process::id()));
     std::fs::create_dir_all(&scratch).with_context(|| format!("creating {}", scratch.display()))?;
     let mut order = Order::new(settings.seed);
+    let every = (settings.pairs / 10).max(1);
     let mut rows = Vec::new();
     for (b, bench) in benches.iter().enumerate() {
-        let mut samples = Vec::new();
-        let mut error = None;
-        for p in 0..settings.pairs {
-            progress(b, p);
-            let new_first = order.new_first();
-            let pair = if new_first {
-                sample(&new.path, bench, settings, &scratch)
-                    .and_then(|n| Ok(Pair { new_ms: n, base_ms: sample(&base.path, bench, settings, &scratch)?, new_first }))
-            } else {
-                sample(&base.path, bench, settings, &scratch)
-                    .and_then(|b| Ok(Pair { base_ms: b, new_ms: sample(&new.path, bench, settings, &scratch)?, new_first }))
-            };
-            match pair {
-                Ok(pair) => samples.push(pair),
-                Err(e) => {
-                    error = Some(format!("{e:#}"));
-                    break;
-                }
+        let mut tick = |p: usize| {
+            if p.is_multiple_of(every) {
+                progress(b, p)
             }
-        }
-        let estimate = if error.is_none() {
-            match estimate(&samples) {
-                Ok(e) => Some(e),
-                Err(e) => {
-                    error = Some(format!("{e:#}"));
+        };
+        let (mut mode, mut fallback) = (settings.mode, None);
+        let mut sampled = match settings.mode {
+            Mode::PerRun => None,
+            Mode::PerFrame => match frame_pairs(base, new, bench, settings, &mut order, &mut tick) {
+                Ok(pairs) => Some(Ok(pairs)),
+                Err(Err(e)) => Some(Err(e)),
+                Err(Ok(why)) => {
+                    note(&format!("{why}: falling back to per-run alternation ({} frames per run) for {} on {}", settings.frames, bench.label, bench.dataset));
+                    (mode, fallback) = (Mode::PerRun, Some(why));
                     None
                 }
+            },
+        };
+        if sampled.is_none() {
+            sampled = Some(run_pairs(base, new, bench, settings, &mut order, &scratch, &mut tick));
+        }
+        let batches = |n: usize| if mode == Mode::PerRun { n } else { batches_for(n) };
+        let (samples, estimate) = match sampled {
+            Some(Ok(samples)) => {
+                let e = estimate(&samples, batches(samples.len()));
+                (samples, e)
             }
-        } else {
-            None
+            Some(Err(e)) => (Vec::new(), Err(e)),
+            None => (Vec::new(), Err(anyhow::anyhow!("no samples"))),
+        };
+        let (estimate, error) = match estimate {
+            Ok(e) => (Some(e), None),
+            Err(e) => (None, Some(format!("{e:#}"))),
         };
         let verdict = estimate.as_ref().map(|e| decide(e, settings.threshold));
-        rows.push(AbRow { benchmark: bench.clone(), samples, estimate, verdict, error });
+        rows.push(AbRow { benchmark: bench.clone(), mode, fallback, samples, estimate, verdict, error });
     }
     let _ = std::fs::remove_dir_all(&scratch);
     Ok(AbReport {
-        schema: "volbench-ab/1",
+        schema: "volbench-ab/2",
         base: base.clone(),
         new: new.clone(),
         settings: settings.clone(),
-        statistic: STATISTIC,
+        statistic: statistic(settings.mode),
         rows,
     })
 }
@@ -424,7 +611,7 @@ pub fn run(
 pub fn markdown(r: &AbReport) -> String {
     let s = &r.settings;
     let mut out = format!(
-        "BASE {} ({})\nNEW  {} ({})\n{} pairs per benchmark at {}x{}, {} timed frames (+{} warm-up) per run, seed {}\n{}; threshold {:.1} %\n\n",
+        "BASE {} ({})\nNEW  {} ({})\n{} pairs per benchmark at {}x{}, {}, seed {}\n{}; threshold {:.1} %\n\n",
         r.base.path.display(),
         r.base.revision.as_deref().unwrap_or(&r.base.version),
         r.new.path.display(),
@@ -432,14 +619,16 @@ pub fn markdown(r: &AbReport) -> String {
         s.pairs,
         s.width,
         s.height,
-        s.frames,
-        s.warmup,
+        match s.mode {
+            Mode::PerFrame => format!("{} frame(s) per sample after {} warm-up frame(s) per server", s.batch, s.warmup),
+            Mode::PerRun => format!("{} timed frames (+{} warm-up) per run", s.frames, s.warmup),
+        },
         s.seed,
         r.statistic,
         s.threshold * 100.0
     );
-    out += "| dataset | benchmark | pairs | BASE median ms | NEW median ms | NEW/BASE | 95 % interval | verdict |\n";
-    out += "|---|---|---:|---:|---:|---:|---|---|\n";
+    out += "| dataset | benchmark | alternation | pairs | batches | pair spread | lag-1 | BASE median ms | NEW median ms | NEW/BASE | 95 % interval | verdict |\n";
+    out += "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---|---|\n";
     for row in &r.rows {
         let med = |f: fn(&Pair) -> f64| {
             let v: Vec<f64> = row.samples.iter().map(f).collect();
@@ -456,8 +645,21 @@ pub fn markdown(r: &AbReport) -> String {
             (_, _, Some(err)) => ("-".into(), "-".into(), format!("failed: {}", err.replace('|', "/").replace('\n', " "))),
             _ => ("-".into(), "-".into(), "-".into()),
         };
+        let (batches, spread, lag) = match &row.estimate {
+            Some(e) => (
+                e.batches.to_string(),
+                format!("±{:.1} %", e.sd_pair_log_ratio * 100.0),
+                e.lag1_autocorrelation.map_or("-".into(), |r| format!("{r:.2}")),
+            ),
+            None => ("-".into(), "-".into(), "-".into()),
+        };
+        let mode = match (row.mode, &row.fallback) {
+            (Mode::PerFrame, _) => "per frame",
+            (Mode::PerRun, None) => "per run",
+            (Mode::PerRun, Some(_)) => "per run (fallback: no serve mode)",
+        };
         out += &format!(
-            "| {} | {} | {} | {} | {} | {ratio} | {ci} | {verdict} |\n",
+            "| {} | {} | {mode} | {} | {batches} | {spread} | {lag} | {} | {} | {ratio} | {ci} | {verdict} |\n",
             row.benchmark.dataset,
             row.benchmark.label,
             row.samples.len(),
@@ -488,7 +690,7 @@ mod tests {
 
     #[test]
     fn identical_samples_are_the_same() {
-        let e = estimate(&pairs(&[1.0; 5])).unwrap();
+        let e = estimate(&pairs(&[1.0; 5]), 5).unwrap();
         assert_eq!((e.ratio, e.ci_low, e.ci_high), (1.0, 1.0, 1.0));
         assert_eq!(decide(&e, 0.03), Verdict::Same);
     }
@@ -499,7 +701,7 @@ mod tests {
         // deviations +-0.01 twice), half width t(3) * 0.01 / 2.
         let l = 1.1f64.ln();
         let r: Vec<f64> = [l + 0.01, l - 0.01, l + 0.01, l - 0.01].iter().map(|x: &f64| x.exp()).collect();
-        let e = estimate(&pairs(&r)).unwrap();
+        let e = estimate(&pairs(&r), 4).unwrap();
         let sd = (4.0 * 0.01f64.powi(2) / 3.0).sqrt();
         assert!((e.sd_log_ratio - sd).abs() < 1e-12);
         assert!((e.ratio - 1.1).abs() < 1e-12);
@@ -514,24 +716,54 @@ mod tests {
         // 5 % slower with 0.5 % noise over 10 pairs: slower at 3 %.
         let noise = [0.005, -0.004, 0.003, -0.005, 0.001, -0.002, 0.004, -0.003, 0.002, -0.001];
         let slow: Vec<f64> = noise.iter().map(|n| 1.05 * (1.0 + n)).collect();
-        assert_eq!(decide(&estimate(&pairs(&slow)).unwrap(), 0.03), Verdict::Slower);
+        assert_eq!(decide(&estimate(&pairs(&slow), 10).unwrap(), 0.03), Verdict::Slower);
         let fast: Vec<f64> = noise.iter().map(|n| 0.9 * (1.0 + n)).collect();
-        assert_eq!(decide(&estimate(&pairs(&fast)).unwrap(), 0.03), Verdict::Faster);
+        assert_eq!(decide(&estimate(&pairs(&fast), 10).unwrap(), 0.03), Verdict::Faster);
         let same: Vec<f64> = noise.iter().map(|n| 1.0 + n).collect();
-        assert_eq!(decide(&estimate(&pairs(&same)).unwrap(), 0.03), Verdict::Same);
+        assert_eq!(decide(&estimate(&pairs(&same), 10).unwrap(), 0.03), Verdict::Same);
         // The same mean slowdown with 20 % noise: too noisy to say.
         let noisy: Vec<f64> = noise.iter().map(|n| 1.05 * (1.0 + 40.0 * n)).collect();
-        assert_eq!(decide(&estimate(&pairs(&noisy)).unwrap(), 0.03), Verdict::Undecided);
+        assert_eq!(decide(&estimate(&pairs(&noisy), 10).unwrap(), 0.03), Verdict::Undecided);
         // A narrow interval that straddles the threshold is undecided too.
         let edge: Vec<f64> = noise.iter().map(|n| 1.03 * (1.0 + n)).collect();
-        assert_eq!(decide(&estimate(&pairs(&edge)).unwrap(), 0.03), Verdict::Undecided);
+        assert_eq!(decide(&estimate(&pairs(&edge), 10).unwrap(), 0.03), Verdict::Undecided);
     }
 
     #[test]
     fn bad_samples_are_errors() {
-        assert!(estimate(&pairs(&[1.0])).is_err());
-        assert!(estimate(&[Pair { base_ms: 0.0, new_ms: 1.0, new_first: false }; 3]).is_err());
-        assert!(estimate(&[Pair { base_ms: 1.0, new_ms: f64::NAN, new_first: false }; 3]).is_err());
+        assert!(estimate(&pairs(&[1.0]), 1).is_err());
+        assert!(estimate(&[Pair { base_ms: 0.0, new_ms: 1.0, new_first: false }; 3], 3).is_err());
+        assert!(estimate(&[Pair { base_ms: 1.0, new_ms: f64::NAN, new_first: false }; 3], 3).is_err());
+    }
+
+    #[test]
+    fn per_frame_intervals_are_on_batch_means() {
+        assert_eq!((batches_for(2), batches_for(3), batches_for(16), batches_for(400), batches_for(5000)), (2, 2, 4, 20, 30));
+        // 16 pairs in 4 runs of 4 alike (a load spike spans several frames):
+        // log ratios ln 1.05 ± 0.02 by run. The batch means are those four
+        // values, so the interval is the t interval (3 df) of them, wider
+        // than the per-pair one that treats 16 correlated pairs as independent.
+        let l = 1.05f64.ln();
+        let r: Vec<f64> = (0..16).map(|i| (l + if (i / 4) % 2 == 0 { 0.02 } else { -0.02 }).exp()).collect();
+        let e = estimate(&pairs(&r), 4).unwrap();
+        assert_eq!((e.pairs, e.batches), (16, 4));
+        let sd = (4.0 * 0.02f64.powi(2) / 3.0).sqrt();
+        assert!((e.mean_log_ratio - l).abs() < 1e-12 && (e.sd_log_ratio - sd).abs() < 1e-12, "{e:?}");
+        let half = 3.182 * sd / 2.0;
+        assert!((e.ci_low - (l - half).exp()).abs() < 1e-12 && (e.ci_high - (l + half).exp()).abs() < 1e-12);
+        let naive = estimate(&pairs(&r), 16).unwrap();
+        assert!(naive.ci_high - naive.ci_low < e.ci_high - e.ci_low);
+        assert!(e.lag1_autocorrelation.unwrap() > 0.5, "{e:?}");
+        assert!((e.sd_pair_log_ratio - 0.02 * (16.0f64 / 15.0).sqrt()).abs() < 1e-12);
+        // Unequal batches: 5 pairs in 2 batches of 2 and 3.
+        let r5: Vec<f64> = [0.1, 0.3, 0.0, 0.0, 0.3].iter().map(|x: &f64| x.exp()).collect();
+        let e5 = estimate(&pairs(&r5), 2).unwrap();
+        assert!((e5.mean_log_ratio - 0.15).abs() < 1e-12, "{e5:?}");
+        // Alternating log ratios are negatively correlated; too few have none.
+        assert!(lag1(&[1.0, -1.0, 1.0, -1.0]).unwrap() < -0.5);
+        assert_eq!(lag1(&[1.0, 2.0]), None);
+        assert_eq!(lag1(&[1.0, 1.0, 1.0]), None);
+        assert!(estimate(&pairs(&[1.0; 4]), 1).is_err() && estimate(&pairs(&[1.0; 4]), 5).is_err());
     }
 
     #[test]

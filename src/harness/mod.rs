@@ -14,6 +14,7 @@ pub mod reference_cache;
 pub mod report;
 pub mod run;
 pub mod scale;
+pub mod serve;
 pub mod stats;
 pub mod stress;
 pub mod suite;

@@ -512,7 +512,7 @@ fn timeout() -> Result<Duration> {
 /// Send SIGKILL to process group `group` (the peer and all it started).
 /// Through kill(1): signals need `unsafe` outside `src/vk/`. A group
 /// already gone is not an error.
-fn kill_group(group: u32) {
+pub(crate) fn kill_group(group: u32) {
     let _ = Command::new("kill").arg("-KILL").arg("--").arg(format!("-{group}")).stderr(Stdio::null()).status();
 }
 
