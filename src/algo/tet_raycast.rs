@@ -55,6 +55,7 @@ use serde_json::json;
 
 use super::cell_projection::render::{self, enum_option};
 use super::cell_projection::{render_origin, scalar_map, ExitTolerances, FrameSetup, Interpolation, MeshScale};
+use super::host_memory::HostMemory;
 use super::integrate::{check_table_size, IntegrationTables, Integrator};
 use super::method::{DataKind, MethodInfo, MethodInputs, OptionSpec, OptionValues, Options, Phases, RenderMethod, SceneData, View, Work};
 use crate::mesh::adjacency::{FACE_VERTS, NONE};
@@ -263,6 +264,9 @@ pub struct TetRaycast {
     bvh_nodes: usize,
     bvh_depth: usize,
     step_budget: u64,
+    /// The mesh the run holds for this method (`details.host_memory`;
+    /// everything else per cell lives on the device).
+    scene_memory: HostMemory,
     ctx: Arc<Context>,
 }
 
@@ -284,7 +288,7 @@ impl TetRaycast {
     fn new(
         ctx: &Arc<Context>,
         mesh: &TetMesh,
-        _geometry: &TetGeometry,
+        geometry: &TetGeometry,
         tf: &crate::scene::TransferFunction,
         settings: Settings,
         width: u32,
@@ -400,7 +404,10 @@ impl TetRaycast {
             sets: vec![tables.set.desc.clone(), mesh_desc, target_desc.clone()],
         });
         let pipeline = crate::algo::pipelines::get(ctx, &key)?;
+        let mut scene_memory = HostMemory::default();
+        scene_memory.scene_mesh(mesh, geometry);
         Ok(TetRaycast {
+            scene_memory,
             tables,
             scale: MeshScale::of(mesh),
             settings,
@@ -552,6 +559,7 @@ impl RenderMethod for TetRaycast {
         let c = Counts::from(self.counters());
         let mean = |total: u64, of: u64| if of > 0 { total as f64 / of as f64 } else { 0.0 };
         json!({
+            "host_memory": self.scene_memory.to_json(self.cells),
             "family": "tet-raycast",
             "workgroup": WORKGROUP,
             "pipeline": { "key": self.key.id(), "name": self.key.name() },

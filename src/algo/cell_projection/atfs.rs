@@ -31,6 +31,7 @@ use super::balanced::{
     cell_records, CODE_FLAGS_SHIFT, CODE_MAX_PIECES, CODE_PIECE_SHIFT, FLOATS_PER_CELL, FLOATS_PER_VERTEX, VERTICES_PER_CELL};
 use super::render;
 use super::{build_pipeline, cells_f32, scalar_map, CellF32, CellProjector, FrameSetup, DrawSettings, StaticIndices, MAX_INDICES_PER_CELL};
+use crate::algo::host_memory::HostMemory;
 use crate::algo::integrate::IntegrationTables;
 use crate::algo::method::{MethodInfo, MethodInputs, Published, PublishedFigure, RenderMethod};
 use crate::mesh::{TetGeometry, TetMesh};
@@ -365,6 +366,13 @@ impl CellProjector for Atfs {
     fn pieces_drawn(&self) -> usize {
         self.drawn_pieces
     }
+    fn host_bytes(&self, memory: &mut HostMemory) {
+        memory.vec("projector: f32 cells (CellF32)", &self.cells);
+        memory.vec("projector: interval spans", &self.spans);
+        memory.vec("projector: piece offsets", &self.offsets);
+        memory.vec("projector: packed records", &self.packed);
+    }
+
     fn pipeline_key(&self) -> &PipelineKey {
         &self.pipeline_key
     }

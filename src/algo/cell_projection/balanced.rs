@@ -15,6 +15,7 @@ use rayon::prelude::*;
 use super::render;
 use crate::algo::method::{MethodInfo, MethodInputs, RenderMethod};
 use super::{build_pipeline, cells_f32, CellF32, CellProjector, DrawSettings, StaticIndices, FrameSetup, Interpolation, MAX_INDICES_PER_CELL};
+use crate::algo::host_memory::HostMemory;
 use crate::algo::integrate::IntegrationTables;
 use crate::mesh::{TetGeometry, TetMesh};
 use crate::vk::{
@@ -207,6 +208,11 @@ impl CellProjector for Balanced {
 
     fn drawn(&self) -> usize {
         self.drawn
+    }
+
+    fn host_bytes(&self, memory: &mut HostMemory) {
+        memory.vec("projector: f32 cells (CellF32)", &self.cells);
+        memory.vec("projector: packed records", &self.packed);
     }
 
     fn pack(&mut self, order: &[u32], frame: &FrameSetup) {

@@ -254,6 +254,15 @@ impl Culler {
         self.enabled
     }
 
+    pub fn host_bytes(&self, memory: &mut crate::algo::host_memory::HostMemory) {
+        memory.vec("cull: visible (non-transparent) cells", &self.transparent.visible);
+        memory.vec("cull: copy of the points (f64)", &self.points);
+        memory.vec("cull: copy of the tets", &self.tets);
+        memory.vec("cull: per-frame outcodes, survivors, mask", &self.outcodes);
+        memory.vec("cull: per-frame outcodes, survivors, mask", &self.survivors);
+        memory.vec("cull: per-frame outcodes, survivors, mask", &self.drawn_mask);
+    }
+
     /// Cells the transfer function makes transparent.
     pub fn transparent_cells(&self) -> usize {
         self.transparent.culled

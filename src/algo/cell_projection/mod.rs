@@ -24,6 +24,7 @@ use std::sync::Arc;
 use ash::vk as raw;
 use serde::Serialize;
 
+use crate::algo::host_memory::HostMemory;
 use crate::algo::integrate::IntegrationTables;
 use crate::mesh::{TetGeometry, TetMesh};
 use crate::scene::Camera;
@@ -425,6 +426,9 @@ pub trait CellProjector {
     }
     /// The key of the pipeline it draws with (recorded in results).
     fn pipeline_key(&self) -> &PipelineKey;
+    /// Count the host memory it keeps between frames, by structure
+    /// (`details.host_memory`).
+    fn host_bytes(&self, memory: &mut HostMemory);
     /// Cells the last `pack` wrote, i.e. the next draw draws (`cull` may
     /// leave cells out of `order`). A projector that ignores the order
     /// draws every cell.

@@ -56,6 +56,15 @@ pub struct NearCaps {
     pipeline: Arc<Pipeline>,
 }
 
+impl NearCaps {
+    pub fn host_bytes(&self, memory: &mut crate::algo::host_memory::HostMemory) {
+        memory.vec("near caps: copy of the tets", &self.tets);
+        memory.vec("near caps: copy of the points and scalars (f64)", &self.points);
+        memory.vec("near caps: copy of the points and scalars (f64)", &self.scalars);
+        memory.vec("near caps: records", &self.records);
+    }
+}
+
 fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }

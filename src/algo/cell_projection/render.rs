@@ -18,6 +18,7 @@ use super::cull::{Culler, FrameCull, LookupGrid};
 use super::mpvo::MpvoSort;
 use super::sort::{CentroidSort, SortKind, Sorter};
 use super::{centroids_relative_f32, render_origin, CellProjector, DrawSettings, ExitTolerances, FrameSetup, Interpolation, MeshScale, Primitives};
+use crate::algo::host_memory::HostMemory;
 use crate::algo::integrate::{IntegrationTables, Integrator};
 use crate::algo::method::{
     DataKind, Feature, MethodInfo, MethodInputs, OptionSpec, OptionValues, Options, Phases, Published, PublishedFigure, RenderMethod, SceneData, View, Work,
@@ -354,6 +355,8 @@ pub struct CellProjection {
     last_cull: Option<FrameCull>,
     /// The cells around the eye cut by the near plane (`near`).
     near: super::near::NearCaps,
+    /// The mesh the run holds for this method (`details.host_memory`).
+    scene_memory: HostMemory,
     ctx: Arc<Context>,
 }
 
@@ -406,6 +409,11 @@ impl CellProjection {
             reused: false,
             last_cull: None,
             near,
+            scene_memory: {
+                let mut m = HostMemory::default();
+                m.scene_mesh(mesh, geometry);
+                m
+            },
             ctx: ctx.clone(),
         }))
     }
@@ -516,7 +524,14 @@ impl RenderMethod for CellProjection {
     }
 
     fn details(&self) -> serde_json::Value {
+        let mut memory = self.scene_memory.clone();
+        self.projector.host_bytes(&mut memory);
+        self.sorter.host_bytes(&mut memory);
+        memory.vec("sort: mpvo order with culled cells left out", &self.filtered);
+        self.culler.host_bytes(&mut memory);
+        self.near.host_bytes(&mut memory);
         json!({
+            "host_memory": memory.to_json(self.projector.cells()),
             "family": "cell-projection",
             "vertices_per_cell": self.projector.vertices_per_cell(),
             "floats_per_cell_by_construction": self.projector.floats_per_cell(),

@@ -14,6 +14,7 @@ use ash::vk as raw;
 use super::balanced::VERTICES_PER_CELL;
 use super::render;
 use super::{build_pipeline, cells_f32, CellF32, CellProjector, FrameSetup, DrawSettings, StaticIndices, MAX_INDICES_PER_CELL};
+use crate::algo::host_memory::HostMemory;
 use crate::algo::integrate::IntegrationTables;
 use crate::algo::method::{MethodInfo, MethodInputs, RenderMethod};
 use crate::mesh::{TetGeometry, TetMesh};
@@ -167,6 +168,10 @@ impl CellProjector for Resident {
 
     fn drawn(&self) -> usize {
         self.drawn
+    }
+
+    fn host_bytes(&self, memory: &mut HostMemory) {
+        memory.vec("projector: order copy", &self.order);
     }
 
     fn pack(&mut self, order: &[u32], _frame: &FrameSetup) {

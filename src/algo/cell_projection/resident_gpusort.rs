@@ -22,6 +22,7 @@ use super::render;
 use super::resident::{cells_and_order_set, resident_pipeline, upload_cells, FLOATS_PER_STORED_CELL};
 use super::sort::SortKind;
 use super::{cells_f32, centroids_relative_f32, render_origin, CellProjector, FrameSetup, DrawSettings, StaticIndices, MAX_INDICES_PER_CELL};
+use crate::algo::host_memory::HostMemory;
 use crate::algo::integrate::IntegrationTables;
 use crate::algo::method::{DataKind, Feature, MethodInfo, MethodInputs, Options, RenderMethod};
 use crate::mesh::{TetGeometry, TetMesh};
@@ -143,6 +144,10 @@ impl CellProjector for ResidentGpuSort {
     fn floats_per_cell(&self) -> usize {
         0
     }
+    fn host_bytes(&self, _memory: &mut HostMemory) {
+        // Cells, centroids and the order live on the device only.
+    }
+
     fn pipeline_key(&self) -> &PipelineKey {
         &self.pipeline_key
     }

@@ -12,6 +12,7 @@ use rayon::prelude::*;
 use super::render;
 use crate::algo::method::{MethodInfo, MethodInputs, RenderMethod};
 use super::{build_pipeline, cells_f32, CellProjector, FrameSetup, Interpolation, FACES};
+use crate::algo::host_memory::HostMemory;
 use crate::algo::integrate::IntegrationTables;
 use crate::mesh::{TetGeometry, TetMesh};
 use crate::vk::{Buffer, BufferDesc, CommandRecorder, Context, Pipeline, PipelineKey, UploadClass, UploadCounter, VertexAttribute, VkResult};
@@ -118,6 +119,11 @@ impl CellProjector for Vicp {
     fn floats_per_cell(&self) -> usize {
         FLOATS_PER_CELL
     }
+    fn host_bytes(&self, memory: &mut HostMemory) {
+        memory.vec("projector: view-independent records", &self.records);
+        memory.vec("projector: packed records", &self.packed);
+    }
+
     fn pipeline_key(&self) -> &PipelineKey {
         &self.pipeline_key
     }
