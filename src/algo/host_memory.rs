@@ -33,14 +33,12 @@ impl HostMemory {
         self.add(name, vec_bytes(v));
     }
 
-    /// The loaded mesh and its f64 precomputation, which the run holds for
-    /// the method (counted once, in every method's breakdown).
-    pub fn scene_mesh(&mut self, mesh: &crate::mesh::TetMesh, geometry: &crate::mesh::TetGeometry) {
+    /// The loaded mesh, which the run holds for the method (counted in
+    /// every method's breakdown).
+    pub fn scene_mesh(&mut self, mesh: &crate::mesh::TetMesh) {
         self.vec("mesh: points (f64)", &mesh.points);
         self.vec("mesh: scalars (f64)", &mesh.scalars);
         self.vec("mesh: tets (u32)", &mesh.tets);
-        self.vec("mesh: f64 gradients, planes, volumes (TetGeometry)", &geometry.cells);
-        self.vec("mesh: f64 centroids (TetGeometry)", &geometry.centroids);
     }
 
     /// Everything in `other`, added under its names.

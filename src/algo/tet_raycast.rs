@@ -59,7 +59,7 @@ use super::host_memory::HostMemory;
 use super::integrate::{check_table_size, IntegrationTables, Integrator};
 use super::method::{DataKind, MethodInfo, MethodInputs, OptionSpec, OptionValues, Options, Phases, RenderMethod, SceneData, View, Work};
 use crate::mesh::adjacency::{FACE_VERTS, NONE};
-use crate::mesh::{TetGeometry, TetMesh};
+use crate::mesh::TetMesh;
 use crate::reference::topology::Topology;
 use crate::scene::{Camera, Projection};
 use crate::vk::raw::Handle as _;
@@ -237,11 +237,11 @@ pub fn build_face_bvh(faces: &[(u32, [[f32; 3]; 3])], pad: f32) -> FaceBvh {
 }
 
 fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
-    let SceneData::TetMesh { mesh, geometry } = inputs.data else {
+    let SceneData::TetMesh { mesh } = inputs.data else {
         bail!("tet-raycast renders tetrahedral meshes only");
     };
     let settings = Settings::from_options(inputs.options)?;
-    TetRaycast::new(inputs.ctx, mesh, geometry, inputs.tf, settings, inputs.width, inputs.height, inputs.counter)
+    TetRaycast::new(inputs.ctx, mesh, inputs.tf, settings, inputs.width, inputs.height, inputs.counter)
         .map(|m| Box::new(m) as Box<dyn RenderMethod>)
 }
 
@@ -288,7 +288,6 @@ impl TetRaycast {
     fn new(
         ctx: &Arc<Context>,
         mesh: &TetMesh,
-        geometry: &TetGeometry,
         tf: &crate::scene::TransferFunction,
         settings: Settings,
         width: u32,
@@ -329,7 +328,6 @@ impl TetRaycast {
             .zip(&mesh.scalars)
             .map(|(p, s)| [(p[0] - origin[0]) as f32, (p[1] - origin[1]) as f32, (p[2] - origin[2]) as f32, ((s - so) / ss) as f32])
             .collect();
-        let neighbors: Vec<u32> = topo.neighbor.clone();
         let solid: Vec<u32> = topo.solid.iter().map(|&s| s as u32).collect();
         let faces: Vec<(u32, [[f32; 3]; 3])> = topo
             .boundary
@@ -357,14 +355,22 @@ impl TetRaycast {
         // and its face list, read once per entry search, stay storage
         // buffers (a node's uint fields must not pass through float texels).
         // Empty arrays still need a buffer (zero-size buffers are invalid).
-        let nonempty = |b: &[u8]| if b.is_empty() { vec![0u8; 16] } else { b.to_vec() };
+        // (Borrowed when not empty: a copy of each array was a transient
+        // of its full size.)
+        fn nonempty(b: &[u8]) -> std::borrow::Cow<'_, [u8]> {
+            if b.is_empty() {
+                vec![0u8; 16].into()
+            } else {
+                b.into()
+            }
+        }
         let texels = |name: &str, bytes: &[u8], format: raw::Format, counter: &mut UploadCounter| {
             upload_static_texels(ctx, name, &nonempty(bytes), format, counter)
         };
         let texel_buffers = vec![
             texels("tet-raycast points", bytemuck::cast_slice(&points), raw::Format::R32G32B32A32_SFLOAT, counter)?,
             texels("tet-raycast cells", bytemuck::cast_slice(&mesh.tets), raw::Format::R32G32B32A32_UINT, counter)?,
-            texels("tet-raycast neighbours", bytemuck::cast_slice(&neighbors), raw::Format::R32_UINT, counter)?,
+            texels("tet-raycast neighbours", bytemuck::cast_slice(&topo.neighbor), raw::Format::R32_UINT, counter)?,
             texels("tet-raycast solid flags", bytemuck::cast_slice(&solid), raw::Format::R32_UINT, counter)?,
         ];
         let usage = raw::BufferUsageFlags::STORAGE_BUFFER;
@@ -405,7 +411,7 @@ impl TetRaycast {
         });
         let pipeline = crate::algo::pipelines::get(ctx, &key)?;
         let mut scene_memory = HostMemory::default();
-        scene_memory.scene_mesh(mesh, geometry);
+        scene_memory.scene_mesh(mesh);
         Ok(TetRaycast {
             scene_memory,
             tables,

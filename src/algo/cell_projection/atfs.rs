@@ -34,7 +34,7 @@ use super::{build_pipeline, cells_f32, scalar_map, CellF32, CellProjector, Frame
 use crate::algo::host_memory::HostMemory;
 use crate::algo::integrate::IntegrationTables;
 use crate::algo::method::{MethodInfo, MethodInputs, Published, PublishedFigure, RenderMethod};
-use crate::mesh::{TetGeometry, TetMesh};
+use crate::mesh::TetMesh;
 use crate::scene::transfer_function::TABLE_MAX;
 use crate::scene::TransferFunction;
 use crate::vk::{
@@ -215,8 +215,8 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
         fixed: per_cell((MAX_INDICES_PER_CELL * 4) as u64),
     };
     let pieces = pieces as usize;
-    render::CellProjection::create(inputs, bytes, move |ctx, mesh, geometry, tables, draw, counter| {
-        Ok(Box::new(Atfs::new(ctx, mesh, geometry, tables, draw, intervals, spans, pieces, counter)?))
+    render::CellProjection::create(inputs, bytes, move |ctx, mesh, tables, draw, counter| {
+        Ok(Box::new(Atfs::new(ctx, mesh, tables, draw, intervals, spans, pieces, counter)?))
     })
 }
 
@@ -262,7 +262,6 @@ impl Atfs {
     pub fn new(
         ctx: &Arc<Context>,
         mesh: &TetMesh,
-        geometry: &TetGeometry,
         tables: &IntegrationTables,
         draw: DrawSettings,
         intervals: Intervals,
@@ -270,7 +269,7 @@ impl Atfs {
         pieces: usize,
         counter: &mut UploadCounter,
     ) -> VkResult<Self> {
-        let cells = cells_f32(mesh, geometry);
+        let cells = cells_f32(mesh);
         if spans.len() != cells.len() {
             return Err(VkError::Invalid(format!("atfs: {} spans for {} cells", spans.len(), cells.len())));
         }

@@ -156,13 +156,13 @@ pub enum Sorter {
 }
 
 impl Sorter {
-    pub fn new(kind: SortKind, mesh: &crate::mesh::TetMesh, geometry: &crate::mesh::TetGeometry) -> Self {
+    pub fn new(kind: SortKind, mesh: &crate::mesh::TetMesh) -> Self {
         match kind {
             SortKind::Centroid => {
                 let origin = super::render_origin(mesh);
-                Sorter::Centroid(CentroidSort::with_origin(super::centroids_relative_f32(geometry, origin), origin))
+                Sorter::Centroid(CentroidSort::with_origin(super::centroids_relative_f32(mesh, origin), origin))
             }
-            SortKind::Mpvo => Sorter::Mpvo(Box::new(super::mpvo::MpvoSort::new(mesh, geometry))),
+            SortKind::Mpvo => Sorter::Mpvo(Box::new(super::mpvo::MpvoSort::from_mesh(mesh))),
         }
     }
 
