@@ -337,6 +337,13 @@ pub fn upload_static(
 /// a whole-size staging copy doubled the peak resident set of large meshes).
 pub const STAGING_CHUNK_BYTES: u64 = 64 << 20;
 
+/// Test knob (docs/scaling.md): `VOLBENCH_TEST_STAGING_CHUNK_BYTES=N`
+/// lowers the staging chunk to N bytes (rounded to the producer's element
+/// size, at least one element), so that a small mesh crosses in many
+/// chunks, as a large one does against the device's allocation limit.
+/// Unset in real runs; a value that is not a byte count is ignored.
+pub const STAGING_CHUNK_VAR: &str = "VOLBENCH_TEST_STAGING_CHUNK_BYTES";
+
 /// Upload `size` bytes into a new device-local buffer, produced chunk by
 /// chunk by `fill(offset, chunk)` (write bytes `offset .. offset +
 /// chunk.len()` of the data into `chunk`), through one staging buffer of
@@ -360,7 +367,8 @@ pub fn upload_static_streamed(
         m => m,
     };
     let granule = granule.max(4);
-    let chunk = (STAGING_CHUNK_BYTES.min(max_alloc) / granule).max(1) * granule;
+    let limit = std::env::var(STAGING_CHUNK_VAR).ok().and_then(|v| v.parse::<u64>().ok()).unwrap_or(STAGING_CHUNK_BYTES);
+    let chunk = (limit.min(STAGING_CHUNK_BYTES).min(max_alloc) / granule).max(1) * granule;
     let chunk = chunk.min(size.max(4));
     let mut staging = Buffer::new(ctx, BufferDesc::upload(&format!("{name} (staging)"), chunk, vk::BufferUsageFlags::TRANSFER_SRC))?;
     let rec = CommandRecorder::new(ctx, &format!("{name} upload"))?;
