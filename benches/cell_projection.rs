@@ -31,6 +31,7 @@ use volbench::algo::integrate::{preint_table, psi_table, Integrator};
 use volbench::algo::registry;
 use volbench::harness::datasets::{self, Dataset, DatasetData};
 use volbench::harness::run::{MethodSession, RunConfig};
+use volbench::mesh::TetGeometry;
 use volbench::scene::Projection;
 use volbench::vk::{Context, ContextDesc, UploadCounter};
 
@@ -100,7 +101,8 @@ fn frames(c: &mut Criterion) {
 fn sort(c: &mut Criterion) {
     for name in datasets::NAMED.iter().map(|d| d.name) {
         let dataset = datasets::load(name).expect("shipped dataset");
-        let DatasetData::TetMesh { mesh, geometry } = &dataset.data else { continue };
+        let DatasetData::TetMesh { mesh } = &dataset.data else { continue };
+        let geometry = &TetGeometry::compute(mesh);
         let camera = orbit(&dataset, 3);
         let mut group = c.benchmark_group(format!("sort/{name}"));
         group.throughput(Throughput::Elements(mesh.tets.len() as u64));

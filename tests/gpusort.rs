@@ -17,7 +17,7 @@ use volbench::algo::integrate::{PSI_TABLE_SIZE, TF_TABLE_SIZE};
 use volbench::algo::registry;
 use volbench::harness::datasets::{self, Dataset};
 use volbench::harness::run::{run as run_method, RunConfig, RunOutput};
-use volbench::mesh::{Bounds, TetGeometry, TetMesh};
+use volbench::mesh::{Bounds, TetMesh};
 use volbench::scene::{Camera, Projection, TransferFunction};
 use volbench::vk::{CommandRecorder, UploadCounter};
 
@@ -98,10 +98,9 @@ fn the_device_order_is_the_cpu_order_on_a_real_mesh() {
     for p in &mut mesh.points {
         p[0] += 1e5;
     }
-    let geometry = TetGeometry::compute(&mesh);
     let origin = render_origin(&mesh);
     assert_ne!(origin, [0.0; 3]);
-    let c = centroids_relative_f32(&geometry, origin);
+    let c = centroids_relative_f32(&mesh, origin);
     for angle in [0.0, 1.0, 4.0] {
         let camera = Camera::orbit(&mesh.bounds(), angle, Projection::Perspective { fovy_deg: 30.0 });
         assert_eq!(device_order(&c, origin, &camera).0, cpu_order(&c, origin, &camera), "angle {angle}");

@@ -15,7 +15,7 @@ use std::sync::Arc;
 use anyhow::{bail, Result};
 use serde::Serialize;
 
-use crate::mesh::{TetGeometry, TetMesh};
+use crate::mesh::TetMesh;
 use crate::scene::{Camera, TransferFunction};
 use crate::vk::{CommandRecorder, Context, DeviceInfo, Image, UploadCounter};
 
@@ -231,7 +231,7 @@ impl Feature {
 /// The dataset a method renders, by kind.
 #[derive(Clone, Copy)]
 pub enum SceneData<'a> {
-    TetMesh { mesh: &'a TetMesh, geometry: &'a TetGeometry },
+    TetMesh { mesh: &'a TetMesh },
     Volume(&'a crate::volume::Volume),
     Terrain(&'a crate::terrain::Heightmap),
 }

@@ -56,10 +56,11 @@ use serde_json::json;
 use super::cell_projection::render;
 use super::settings::{choice, float, int, MethodSettings};
 use super::cell_projection::{render_origin, scalar_map, ExitTolerances, FrameSetup, Interpolation, MeshScale};
+use super::host_memory::HostMemory;
 use super::integrate::{check_table_size, IntegrationTables, Integrator};
 use super::method::{DataKind, Family, MethodInfo, MethodInputs, OptionSpec, Options, Phases, RenderMethod, SceneData, View, Work};
 use crate::mesh::adjacency::{FACE_VERTS, NONE};
-use crate::mesh::{TetGeometry, TetMesh};
+use crate::mesh::TetMesh;
 use crate::mesh::topology::Topology;
 use crate::scene::Camera;
 use crate::vk::raw::Handle as _;
@@ -221,11 +222,11 @@ pub fn build_face_bvh(faces: &[(u32, [[f32; 3]; 3])], pad: f32) -> FaceBvh {
 }
 
 fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
-    let SceneData::TetMesh { mesh, geometry } = inputs.data else {
+    let SceneData::TetMesh { mesh } = inputs.data else {
         bail!("tet-raycast renders tetrahedral meshes only");
     };
     let settings = Settings::from_options(inputs.options)?;
-    TetRaycast::new(inputs.ctx, mesh, geometry, inputs.tf, settings, inputs.width, inputs.height, inputs.counter)
+    TetRaycast::new(inputs.ctx, mesh, inputs.tf, settings, inputs.width, inputs.height, inputs.counter)
         .map(|m| Box::new(m) as Box<dyn RenderMethod>)
 }
 
@@ -248,6 +249,9 @@ pub struct TetRaycast {
     bvh_nodes: usize,
     bvh_depth: usize,
     step_budget: u64,
+    /// The mesh the run holds for this method (`details.host_memory`;
+    /// everything else per cell lives on the device).
+    scene_memory: HostMemory,
     ctx: Arc<Context>,
 }
 
@@ -269,7 +273,6 @@ impl TetRaycast {
     fn new(
         ctx: &Arc<Context>,
         mesh: &TetMesh,
-        _geometry: &TetGeometry,
         tf: &crate::scene::TransferFunction,
         settings: Settings,
         width: u32,
@@ -310,7 +313,6 @@ impl TetRaycast {
             .zip(&mesh.scalars)
             .map(|(p, s)| [(p[0] - origin[0]) as f32, (p[1] - origin[1]) as f32, (p[2] - origin[2]) as f32, ((s - so) / ss) as f32])
             .collect();
-        let neighbors: Vec<u32> = topo.neighbor.clone();
         let solid: Vec<u32> = topo.solid.iter().map(|&s| s as u32).collect();
         let faces: Vec<(u32, [[f32; 3]; 3])> = topo
             .boundary
@@ -338,14 +340,22 @@ impl TetRaycast {
         // and its face list, read once per entry search, stay storage
         // buffers (a node's uint fields must not pass through float texels).
         // Empty arrays still need a buffer (zero-size buffers are invalid).
-        let nonempty = |b: &[u8]| if b.is_empty() { vec![0u8; 16] } else { b.to_vec() };
+        // (Borrowed when not empty: a copy of each array was a transient
+        // of its full size.)
+        fn nonempty(b: &[u8]) -> std::borrow::Cow<'_, [u8]> {
+            if b.is_empty() {
+                vec![0u8; 16].into()
+            } else {
+                b.into()
+            }
+        }
         let texels = |name: &str, bytes: &[u8], format: raw::Format, counter: &mut UploadCounter| {
             upload_static_texels(ctx, name, &nonempty(bytes), format, counter)
         };
         let texel_buffers = vec![
             texels("tet-raycast points", bytemuck::cast_slice(&points), raw::Format::R32G32B32A32_SFLOAT, counter)?,
             texels("tet-raycast cells", bytemuck::cast_slice(&mesh.tets), raw::Format::R32G32B32A32_UINT, counter)?,
-            texels("tet-raycast neighbours", bytemuck::cast_slice(&neighbors), raw::Format::R32_UINT, counter)?,
+            texels("tet-raycast neighbours", bytemuck::cast_slice(&topo.neighbor), raw::Format::R32_UINT, counter)?,
             texels("tet-raycast solid flags", bytemuck::cast_slice(&solid), raw::Format::R32_UINT, counter)?,
         ];
         let usage = raw::BufferUsageFlags::STORAGE_BUFFER;
@@ -385,7 +395,10 @@ impl TetRaycast {
             sets: vec![tables.set.desc.clone(), mesh_desc, target_desc.clone()],
         });
         let pipeline = crate::algo::pipelines::get(ctx, &key)?;
+        let mut scene_memory = HostMemory::default();
+        scene_memory.scene_mesh(mesh);
         Ok(TetRaycast {
+            scene_memory,
             tables,
             scale: MeshScale::of(mesh),
             settings,
@@ -529,6 +542,7 @@ impl RenderMethod for TetRaycast {
         let c = Counts::from(self.counters());
         let mean = |total: u64, of: u64| if of > 0 { total as f64 / of as f64 } else { 0.0 };
         json!({
+            "host_memory": self.scene_memory.to_json(self.cells),
             "family": "tet-raycast",
             "workgroup": WORKGROUP,
             "pipeline": { "key": self.key.id(), "name": self.key.name() },

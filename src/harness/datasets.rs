@@ -12,7 +12,7 @@ use serde::Serialize;
 use sha2::{Digest as _, Sha256};
 
 use crate::algo::method::{DataKind, SceneData};
-use crate::mesh::{self, Bounds, TetGeometry, TetMesh};
+use crate::mesh::{self, Bounds, TetMesh};
 use crate::terrain::Heightmap;
 use crate::volume::Volume;
 use crate::scene::{Camera, ControlPoint, TransferFunction};
@@ -62,7 +62,10 @@ pub use crate::data_dir::data_dir;
 
 /// The loaded data, by kind.
 pub enum DatasetData {
-    TetMesh { mesh: TetMesh, geometry: TetGeometry },
+    /// The mesh only: each method derives the per-cell data it needs (f32
+    /// cells, centroids) from it, so no f64 per-cell precomputation
+    /// (`TetGeometry`, 192 bytes per tet) is held for the run.
+    TetMesh { mesh: TetMesh },
     Volume(Volume),
     Terrain(Heightmap),
 }
@@ -94,10 +97,14 @@ pub struct DatasetSummary {
 }
 
 impl Dataset {
-    pub fn from_mesh(mesh: TetMesh, named: bool, source: String) -> Self {
+    pub fn from_mesh(mut mesh: TetMesh, named: bool, source: String) -> Self {
+        // Readers grow their vectors as they go: give back the spare
+        // capacity (up to half of each) for the run.
+        mesh.points.shrink_to_fit();
+        mesh.scalars.shrink_to_fit();
+        mesh.tets.shrink_to_fit();
         let digest = mesh_digest(&mesh);
-        let geometry = TetGeometry::compute(&mesh);
-        Dataset { name: mesh.name.clone(), named, source, digest, data: DatasetData::TetMesh { mesh, geometry } }
+        Dataset { name: mesh.name.clone(), named, source, digest, data: DatasetData::TetMesh { mesh } }
     }
 
     pub fn from_volume(volume: Volume, named: bool, source: String) -> Self {
@@ -117,7 +124,7 @@ impl Dataset {
     /// What a method is built from.
     pub fn scene(&self) -> SceneData<'_> {
         match &self.data {
-            DatasetData::TetMesh { mesh, geometry } => SceneData::TetMesh { mesh, geometry },
+            DatasetData::TetMesh { mesh } => SceneData::TetMesh { mesh },
             DatasetData::Volume(v) => SceneData::Volume(v),
             DatasetData::Terrain(t) => SceneData::Terrain(t),
         }

@@ -634,6 +634,17 @@ impl MethodSession {
     }
 }
 
+/// The method's details with the process's peak resident set so far
+/// (`process_peak_rss_bytes`, VmHWM; beside `host_memory`, which counts the
+/// method's own structures): load, build and frames, and on lavapipe the
+/// device allocations too.
+fn with_peak_rss(mut details: serde_json::Value) -> serde_json::Value {
+    if let (serde_json::Value::Object(m), Some(b)) = (&mut details, crate::algo::host_memory::peak_rss_bytes()) {
+        m.insert("process_peak_rss_bytes".into(), b.into());
+    }
+    details
+}
+
 /// Raw samples by phase name, and the method's per-frame counts.
 #[derive(Default)]
 struct Samples(BTreeMap<String, Vec<f64>>, BTreeMap<String, Vec<u64>>);
@@ -836,7 +847,7 @@ pub fn run(ctx: &Arc<Context>, spec: &MethodSpec, dataset: &Dataset, tf: &Transf
             reference_cached: false,
             reference_recomputed: None,
         }),
-        details: method.details(),
+        details: with_peak_rss(method.details()),
         diagnostics,
         count: counted,
         device: ctx.info.clone(),

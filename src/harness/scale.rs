@@ -14,6 +14,7 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, ensure, Context as _, Result};
 use serde::Serialize;
 
+use crate::algo::host_memory::vm_hwm_kb;
 use crate::mesh::refine::{red_refine, refined_bytes};
 use crate::mesh::TetMesh;
 
@@ -117,10 +118,6 @@ pub fn run_measured(mut cmd: Command) -> Result<(std::process::ExitStatus, Strin
     };
     let err = reader.join().unwrap_or_default();
     Ok((status, err, peak))
-}
-
-fn vm_hwm_kb(status: &str) -> Option<u64> {
-    status.lines().find(|l| l.starts_with("VmHWM:"))?.split_whitespace().nth(1)?.parse().ok()
 }
 
 /// The row of a `volbench run --json` result.

@@ -424,6 +424,20 @@ impl TetMesh {
     }
 
     /// Axis-aligned bounds of the points (all zeros for an empty mesh).
+    /// Vertices and scalars of cell `t`.
+    #[inline]
+    pub fn cell(&self, t: [u32; 4]) -> ([[f64; 3]; 4], [f64; 4]) {
+        (t.map(|v| self.points[v as usize]), t.map(|v| self.scalars[v as usize]))
+    }
+
+    /// Centroid (mean of the 4 vertices) of cell `t`: the one definition
+    /// (`TetGeometry::centroids`, the sorts' f32 centroids).
+    #[inline]
+    pub fn centroid(&self, t: [u32; 4]) -> [f64; 3] {
+        let p = t.map(|v| self.points[v as usize]);
+        std::array::from_fn(|k| 0.25 * (p[0][k] + p[1][k] + p[2][k] + p[3][k]))
+    }
+
     pub fn bounds(&self) -> Bounds {
         if self.points.is_empty() {
             return Bounds { min: [0.0; 3], max: [0.0; 3] };
@@ -587,12 +601,9 @@ impl TetGeometry {
         let (cells, centroids) = mesh
             .tets
             .par_iter()
-            .map(|t| {
-                let p = t.map(|v| mesh.points[v as usize]);
-                let s = t.map(|v| mesh.scalars[v as usize]);
-                let c: [f64; 3] =
-                    std::array::from_fn(|k| 0.25 * (p[0][k] + p[1][k] + p[2][k] + p[3][k]));
-                (TetPrecomputed::from_vertices(p, s), c)
+            .map(|&t| {
+                let (p, s) = mesh.cell(t);
+                (TetPrecomputed::from_vertices(p, s), mesh.centroid(t))
             })
             .unzip();
         TetGeometry { cells, centroids }

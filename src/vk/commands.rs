@@ -208,14 +208,36 @@ impl CommandRecorder {
         Ok(())
     }
 
+    /// [`Self::copy_to_device`] of the first `bytes` of `src` into `dst` at
+    /// `dst_offset` (a streamed upload's chunk).
+    pub fn copy_to_device_at(
+        &self,
+        src: &Buffer,
+        dst: &Buffer,
+        dst_offset: u64,
+        bytes: u64,
+        counter: &mut UploadCounter,
+        class: UploadClass,
+    ) -> VkResult<()> {
+        self.copy_region(src, dst, dst_offset, bytes)?;
+        counter.add_transfer(class, bytes);
+        Ok(())
+    }
+
     /// Record a buffer-to-buffer copy of the first `bytes` of `src` to the
     /// start of `dst` that is not an upload (device to device, or device to
     /// a readback buffer): nothing is counted. `bytes` must be above zero
     /// and fit both buffers (else `VkError::Invalid`, naming them).
     pub fn copy_buffer(&self, src: &Buffer, dst: &Buffer, bytes: u64) -> VkResult<()> {
-        if bytes == 0 || bytes > src.size() || bytes > dst.size() {
+        self.copy_region(src, dst, 0, bytes)
+    }
+
+    /// The first `bytes` of `src` to `dst` at `dst_offset`, uncounted.
+    fn copy_region(&self, src: &Buffer, dst: &Buffer, dst_offset: u64, bytes: u64) -> VkResult<()> {
+        let fits_dst = dst_offset.checked_add(bytes).is_some_and(|end| end <= dst.size());
+        if bytes == 0 || bytes > src.size() || !fits_dst {
             return Err(VkError::Invalid(format!(
-                "copying {bytes} bytes from buffer '{}' ({} bytes) to '{}' ({} bytes): {}",
+                "copying {bytes} bytes from buffer '{}' ({} bytes) to '{}' ({} bytes) at offset {dst_offset}: {}",
                 src.desc.name,
                 src.size(),
                 dst.desc.name,
@@ -223,7 +245,7 @@ impl CommandRecorder {
                 if bytes == 0 { "a copy needs at least one byte" } else { "more than a buffer holds" }
             )));
         }
-        let region = [vk::BufferCopy { src_offset: 0, dst_offset: 0, size: bytes }];
+        let region = [vk::BufferCopy { src_offset: 0, dst_offset, size: bytes }];
         // SAFETY: `self.raw` is recording (callers record between `begin`
         // and submit; the recorder owns the command buffer); both buffers are
         // live for the call (borrowed) and kept alive by their owners until
@@ -301,6 +323,7 @@ impl Drop for CommandRecorder {
 
 /// Upload `data` once into a new device-local buffer through a staging buffer
 /// (the path a discrete GPU needs for static data); counted as static bytes.
+/// Streamed in chunks ([`upload_static_streamed`]).
 pub fn upload_static(
     ctx: &Arc<Context>,
     name: &str,
@@ -308,19 +331,66 @@ pub fn upload_static(
     usage: vk::BufferUsageFlags,
     counter: &mut UploadCounter,
 ) -> VkResult<Buffer> {
+    upload_static_streamed(ctx, name, data.len() as u64, 16, usage, counter, |offset, chunk| {
+        let start = offset as usize;
+        chunk.copy_from_slice(&data[start..start + chunk.len()]);
+    })
+}
+
+/// Largest staging buffer a static upload uses: the data is streamed
+/// through it chunk by chunk, so the host memory an upload needs beside the
+/// destination is bounded (on lavapipe, where device memory is host memory,
+/// a whole-size staging copy doubled the peak resident set of large meshes).
+pub const STAGING_CHUNK_BYTES: u64 = 64 << 20;
+
+/// Test knob (docs/scaling.md): `VOLBENCH_TEST_STAGING_CHUNK_BYTES=N`
+/// lowers the staging chunk to N bytes (rounded to the producer's element
+/// size, at least one element), so that a small mesh crosses in many
+/// chunks, as a large one does against the device's allocation limit.
+/// Unset in real runs; a value that is not a byte count is ignored.
+pub const STAGING_CHUNK_VAR: &str = "VOLBENCH_TEST_STAGING_CHUNK_BYTES";
+
+/// Upload `size` bytes into a new device-local buffer, produced chunk by
+/// chunk by `fill(offset, chunk)` (write bytes `offset .. offset +
+/// chunk.len()` of the data into `chunk`), through one staging buffer of
+/// at most [`STAGING_CHUNK_BYTES`] (and at most the device's largest
+/// allocation) that is re-used for every chunk. Every chunk but the last is
+/// a multiple of `granule` bytes (the producer's element size, a multiple
+/// of 4), so no element is split. Counted as static bytes.
+pub fn upload_static_streamed(
+    ctx: &Arc<Context>,
+    name: &str,
+    size: u64,
+    granule: u64,
+    usage: vk::BufferUsageFlags,
+    counter: &mut UploadCounter,
+    mut fill: impl FnMut(u64, &mut [u8]),
+) -> VkResult<Buffer> {
     use super::buffer::BufferDesc;
-    let size = data.len() as u64;
-    let mut staging = Buffer::new(ctx, BufferDesc::upload(&format!("{name} (staging)"), size, vk::BufferUsageFlags::TRANSFER_SRC))?;
-    staging.write_staging(0, data)?;
     let dst = Buffer::new(ctx, BufferDesc::device_local(name, size, usage))?;
+    let max_alloc = match ctx.info.max_memory_allocation_size {
+        0 => STAGING_CHUNK_BYTES,
+        m => m,
+    };
+    let granule = granule.max(4);
+    let limit = std::env::var(STAGING_CHUNK_VAR).ok().and_then(|v| v.parse::<u64>().ok()).unwrap_or(STAGING_CHUNK_BYTES);
+    let chunk = (limit.min(STAGING_CHUNK_BYTES).min(max_alloc) / granule).max(1) * granule;
+    let chunk = chunk.min(size.max(4));
+    let mut staging = Buffer::new(ctx, BufferDesc::upload(&format!("{name} (staging)"), chunk, vk::BufferUsageFlags::TRANSFER_SRC))?;
     let rec = CommandRecorder::new(ctx, &format!("{name} upload"))?;
-    rec.begin()?;
-    rec.copy_to_device(&staging, &dst, size, counter, UploadClass::Static)?;
-    rec.memory_barrier(
-        (vk::PipelineStageFlags2::COPY, vk::AccessFlags2::TRANSFER_WRITE),
-        (vk::PipelineStageFlags2::ALL_COMMANDS, vk::AccessFlags2::MEMORY_READ),
-    );
-    rec.submit_and_wait()?;
+    let mut offset = 0;
+    while offset < size {
+        let len = chunk.min(size - offset);
+        fill(offset, &mut staging.mapped_for_write()?[..len as usize]);
+        rec.begin()?;
+        rec.copy_to_device_at(&staging, &dst, offset, len, counter, UploadClass::Static)?;
+        rec.memory_barrier(
+            (vk::PipelineStageFlags2::COPY, vk::AccessFlags2::TRANSFER_WRITE),
+            (vk::PipelineStageFlags2::ALL_COMMANDS, vk::AccessFlags2::MEMORY_READ),
+        );
+        rec.submit_and_wait()?;
+        offset += len;
+    }
     Ok(dst)
 }
 

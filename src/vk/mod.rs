@@ -36,7 +36,7 @@ pub mod valgrind;
 
 pub use ash::vk as raw;
 pub use buffer::{Buffer, BufferDesc, MemoryKind, TexelBuffer};
-pub use commands::{fold_groups, upload_static, upload_static_texels, ColorAttachment, CommandRecorder, SubmitTiming};
+pub use commands::{fold_groups, upload_static, upload_static_streamed, upload_static_texels, STAGING_CHUNK_BYTES, STAGING_CHUNK_VAR, ColorAttachment, CommandRecorder, SubmitTiming};
 pub use context::{
     fence_timeout_from_env, list_devices, parse_env_flag, parse_fence_timeout, validation_requested, Context, ContextDesc,
     DeviceFeatures, DeviceInfo, DEFAULT_FENCE_TIMEOUT, FENCE_TIMEOUT_VAR, VALIDATION_VAR,

@@ -31,9 +31,10 @@ use super::balanced::{
     cell_records, CODE_FLAGS_SHIFT, CODE_MAX_PIECES, CODE_PIECE_SHIFT, FLOATS_PER_CELL, FLOATS_PER_VERTEX, VERTICES_PER_CELL};
 use super::render;
 use super::{build_pipeline, cells_f32, scalar_map, CellF32, CellProjector, FrameSetup, DrawSettings, StaticIndices, MAX_INDICES_PER_CELL};
+use crate::algo::host_memory::HostMemory;
 use crate::algo::integrate::IntegrationTables;
 use crate::algo::method::{MethodInfo, MethodInputs, Published, PublishedFigure, RenderMethod};
-use crate::mesh::{TetGeometry, TetMesh};
+use crate::mesh::TetMesh;
 use crate::scene::transfer_function::TABLE_MAX;
 use crate::scene::TransferFunction;
 use crate::vk::{
@@ -214,8 +215,8 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
         fixed: per_cell((MAX_INDICES_PER_CELL * 4) as u64),
     };
     let pieces = pieces as usize;
-    render::CellProjection::create(inputs, bytes, move |ctx, mesh, geometry, tables, draw, counter| {
-        Ok(Box::new(Atfs::new(ctx, mesh, geometry, tables, draw, intervals, spans, pieces, counter)?))
+    render::CellProjection::create(inputs, bytes, move |ctx, mesh, tables, draw, counter| {
+        Ok(Box::new(Atfs::new(ctx, mesh, tables, draw, intervals, spans, pieces, counter)?))
     })
 }
 
@@ -261,7 +262,6 @@ impl Atfs {
     pub fn new(
         ctx: &Arc<Context>,
         mesh: &TetMesh,
-        geometry: &TetGeometry,
         tables: &IntegrationTables,
         draw: DrawSettings,
         intervals: Intervals,
@@ -269,7 +269,7 @@ impl Atfs {
         pieces: usize,
         counter: &mut UploadCounter,
     ) -> VkResult<Self> {
-        let cells = cells_f32(mesh, geometry);
+        let cells = cells_f32(mesh);
         if spans.len() != cells.len() {
             return Err(VkError::Invalid(format!("atfs: {} spans for {} cells", spans.len(), cells.len())));
         }
@@ -365,6 +365,13 @@ impl CellProjector for Atfs {
     fn pieces_drawn(&self) -> usize {
         self.drawn_pieces
     }
+    fn host_bytes(&self, memory: &mut HostMemory) {
+        memory.vec("projector: f32 cells (CellF32)", &self.cells);
+        memory.vec("projector: interval spans", &self.spans);
+        memory.vec("projector: piece offsets", &self.offsets);
+        memory.vec("projector: packed records", &self.packed);
+    }
+
     fn pipeline_key(&self) -> &PipelineKey {
         &self.pipeline_key
     }

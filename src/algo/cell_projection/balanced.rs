@@ -15,8 +15,9 @@ use rayon::prelude::*;
 use super::render;
 use crate::algo::method::{MethodInfo, MethodInputs, RenderMethod};
 use super::{build_pipeline, cells_f32, CellF32, CellProjector, DrawSettings, StaticIndices, FrameSetup, Interpolation, MAX_INDICES_PER_CELL};
+use crate::algo::host_memory::HostMemory;
 use crate::algo::integrate::IntegrationTables;
-use crate::mesh::{TetGeometry, TetMesh};
+use crate::mesh::TetMesh;
 use crate::vk::{
     Buffer, BufferDesc, CommandRecorder, Context, Pipeline, PipelineKey, UploadClass, UploadCounter, VertexAttribute,
     VkResult,
@@ -45,8 +46,8 @@ const BALANCED: MethodInfo = render::method_info(
 
 fn create(inputs: MethodInputs) -> anyhow::Result<Box<dyn RenderMethod>> {
     let bytes = render::DeviceBytesPerCell { frame: FLOATS_PER_CELL * 4, fixed: MAX_INDICES_PER_CELL * 4 };
-    render::CellProjection::create(inputs, bytes, |ctx, mesh, geometry, tables, draw, counter| {
-        Ok(Box::new(Balanced::new(ctx, mesh, geometry, tables, draw, counter)?))
+    render::CellProjection::create(inputs, bytes, |ctx, mesh, tables, draw, counter| {
+        Ok(Box::new(Balanced::new(ctx, mesh, tables, draw, counter)?))
     })
 }
 
@@ -156,12 +157,11 @@ impl Balanced {
     pub fn new(
         ctx: &Arc<Context>,
         mesh: &TetMesh,
-        geometry: &TetGeometry,
         tables: &IntegrationTables,
         draw: DrawSettings,
         counter: &mut UploadCounter,
     ) -> VkResult<Self> {
-        let cells = cells_f32(mesh, geometry);
+        let cells = cells_f32(mesh);
         let n = cells.len();
         let indices = StaticIndices::upload(ctx, "balanced indices", draw.primitives, n, counter)?;
         let bytes = (n * FLOATS_PER_CELL * 4) as u64;
@@ -207,6 +207,11 @@ impl CellProjector for Balanced {
 
     fn drawn(&self) -> usize {
         self.drawn
+    }
+
+    fn host_bytes(&self, memory: &mut HostMemory) {
+        memory.vec("projector: f32 cells (CellF32)", &self.cells);
+        memory.vec("projector: packed records", &self.packed);
     }
 
     fn pack(&mut self, order: &[u32], frame: &FrameSetup) {

@@ -46,7 +46,11 @@
 //!
 //! Counts per frame ([`FrameCull`]) go to the run's `frame_counts`.
 
+use std::sync::Arc;
+
 use rayon::prelude::*;
+
+use super::RelativeMesh;
 
 use crate::algo::integrate::{IntegrationTables, Integrator};
 use crate::mesh::TetMesh;
@@ -133,7 +137,8 @@ impl TransparentCells {
                 !transparent_over(tf, lo, hi)
             })
             .collect();
-        let visible: Vec<u32> = keep.iter().enumerate().filter(|(_, &k)| k).map(|(i, _)| i as u32).collect();
+        let mut visible: Vec<u32> = keep.iter().enumerate().filter(|(_, &k)| k).map(|(i, _)| i as u32).collect();
+        visible.shrink_to_fit();
         TransparentCells { culled: mesh.tets.len() - visible.len(), visible, tf: tf.clone(), grid }
     }
 
@@ -215,10 +220,9 @@ struct FrameKey {
 pub struct Culler {
     enabled: bool,
     transparent: TransparentCells,
-    /// Mesh points relative to the render origin, and the cells.
-    points: Vec<[f64; 3]>,
-    tets: Vec<[u32; 4]>,
-    origin: [f64; 3],
+    /// Mesh points relative to the render origin, and the cells (shared
+    /// with the near caps).
+    mesh: Arc<RelativeMesh>,
     outcodes: Vec<u8>,
     survivors: Vec<u32>,
     /// Per cell: drawn this frame (for `filter_order`).
@@ -231,6 +235,11 @@ pub struct Culler {
 impl Culler {
     /// `origin`: the mesh's render origin (`render_origin`).
     pub fn new(mesh: &TetMesh, tf: &TransferFunction, grid: LookupGrid, origin: [f64; 3], enabled: bool) -> Self {
+        Self::shared(mesh, RelativeMesh::new(mesh, origin), tf, grid, enabled)
+    }
+
+    /// With the relative mesh the method's other passes read too.
+    pub fn shared(mesh: &TetMesh, relative: Arc<RelativeMesh>, tf: &TransferFunction, grid: LookupGrid, enabled: bool) -> Self {
         let transparent = if enabled {
             TransparentCells::classify(mesh, tf, grid)
         } else {
@@ -239,9 +248,7 @@ impl Culler {
         Culler {
             enabled,
             transparent,
-            points: if enabled { mesh.points.iter().map(|p| std::array::from_fn(|k| p[k] - origin[k])).collect() } else { Vec::new() },
-            tets: if enabled { mesh.tets.clone() } else { Vec::new() },
-            origin,
+            mesh: relative,
             outcodes: Vec::new(),
             survivors: Vec::new(),
             drawn_mask: Vec::new(),
@@ -252,6 +259,13 @@ impl Culler {
 
     pub fn enabled(&self) -> bool {
         self.enabled
+    }
+
+    pub fn host_bytes(&self, memory: &mut crate::algo::host_memory::HostMemory) {
+        memory.vec("cull: visible (non-transparent) cells", &self.transparent.visible);
+        memory.vec("cull: per-frame outcodes, survivors, mask", &self.outcodes);
+        memory.vec("cull: per-frame outcodes, survivors, mask", &self.survivors);
+        memory.vec("cull: per-frame outcodes, survivors, mask", &self.drawn_mask);
     }
 
     /// Cells the transfer function makes transparent.
@@ -294,9 +308,9 @@ impl Culler {
         if !self.enabled {
             return None;
         }
-        let frustum = Frustum::new(camera, self.origin, width, height);
-        frustum.outcodes(&self.points, &mut self.outcodes);
-        let (codes, tets) = (&self.outcodes, &self.tets);
+        let frustum = Frustum::new(camera, self.mesh.origin, width, height);
+        frustum.outcodes(&self.mesh.points, &mut self.outcodes);
+        let (codes, tets) = (&self.outcodes, &self.mesh.tets);
         self.survivors.clear();
         self.survivors.par_extend(self.transparent.visible.par_iter().copied().filter(|&c| {
             let t = tets[c as usize];
@@ -320,7 +334,7 @@ impl Culler {
     /// of the last [`Culler::cull`], order kept (see the module note).
     pub fn filter_order(&mut self, order: &[u32], out: &mut Vec<u32>) {
         self.drawn_mask.clear();
-        self.drawn_mask.resize(self.tets.len(), false);
+        self.drawn_mask.resize(self.mesh.tets.len(), false);
         for &c in &self.survivors {
             self.drawn_mask[c as usize] = true;
         }

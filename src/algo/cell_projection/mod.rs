@@ -25,11 +25,12 @@ use std::sync::Arc;
 use ash::vk as raw;
 use serde::Serialize;
 
+use crate::algo::host_memory::HostMemory;
 use crate::algo::integrate::IntegrationTables;
-use crate::mesh::{TetGeometry, TetMesh};
+use crate::mesh::{TetGeometry, TetMesh, TetPrecomputed};
 use crate::scene::Camera;
 use crate::vk::{
-    upload_static, Buffer, DescriptorSetDesc,
+    upload_static_streamed, Buffer, DescriptorSetDesc,
     Blend, ColorTarget, CommandRecorder, Context, GraphicsPipelineKey, GraphicsState, Pipeline, PipelineKey, ShaderKey,
     ShaderStage, UploadCounter, VertexAttribute, VkResult,
 };
@@ -116,17 +117,30 @@ impl Primitives {
 
     /// The static index data for `cells` tet slots.
     pub fn indices(self, cells: usize) -> Vec<u32> {
-        let mut idx = Vec::with_capacity(cells * self.indices_per_cell());
-        for k in 0..cells as u32 {
+        let mut idx = vec![0; cells * self.indices_per_cell()];
+        self.write_indices(0, &mut idx);
+        idx
+    }
+
+    /// The indices of tet slots `first ..` into `out` (a whole number of
+    /// slots).
+    pub fn write_indices(self, first: usize, out: &mut [u32]) {
+        for (slot, dst) in out.chunks_exact_mut(self.indices_per_cell()).enumerate() {
+            let k = (first + slot) as u32;
             match self {
                 Primitives::Strip => {
-                    idx.extend(STRIP.iter().map(|&i| 4 * k + i));
-                    idx.push(RESTART);
+                    for (d, &i) in dst.iter_mut().zip(&STRIP) {
+                        *d = 4 * k + i;
+                    }
+                    dst[STRIP.len()] = RESTART;
                 }
-                Primitives::List => idx.extend(FACES.iter().flatten().map(|&i| 4 * k + i as u32)),
+                Primitives::List => {
+                    for (d, &i) in dst.iter_mut().zip(FACES.iter().flatten()) {
+                        *d = 4 * k + i as u32;
+                    }
+                }
             }
         }
-        idx
     }
 }
 
@@ -139,9 +153,14 @@ pub struct StaticIndices {
 }
 
 impl StaticIndices {
+    /// Made chunk by chunk while streaming to the device (never held whole
+    /// on the host).
     pub fn upload(ctx: &Arc<Context>, name: &str, primitives: Primitives, cells: usize, counter: &mut UploadCounter) -> VkResult<Self> {
-        let indices = primitives.indices(cells);
-        let buffer = upload_static(ctx, name, bytemuck::cast_slice(&indices), raw::BufferUsageFlags::INDEX_BUFFER, counter)?;
+        let slot_bytes = primitives.indices_per_cell() * 4;
+        let size = (cells * slot_bytes) as u64;
+        let buffer = upload_static_streamed(ctx, name, size, slot_bytes as u64, raw::BufferUsageFlags::INDEX_BUFFER, counter, |offset, chunk| {
+            primitives.write_indices(offset as usize / slot_bytes, bytemuck::cast_slice_mut(chunk));
+        })?;
         Ok(StaticIndices { buffer, per_cell: primitives.indices_per_cell() })
     }
 
@@ -421,6 +440,9 @@ pub trait CellProjector {
     }
     /// The key of the pipeline it draws with (recorded in results).
     fn pipeline_key(&self) -> &PipelineKey;
+    /// Count the host memory it keeps between frames, by structure
+    /// (`details.host_memory`).
+    fn host_bytes(&self, memory: &mut HostMemory);
     /// Cells the last `pack` wrote, i.e. the next draw draws (`cull` may
     /// leave cells out of `order`). A projector that ignores the order
     /// draws every cell.
@@ -559,44 +581,94 @@ pub struct CellF32 {
 /// the mesh). Planes do not depend on either; the vertex-to-face distances
 /// that scale them come from edge vectors, which are small wherever the
 /// mesh is.
-pub fn cells_f32(mesh: &TetMesh, geometry: &TetGeometry) -> Vec<CellF32> {
-    use rayon::prelude::*;
-    let o = render_origin(mesh);
-    let (so, ss) = scalar_map(mesh);
-    let rel = move |v: [f64; 3]| -> [f32; 3] { std::array::from_fn(|k| (v[k] - o[k]) as f32) };
-    mesh.tets
-        .par_iter()
-        .zip(geometry.cells.par_iter())
-        .map(|(tet, g)| {
-            let p = tet.map(|i| mesh.points[i as usize]);
-            let s = tet.map(|i| ((mesh.scalars[i as usize] - so) / ss) as f32);
-            if g.degenerate {
-                let v0 = rel(p[0]);
-                return CellF32 { pos: [v0; 4], scalar: s, plane3: [[0.0; 3]; 4], gradient: [0.0; 3] };
-            }
-            let mut plane3 = [[0f32; 3]; 4];
-            for i in 0..4 {
-                // Vertex i's distance to its opposite face from an edge
-                // vector (n·(p_i - p_j), p_j on that face), not n·p_i + a:
-                // far from the origin those two terms are as large as the
-                // coordinates and cancel (at 1e14 an error of ~0.02 units).
-                let [nx, ny, nz, _] = g.planes[i];
-                let e = crate::mesh::geometry::sub(p[i], p[(i + 1) % 4]);
-                let dist = nx * e[0] + ny * e[1] + nz * e[2];
-                plane3[i] = if dist != 0.0 {
-                    [(nx / dist) as f32, (ny / dist) as f32, (nz / dist) as f32]
-                } else {
-                    [0.0; 3]
-                };
-            }
-            CellF32 {
-                pos: p.map(rel),
-                scalar: s,
-                plane3,
-                gradient: g.gradient.map(|x| (x / ss) as f32),
-            }
+///
+/// Each cell's f64 gradient and planes (`TetPrecomputed`) are computed
+/// when the cell is made, and not kept: the f32 cell is all a method needs.
+/// Methods that keep no f32 cells on the host (resident) make them chunk by
+/// chunk while streaming them to the device.
+#[derive(Debug, Clone, Copy)]
+pub struct CellMaker {
+    origin: [f64; 3],
+    scalar_origin: f64,
+    scalar_scale: f64,
+}
+
+impl CellMaker {
+    pub fn new(mesh: &TetMesh) -> Self {
+        let (scalar_origin, scalar_scale) = scalar_map(mesh);
+        CellMaker { origin: render_origin(mesh), scalar_origin, scalar_scale }
+    }
+
+    /// The f32 cell of tet `t` of `mesh`.
+    pub fn cell(&self, mesh: &TetMesh, t: usize) -> CellF32 {
+        let (o, so, ss) = (self.origin, self.scalar_origin, self.scalar_scale);
+        let rel = move |v: [f64; 3]| -> [f32; 3] { std::array::from_fn(|k| (v[k] - o[k]) as f32) };
+        let (p, s64) = mesh.cell(mesh.tets[t]);
+        let g = &TetPrecomputed::from_vertices(p, s64);
+        let s = s64.map(|v| ((v - so) / ss) as f32);
+        if g.degenerate {
+            let v0 = rel(p[0]);
+            return CellF32 { pos: [v0; 4], scalar: s, plane3: [[0.0; 3]; 4], gradient: [0.0; 3] };
+        }
+        let mut plane3 = [[0f32; 3]; 4];
+        for i in 0..4 {
+            // Vertex i's distance to its opposite face from an edge
+            // vector (n·(p_i - p_j), p_j on that face), not n·p_i + a:
+            // far from the origin those two terms are as large as the
+            // coordinates and cancel (at 1e14 an error of ~0.02 units).
+            let [nx, ny, nz, _] = g.planes[i];
+            let e = crate::mesh::geometry::sub(p[i], p[(i + 1) % 4]);
+            let dist = nx * e[0] + ny * e[1] + nz * e[2];
+            plane3[i] = if dist != 0.0 {
+                [(nx / dist) as f32, (ny / dist) as f32, (nz / dist) as f32]
+            } else {
+                [0.0; 3]
+            };
+        }
+        CellF32 {
+            pos: p.map(rel),
+            scalar: s,
+            plane3,
+            gradient: g.gradient.map(|x| (x / ss) as f32),
+        }
+    }
+}
+
+/// The mesh as the per-frame CPU passes (culling, near caps) read it:
+/// points relative to an origin (`render_origin`) and scalars mapped by
+/// `scalar_map`, in f64 (the numbers the f32 data is converted from), and
+/// the cells. One copy, shared by the passes of a method.
+#[derive(Debug)]
+pub struct RelativeMesh {
+    pub origin: [f64; 3],
+    pub points: Vec<[f64; 3]>,
+    pub scalars: Vec<f64>,
+    pub tets: Vec<[u32; 4]>,
+}
+
+impl RelativeMesh {
+    pub fn new(mesh: &TetMesh, origin: [f64; 3]) -> Arc<Self> {
+        let (so, ss) = scalar_map(mesh);
+        Arc::new(RelativeMesh {
+            origin,
+            points: mesh.points.iter().map(|p| std::array::from_fn(|k| p[k] - origin[k])).collect(),
+            scalars: mesh.scalars.iter().map(|s| (s - so) / ss).collect(),
+            tets: mesh.tets.clone(),
         })
-        .collect()
+    }
+
+    pub fn host_bytes(&self, memory: &mut HostMemory) {
+        memory.vec("cull and near caps: relative points (f64)", &self.points);
+        memory.vec("cull and near caps: mapped scalars (f64)", &self.scalars);
+        memory.vec("cull and near caps: copy of the tets", &self.tets);
+    }
+}
+
+/// Every cell of `mesh` as [`CellMaker`] makes it, in parallel.
+pub fn cells_f32(mesh: &TetMesh) -> Vec<CellF32> {
+    use rayon::prelude::*;
+    let maker = CellMaker::new(mesh);
+    (0..mesh.tets.len()).into_par_iter().map(|t| maker.cell(mesh, t)).collect()
 }
 
 pub fn centroids_f32(geometry: &TetGeometry) -> Vec<[f32; 3]> {
@@ -606,6 +678,13 @@ pub fn centroids_f32(geometry: &TetGeometry) -> Vec<[f32; 3]> {
 /// Centroids relative to `origin` (e.g. `MeshScale::origin`), subtracted in
 /// f64: what the depth sort needs far from the world origin, where world
 /// f32 centroids 1e7 away are 1 unit apart and the order is lost.
-pub fn centroids_relative_f32(geometry: &TetGeometry, origin: [f64; 3]) -> Vec<[f32; 3]> {
-    geometry.centroids.iter().map(|c| std::array::from_fn(|k| (c[k] - origin[k]) as f32)).collect()
+pub fn centroids_relative_f32(mesh: &TetMesh, origin: [f64; 3]) -> Vec<[f32; 3]> {
+    use rayon::prelude::*;
+    mesh.tets
+        .par_iter()
+        .map(|&t| {
+            let c = mesh.centroid(t);
+            std::array::from_fn(|k| (c[k] - origin[k]) as f32)
+        })
+        .collect()
 }

@@ -354,6 +354,25 @@ impl MpvoSort {
         }
     }
 
+    pub fn host_bytes(&self, memory: &mut crate::algo::host_memory::HostMemory) {
+        memory.vec("sort: mpvo nodes (adjacency, per-frame state)", &self.nodes);
+        memory.vec("sort: mpvo face planes (f64)", &self.planes);
+        memory.vec("sort: mpvo seam links", &self.links);
+        memory.vec("sort: mpvo seam links", &self.link_start);
+        memory.vec("sort: mpvo seam links", &self.link_list);
+        memory.vec("sort: mpvo seam links", &self.link_sides);
+        memory.vec("sort: mpvo f64 centroids", &self.centroids);
+        memory.vec("sort: keys and scratch", &self.keys);
+        memory.vec("sort: keys and scratch", &self.scratch_keys);
+        memory.vec("sort: order and scratch", &self.by_depth);
+        memory.vec("sort: order and scratch", &self.scratch_cells);
+        memory.vec("sort: order and scratch", &self.order);
+        memory.vec("sort: order and scratch", &self.position);
+        for level in &self.ready.levels {
+            memory.vec("sort: mpvo ready set", level);
+        }
+    }
+
     /// Convenience: computes the geometry itself.
     pub fn from_mesh(mesh: &TetMesh) -> MpvoSort {
         MpvoSort::new(mesh, &TetGeometry::compute(mesh))

@@ -23,9 +23,8 @@ use std::sync::Arc;
 use ash::vk as raw;
 use rayon::prelude::*;
 
-use super::{build_pipeline, scalar_map, render_origin, CellProjector, FrameSetup, Interpolation};
+use super::{build_pipeline, CellProjector, FrameSetup, Interpolation, RelativeMesh};
 use crate::algo::integrate::IntegrationTables;
-use crate::mesh::TetMesh;
 use crate::scene::Camera;
 use crate::vk::{
     Buffer, BufferDesc, CommandRecorder, Context, DescriptorSet, DescriptorSetDesc, Pipeline, UploadClass, UploadCounter,
@@ -42,18 +41,21 @@ const CAP_OFFSET_NEAR: f64 = 1e-5;
 const CAP_OFFSET_RANGE: f64 = 1e-6;
 
 pub struct NearCaps {
-    tets: Vec<[u32; 4]>,
     /// Positions relative to the mesh's render origin, and scalars mapped as
-    /// the device sees them (`scalar_map`), in f64.
-    points: Vec<[f64; 3]>,
-    scalars: Vec<f64>,
-    origin: [f64; 3],
+    /// the device sees them (`scalar_map`), in f64; shared with the culler.
+    mesh: Arc<RelativeMesh>,
     /// The points' bounding box (relative to `origin`).
     bounds: ([f64; 3], [f64; 3]),
     records: Vec<f32>,
     vertices: usize,
     buffer: Option<Buffer>,
     pipeline: Arc<Pipeline>,
+}
+
+impl NearCaps {
+    pub fn host_bytes(&self, memory: &mut crate::algo::host_memory::HostMemory) {
+        memory.vec("near caps: records", &self.records);
+    }
 }
 
 fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
@@ -86,13 +88,11 @@ fn barycentric(v: &[[f64; 3]; 4]) -> Option<([[f64; 3]; 4], [f64; 4])> {
 impl NearCaps {
     pub fn new(
         ctx: &Arc<Context>,
-        mesh: &TetMesh,
+        mesh: Arc<RelativeMesh>,
         tables: &IntegrationTables,
         interpolation: Interpolation,
         pieces_set: Option<DescriptorSetDesc>,
     ) -> VkResult<Self> {
-        let origin = render_origin(mesh);
-        let (so, ss) = scalar_map(mesh);
         let f = |location, format, floats: u32| VertexAttribute { location, format, offset: floats * 4 };
         let attributes = [
             f(0, raw::Format::R32G32B32_SFLOAT, 0),
@@ -120,20 +120,16 @@ impl NearCaps {
             interpolation,
             pieces_set.as_slice(),
         )?;
-        let points: Vec<[f64; 3]> = mesh.points.iter().map(|p| sub(*p, origin)).collect();
         let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-        for p in &points {
+        for p in &mesh.points {
             for k in 0..3 {
                 lo[k] = lo[k].min(p[k]);
                 hi[k] = hi[k].max(p[k]);
             }
         }
         Ok(NearCaps {
-            tets: mesh.tets.clone(),
+            mesh,
             bounds: (lo, hi),
-            points,
-            scalars: mesh.scalars.iter().map(|s| (s - so) / ss).collect(),
-            origin,
             records: Vec::new(),
             vertices: 0,
             buffer: None,
@@ -145,7 +141,7 @@ impl NearCaps {
     pub fn prepare(&mut self, camera: &Camera, frame: &FrameSetup, projector: &dyn CellProjector) {
         self.records.clear();
         self.vertices = 0;
-        let eye = sub(camera.eye, self.origin);
+        let eye = sub(camera.eye, self.mesh.origin);
         let fwd = camera.forward();
         let fwd = [fwd.x, fwd.y, fwd.z];
         let depth = |p: [f64; 3]| dot(sub(p, eye), fwd);
@@ -155,8 +151,9 @@ impl NearCaps {
         if (0..3).any(|k| eye[k] < lo[k] || eye[k] > hi[k]) {
             return;
         }
-        let points = &self.points;
+        let points = &self.mesh.points;
         let cut: Vec<usize> = self
+            .mesh
             .tets
             .par_iter()
             .enumerate()
@@ -170,9 +167,9 @@ impl NearCaps {
             .collect();
         let mut codes = Vec::new();
         for t in cut {
-            let tet = self.tets[t];
-            let v = tet.map(|i| self.points[i as usize]);
-            let s = tet.map(|i| self.scalars[i as usize]);
+            let tet = self.mesh.tets[t];
+            let v = tet.map(|i| self.mesh.points[i as usize]);
+            let s = tet.map(|i| self.mesh.scalars[i as usize]);
             let polygon = section(&v, &v.map(depth), cap);
             codes.clear();
             projector.cap_pieces(t, frame, &mut |code| codes.push(code));

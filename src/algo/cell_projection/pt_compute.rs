@@ -24,7 +24,8 @@ use super::resident::{upload_cells, FLOATS_PER_STORED_CELL};
 use super::{cells_f32, CellProjector, DrawSettings, FrameConstants, FrameSetup};
 use crate::algo::integrate::IntegrationTables;
 use crate::algo::method::{MethodInfo, MethodInputs, RenderMethod};
-use crate::mesh::{TetGeometry, TetMesh};
+use crate::algo::host_memory::HostMemory;
+use crate::mesh::TetMesh;
 use crate::vk::{
     Buffer, BufferDesc, CommandRecorder, ComputePipelineKey, Context, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc,
     Image, ImageUse, Pipeline, PipelineKey, ShaderKey, ShaderStage, TexelBuffer, TimestampPool, UploadClass, UploadCounter, VkError,
@@ -70,8 +71,8 @@ fn create(inputs: MethodInputs) -> anyhow::Result<Box<dyn RenderMethod>> {
     // the oxygen post at 512^2 (18.4 M pairs); stored: resident's cell.
     let bytes = render::DeviceBytesPerCell { frame: PAIRS_PER_CELL * BYTES_PER_ENTRY, fixed: FLOATS_PER_STORED_CELL * 4 };
     let stages = raw::ShaderStageFlags::FRAGMENT | raw::ShaderStageFlags::COMPUTE;
-    render::CellProjection::create_for_stages(inputs, bytes, stages, |ctx, mesh, geometry, tables, draw, counter| {
-        Ok(Box::new(PtCompute::new(ctx, mesh, geometry, tables, draw, counter)?))
+    render::CellProjection::create_for_stages(inputs, bytes, stages, |ctx, mesh, tables, draw, counter| {
+        Ok(Box::new(PtCompute::new(ctx, mesh, tables, draw, counter)?))
     })
 }
 
@@ -439,14 +440,13 @@ impl PtCompute {
     pub fn new(
         ctx: &Arc<Context>,
         mesh: &TetMesh,
-        geometry: &TetGeometry,
         tables: &IntegrationTables,
         draw: DrawSettings,
         counter: &mut UploadCounter,
     ) -> VkResult<Self> {
-        let cells = cells_f32(mesh, geometry);
+        let cells = cells_f32(mesh);
         let n = cells.len();
-        let cell_buffer = upload_cells(ctx, "pt-compute cells", mesh, &cells, counter)?;
+        let cell_buffer = upload_cells(ctx, "pt-compute cells", mesh, counter)?;
         let first = frame_texels(ctx, "pt-compute tile starts", 1, 4, raw::Format::R32_UINT)?;
         let entries = frame_texels(ctx, "pt-compute pixel lists", 8 * n, BYTES_PER_ENTRY, raw::Format::R32_UINT)?;
         let counters = Buffer::new(
@@ -532,6 +532,13 @@ impl PtCompute {
 }
 
 impl CellProjector for PtCompute {
+    fn host_bytes(&self, memory: &mut HostMemory) {
+        memory.vec("projector: cell positions", &self.positions);
+        memory.vec("projector: footprints", &self.footprints);
+        memory.vec("projector: pixel list starts", &self.lists.first);
+        memory.add("projector: pixel lists", self.lists.band_cells.iter().map(crate::algo::host_memory::vec_bytes).sum());
+    }
+
     fn cells(&self) -> usize {
         self.positions.len()
     }

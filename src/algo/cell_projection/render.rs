@@ -16,13 +16,14 @@ use serde_json::json;
 use super::cull::{Culler, FrameCull, LookupGrid};
 use super::mpvo::MpvoSort;
 use super::sort::{CentroidSort, SortKind, Sorter};
-use super::{centroids_relative_f32, render_origin, CellProjector, DrawSettings, ExitTolerances, FrameSetup, Interpolation, MeshScale, Primitives};
+use super::{centroids_relative_f32, render_origin, CellProjector, RelativeMesh, DrawSettings, ExitTolerances, FrameSetup, Interpolation, MeshScale, Primitives};
+use crate::algo::host_memory::HostMemory;
 use crate::algo::integrate::{IntegrationTables, Integrator};
 use crate::algo::settings::{check, choice, flag, float, int, pick, MethodSettings};
 use crate::algo::method::{
     DataKind, Family, Feature, MethodInfo, MethodInputs, OptionSpec, Options, Phases, Published, PublishedFigure, RenderMethod, SceneData, View, Work,
 };
-use crate::mesh::{TetGeometry, TetMesh};
+use crate::mesh::TetMesh;
 use crate::vk::{ColorAttachment, CommandRecorder, Context, Image, UploadCounter, VkResult};
 
 crate::settings! {
@@ -257,11 +258,11 @@ pub const fn table_6_4(options: &'static str, fps: f64) -> Published {
 /// projector can keep what its constructor was given, e.g. atfs the
 /// transfer function).
 pub trait ProjectorBuilder:
-    FnOnce(&Arc<Context>, &TetMesh, &TetGeometry, &IntegrationTables, DrawSettings, &mut UploadCounter) -> VkResult<Box<dyn CellProjector>>
+    FnOnce(&Arc<Context>, &TetMesh, &IntegrationTables, DrawSettings, &mut UploadCounter) -> VkResult<Box<dyn CellProjector>>
 {
 }
 impl<F> ProjectorBuilder for F where
-    F: FnOnce(&Arc<Context>, &TetMesh, &TetGeometry, &IntegrationTables, DrawSettings, &mut UploadCounter) -> VkResult<Box<dyn CellProjector>>
+    F: FnOnce(&Arc<Context>, &TetMesh, &IntegrationTables, DrawSettings, &mut UploadCounter) -> VkResult<Box<dyn CellProjector>>
 {
 }
 
@@ -294,6 +295,10 @@ pub struct CellProjection {
     last_cull: Option<FrameCull>,
     /// The cells around the eye cut by the near plane (`near`).
     near: super::near::NearCaps,
+    /// The mesh the run holds for this method (`details.host_memory`).
+    scene_memory: HostMemory,
+    /// The culler's and near caps' shared mesh (counted once).
+    relative: Arc<RelativeMesh>,
     ctx: Arc<Context>,
 }
 
@@ -311,7 +316,7 @@ impl CellProjection {
         stages: ash::vk::ShaderStageFlags,
         build: impl ProjectorBuilder,
     ) -> Result<Box<dyn RenderMethod>> {
-        let SceneData::TetMesh { mesh, geometry } = inputs.data else {
+        let SceneData::TetMesh { mesh } = inputs.data else {
             anyhow::bail!("cell projection renders tetrahedral meshes only");
         };
         let settings = Settings::from_options(inputs.options)?;
@@ -335,15 +340,16 @@ impl CellProjection {
         )
         .context("building the integration tables")?;
         let draw = DrawSettings { interpolation: settings.interpolation, primitives: settings.primitives };
-        let projector = build(ctx, mesh, geometry, &tables, draw, inputs.counter)?;
+        let projector = build(ctx, mesh, &tables, draw, inputs.counter)?;
         let pieces = projector.pieces_set().map(|s| s.desc.clone());
-        let near = super::near::NearCaps::new(ctx, mesh, &tables, settings.interpolation, pieces)?;
-        let sorter = Sorter::new(settings.sort, mesh, geometry);
         let origin = render_origin(mesh);
+        let relative = RelativeMesh::new(mesh, origin);
+        let near = super::near::NearCaps::new(ctx, relative.clone(), &tables, settings.interpolation, pieces)?;
+        let sorter = Sorter::new(settings.sort, mesh);
         // Cells a device sort orders are all drawn: culling is off for it.
-        let culler = Culler::new(mesh, inputs.tf, LookupGrid::of(&tables), origin, settings.cull && !projector.sorts_on_device());
+        let culler = Culler::shared(mesh, relative.clone(), inputs.tf, LookupGrid::of(&tables), settings.cull && !projector.sorts_on_device());
         let check = inputs.diagnostics.then(|| {
-            (CentroidSort::with_origin(centroids_relative_f32(geometry, origin), origin), MpvoSort::new(mesh, geometry))
+            (CentroidSort::with_origin(centroids_relative_f32(mesh, origin), origin), MpvoSort::from_mesh(mesh))
         });
         Ok(Box::new(CellProjection {
             tables,
@@ -359,6 +365,12 @@ impl CellProjection {
             reused: false,
             last_cull: None,
             near,
+            relative,
+            scene_memory: {
+                let mut m = HostMemory::default();
+                m.scene_mesh(mesh);
+                m
+            },
             ctx: ctx.clone(),
         }))
     }
@@ -485,7 +497,15 @@ impl RenderMethod for CellProjection {
     }
 
     fn details(&self) -> serde_json::Value {
+        let mut memory = self.scene_memory.clone();
+        self.projector.host_bytes(&mut memory);
+        self.sorter.host_bytes(&mut memory);
+        memory.vec("sort: mpvo order with culled cells left out", &self.filtered);
+        self.relative.host_bytes(&mut memory);
+        self.culler.host_bytes(&mut memory);
+        self.near.host_bytes(&mut memory);
         json!({
+            "host_memory": memory.to_json(self.projector.cells()),
             "family": "cell-projection",
             "vertices_per_cell": self.projector.vertices_per_cell(),
             "floats_per_cell_by_construction": self.projector.floats_per_cell(),

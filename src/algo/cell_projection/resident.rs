@@ -13,12 +13,13 @@ use ash::vk as raw;
 
 use super::balanced::VERTICES_PER_CELL;
 use super::render;
-use super::{build_pipeline, cells_f32, CellF32, CellProjector, FrameSetup, DrawSettings, StaticIndices, MAX_INDICES_PER_CELL};
+use super::{build_pipeline, CellF32, CellMaker, CellProjector, FrameSetup, DrawSettings, StaticIndices, MAX_INDICES_PER_CELL};
+use crate::algo::host_memory::HostMemory;
 use crate::algo::integrate::IntegrationTables;
 use crate::algo::method::{MethodInfo, MethodInputs, RenderMethod};
-use crate::mesh::{TetGeometry, TetMesh};
+use crate::mesh::TetMesh;
 use crate::vk::{
-    upload_static_texels, Buffer, BufferDesc, CommandRecorder, Context, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc,
+    upload_static_streamed, Buffer, BufferDesc, CommandRecorder, Context, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc,
     Pipeline, PipelineKey, TexelBuffer, UploadClass, UploadCounter, VkError, VkResult,
 };
 
@@ -42,8 +43,8 @@ fn create(inputs: MethodInputs) -> anyhow::Result<Box<dyn RenderMethod>> {
         frame: BYTES_PER_CELL_PER_FRAME,
         fixed: MAX_INDICES_PER_CELL * 4 + FLOATS_PER_STORED_CELL * 4,
     };
-    render::CellProjection::create(inputs, bytes, |ctx, mesh, geometry, tables, draw, counter| {
-        Ok(Box::new(Resident::new(ctx, mesh, geometry, tables, draw, counter)?))
+    render::CellProjection::create(inputs, bytes, |ctx, mesh, tables, draw, counter| {
+        Ok(Box::new(Resident::new(ctx, mesh, tables, draw, counter)?))
     })
 }
 
@@ -75,14 +76,12 @@ impl Resident {
     pub fn new(
         ctx: &Arc<Context>,
         mesh: &TetMesh,
-        geometry: &TetGeometry,
         tables: &IntegrationTables,
         draw: DrawSettings,
         counter: &mut UploadCounter,
     ) -> VkResult<Self> {
-        let cells = cells_f32(mesh, geometry);
-        let n = cells.len();
-        let cell_buffer = upload_cells(ctx, "resident cells", mesh, &cells, counter)?;
+        let n = mesh.tets.len();
+        let cell_buffer = upload_cells(ctx, "resident cells", mesh, counter)?;
         let usage = raw::BufferUsageFlags::STORAGE_BUFFER;
         let indices = StaticIndices::upload(ctx, "resident indices", draw.primitives, n, counter)?;
         let order_buffer = Buffer::new(ctx, BufferDesc::upload("resident order", (n.max(1) * 4) as u64, usage))?;
@@ -135,10 +134,12 @@ pub(super) fn cells_and_order_set(ctx: &Arc<Context>, name: &str, cells: &TexelB
 }
 
 /// The cells as `resident.vert` reads them, uploaded once into device-local
-/// memory; a mesh with more texels than the device's texel-buffer limit is
-/// an error naming it.
-pub(super) fn upload_cells(ctx: &Arc<Context>, name: &str, mesh: &TetMesh, cells: &[CellF32], counter: &mut UploadCounter) -> VkResult<TexelBuffer> {
-    let n = cells.len();
+/// memory, made chunk by chunk while they stream through the staging buffer
+/// (no host copy of all of them is ever held); a mesh with more texels than
+/// the device's texel-buffer limit is an error naming it.
+pub(super) fn upload_cells(ctx: &Arc<Context>, name: &str, mesh: &TetMesh, counter: &mut UploadCounter) -> VkResult<TexelBuffer> {
+    use rayon::prelude::*;
+    let n = mesh.tets.len();
     let texels = n as u64 * (FLOATS_PER_STORED_CELL / 4) as u64;
     let limit = u64::from(ctx.info.max_texel_buffer_elements);
     if texels > limit {
@@ -147,8 +148,16 @@ pub(super) fn upload_cells(ctx: &Arc<Context>, name: &str, mesh: &TetMesh, cells
             mesh.name
         )));
     }
-    let data: Vec<f32> = cells.iter().flat_map(stored).collect();
-    upload_static_texels(ctx, name, bytemuck::cast_slice(&data), raw::Format::R32G32B32A32_SFLOAT, counter)
+    const CELL_BYTES: usize = FLOATS_PER_STORED_CELL * 4;
+    let maker = CellMaker::new(mesh);
+    let usage = raw::BufferUsageFlags::UNIFORM_TEXEL_BUFFER;
+    let buffer = upload_static_streamed(ctx, name, (n * CELL_BYTES) as u64, CELL_BYTES as u64, usage, counter, |offset, chunk| {
+        let first = offset as usize / CELL_BYTES;
+        chunk.par_chunks_mut(CELL_BYTES).with_min_len(1024).enumerate().for_each(|(i, dst)| {
+            dst.copy_from_slice(bytemuck::cast_slice(&stored(&maker.cell(mesh, first + i))));
+        });
+    })?;
+    TexelBuffer::over(ctx, buffer, raw::Format::R32G32B32A32_SFLOAT)
 }
 
 impl CellProjector for Resident {
@@ -167,6 +176,10 @@ impl CellProjector for Resident {
 
     fn drawn(&self) -> usize {
         self.drawn
+    }
+
+    fn host_bytes(&self, memory: &mut HostMemory) {
+        memory.vec("projector: order copy", &self.order);
     }
 
     fn pack(&mut self, order: &[u32], _frame: &FrameSetup) {

@@ -21,10 +21,11 @@ use super::device_sort::{DeviceCentroidSort, SortCamera};
 use super::render;
 use super::resident::{cells_and_order_set, resident_pipeline, upload_cells, FLOATS_PER_STORED_CELL};
 use super::sort::SortKind;
-use super::{cells_f32, centroids_relative_f32, render_origin, CellProjector, FrameSetup, DrawSettings, StaticIndices, MAX_INDICES_PER_CELL};
+use super::{centroids_relative_f32, render_origin, CellProjector, FrameSetup, DrawSettings, StaticIndices, MAX_INDICES_PER_CELL};
+use crate::algo::host_memory::HostMemory;
 use crate::algo::integrate::IntegrationTables;
 use crate::algo::method::{DataKind, Family, Feature, MethodInfo, MethodInputs, Options, RenderMethod};
-use crate::mesh::{TetGeometry, TetMesh};
+use crate::mesh::TetMesh;
 use crate::vk::{
     CommandRecorder, Context, DescriptorSet, Pipeline, PipelineKey, TexelBuffer, UploadCounter,
     VkResult,
@@ -96,8 +97,8 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
         frame: 0,
         fixed: MAX_INDICES_PER_CELL * 4 + FLOATS_PER_STORED_CELL * 4 + super::device_sort::DEVICE_BYTES_PER_CELL,
     };
-    render::CellProjection::create(inputs, bytes, |ctx, mesh, geometry, tables, draw, counter| {
-        Ok(Box::new(ResidentGpuSort::new(ctx, mesh, geometry, tables, draw, counter)?))
+    render::CellProjection::create(inputs, bytes, |ctx, mesh, tables, draw, counter| {
+        Ok(Box::new(ResidentGpuSort::new(ctx, mesh, tables, draw, counter)?))
     })
 }
 
@@ -115,17 +116,15 @@ impl ResidentGpuSort {
     pub fn new(
         ctx: &Arc<Context>,
         mesh: &TetMesh,
-        geometry: &TetGeometry,
         tables: &IntegrationTables,
         draw: DrawSettings,
         counter: &mut UploadCounter,
     ) -> VkResult<Self> {
-        let cells = cells_f32(mesh, geometry);
-        let n = cells.len();
+        let n = mesh.tets.len();
         // The same f64 -> f32 centroids as the CPU's centroid sort.
-        let centroids = centroids_relative_f32(geometry, render_origin(mesh));
+        let centroids = centroids_relative_f32(mesh, render_origin(mesh));
         let sort = DeviceCentroidSort::new(ctx, "resident-gpusort", &centroids, counter)?;
-        let cell_buffer = upload_cells(ctx, "resident-gpusort cells", mesh, &cells, counter)?;
+        let cell_buffer = upload_cells(ctx, "resident-gpusort cells", mesh, counter)?;
         let indices = StaticIndices::upload(ctx, "resident-gpusort indices", draw.primitives, n, counter)?;
         let set = cells_and_order_set(ctx, "resident-gpusort cells and order", &cell_buffer, sort.order())?;
         let (pipeline, pipeline_key) = resident_pipeline(ctx, tables, draw)?;
@@ -143,6 +142,10 @@ impl CellProjector for ResidentGpuSort {
     fn floats_per_cell(&self) -> usize {
         0
     }
+    fn host_bytes(&self, _memory: &mut HostMemory) {
+        // Cells, centroids and the order live on the device only.
+    }
+
     fn pipeline_key(&self) -> &PipelineKey {
         &self.pipeline_key
     }

@@ -48,6 +48,14 @@ impl CentroidSort {
         self.centroids.len()
     }
 
+    pub fn host_bytes(&self, memory: &mut crate::algo::host_memory::HostMemory) {
+        memory.vec("sort: f32 centroids", &self.centroids);
+        memory.vec("sort: keys and scratch", &self.keys);
+        memory.vec("sort: keys and scratch", &self.scratch_keys);
+        memory.vec("sort: order and scratch", &self.order);
+        memory.vec("sort: order and scratch", &self.scratch_order);
+    }
+
     pub fn is_empty(&self) -> bool {
         self.centroids.is_empty()
     }
@@ -140,13 +148,20 @@ pub enum Sorter {
 }
 
 impl Sorter {
-    pub fn new(kind: SortKind, mesh: &crate::mesh::TetMesh, geometry: &crate::mesh::TetGeometry) -> Self {
+    pub fn new(kind: SortKind, mesh: &crate::mesh::TetMesh) -> Self {
         match kind {
             SortKind::Centroid => {
                 let origin = super::render_origin(mesh);
-                Sorter::Centroid(CentroidSort::with_origin(super::centroids_relative_f32(geometry, origin), origin))
+                Sorter::Centroid(CentroidSort::with_origin(super::centroids_relative_f32(mesh, origin), origin))
             }
-            SortKind::Mpvo => Sorter::Mpvo(Box::new(super::mpvo::MpvoSort::new(mesh, geometry))),
+            SortKind::Mpvo => Sorter::Mpvo(Box::new(super::mpvo::MpvoSort::from_mesh(mesh))),
+        }
+    }
+
+    pub fn host_bytes(&self, memory: &mut crate::algo::host_memory::HostMemory) {
+        match self {
+            Sorter::Centroid(s) => s.host_bytes(memory),
+            Sorter::Mpvo(s) => s.host_bytes(memory),
         }
     }
 

@@ -12,8 +12,9 @@ use rayon::prelude::*;
 use super::render;
 use crate::algo::method::{MethodInfo, MethodInputs, RenderMethod};
 use super::{build_pipeline, cells_f32, CellProjector, FrameSetup, Interpolation, FACES};
+use crate::algo::host_memory::HostMemory;
 use crate::algo::integrate::IntegrationTables;
-use crate::mesh::{TetGeometry, TetMesh};
+use crate::mesh::TetMesh;
 use crate::vk::{Buffer, BufferDesc, CommandRecorder, Context, Pipeline, PipelineKey, UploadClass, UploadCounter, VertexAttribute, VkResult};
 
 pub const FLOATS_PER_VERTEX: usize = 11;
@@ -34,8 +35,8 @@ pub const METHOD: MethodInfo = render::method_info(
 
 fn create(inputs: MethodInputs) -> anyhow::Result<Box<dyn RenderMethod>> {
     let bytes = render::DeviceBytesPerCell { frame: FLOATS_PER_CELL * 4, fixed: 0 };
-    render::CellProjection::create(inputs, bytes, |ctx, mesh, geometry, tables, draw, _counter| {
-        Ok(Box::new(Vicp::new(ctx, mesh, geometry, tables, draw.interpolation)?))
+    render::CellProjection::create(inputs, bytes, |ctx, mesh, tables, draw, _counter| {
+        Ok(Box::new(Vicp::new(ctx, mesh, tables, draw.interpolation)?))
     })
 }
 
@@ -74,11 +75,10 @@ impl Vicp {
     pub fn new(
         ctx: &Arc<Context>,
         mesh: &TetMesh,
-        geometry: &TetGeometry,
         tables: &IntegrationTables,
         interpolation: Interpolation,
     ) -> VkResult<Self> {
-        let cells = cells_f32(mesh, geometry);
+        let cells = cells_f32(mesh);
         let n = cells.len();
         let mut records = vec![0f32; n * FLOATS_PER_CELL];
         records.par_chunks_mut(FLOATS_PER_CELL).zip(cells.par_iter()).for_each(|(out, c)| cell_records(c, out));
@@ -118,6 +118,11 @@ impl CellProjector for Vicp {
     fn floats_per_cell(&self) -> usize {
         FLOATS_PER_CELL
     }
+    fn host_bytes(&self, memory: &mut HostMemory) {
+        memory.vec("projector: view-independent records", &self.records);
+        memory.vec("projector: packed records", &self.packed);
+    }
+
     fn pipeline_key(&self) -> &PipelineKey {
         &self.pipeline_key
     }
