@@ -88,9 +88,7 @@ pub fn box_silhouette_pixels(
     height: u32,
     tolerance: f64,
 ) -> Vec<bool> {
-    let points = (0..8)
-        .map(|i: usize| std::array::from_fn(|a| if (i >> a) & 1 == 1 { max[a] } else { min[a] }))
-        .collect();
+    let points = (0..8).map(|i| box_corner(min, max, i)).collect();
     // A flat box (one sample thick on an axis) has no solid tets: its
     // outline is every edge of it.
     let solid = (0..3).all(|a| max[a] > min[a]);
@@ -100,11 +98,17 @@ pub fn box_silhouette_pixels(
     }
 }
 
+/// Corner `i` of the box: bit `a` of `i` picks `max` on axis `a` (the
+/// order `hex_grid_to_tets` reads 2x2x2 points in).
+fn box_corner(min: [f64; 3], max: [f64; 3], i: usize) -> [f64; 3] {
+    std::array::from_fn(|a| if (i >> a) & 1 == 1 { max[a] } else { min[a] })
+}
+
 /// The outline of a box flat on at least one axis: every edge of its
 /// (degenerate) box, the only thing a ray can graze.
 fn flat_box_outline(min: [f64; 3], max: [f64; 3], camera: &Camera, width: u32, height: u32, tol: f64) -> Vec<bool> {
     let mut mask = vec![false; width as usize * height as usize];
-    let corner = |i: usize| DVec3::from(std::array::from_fn::<f64, 3, _>(|a| if (i >> a) & 1 == 1 { max[a] } else { min[a] }));
+    let corner = |i: usize| DVec3::from(box_corner(min, max, i));
     for i in 0..8usize {
         for a in 0..3 {
             let j = i | (1 << a);
