@@ -23,6 +23,7 @@ use glam::DVec3;
 
 use crate::mesh::topology::Topology;
 use crate::mesh::adjacency::FACE_VERTS;
+use crate::mesh::split::hex_grid_to_tets;
 use crate::mesh::TetMesh;
 use crate::scene::{Camera, Projection};
 
@@ -68,6 +69,55 @@ pub fn silhouette_pixels(mesh: &TetMesh, camera: &Camera, width: u32, height: u3
         let (pa, pb) = (DVec3::from(mesh.points[a as usize]), DVec3::from(mesh.points[b as usize]));
         let Some((qa, qb)) = visible_part(camera, pa, pb) else { continue };
         mark_near_segment(&mut mask, width, height, camera, qa, qb, tolerance);
+    }
+    mask
+}
+
+/// [`silhouette_pixels`] of an axis-aligned box (a regular volume's
+/// domain, `min` to `max`): the box as a 5-tet mesh, whose boundary is the
+/// box's 6 faces (each two triangles; the diagonals are never silhouette
+/// edges, both halves face the same way). A ray caster's entry and exit
+/// points come from the same box, rasterized (raycast-fragment) or clipped
+/// in f32 (raycast-compute): a centre on its outline is the same
+/// measure-zero ambiguity as a mesh's.
+pub fn box_silhouette_pixels(
+    min: [f64; 3],
+    max: [f64; 3],
+    camera: &Camera,
+    width: u32,
+    height: u32,
+    tolerance: f64,
+) -> Vec<bool> {
+    let points = (0..8).map(|i| box_corner(min, max, i)).collect();
+    // A flat box (one sample thick on an axis) has no solid tets: its
+    // outline is every edge of it.
+    let solid = (0..3).all(|a| max[a] > min[a]);
+    match hex_grid_to_tets("box", [2, 2, 2], points, vec![0.0; 8]) {
+        Ok(mesh) if solid => silhouette_pixels(&mesh, camera, width, height, tolerance),
+        _ => flat_box_outline(min, max, camera, width, height, tolerance),
+    }
+}
+
+/// Corner `i` of the box: bit `a` of `i` picks `max` on axis `a` (the
+/// order `hex_grid_to_tets` reads 2x2x2 points in).
+fn box_corner(min: [f64; 3], max: [f64; 3], i: usize) -> [f64; 3] {
+    std::array::from_fn(|a| if (i >> a) & 1 == 1 { max[a] } else { min[a] })
+}
+
+/// The outline of a box flat on at least one axis: every edge of its
+/// (degenerate) box, the only thing a ray can graze.
+fn flat_box_outline(min: [f64; 3], max: [f64; 3], camera: &Camera, width: u32, height: u32, tol: f64) -> Vec<bool> {
+    let mut mask = vec![false; width as usize * height as usize];
+    let corner = |i: usize| DVec3::from(box_corner(min, max, i));
+    for i in 0..8usize {
+        for a in 0..3 {
+            let j = i | (1 << a);
+            if j != i {
+                if let Some((qa, qb)) = visible_part(camera, corner(i), corner(j)) {
+                    mark_near_segment(&mut mask, width, height, camera, qa, qb, tol);
+                }
+            }
+        }
     }
     mask
 }
@@ -120,7 +170,6 @@ fn mark_near_segment(mask: &mut [bool], width: u32, height: u32, camera: &Camera
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::split::hex_grid_to_tets;
 
     fn cube() -> TetMesh {
         let points = (0..8).map(|i| [(i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64]).collect();
@@ -156,5 +205,10 @@ mod tests {
         }
         // A tolerance below the half-pixel offset marks nothing.
         assert!(silhouette_pixels(&cube(), &camera, 16, 16, 0.4).iter().all(|&m| !m));
+        // The box of a volume over the same cube: the same outline.
+        assert_eq!(box_silhouette_pixels([0.0; 3], [1.0; 3], &camera, 16, 16, 0.6), mask);
+        // Flat on z (one sample thick): seen along -z, its rectangle's
+        // edges are the outline, the same pixels.
+        assert_eq!(box_silhouette_pixels([0.0; 3], [1.0, 1.0, 0.0], &camera, 16, 16, 0.6), mask);
     }
 }
