@@ -17,9 +17,15 @@ void main() {
     out_color = segment_color();
 #ifdef EXTRA_WORK
     // Test-only deliberate cost (VOLBENCH_TEST_EXTRA_FRAGMENT_WORK,
-    // docs/tracking.md): a chain the compiler cannot drop.
+    // docs/tracking.md): a chain of EXTRA_WORK dependent multiply-adds the
+    // compiler can neither drop nor unroll. The trip count is EXTRA_WORK plus
+    // a term that is 0 for every fragment drawn (its depth lies in [0, 1])
+    // but unknown when compiling, so the loop is a real loop at every N and
+    // its cost grows linearly with N (a constant bound was unrolled up to 32
+    // steps and became a far costlier loop beyond).
+    int steps = EXTRA_WORK + int(gl_FragCoord.z < -1.0);
     float w = out_color.a + gl_FragCoord.x;
-    for (int i = 0; i < EXTRA_WORK; i++) {
+    for (int i = 0; i < steps; i++) {
         w = w * 1.0000001 + 1e-9;
     }
     if (w == -1.0) {

@@ -23,7 +23,9 @@
 //!   (no idle worker spins between jobs).
 //! - What changes code paths is pinned and recorded in the result:
 //!   `LP_NUM_THREADS`, `LP_NATIVE_VECTOR_WIDTH`, Mesa's shader disk cache
-//!   off, rayon's thread count, one malloc arena without thread caches,
+//!   off, rayon's thread count, one malloc arena without thread caches and
+//!   with a fixed mmap threshold (lavapipe's per-draw-piece mallocs cost the
+//!   same whatever the heap's history),
 //!   valgrind's fair scheduling, no overlap. The validation layer is off (its
 //!   work would count as the method's; `--validation` with `--count` is an
 //!   error).
@@ -54,10 +56,15 @@ pub const PINNED_ENV: &[(&str, &str)] = &[
     ("LP_NATIVE_VECTOR_WIDTH", "128"),
     ("MESA_SHADER_CACHE_DISABLE", "true"),
     ("RAYON_NUM_THREADS", "1"),
-    // One malloc arena and no per-thread caches: lavapipe's queue thread
-    // freeing while the host allocates otherwise leaves the host's free
-    // lists, and so its malloc paths, in an order that varies run to run.
-    ("GLIBC_TUNABLES", "glibc.malloc.arena_max=1:glibc.malloc.tcache_count=0"),
+    // One malloc arena (the host and lavapipe's queue thread share it, in
+    // every run alike), no per-thread caches, and a fixed mmap threshold of
+    // 1 KiB. lavapipe's draw module mallocs and frees for every piece of a
+    // draw: the strip variant draws one piece per tet, split at each
+    // primitive restart, some 22,600 mallocs a frame. With glibc's default,
+    // self-adjusting threshold, what those mallocs cost depended on the
+    // heap's history, i.e. on the runs before in the same process: the
+    // strip variant's `device` moved by up to 2.5 % (docs/tracking.md).
+    ("GLIBC_TUNABLES", "glibc.malloc.arena_max=1:glibc.malloc.tcache_count=0:glibc.malloc.mmap_threshold=1024"),
 ];
 /// valgrind's options besides the output file.
 const VALGRIND_ARGS: &[&str] = &[
@@ -71,6 +78,12 @@ const VALGRIND_ARGS: &[&str] = &[
 ];
 /// The fence time-out of a counted run, seconds, unless the user set one.
 const COUNTED_FENCE_TIMEOUT_S: &str = "3600";
+/// Optional: a directory the counted child copies callgrind's dumps into
+/// before reading them (to see where a count moved with
+/// `callgrind_annotate`; docs/tracking.md). Unset: the dumps are deleted.
+pub const KEEP_VAR: &str = "VOLBENCH_COUNT_KEEP_DUMPS";
+/// The prefix of test-only switches; a counted run records any that is set.
+const TEST_SWITCH_PREFIX: &str = "VOLBENCH_TEST_";
 /// The dump files' prefix inside the count directory.
 const DUMP_PREFIX: &str = "callgrind.out";
 /// The harness's boundary between frames; what precedes it is not counted.
@@ -205,9 +218,14 @@ pub fn take_dumps(dir: &Path) -> Result<Vec<Dump>> {
         }
     }
     files.sort();
+    let keep = std::env::var_os(KEEP_VAR).map(PathBuf::from);
     let mut out = Vec::with_capacity(files.len());
     for (_, path) in files {
         let text = std::fs::read_to_string(&path).with_context(|| format!("reading callgrind dump {}", path.display()))?;
+        if let (Some(keep), Some(name)) = (&keep, path.file_name()) {
+            let to = keep.join(name);
+            std::fs::write(&to, &text).with_context(|| format!("{KEEP_VAR}: copying callgrind dump to {}", to.display()))?;
+        }
         out.push(parse_dump(&text, &path.display().to_string())?);
         std::fs::remove_file(&path).with_context(|| format!("removing {}", path.display()))?;
     }
@@ -252,6 +270,9 @@ pub fn report(dumps: &[Dump], frames: usize) -> Result<CountReport> {
     pinned.insert("overlap".into(), "off".into());
     pinned.insert("rayon_pool".into(), "the main thread alone".into());
     pinned.insert("valgrind".into(), VALGRIND_ARGS.join(" "));
+    // A test-only switch (`VOLBENCH_TEST_*`, e.g. the deliberate slowdown of
+    // docs/tracking.md) is recorded, so that a count made with one shows it.
+    pinned.extend(std::env::vars().filter(|(k, _)| k.starts_with(TEST_SWITCH_PREFIX)));
     Ok(CountReport {
         tool: "callgrind".into(),
         event: "Ir".into(),

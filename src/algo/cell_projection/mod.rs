@@ -496,15 +496,21 @@ pub trait CellProjector {
 }
 
 /// Test-only switch (docs/tracking.md): `VOLBENCH_TEST_EXTRA_FRAGMENT_WORK=N`
-/// adds N dependent multiply-adds to every fragment of
-/// shaders/cell_projection/balanced.frag (balanced and resident), the
-/// deliberate slowdown the counted compare must catch. Unset in real runs.
+/// adds a loop of N dependent multiply-adds (a cost linear in N) to every
+/// fragment of shaders/cell_projection/balanced.frag (balanced, its strip
+/// variant, resident and resident-gpusort), the deliberate slowdown the
+/// counted compare must catch. Unset in real runs; when set, every run says
+/// so on stderr and a counted run records it in `count.pinned`.
 pub const EXTRA_WORK_VAR: &str = "VOLBENCH_TEST_EXTRA_FRAGMENT_WORK";
 
 fn extra_fragment_work() -> VkResult<Option<String>> {
+    static WARNED: std::sync::Once = std::sync::Once::new();
     match std::env::var(EXTRA_WORK_VAR) {
         Err(_) => Ok(None),
-        Ok(v) if v.parse::<u16>().is_ok() => Ok(Some(v)),
+        Ok(v) if v.parse::<u16>().is_ok() => {
+            WARNED.call_once(|| eprintln!("volbench: {EXTRA_WORK_VAR}={v} is set: balanced.frag carries a deliberate test-only slowdown"));
+            Ok(Some(v))
+        }
         Ok(v) => Err(crate::vk::VkError::Invalid(format!("{EXTRA_WORK_VAR}={v}: not a count of multiply-adds (0..=65535)"))),
     }
 }
