@@ -139,6 +139,10 @@ struct AbArgs {
     /// Per frame: frames per alternation step (the sample is their median).
     #[arg(long, default_value_t = 1)]
     batch: usize,
+    /// Per frame: rounds of fresh serve processes the pairs are shared out
+    /// over; the interval is over the rounds (a process's own bias counts).
+    #[arg(long, default_value_t = 10)]
+    processes: usize,
     /// Per frame: seconds a serve process may take to answer (its start,
     /// loading and warm-up included) before its process group is killed.
     #[arg(long, default_value_t = 600.0)]
@@ -769,6 +773,7 @@ fn ab(registry: &Registry, args: &AbArgs) -> Result<()> {
         height: args.size.1,
         frames: args.frames,
         batch: args.batch,
+        processes: args.processes,
         warmup: args.warmup,
         pairs: args.pairs.unwrap_or(if args.per_run { 10 } else { 300 }),
         timeout_s: args.timeout,

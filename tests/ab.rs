@@ -30,6 +30,8 @@ fn bad_binaries_and_revisions_are_clear_errors() {
     }
     for (args, needle) in [
         (vec!["--pairs", "1"], "--pairs"),
+        (vec!["--pairs", "4", "--processes", "5"], "--processes"),
+        (vec!["--processes", "1"], "--processes"),
         (vec!["--threshold", "0"], "--threshold"),
         (vec!["--filter", "nope"], "--filter nope"),
         (vec!["--spec", "balanced:nope=1"], "--spec"),
@@ -41,13 +43,14 @@ fn bad_binaries_and_revisions_are_clear_errors() {
     }
 }
 
-/// `ab EXE EXE` on balanced/post-small at 32x32, 3 pairs, plus `extra`:
+/// `ab EXE EXE` on balanced/post-small at 32x32, 3 pairs (per frame: over 3
+/// rounds of fresh processes), plus `extra`:
 /// the report JSON, stdout, stderr and whether it succeeded; checks what
 /// every such run must hold.
 fn self_ab(base: &str, new: &str, extra: &[&str]) -> (serde_json::Value, String, String, bool) {
     let dir = tempfile::tempdir().unwrap();
     let out = volbench()
-        .args(["ab", base, new, "--filter", "balanced", "--pairs", "3", "--size", "32x32", "--frames", "2", "--warmup", "0", "--seed", "5"])
+        .args(["ab", base, new, "--filter", "balanced", "--pairs", "3", "--processes", "3", "--size", "32x32", "--frames", "2", "--warmup", "0", "--seed", "5"])
         .args(extra)
         .arg("--out")
         .arg(dir.path())
@@ -89,9 +92,9 @@ fn a_binary_against_itself_writes_the_table_and_json() {
     let row = &v["rows"][0];
     assert_eq!(row["mode"], "per-frame");
     assert!(row["fallback"].is_null());
-    // 3 pairs: 2 batch means (batches_for).
-    assert_eq!(row["estimate"]["batches"], 2);
-    assert!(stdout.contains("| post-small | balanced | per frame | 3 | 2 |"), "{stdout}");
+    // 3 pairs over 3 rounds of fresh processes: 3 round means.
+    assert_eq!(row["estimate"]["batches"], 3);
+    assert!(stdout.contains("| post-small | balanced | per frame | 3 | 3 |"), "{stdout}");
     let (v, stdout, _, _) = self_ab(exe, exe, &["--per-run"]);
     assert_eq!((v["settings"]["mode"].as_str(), v["rows"][0]["mode"].as_str()), (Some("per-run"), Some("per-run")));
     assert_eq!(v["rows"][0]["estimate"]["batches"], 3);
@@ -145,7 +148,7 @@ fn a_server_that_stops_answering_is_killed_with_a_clear_error() {
     let mute = script(dir.path(), "mute", "[ \"$1\" = --version ] && { echo 'volbench 0.1.0'; exit 0; }\nsleep 300 & wait");
     let exe = env!("CARGO_BIN_EXE_volbench");
     let start = std::time::Instant::now();
-    let out = volbench().args(["ab", exe, &mute, "--filter", "balanced", "--pairs", "2", "--size", "32x32", "--warmup", "0", "--timeout", "2"]).output().unwrap();
+    let out = volbench().args(["ab", exe, &mute, "--filter", "balanced", "--pairs", "2", "--processes", "2", "--size", "32x32", "--warmup", "0", "--timeout", "2"]).output().unwrap();
     assert!(start.elapsed().as_secs() < 120, "{:?}", start.elapsed());
     assert_eq!(out.status.code(), Some(1));
     let (stdout, stderr) = (String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));

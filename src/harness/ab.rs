@@ -164,7 +164,8 @@ fn build_revision(commit: &str, target_dir: &Path) -> Result<PathBuf> {
 #[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq)]
 #[serde(rename_all = "kebab-case")]
 pub enum Mode {
-    /// One resident serve process per binary; pairs of single frames (or batches).
+    /// Resident serve processes, one per binary, started afresh for each of
+    /// several rounds; pairs of single frames (or batches) within a round.
     PerFrame,
     /// One fresh process per sample.
     PerRun,
@@ -184,6 +185,12 @@ pub struct AbSettings {
     pub warmup: usize,
     /// Samples per binary and benchmark.
     pub pairs: usize,
+    /// Per frame: rounds of fresh serve processes the pairs are shared out
+    /// over. Two processes of one binary can differ by several per cent for
+    /// their whole life (measured: the same build against itself, 1.09 over
+    /// 300 frame pairs in one pair of processes), so the interval is over
+    /// the rounds' mean log ratios, not over frames of one pair of processes.
+    pub processes: usize,
     /// How long a serve process may take to answer (its handshake included)
     /// before it is killed.
     pub timeout_s: f64,
@@ -198,6 +205,14 @@ impl AbSettings {
         ensure!(self.pairs >= 2, "--pairs must be at least 2 (an interval needs two pairs), got {}", self.pairs);
         ensure!(self.pairs <= 10_000, "--pairs {} is more than 10000", self.pairs);
         ensure!(self.frames >= 1, "--frames must be at least 1");
+        if self.mode == Mode::PerFrame {
+            ensure!(
+                (2..=self.pairs).contains(&self.processes),
+                "--processes must be from 2 to --pairs ({}), got {}",
+                self.pairs,
+                self.processes
+            );
+        }
         ensure!(
             (1..=super::serve::MAX_BATCH).contains(&self.batch),
             "--batch must be from 1 to {}, got {}",
@@ -285,13 +300,6 @@ pub fn t_975(df: usize) -> f64 {
     let (z3, z5, z7) = (z.powi(3), z.powi(5), z.powi(7));
     z + (z3 + z) / (4.0 * v) + (5.0 * z5 + 16.0 * z3 + 3.0 * z) / (96.0 * v * v)
         + (3.0 * z7 + 19.0 * z5 + 17.0 * z3 - 15.0 * z) / (384.0 * v * v * v)
-}
-
-/// How many batches per-frame pairs are grouped into: about √n (batches
-/// long enough to hold a load spike, and enough of them for the t
-/// interval), at least 2 and at most 30.
-pub fn batches_for(pairs: usize) -> usize {
-    ((pairs as f64).sqrt().round() as usize).clamp(2, 30).min(pairs)
 }
 
 /// The paired estimate from `pairs` (at least two, every sample positive)
@@ -412,8 +420,8 @@ pub struct AbReport {
 /// The statistic of `mode`, as reports state it.
 pub fn statistic(mode: Mode) -> String {
     match mode {
-        Mode::PerFrame => "per frame: one resident serve process per binary, single frames (or batches) alternated in random pair order; \
-                           95 % t interval on ln(new/base) over batch means of about sqrt(pairs) consecutive pairs"
+        Mode::PerFrame => "per frame: in each of several rounds a fresh resident serve process per binary, single frames (or batches) alternated \
+                           in random pair order; 95 % t interval on ln(new/base) over the rounds' means (a process's own bias is in the spread)"
             .into(),
         Mode::PerRun => "per run: one fresh process per sample (median of its frames), pair order randomised; \
                          paired 95 % t interval on ln(new/base)"
@@ -479,8 +487,11 @@ fn serve_args(bench: &Benchmark, s: &AbSettings) -> Vec<String> {
     .collect()
 }
 
-/// Per frame: both binaries' servers, then `pairs` batches of each in
-/// seeded order. `Err(Ok(reason))`: a binary has no serve mode (fall back).
+/// Per frame: `processes` rounds, each with a fresh server per binary
+/// (started in seeded order) and its share of the `pairs` batches of each in
+/// seeded order; the pairs come back round after round, so the estimate's
+/// batches are the rounds. `Err(Ok(reason))`: a binary has no serve mode
+/// (fall back).
 fn frame_pairs(
     base: &Binary,
     new: &Binary,
@@ -496,22 +507,29 @@ fn frame_pairs(
         Err(StartError::Unsupported(why)) => Err(Ok(why)),
         Err(StartError::Failed(e)) => Err(Err(e)),
     };
-    // Both resident before the first timed frame.
-    let mut base_server = start(base)?;
-    let mut new_server = start(new)?;
     let median = |v: Vec<f64>| super::stats::Summary::of(&v).median;
     let mut pairs = Vec::with_capacity(s.pairs);
-    for p in 0..s.pairs {
-        progress(p);
-        let new_first = order.new_first();
-        let (first, second) = if new_first { (&mut new_server, &mut base_server) } else { (&mut base_server, &mut new_server) };
-        let a = median(first.frames(s.batch).map_err(Err)?);
-        let b = median(second.frames(s.batch).map_err(Err)?);
-        let (new_ms, base_ms) = if new_first { (a, b) } else { (b, a) };
-        pairs.push(Pair { base_ms, new_ms, new_first });
+    for round in 0..s.processes {
+        // Both resident before the round's first timed frame.
+        let (mut base_server, mut new_server) = if order.new_first() {
+            let n = start(new)?;
+            (start(base)?, n)
+        } else {
+            let b = start(base)?;
+            (b, start(new)?)
+        };
+        for _ in round * s.pairs / s.processes..(round + 1) * s.pairs / s.processes {
+            progress(pairs.len());
+            let new_first = order.new_first();
+            let (first, second) = if new_first { (&mut new_server, &mut base_server) } else { (&mut base_server, &mut new_server) };
+            let a = median(first.frames(s.batch).map_err(Err)?);
+            let b = median(second.frames(s.batch).map_err(Err)?);
+            let (new_ms, base_ms) = if new_first { (a, b) } else { (b, a) };
+            pairs.push(Pair { base_ms, new_ms, new_first });
+        }
+        base_server.quit().map_err(Err)?;
+        new_server.quit().map_err(Err)?;
     }
-    base_server.quit().map_err(Err)?;
-    new_server.quit().map_err(Err)?;
     Ok(pairs)
 }
 
@@ -580,7 +598,9 @@ pub fn run(
         if sampled.is_none() {
             sampled = Some(run_pairs(base, new, bench, settings, &mut order, &scratch, &mut tick));
         }
-        let batches = |n: usize| if mode == Mode::PerRun { n } else { batches_for(n) };
+        // Per frame the batches are the rounds (`frame_pairs` shares the
+        // pairs out over them as `estimate` splits them).
+        let batches = |n: usize| if mode == Mode::PerRun { n } else { settings.processes };
         let (samples, estimate) = match sampled {
             Some(Ok(samples)) => {
                 let e = estimate(&samples, batches(samples.len()));
@@ -738,7 +758,6 @@ mod tests {
 
     #[test]
     fn per_frame_intervals_are_on_batch_means() {
-        assert_eq!((batches_for(2), batches_for(3), batches_for(16), batches_for(400), batches_for(5000)), (2, 2, 4, 20, 30));
         // 16 pairs in 4 runs of 4 alike (a load spike spans several frames):
         // log ratios ln 1.05 ± 0.02 by run. The batch means are those four
         // values, so the interval is the t interval (3 df) of them, wider
