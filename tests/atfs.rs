@@ -4,27 +4,15 @@
 //! drawn, bytes per original tet).
 
 mod common;
-use common::context;
-
+use common::run_mesh as run;
 
 use volbench::algo::cell_projection::atfs::{Intervals, FLOATS_PER_PIECE};
 use volbench::algo::cell_projection::scalar_map;
-use volbench::algo::registry;
-use volbench::harness::datasets::{self, Dataset};
+use volbench::harness::datasets;
 use volbench::harness::image::RgbaImage;
-use volbench::harness::run::{run as run_method, RunConfig, RunOutput};
+use volbench::harness::run::{RunConfig, RunOutput};
 use volbench::mesh::TetMesh;
 use volbench::scene::TransferFunction;
-
-
-fn run(mesh: &TetMesh, tf: &TransferFunction, spec: &str, cfg: &RunConfig) -> RunOutput {
-    let dataset = Dataset::from_mesh(mesh.clone(), false, "test".into());
-    let spec = registry::builtin().parse_spec(spec, &[]).expect("spec");
-    let ctx = context();
-    let out = run_method(&ctx, &spec, &dataset, tf, cfg).expect("run");
-    assert!(ctx.validation_messages().is_empty(), "{:?}", ctx.validation_messages());
-    out
-}
 
 fn config(size: u32) -> RunConfig {
     RunConfig { width: size, height: size, frames: 1, warmup: 0, ..RunConfig::default() }

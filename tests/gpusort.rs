@@ -5,8 +5,7 @@
 //! deterministic counts only, no timings.
 
 mod common;
-use common::context;
-
+use common::{context, run_mesh as run};
 
 use volbench::algo::cell_projection::device_sort::{DeviceCentroidSort, SortCamera, CAMERA_BYTES, TILE};
 use volbench::algo::cell_projection::resident::FLOATS_PER_STORED_CELL;
@@ -15,12 +14,11 @@ use volbench::algo::cell_projection::sort::CentroidSort;
 use volbench::algo::cell_projection::{centroids_relative_f32, render_origin, FrameConstants};
 use volbench::algo::integrate::{PSI_TABLE_SIZE, TF_TABLE_SIZE};
 use volbench::algo::registry;
-use volbench::harness::datasets::{self, Dataset};
-use volbench::harness::run::{run as run_method, RunConfig, RunOutput};
-use volbench::mesh::{Bounds, TetMesh};
-use volbench::scene::{Camera, Projection, TransferFunction};
+use volbench::harness::datasets;
+use volbench::harness::run::RunConfig;
+use volbench::mesh::Bounds;
+use volbench::scene::{Camera, Projection};
 use volbench::vk::{CommandRecorder, UploadCounter};
-
 
 /// The device order for `centroids` (relative to `origin`) seen by `camera`,
 /// and the bytes the sort pushed.
@@ -105,15 +103,6 @@ fn the_device_order_is_the_cpu_order_on_a_real_mesh() {
         let camera = Camera::orbit(&mesh.bounds(), angle, Projection::Perspective { fovy_deg: 30.0 });
         assert_eq!(device_order(&c, origin, &camera).0, cpu_order(&c, origin, &camera), "angle {angle}");
     }
-}
-
-fn run(mesh: &TetMesh, tf: &TransferFunction, spec: &str, cfg: &RunConfig) -> RunOutput {
-    let dataset = Dataset::from_mesh(mesh.clone(), false, "test".into());
-    let spec = registry::builtin().parse_spec(spec, &[]).expect("spec");
-    let ctx = context();
-    let out = run_method(&ctx, &spec, &dataset, tf, cfg).expect("run");
-    assert!(ctx.validation_messages().is_empty(), "{:?}", ctx.validation_messages());
-    out
 }
 
 fn small_config(size: u32) -> RunConfig {

@@ -6,25 +6,15 @@
 //! only, no timings.
 
 mod common;
-use common::context;
+use common::run_mesh as run;
 
 use volbench::algo::cell_projection::pt_compute::{BIN_PHASE, COMPOSITE_PHASE};
-use volbench::algo::registry;
-use volbench::harness::datasets::{self, Dataset};
+use volbench::harness::datasets;
 use volbench::harness::image::RgbaImage;
-use volbench::harness::run::{run as run_method, RunConfig, RunOutput};
+use volbench::harness::run::RunConfig;
 use volbench::mesh::split::hex_grid_to_tets;
 use volbench::mesh::TetMesh;
 use volbench::scene::{Camera, ControlPoint, Projection, TransferFunction};
-
-fn run(mesh: &TetMesh, tf: &TransferFunction, spec: &str, cfg: &RunConfig) -> RunOutput {
-    let dataset = Dataset::from_mesh(mesh.clone(), false, "test".into());
-    let spec = registry::builtin().parse_spec(spec, &[]).expect("spec");
-    let ctx = context();
-    let out = run_method(&ctx, &spec, &dataset, tf, cfg).expect("run");
-    assert!(ctx.validation_messages().is_empty(), "{:?}", ctx.validation_messages());
-    out
-}
 
 fn config(size: u32, projection: Projection) -> RunConfig {
     RunConfig { width: size, height: size, frames: 2, warmup: 1, projection, ..RunConfig::default() }

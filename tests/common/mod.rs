@@ -25,6 +25,22 @@ pub fn context() -> std::sync::MutexGuard<'static, std::sync::Arc<volbench::vk::
     .unwrap_or_else(|p| p.into_inner())
 }
 
+/// `spec` run on `mesh` with the shared validated context; any validation
+/// message fails the test.
+pub fn run_mesh(
+    mesh: &volbench::mesh::TetMesh,
+    tf: &volbench::scene::TransferFunction,
+    spec: &str,
+    cfg: &volbench::harness::run::RunConfig,
+) -> volbench::harness::run::RunOutput {
+    let dataset = volbench::harness::datasets::Dataset::from_mesh(mesh.clone(), false, "test".into());
+    let spec = volbench::algo::registry::builtin().parse_spec(spec, &[]).expect("spec");
+    let ctx = context();
+    let out = volbench::harness::run::run(&ctx, &spec, &dataset, tf, cfg).expect("run");
+    assert!(ctx.validation_messages().is_empty(), "{:?}", ctx.validation_messages());
+    out
+}
+
 /// A NumPy `.npy` (format 1.0) of `dict`, the header dict's text, and `data`.
 pub fn npy_bytes(dict: &str, data: &[u8]) -> Vec<u8> {
     let mut h = dict.to_string();
