@@ -21,7 +21,7 @@ use rayon::prelude::*;
 use super::balanced::VERTICES_PER_CELL;
 use super::render;
 use super::resident::{upload_cells, FLOATS_PER_STORED_CELL};
-use super::{cells_f32, CellProjector, DrawSettings, FrameConstants, FrameSetup};
+use super::{CellMaker, CellProjector, DrawSettings, FrameConstants, FrameSetup};
 use crate::algo::integrate::IntegrationTables;
 use crate::algo::method::{MethodInfo, MethodInputs, RenderMethod};
 use crate::algo::host_memory::HostMemory;
@@ -444,8 +444,11 @@ impl PtCompute {
         draw: DrawSettings,
         counter: &mut UploadCounter,
     ) -> VkResult<Self> {
-        let cells = cells_f32(mesh);
-        let n = cells.len();
+        // Only the positions are kept (degenerate cells collapsed as the
+        // stored cells are): no whole-mesh array of f32 cells on the host.
+        let maker = CellMaker::new(mesh);
+        let positions: Vec<[[f32; 3]; 4]> = (0..mesh.tets.len()).into_par_iter().map(|t| maker.cell(mesh, t).pos).collect();
+        let n = positions.len();
         let cell_buffer = upload_cells(ctx, "pt-compute cells", mesh, counter)?;
         let first = frame_texels(ctx, "pt-compute tile starts", 1, 4, raw::Format::R32_UINT)?;
         let entries = frame_texels(ctx, "pt-compute pixel lists", 8 * n, BYTES_PER_ENTRY, raw::Format::R32_UINT)?;
@@ -486,7 +489,7 @@ impl PtCompute {
         });
         let pipeline = crate::algo::pipelines::get(ctx, &pipeline_key)?;
         Ok(PtCompute {
-            positions: cells.iter().map(|c| c.pos).collect(),
+            positions,
             drawn: n,
             lists: PixelLists::default(),
             footprints: Vec::new(),
