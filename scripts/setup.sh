@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Installs what volbench needs on a fresh Debian 12 / Ubuntu machine (run as root),
 # idempotently: the Vulkan loader, Mesa's lavapipe driver, the validation layer and
-# shaderc's libraries (and a font for plot labels, valgrind for counted runs), then merges Debian's static shaderc/glslang/SPIRV-Tools
+# shaderc's libraries (and a font for plot labels, valgrind and libc6-dbg for counted runs: the debug symbols name glibc's allocator, which counts leave out), then merges Debian's static shaderc/glslang/SPIRV-Tools
 # archives into one (Debian's libshaderc.so does not link as shipped; see
 # ../shared/PLATFORM.md) under .shaderc/, where .cargo/config.toml points shaderc-sys.
 set -euo pipefail
@@ -9,7 +9,7 @@ cd "$(dirname "$0")/.."
 
 packages=(mesa-vulkan-drivers libvulkan1 libvulkan-dev vulkan-validationlayers
           libshaderc-dev glslang-dev spirv-tools build-essential pkg-config
-          fonts-dejavu-core valgrind)
+          fonts-dejavu-core valgrind libc6-dbg)
 
 bash scripts/ensure-packages.sh "${packages[@]}"
 

@@ -16,8 +16,6 @@ const RUNS: usize = 5;
 const REL: f64 = 1e-3;
 /// ...or this many instructions.
 const FLOOR: f64 = 1000.0;
-/// The strip variant's bound (see `the_strip_variant_repeats_whatever_the_heap_history`).
-const STRIP_REL: f64 = 0.02;
 
 /// One counted 32x32 run on `post-small` (`--frames F --warmup W`).
 fn counted(dir: &std::path::Path, method: &str, warmup: usize, frames: usize, i: usize) -> Value {
@@ -92,15 +90,13 @@ fn a_counted_run_repeats_within_a_thousandth_in_every_phase() {
 }
 
 /// The strip variant draws one piece per tet (split at each primitive
-/// restart), and lavapipe mallocs and frees for every piece: its `device`
-/// count repeats only if such a malloc costs the same whatever the heap's
-/// history (the pinned malloc settings, `harness::count::PINNED_ENV`). The
-/// same frame counted after one more warm-up frame (another heap history)
-/// must count the same; without the fixed mmap threshold it moved by 2.5 %.
-/// With it the variant still does not repeat to 0.1 % (the open defect of
-/// issue 20 item 2, docs/tracking.md): a fresh-clone CI run on 2026-12-02
-/// counted one of five runs 0.93 % below the others. Held here to
-/// `STRIP_REL` (a regression to the unpinned 2.5 % fails), not to `REL`.
+/// restart), and lavapipe mallocs and frees for every piece, some 22,600
+/// a frame: what those mallocs cost depends on the heap's history and on
+/// how lavapipe's queue thread and the host interleaved, so the counts
+/// leave the allocator out (`count.allocator`, docs/tracking.md). With it
+/// in, five runs spread by up to 3.2 % (CI, 2026-12-02) and a frame
+/// counted after one more warm-up frame moved by 2.5 %; without it both
+/// hold to `REL`.
 #[test]
 fn the_strip_variant_repeats_whatever_the_heap_history() {
     if valgrind_missing() {
@@ -109,12 +105,12 @@ fn the_strip_variant_repeats_whatever_the_heap_history() {
     let dir = tempfile::tempdir().unwrap();
     let strip = "balanced:primitives=strip";
     let runs = counted_runs(dir.path(), strip, RUNS);
-    assert_repeats(strip, &runs, STRIP_REL);
+    assert_repeats(strip, &runs, REL);
     // Frame 2 of the run: the second timed frame after one warm-up, or
     // the only one after two.
     let later = counted(dir.path(), strip, 2, 1, RUNS);
     let (a, b) = (phase_count(&runs[0], "device", 1), phase_count(&later, "device", 0));
-    assert!((a - b).abs() <= STRIP_REL * a.max(b), "{strip}: frame 2's device counted {a} after one warm-up frame, {b} after two");
+    assert!((a - b).abs() <= (REL * a.max(b)).max(FLOOR), "{strip}: frame 2's device counted {a} after one warm-up frame, {b} after two");
 }
 
 #[test]
