@@ -13,8 +13,9 @@ use anyhow::{bail, Context as _, Result};
 
 use super::Heightmap;
 
-/// Largest decompressed `.npz` member read (bytes): a 16384² float64 grid.
-pub const MAX_MEMBER_BYTES: u64 = 16384 * 16384 * 8;
+/// Largest decompressed `.npz` member read (bytes): the largest grid
+/// (`MAX_SAMPLES`) as float64.
+pub const MAX_MEMBER_BYTES: u64 = super::MAX_SAMPLES as u64 * 8;
 
 /// The element type of an array.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -120,17 +121,16 @@ fn dict_value<'a>(text: &'a str, key: &str) -> Option<&'a str> {
 }
 
 /// Refuse an array bigger than any grid volbench takes before its values
-/// are made (each is an f64): `MAX_SIDE`² elements.
+/// are made (each is an f64): `MAX_SAMPLES` elements, a grid as
+/// `check_grid` says.
 fn check_shape(name: &str, shape: &[usize]) -> Result<()> {
     let count = shape.iter().try_fold(1usize, |a, &d| a.checked_mul(d)).unwrap_or(usize::MAX);
-    let max = super::MAX_SIDE * super::MAX_SIDE;
+    let max = super::MAX_SAMPLES;
     if count > max {
-        bail!("{name}: .npy shape {shape:?} has {count} elements, more than the {max} of the largest grid ({0}x{0})", super::MAX_SIDE);
+        bail!("{name}: .npy shape {shape:?} has {count} elements, more than the {max} of the largest grid (8192x8192)");
     }
     if let [ny, nx] = shape {
-        if *nx > super::MAX_SIDE || *ny > super::MAX_SIDE {
-            bail!("{name}: a {nx}x{ny} grid exceeds {} samples per side", super::MAX_SIDE);
-        }
+        super::check_grid(name, *nx, *ny)?;
     }
     Ok(())
 }
