@@ -863,9 +863,31 @@ fn broken_pipe(e: &anyhow::Error) -> bool {
     e.chain().any(|c| c.downcast_ref::<std::io::Error>().is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe))
 }
 
+/// `--help`, `--version` or a usage error: clap's text, through the one
+/// stdout rule (`write_stdout`: a full device is an error, a closed pipe a
+/// quiet exit), not clap's own printing, which ignores write errors.
+fn parse_failure(e: &clap::Error) -> ExitCode {
+    use clap::error::ErrorKind;
+    if !matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) {
+        // A usage error: to standard error, as clap does.
+        let _ = e.print();
+        return ExitCode::from(u8::try_from(e.exit_code()).unwrap_or(2));
+    }
+    match write_stdout(&e.render().to_string()) {
+        Err(e) if !broken_pipe(&e) => {
+            volbench::progress!("volbench: error: {e:#}");
+            ExitCode::FAILURE
+        }
+        _ => ExitCode::SUCCESS,
+    }
+}
+
 fn main() -> ExitCode {
     fsio::occupy_closed_stdio();
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => return parse_failure(&e),
+    };
     // `--count`: the same command again, under valgrind.
     let count = match &cli.command {
         Command::Run(a) => a.count,

@@ -185,10 +185,13 @@ fn peak_rss(args: &[&str], data: &Path) -> (Output, u64) {
 
 #[test]
 fn a_volume_costs_twice_its_bytes_plus_a_fixed_overhead() {
-    // A 256³ 8-bit volume of zeros (16 MiB, a 16 kB gzip NRRD) against a
+    // A 384³ 8-bit volume of zeros (54 MiB, a 55 kB gzip NRRD) against a
     // 2³ one rendered the same way: the difference is the samples and their
-    // texture (2×), the skip map (one byte a 2³ brick) and at most 32 MiB
-    // (the 8 MiB staging slab, allocator slack). It was 16× (268 MB).
+    // texture (2×), the distance map (one byte a 2³ brick) and at most
+    // 32 MiB (the 8 MiB staging slab, allocator slack: 139 MiB measured over
+    // 2³ with the validation layer). It was 16× (268 MB
+    // at 256³), then the brick ranges (16 bytes a brick) and the samples
+    // were 162 MiB here before the texture existed (computed).
     let d = tempfile::tempdir().unwrap();
     let nrrd = |n: usize| {
         let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
@@ -201,11 +204,11 @@ fn a_volume_costs_twice_its_bytes_plus_a_fixed_overhead() {
     };
     let args = ["run", "--size", "32x32", "--frames", "1", "--warmup", "0", "--method", "raycast-compute"];
     let (small_out, small) = peak_rss(&args, &nrrd(2));
-    let (big_out, big) = peak_rss(&args, &nrrd(256));
+    let (big_out, big) = peak_rss(&args, &nrrd(384));
     assert!(small_out.status.success() && big_out.status.success(), "{}{}", text(&small_out), text(&big_out));
-    let n_kb = (256u64 * 256 * 256) >> 10;
+    let n_kb = (384u64 * 384 * 384) >> 10;
     let bound = 2 * n_kb + n_kb / 8 + (32 << 10);
-    assert!(big.saturating_sub(small) <= bound, "256³ peaks at {big} kB, 2³ at {small} kB: more than {bound} kB for 16 MiB of samples");
+    assert!(big.saturating_sub(small) <= bound, "384³ peaks at {big} kB, 2³ at {small} kB: more than {bound} kB for 54 MiB of samples");
 }
 
 #[test]
@@ -274,4 +277,91 @@ fn a_gzip_nifti_without_extension_is_read_by_its_content() {
     std::fs::write(&p, gz.finish().unwrap()).unwrap();
     let o = volbench().args(RUN).args(["--method", "raycast-compute", "--data"]).arg(&p).output().unwrap();
     assert!(o.status.success(), "{}", text(&o));
+}
+
+/// A one-strip, uncompressed, 16-bit grey TIFF of `w` x `h` whose strip
+/// holds `data` (fewer bytes than the image needs when only the header is
+/// meant to be read), with GeoTIFF's pixel scale `scale`.
+fn grey16_tiff(w: u32, h: u32, scale: f64, data: &[u8]) -> Vec<u8> {
+    let tags: [(u16, u16, u32, u32); 11] = [
+        (256, 4, 1, w),
+        (257, 4, 1, h),
+        (258, 3, 1, 16),
+        (259, 3, 1, 1),
+        (262, 3, 1, 1),
+        (273, 4, 1, 0), // strip offset, filled below
+        (277, 3, 1, 1),
+        (278, 4, 1, h),
+        (279, 4, 1, data.len() as u32),
+        (339, 3, 1, 1),
+        (33550, 12, 3, 0), // ModelPixelScale, at the offset filled below
+    ];
+    let scale_at = 8 + 2 + 12 * tags.len() as u32 + 4;
+    let data_at = scale_at + 24;
+    let mut b = b"II*\0".to_vec();
+    b.extend(8u32.to_le_bytes());
+    b.extend((tags.len() as u16).to_le_bytes());
+    for (tag, kind, count, value) in tags {
+        let value = match tag {
+            273 => data_at,
+            33550 => scale_at,
+            _ => value,
+        };
+        b.extend(tag.to_le_bytes());
+        b.extend(kind.to_le_bytes());
+        b.extend(count.to_le_bytes());
+        if kind == 3 {
+            b.extend((value as u16).to_le_bytes());
+            b.extend([0, 0]);
+        } else {
+            b.extend(value.to_le_bytes());
+        }
+    }
+    b.extend(0u32.to_le_bytes());
+    for s in [scale, scale, 0.0] {
+        b.extend(s.to_le_bytes());
+    }
+    b.extend(data);
+    b
+}
+
+#[test]
+fn a_terrain_that_would_render_nothing_or_not_fit_is_refused_at_load() {
+    let d = tempfile::tempdir().unwrap();
+    let heights: Vec<u8> = (0..16 * 16u16).flat_map(|i| (i % 50).to_le_bytes()).collect();
+    // 15e-300 wide, heights spanning 49: a needle seen from above (it
+    // loaded, then "rendered an empty image although the camera frames it").
+    let needle = d.path().join("needle.tif");
+    std::fs::write(&needle, grey16_tiff(16, 16, 1e-300, &heights)).unwrap();
+    let o = volbench().args(RUN).args(["--method", "hm-cpu", "--data"]).arg(&needle).output().unwrap();
+    refused(&o, "seen from above it would cover a pixel or none");
+    // 20000 x 5000 in a few bytes: refused from the header, before decoding
+    // (the hybrid model of 10^8 samples would need ~20 GB).
+    let wide = d.path().join("wide.tif");
+    std::fs::write(&wide, grey16_tiff(16384, 5000, 30.0, &[0; 64])).unwrap();
+    let o = Command::new("/usr/bin/time").args(["-f", "maxrss_kb=%M"]).arg(env!("CARGO_BIN_EXE_volbench")).args(RUN).args(["--method", "hm-cpu", "--data"]).arg(&wide).output().unwrap();
+    refused(&o, "more than the 67108864 (8192x8192) volbench accepts");
+    let rss: u64 = text(&o).split("maxrss_kb=").nth(1).and_then(|s| s.trim().parse().ok()).expect("time -f printed the peak");
+    assert!(rss < 64 << 10, "peak RSS {rss} kB: the grid was decoded before its size was checked");
+    // A narrow but honest grid (0.1 spacing, heights spanning 49) renders.
+    let narrow = d.path().join("narrow.tif");
+    std::fs::write(&narrow, grey16_tiff(16, 16, 0.1, &heights)).unwrap();
+    let o = volbench().args(RUN).args(["--method", "hm-cpu", "--data"]).arg(&narrow).output().unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+}
+
+#[test]
+fn help_and_version_on_a_full_or_closed_stdout() {
+    for args in [&["--help"][..], &["--version"], &["run", "--help"]] {
+        let full = std::fs::OpenOptions::new().write(true).open("/dev/full").unwrap();
+        let o = volbench().args(args).stdout(full).output().unwrap();
+        refused(&o, "No space left on device");
+        let mut child = volbench().args(args).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().unwrap();
+        drop(child.stdout.take());
+        let o = child.wait_with_output().unwrap();
+        assert_eq!(o.status.code(), Some(0), "{args:?} into a closed pipe: {}", text(&o));
+        assert!(o.stderr.is_empty(), "{}", text(&o));
+    }
+    let o = volbench().arg("--no-such-option").output().unwrap();
+    assert_eq!(o.status.code(), Some(2), "a usage error stays clap's: {}", text(&o));
 }

@@ -10,10 +10,10 @@ use tiff::decoder::{Decoder, DecodingResult, Limits};
 use tiff::tags::Tag;
 use tiff::ColorType;
 
-use super::{Heightmap, MAX_SIDE};
+use super::{Heightmap, MAX_SAMPLES};
 
-/// Largest decoded image (bytes): a float64 grid of `MAX_SIDE`² samples.
-const MAX_DECODED_BYTES: usize = MAX_SIDE * MAX_SIDE * 8;
+/// Largest decoded image (bytes): a float64 grid of `MAX_SAMPLES` samples.
+const MAX_DECODED_BYTES: usize = MAX_SAMPLES * 8;
 
 pub fn parse_geotiff_bytes(name: &str, bytes: &[u8]) -> Result<Heightmap> {
     let err = |e: tiff::TiffError| anyhow::anyhow!("{name}: not a readable TIFF: {}", crate::fsio::clip_message(&e.to_string()));
@@ -23,9 +23,7 @@ pub fn parse_geotiff_bytes(name: &str, bytes: &[u8]) -> Result<Heightmap> {
     let mut dec = Decoder::new(std::io::Cursor::new(bytes)).map_err(err)?.with_limits(limits);
     let (w, h) = dec.dimensions().map_err(err)?;
     let (nx, ny) = (w as usize, h as usize);
-    if nx < 2 || ny < 2 || nx > MAX_SIDE || ny > MAX_SIDE {
-        bail!("{name}: a {nx}x{ny} image is not a height grid volbench accepts (2 to {MAX_SIDE} samples per side)");
-    }
+    super::check_grid(name, nx, ny)?;
     match dec.colortype().map_err(err)? {
         ColorType::Gray(_) => {}
         other => bail!("{name}: a height grid must be one grey band, this TIFF is {other:?}"),
@@ -44,20 +42,27 @@ pub fn parse_geotiff_bytes(name: &str, bytes: &[u8]) -> Result<Heightmap> {
         }
         Err(_) => None,
     };
-    let samples: Vec<f64> = match dec.read_image().map_err(err)? {
-        DecodingResult::U8(v) => v.into_iter().map(f64::from).collect(),
-        DecodingResult::U16(v) => v.into_iter().map(f64::from).collect(),
-        DecodingResult::U32(v) => v.into_iter().map(f64::from).collect(),
-        DecodingResult::U64(v) => v.into_iter().map(|x| x as f64).collect(),
-        DecodingResult::I8(v) => v.into_iter().map(f64::from).collect(),
-        DecodingResult::I16(v) => v.into_iter().map(f64::from).collect(),
-        DecodingResult::I32(v) => v.into_iter().map(f64::from).collect(),
-        DecodingResult::I64(v) => v.into_iter().map(|x| x as f64).collect(),
-        DecodingResult::F16(v) => v.into_iter().map(f64::from).collect(),
-        DecodingResult::F32(v) => v.into_iter().map(f64::from).collect(),
-        DecodingResult::F64(v) => v,
-    };
-    Heightmap::from_samples(name, nx, ny, &samples, nodata, spacing)
+    // The decoded samples in their own type, made heights one by one
+    // (no f64 copy of the grid: peak is the decoded image plus the heights).
+    macro_rules! heights {
+        ($v:expr) => {{
+            let v = $v;
+            Heightmap::from_fn(name, nx, ny, v.len(), |i| v[i] as f64, nodata, spacing)
+        }};
+    }
+    match dec.read_image().map_err(err)? {
+        DecodingResult::U8(v) => heights!(v),
+        DecodingResult::U16(v) => heights!(v),
+        DecodingResult::U32(v) => heights!(v),
+        DecodingResult::U64(v) => heights!(v),
+        DecodingResult::I8(v) => heights!(v),
+        DecodingResult::I16(v) => heights!(v),
+        DecodingResult::I32(v) => heights!(v),
+        DecodingResult::I64(v) => heights!(v),
+        DecodingResult::F16(v) => heights!(v.into_iter().map(f32::from).collect::<Vec<_>>()),
+        DecodingResult::F32(v) => heights!(v),
+        DecodingResult::F64(v) => heights!(v),
+    }
 }
 
 #[cfg(test)]

@@ -13,8 +13,9 @@ use anyhow::{bail, Context as _, Result};
 
 use super::Heightmap;
 
-/// Largest decompressed `.npz` member read (bytes): a 16384² float64 grid.
-pub const MAX_MEMBER_BYTES: u64 = 16384 * 16384 * 8;
+/// Largest decompressed `.npz` member read (bytes): the largest grid
+/// (`MAX_SAMPLES`) as float64.
+pub const MAX_MEMBER_BYTES: u64 = super::MAX_SAMPLES as u64 * 8;
 
 /// The element type of an array.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -36,11 +37,64 @@ struct Header {
     data_offset: usize,
 }
 
-/// A numeric array: shape and values as f64 in C order.
+/// A numeric array: its shape and its elements' bytes as the file stores
+/// them (decoded one by one, [`Array::get`]: a grid is never also held as
+/// f64, 8 bytes an element).
 #[derive(Debug, Clone, PartialEq)]
-pub struct Array {
+pub struct Array<'a> {
     pub shape: Vec<usize>,
-    pub values: Vec<f64>,
+    header: Header,
+    /// The whole `.npy` (header and data; borrowed from a file, owned when
+    /// inflated from an `.npz`).
+    bytes: std::borrow::Cow<'a, [u8]>,
+}
+
+impl Array<'_> {
+    /// Elements.
+    pub fn len(&self) -> usize {
+        self.shape.iter().product()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Element `i` in C (row-major) order, as f64 (exact for every type
+    /// but 64-bit integers beyond 2^53).
+    pub fn get(&self, i: usize) -> f64 {
+        let h = &self.header;
+        let at = if h.fortran && self.shape.len() >= 2 {
+            // C index -> multi-index -> column-major offset.
+            let (mut rest, mut offset) = (i, 0);
+            for d in (0..self.shape.len()).rev() {
+                let stride: usize = self.shape[..d].iter().product();
+                offset += (rest % self.shape[d]) * stride;
+                rest /= self.shape[d];
+            }
+            offset
+        } else {
+            i
+        };
+        let chunk = &self.bytes[h.data_offset + at * h.size..h.data_offset + (at + 1) * h.size];
+        let mut w = [0u8; 8];
+        if h.big_endian {
+            for (i, &b) in chunk.iter().rev().enumerate() {
+                w[i] = b;
+            }
+        } else {
+            w[..h.size].copy_from_slice(chunk);
+        }
+        match (h.kind, h.size) {
+            (Kind::Float, 4) => f32::from_le_bytes([w[0], w[1], w[2], w[3]]) as f64,
+            (Kind::Float, _) => f64::from_le_bytes(w),
+            (Kind::Uint, _) => u64::from_le_bytes(w) as f64,
+            (Kind::Int, s) => {
+                // Sign-extend from s bytes.
+                let shift = 64 - 8 * s as u32;
+                ((u64::from_le_bytes(w) << shift) as i64 >> shift) as f64
+            }
+        }
+    }
 }
 
 fn header(name: &str, b: &[u8]) -> Result<Header> {
@@ -120,24 +174,25 @@ fn dict_value<'a>(text: &'a str, key: &str) -> Option<&'a str> {
 }
 
 /// Refuse an array bigger than any grid volbench takes before its values
-/// are made (each is an f64): `MAX_SIDE`² elements.
+/// are made (each is an f64): `MAX_SAMPLES` elements, a grid as
+/// `check_grid` says.
 fn check_shape(name: &str, shape: &[usize]) -> Result<()> {
     let count = shape.iter().try_fold(1usize, |a, &d| a.checked_mul(d)).unwrap_or(usize::MAX);
-    let max = super::MAX_SIDE * super::MAX_SIDE;
+    let max = super::MAX_SAMPLES;
     if count > max {
-        bail!("{name}: .npy shape {shape:?} has {count} elements, more than the {max} of the largest grid ({0}x{0})", super::MAX_SIDE);
+        bail!("{name}: .npy shape {shape:?} has {count} elements, more than the {max} of the largest grid (8192x8192)");
     }
     if let [ny, nx] = shape {
-        if *nx > super::MAX_SIDE || *ny > super::MAX_SIDE {
-            bail!("{name}: a {nx}x{ny} grid exceeds {} samples per side", super::MAX_SIDE);
-        }
+        super::check_grid(name, *nx, *ny)?;
     }
     Ok(())
 }
 
-/// Parse a whole `.npy` file into f64 values (C order).
-pub fn parse_npy(name: &str, bytes: &[u8]) -> Result<Array> {
-    let h = header(name, bytes)?;
+/// Parse a whole `.npy` file: its header checked and its data's size
+/// exactly the shape's.
+pub fn parse_npy<'a>(name: &str, bytes: impl Into<std::borrow::Cow<'a, [u8]>>) -> Result<Array<'a>> {
+    let bytes = bytes.into();
+    let h = header(name, &bytes)?;
     let count = h.shape.iter().try_fold(1usize, |a, &d| a.checked_mul(d)).with_context(|| format!("{name}: .npy shape {:?} overflows", h.shape))?;
     let need = count.checked_mul(h.size).with_context(|| format!("{name}: .npy shape {:?} overflows", h.shape))?;
     check_shape(name, &h.shape)?;
@@ -151,56 +206,7 @@ pub fn parse_npy(name: &str, bytes: &[u8]) -> Result<Array> {
             if data.len() > need { " (bytes after the data)" } else { "" }
         );
     }
-    let mut values = Vec::with_capacity(count);
-    for chunk in data[..need].chunks_exact(h.size) {
-        let mut w = [0u8; 8];
-        if h.big_endian {
-            for (i, &b) in chunk.iter().rev().enumerate() {
-                w[i] = b;
-            }
-        } else {
-            w[..h.size].copy_from_slice(chunk);
-        }
-        let v = match (h.kind, h.size) {
-            (Kind::Float, 4) => f32::from_le_bytes([w[0], w[1], w[2], w[3]]) as f64,
-            (Kind::Float, _) => f64::from_le_bytes(w),
-            (Kind::Uint, _) => u64::from_le_bytes(w) as f64,
-            (Kind::Int, s) => {
-                // Sign-extend from s bytes.
-                let shift = 64 - 8 * s as u32;
-                ((u64::from_le_bytes(w) << shift) as i64 >> shift) as f64
-            }
-        };
-        values.push(v);
-    }
-    if h.fortran && h.shape.len() >= 2 {
-        values = fortran_to_c(&values, &h.shape);
-    }
-    Ok(Array { shape: h.shape, values })
-}
-
-/// Reorder column-major values into row-major ones.
-fn fortran_to_c(values: &[f64], shape: &[usize]) -> Vec<f64> {
-    let n = values.len();
-    let mut out = vec![0.0; n];
-    // Strides of the Fortran layout.
-    let mut fstride = vec![1usize; shape.len()];
-    for d in 1..shape.len() {
-        fstride[d] = fstride[d - 1] * shape[d - 1];
-    }
-    let mut idx = vec![0usize; shape.len()];
-    for o in out.iter_mut() {
-        let src: usize = idx.iter().zip(&fstride).map(|(i, s)| i * s).sum();
-        *o = values[src];
-        for d in (0..shape.len()).rev() {
-            idx[d] += 1;
-            if idx[d] < shape[d] {
-                break;
-            }
-            idx[d] = 0;
-        }
-    }
-    out
+    Ok(Array { shape: h.shape.clone(), header: h, bytes })
 }
 
 /// A 2D array as a height grid (rows along y).
@@ -208,7 +214,7 @@ fn grid_of(name: &str, a: &Array, spacing: [f64; 2]) -> Result<Heightmap> {
     let [ny, nx] = a.shape[..] else {
         bail!("{name}: a height grid must be a 2D array, this one has shape {:?}", a.shape);
     };
-    Heightmap::from_samples(name, nx, ny, &a.values, None, spacing)
+    Heightmap::from_fn(name, nx, ny, a.len(), |i| a.get(i), None, spacing)
 }
 
 /// A `.npy` file as a height grid (spacing 1).
@@ -217,7 +223,7 @@ pub fn parse_npy_heightmap(name: &str, bytes: &[u8]) -> Result<Heightmap> {
 }
 
 /// Every member of an `.npz` archive, by name without `.npy`.
-pub fn parse_npz(name: &str, bytes: &[u8]) -> Result<BTreeMap<String, Array>> {
+pub fn parse_npz(name: &str, bytes: &[u8]) -> Result<BTreeMap<String, Array<'static>>> {
     let mut zip = zip::ZipArchive::new(std::io::Cursor::new(bytes)).map_err(|e| anyhow::anyhow!("{name}: not a readable .npz (zip) archive: {e}"))?;
     let mut out = BTreeMap::new();
     for i in 0..zip.len() {
@@ -247,7 +253,7 @@ pub fn parse_npz(name: &str, bytes: &[u8]) -> Result<BTreeMap<String, Array>> {
         if data.len() as u64 != declared {
             bail!("{name}: member '{}' holds {} bytes, its directory entry says {declared}", crate::fsio::clip_message(&member), data.len());
         }
-        let array = parse_npy(&label, &data).map_err(|e| anyhow::anyhow!("{name}: {e:#}"))?;
+        let array = parse_npy(&label, data).map_err(|e| anyhow::anyhow!("{name}: {e:#}"))?;
         out.insert(key.to_string(), array);
     }
     Ok(out)
@@ -258,7 +264,7 @@ pub fn parse_npz(name: &str, bytes: &[u8]) -> Result<BTreeMap<String, Array>> {
 pub fn parse_npz_grid(name: &str, bytes: &[u8], array: Option<&str>) -> Result<(Heightmap, BTreeMap<String, f64>)> {
     let members = parse_npz(name, bytes)?;
     let scalars: BTreeMap<String, f64> =
-        members.iter().filter(|(_, a)| a.values.len() == 1 && a.shape.iter().all(|&d| d == 1)).map(|(k, a)| (k.clone(), a.values[0])).collect();
+        members.iter().filter(|(_, a)| a.len() == 1 && a.shape.iter().all(|&d| d == 1)).map(|(k, a)| (k.clone(), a.get(0))).collect();
     let grids: Vec<&String> = members.iter().filter(|(_, a)| a.shape.len() == 2).map(|(k, _)| k).collect();
     let key = match array {
         Some(a) => {

@@ -137,7 +137,9 @@ pub fn fly_over(map: &Heightmap, frame: usize) -> Camera {
         up: [0.0, 0.0, 1.0],
         projection: Projection::Perspective { fovy_deg: 50.0 },
         near: 0.002 * size,
-        far: 3.0 * size,
+        // Beyond the farthest ground point also when the heights span more
+        // than the domain's width (a tall, narrow grid was clipped away whole).
+        far: (3.0 * size).max(1.1 * (ex * ex + ey * ey + (hi - lo + 0.25 * size).powi(2)).sqrt()),
     }
 }
 
