@@ -10,7 +10,7 @@ use anyhow::{Context as _, Result};
 
 use super::plan::{PlannedRun, Scene, SuiteSettings};
 use super::report::{figures, report};
-use super::summary::{csv, CullCheck, Environment, Summary, SuiteRow};
+use super::summary::{csv, CullCheck, Environment, SuiteRow, Summary};
 use crate::algo::registry::{MethodSpec, Registry};
 use crate::fsio;
 use crate::harness::datasets::{self, Dataset};
