@@ -272,13 +272,15 @@ pub struct View {
 /// reports keep them apart from the CPU's preparation.
 pub const DEVICE_PHASE_SUFFIX: &str = "_gpu";
 
-/// Named phases of one frame, in milliseconds (CPU: e.g. `sort`, `pack`;
-/// device passes a method times itself, named with [`DEVICE_PHASE_SUFFIX`]:
-/// e.g. `sort_gpu`): reported as `time_ms.<name>` beside the runner's own
-/// phases; and named per-frame counts (e.g. `cull.frustum`, cells skipped
-/// by a rule), reported as `frame_counts.<name>` per timed frame.
+/// What a method measured of one frame: named phases, in milliseconds
+/// (CPU: e.g. `sort`, `pack`; device passes a method times itself, named
+/// with [`DEVICE_PHASE_SUFFIX`]: e.g. `sort_gpu`), reported as
+/// `time_ms.<name>` beside the runner's own phases; named per-frame counts
+/// (e.g. `cull.frustum`, cells skipped by a rule), reported as
+/// `frame_counts.<name>` per timed frame; and the frame's own error, for a
+/// method that measures it itself ([`Phases::own_error`]).
 #[derive(Debug, Clone, Default)]
-pub struct Phases(pub Vec<(&'static str, f64)>, pub Vec<(&'static str, u64)>);
+pub struct Phases(pub Vec<(&'static str, f64)>, pub Vec<(&'static str, u64)>, pub Option<OwnError>);
 
 impl Phases {
     pub fn add(&mut self, name: &'static str, ms: f64) {
@@ -296,6 +298,14 @@ impl Phases {
     pub fn count(&mut self, name: &'static str, n: u64) {
         self.1.push((name, n));
     }
+
+    /// The frame's error measured by the method itself against the
+    /// full-resolution data, for datasets without an image reference (a
+    /// terrain's level of detail: height error). The runner records the
+    /// reference view's as the result's `error`, and sweeps plot it.
+    pub fn own_error(&mut self, e: OwnError) {
+        self.2 = Some(e);
+    }
 }
 
 /// What a method processes per frame, by unit (`cells`, `pixels`,
@@ -312,7 +322,10 @@ impl Work {
     }
 }
 
-/// A method built for one dataset, transfer function, option set and size.
+/// A method built for one dataset, transfer function, option set and size:
+/// what every method does. What only a family does lives with the family
+/// (`Family`: its camera path, checks, bound, suite roles) or in what a
+/// frame reports (`Phases`: phases, counts, an own error measure).
 pub trait RenderMethod {
     /// The CPU half of a frame (sort, pack, level-of-detail, ...). It may run
     /// while the device still draws the previous frame: it must write host
@@ -343,28 +356,15 @@ pub trait RenderMethod {
     fn table_build_ms(&self) -> f64 {
         0.0
     }
-    /// The camera of frame `frame` when the method flies its own path (a
-    /// terrain fly-over); `None` keeps the runner's orbit. A run's fixed
-    /// camera wins over both.
-    fn camera(&self, _frame: usize) -> Option<Camera> {
-        None
-    }
-    /// The error of the last frame that the method measures itself against
-    /// the full-resolution data, for datasets without an image reference
-    /// (a terrain's level of detail: height error). When given, the runner
-    /// records it as the result's `error` and sweeps plot it.
-    fn own_error(&self) -> Option<OwnError> {
-        None
-    }
 }
 
-/// See `RenderMethod::own_error`.
+/// See `Phases::own_error`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct OwnError {
     pub rmse: f64,
     pub max_abs: f64,
     /// What was compared, with the unit.
-    pub what: String,
+    pub what: &'static str,
 }
 
 /// A figure the literature published for a method, set beside the measured
@@ -473,13 +473,17 @@ pub struct Family {
     /// where the terrain's PC cells are tessellated): the report sets their
     /// runs on one dataset side by side.
     pub placement: Option<&'static str>,
+    /// The camera of frame `frame` when the family flies its own path over
+    /// its data (a terrain fly-over); `None` keeps the runner's orbit. A
+    /// run's fixed camera wins over both.
+    pub camera: fn(&SceneData, usize) -> Option<Camera>,
 }
 
 impl Family {
     /// A family with independent options, no error bound and no role in
     /// the suite beyond its runs.
     pub const fn plain(name: &'static str) -> Self {
-        Family { name, check: |_| Ok(()), accuracy_bound: |_, _| None, culling_option: None, placement: None }
+        Family { name, check: |_| Ok(()), accuracy_bound: |_, _| None, culling_option: None, placement: None, camera: |_, _| None }
     }
 }
 

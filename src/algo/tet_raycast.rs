@@ -136,6 +136,7 @@ pub const METHOD: MethodInfo = MethodInfo {
         accuracy_bound,
         culling_option: None,
         placement: None,
+        camera: |_, _| None,
     },
     create,
 };
@@ -626,12 +627,12 @@ mod tests {
 
     #[test]
     fn accuracy_bound_adds_what_termination_drops() {
-        let r = crate::algo::registry::builtin();
-        let s = r.parse_spec("tet-raycast", &[]).unwrap();
-        assert!((accuracy_bound(&s.options, true).unwrap() - (1e-3 + 1e-3)).abs() < 1e-12);
-        let s = r.parse_spec("tet-raycast:integrator=average,ert=1", &[]).unwrap();
-        assert_eq!(accuracy_bound(&s.options, false), Some(5e-3));
-        assert!(r.parse_spec("tet-raycast:ert=0.2", &[]).is_err());
-        assert!(r.parse_spec("tet-raycast:sort=mpvo", &[]).unwrap_err().to_string().contains("no option 'sort'"));
+        // Through the method's own entry (the registry's parse ends here too).
+        let s = METHOD.options_from([]).unwrap();
+        assert!((accuracy_bound(&s, true).unwrap() - (1e-3 + 1e-3)).abs() < 1e-12);
+        let s = METHOD.options_from([("integrator", "average"), ("ert", "1")]).unwrap();
+        assert_eq!(accuracy_bound(&s, false), Some(5e-3));
+        assert!(METHOD.options_from([("ert", "0.2")]).is_err());
+        assert!(METHOD.options_from([("sort", "mpvo")]).unwrap_err().to_string().contains("no option 'sort'"));
     }
 }

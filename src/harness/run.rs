@@ -30,7 +30,7 @@ use super::count::{self, CountReport};
 use super::datasets::{Dataset, DatasetSummary};
 use super::image::RgbaImage;
 use super::stats::Summary;
-use crate::algo::method::{DataKind, MethodInputs, Phases, RenderMethod, View};
+use crate::algo::method::{DataKind, Family, MethodInputs, Phases, RenderMethod, View};
 use crate::algo::registry::MethodSpec;
 use crate::scene::{Camera, Projection, TransferFunction};
 use crate::vk::{CommandRecorder, Context, DeviceInfo, FrameQueries, Image, PipelineStats, UploadCounter};
@@ -188,12 +188,13 @@ impl RunConfig {
         Ok(())
     }
 
-    /// The camera of frame `f` for `method`: the fixed camera, else the
-    /// method's own path, else the orbit (frame 0 is the reference view).
-    pub fn frame_camera(&self, dataset: &Dataset, method: &dyn RenderMethod, f: usize) -> Camera {
+    /// The camera of frame `f` for a method of `family`: the fixed camera,
+    /// else the family's own path, else the orbit (frame 0 is the reference
+    /// view).
+    pub fn frame_camera(&self, dataset: &Dataset, family: &Family, f: usize) -> Camera {
         match self.fixed_camera {
             Some(c) => c,
-            None => method.camera(f).unwrap_or_else(|| self.camera(dataset, f)),
+            None => (family.camera)(&dataset.scene(), f).unwrap_or_else(|| self.camera(dataset, f)),
         }
     }
 
@@ -400,7 +401,7 @@ pub struct ErrorReport {
 pub enum ErrorKind {
     /// The reference-view image against the f64 CPU reference image.
     Image,
-    /// The method's own measure (`RenderMethod::own_error`); `reference` says what, with the unit.
+    /// The method's own measure (`Phases::own_error`); `reference` says what, with the unit.
     Own,
 }
 
@@ -717,7 +718,7 @@ pub fn run(ctx: &Arc<Context>, spec: &MethodSpec, dataset: &Dataset, tf: &Transf
     let mut counted = None;
 
     session.set_statistics(false);
-    let cameras: Vec<Camera> = (0..cfg.warmup + cfg.frames).map(|f| cfg.frame_camera(dataset, session.method(), f)).collect();
+    let cameras: Vec<Camera> = (0..cfg.warmup + cfg.frames).map(|f| cfg.frame_camera(dataset, &spec.info.family, f)).collect();
     if let Some(dir) = &cfg.count_dir {
         // Counted: the warm-up uncounted, then each timed frame's phases
         // one after another, dumped at each boundary (`harness::count`).
@@ -760,9 +761,9 @@ pub fn run(ctx: &Arc<Context>, spec: &MethodSpec, dataset: &Dataset, tf: &Transf
         samples.push_fixed(&timing);
     }
     // The reference view, untimed: its image and statistics are reported.
-    let reference_camera = cfg.frame_camera(dataset, session.method(), 0);
+    let reference_camera = cfg.frame_camera(dataset, &spec.info.family, 0);
     session.set_statistics(true);
-    let (_, stats) = session.frame(&reference_camera, &mut UploadCounter::default()).context("reference-view frame")?;
+    let (reference_timing, stats) = session.frame(&reference_camera, &mut UploadCounter::default()).context("reference-view frame")?;
     let image = session.read_image(ctx)?;
     ctx.check_validation().context("Vulkan validation")?;
     check_image(&image, dataset, tf, cfg)?;
@@ -837,12 +838,12 @@ pub fn run(ctx: &Arc<Context>, spec: &MethodSpec, dataset: &Dataset, tf: &Transf
             camera: reference_camera,
         },
         // A method that measures its own error (no image reference exists).
-        error: method.own_error().map(|e| ErrorReport {
+        error: reference_timing.method.2.map(|e| ErrorReport {
             compared: ErrorKind::Own,
             rmse: e.rmse,
             max_abs: e.max_abs,
             psnr_db: f64::INFINITY,
-            reference: e.what,
+            reference: e.what.into(),
             reference_ms: 0.0,
             reference_cached: false,
             reference_recomputed: None,

@@ -127,7 +127,7 @@ pub fn serve_run(
     let mut counter = crate::vk::UploadCounter::default();
     let mut next = 0usize;
     let mut render = |n: usize| -> Result<Frames> {
-        let cameras: Vec<_> = (next..next + n).map(|f| cfg.frame_camera(dataset, session.method(), f)).collect();
+        let cameras: Vec<_> = (next..next + n).map(|f| cfg.frame_camera(dataset, &spec.info.family, f)).collect();
         let timings = session.run_frames(&cameras, false, &mut counter).with_context(|| format!("frames {next}..{}", next + n))?;
         next += n;
         ctx.check_validation().context("Vulkan validation")?;

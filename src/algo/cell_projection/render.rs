@@ -181,6 +181,7 @@ pub const FAMILY: Family = Family {
     accuracy_bound,
     culling_option: Some("cull"),
     placement: None,
+    camera: |_, _| None,
 };
 
 /// The max |error| each integrator is held to in the stress suite where no

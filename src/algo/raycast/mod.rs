@@ -189,6 +189,7 @@ pub const FAMILY: Family = Family {
     accuracy_bound,
     culling_option: None,
     placement: None,
+    camera: |_, _| None,
 };
 
 /// The stress suite's bound on max |error| against the f64 reference (any

@@ -26,8 +26,7 @@ use serde_json::json;
 use super::gpu::texel;
 use super::tables::{triangle_digest, PcTables};
 use super::{TerrainScene, COMPARE, OPTIONS, SWEEP};
-use crate::algo::method::{DataKind, MethodInfo, MethodInputs, OwnError, Phases, RenderMethod, SceneData, View, Work};
-use crate::scene::Camera;
+use crate::algo::method::{DataKind, MethodInfo, MethodInputs, Phases, RenderMethod, SceneData, View, Work};
 use crate::vk::{
     raw, Buffer, BufferDesc, CommandRecorder, ComputePipelineKey, DescriptorKind, DescriptorResource, DescriptorSet,
     DescriptorSetDesc, Image, Pipeline, PipelineKey, ShaderKey, ShaderStage, TexelBuffer, TimestampPool, UploadClass, UploadCounter,
@@ -291,11 +290,5 @@ impl RenderMethod for HmCompute {
         self.scene.build_ms
     }
 
-    fn camera(&self, frame: usize) -> Option<Camera> {
-        Some(self.scene.camera(frame))
-    }
 
-    fn own_error(&self) -> Option<OwnError> {
-        Some(self.scene.own_error())
-    }
 }

@@ -9,8 +9,7 @@ use anyhow::{bail, Result};
 use serde_json::json;
 
 use super::{TerrainScene, COMPARE, OPTIONS, SWEEP};
-use crate::algo::method::{DataKind, MethodInfo, MethodInputs, OwnError, Phases, RenderMethod, SceneData, View, Work};
-use crate::scene::Camera;
+use crate::algo::method::{DataKind, MethodInfo, MethodInputs, Phases, RenderMethod, SceneData, View, Work};
 use crate::vk::{raw, Buffer, BufferDesc, CommandRecorder, Image, UploadClass, UploadCounter};
 
 pub const METHOD: MethodInfo = MethodInfo {
@@ -124,11 +123,5 @@ impl RenderMethod for HmCpu {
         self.scene.build_ms
     }
 
-    fn camera(&self, frame: usize) -> Option<Camera> {
-        Some(self.scene.camera(frame))
-    }
 
-    fn own_error(&self) -> Option<OwnError> {
-        Some(self.scene.own_error())
-    }
 }

@@ -29,9 +29,8 @@ use serde_json::json;
 use super::tables::{triangle_digest, PcTables};
 use super::{mesh_key, TerrainScene, COMPARE, OPTIONS as SHARED, SWEEP};
 use crate::algo::method::{
-    DataKind, Feature, MethodInfo, MethodInputs, OptionSpec, OptionValues, OwnError, Phases, RenderMethod, SceneData, View, Work,
+    DataKind, Feature, MethodInfo, MethodInputs, OptionSpec, OptionValues, Phases, RenderMethod, SceneData, View, Work,
 };
-use crate::scene::Camera;
 use crate::vk::{
     raw, Buffer, BufferDesc, CommandRecorder, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc, Image,
     Pipeline, PipelineKey, ShaderKey, ShaderStage, TexelBuffer, UploadClass, UploadCounter, VertexAttribute,
@@ -318,11 +317,5 @@ impl RenderMethod for HmGpu {
         self.scene.build_ms
     }
 
-    fn camera(&self, frame: usize) -> Option<Camera> {
-        Some(self.scene.camera(frame))
-    }
 
-    fn own_error(&self) -> Option<OwnError> {
-        Some(self.scene.own_error())
-    }
 }

@@ -37,7 +37,7 @@ use anyhow::Result;
 use glam::DVec3;
 use serde_json::json;
 
-use crate::algo::method::{Family, OptionSpec, Options, OwnError, Phases, View};
+use crate::algo::method::{Family, OptionSpec, Options, OwnError, Phases, SceneData, View};
 use crate::algo::settings::{choice, flag, float, int, MethodSettings};
 use crate::scene::{Camera, Projection};
 use crate::terrain::hybrid::HybridModel;
@@ -89,6 +89,10 @@ pub const FAMILY: Family = Family {
     accuracy_bound: |_, _| None,
     culling_option: None,
     placement: Some(PLACEMENT),
+    camera: |data, frame| match data {
+        SceneData::Terrain(map) => Some(fly_over(map, frame)),
+        SceneData::TetMesh { .. } | SceneData::Volume(_) => None,
+    },
 };
 
 /// The work the three methods share (`Family::placement`).
@@ -228,8 +232,6 @@ pub struct TerrainScene {
     range: (f64, f64),
     block_bounds: Vec<([f64; 3], [f64; 3])>,
     pub build_ms: f64,
-    /// Camera frames' source (the fly-over) for `RenderMethod::camera`.
-    map: Heightmap,
 }
 
 fn bytes_of<T: bytemuck::Pod>(v: &[T]) -> &[u8] {
@@ -306,13 +308,7 @@ impl TerrainScene {
             range,
             block_bounds,
             build_ms,
-            map: map.clone(),
         })
-    }
-
-    /// The fly-over's camera for `frame`.
-    pub fn camera(&self, frame: usize) -> Camera {
-        fly_over(&self.map, frame)
     }
 
     /// Choose each block's level and the active NC draws and PC cells.
@@ -367,6 +363,7 @@ impl TerrainScene {
         a.rms_error = (sse / m.samples.max(1) as f64).sqrt();
         self.active = a;
         phases.ended("lod", t0.elapsed().as_secs_f64() * 1e3);
+        phases.own_error(self.own_error());
     }
 
     /// Push constants for a draw tinted `tint`.
@@ -406,7 +403,7 @@ impl TerrainScene {
         OwnError {
             rmse: self.active.rms_error,
             max_abs: self.active.max_error,
-            what: "height error of the frame's grid levels against the full-resolution samples (grid part; height units)".into(),
+            what: "height error of the frame's grid levels against the full-resolution samples (grid part; height units)",
         }
     }
 

@@ -1,0 +1,277 @@
+//! Running the plan: each row's run (or why it failed or was skipped), its
+//! image and difference written as it completes, the peers alternating with
+//! volbench's runs, the culling scenes' unchanged-image checks, and at the
+//! end the summary, the report and the pictures.
+
+use std::path::Path;
+use std::sync::Arc;
+
+use anyhow::{Context as _, Result};
+
+use super::plan::{PlannedRun, Scene, SuiteSettings};
+use super::report::{figures, report};
+use super::summary::{csv, CullCheck, Environment, SuiteRow, Summary};
+use crate::algo::registry::{MethodSpec, Registry};
+use crate::fsio;
+use crate::harness::datasets::{self, Dataset};
+use crate::harness::image::RgbaImage;
+use crate::harness::peers::{LocatedPeer, PeerRenderer, PeerRow};
+use crate::harness::plots::Tile;
+use crate::harness::reference_cache::reference_image;
+use crate::harness::run::{run, RunConfig, RunOutput};
+use crate::harness::sweep::skip_reason;
+use crate::vk::Context;
+
+/// `spec` with its culling option on.
+fn cull_on(registry: &Registry, spec: &MethodSpec) -> Result<MethodSpec> {
+    let option = spec.info.culling_option().unwrap_or_default();
+    registry.parse_spec(&format!("{}:{option}=on", spec.info.name), &[])
+}
+
+/// Whether a run of `info` with `options` culls (`None`: the method has no
+/// culling option).
+fn culling(info: &crate::algo::method::MethodInfo, options: &crate::algo::method::Options) -> Option<bool> {
+    info.culling_option().and_then(|o| options.flag(o).ok())
+}
+
+/// Run the plan; each row's JSON, PNG and difference PNG go to
+/// `out/runs/` as it completes, and `summary.json` is rewritten after each.
+pub fn run_suite(
+    ctx: &Arc<Context>,
+    registry: &Registry,
+    plan: &[PlannedRun],
+    settings: &SuiteSettings,
+    out: &Path,
+    mut progress: impl FnMut(usize, &str),
+) -> Result<Summary> {
+    let cfg = settings.run_config();
+    cfg.check_device(&ctx.info)?;
+    let runs_dir = out.join("runs");
+    std::fs::create_dir_all(&runs_dir).with_context(|| format!("creating {}", runs_dir.display()))?;
+    let mut summary =
+        Summary { environment: Environment::of(ctx), settings: settings.clone(), runs: Vec::new(), peers: Vec::new(), cull_checks: Vec::new() };
+    // Every image shown, by montage group, with the run's label; and the
+    // reference image of each group.
+    let mut images: Vec<(String, String, Tile)> = Vec::new();
+    let mut references: Vec<(String, RgbaImage)> = Vec::new();
+    let located: Vec<LocatedPeer> = settings.peers.iter().map(|p| crate::harness::peers::locate(p)).collect::<Result<_>>()?;
+    let peers_dir = out.join("peers");
+    if !located.is_empty() {
+        std::fs::create_dir_all(&peers_dir).with_context(|| format!("creating {}", peers_dir.display()))?;
+    }
+    let mut loaded: Option<(&str, std::result::Result<Dataset, String>)> = None;
+    // Peer renderers still to run on the current dataset, and its exported copy.
+    let mut pending: Vec<(&LocatedPeer, &'static PeerRenderer)> = Vec::new();
+    let mut export: Option<(std::path::PathBuf, crate::harness::peers::PeerDataset)> = None;
+    let mut sequence = 0usize;
+    for (i, p) in plan.iter().enumerate() {
+        let label = format!("{} on {}", p.label(), p.dataset);
+        progress(i, &label);
+        let first_of_dataset = i == 0 || plan[i - 1].dataset != p.dataset;
+        let last_of_dataset = plan.get(i + 1).is_none_or(|n| n.dataset != p.dataset);
+        if loaded.as_ref().is_none_or(|(n, _)| *n != p.dataset) {
+            loaded = Some((p.dataset, datasets::load(p.dataset).map_err(|e| format!("{e:#}"))));
+        }
+        let Some((_, loaded_dataset)) = &loaded else { continue };
+        // A dataset that cannot be loaded fails its rows; the suite goes on.
+        let dataset = match loaded_dataset {
+            Ok(d) => d,
+            Err(why) => {
+                pending.clear();
+                summary.runs.push(SuiteRow {
+                    dataset: p.dataset.into(),
+                    method: p.spec.info.name.into(),
+                    label: p.label(),
+                    scene: p.scene,
+                    status: "failed",
+                    message: Some(format!("loading {}: {why}", p.dataset)),
+                    sequence,
+                    result: None,
+                    placement: p.spec.info.family.placement,
+                });
+                sequence += 1;
+                fsio::write_output(&out.join("summary.json"), &crate::harness::report::json_bytes(&summary)?)?;
+                continue;
+            }
+        };
+        if first_of_dataset {
+            // Popped from the end: reversed so they run in their listed order.
+            pending = located.iter().flat_map(|l| l.renderers_for(dataset.kind()).map(move |r| (l, r))).collect();
+            pending.reverse();
+        }
+        let mut row = SuiteRow {
+            dataset: p.dataset.into(),
+            method: p.spec.info.name.into(),
+            label: p.label(),
+            scene: p.scene,
+            status: "ok",
+            message: None,
+            sequence,
+            result: None,
+            placement: p.spec.info.family.placement,
+        };
+        sequence += 1;
+        if let Some(why) = skip_reason(&p.spec, &ctx.info) {
+            (row.status, row.message) = ("skipped", Some(why));
+        } else {
+            let group = p.montage_group();
+            let outcome = (|| -> Result<(RunOutput, Option<RgbaImage>)> {
+                let tf = p.scene.transfer_function(dataset)?;
+                let cfg = p.scene.config(&cfg);
+                let mut r = run(ctx, &p.spec, dataset, &tf, &cfg)?;
+                let stem = format!("{}-{}", p.dataset, p.file_stem());
+                let (json, png, dpng) = (runs_dir.join(format!("{stem}.json")), runs_dir.join(format!("{stem}.png")), runs_dir.join(format!("{stem}-diff.png")));
+                // A method with its own error (terrain) has no image reference.
+                let diff = if r.result.error.is_none() && settings.count_dir.is_none() {
+                    let reference = reference_image(dataset, &tf, &r.result.image.camera, cfg.width, cfg.height)?;
+                    if !references.iter().any(|(g, _)| *g == group) {
+                        references.push((group.clone(), reference.image.clone()));
+                    }
+                    Some(r.attach_error(&reference)?)
+                } else {
+                    None
+                };
+                let bytes = [crate::harness::report::json_bytes(&r.result)?, r.image.png_bytes()?];
+                match &diff {
+                    Some(d) => fsio::write_all(&[(&json, &bytes[0]), (&png, &bytes[1]), (&dpng, &d.png_bytes()?)])?,
+                    None => fsio::write_all(&[(&json, &bytes[0]), (&png, &bytes[1])])?,
+                }
+                Ok((r, diff))
+            })();
+            match outcome {
+                Ok((r, diff)) => {
+                    // A culling scene's pair: the culled image against the
+                    // unculled one (the unchanged-image check).
+                    if p.scene != Scene::Standard && culling(&p.spec.info, &p.spec.options) == Some(false) {
+                        let on = PlannedRun { dataset: p.dataset, spec: cull_on(registry, &p.spec)?, scene: p.scene };
+                        let on_label = format!("{} on {}", on.label(), p.dataset);
+                        if let Some((_, _, on)) = images.iter().find(|(_, l, _)| *l == on_label) {
+                            let e = on.image.compare(&r.image)?;
+                            summary.cull_checks.push(CullCheck {
+                                dataset: p.dataset.into(),
+                                scene: p.scene,
+                                method: p.spec.info.name.into(),
+                                option: p.spec.info.culling_option().unwrap_or_default(),
+                                rmse: e.rmse,
+                                max_abs: e.max_abs,
+                            });
+                        }
+                    }
+                    images.push((group, label.clone(), Tile { label: p.label(), image: r.image, diff }));
+                    row.result = Some(r.result);
+                }
+                Err(e) => (row.status, row.message) = ("failed", Some(format!("{e:#}"))),
+            }
+        }
+        summary.runs.push(row);
+        // Peers alternate with volbench's runs on the same dataset (one after
+        // each run; the rest after the dataset's last run), so that machine
+        // noise hits both.
+        let take = if last_of_dataset { pending.len() } else { pending.len().min(1) };
+        for _ in 0..take {
+            let Some((peer, renderer)) = pending.pop() else { break };
+            let label = format!("peer {}/{} on {}", peer.peer.name, renderer.name, p.dataset);
+            progress(i, &label);
+            let (row, shown) = run_peer_row(peer, renderer, dataset, &cfg, &peers_dir, &runs_dir, &mut export, sequence);
+            sequence += 1;
+            if let Some((image, diff)) = shown {
+                let tile = Tile { label: format!("peer {}/{}", peer.peer.name, renderer.name), image, diff: Some(diff) };
+                images.push((p.dataset.to_string(), label, tile));
+            }
+            summary.peers.push(row);
+        }
+        if last_of_dataset {
+            // The exported copy is only the peers' input: not a result.
+            if let Some((path, _)) = export.take() {
+                let _ = std::fs::remove_file(path);
+            }
+        }
+        fsio::write_output(&out.join("summary.json"), &crate::harness::report::json_bytes(&summary)?)?;
+    }
+    fsio::write_output(&out.join("summary.json"), &crate::harness::report::json_bytes(&summary)?)?;
+    fsio::write_output(&out.join("summary.csv"), csv(&summary).as_bytes())?;
+    fsio::write_output(&out.join("report.md"), report(&summary, registry).as_bytes())?;
+    figures(out, &summary, &images, &references)?;
+    Ok(summary)
+}
+
+/// One peer renderer on one dataset: the dataset exported once per dataset
+/// (`export`), the scene written, the peer run, its image compared with the
+/// same f64 reference as volbench's runs. A failure is the row's status.
+#[allow(clippy::too_many_arguments)]
+fn run_peer_row(
+    peer: &LocatedPeer,
+    renderer: &'static PeerRenderer,
+    dataset: &Dataset,
+    cfg: &RunConfig,
+    peers_dir: &Path,
+    runs_dir: &Path,
+    export: &mut Option<(std::path::PathBuf, crate::harness::peers::PeerDataset)>,
+    sequence: usize,
+) -> (PeerRow, Option<(RgbaImage, RgbaImage)>) {
+    use crate::harness::peers as pe;
+    let mut row = PeerRow {
+        peer: peer.peer.name.into(),
+        renderer: renderer.name.into(),
+        class: renderer.class.into(),
+        dataset: dataset.name.clone(),
+        status: "ok",
+        message: None,
+        sequence,
+        library_version: None,
+        gl_renderer: None,
+        opacity_model: None,
+        frame_ms: None,
+        frame_samples_ms: Vec::new(),
+        setup_ms: None,
+        error: None,
+        covered_pixels: None,
+    };
+    let outcome = (|| -> Result<(pe::PeerResult, RgbaImage, RgbaImage, crate::harness::image::ImageError, String)> {
+        if export.is_none() {
+            let path = peers_dir.join(format!("{}.vtk", dataset.name));
+            let d = pe::write_dataset(dataset, &path).with_context(|| format!("exporting '{}' for the peers", dataset.name))?;
+            *export = Some((path, d));
+        }
+        let Some((_, exported)) = export.as_ref() else { anyhow::bail!("internal: dataset not exported") };
+        let tf = dataset.default_transfer_function()?;
+        let scene = pe::scene(peer.peer, renderer, dataset, &tf, cfg, exported, peers_dir)?;
+        let stem = scene.stem();
+        let reference_camera = scene.reference_camera;
+        let (result, image) = pe::run_peer(peer, &scene, &peers_dir.join(format!("{stem}.scene.json")))?;
+        let reference = reference_image(dataset, &tf, &reference_camera, cfg.width, cfg.height)?;
+        // A blank picture is a failure, not a result (docs/bad-input.md).
+        let expected = reference.image.covered_pixels();
+        anyhow::ensure!(
+            image.covered_pixels() > 0 || expected == 0,
+            "peer {}/{} returned an empty image although the f64 reference covers {expected} pixels",
+            peer.peer.name,
+            renderer.name
+        );
+        let error = image.compare(&reference.image)?;
+        let diff = image.difference(&reference.image);
+        let (png, dpng) = (runs_dir.join(format!("{stem}.png")), runs_dir.join(format!("{stem}-diff.png")));
+        let bytes = [image.png_bytes()?, diff.png_bytes()?];
+        fsio::write_all(&[(&png, &bytes[0]), (&dpng, &bytes[1])])?;
+        // The raw image was only the transport; the PNG is the record.
+        let _ = std::fs::remove_file(&scene.output.image);
+        Ok((result, image, diff, error, scene.transfer_function.opacity_model))
+    })();
+    match outcome {
+        Ok((result, image, diff, error, model)) => {
+            row.library_version = Some(result.library_version);
+            row.gl_renderer = Some(result.gl_renderer);
+            row.opacity_model = Some(model);
+            row.frame_ms = Some(crate::harness::stats::Summary::of(&result.frame_ms));
+            row.frame_samples_ms = result.frame_ms;
+            row.setup_ms = Some(result.load_ms + result.setup_ms);
+            row.error = Some(error);
+            row.covered_pixels = Some(image.covered_pixels());
+            (row, Some((image, diff)))
+        }
+        Err(e) => {
+            (row.status, row.message) = ("failed", Some(format!("{e:#}")));
+            (row, None)
+        }
+    }
+}

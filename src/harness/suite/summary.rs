@@ -1,0 +1,156 @@
+//! What a suite wrote: the structure of `summary.json` (the environment,
+//! every run's row, the peers' rows, the culling checks) and its flat form
+//! `summary.csv`.
+
+use std::fmt::Write as _;
+
+use serde::Serialize;
+
+use super::plan::{Scene, SuiteSettings};
+use crate::harness::peers::PeerRow;
+use crate::harness::run::RunResult;
+use crate::vk::{Context, DeviceInfo};
+
+/// The machine a suite ran on.
+#[derive(Debug, Clone, Serialize)]
+pub struct Environment {
+    pub device: DeviceInfo,
+    pub cpu_model: String,
+    pub cores: usize,
+    /// lavapipe's thread count (`LP_NUM_THREADS`), when set.
+    pub lp_num_threads: Option<String>,
+    pub git_sha: &'static str,
+    pub volbench_version: &'static str,
+    pub started_utc: String,
+}
+
+impl Environment {
+    pub fn of(ctx: &Context) -> Self {
+        let cpu_model = std::fs::read_to_string("/proc/cpuinfo")
+            .ok()
+            .and_then(|t| t.lines().find(|l| l.starts_with("model name")).and_then(|l| l.split_once(':')).map(|(_, v)| v.trim().to_string()))
+            .unwrap_or_else(|| "unknown".into());
+        Environment {
+            device: ctx.info.clone(),
+            cpu_model,
+            cores: std::thread::available_parallelism().map_or(1, |n| n.get()),
+            lp_num_threads: std::env::var("LP_NUM_THREADS").ok(),
+            git_sha: env!("VOLBENCH_GIT_SHA"),
+            volbench_version: env!("CARGO_PKG_VERSION"),
+            started_utc: utc_now(),
+        }
+    }
+}
+
+/// The current UTC time as `YYYYMMDDTHHMMSSZ` (for run ids).
+pub fn utc_now() -> String {
+    let secs = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
+    let (days, rem) = (secs / 86400, secs % 86400);
+    // Civil date from days since 1970-01-01 (Howard Hinnant's algorithm).
+    let z = days as i64 + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = doy - (153 * mp + 2) / 5 + 1;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 };
+    let y = yoe + era * 400 + i64::from(m <= 2);
+    format!("{y:04}{m:02}{d:02}T{:02}{:02}{:02}Z", rem / 3600, (rem / 60) % 60, rem % 60)
+}
+
+/// One row of the suite: the run's record, or why it failed or was skipped.
+#[derive(Debug, Clone, Serialize)]
+pub struct SuiteRow {
+    pub dataset: String,
+    pub method: String,
+    /// The method and its non-default options (`balanced:integrator=average`).
+    pub label: String,
+    pub status: &'static str,
+    pub message: Option<String>,
+    /// The view and transfer function (`standard`, or a culling scene).
+    pub scene: Scene,
+    /// Position in the suite's run order (peers' runs counted too).
+    pub sequence: usize,
+    pub result: Option<RunResult>,
+    /// The work the method's family shares with other placements of it
+    /// (`Family::placement`; the placement report groups by it).
+    #[serde(skip)]
+    pub placement: Option<&'static str>,
+}
+
+/// What `summary.json` holds.
+#[derive(Debug, Clone, Serialize)]
+pub struct Summary {
+    pub environment: Environment,
+    pub settings: SuiteSettings,
+    pub runs: Vec<SuiteRow>,
+    /// Peers' runs (`--peers`), apart from volbench's: other programs'
+    /// renderers on the same data, view and transfer function.
+    pub peers: Vec<PeerRow>,
+    /// Each culling scene's culled image against the unculled one.
+    pub cull_checks: Vec<CullCheck>,
+}
+
+/// The unchanged-image check of one culling scene: the reference-view image
+/// of a method with its culling option on against the same with it off.
+#[derive(Debug, Clone, Serialize)]
+pub struct CullCheck {
+    pub dataset: String,
+    pub scene: Scene,
+    pub method: String,
+    /// The option toggled (`Family::culling_option`).
+    #[serde(skip)]
+    pub option: &'static str,
+    pub rmse: f64,
+    pub max_abs: f64,
+}
+
+/// One line per run, volbench's and the peers' (`source`), with the
+/// figures a spreadsheet wants; a peer has no bytes or GPU time to report.
+pub fn csv(s: &Summary) -> String {
+    let mut t = String::from(
+        "source,dataset,method,label,status,frame_ms_median,gpu_ms_median,bytes_per_frame,bytes_per_cell,static_bytes,cells_per_second,rmse,max_abs,message\n",
+    );
+    let q = |x: &str| format!("\"{}\"", x.replace('"', "\"\""));
+    for r in &s.runs {
+        let (f, g, b, bc, st, cps, rmse, max) = match &r.result {
+            Some(x) => (
+                format!("{:.3}", x.time_ms.phase("frame").median),
+                format!("{:.3}", x.time_ms.phase("gpu").median),
+                x.upload.bytes_per_frame.to_string(),
+                x.upload.bytes_per_cell.map_or(String::new(), |v| format!("{v}")),
+                x.upload.static_bytes.to_string(),
+                format!("{:.0}", x.cells_per_second),
+                x.error.as_ref().map_or(String::new(), |e| format!("{:.6e}", e.rmse)),
+                x.error.as_ref().map_or(String::new(), |e| format!("{:.6e}", e.max_abs)),
+            ),
+            None => Default::default(),
+        };
+        let _ = writeln!(
+            t,
+            "volbench,{},{},{},{},{f},{g},{b},{bc},{st},{cps},{rmse},{max},{}",
+            r.dataset,
+            r.method,
+            q(&r.label),
+            r.status,
+            q(r.message.as_deref().unwrap_or(""))
+        );
+    }
+    for p in &s.peers {
+        let f = p.frame_ms.as_ref().map_or(String::new(), |f| format!("{:.3}", f.median));
+        let rmse = p.error.as_ref().map_or(String::new(), |e| format!("{:.6e}", e.rmse));
+        let max = p.error.as_ref().map_or(String::new(), |e| format!("{:.6e}", e.max_abs));
+        let _ = writeln!(
+            t,
+            "{},{},{},{},{},{f},,,,,,{rmse},{max},{}",
+            p.peer,
+            p.dataset,
+            q(&p.renderer),
+            q(&format!("{} {} ({})", p.peer, p.renderer, p.class)),
+            p.status,
+            q(p.message.as_deref().unwrap_or(""))
+        );
+    }
+    t
+}
