@@ -107,6 +107,22 @@ impl Dataset {
         Dataset { name: mesh.name.clone(), named, source, digest, data: DatasetData::TetMesh { mesh } }
     }
 
+    /// A mesh read from a file or a shipped dataset: as `from_mesh`; with
+    /// `VOLBENCH_TEST_RENUMBER=morton` its cells and points are first
+    /// renumbered for locality (`mesh::reorder`). Off by default: measured
+    /// no faster, and at 4.1 M tets possibly slower (docs/scaling.md,
+    /// "Locality"). The digest (the reference cache's key) is of the data
+    /// as read; the renumbered mesh is the same mesh, so its reference is
+    /// the same.
+    pub fn from_loaded_mesh(mesh: TetMesh, named: bool, source: String) -> Self {
+        let mut dataset = Self::from_mesh(mesh, named, source);
+        let renumber = std::env::var(RENUMBER_VAR).is_ok_and(|v| v == "morton");
+        if let (DatasetData::TetMesh { mesh }, true) = (&mut dataset.data, renumber) {
+            mesh::reorder::spatial_order(mesh);
+        }
+        dataset
+    }
+
     pub fn from_volume(volume: Volume, named: bool, source: String) -> Self {
         let digest = volume_digest(&volume);
         Dataset { name: volume.name.clone(), named, source, digest, data: DatasetData::Volume(volume) }
@@ -364,6 +380,10 @@ pub fn supported_formats() -> String {
     )
 }
 
+/// Measurement knob: `morton` renumbers a loaded mesh for locality
+/// (`Dataset::from_loaded_mesh`).
+pub const RENUMBER_VAR: &str = "VOLBENCH_TEST_RENUMBER";
+
 /// Load a dataset by shipped name or path.
 pub fn load(spec: &str) -> Result<Dataset> {
     let dir = data_dir();
@@ -371,7 +391,7 @@ pub fn load(spec: &str) -> Result<Dataset> {
         let mut mesh = mesh.with_context(|| format!("loading dataset '{name}' ({})", crate::data_dir::search_note()))?;
         // Results name a shipped dataset the way the command line does.
         mesh.name = name.to_string();
-        Ok(Dataset::from_mesh(mesh, true, source))
+        Ok(Dataset::from_loaded_mesh(mesh, true, source))
     };
     match spec {
         "bluntfin" => named(spec, mesh::datasets::load_bluntfin(&dir), "data/plot3d/bluntfin{xyz,q}.bin".into()),
@@ -400,7 +420,7 @@ pub fn load(spec: &str) -> Result<Dataset> {
                     && kind_by_content(&head_of(p)) != Some(DataKind::Volume)
                 {
                     let mesh = mesh::datasets::load_path_array(p, Some(array)).with_context(|| format!("loading dataset '{path}'"))?;
-                    return Ok(Dataset::from_mesh(mesh, false, path.to_string()));
+                    return Ok(Dataset::from_loaded_mesh(mesh, false, path.to_string()));
                 }
                 if crate::terrain::format_of_extension(p).is_some() && std::fs::symlink_metadata(path).is_err() {
                     let t = crate::terrain::load_heightmap(p, Some(array)).with_context(|| format!("loading dataset '{path}'"))?;
@@ -437,7 +457,7 @@ pub fn load(spec: &str) -> Result<Dataset> {
                         mesh::vtk::read_vtk_legacy(p)
                     };
                     let mesh = mesh.with_context(|| format!("loading dataset '{path}'"))?;
-                    Ok(Dataset::from_mesh(mesh, false, path.to_string()))
+                    Ok(Dataset::from_loaded_mesh(mesh, false, path.to_string()))
                 }
                 None => anyhow::bail!(
                     "dataset '{path}': neither its content nor its extension is a format volbench reads; {}",

@@ -21,6 +21,7 @@ pub mod datasets;
 pub mod geometry;
 pub mod plot3d;
 pub mod refine;
+pub mod reorder;
 pub mod split;
 pub mod topology;
 pub mod vtk;

@@ -77,14 +77,14 @@ pub fn red_refine(mesh: &TetMesh) -> Result<TetMesh> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::mesh::adjacency::FaceAdjacency;
     use crate::mesh::TetGeometry;
 
     /// A box split into 6 tets around its main diagonal (conforming), the
     /// scalar linear.
-    fn cube() -> TetMesh {
+    pub(in crate::mesh) fn cube() -> TetMesh {
         let mut points = Vec::new();
         for z in 0..2 {
             for y in 0..2 {
