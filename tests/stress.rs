@@ -10,7 +10,7 @@ mod common;
 use std::sync::{Arc, Mutex, OnceLock};
 
 use volbench::algo::registry;
-use volbench::harness::stress::{self, CaseData, StressCase, StressConfig, StressReport, StressRow};
+use volbench::harness::stress::{self, CaseData, Extra, StressCase, StressConfig, StressReport, StressRow};
 use volbench::mesh::TetGeometry;
 use volbench::vk::{Context, ContextDesc};
 
@@ -100,7 +100,8 @@ fn every_case_is_small_and_valid() {
         assert!(c.tf.points.windows(2).all(|w| w[0].scalar <= w[1].scalar), "{}", c.name);
         assert!(c.camera.near > 0.0 && c.camera.near < c.camera.far, "{}", c.name);
         for a in &c.allowances {
-            assert!(a.extra > 0.0 && !a.reason.is_empty(), "{}", c.name);
+            assert!(a.extra == Extra::PapersModel || a.extra.amount(0.0) > 0.0, "{}", c.name);
+            assert!(!a.reason.is_empty(), "{}", c.name);
         }
     }
 }
@@ -181,6 +182,7 @@ fn report_is_json_with_a_cases_array() {
         max_abs_error: 3e-5,
         silhouette_pixels: 2,
         silhouette_max_error: 0.5,
+        papers_model_gap: Some(2e-4),
         rmse: 3e-7,
         status: "ok",
         bound: 1e-3,
@@ -372,6 +374,62 @@ fn size_sensitive_cases_hold_at_a_second_size() {
     for r in rows.iter().filter(|r| r.case == "opaque-1e6") {
         assert!((1..=16).contains(&r.silhouette_pixels), "{} {}: {}", r.method, r.options, r.silhouette_pixels);
     }
+}
+
+/// The papers' interpolation is held to the integrator's bound plus its f64
+/// model's own error against the reference, derived per image
+/// (`Extra::PapersModel`), not to a constant fitted at one size: at 64x64
+/// and 256x256 the two cases that outgrew the old constant 0.25 at 512x512
+/// (needles-caps 0.337, eye-on-plane 0.250011) pass, each row's bound is
+/// 1e-3 + the model's max error recomputed here, and the model's error
+/// itself is what grows with the size (the sup of its error field).
+#[test]
+fn papers_interpolation_is_held_to_its_model_at_two_sizes() {
+    let names = ["needles-caps", "eye-on-plane"];
+    let mut model_error = Vec::new();
+    for size in [SIZE, SECOND_SIZE] {
+        let selected: Vec<StressCase> =
+            stress::stress_cases(size).into_iter().filter(|c| names.contains(&c.name.as_str())).collect();
+        assert_eq!(selected.len(), names.len());
+        let rows = run(&selected, &config_at(size, &["balanced"], &["ppi"], &["paper"], &["mpvo"]));
+        assert_eq!(rows.len(), 2);
+        assert_all_pass(&rows);
+        for (c, r) in selected.iter().zip(&rows) {
+            let CaseData::TetMesh(mesh) = &c.data else { panic!("{} is a mesh case", c.name) };
+            let model = volbench::reference::render_papers_model(
+                mesh,
+                &c.camera,
+                &c.tf,
+                size,
+                size,
+                stress::PAPERS_DISTANCE_CLAMP_DIAGONALS,
+            )
+            .unwrap();
+            let reference = volbench::reference::render_reference(mesh, &c.camera, &c.tf, size, size).unwrap();
+            let ambiguous = volbench::reference::silhouette::silhouette_pixels(
+                mesh,
+                &c.camera,
+                size,
+                size,
+                volbench::reference::silhouette::SILHOUETTE_TOLERANCE_PX,
+            );
+            let e = model
+                .pixels
+                .iter()
+                .zip(&reference.pixels)
+                .zip(&ambiguous)
+                .filter(|(_, &a)| !a)
+                .flat_map(|((m, r), _)| (0..4).map(move |k| (m[k] as f32 - r[k] as f32).abs() as f64))
+                .fold(0.0, f64::max);
+            // Perspective: the model is off the reference (a whole-face field).
+            assert!(e > 0.05, "{} at {size}: model error {e}", c.name);
+            assert!((r.bound - (1e-3 + e)).abs() < 1e-6, "{} at {size}: bound {} vs 1e-3 + {e}", c.name, r.bound);
+            assert!(r.papers_model_gap.is_some(), "{} at {size}", c.name);
+            model_error.push(e);
+        }
+    }
+    // The sup of the model's error field is reached more closely by finer pixels.
+    assert!(model_error[2] >= model_error[0] && model_error[3] >= model_error[1], "{model_error:?}");
 }
 
 /// The opaque medium carries no allowance for the exact integrators: at

@@ -81,6 +81,7 @@
 
 pub mod gauss_legendre;
 pub mod integrate;
+pub mod papers;
 pub mod psi;
 pub mod silhouette;
 mod raycast;
@@ -166,6 +167,29 @@ pub fn render_reference(
     render_reference_with_stats(mesh, camera, tf, width, height).map(|(img, _)| img)
 }
 
+/// The f64 model of the papers' interpolation of exit data ([`papers`]):
+/// the same walk and integration as the reference, each cell's segment
+/// (but the one holding the eye) as those methods compute it, with exit
+/// distances clamped at `distance_clamp_diagonals` mesh diagonals as they
+/// clamp them.
+pub fn render_papers_model(
+    mesh: &TetMesh,
+    camera: &Camera,
+    tf: &TransferFunction,
+    width: u32,
+    height: u32,
+    distance_clamp_diagonals: f64,
+) -> Result<ReferenceImage> {
+    let f = camera.forward();
+    let model = papers::PapersModel {
+        view_dir: [f.x, f.y, f.z],
+        perspective: camera.is_perspective(),
+        max_distance: (distance_clamp_diagonals * mesh_diagonal(mesh)).max(1e-30),
+        max_length: 1.01 * longest_edge(mesh),
+    };
+    render(mesh, camera, tf, width, height, Some(model)).map(|(img, _)| img)
+}
+
 /// [`render_reference`], also returning what the traversal did.
 pub fn render_reference_with_stats(
     mesh: &TetMesh,
@@ -173,6 +197,17 @@ pub fn render_reference_with_stats(
     tf: &TransferFunction,
     width: u32,
     height: u32,
+) -> Result<(ReferenceImage, ReferenceStats)> {
+    render(mesh, camera, tf, width, height, None)
+}
+
+fn render(
+    mesh: &TetMesh,
+    camera: &Camera,
+    tf: &TransferFunction,
+    width: u32,
+    height: u32,
+    papers: Option<papers::PapersModel>,
 ) -> Result<(ReferenceImage, ReferenceStats)> {
     validate(mesh, camera, tf, width, height)?;
     let topo = crate::mesh::topology::Topology::build(mesh);
@@ -186,6 +221,7 @@ pub fn render_reference_with_stats(
         entry_tolerance: 1e-9 * diag,
         max_steps_per_ray: 4 * mesh.tets.len() as u64 + 1024,
         eye: camera.eye,
+        papers,
     };
     // Rays of the camera moved to the origin: relative to the eye.
     let relative = camera.translated(camera.eye.map(|c| -c));
@@ -296,6 +332,21 @@ fn validate(
         camera.far
     );
     Ok(())
+}
+
+/// The longest edge of any cell (no segment through a cell is longer).
+fn longest_edge(mesh: &TetMesh) -> f64 {
+    let mut m = 0f64;
+    for t in &mesh.tets {
+        let p = t.map(|i| mesh.points[i as usize]);
+        for a in 0..4 {
+            for b in a + 1..4 {
+                let d = crate::mesh::geometry::sub(p[a], p[b]);
+                m = m.max(crate::mesh::geometry::dot(d, d));
+            }
+        }
+    }
+    m.sqrt()
 }
 
 fn mesh_diagonal(mesh: &TetMesh) -> f64 {

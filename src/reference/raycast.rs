@@ -9,6 +9,7 @@ use crate::scene::{Camera, TransferFunction};
 use super::integrate::{integrate_segment, Segment};
 use crate::mesh::topology::Topology;
 use crate::mesh::adjacency::{FACE_VERTS, NONE};
+use super::papers::PapersModel;
 use super::ReferenceStats;
 
 /// Stop compositing once the optical depth exceeds this: what lies behind is
@@ -332,6 +333,9 @@ pub(crate) struct Tracer<'a> {
     pub max_steps_per_ray: u64,
     /// The camera's eye: ray origins are relative to it (`Ray::new`).
     pub eye: [f64; 3],
+    /// Segments as the papers' interpolation gives them (`papers.rs`)
+    /// instead of exact; the walk itself is the same.
+    pub papers: Option<PapersModel>,
 }
 
 /// Front-to-back accumulation along one ray.
@@ -524,15 +528,27 @@ impl Tracer<'_> {
             } else {
                 (t_in, s_in)
             };
+            // The segment this cell contributes: exact, or the papers'
+            // from its entry point (but in the cell holding the eye, whose
+            // near cap the model leaves exact).
+            let (t_end, s_end) = match &self.papers {
+                Some(m) if t_in > 0.0 => {
+                    let p = std::array::from_fn(|c| ray.o[c] + t_in * ray.d[c]);
+                    let q = [0, 1, 2, 3].map(|i| sub(mesh.points[v[i] as usize], self.eye));
+                    let s = [0, 1, 2, 3].map(|i| scalars[v[i] as usize]);
+                    m.segment(&q, &s, f_in, p, s_in).map_or((t_in, s_in), |(len, sb)| (t_in + len, sb))
+                }
+                _ => (t_out, s_out),
+            };
+            if t_end > t_in && t_end > t_min && t_in < t_max {
+                let (ta, tb) = (t_in.max(t_min), t_end.min(t_max));
+                let lerp = |t: f64| s_in + (s_end - s_in) * ((t - t_in) / (t_end - t_in));
+                let sa = if ta > t_in { lerp(ta) } else { s_in };
+                let sb = if tb < t_end { lerp(tb) } else { s_end };
+                acc.add(&integrate_segment(self.tf, sa, sb, tb - ta));
+            }
             if t_out > t_in {
                 stall = 0;
-                if t_out > t_min && t_in < t_max {
-                    let (ta, tb) = (t_in.max(t_min), t_out.min(t_max));
-                    let lerp = |t: f64| s_in + (s_out - s_in) * ((t - t_in) / (t_out - t_in));
-                    let sa = if ta > t_in { lerp(ta) } else { s_in };
-                    let sb = if tb < t_out { lerp(tb) } else { s_out };
-                    acc.add(&integrate_segment(self.tf, sa, sb, tb - ta));
-                }
                 if acc.depth > DEPTH_STOP || t_out >= t_max {
                     return WalkEnd::Done;
                 }

@@ -1,7 +1,7 @@
 //! Building blocks every case family uses: the smooth field, grids of it,
 //! the transfer functions and cameras.
 
-use super::Allowance;
+use super::{Allowance, Extra};
 use crate::mesh::split::hex_grid_to_tets;
 use crate::mesh::TetMesh;
 use crate::scene::{Camera, ControlPoint, Projection, TransferFunction};
@@ -75,7 +75,7 @@ pub(super) fn oblique_camera() -> Camera {
 pub(super) fn centroid_order_allowance(measured: f64) -> Allowance {
     Allowance {
         when: &[("sort", &["centroid"])],
-        extra: 1e-2,
+        extra: Extra::Fixed(1e-2),
         reason: format!(
             "the centroid sort is not a visibility order for these cells (colour only: alpha, which does not \
              depend on the order, stays within the accuracy bound; with --sort mpvo the error is within it). \

@@ -2,7 +2,7 @@
 //! opaque media.
 
 use super::blocks::{oblique_camera, unit_grid};
-use super::{Allowance, CaseData, StressCase};
+use super::{Allowance, CaseData, Extra, StressCase};
 use crate::scene::{ControlPoint, TransferFunction};
 
 /// Steps: coincident control points (a jump in colour and attenuation at one
@@ -38,7 +38,7 @@ pub(super) fn tf_steps() -> StressCase {
         allowances: vec![
             Allowance {
                 when: &[("integrator", &["average", "ppi", "linear-exact"])],
-                extra: 0.5,
+                extra: Extra::Fixed(0.5),
                 reason: "model error, not numerics: these integrators take colour and attenuation at a segment's \
                          two ends and linear in between, so a step inside a segment is smeared over it (the f64 \
                          reference splits segments at control points). Measured <= 0.39 at 128x128; the \
@@ -47,7 +47,7 @@ pub(super) fn tf_steps() -> StressCase {
             },
             Allowance {
                 when: &[("integrator", &["preint"])],
-                extra: 5e-2,
+                extra: Extra::Fixed(5e-2),
                 reason: "pre-integration integrates steps, but its table samples the scalar range 128 times: a \
                          step moves by up to 1/127 of the range. Measured <= 2.2e-2 (exact interpolation) at \
                          128x128, allowance rounded up"
@@ -84,7 +84,7 @@ pub(super) fn opaque(tau: f64) -> StressCase {
         allowances: vec![
             Allowance {
                 when: &[("integrator", &["preint"])],
-                extra: 1.0,
+                extra: Extra::Fixed(1.0),
                 reason: "no useful bound: the pre-integration table (128 x 128 scalars x 32 lengths) cannot \
                          resolve such a medium: one scalar step is an attenuation step of tau/127 and the first \
                          length sample is already opaque, so short segments get alpha interpolated between 0 and 1 \
@@ -93,7 +93,7 @@ pub(super) fn opaque(tau: f64) -> StressCase {
             },
             Allowance {
                 when: &[("integrator", &["average"])],
-                extra: 0.1,
+                extra: Extra::Fixed(0.1),
                 reason: "model error: averaging the two ends' attenuation (0 at one end, huge at the other) \
                          misplaces where along the segment the medium turns opaque. Measured 3.7e-2 at 128x128, \
                          allowance rounded up"
