@@ -440,6 +440,11 @@ pub trait CellProjector {
     }
     /// The key of the pipeline it draws with (recorded in results).
     fn pipeline_key(&self) -> &PipelineKey;
+    /// How its per-cell device data is split at the device's limits
+    /// (`algo::chunks`; `details.device_chunks`), if it splits any.
+    fn device_chunks(&self) -> serde_json::Value {
+        serde_json::Value::Null
+    }
     /// Count the host memory it keeps between frames, by structure
     /// (`details.host_memory`).
     fn host_bytes(&self, memory: &mut HostMemory);
@@ -537,7 +542,27 @@ pub(crate) fn build_pipeline(
     interpolation: Interpolation,
     extra_sets: &[DescriptorSetDesc],
 ) -> VkResult<(Arc<Pipeline>, PipelineKey)> {
+    build_pipeline_defined(ctx, vertex_path, fragment_path, stride, attributes, topology, primitive_restart, tables, interpolation, extra_sets, &[])
+}
+
+/// [`build_pipeline`] with more shader defines (e.g. the chunking of the
+/// stored cells, `algo::chunks`).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn build_pipeline_defined(
+    ctx: &Arc<Context>,
+    vertex_path: &str,
+    fragment_path: &str,
+    stride: u32,
+    attributes: &[VertexAttribute],
+    topology: raw::PrimitiveTopology,
+    primitive_restart: bool,
+    tables: &IntegrationTables,
+    interpolation: Interpolation,
+    extra_sets: &[DescriptorSetDesc],
+    more_defines: &[(&str, &str)],
+) -> VkResult<(Arc<Pipeline>, PipelineKey)> {
     let mut defines = shader_defines(interpolation, tables.integrator);
+    defines.extend_from_slice(more_defines);
     let extra = extra_fragment_work()?;
     if let Some(n) = &extra {
         defines.push(("EXTRA_WORK", n));
