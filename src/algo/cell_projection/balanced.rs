@@ -196,6 +196,7 @@ impl Balanced {
             tables,
             draw.interpolation,
             &[],
+            &[],
         )?;
         Ok(Balanced {
             packed: vec![0f32; n * FLOATS_PER_CELL],

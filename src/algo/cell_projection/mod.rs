@@ -541,24 +541,7 @@ pub(crate) fn build_pipeline(
     tables: &IntegrationTables,
     interpolation: Interpolation,
     extra_sets: &[DescriptorSetDesc],
-) -> VkResult<(Arc<Pipeline>, PipelineKey)> {
-    build_pipeline_defined(ctx, vertex_path, fragment_path, stride, attributes, topology, primitive_restart, tables, interpolation, extra_sets, &[])
-}
-
-/// [`build_pipeline`] with more shader defines (e.g. the chunking of the
-/// stored cells, `algo::chunks`).
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn build_pipeline_defined(
-    ctx: &Arc<Context>,
-    vertex_path: &str,
-    fragment_path: &str,
-    stride: u32,
-    attributes: &[VertexAttribute],
-    topology: raw::PrimitiveTopology,
-    primitive_restart: bool,
-    tables: &IntegrationTables,
-    interpolation: Interpolation,
-    extra_sets: &[DescriptorSetDesc],
+    // More shader defines (e.g. the chunking of the stored cells, `algo::chunks`).
     more_defines: &[(&str, &str)],
 ) -> VkResult<(Arc<Pipeline>, PipelineKey)> {
     let mut defines = shader_defines(interpolation, tables.integrator);

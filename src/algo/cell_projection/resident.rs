@@ -13,7 +13,7 @@ use ash::vk as raw;
 
 use super::balanced::VERTICES_PER_CELL;
 use super::render;
-use super::{build_pipeline_defined, CellF32, CellMaker, CellProjector, FrameSetup, DrawSettings, Primitives, StaticIndices, MAX_INDICES_PER_CELL};
+use super::{build_pipeline, CellF32, CellMaker, CellProjector, FrameSetup, DrawSettings, Primitives, StaticIndices, MAX_INDICES_PER_CELL};
 use crate::algo::chunks::{self, ChunkLimits, TexelChunks};
 use crate::algo::host_memory::HostMemory;
 use crate::algo::integrate::IntegrationTables;
@@ -143,7 +143,7 @@ pub(super) fn resident_pipeline(
     if !defines.is_empty() {
         defines.push(("CELL_CHUNK_BINDING", "2"));
     }
-    build_pipeline_defined(
+    build_pipeline(
         ctx,
         "cell_projection/resident.vert",
         "cell_projection/balanced.frag",
