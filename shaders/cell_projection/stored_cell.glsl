@@ -6,10 +6,72 @@
 // Cell t is texels 9t..9t+8: pos[4] (xyz: position relative to the render
 // origin; w: scalar), plane[4] (xyz: 3-float plane of the face opposite
 // vertex i), gradient (xyz).
+//
+// A mesh larger than one texel buffer may hold (algo/chunks.rs) comes in
+// CELL_CHUNKS buffers of CELL_PER_CHUNK cells: chunk 0 at binding 0, chunk
+// k at binding CELL_CHUNK_BINDING + k - 1.
+#ifndef CELL_CHUNKS
+#define CELL_CHUNKS 1
+#endif
 layout(set = 1, binding = 0) uniform samplerBuffer cells;
-vec4 cell_pos(uint t, int i) { return texelFetch(cells, int(9u * t) + i); }
-vec4 cell_plane(uint t, int i) { return texelFetch(cells, int(9u * t) + 4 + i); }
-vec3 cell_gradient(uint t) { return texelFetch(cells, int(9u * t) + 8).xyz; }
+#if CELL_CHUNKS > 1
+layout(set = 1, binding = CELL_CHUNK_BINDING + 0) uniform samplerBuffer cells_1;
+#endif
+#if CELL_CHUNKS > 2
+layout(set = 1, binding = CELL_CHUNK_BINDING + 1) uniform samplerBuffer cells_2;
+#endif
+#if CELL_CHUNKS > 3
+layout(set = 1, binding = CELL_CHUNK_BINDING + 2) uniform samplerBuffer cells_3;
+#endif
+#if CELL_CHUNKS > 4
+layout(set = 1, binding = CELL_CHUNK_BINDING + 3) uniform samplerBuffer cells_4;
+#endif
+#if CELL_CHUNKS > 5
+layout(set = 1, binding = CELL_CHUNK_BINDING + 4) uniform samplerBuffer cells_5;
+#endif
+#if CELL_CHUNKS > 6
+layout(set = 1, binding = CELL_CHUNK_BINDING + 5) uniform samplerBuffer cells_6;
+#endif
+#if CELL_CHUNKS > 7
+layout(set = 1, binding = CELL_CHUNK_BINDING + 6) uniform samplerBuffer cells_7;
+#endif
+
+// Texel k (0..8) of cell t.
+vec4 cell_texel(uint t, int k) {
+#if CELL_CHUNKS > 1
+    uint c = t / uint(CELL_PER_CHUNK);
+    int i = int(9u * (t - c * uint(CELL_PER_CHUNK))) + k;
+    switch (c) {
+#if CELL_CHUNKS > 1
+    case 1u: return texelFetch(cells_1, i);
+#endif
+#if CELL_CHUNKS > 2
+    case 2u: return texelFetch(cells_2, i);
+#endif
+#if CELL_CHUNKS > 3
+    case 3u: return texelFetch(cells_3, i);
+#endif
+#if CELL_CHUNKS > 4
+    case 4u: return texelFetch(cells_4, i);
+#endif
+#if CELL_CHUNKS > 5
+    case 5u: return texelFetch(cells_5, i);
+#endif
+#if CELL_CHUNKS > 6
+    case 6u: return texelFetch(cells_6, i);
+#endif
+#if CELL_CHUNKS > 7
+    case 7u: return texelFetch(cells_7, i);
+#endif
+    default: return texelFetch(cells, i);
+    }
+#else
+    return texelFetch(cells, int(9u * t) + k);
+#endif
+}
+vec4 cell_pos(uint t, int i) { return cell_texel(t, i); }
+vec4 cell_plane(uint t, int i) { return cell_texel(t, 4 + i); }
+vec3 cell_gradient(uint t) { return cell_texel(t, 8).xyz; }
 
 bool stored_exact_perspective() {
 #ifdef EXACT_PERSPECTIVE

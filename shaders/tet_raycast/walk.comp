@@ -35,14 +35,238 @@ layout(push_constant) uniform Frame {
 
 // set 1: the mesh, uploaded once. What the walk reads per cell is in
 // uniform texel buffers (one texel fetch per lookup; tet_raycast.rs says why).
+// A mesh larger than one texel buffer may hold (algo/chunks.rs) comes in
+// POINT_CHUNKS buffers of POINT_PER_CHUNK points and, for each per-cell
+// array, CELL_CHUNKS buffers of CELL_PER_CHUNK cells: chunk 0 at the
+// array's binding below, the others after the counters (binding 7 on), the
+// points' first, then the cells', the neighbours' and the solid flags'.
+#ifndef POINT_CHUNKS
+#define POINT_CHUNKS 1
+#endif
+#ifndef CELL_CHUNKS
+#define CELL_CHUNKS 1
+#endif
+#define POINT_CHUNK_BINDING 7
+#define TET_CHUNK_BINDING (POINT_CHUNK_BINDING + POINT_CHUNKS - 1)
+#define NEIGHBOR_CHUNK_BINDING (TET_CHUNK_BINDING + CELL_CHUNKS - 1)
+#define SOLID_CHUNK_BINDING (NEIGHBOR_CHUNK_BINDING + CELL_CHUNKS - 1)
 layout(set = 1, binding = 0) uniform samplerBuffer points_tb;      // xyz: position; w: scalar
 layout(set = 1, binding = 1) uniform usamplerBuffer tets_tb;       // vertex indices
-layout(set = 1, binding = 2) uniform usamplerBuffer neighbors_tb;  // [4 c + f] = 4 c' + f', NONE on the boundary
+layout(set = 1, binding = 2) uniform usamplerBuffer neighbors_tb;  // cell c: [f] = 4 c' + f', NONE on the boundary
 layout(set = 1, binding = 3) uniform usamplerBuffer solid_tb;      // 1: positive volume; 0: flat
-vec4 point_at(uint i) { return texelFetch(points_tb, int(i)); }
-uvec4 tet_at(uint c) { return texelFetch(tets_tb, int(c)); }
-uint neighbor_at(uint slot) { return texelFetch(neighbors_tb, int(slot)).r; }
-uint solid_at(uint c) { return texelFetch(solid_tb, int(c)).r; }
+#if POINT_CHUNKS > 1
+layout(set = 1, binding = POINT_CHUNK_BINDING + 0) uniform samplerBuffer points_tb_1;
+#endif
+#if POINT_CHUNKS > 2
+layout(set = 1, binding = POINT_CHUNK_BINDING + 1) uniform samplerBuffer points_tb_2;
+#endif
+#if POINT_CHUNKS > 3
+layout(set = 1, binding = POINT_CHUNK_BINDING + 2) uniform samplerBuffer points_tb_3;
+#endif
+#if POINT_CHUNKS > 4
+layout(set = 1, binding = POINT_CHUNK_BINDING + 3) uniform samplerBuffer points_tb_4;
+#endif
+#if POINT_CHUNKS > 5
+layout(set = 1, binding = POINT_CHUNK_BINDING + 4) uniform samplerBuffer points_tb_5;
+#endif
+#if POINT_CHUNKS > 6
+layout(set = 1, binding = POINT_CHUNK_BINDING + 5) uniform samplerBuffer points_tb_6;
+#endif
+#if POINT_CHUNKS > 7
+layout(set = 1, binding = POINT_CHUNK_BINDING + 6) uniform samplerBuffer points_tb_7;
+#endif
+#if CELL_CHUNKS > 1
+layout(set = 1, binding = TET_CHUNK_BINDING + 0) uniform usamplerBuffer tets_tb_1;
+#endif
+#if CELL_CHUNKS > 2
+layout(set = 1, binding = TET_CHUNK_BINDING + 1) uniform usamplerBuffer tets_tb_2;
+#endif
+#if CELL_CHUNKS > 3
+layout(set = 1, binding = TET_CHUNK_BINDING + 2) uniform usamplerBuffer tets_tb_3;
+#endif
+#if CELL_CHUNKS > 4
+layout(set = 1, binding = TET_CHUNK_BINDING + 3) uniform usamplerBuffer tets_tb_4;
+#endif
+#if CELL_CHUNKS > 5
+layout(set = 1, binding = TET_CHUNK_BINDING + 4) uniform usamplerBuffer tets_tb_5;
+#endif
+#if CELL_CHUNKS > 6
+layout(set = 1, binding = TET_CHUNK_BINDING + 5) uniform usamplerBuffer tets_tb_6;
+#endif
+#if CELL_CHUNKS > 7
+layout(set = 1, binding = TET_CHUNK_BINDING + 6) uniform usamplerBuffer tets_tb_7;
+#endif
+#if CELL_CHUNKS > 1
+layout(set = 1, binding = NEIGHBOR_CHUNK_BINDING + 0) uniform usamplerBuffer neighbors_tb_1;
+#endif
+#if CELL_CHUNKS > 2
+layout(set = 1, binding = NEIGHBOR_CHUNK_BINDING + 1) uniform usamplerBuffer neighbors_tb_2;
+#endif
+#if CELL_CHUNKS > 3
+layout(set = 1, binding = NEIGHBOR_CHUNK_BINDING + 2) uniform usamplerBuffer neighbors_tb_3;
+#endif
+#if CELL_CHUNKS > 4
+layout(set = 1, binding = NEIGHBOR_CHUNK_BINDING + 3) uniform usamplerBuffer neighbors_tb_4;
+#endif
+#if CELL_CHUNKS > 5
+layout(set = 1, binding = NEIGHBOR_CHUNK_BINDING + 4) uniform usamplerBuffer neighbors_tb_5;
+#endif
+#if CELL_CHUNKS > 6
+layout(set = 1, binding = NEIGHBOR_CHUNK_BINDING + 5) uniform usamplerBuffer neighbors_tb_6;
+#endif
+#if CELL_CHUNKS > 7
+layout(set = 1, binding = NEIGHBOR_CHUNK_BINDING + 6) uniform usamplerBuffer neighbors_tb_7;
+#endif
+#if CELL_CHUNKS > 1
+layout(set = 1, binding = SOLID_CHUNK_BINDING + 0) uniform usamplerBuffer solid_tb_1;
+#endif
+#if CELL_CHUNKS > 2
+layout(set = 1, binding = SOLID_CHUNK_BINDING + 1) uniform usamplerBuffer solid_tb_2;
+#endif
+#if CELL_CHUNKS > 3
+layout(set = 1, binding = SOLID_CHUNK_BINDING + 2) uniform usamplerBuffer solid_tb_3;
+#endif
+#if CELL_CHUNKS > 4
+layout(set = 1, binding = SOLID_CHUNK_BINDING + 3) uniform usamplerBuffer solid_tb_4;
+#endif
+#if CELL_CHUNKS > 5
+layout(set = 1, binding = SOLID_CHUNK_BINDING + 4) uniform usamplerBuffer solid_tb_5;
+#endif
+#if CELL_CHUNKS > 6
+layout(set = 1, binding = SOLID_CHUNK_BINDING + 5) uniform usamplerBuffer solid_tb_6;
+#endif
+#if CELL_CHUNKS > 7
+layout(set = 1, binding = SOLID_CHUNK_BINDING + 6) uniform usamplerBuffer solid_tb_7;
+#endif
+vec4 point_at(uint i) {
+#if POINT_CHUNKS > 1
+    uint k = (i) / uint(POINT_PER_CHUNK);
+    int j = int((i) - k * uint(POINT_PER_CHUNK));
+    switch (k) {
+#if POINT_CHUNKS > 1
+    case 1u: return texelFetch(points_tb_1, j);
+#endif
+#if POINT_CHUNKS > 2
+    case 2u: return texelFetch(points_tb_2, j);
+#endif
+#if POINT_CHUNKS > 3
+    case 3u: return texelFetch(points_tb_3, j);
+#endif
+#if POINT_CHUNKS > 4
+    case 4u: return texelFetch(points_tb_4, j);
+#endif
+#if POINT_CHUNKS > 5
+    case 5u: return texelFetch(points_tb_5, j);
+#endif
+#if POINT_CHUNKS > 6
+    case 6u: return texelFetch(points_tb_6, j);
+#endif
+#if POINT_CHUNKS > 7
+    case 7u: return texelFetch(points_tb_7, j);
+#endif
+    default: return texelFetch(points_tb, j);
+    }
+#else
+    return texelFetch(points_tb, int(i));
+#endif
+}
+uvec4 tet_at(uint c) {
+#if CELL_CHUNKS > 1
+    uint k = (c) / uint(CELL_PER_CHUNK);
+    int j = int((c) - k * uint(CELL_PER_CHUNK));
+    switch (k) {
+#if CELL_CHUNKS > 1
+    case 1u: return texelFetch(tets_tb_1, j);
+#endif
+#if CELL_CHUNKS > 2
+    case 2u: return texelFetch(tets_tb_2, j);
+#endif
+#if CELL_CHUNKS > 3
+    case 3u: return texelFetch(tets_tb_3, j);
+#endif
+#if CELL_CHUNKS > 4
+    case 4u: return texelFetch(tets_tb_4, j);
+#endif
+#if CELL_CHUNKS > 5
+    case 5u: return texelFetch(tets_tb_5, j);
+#endif
+#if CELL_CHUNKS > 6
+    case 6u: return texelFetch(tets_tb_6, j);
+#endif
+#if CELL_CHUNKS > 7
+    case 7u: return texelFetch(tets_tb_7, j);
+#endif
+    default: return texelFetch(tets_tb, j);
+    }
+#else
+    return texelFetch(tets_tb, int(c));
+#endif
+}
+uvec4 neighbors_of(uint c) {
+#if CELL_CHUNKS > 1
+    uint k = (c) / uint(CELL_PER_CHUNK);
+    int j = int((c) - k * uint(CELL_PER_CHUNK));
+    switch (k) {
+#if CELL_CHUNKS > 1
+    case 1u: return texelFetch(neighbors_tb_1, j);
+#endif
+#if CELL_CHUNKS > 2
+    case 2u: return texelFetch(neighbors_tb_2, j);
+#endif
+#if CELL_CHUNKS > 3
+    case 3u: return texelFetch(neighbors_tb_3, j);
+#endif
+#if CELL_CHUNKS > 4
+    case 4u: return texelFetch(neighbors_tb_4, j);
+#endif
+#if CELL_CHUNKS > 5
+    case 5u: return texelFetch(neighbors_tb_5, j);
+#endif
+#if CELL_CHUNKS > 6
+    case 6u: return texelFetch(neighbors_tb_6, j);
+#endif
+#if CELL_CHUNKS > 7
+    case 7u: return texelFetch(neighbors_tb_7, j);
+#endif
+    default: return texelFetch(neighbors_tb, j);
+    }
+#else
+    return texelFetch(neighbors_tb, int(c));
+#endif
+}
+uint neighbor_at(uint slot) { return neighbors_of(slot >> 2)[slot & 3u]; }
+uint solid_at(uint c) {
+#if CELL_CHUNKS > 1
+    uint k = (c) / uint(CELL_PER_CHUNK);
+    int j = int((c) - k * uint(CELL_PER_CHUNK));
+    switch (k) {
+#if CELL_CHUNKS > 1
+    case 1u: return texelFetch(solid_tb_1, j).r;
+#endif
+#if CELL_CHUNKS > 2
+    case 2u: return texelFetch(solid_tb_2, j).r;
+#endif
+#if CELL_CHUNKS > 3
+    case 3u: return texelFetch(solid_tb_3, j).r;
+#endif
+#if CELL_CHUNKS > 4
+    case 4u: return texelFetch(solid_tb_4, j).r;
+#endif
+#if CELL_CHUNKS > 5
+    case 5u: return texelFetch(solid_tb_5, j).r;
+#endif
+#if CELL_CHUNKS > 6
+    case 6u: return texelFetch(solid_tb_6, j).r;
+#endif
+#if CELL_CHUNKS > 7
+    case 7u: return texelFetch(solid_tb_7, j).r;
+#endif
+    default: return texelFetch(solid_tb, j).r;
+    }
+#else
+    return texelFetch(solid_tb, int(c)).r;
+#endif
+}
 struct Node {
     vec4 lo;  // xyz: box min; w: inner: left child index; leaf: first primitive (uint bits)
     vec4 hi;  // xyz: box max; w: 0 for an inner node (right child = left + 1), else primitive count (uint bits)

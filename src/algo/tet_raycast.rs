@@ -56,6 +56,7 @@ use serde_json::json;
 use super::cell_projection::render;
 use super::settings::{choice, float, int, MethodSettings};
 use super::cell_projection::{render_origin, scalar_map, ExitTolerances, FrameSetup, Interpolation, MeshScale};
+use super::chunks::{ChunkLimits, TexelChunks};
 use super::host_memory::HostMemory;
 use super::integrate::{check_table_size, IntegrationTables, Integrator};
 use super::method::{DataKind, Family, MethodInfo, MethodInputs, OptionSpec, Options, Phases, RenderMethod, SceneData, View, Work};
@@ -65,7 +66,7 @@ use crate::mesh::topology::Topology;
 use crate::scene::Camera;
 use crate::vk::raw::Handle as _;
 use crate::vk::{
-    raw, upload_static, upload_static_texels, Buffer, BufferDesc, CommandRecorder, ComputePipelineKey, Context, DescriptorKind, DescriptorResource,
+    raw, upload_static, Buffer, BufferDesc, CommandRecorder, ComputePipelineKey, Context, DescriptorKind, DescriptorResource,
     DescriptorSet, DescriptorSetDesc, Image, ImageUse, MemoryKind, Pipeline, PipelineKey, ShaderKey, ShaderStage, TexelBuffer, UploadCounter,
 };
 
@@ -249,6 +250,8 @@ pub struct TetRaycast {
     boundary_faces: usize,
     bvh_nodes: usize,
     bvh_depth: usize,
+    /// Texel buffers per array (`algo::chunks`): points, then each per-cell array.
+    device_chunks: serde_json::Value,
     step_budget: u64,
     /// The mesh the run holds for this method (`details.host_memory`;
     /// everything else per cell lives on the device).
@@ -284,12 +287,13 @@ impl TetRaycast {
         if (n as u64) * 4 >= u64::from(NONE) {
             bail!("mesh '{}': {n} cells are too many for 32-bit face slots", mesh.name);
         }
-        for (what, count, elem) in [("points", mesh.points.len(), 16), ("cells", n, 16), ("neighbours", n, 16), ("solid flags", n, 4)] {
-            buffer_bytes(ctx, mesh, what, count, elem)?;
-        }
+        // The per-point and per-cell arrays are split at the device's
+        // limits (`algo::chunks`); their total is checked against its memory.
         let info = &ctx.info;
-        crate::mesh::check_fits(n, 16 + 16 + 4 + 4 * 4 + 32, info.device_local_heap_bytes)
-            .with_context(|| format!("mesh '{}' on {}", mesh.name, info.name))?;
+        let (memory, what) = crate::algo::chunks::device_memory_bound(info);
+        crate::mesh::check_fits(n, 16 + 16 + 4 + 4 * 4 + 32, memory)
+            .with_context(|| format!("mesh '{}' on {}: device memory ({what})", mesh.name, info.name))?;
+        let limits = ChunkLimits::of(ctx)?;
         let length_scale = mesh.bounds().diagonal() / (n.max(1) as f64).cbrt();
         let tables = IntegrationTables::for_stages(
             ctx,
@@ -350,15 +354,36 @@ impl TetRaycast {
                 b.into()
             }
         }
-        let texels = |name: &str, bytes: &[u8], format: raw::Format, counter: &mut UploadCounter| {
-            upload_static_texels(ctx, name, &nonempty(bytes), format, counter)
-        };
-        let texel_buffers = vec![
-            texels("tet-raycast points", bytemuck::cast_slice(&points), raw::Format::R32G32B32A32_SFLOAT, counter)?,
-            texels("tet-raycast cells", bytemuck::cast_slice(&mesh.tets), raw::Format::R32G32B32A32_UINT, counter)?,
-            texels("tet-raycast neighbours", bytemuck::cast_slice(&topo.neighbor), raw::Format::R32_UINT, counter)?,
-            texels("tet-raycast solid flags", bytemuck::cast_slice(&solid), raw::Format::R32_UINT, counter)?,
+        // Each array in texel buffers within the device's limits; the three
+        // per-cell arrays share one chunk length (the shader's CELL_PER_CHUNK),
+        // that of the 16-byte texels.
+        let per_point = limits.texel_chunk(16, 1);
+        let per_cell = limits.texel_chunk(16, 1);
+        let neighbours: &[[u32; 4]] = bytemuck::cast_slice(&topo.neighbor);
+        let chunked = [
+            TexelChunks::upload_slice(ctx, "tet-raycast points", &points, raw::Format::R32G32B32A32_SFLOAT, per_point, counter)?,
+            TexelChunks::upload_slice(ctx, "tet-raycast cells", &mesh.tets, raw::Format::R32G32B32A32_UINT, per_cell, counter)?,
+            TexelChunks::upload_slice(ctx, "tet-raycast neighbours", neighbours, raw::Format::R32G32B32A32_UINT, per_cell, counter)?,
+            TexelChunks::upload_slice(ctx, "tet-raycast solid flags", &solid, raw::Format::R32_UINT, per_cell, counter)?,
         ];
+        let device_chunks = json!({
+            "point_buffers": chunked[0].buffers.len(),
+            "points_per_buffer": chunked[0].per_chunk,
+            "buffers_per_cell_array": chunked[1].buffers.len(),
+            "cells_per_buffer": chunked[1].per_chunk,
+        });
+        let chunk_defines: Vec<(String, String)> = chunked[0].defines("POINT").into_iter().chain(chunked[1].defines("CELL")).collect();
+        // Chunk 0 of each array at bindings 0-3, the others from binding 7
+        // on (walk.comp).
+        let (firsts, rests): (Vec<TexelBuffer>, Vec<Vec<TexelBuffer>>) = chunked
+            .into_iter()
+            .map(|c| {
+                let mut buffers = c.buffers;
+                let first = buffers.remove(0);
+                (first, buffers)
+            })
+            .unzip();
+        let extra: Vec<TexelBuffer> = rests.into_iter().flatten().collect();
         let usage = raw::BufferUsageFlags::STORAGE_BUFFER;
         let up = |name: &str, bytes: &[u8], counter: &mut UploadCounter| upload_static(ctx, name, bytes, usage, counter);
         let buffers = vec![
@@ -375,14 +400,18 @@ impl TetRaycast {
             },
         )?;
         let compute = raw::ShaderStageFlags::COMPUTE;
-        let mesh_desc = DescriptorSetDesc::new(&[(DescriptorKind::UniformTexelBuffer, compute); 4])
+        let mut mesh_desc = DescriptorSetDesc::new(&[(DescriptorKind::UniformTexelBuffer, compute); 4])
             .with(DescriptorKind::StorageBuffer, compute)
             .with(DescriptorKind::StorageBuffer, compute)
             .with(DescriptorKind::StorageBuffer, compute);
-        let resources: Vec<DescriptorResource> = texel_buffers
+        for _ in &extra {
+            mesh_desc = mesh_desc.with(DescriptorKind::UniformTexelBuffer, compute);
+        }
+        let resources: Vec<DescriptorResource> = firsts
             .iter()
             .map(DescriptorResource::UniformTexelBuffer)
             .chain(buffers.iter().chain(std::iter::once(&counters)).map(DescriptorResource::StorageBuffer))
+            .chain(extra.iter().map(DescriptorResource::UniformTexelBuffer))
             .collect();
         let mesh_set = DescriptorSet::new(ctx, "tet-raycast mesh", &mesh_desc, &resources)?;
         let target_desc = DescriptorSetDesc::new(&[(DescriptorKind::StorageImage, raw::ShaderStageFlags::COMPUTE)]);
@@ -390,6 +419,7 @@ impl TetRaycast {
         let mut defines: Vec<(&str, &str)> = settings.defines();
         defines.push(("WG_X", &wg[0]));
         defines.push(("WG_Y", &wg[1]));
+        defines.extend(chunk_defines.iter().map(|(k, v)| (k.as_str(), v.as_str())));
         let key = PipelineKey::Compute(ComputePipelineKey {
             shader: ShaderKey::new("tet_raycast/walk.comp", ShaderStage::Compute, &defines),
             push_constant_bytes: PUSH_BYTES,
@@ -405,7 +435,7 @@ impl TetRaycast {
             settings,
             mesh_set,
             _buffers: buffers,
-            _texel_buffers: texel_buffers,
+            _texel_buffers: firsts.into_iter().chain(extra).collect(),
             counters,
             pipeline,
             key,
@@ -417,6 +447,7 @@ impl TetRaycast {
             boundary_faces: topo.boundary.len(),
             bvh_nodes: bvh.nodes.len(),
             bvh_depth: bvh.depth,
+            device_chunks,
             step_budget: n as u64 + STEP_MARGIN,
             ctx: ctx.clone(),
         })
@@ -550,6 +581,7 @@ impl RenderMethod for TetRaycast {
             "table_size": self.tables.table_size,
             "ert": self.settings.ert,
             "boundary_faces": self.boundary_faces,
+            "device_chunks": self.device_chunks,
             "bvh_nodes": self.bvh_nodes,
             "bvh_depth": self.bvh_depth,
             "bvh_leaf_faces": LEAF_FACES,

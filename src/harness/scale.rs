@@ -67,13 +67,7 @@ pub struct ScaleReport {
     pub rows: Vec<ScaleRow>,
 }
 
-/// Available host memory (MemAvailable, bytes), if /proc/meminfo says.
-pub fn available_memory() -> Option<u64> {
-    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
-    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
-    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb * 1024)
-}
+pub use crate::algo::chunks::available_memory;
 
 /// `mesh` refined once, after checking that the refinement fits in the
 /// host memory available now (`available`: bytes; `None`: unchecked).

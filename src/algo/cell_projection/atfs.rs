@@ -290,6 +290,7 @@ impl Atfs {
             tables,
             draw.interpolation,
             &[DescriptorSetDesc::storage_buffers(1, raw::ShaderStageFlags::VERTEX)],
+            &[],
         )?;
         Ok(Atfs {
             offsets: vec![0; cells.len()],

@@ -15,6 +15,7 @@ use rayon::prelude::*;
 use super::render;
 use crate::algo::method::{MethodInfo, MethodInputs, RenderMethod};
 use super::{build_pipeline, cells_f32, CellF32, CellProjector, DrawSettings, StaticIndices, FrameSetup, Interpolation, MAX_INDICES_PER_CELL};
+use crate::algo::chunks::{self, ChunkLimits};
 use crate::algo::host_memory::HostMemory;
 use crate::algo::integrate::IntegrationTables;
 use crate::mesh::TetMesh;
@@ -45,7 +46,8 @@ const BALANCED: MethodInfo = render::method_info(
 );
 
 fn create(inputs: MethodInputs) -> anyhow::Result<Box<dyn RenderMethod>> {
-    let bytes = render::DeviceBytesPerCell { frame: FLOATS_PER_CELL * 4, fixed: MAX_INDICES_PER_CELL * 4 };
+    // The records are split at the device's limits (one piece per draw).
+    let bytes = render::DeviceBytesPerCell { frame: 0, fixed: FLOATS_PER_CELL * 4 + MAX_INDICES_PER_CELL * 4 };
     render::CellProjection::create(inputs, bytes, |ctx, mesh, tables, draw, counter| {
         Ok(Box::new(Balanced::new(ctx, mesh, tables, draw, counter)?))
     })
@@ -67,7 +69,10 @@ pub(super) fn record_attributes() -> [VertexAttribute; 5] {
 pub struct Balanced {
     cells: Vec<CellF32>,
     packed: Vec<f32>,
-    vertex_buffer: Buffer,
+    /// The records in pieces of at most `per_draw` cells (one buffer holds
+    /// at most maxMemoryAllocationSize bytes), drawn one draw each, in order.
+    vertex_buffers: Vec<Buffer>,
+    per_draw: usize,
     indices: StaticIndices,
     pipeline: Arc<Pipeline>,
     pipeline_key: PipelineKey,
@@ -163,10 +168,23 @@ impl Balanced {
     ) -> VkResult<Self> {
         let cells = cells_f32(mesh);
         let n = cells.len();
-        let indices = StaticIndices::upload(ctx, "balanced indices", draw.primitives, n, counter)?;
-        let bytes = (n * FLOATS_PER_CELL * 4) as u64;
-        let vertex_buffer =
-            Buffer::new(ctx, BufferDesc::upload("balanced vertex records", bytes, raw::BufferUsageFlags::VERTEX_BUFFER))?;
+        let limits = ChunkLimits::of(ctx)?;
+        let per_draw = limits
+            .allocation_chunk((FLOATS_PER_CELL * 4) as u64)
+            .min(limits.allocation_chunk(4 * draw.primitives.indices_per_cell() as u64))
+            .max(1);
+        let pieces = chunks::ranges(n, per_draw);
+        // Every piece draws from the start of the same indices.
+        let indices = StaticIndices::upload(ctx, "balanced indices", draw.primitives, pieces[0].len(), counter)?;
+        let vertex_buffers = pieces
+            .iter()
+            .enumerate()
+            .map(|(k, piece)| {
+                let label = if pieces.len() == 1 { String::new() } else { format!(" [{k}]") };
+                let bytes = (piece.len().max(1) * FLOATS_PER_CELL * 4) as u64;
+                Buffer::new(ctx, BufferDesc::upload(&format!("balanced vertex records{label}"), bytes, raw::BufferUsageFlags::VERTEX_BUFFER))
+            })
+            .collect::<VkResult<Vec<_>>>()?;
         let (pipeline, pipeline_key) = build_pipeline(
             ctx,
             "cell_projection/balanced.vert",
@@ -178,11 +196,13 @@ impl Balanced {
             tables,
             draw.interpolation,
             &[],
+            &[],
         )?;
         Ok(Balanced {
             packed: vec![0f32; n * FLOATS_PER_CELL],
             cells,
-            vertex_buffer,
+            vertex_buffers,
+            per_draw,
             indices,
             pipeline,
             pipeline_key,
@@ -204,6 +224,9 @@ impl CellProjector for Balanced {
     fn pipeline_key(&self) -> &PipelineKey {
         &self.pipeline_key
     }
+    fn device_chunks(&self) -> serde_json::Value {
+        serde_json::json!({ "draws": self.vertex_buffers.len(), "cells_per_draw": self.per_draw })
+    }
 
     fn drawn(&self) -> usize {
         self.drawn
@@ -220,15 +243,31 @@ impl CellProjector for Balanced {
     }
 
     fn upload(&mut self, counter: &mut UploadCounter) -> VkResult<()> {
-        let packed = &self.packed[..self.drawn * FLOATS_PER_CELL];
-        self.vertex_buffer.write(0, bytemuck::cast_slice(packed), counter, UploadClass::FrameCells)
+        for (k, buffer) in self.vertex_buffers.iter_mut().enumerate() {
+            let start = k * self.per_draw;
+            let end = self.drawn.min(start + self.per_draw);
+            if end > start {
+                let packed = &self.packed[start * FLOATS_PER_CELL..end * FLOATS_PER_CELL];
+                buffer.write(0, bytemuck::cast_slice(packed), counter, UploadClass::FrameCells)?;
+            }
+        }
+        Ok(())
     }
 
     fn record_draw(&self, rec: &CommandRecorder, tables: &IntegrationTables, frame: &FrameSetup, counter: &mut UploadCounter) -> VkResult<()> {
         rec.bind_pipeline(&self.pipeline, Some(&tables.set));
         rec.push_constants(&self.pipeline, bytemuck::bytes_of(&frame.constants), counter);
-        rec.bind_vertex_buffer(&self.vertex_buffer);
-        self.indices.draw(rec, self.drawn);
+        // One draw per piece of the sorted records, in order (back-to-front
+        // compositing is kept across pieces).
+        for (k, buffer) in self.vertex_buffers.iter().enumerate() {
+            let start = k * self.per_draw;
+            let count = self.drawn.min(start + self.per_draw).saturating_sub(start);
+            if count == 0 && k > 0 {
+                break;
+            }
+            rec.bind_vertex_buffer(buffer);
+            self.indices.draw(rec, count);
+        }
         Ok(())
     }
 }

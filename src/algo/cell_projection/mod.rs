@@ -440,6 +440,11 @@ pub trait CellProjector {
     }
     /// The key of the pipeline it draws with (recorded in results).
     fn pipeline_key(&self) -> &PipelineKey;
+    /// How its per-cell device data is split at the device's limits
+    /// (`algo::chunks`; `details.device_chunks`), if it splits any.
+    fn device_chunks(&self) -> serde_json::Value {
+        serde_json::Value::Null
+    }
     /// Count the host memory it keeps between frames, by structure
     /// (`details.host_memory`).
     fn host_bytes(&self, memory: &mut HostMemory);
@@ -536,8 +541,11 @@ pub(crate) fn build_pipeline(
     tables: &IntegrationTables,
     interpolation: Interpolation,
     extra_sets: &[DescriptorSetDesc],
+    // More shader defines (e.g. the chunking of the stored cells, `algo::chunks`).
+    more_defines: &[(&str, &str)],
 ) -> VkResult<(Arc<Pipeline>, PipelineKey)> {
     let mut defines = shader_defines(interpolation, tables.integrator);
+    defines.extend_from_slice(more_defines);
     let extra = extra_fragment_work()?;
     if let Some(n) = &extra {
         defines.push(("EXTRA_WORK", n));

@@ -119,6 +119,7 @@ impl NearCaps {
             tables,
             interpolation,
             pieces_set.as_slice(),
+            &[],
         )?;
         let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
         for p in &mesh.points {

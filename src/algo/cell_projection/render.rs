@@ -270,6 +270,8 @@ impl<F> ProjectorBuilder for F where
 /// allocation, plus static data (checked before anything is allocated).
 #[derive(Debug, Clone, Copy)]
 pub struct DeviceBytesPerCell {
+    /// Per-frame bytes per cell in one allocation (0 when the projector
+    /// splits them at the device's limits, `algo::chunks`: then in `fixed`).
     pub frame: usize,
     pub fixed: usize,
 }
@@ -323,9 +325,11 @@ impl CellProjection {
         let ctx = inputs.ctx;
         // Refuse meshes the device cannot hold before allocating anything.
         let info = &ctx.info;
+        let (memory, what) = crate::algo::chunks::device_memory_bound(info);
         crate::mesh::check_fits(mesh.tets.len(), bytes.frame, info.max_memory_allocation_size)
-            .and_then(|()| crate::mesh::check_fits(mesh.tets.len(), bytes.frame + bytes.fixed, info.device_local_heap_bytes))
-            .with_context(|| format!("mesh '{}' on {}", mesh.name, info.name))?;
+            .with_context(|| format!("mesh '{}' on {}: the per-frame records in one allocation", mesh.name, info.name))?;
+        crate::mesh::check_fits(mesh.tets.len(), bytes.frame + bytes.fixed, memory)
+            .with_context(|| format!("mesh '{}' on {}: device memory ({what})", mesh.name, info.name))?;
         // A typical cell size: the bounding box shared out among the cells.
         let length_scale = mesh.bounds().diagonal() / (mesh.tets.len().max(1) as f64).cbrt();
         let tables = IntegrationTables::for_stages(
@@ -511,6 +515,7 @@ impl RenderMethod for CellProjection {
             "floats_per_cell_by_construction": self.projector.floats_per_cell(),
             "table_size": self.tables.table_size,
             "pipeline": { "key": self.projector.pipeline_key().id(), "name": self.projector.pipeline_key().name() },
+            "device_chunks": self.projector.device_chunks(),
             "tolerances": self.settings.tolerances(),
             "mesh_stats": self.mesh_stats,
             "cull": {

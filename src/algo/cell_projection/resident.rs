@@ -13,13 +13,14 @@ use ash::vk as raw;
 
 use super::balanced::VERTICES_PER_CELL;
 use super::render;
-use super::{build_pipeline, CellF32, CellMaker, CellProjector, FrameSetup, DrawSettings, StaticIndices, MAX_INDICES_PER_CELL};
+use super::{build_pipeline, CellF32, CellMaker, CellProjector, FrameSetup, DrawSettings, Primitives, StaticIndices, MAX_INDICES_PER_CELL};
+use crate::algo::chunks::{self, ChunkLimits, TexelChunks};
 use crate::algo::host_memory::HostMemory;
 use crate::algo::integrate::IntegrationTables;
 use crate::algo::method::{MethodInfo, MethodInputs, RenderMethod};
 use crate::mesh::TetMesh;
 use crate::vk::{
-    upload_static_streamed, Buffer, BufferDesc, CommandRecorder, Context, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc,
+    Buffer, BufferDesc, CommandRecorder, Context, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc,
     Pipeline, PipelineKey, TexelBuffer, UploadClass, UploadCounter, VkError, VkResult,
 };
 
@@ -39,9 +40,10 @@ pub const METHOD: MethodInfo = render::method_info(
 );
 
 fn create(inputs: MethodInputs) -> anyhow::Result<Box<dyn RenderMethod>> {
+    // The order is split at the device's limits (one piece per draw).
     let bytes = render::DeviceBytesPerCell {
-        frame: BYTES_PER_CELL_PER_FRAME,
-        fixed: MAX_INDICES_PER_CELL * 4 + FLOATS_PER_STORED_CELL * 4,
+        frame: 0,
+        fixed: BYTES_PER_CELL_PER_FRAME + MAX_INDICES_PER_CELL * 4 + FLOATS_PER_STORED_CELL * 4,
     };
     render::CellProjection::create(inputs, bytes, |ctx, mesh, tables, draw, counter| {
         Ok(Box::new(Resident::new(ctx, mesh, tables, draw, counter)?))
@@ -53,10 +55,13 @@ pub struct Resident {
     /// Cells in the last `pack` (the first `drawn` entries of `order`).
     drawn: usize,
     order: Vec<u32>,
-    order_buffer: Buffer,
-    _cell_buffer: TexelBuffer,
+    /// The order drawn in pieces of at most `per_draw` cells (one storage
+    /// binding sees at most maxStorageBufferRange bytes of it): each piece
+    /// its own order buffer and set, drawn in order.
+    draws: Vec<(Buffer, DescriptorSet)>,
+    per_draw: usize,
+    cell_chunks: TexelChunks,
     indices: StaticIndices,
-    set: DescriptorSet,
     pipeline: Arc<Pipeline>,
     pipeline_key: PipelineKey,
 }
@@ -81,24 +86,32 @@ impl Resident {
         counter: &mut UploadCounter,
     ) -> VkResult<Self> {
         let n = mesh.tets.len();
-        let cell_buffer = upload_cells(ctx, "resident cells", mesh, counter)?;
+        let limits = ChunkLimits::of(ctx)?;
+        let cells = upload_cell_chunks(ctx, "resident cells", mesh, &limits, counter)?;
+        let per_draw = cells_per_draw(&limits, draw.primitives);
+        let pieces = chunks::ranges(n, per_draw);
+        // Every piece draws from the start of the same indices.
+        let indices = StaticIndices::upload(ctx, "resident indices", draw.primitives, pieces[0].len(), counter)?;
         let usage = raw::BufferUsageFlags::STORAGE_BUFFER;
-        let indices = StaticIndices::upload(ctx, "resident indices", draw.primitives, n, counter)?;
-        let order_buffer = Buffer::new(ctx, BufferDesc::upload("resident order", (n.max(1) * 4) as u64, usage))?;
-        let set = cells_and_order_set(ctx, "resident cells and order", &cell_buffer, &order_buffer)?;
-        let (pipeline, pipeline_key) = resident_pipeline(ctx, tables, draw)?;
-        Ok(Resident {
-            cells: n,
-            drawn: n,
-            order: vec![0; n],
-            order_buffer,
-            _cell_buffer: cell_buffer,
-            indices,
-            set,
-            pipeline,
-            pipeline_key,
-        })
+        let draws = pieces
+            .iter()
+            .enumerate()
+            .map(|(k, piece)| {
+                let label = if pieces.len() == 1 { String::new() } else { format!(" [{k}]") };
+                let order = Buffer::new(ctx, BufferDesc::upload(&format!("resident order{label}"), (piece.len().max(1) * 4) as u64, usage))?;
+                let set = cells_and_order_set(ctx, &format!("resident cells and order{label}"), &cells, &order)?;
+                Ok((order, set))
+            })
+            .collect::<VkResult<Vec<_>>>()?;
+        let (pipeline, pipeline_key) = resident_pipeline(ctx, tables, draw, &cells)?;
+        Ok(Resident { cells: n, drawn: n, order: vec![0; n], draws, per_draw, cell_chunks: cells, indices, pipeline, pipeline_key })
     }
+}
+
+/// Cells one draw may cover: its piece of the order within one storage
+/// binding, its indices within one allocation.
+fn cells_per_draw(limits: &ChunkLimits, primitives: Primitives) -> usize {
+    limits.storage_chunk(4).min(limits.allocation_chunk(4 * primitives.indices_per_cell() as u64)).max(1)
 }
 
 /// Set 1 of `resident.vert`: the stored cells (a uniform texel buffer of
@@ -106,15 +119,30 @@ impl Resident {
 /// invocation reads all of its cell, and a texel fetch is one lookup where
 /// a storage-buffer load with a per-vertex index is, on llvmpipe, a loop
 /// over the SIMD lanes per component) and the order (a storage buffer, one
-/// u32 per vertex).
-pub(super) fn set_desc() -> DescriptorSetDesc {
+/// u32 per vertex); cells beyond one texel buffer in `cell_chunks - 1`
+/// more bindings after them (`CELL_CHUNK_BINDING` in stored_cell.glsl).
+pub(super) fn set_desc(cell_chunks: usize) -> DescriptorSetDesc {
     let vertex = raw::ShaderStageFlags::VERTEX;
-    DescriptorSetDesc::new(&[(DescriptorKind::UniformTexelBuffer, vertex), (DescriptorKind::StorageBuffer, vertex)])
+    let mut desc = DescriptorSetDesc::new(&[(DescriptorKind::UniformTexelBuffer, vertex), (DescriptorKind::StorageBuffer, vertex)]);
+    for _ in 1..cell_chunks {
+        desc = desc.with(DescriptorKind::UniformTexelBuffer, vertex);
+    }
+    desc
 }
 
 /// The pipeline of both resident methods: `resident.vert` (vertices from
 /// the stored cells, set 1) and balanced's fragment stage.
-pub(super) fn resident_pipeline(ctx: &Arc<Context>, tables: &IntegrationTables, draw: DrawSettings) -> VkResult<(Arc<Pipeline>, PipelineKey)> {
+pub(super) fn resident_pipeline(
+    ctx: &Arc<Context>,
+    tables: &IntegrationTables,
+    draw: DrawSettings,
+    cells: &TexelChunks,
+) -> VkResult<(Arc<Pipeline>, PipelineKey)> {
+    let chunked = cells.defines("CELL");
+    let mut defines: Vec<(&str, &str)> = chunked.iter().map(|(k, v)| (k.as_str(), v.as_str())).collect();
+    if !defines.is_empty() {
+        defines.push(("CELL_CHUNK_BINDING", "2"));
+    }
     build_pipeline(
         ctx,
         "cell_projection/resident.vert",
@@ -125,39 +153,53 @@ pub(super) fn resident_pipeline(ctx: &Arc<Context>, tables: &IntegrationTables, 
         draw.primitives.primitive_restart(),
         tables,
         draw.interpolation,
-        &[set_desc()],
+        &[set_desc(cells.buffers.len())],
+        &defines,
     )
 }
 
-pub(super) fn cells_and_order_set(ctx: &Arc<Context>, name: &str, cells: &TexelBuffer, order: &Buffer) -> VkResult<DescriptorSet> {
-    DescriptorSet::new(ctx, name, &set_desc(), &[DescriptorResource::UniformTexelBuffer(cells), DescriptorResource::StorageBuffer(order)])
+pub(super) fn cells_and_order_set(ctx: &Arc<Context>, name: &str, cells: &TexelChunks, order: &Buffer) -> VkResult<DescriptorSet> {
+    let mut resources = vec![DescriptorResource::UniformTexelBuffer(&cells.buffers[0]), DescriptorResource::StorageBuffer(order)];
+    resources.extend(cells.buffers[1..].iter().map(DescriptorResource::UniformTexelBuffer));
+    DescriptorSet::new(ctx, name, &set_desc(cells.buffers.len()), &resources)
 }
 
 /// The cells as `resident.vert` reads them, uploaded once into device-local
 /// memory, made chunk by chunk while they stream through the staging buffer
-/// (no host copy of all of them is ever held); a mesh with more texels than
-/// the device's texel-buffer limit is an error naming it.
-pub(super) fn upload_cells(ctx: &Arc<Context>, name: &str, mesh: &TetMesh, counter: &mut UploadCounter) -> VkResult<TexelBuffer> {
+/// (no host copy of all of them is ever held), in as many texel buffers as
+/// `limits` need (`algo::chunks`).
+pub(super) fn upload_cell_chunks(
+    ctx: &Arc<Context>,
+    name: &str,
+    mesh: &TetMesh,
+    limits: &ChunkLimits,
+    counter: &mut UploadCounter,
+) -> VkResult<TexelChunks> {
     use rayon::prelude::*;
-    let n = mesh.tets.len();
-    let texels = n as u64 * (FLOATS_PER_STORED_CELL / 4) as u64;
-    let limit = u64::from(ctx.info.max_texel_buffer_elements);
-    if texels > limit {
-        return Err(VkError::Invalid(format!(
-            "mesh '{}': {n} cells need {texels} texels, above the device's maxTexelBufferElements ({limit})",
-            mesh.name
-        )));
-    }
     const CELL_BYTES: usize = FLOATS_PER_STORED_CELL * 4;
     let maker = CellMaker::new(mesh);
-    let usage = raw::BufferUsageFlags::UNIFORM_TEXEL_BUFFER;
-    let buffer = upload_static_streamed(ctx, name, (n * CELL_BYTES) as u64, CELL_BYTES as u64, usage, counter, |offset, chunk| {
-        let first = offset as usize / CELL_BYTES;
-        chunk.par_chunks_mut(CELL_BYTES).with_min_len(1024).enumerate().for_each(|(i, dst)| {
+    let format = raw::Format::R32G32B32A32_SFLOAT;
+    let per_chunk = limits.texel_chunk(CELL_BYTES as u64, (CELL_BYTES / 16) as u64);
+    TexelChunks::upload(ctx, &format!("mesh '{}': {name}", mesh.name), mesh.tets.len(), CELL_BYTES, format, per_chunk, counter, |first, bytes| {
+        bytes.par_chunks_mut(CELL_BYTES).with_min_len(1024).enumerate().for_each(|(i, dst)| {
             dst.copy_from_slice(bytemuck::cast_slice(&stored(&maker.cell(mesh, first + i))));
         });
-    })?;
-    TexelBuffer::over(ctx, buffer, raw::Format::R32G32B32A32_SFLOAT)
+    })
+}
+
+/// [`upload_cell_chunks`] for a method that reads its cells from one texel
+/// buffer (pt-compute): more than one is an error naming the mesh.
+pub(super) fn upload_cells(ctx: &Arc<Context>, name: &str, mesh: &TetMesh, counter: &mut UploadCounter) -> VkResult<TexelBuffer> {
+    let mut cells = upload_cell_chunks(ctx, name, mesh, &ChunkLimits::of(ctx)?, counter)?;
+    if cells.buffers.len() > 1 {
+        return Err(VkError::Invalid(format!(
+            "mesh '{}': {name}: {} cells need {} texel buffers at the device's limits; this method reads one",
+            mesh.name,
+            mesh.tets.len(),
+            cells.buffers.len()
+        )));
+    }
+    Ok(cells.buffers.remove(0))
 }
 
 impl CellProjector for Resident {
@@ -172,6 +214,9 @@ impl CellProjector for Resident {
     }
     fn pipeline_key(&self) -> &PipelineKey {
         &self.pipeline_key
+    }
+    fn device_chunks(&self) -> serde_json::Value {
+        serde_json::json!({ "cell_buffers": self.cell_chunks.buffers.len(), "cells_per_buffer": self.cell_chunks.per_chunk, "draws": self.draws.len(), "cells_per_draw": self.per_draw })
     }
 
     fn drawn(&self) -> usize {
@@ -188,14 +233,32 @@ impl CellProjector for Resident {
     }
 
     fn upload(&mut self, counter: &mut UploadCounter) -> VkResult<()> {
-        self.order_buffer.write(0, bytemuck::cast_slice(&self.order[..self.drawn]), counter, UploadClass::FrameCells)
+        for (k, (buffer, _)) in self.draws.iter_mut().enumerate() {
+            let start = k * self.per_draw;
+            let end = self.drawn.min(start + self.per_draw);
+            if end > start {
+                buffer.write(0, bytemuck::cast_slice(&self.order[start..end]), counter, UploadClass::FrameCells)?;
+            }
+        }
+        Ok(())
     }
 
     fn record_draw(&self, rec: &CommandRecorder, tables: &IntegrationTables, frame: &FrameSetup, counter: &mut UploadCounter) -> VkResult<()> {
-        let sets: [&DescriptorSet; 2] = [&tables.set, &self.set];
-        rec.bind_graphics(&self.pipeline, &sets)?;
-        rec.push_constants(&self.pipeline, bytemuck::bytes_of(&frame.constants), counter);
-        self.indices.draw(rec, self.drawn);
+        // One draw per piece of the order, in order, so back-to-front
+        // compositing is kept across pieces. Push constants survive the
+        // re-binds (same pipeline layout): pushed once.
+        for (k, (_, set)) in self.draws.iter().enumerate() {
+            let start = k * self.per_draw;
+            let count = self.drawn.min(start + self.per_draw).saturating_sub(start);
+            if count == 0 && k > 0 {
+                break;
+            }
+            rec.bind_graphics(&self.pipeline, &[&tables.set, set])?;
+            if k == 0 {
+                rec.push_constants(&self.pipeline, bytemuck::bytes_of(&frame.constants), counter);
+            }
+            self.indices.draw(rec, count);
+        }
         Ok(())
     }
 }

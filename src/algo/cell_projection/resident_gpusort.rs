@@ -19,7 +19,8 @@ use anyhow::Result;
 use super::balanced::VERTICES_PER_CELL;
 use super::device_sort::{DeviceCentroidSort, SortCamera};
 use super::render;
-use super::resident::{cells_and_order_set, resident_pipeline, upload_cells, FLOATS_PER_STORED_CELL};
+use super::resident::{cells_and_order_set, resident_pipeline, upload_cell_chunks, FLOATS_PER_STORED_CELL};
+use crate::algo::chunks::{ChunkLimits, TexelChunks};
 use super::sort::SortKind;
 use super::{centroids_relative_f32, render_origin, CellProjector, FrameSetup, DrawSettings, StaticIndices, MAX_INDICES_PER_CELL};
 use crate::algo::host_memory::HostMemory;
@@ -27,7 +28,7 @@ use crate::algo::integrate::IntegrationTables;
 use crate::algo::method::{DataKind, Family, Feature, MethodInfo, MethodInputs, Options, RenderMethod};
 use crate::mesh::TetMesh;
 use crate::vk::{
-    CommandRecorder, Context, DescriptorSet, Pipeline, PipelineKey, TexelBuffer, UploadCounter,
+    CommandRecorder, Context, DescriptorSet, Pipeline, PipelineKey, UploadCounter,
     VkResult,
 };
 
@@ -106,7 +107,7 @@ pub struct ResidentGpuSort {
     cells: usize,
     set: DescriptorSet,
     sort: DeviceCentroidSort,
-    _cell_buffer: TexelBuffer,
+    _cells: TexelChunks,
     indices: StaticIndices,
     pipeline: Arc<Pipeline>,
     pipeline_key: PipelineKey,
@@ -124,11 +125,11 @@ impl ResidentGpuSort {
         // The same f64 -> f32 centroids as the CPU's centroid sort.
         let centroids = centroids_relative_f32(mesh, render_origin(mesh));
         let sort = DeviceCentroidSort::new(ctx, "resident-gpusort", &centroids, counter)?;
-        let cell_buffer = upload_cells(ctx, "resident-gpusort cells", mesh, counter)?;
+        let cells = upload_cell_chunks(ctx, "resident-gpusort cells", mesh, &ChunkLimits::of(ctx)?, counter)?;
         let indices = StaticIndices::upload(ctx, "resident-gpusort indices", draw.primitives, n, counter)?;
-        let set = cells_and_order_set(ctx, "resident-gpusort cells and order", &cell_buffer, sort.order())?;
-        let (pipeline, pipeline_key) = resident_pipeline(ctx, tables, draw)?;
-        Ok(ResidentGpuSort { cells: n, set, sort, _cell_buffer: cell_buffer, indices, pipeline, pipeline_key })
+        let set = cells_and_order_set(ctx, "resident-gpusort cells and order", &cells, sort.order())?;
+        let (pipeline, pipeline_key) = resident_pipeline(ctx, tables, draw, &cells)?;
+        Ok(ResidentGpuSort { cells: n, set, sort, _cells: cells, indices, pipeline, pipeline_key })
     }
 }
 

@@ -103,6 +103,7 @@ impl Vicp {
             tables,
             interpolation,
             &[],
+            &[],
         )?;
         Ok(Vicp { packed: vec![0f32; records.len()], records, vertex_buffer, pipeline, pipeline_key, cells: n, drawn: n })
     }
