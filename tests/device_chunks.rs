@@ -11,6 +11,10 @@ use volbench::algo::chunks::{DEVICE_LIMIT_VAR, MAX_CHUNKS};
 use volbench::harness::datasets;
 use volbench::harness::run::RunConfig;
 
+/// A method, the lowered limit in bytes, and the split expected in its
+/// `details.device_chunks`.
+type Case = (&'static str, u64, &'static [(&'static str, u64)]);
+
 #[test]
 fn data_split_at_lowered_limits_draws_the_same_image() {
     let mesh = datasets::load_mesh("post-small").unwrap();
@@ -20,7 +24,7 @@ fn data_split_at_lowered_limits_draws_the_same_image() {
     // order in 3 draws of 4266 (the 48-byte index slots per allocation);
     // balanced's 112-byte records in 5 draws of 1828. 32 KiB: tet-raycast's
     // points (2,288) in 2 buffers of 2048 texels, each per-cell array in 5.
-    let cases: [(&str, u64, &[(&str, u64)]); 3] = [
+    let cases: [Case; 3] = [
         ("resident", 200 << 10, &[("cell_buffers", 7), ("cells_per_buffer", 1422), ("draws", 3), ("cells_per_draw", 4266)]),
         ("balanced", 200 << 10, &[("draws", 5), ("cells_per_draw", 1828)]),
         ("tet-raycast", 32 << 10, &[("point_buffers", 2), ("points_per_buffer", 2048), ("buffers_per_cell_array", 5)]),

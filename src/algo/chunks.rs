@@ -115,10 +115,8 @@ pub fn device_memory_bound(info: &crate::vk::DeviceInfo) -> (u64, &'static str) 
 /// ranges, in order (one empty piece for no elements).
 pub fn ranges(count: usize, per_chunk: usize) -> Vec<std::ops::Range<usize>> {
     let per = per_chunk.max(1);
-    if count == 0 {
-        return vec![0..0];
-    }
-    (0..count.div_ceil(per)).map(|k| k * per..((k + 1) * per).min(count)).collect()
+    // No elements: one empty piece (so there is always a buffer to bind).
+    (0..count.div_ceil(per).max(1)).map(|k| k * per..((k + 1) * per).min(count)).collect()
 }
 
 /// One array as texel buffers of whole elements.
