@@ -873,12 +873,20 @@ fn parse_failure(e: &clap::Error) -> ExitCode {
         let _ = e.print();
         return ExitCode::from(u8::try_from(e.exit_code()).unwrap_or(2));
     }
-    match write_stdout(&e.render().to_string()) {
-        Err(e) if !broken_pipe(&e) => {
+    exit_code(write_stdout(&e.render().to_string()))
+}
+
+/// A command's outcome as the process's: an error on standard error and
+/// failure, except that a reader gone away (`volbench list | head -1`) is
+/// a quiet success, as for a filter: what it wanted it has.
+fn exit_code(result: Result<()>) -> ExitCode {
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) if broken_pipe(&e) => ExitCode::SUCCESS,
+        Err(e) => {
             volbench::progress!("volbench: error: {e:#}");
             ExitCode::FAILURE
         }
-        _ => ExitCode::SUCCESS,
     }
 }
 
@@ -916,15 +924,5 @@ fn main() -> ExitCode {
         Command::Ab(a) => ab(&registry, a),
         Command::Scale(a) => scale(&registry, a),
     };
-    match result {
-        Ok(()) => ExitCode::SUCCESS,
-        // The reader went away (`volbench list | head -1`): what it wanted
-        // it has; stop quietly, as a filter does.
-        Err(e) if broken_pipe(&e) => ExitCode::SUCCESS,
-        Err(e) => {
-            use std::io::Write as _;
-            let _ = writeln!(std::io::stderr(), "volbench: error: {e:#}");
-            ExitCode::FAILURE
-        }
-    }
+    exit_code(result)
 }
