@@ -9,7 +9,6 @@ mod common;
 use std::sync::{Arc, Mutex, OnceLock};
 
 use anyhow::Result;
-use ash::vk as raw;
 
 use volbench::algo::method::{
     DataKind, Family, Feature, MethodInfo, MethodInputs, OptionSpec, OptionValues, Phases, RenderMethod, SceneData, View, Work,
@@ -22,6 +21,7 @@ use volbench::vk::{
     compile_glsl, Blend, ColorTarget, CommandRecorder, Context, ContextDesc, GraphicsPipelineDesc, Image, Pipeline, ShaderModule,
     ShaderStage, UploadCounter,
 };
+use volbench::vk::{Cull, Topology, Winding};
 
 fn context() -> std::sync::MutexGuard<'static, Arc<Context>> {
     static CTX: OnceLock<Mutex<Arc<Context>>> = OnceLock::new();
@@ -81,10 +81,10 @@ fn create_box(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
             fragment: &fs,
             vertex_stride: 0,
             attributes: &[],
-            topology: raw::PrimitiveTopology::TRIANGLE_LIST,
+            topology: Topology::TriangleList,
             primitive_restart: false,
-            cull: raw::CullModeFlags::NONE,
-            front_face: raw::FrontFace::COUNTER_CLOCKWISE,
+            cull: Cull::None,
+            front_face: Winding::CounterClockwise,
             targets: &[ColorTarget::rgba32f(Blend::PremultipliedOver)],
             depth_test: false,
             depth_clamp: false,

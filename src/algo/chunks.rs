@@ -16,7 +16,8 @@
 
 use std::sync::Arc;
 
-use crate::vk::{raw, upload_static_streamed, Context, TexelBuffer, UploadCounter, VkError, VkResult};
+use crate::vk::{upload_static_streamed, Context, TexelBuffer, UploadCounter, VkError, VkResult};
+use crate::vk::{BufferUsage, Format};
 
 /// The test knob (see the module documentation).
 pub const DEVICE_LIMIT_VAR: &str = "VOLBENCH_TEST_DEVICE_LIMIT_BYTES";
@@ -103,7 +104,7 @@ pub fn available_memory() -> Option<u64> {
 /// the host's available memory. Per-allocation and per-binding limits are
 /// [`ChunkLimits`]'.
 pub fn device_memory_bound(info: &crate::vk::DeviceInfo) -> (u64, &'static str) {
-    if info.device_type == format!("{:?}", raw::PhysicalDeviceType::CPU) {
+    if info.is_cpu() {
         if let Some(avail) = available_memory() {
             return (avail.max(info.device_local_heap_bytes), "the host's available memory (a CPU device's memory is the process's)");
         }
@@ -139,7 +140,7 @@ impl TexelChunks {
         name: &str,
         count: usize,
         elem_bytes: usize,
-        format: raw::Format,
+        format: Format,
         per_chunk: usize,
         counter: &mut UploadCounter,
         mut fill: impl FnMut(usize, &mut [u8]),
@@ -155,7 +156,7 @@ impl TexelChunks {
                 pieces.len()
             )));
         }
-        let usage = raw::BufferUsageFlags::UNIFORM_TEXEL_BUFFER;
+        let usage = BufferUsage::UNIFORM_TEXEL;
         let mut buffers = Vec::with_capacity(pieces.len());
         for (k, piece) in pieces.iter().enumerate() {
             // Empty arrays still get one element (zero-size buffers are invalid).
@@ -179,7 +180,7 @@ impl TexelChunks {
         ctx: &Arc<Context>,
         name: &str,
         data: &[T],
-        format: raw::Format,
+        format: Format,
         per_chunk: usize,
         counter: &mut UploadCounter,
     ) -> VkResult<TexelChunks> {

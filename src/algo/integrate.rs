@@ -10,11 +10,11 @@
 
 use std::sync::Arc;
 
-use ash::vk as raw;
 use rayon::prelude::*;
 
 use crate::scene::TransferFunction;
 use crate::vk::{upload_static_texels, Context, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc, TexelBuffer, UploadCounter};
+use crate::vk::{Format, Stages};
 
 /// Default sizes: the TF table resolves control points to 1/1023 of the
 /// range; a 512^2 Psi table keeps per-lookup error near 1e-3 or below.
@@ -263,7 +263,7 @@ impl IntegrationTables {
         length_scale: f64,
         counter: &mut UploadCounter,
     ) -> anyhow::Result<Self> {
-        Self::for_stages(ctx, tf, range, integrator, table_size, length_scale, raw::ShaderStageFlags::FRAGMENT, counter)
+        Self::for_stages(ctx, tf, range, integrator, table_size, length_scale, Stages::FRAGMENT, counter)
     }
 
     /// [`Self::new`] with the tables visible to `stages` (a compute method
@@ -276,7 +276,7 @@ impl IntegrationTables {
         integrator: Integrator,
         table_size: usize,
         length_scale: f64,
-        stages: raw::ShaderStageFlags,
+        stages: Stages,
         counter: &mut UploadCounter,
     ) -> anyhow::Result<Self> {
         check_table_size(integrator, table_size)?;
@@ -301,7 +301,7 @@ impl IntegrationTables {
         // per component, about half of balanced's frame on the oxygen post
         // (README: the balanced method at its speed limit).
         let texels = |name: &str, data: &[[f32; 4]], counter: &mut UploadCounter| {
-            upload_static_texels(ctx, name, bytemuck::cast_slice(data), raw::Format::R32G32B32A32_SFLOAT, counter)
+            upload_static_texels(ctx, name, bytemuck::cast_slice(data), Format::Rgba32Float, counter)
         };
         let tf_buf = texels("transfer function table", &tf_table, counter)?;
         let table_buf = texels("integration table", table.as_slice(), counter)?;

@@ -64,11 +64,11 @@ use crate::mesh::adjacency::{FACE_VERTS, NONE};
 use crate::mesh::TetMesh;
 use crate::mesh::topology::Topology;
 use crate::scene::Camera;
-use crate::vk::raw::Handle as _;
 use crate::vk::{
-    raw, upload_static, Buffer, BufferDesc, CommandRecorder, ComputePipelineKey, Context, DescriptorKind, DescriptorResource,
+    upload_static, Buffer, BufferDesc, CommandRecorder, ComputePipelineKey, Context, DescriptorKind, DescriptorResource,
     DescriptorSet, DescriptorSetDesc, Image, ImageUse, MemoryKind, Pipeline, PipelineKey, ShaderKey, ShaderStage, TexelBuffer, UploadCounter,
 };
+use crate::vk::{BufferUsage, Format, Stages};
 
 /// Workgroup shape (pixels).
 pub const WORKGROUP: [u32; 2] = [8, 8];
@@ -302,7 +302,7 @@ impl TetRaycast {
             settings.integrator,
             settings.table_size,
             length_scale,
-            raw::ShaderStageFlags::COMPUTE,
+            Stages::COMPUTE,
             counter,
         )
         .context("building the integration tables")?;
@@ -361,10 +361,10 @@ impl TetRaycast {
         let per_cell = limits.texel_chunk(16, 1);
         let neighbours: &[[u32; 4]] = bytemuck::cast_slice(&topo.neighbor);
         let chunked = [
-            TexelChunks::upload_slice(ctx, "tet-raycast points", &points, raw::Format::R32G32B32A32_SFLOAT, per_point, counter)?,
-            TexelChunks::upload_slice(ctx, "tet-raycast cells", &mesh.tets, raw::Format::R32G32B32A32_UINT, per_cell, counter)?,
-            TexelChunks::upload_slice(ctx, "tet-raycast neighbours", neighbours, raw::Format::R32G32B32A32_UINT, per_cell, counter)?,
-            TexelChunks::upload_slice(ctx, "tet-raycast solid flags", &solid, raw::Format::R32_UINT, per_cell, counter)?,
+            TexelChunks::upload_slice(ctx, "tet-raycast points", &points, Format::Rgba32Float, per_point, counter)?,
+            TexelChunks::upload_slice(ctx, "tet-raycast cells", &mesh.tets, Format::Rgba32Uint, per_cell, counter)?,
+            TexelChunks::upload_slice(ctx, "tet-raycast neighbours", neighbours, Format::Rgba32Uint, per_cell, counter)?,
+            TexelChunks::upload_slice(ctx, "tet-raycast solid flags", &solid, Format::R32Uint, per_cell, counter)?,
         ];
         let device_chunks = json!({
             "point_buffers": chunked[0].buffers.len(),
@@ -384,7 +384,7 @@ impl TetRaycast {
             })
             .unzip();
         let extra: Vec<TexelBuffer> = rests.into_iter().flatten().collect();
-        let usage = raw::BufferUsageFlags::STORAGE_BUFFER;
+        let usage = BufferUsage::STORAGE;
         let up = |name: &str, bytes: &[u8], counter: &mut UploadCounter| upload_static(ctx, name, bytes, usage, counter);
         let buffers = vec![
             up("tet-raycast boundary BVH", &nonempty(bytemuck::cast_slice(&bvh.nodes)), counter)?,
@@ -395,11 +395,11 @@ impl TetRaycast {
             BufferDesc {
                 name: "tet-raycast counters".into(),
                 size: (COUNTER_WORDS * 4) as u64,
-                usage: raw::BufferUsageFlags::STORAGE_BUFFER | raw::BufferUsageFlags::TRANSFER_DST,
+                usage: BufferUsage::STORAGE | BufferUsage::TRANSFER_DST,
                 memory: MemoryKind::Readback,
             },
         )?;
-        let compute = raw::ShaderStageFlags::COMPUTE;
+        let compute = Stages::COMPUTE;
         let mut mesh_desc = DescriptorSetDesc::new(&[(DescriptorKind::UniformTexelBuffer, compute); 4])
             .with(DescriptorKind::StorageBuffer, compute)
             .with(DescriptorKind::StorageBuffer, compute)
@@ -414,7 +414,7 @@ impl TetRaycast {
             .chain(extra.iter().map(DescriptorResource::UniformTexelBuffer))
             .collect();
         let mesh_set = DescriptorSet::new(ctx, "tet-raycast mesh", &mesh_desc, &resources)?;
-        let target_desc = DescriptorSetDesc::new(&[(DescriptorKind::StorageImage, raw::ShaderStageFlags::COMPUTE)]);
+        let target_desc = DescriptorSetDesc::new(&[(DescriptorKind::StorageImage, Stages::COMPUTE)]);
         let wg = WORKGROUP.map(|v| v.to_string());
         let mut defines: Vec<(&str, &str)> = settings.defines();
         defines.push(("WG_X", &wg[0]));
@@ -532,25 +532,19 @@ impl RenderMethod for TetRaycast {
     }
 
     fn record(&mut self, rec: &CommandRecorder, target: &Image, view: &View, counter: &mut UploadCounter) -> Result<()> {
-        let id = target.raw.as_raw();
+        let id = target.id();
         if self.target_set.as_ref().map(|(t, _)| *t) != Some(id) {
             let set = DescriptorSet::new(&self.ctx, "tet-raycast target", &self.target_desc, &[DescriptorResource::StorageImage(target)])?;
             self.target_set = Some((id, set));
         }
         let Some((_, set)) = &self.target_set else { bail!("no target set") };
         rec.fill_buffer(&self.counters, 0);
-        rec.memory_barrier(
-            (raw::PipelineStageFlags2::CLEAR | raw::PipelineStageFlags2::COPY, raw::AccessFlags2::TRANSFER_WRITE),
-            (raw::PipelineStageFlags2::COMPUTE_SHADER, raw::AccessFlags2::SHADER_STORAGE_READ | raw::AccessFlags2::SHADER_STORAGE_WRITE),
-        );
+        rec.transfer_to_storage(Stages::COMPUTE);
         rec.image_barrier_discard(target, ImageUse::ComputeStorage);
         rec.bind_compute(&self.pipeline, &[&self.tables.set, &self.mesh_set, set])?;
         rec.push_constants(&self.pipeline, &self.push, counter);
         rec.dispatch([view.width.div_ceil(WORKGROUP[0]), view.height.div_ceil(WORKGROUP[1]), 1])?;
-        rec.memory_barrier(
-            (raw::PipelineStageFlags2::COMPUTE_SHADER, raw::AccessFlags2::SHADER_STORAGE_WRITE),
-            (raw::PipelineStageFlags2::HOST, raw::AccessFlags2::HOST_READ),
-        );
+        rec.compute_to_host();
         Ok(())
     }
 

@@ -13,6 +13,8 @@ use gpu_allocator::vulkan::{Allocation, AllocationCreateDesc, AllocationScheme};
 use gpu_allocator::MemoryLocation;
 
 use super::error::{Check, VkError, VkResult};
+use super::format::Format;
+use super::types::BufferUsage;
 use super::upload::{UploadClass, UploadCounter};
 use super::Context;
 
@@ -31,19 +33,19 @@ pub enum MemoryKind {
 pub struct BufferDesc {
     pub name: String,
     pub size: u64,
-    pub usage: vk::BufferUsageFlags,
+    pub usage: BufferUsage,
     pub memory: MemoryKind,
 }
 
 impl BufferDesc {
-    pub fn upload(name: &str, size: u64, usage: vk::BufferUsageFlags) -> Self {
+    pub fn upload(name: &str, size: u64, usage: BufferUsage) -> Self {
         BufferDesc { name: name.into(), size, usage, memory: MemoryKind::Upload }
     }
-    pub fn device_local(name: &str, size: u64, usage: vk::BufferUsageFlags) -> Self {
-        BufferDesc { name: name.into(), size, usage: usage | vk::BufferUsageFlags::TRANSFER_DST, memory: MemoryKind::DeviceLocal }
+    pub fn device_local(name: &str, size: u64, usage: BufferUsage) -> Self {
+        BufferDesc { name: name.into(), size, usage: usage | BufferUsage::TRANSFER_DST, memory: MemoryKind::DeviceLocal }
     }
     pub fn readback(name: &str, size: u64) -> Self {
-        BufferDesc { name: name.into(), size, usage: vk::BufferUsageFlags::TRANSFER_DST, memory: MemoryKind::Readback }
+        BufferDesc { name: name.into(), size, usage: BufferUsage::TRANSFER_DST, memory: MemoryKind::Readback }
     }
 }
 
@@ -66,7 +68,7 @@ impl Buffer {
                 ),
             });
         }
-        let info = vk::BufferCreateInfo::default().size(size).usage(desc.usage).sharing_mode(vk::SharingMode::EXCLUSIVE);
+        let info = vk::BufferCreateInfo::default().size(size).usage(desc.usage.to_vk()).sharing_mode(vk::SharingMode::EXCLUSIVE);
         // SAFETY: the create info and everything it points to live for the
         // call; the device outlives the handle (the owner holds the Context in
         // an Arc) and the handle is destroyed once, by its owner's Drop or the
@@ -194,15 +196,14 @@ impl Drop for Buffer {
 pub struct TexelBuffer {
     pub buffer: Buffer,
     pub view: vk::BufferView,
-    pub format: vk::Format,
+    pub format: Format,
     /// Number of texels the view covers.
     pub texels: u64,
 }
 
 impl TexelBuffer {
-    /// `desc.usage` must include UNIFORM_TEXEL_BUFFER and/or
-    /// STORAGE_TEXEL_BUFFER; the format must support them as buffer features.
-    pub fn new(ctx: &Arc<Context>, desc: BufferDesc, format: vk::Format) -> VkResult<TexelBuffer> {
+    /// `desc.usage` must include UNIFORM_TEXEL and/or STORAGE_TEXEL; the format must support them as buffer features.
+    pub fn new(ctx: &Arc<Context>, desc: BufferDesc, format: Format) -> VkResult<TexelBuffer> {
         Self::check(ctx, &desc, format)?;
         Self::over(ctx, Buffer::new(ctx, desc)?, format)
     }
@@ -210,9 +211,9 @@ impl TexelBuffer {
     /// A view of `format` texels over all of an existing buffer (e.g. one
     /// `upload_static` filled in device-local memory), checked as `new`
     /// checks its description.
-    pub fn over(ctx: &Arc<Context>, buffer: Buffer, format: vk::Format) -> VkResult<TexelBuffer> {
+    pub fn over(ctx: &Arc<Context>, buffer: Buffer, format: Format) -> VkResult<TexelBuffer> {
         let texels = Self::check(ctx, &buffer.desc, format)?;
-        let info = vk::BufferViewCreateInfo::default().buffer(buffer.raw).format(format).offset(0).range(buffer.size());
+        let info = vk::BufferViewCreateInfo::default().buffer(buffer.raw).format(format.to_vk()).offset(0).range(buffer.size());
         // SAFETY: the create info and everything it points to live for the
         // call; the device outlives the handle (the owner holds the Context in
         // an Arc) and the handle is destroyed once, by its owner's Drop or the
@@ -224,19 +225,18 @@ impl TexelBuffer {
 
     /// Usage, format features, whole texels and the device's element limit;
     /// the number of texels.
-    fn check(ctx: &Context, desc: &BufferDesc, format: vk::Format) -> VkResult<u64> {
-        let texel = super::format::texel_bytes(format)
-            .ok_or_else(|| VkError::Invalid(format!("texel buffer '{}': format {format:?} is not supported here", desc.name)))?;
+    fn check(ctx: &Context, desc: &BufferDesc, format: Format) -> VkResult<u64> {
+        let texel = format.texel_bytes();
         let mut features = vk::FormatFeatureFlags::empty();
-        if desc.usage.contains(vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER) {
+        if desc.usage.contains(BufferUsage::UNIFORM_TEXEL) {
             features |= vk::FormatFeatureFlags::UNIFORM_TEXEL_BUFFER;
         }
-        if desc.usage.contains(vk::BufferUsageFlags::STORAGE_TEXEL_BUFFER) {
+        if desc.usage.contains(BufferUsage::STORAGE_TEXEL) {
             features |= vk::FormatFeatureFlags::STORAGE_TEXEL_BUFFER;
         }
         if features.is_empty() {
             return Err(VkError::Invalid(format!(
-                "texel buffer '{}': usage {:?} has neither UNIFORM_TEXEL_BUFFER nor STORAGE_TEXEL_BUFFER",
+                "texel buffer '{}': usage {:?} has neither UNIFORM_TEXEL nor STORAGE_TEXEL",
                 desc.name, desc.usage
             )));
         }

@@ -27,7 +27,9 @@ use super::buffer::{Buffer, TexelBuffer};
 use super::descriptors::DescriptorSet;
 use super::error::{Check, VkError, VkResult};
 use super::image::{color_layers, Image, ImageDim, ImageUse};
+use super::format::Format;
 use super::pipeline::Pipeline;
+use super::types::{BufferUsage, Stages};
 use super::upload::{UploadClass, UploadCounter};
 use super::Context;
 
@@ -328,7 +330,7 @@ pub fn upload_static(
     ctx: &Arc<Context>,
     name: &str,
     data: &[u8],
-    usage: vk::BufferUsageFlags,
+    usage: BufferUsage,
     counter: &mut UploadCounter,
 ) -> VkResult<Buffer> {
     upload_static_streamed(ctx, name, data.len() as u64, 16, usage, counter, |offset, chunk| {
@@ -362,7 +364,7 @@ pub fn upload_static_streamed(
     name: &str,
     size: u64,
     granule: u64,
-    usage: vk::BufferUsageFlags,
+    usage: BufferUsage,
     counter: &mut UploadCounter,
     mut fill: impl FnMut(u64, &mut [u8]),
 ) -> VkResult<Buffer> {
@@ -376,7 +378,7 @@ pub fn upload_static_streamed(
     let limit = std::env::var(STAGING_CHUNK_VAR).ok().and_then(|v| v.parse::<u64>().ok()).unwrap_or(STAGING_CHUNK_BYTES);
     let chunk = (limit.min(STAGING_CHUNK_BYTES).min(max_alloc) / granule).max(1) * granule;
     let chunk = chunk.min(size.max(4));
-    let mut staging = Buffer::new(ctx, BufferDesc::upload(&format!("{name} (staging)"), chunk, vk::BufferUsageFlags::TRANSFER_SRC))?;
+    let mut staging = Buffer::new(ctx, BufferDesc::upload(&format!("{name} (staging)"), chunk, BufferUsage::TRANSFER_SRC))?;
     let rec = CommandRecorder::new(ctx, &format!("{name} upload"))?;
     let mut offset = 0;
     while offset < size {
@@ -401,10 +403,10 @@ pub fn upload_static_texels(
     ctx: &Arc<Context>,
     name: &str,
     data: &[u8],
-    format: vk::Format,
+    format: Format,
     counter: &mut UploadCounter,
 ) -> VkResult<TexelBuffer> {
-    let buffer = upload_static(ctx, name, data, vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER, counter)?;
+    let buffer = upload_static(ctx, name, data, BufferUsage::UNIFORM_TEXEL, counter)?;
     TexelBuffer::over(ctx, buffer, format)
 }
 
@@ -632,7 +634,7 @@ impl CommandRecorder {
         // submission is waited for.
         // The bytes are the caller's; a range beyond the layout's push-constant
         // range is a validation error (GPU tests run with the layer on).
-        unsafe { self.ctx.device.cmd_push_constants(self.raw, pipeline.layout, pipeline.push_stages, 0, data) };
+        unsafe { self.ctx.device.cmd_push_constants(self.raw, pipeline.layout, pipeline.push_stages.to_vk(), 0, data) };
         counter.add_direct(UploadClass::FrameConstants, data.len() as u64);
     }
 
@@ -739,7 +741,8 @@ impl CommandRecorder {
     }
 
     /// A memory barrier between two (stages, accesses) scopes.
-    pub fn memory_barrier(
+    /// One memory dependency (the named ones below are what callers use).
+    fn memory_barrier(
         &self,
         src: (vk::PipelineStageFlags2, vk::AccessFlags2),
         dst: (vk::PipelineStageFlags2, vk::AccessFlags2),
@@ -815,10 +818,7 @@ impl CommandRecorder {
     /// Compute-shader writes into host-visible memory before the host reads
     /// it (after the fence).
     pub fn compute_to_host(&self) {
-        self.memory_barrier(
-            (vk::PipelineStageFlags2::COMPUTE_SHADER, vk::AccessFlags2::SHADER_STORAGE_WRITE),
-            (vk::PipelineStageFlags2::HOST, vk::AccessFlags2::HOST_READ),
-        );
+        self.storage_to_host(Stages::COMPUTE);
     }
 
     /// Copies into host-visible memory before the host reads it.
@@ -826,6 +826,65 @@ impl CommandRecorder {
         self.memory_barrier(
             (vk::PipelineStageFlags2::COPY, vk::AccessFlags2::TRANSFER_WRITE),
             (vk::PipelineStageFlags2::HOST, vk::AccessFlags2::HOST_READ),
+        );
+    }
+
+    /// Clears and copies (`fill_buffer`, uploads) before shaders of
+    /// `stages` read or write the same storage buffers.
+    pub fn transfer_to_storage(&self, stages: Stages) {
+        use vk::{AccessFlags2 as A, PipelineStageFlags2 as S};
+        self.memory_barrier(
+            (S::CLEAR | S::COPY, A::TRANSFER_WRITE),
+            (stages.pipeline_stages(), A::SHADER_STORAGE_READ | A::SHADER_STORAGE_WRITE),
+        );
+    }
+
+    /// This frame's host writes (mapped buffers), clears and copies before
+    /// compute shaders read them (any way) or write storage.
+    pub fn uploads_to_compute(&self) {
+        use vk::{AccessFlags2 as A, PipelineStageFlags2 as S};
+        self.memory_barrier(
+            (S::HOST | S::CLEAR | S::COPY, A::HOST_WRITE | A::TRANSFER_WRITE),
+            (S::COMPUTE_SHADER, A::SHADER_READ | A::SHADER_STORAGE_READ | A::SHADER_STORAGE_WRITE),
+        );
+    }
+
+    /// Storage writes of shaders in `stages` into host-visible memory before
+    /// the host reads it (after the fence).
+    pub fn storage_to_host(&self, stages: Stages) {
+        self.memory_barrier(
+            (stages.pipeline_stages(), vk::AccessFlags2::SHADER_STORAGE_WRITE),
+            (vk::PipelineStageFlags2::HOST, vk::AccessFlags2::HOST_READ),
+        );
+    }
+
+    /// An earlier indexed indirect draw fetched indices and arguments that
+    /// compute shaders now rewrite (write after read), reading them too.
+    pub fn draw_fetch_to_compute(&self) {
+        use vk::{AccessFlags2 as A, PipelineStageFlags2 as S};
+        self.memory_barrier(
+            (S::INDEX_INPUT | S::DRAW_INDIRECT, A::INDEX_READ | A::INDIRECT_COMMAND_READ),
+            (S::COMPUTE_SHADER, A::SHADER_STORAGE_WRITE | A::SHADER_STORAGE_READ),
+        );
+    }
+
+    /// Earlier vertex-stage shaders, compute shaders and copies read (or
+    /// wrote) storage that compute shaders now read and rewrite: a pass
+    /// that recomputes, each frame, data the previous frame consumed.
+    pub fn consumers_to_compute(&self) {
+        use vk::{AccessFlags2 as A, PipelineStageFlags2 as S};
+        let rw = A::SHADER_STORAGE_READ | A::SHADER_STORAGE_WRITE;
+        self.memory_barrier((S::PRE_RASTERIZATION_SHADERS | S::COMPUTE_SHADER | S::COPY, rw | A::TRANSFER_READ), (S::COMPUTE_SHADER, rw));
+    }
+
+    /// Compute-shader storage writes before vertex-stage shaders, compute
+    /// shaders or copies read them (the other half of
+    /// [`consumers_to_compute`](Self::consumers_to_compute)).
+    pub fn compute_to_consumers(&self) {
+        use vk::{AccessFlags2 as A, PipelineStageFlags2 as S};
+        self.memory_barrier(
+            (S::COMPUTE_SHADER, A::SHADER_STORAGE_WRITE),
+            (S::PRE_RASTERIZATION_SHADERS | S::COMPUTE_SHADER | S::COPY, A::SHADER_STORAGE_READ | A::TRANSFER_READ),
         );
     }
 

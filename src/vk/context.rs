@@ -27,6 +27,8 @@ use gpu_allocator::vulkan::{Allocator, AllocatorCreateDesc};
 use serde::Serialize;
 
 use super::error::{Check, VkError, VkResult};
+use super::format::Format;
+use super::image::Filter;
 
 const VALIDATION_LAYER: &CStr = c"VK_LAYER_KHRONOS_validation";
 
@@ -245,6 +247,13 @@ pub struct DeviceInfo {
     /// All components (built-ins included) one geometry-shader invocation
     /// may emit over all its vertices.
     pub max_geometry_total_output_components: u32,
+}
+
+impl DeviceInfo {
+    /// A CPU device (lavapipe): its "device memory" is the process's own.
+    pub fn is_cpu(&self) -> bool {
+        self.device_type == format!("{:?}", vk::PhysicalDeviceType::CPU)
+    }
 }
 
 /// Messages the validation layer reported, shared with its callback.
@@ -653,12 +662,13 @@ impl Context {
     /// are checked for optimal tiling, the tiling every image here uses;
     /// buffer features (uniform/storage texel buffer, vertex buffer) against
     /// the format's buffer features. E.g. a volume that is to be sampled with
-    /// trilinear filtering needs `SAMPLED_IMAGE | SAMPLED_IMAGE_FILTER_LINEAR`.
-    pub fn format_supports(&self, format: vk::Format, features: vk::FormatFeatureFlags) -> bool {
+    /// trilinear filtering needs `SAMPLED_IMAGE | SAMPLED_IMAGE_FILTER_LINEAR`
+    /// (`can_sample` with `Filter::Linear`).
+    pub(crate) fn format_supports(&self, format: Format, features: vk::FormatFeatureFlags) -> bool {
         // SAFETY: queries of live instance/physical-device handles; output
         // structures are owned here, and any p_next chain points at locals that
         // outlive the call.
-        let props = unsafe { self.instance.get_physical_device_format_properties(self.physical, format) };
+        let props = unsafe { self.instance.get_physical_device_format_properties(self.physical, format.to_vk()) };
         let buffer_bits = vk::FormatFeatureFlags::UNIFORM_TEXEL_BUFFER
             | vk::FormatFeatureFlags::STORAGE_TEXEL_BUFFER
             | vk::FormatFeatureFlags::STORAGE_TEXEL_BUFFER_ATOMIC
@@ -666,6 +676,16 @@ impl Context {
         let want_buffer = features & buffer_bits;
         let want_image = features & !buffer_bits;
         props.buffer_features.contains(want_buffer) && props.optimal_tiling_features.contains(want_image)
+    }
+
+    /// Whether images of `format` can be sampled with `filter` on this
+    /// device (optimal tiling).
+    pub fn can_sample(&self, format: Format, filter: Filter) -> bool {
+        let mut features = vk::FormatFeatureFlags::SAMPLED_IMAGE;
+        if filter == Filter::Linear {
+            features |= vk::FormatFeatureFlags::SAMPLED_IMAGE_FILTER_LINEAR;
+        }
+        self.format_supports(format, features)
     }
 
     /// The largest extent (and layers, max resource size) an optimal-tiling

@@ -22,6 +22,7 @@ use ash::vk;
 use super::buffer::{Buffer, TexelBuffer};
 use super::error::{Check, VkError, VkResult};
 use super::image::{Filter, Image, Sampler};
+use super::types::{BufferUsage, Stages};
 use super::Context;
 
 /// What a binding holds.
@@ -68,7 +69,7 @@ impl DescriptorKind {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct DescriptorBinding {
     pub kind: DescriptorKind,
-    pub stages: vk::ShaderStageFlags,
+    pub stages: Stages,
 }
 
 /// The layout of one descriptor set: binding i is `bindings[i]`.
@@ -78,17 +79,17 @@ pub struct DescriptorSetDesc {
 }
 
 impl DescriptorSetDesc {
-    pub fn new(bindings: &[(DescriptorKind, vk::ShaderStageFlags)]) -> Self {
+    pub fn new(bindings: &[(DescriptorKind, Stages)]) -> Self {
         DescriptorSetDesc { bindings: bindings.iter().map(|&(kind, stages)| DescriptorBinding { kind, stages }).collect() }
     }
 
     /// `n` storage buffers seen by `stages` (what `StorageBufferSet` builds).
-    pub fn storage_buffers(n: usize, stages: vk::ShaderStageFlags) -> Self {
+    pub fn storage_buffers(n: usize, stages: Stages) -> Self {
         DescriptorSetDesc { bindings: vec![DescriptorBinding { kind: DescriptorKind::StorageBuffer, stages }; n] }
     }
 
     /// Builder: append a binding.
-    pub fn with(mut self, kind: DescriptorKind, stages: vk::ShaderStageFlags) -> Self {
+    pub fn with(mut self, kind: DescriptorKind, stages: Stages) -> Self {
         self.bindings.push(DescriptorBinding { kind, stages });
         self
     }
@@ -113,7 +114,7 @@ impl DescriptorSetLayout {
                     .binding(i as u32)
                     .descriptor_type(b.kind.raw())
                     .descriptor_count(1)
-                    .stage_flags(b.stages)
+                    .stage_flags(b.stages.to_vk())
             })
             .collect();
         // SAFETY: the create info and everything it points to live for the
@@ -312,9 +313,9 @@ fn check_resources(ctx: &Context, name: &str, desc: &DescriptorSetDesc, resource
         match *r {
             DescriptorResource::StorageBuffer(buf) | DescriptorResource::UniformBuffer(buf) => {
                 let (usage, max) = if b.kind == DescriptorKind::StorageBuffer {
-                    (vk::BufferUsageFlags::STORAGE_BUFFER, info.max_storage_buffer_range)
+                    (BufferUsage::STORAGE, info.max_storage_buffer_range)
                 } else {
-                    (vk::BufferUsageFlags::UNIFORM_BUFFER, info.max_uniform_buffer_range)
+                    (BufferUsage::UNIFORM, info.max_uniform_buffer_range)
                 };
                 if !buf.desc.usage.contains(usage) {
                     return bad(format!("buffer '{}' lacks {usage:?} usage", buf.desc.name));
@@ -324,11 +325,11 @@ fn check_resources(ctx: &Context, name: &str, desc: &DescriptorSetDesc, resource
                 }
             }
             DescriptorResource::CombinedImageSampler(img, sampler) => {
-                if !img.usage.contains(vk::ImageUsageFlags::SAMPLED) {
+                if !img.is_sampled() {
                     return bad(format!("image '{}' is not sampled", img.name()));
                 }
                 if sampler.filter == Filter::Linear
-                    && !ctx.format_supports(img.format, vk::FormatFeatureFlags::SAMPLED_IMAGE_FILTER_LINEAR)
+                    && !ctx.can_sample(img.format, Filter::Linear)
                 {
                     return bad(format!(
                         "image '{}' ({:?}) cannot be filtered linearly on this device; use a nearest sampler",
@@ -338,15 +339,15 @@ fn check_resources(ctx: &Context, name: &str, desc: &DescriptorSetDesc, resource
                 }
             }
             DescriptorResource::StorageImage(img) => {
-                if !img.usage.contains(vk::ImageUsageFlags::STORAGE) {
+                if !img.is_storage() {
                     return bad(format!("image '{}' lacks STORAGE usage", img.name()));
                 }
             }
             DescriptorResource::UniformTexelBuffer(t) | DescriptorResource::StorageTexelBuffer(t) => {
                 let usage = if b.kind == DescriptorKind::UniformTexelBuffer {
-                    vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER
+                    BufferUsage::UNIFORM_TEXEL
                 } else {
-                    vk::BufferUsageFlags::STORAGE_TEXEL_BUFFER
+                    BufferUsage::STORAGE_TEXEL
                 };
                 if !t.buffer.desc.usage.contains(usage) {
                     return bad(format!("texel buffer '{}' lacks {usage:?} usage", t.buffer.desc.name));
@@ -373,7 +374,7 @@ impl Drop for DescriptorSet {
 pub struct StorageBufferSet(DescriptorSet);
 
 impl StorageBufferSet {
-    pub fn new(ctx: &Arc<Context>, name: &str, buffers: &[&Buffer], stages: vk::ShaderStageFlags) -> VkResult<Self> {
+    pub fn new(ctx: &Arc<Context>, name: &str, buffers: &[&Buffer], stages: Stages) -> VkResult<Self> {
         let desc = DescriptorSetDesc::storage_buffers(buffers.len(), stages);
         let resources: Vec<DescriptorResource> = buffers.iter().map(|b| DescriptorResource::StorageBuffer(b)).collect();
         DescriptorSet::new(ctx, name, &desc, &resources).map(StorageBufferSet)

@@ -1,29 +1,63 @@
-//! The formats the layer fixes (render target, depth) and the texel sizes
-//! of the formats it handles: the lowest piece of `vk`, read by buffers,
-//! images, pipelines and commands alike.
+//! The texel formats the layer knows (`Format`: the ones volbench uses,
+//! no more) and the formats it fixes (render target, depth): the lowest
+//! piece of `vk`, read by buffers, images, pipelines and commands alike.
 
 use ash::vk;
 
 /// The offscreen render target's format (RGBA32F).
-pub const TARGET_FORMAT: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
+pub const TARGET_FORMAT: Format = Format::Rgba32Float;
 
 /// The depth format of `Image::depth_target` (required by Vulkan for
 /// depth attachments on every device).
-pub const DEPTH_FORMAT: vk::Format = vk::Format::D32_SFLOAT;
+pub const DEPTH_FORMAT: Format = Format::Depth32Float;
 
-/// Bytes per texel of the formats images here may have; `None` for formats
-/// this layer does not handle (creating such an image is an error).
-pub fn texel_bytes(format: vk::Format) -> Option<u64> {
-    Some(match format {
-        vk::Format::R8_UNORM | vk::Format::R8_SNORM | vk::Format::R8_UINT | vk::Format::R8_SINT => 1,
-        vk::Format::R16_UNORM
-        | vk::Format::R16_SNORM
-        | vk::Format::R16_UINT
-        | vk::Format::R16_SINT
-        | vk::Format::R16_SFLOAT => 2,
-        vk::Format::R32_SFLOAT | vk::Format::R32_UINT | vk::Format::R32_SINT | vk::Format::R8G8B8A8_UNORM | vk::Format::D32_SFLOAT => 4,
-        vk::Format::R32G32_SFLOAT | vk::Format::R32G32_UINT | vk::Format::R16G16B16A16_SFLOAT => 8,
-        vk::Format::R32G32B32A32_SFLOAT | vk::Format::R32G32B32A32_UINT => 16,
-        _ => return None,
-    })
+/// The texel formats of images, texel buffers, vertex attributes and
+/// render targets: the ones volbench uses, no more.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Format {
+    R8Unorm,
+    R8Uint,
+    R16Unorm,
+    R16Snorm,
+    R16Sint,
+    R32Float,
+    R32Uint,
+    Rg32Float,
+    Rgb32Float,
+    Rgba32Float,
+    Rgba32Uint,
+    /// Depth only (`Image::depth_target`).
+    Depth32Float,
 }
+
+impl Format {
+    pub(crate) fn to_vk(self) -> vk::Format {
+        match self {
+            Format::R8Unorm => vk::Format::R8_UNORM,
+            Format::R8Uint => vk::Format::R8_UINT,
+            Format::R16Unorm => vk::Format::R16_UNORM,
+            Format::R16Snorm => vk::Format::R16_SNORM,
+            Format::R16Sint => vk::Format::R16_SINT,
+            Format::R32Float => vk::Format::R32_SFLOAT,
+            Format::R32Uint => vk::Format::R32_UINT,
+            Format::Rg32Float => vk::Format::R32G32_SFLOAT,
+            Format::Rgb32Float => vk::Format::R32G32B32_SFLOAT,
+            Format::Rgba32Float => vk::Format::R32G32B32A32_SFLOAT,
+            Format::Rgba32Uint => vk::Format::R32G32B32A32_UINT,
+            Format::Depth32Float => vk::Format::D32_SFLOAT,
+        }
+    }
+
+    /// Bytes per texel.
+    pub fn texel_bytes(self) -> u64 {
+        match self {
+            Format::R8Unorm | Format::R8Uint => 1,
+            Format::R16Unorm | Format::R16Snorm | Format::R16Sint => 2,
+            Format::R32Float | Format::R32Uint | Format::Depth32Float => 4,
+            Format::Rg32Float => 8,
+            Format::Rgb32Float => 12,
+            Format::Rgba32Float | Format::Rgba32Uint => 16,
+        }
+    }
+}
+

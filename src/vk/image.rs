@@ -27,7 +27,7 @@ use gpu_allocator::vulkan::{Allocation, AllocationCreateDesc, AllocationScheme};
 use gpu_allocator::MemoryLocation;
 
 use super::error::{Check, VkError, VkResult};
-use super::format::{texel_bytes, DEPTH_FORMAT, TARGET_FORMAT};
+use super::format::{Format, DEPTH_FORMAT, TARGET_FORMAT};
 use super::Context;
 
 /// How many dimensions an image has.
@@ -66,25 +66,26 @@ pub struct TextureDesc {
     pub height: u32,
     /// 1 for 1D and 2D images.
     pub depth: u32,
-    pub format: vk::Format,
+    pub format: Format,
     /// Also usable as a storage image (compute writes).
     pub storage: bool,
 }
 
 impl TextureDesc {
-    pub fn d1(name: &str, width: u32, format: vk::Format) -> Self {
+    pub fn d1(name: &str, width: u32, format: Format) -> Self {
         TextureDesc { name: name.into(), dim: ImageDim::D1, width, height: 1, depth: 1, format, storage: false }
     }
-    pub fn d2(name: &str, width: u32, height: u32, format: vk::Format) -> Self {
+    pub fn d2(name: &str, width: u32, height: u32, format: Format) -> Self {
         TextureDesc { name: name.into(), dim: ImageDim::D2, width, height, depth: 1, format, storage: false }
     }
-    pub fn d3(name: &str, [width, height, depth]: [u32; 3], format: vk::Format) -> Self {
+    pub fn d3(name: &str, [width, height, depth]: [u32; 3], format: Format) -> Self {
         TextureDesc { name: name.into(), dim: ImageDim::D3, width, height, depth, format, storage: false }
     }
 
-    /// Bytes of the whole image (checked; `None` on overflow or an unknown format).
+    /// Bytes of the whole image (checked; `None` on overflow).
     pub fn byte_size(&self) -> Option<u64> {
-        texel_bytes(self.format)?
+        self.format
+            .texel_bytes()
             .checked_mul(self.width as u64)?
             .checked_mul(self.height as u64)?
             .checked_mul(self.depth as u64)
@@ -157,9 +158,9 @@ pub struct Image {
     pub width: u32,
     pub height: u32,
     pub depth: u32,
-    pub format: vk::Format,
+    pub format: Format,
     pub dim: ImageDim,
-    pub usage: vk::ImageUsageFlags,
+    pub(crate) usage: vk::ImageUsageFlags,
     name: String,
     state: Mutex<ImageState>,
     allocation: Option<Allocation>,
@@ -201,7 +202,7 @@ impl Image {
             usage |= vk::ImageUsageFlags::STORAGE;
             features |= vk::FormatFeatureFlags::STORAGE_IMAGE;
         }
-        if texel_bytes(desc.format).is_none() || !ctx.format_supports(desc.format, features) {
+        if !ctx.format_supports(desc.format, features) {
             return Err(VkError::Unsupported {
                 device: ctx.info.name.clone(),
                 what: format!("format {:?} with {:?} for image '{}'", desc.format, features, desc.name),
@@ -226,7 +227,7 @@ impl Image {
         name: &str,
         dim: ImageDim,
         [width, height, depth]: [u32; 3],
-        format: vk::Format,
+        format: Format,
         usage: vk::ImageUsageFlags,
     ) -> VkResult<Image> {
         let info = &ctx.info;
@@ -235,10 +236,11 @@ impl Image {
             ImageDim::D2 => info.max_image_dimension_2d,
             ImageDim::D3 => info.max_image_dimension_3d,
         };
-        let limits = ctx.image_format_limits(format, dim.image_type(), usage);
+        let limits = ctx.image_format_limits(format.to_vk(), dim.image_type(), usage);
         let fits = |l: &vk::ImageFormatProperties| {
-            let bytes = texel_bytes(format)
-                .and_then(|t| t.checked_mul(width as u64))
+            let bytes = format
+                .texel_bytes()
+                .checked_mul(width as u64)
                 .and_then(|b| b.checked_mul(height as u64))
                 .and_then(|b| b.checked_mul(depth as u64));
             width <= l.max_extent.width
@@ -257,7 +259,7 @@ impl Image {
         }
         let ci = vk::ImageCreateInfo::default()
             .image_type(dim.image_type())
-            .format(format)
+            .format(format.to_vk())
             .extent(vk::Extent3D { width, height, depth })
             .mip_levels(1)
             .array_layers(1)
@@ -309,7 +311,7 @@ impl Image {
         let view_info = vk::ImageViewCreateInfo::default()
             .image(raw)
             .view_type(dim.view_type())
-            .format(format)
+            .format(format.to_vk())
             .subresource_range(range_of(format));
         // SAFETY: the create info and everything it points to live for the
         // call; the device outlives the handle (the owner holds the Context in
@@ -325,10 +327,27 @@ impl Image {
         &self.name
     }
 
+    /// Whether shaders may sample the image (a render target is sampled
+    /// only where the device allows it for the target format).
+    pub fn is_sampled(&self) -> bool {
+        self.usage.contains(vk::ImageUsageFlags::SAMPLED)
+    }
+
+    /// Whether compute shaders may write the image as a storage image.
+    pub fn is_storage(&self) -> bool {
+        self.usage.contains(vk::ImageUsageFlags::STORAGE)
+    }
+
+    /// A number naming this image while it lives (its handle): a method
+    /// keeps a descriptor set per target and rebuilds it when this changes.
+    pub fn id(&self) -> u64 {
+        vk::Handle::as_raw(self.raw)
+    }
+
     /// Bytes of the whole image.
     pub fn byte_size(&self) -> u64 {
         // Checked at creation (it fitted maxResourceSize).
-        texel_bytes(self.format).unwrap_or(0) * self.width as u64 * self.height as u64 * self.depth as u64
+        self.format.texel_bytes() * self.width as u64 * self.height as u64 * self.depth as u64
     }
 
     /// The last recorded use.
@@ -385,7 +404,7 @@ impl Image {
 }
 
 /// The whole image: the depth aspect for the depth format, else colour.
-fn range_of(format: vk::Format) -> vk::ImageSubresourceRange {
+fn range_of(format: Format) -> vk::ImageSubresourceRange {
     let aspect_mask = if format == DEPTH_FORMAT { vk::ImageAspectFlags::DEPTH } else { vk::ImageAspectFlags::COLOR };
     vk::ImageSubresourceRange { aspect_mask, ..color_range() }
 }

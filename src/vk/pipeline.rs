@@ -16,8 +16,9 @@ use ash::vk;
 
 use super::descriptors::DescriptorSetLayout;
 use super::error::{Check, VkError, VkResult};
-use super::format::{DEPTH_FORMAT, TARGET_FORMAT};
+use super::format::{Format, DEPTH_FORMAT, TARGET_FORMAT};
 use super::shader::{ShaderModule, ShaderStage};
+use super::types::{Cull, Stages, Topology, Winding};
 use super::Context;
 
 /// How fragments combine with the target.
@@ -63,14 +64,14 @@ impl Blend {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct VertexAttribute {
     pub location: u32,
-    pub format: vk::Format,
+    pub format: Format,
     pub offset: u32,
 }
 
 /// One colour attachment of a graphics pipeline: its format and blend.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct ColorTarget {
-    pub format: vk::Format,
+    pub format: Format,
     pub blend: Blend,
 }
 
@@ -90,10 +91,10 @@ pub struct GraphicsPipelineDesc<'a> {
     /// Bytes per vertex record; 0 for shaders that fetch nothing.
     pub vertex_stride: u32,
     pub attributes: &'a [VertexAttribute],
-    pub topology: vk::PrimitiveTopology,
+    pub topology: Topology,
     pub primitive_restart: bool,
-    pub cull: vk::CullModeFlags,
-    pub front_face: vk::FrontFace,
+    pub cull: Cull,
+    pub front_face: Winding,
     /// Colour attachments at locations 0, 1, ...: usually
     /// `&[ColorTarget::rgba32f(blend)]`.
     pub targets: &'a [ColorTarget],
@@ -117,7 +118,7 @@ pub struct ComputePipelineDesc<'a> {
 pub struct Pipeline {
     pub raw: vk::Pipeline,
     pub layout: vk::PipelineLayout,
-    pub push_stages: vk::ShaderStageFlags,
+    pub push_stages: Stages,
     pub bind_point: vk::PipelineBindPoint,
     /// Number of descriptor sets the layout expects.
     pub set_count: u32,
@@ -140,7 +141,7 @@ fn check_stage(name: &str, module: &ShaderModule, want: ShaderStage) -> VkResult
 fn create_layout(
     ctx: &Context,
     name: &str,
-    push_stages: vk::ShaderStageFlags,
+    push_stages: Stages,
     push_constant_bytes: u32,
     set_layouts: &[vk::DescriptorSetLayout],
 ) -> VkResult<vk::PipelineLayout> {
@@ -157,7 +158,7 @@ fn create_layout(
             what: format!("{} descriptor sets in pipeline '{name}' (maxBoundDescriptorSets is {})", set_layouts.len(), info.max_bound_descriptor_sets),
         });
     }
-    let ranges = [vk::PushConstantRange { stage_flags: push_stages, offset: 0, size: push_constant_bytes }];
+    let ranges = [vk::PushConstantRange { stage_flags: push_stages.to_vk(), offset: 0, size: push_constant_bytes }];
     let mut layout_info = vk::PipelineLayoutCreateInfo::default().set_layouts(set_layouts);
     if push_constant_bytes > 0 {
         layout_info = layout_info.push_constant_ranges(&ranges);
@@ -205,9 +206,9 @@ impl Pipeline {
                 ctx.info.max_color_attachments
             )));
         }
-        let mut push_stages = vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT;
+        let mut push_stages = Stages::VERTEX | Stages::FRAGMENT;
         if desc.geometry.is_some() {
-            push_stages |= vk::ShaderStageFlags::GEOMETRY;
+            push_stages |= Stages::GEOMETRY;
         }
         let layout = create_layout(ctx, desc.name, push_stages, desc.push_constant_bytes, desc.descriptor_layouts)?;
         // From here the pipeline value owns `layout`: early returns drop it.
@@ -238,20 +239,20 @@ impl Pipeline {
         let attributes: Vec<vk::VertexInputAttributeDescription> = desc
             .attributes
             .iter()
-            .map(|a| vk::VertexInputAttributeDescription { location: a.location, binding: 0, format: a.format, offset: a.offset })
+            .map(|a| vk::VertexInputAttributeDescription { location: a.location, binding: 0, format: a.format.to_vk(), offset: a.offset })
             .collect();
         let mut vertex_input = vk::PipelineVertexInputStateCreateInfo::default();
         if desc.vertex_stride > 0 {
             vertex_input = vertex_input.vertex_binding_descriptions(&bindings).vertex_attribute_descriptions(&attributes);
         }
         let input_assembly = vk::PipelineInputAssemblyStateCreateInfo::default()
-            .topology(desc.topology)
+            .topology(desc.topology.to_vk())
             .primitive_restart_enable(desc.primitive_restart);
         let viewport = vk::PipelineViewportStateCreateInfo::default().viewport_count(1).scissor_count(1);
         let raster = vk::PipelineRasterizationStateCreateInfo::default()
             .polygon_mode(vk::PolygonMode::FILL)
-            .cull_mode(desc.cull)
-            .front_face(desc.front_face)
+            .cull_mode(desc.cull.to_vk())
+            .front_face(desc.front_face.to_vk())
             .depth_clamp_enable(desc.depth_clamp)
             .line_width(1.0);
         let multisample =
@@ -260,11 +261,11 @@ impl Pipeline {
         let blend = vk::PipelineColorBlendStateCreateInfo::default().attachments(&attachments);
         let dynamic_states = [vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR];
         let dynamic = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic_states);
-        let formats: Vec<vk::Format> = desc.targets.iter().map(|t| t.format).collect();
+        let formats: Vec<vk::Format> = desc.targets.iter().map(|t| t.format.to_vk()).collect();
         let mut rendering = vk::PipelineRenderingCreateInfo::default().color_attachment_formats(&formats);
         let mut depth = vk::PipelineDepthStencilStateCreateInfo::default();
         if desc.depth_test {
-            rendering = rendering.depth_attachment_format(DEPTH_FORMAT);
+            rendering = rendering.depth_attachment_format(DEPTH_FORMAT.to_vk());
             depth = depth.depth_test_enable(true).depth_write_enable(true).depth_compare_op(vk::CompareOp::LESS);
         }
         let info = vk::GraphicsPipelineCreateInfo::default()
@@ -299,7 +300,7 @@ impl Pipeline {
         owned_layouts: Vec<DescriptorSetLayout>,
     ) -> VkResult<Pipeline> {
         check_stage(desc.name, desc.shader, ShaderStage::Compute)?;
-        let push_stages = vk::ShaderStageFlags::COMPUTE;
+        let push_stages = Stages::COMPUTE;
         let layout = create_layout(ctx, desc.name, push_stages, desc.push_constant_bytes, desc.descriptor_layouts)?;
         let mut pipeline = Pipeline {
             raw: vk::Pipeline::null(),

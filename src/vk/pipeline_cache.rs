@@ -25,6 +25,7 @@ use super::descriptors::{DescriptorSetDesc, DescriptorSetLayout};
 use super::error::{Check, VkResult};
 use super::pipeline::{ColorTarget, ComputePipelineDesc, GraphicsPipelineDesc, Pipeline, VertexAttribute};
 use super::shader::{compile_glsl, ShaderModule, ShaderStage};
+use super::types::{Cull, Topology, Winding};
 use super::Context;
 
 /// One shader: its path under `shaders/`, stage and preprocessor defines.
@@ -67,10 +68,10 @@ impl ShaderKey {
 pub struct GraphicsState {
     pub vertex_stride: u32,
     pub attributes: Vec<VertexAttribute>,
-    pub topology: vk::PrimitiveTopology,
+    pub topology: Topology,
     pub primitive_restart: bool,
-    pub cull: vk::CullModeFlags,
-    pub front_face: vk::FrontFace,
+    pub cull: Cull,
+    pub front_face: Winding,
     pub targets: Vec<ColorTarget>,
     /// Depth test and write (`GraphicsPipelineDesc::depth_test`).
     pub depth_test: bool,
@@ -121,7 +122,7 @@ fn put_sets(out: &mut String, sets: &[DescriptorSetDesc]) {
     for s in sets {
         out.push('[');
         for b in &s.bindings {
-            let _ = write!(out, "{}/{},", b.kind.code(), b.stages.as_raw());
+            let _ = write!(out, "{}/{},", b.kind.code(), b.stages.to_vk().as_raw());
         }
         out.push(']');
     }
@@ -147,17 +148,17 @@ impl PipelineKey {
                     out,
                     ";stride={};topology={};restart={};cull={};front={};attrs[",
                     s.vertex_stride,
-                    s.topology.as_raw(),
+                    s.topology.to_vk().as_raw(),
                     s.primitive_restart as u8,
-                    s.cull.as_raw(),
-                    s.front_face.as_raw()
+                    s.cull.to_vk().as_raw(),
+                    s.front_face.to_vk().as_raw()
                 );
                 for a in &s.attributes {
-                    let _ = write!(out, "{}/{}/{},", a.location, a.format.as_raw(), a.offset);
+                    let _ = write!(out, "{}/{}/{},", a.location, a.format.to_vk().as_raw(), a.offset);
                 }
                 out.push_str("];targets[");
                 for t in &s.targets {
-                    let _ = write!(out, "{}/{},", t.format.as_raw(), t.blend.code());
+                    let _ = write!(out, "{}/{},", t.format.to_vk().as_raw(), t.blend.code());
                 }
                 // Written only when on, so keys without depth keep their ids.
                 let depth = if s.depth_test { ";depth=1" } else { "" };

@@ -12,6 +12,7 @@ use ash::vk;
 
 use super::commands::CommandRecorder;
 use super::error::{Check, VkError, VkResult};
+use super::types::TimestampAt;
 use super::Context;
 
 pub struct TimestampPool {
@@ -56,8 +57,8 @@ impl TimestampPool {
         unsafe { self.ctx.device.cmd_reset_query_pool(rec.raw, self.raw, 0, self.count) };
     }
 
-    /// Write timestamp `index` once every earlier command has passed `stage`.
-    pub fn write(&self, rec: &CommandRecorder, index: u32, stage: vk::PipelineStageFlags2) -> VkResult<()> {
+    /// Write timestamp `index` at `at` (see `TimestampAt`).
+    pub fn write(&self, rec: &CommandRecorder, index: u32, at: TimestampAt) -> VkResult<()> {
         if index >= self.count {
             return Err(VkError::Invalid(format!("timestamp {index} of '{}', which holds {}", self.name, self.count)));
         }
@@ -65,7 +66,7 @@ impl TimestampPool {
         // `begin` and submit (the recorder's state machine); every handle recorded
         // is live, borrowed for the call and kept alive by its owner until the
         // submission is waited for.
-        unsafe { self.ctx.device.cmd_write_timestamp2(rec.raw, stage, self.raw, index) };
+        unsafe { self.ctx.device.cmd_write_timestamp2(rec.raw, at.to_vk(), self.raw, index) };
         Ok(())
     }
 

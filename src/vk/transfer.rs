@@ -98,7 +98,7 @@ pub fn upload_texture_with(
     let image = Image::texture(ctx, desc)?;
     let mut staging = Buffer::new(
         ctx,
-        BufferDesc::upload(&format!("{} (staging)", desc.name), u64::from(per_slab) * layer_bytes, vk::BufferUsageFlags::TRANSFER_SRC),
+        BufferDesc::upload(&format!("{} (staging)", desc.name), u64::from(per_slab) * layer_bytes, super::types::BufferUsage::TRANSFER_SRC),
     )?;
     let mut first = 0u32;
     while first < layers {

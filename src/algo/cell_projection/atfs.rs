@@ -24,7 +24,6 @@
 use std::sync::Arc;
 
 use anyhow::{ensure, Context as _, Result};
-use ash::vk as raw;
 use rayon::prelude::*;
 
 use super::balanced::{
@@ -41,6 +40,7 @@ use crate::vk::{
     upload_static, Buffer, BufferDesc, CommandRecorder, Context, DescriptorSet, DescriptorSetDesc, Pipeline, PipelineKey,
     StorageBufferSet, UploadClass, UploadCounter, VkError, VkResult,
 };
+use crate::vk::{BufferUsage, Stages};
 
 /// Floats per drawn piece per frame: balanced's record.
 pub const FLOATS_PER_PIECE: usize = FLOATS_PER_CELL;
@@ -273,12 +273,12 @@ impl Atfs {
         if spans.len() != cells.len() {
             return Err(VkError::Invalid(format!("atfs: {} spans for {} cells", spans.len(), cells.len())));
         }
-        let usage = raw::BufferUsageFlags::STORAGE_BUFFER;
+        let usage = BufferUsage::STORAGE;
         let interval_buffer = upload_static(ctx, "atfs intervals", bytemuck::cast_slice(&intervals.gpu), usage, counter)?;
-        let set = StorageBufferSet::new(ctx, "atfs intervals", &[&interval_buffer], raw::ShaderStageFlags::VERTEX)?;
+        let set = StorageBufferSet::new(ctx, "atfs intervals", &[&interval_buffer], Stages::VERTEX)?;
         let indices = StaticIndices::upload(ctx, "atfs indices", draw.primitives, pieces, counter)?;
         let bytes = (pieces.max(1) * FLOATS_PER_PIECE * 4) as u64;
-        let vertex_buffer = Buffer::new(ctx, BufferDesc::upload("atfs vertex records", bytes, raw::BufferUsageFlags::VERTEX_BUFFER))?;
+        let vertex_buffer = Buffer::new(ctx, BufferDesc::upload("atfs vertex records", bytes, BufferUsage::VERTEX))?;
         let (pipeline, pipeline_key) = build_pipeline(
             ctx,
             "cell_projection/atfs.vert",
@@ -289,7 +289,7 @@ impl Atfs {
             draw.primitives.primitive_restart(),
             tables,
             draw.interpolation,
-            &[DescriptorSetDesc::storage_buffers(1, raw::ShaderStageFlags::VERTEX)],
+            &[DescriptorSetDesc::storage_buffers(1, Stages::VERTEX)],
             &[],
         )?;
         Ok(Atfs {

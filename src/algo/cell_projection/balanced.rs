@@ -9,7 +9,6 @@
 
 use std::sync::Arc;
 
-use ash::vk as raw;
 use rayon::prelude::*;
 
 use super::render;
@@ -23,6 +22,7 @@ use crate::vk::{
     Buffer, BufferDesc, CommandRecorder, Context, Pipeline, PipelineKey, UploadClass, UploadCounter, VertexAttribute,
     VkResult,
 };
+use crate::vk::{BufferUsage, Format};
 
 pub const FLOATS_PER_VERTEX: usize = 7;
 pub const VERTICES_PER_CELL: usize = 4;
@@ -58,11 +58,11 @@ fn create(inputs: MethodInputs) -> anyhow::Result<Box<dyn RenderMethod>> {
 pub(super) fn record_attributes() -> [VertexAttribute; 5] {
     let f = |location, format, floats: u32| VertexAttribute { location, format, offset: floats * 4 };
     [
-        f(0, raw::Format::R32G32B32_SFLOAT, 0),
-        f(1, raw::Format::R32_SFLOAT, 3),
-        f(2, raw::Format::R32_SFLOAT, 4),
-        f(3, raw::Format::R32_SFLOAT, 5),
-        f(4, raw::Format::R32_SFLOAT, 6),
+        f(0, Format::Rgb32Float, 0),
+        f(1, Format::R32Float, 3),
+        f(2, Format::R32Float, 4),
+        f(3, Format::R32Float, 5),
+        f(4, Format::R32Float, 6),
     ]
 }
 
@@ -182,7 +182,7 @@ impl Balanced {
             .map(|(k, piece)| {
                 let label = if pieces.len() == 1 { String::new() } else { format!(" [{k}]") };
                 let bytes = (piece.len().max(1) * FLOATS_PER_CELL * 4) as u64;
-                Buffer::new(ctx, BufferDesc::upload(&format!("balanced vertex records{label}"), bytes, raw::BufferUsageFlags::VERTEX_BUFFER))
+                Buffer::new(ctx, BufferDesc::upload(&format!("balanced vertex records{label}"), bytes, BufferUsage::VERTEX))
             })
             .collect::<VkResult<Vec<_>>>()?;
         let (pipeline, pipeline_key) = build_pipeline(

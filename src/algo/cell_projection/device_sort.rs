@@ -31,7 +31,6 @@
 
 use std::sync::Arc;
 
-use ash::vk as raw;
 
 use crate::scene::Camera;
 use crate::vk::{
@@ -39,6 +38,7 @@ use crate::vk::{
     Pipeline, PipelineKey, ShaderKey, ShaderStage, StorageBufferSet, TimestampPool, UploadClass, UploadCounter, VkError,
     VkResult,
 };
+use crate::vk::{BufferUsage, Stages, TimestampAt};
 
 /// Invocations per workgroup (the minimum every device supports is 128).
 pub const WORKGROUP: u32 = 128;
@@ -97,7 +97,7 @@ fn defines() -> Vec<(&'static str, String)> {
 }
 
 fn set_desc() -> DescriptorSetDesc {
-    DescriptorSetDesc::storage_buffers(7, raw::ShaderStageFlags::COMPUTE)
+    DescriptorSetDesc::storage_buffers(7, Stages::COMPUTE)
 }
 
 fn pipeline(ctx: &Arc<Context>, shader: &str, push_constant_bytes: u32) -> VkResult<Arc<Pipeline>> {
@@ -158,14 +158,14 @@ impl DeviceCentroidSort {
                  maxStorageBufferRange ({limit} bytes)"
             )));
         }
-        let storage = raw::BufferUsageFlags::STORAGE_BUFFER;
+        let storage = BufferUsage::STORAGE;
         let padded: Vec<[f32; 4]> = centroids.iter().map(|c| [c[0], c[1], c[2], 0.0]).collect();
         let centroid_buffer =
             upload_static(ctx, &format!("{name} centroids"), bytemuck::cast_slice(&padded), storage, counter)?;
         let pair_bytes = (len.max(1) * 4) as u64;
         let local = |what: &str, usage| Buffer::new(ctx, BufferDesc::device_local(&format!("{name} {what}"), pair_bytes, usage));
         // The order is read by the draw and, in tests, copied back.
-        let order = local("order", storage | raw::BufferUsageFlags::TRANSFER_SRC)?;
+        let order = local("order", storage | BufferUsage::TRANSFER_SRC)?;
         let keys_a = local("keys A", storage)?;
         let keys_b = local("keys B", storage)?;
         let vals_b = local("order B", storage)?;
@@ -182,7 +182,7 @@ impl DeviceCentroidSort {
             // Even passes read A (`keys_a`, `order`) and write B, odd ones back.
             let (src, dst) = if pass % 2 == 0 { ([&keys_a, &order], [&keys_b, &vals_b]) } else { ([&keys_b, &vals_b], [&keys_a, &order]) };
             let buffers = [p, &centroid_buffer, src[0], src[1], dst[0], dst[1], &counts];
-            sets.push(StorageBufferSet::new(ctx, &format!("{name} pass {pass}"), &buffers, raw::ShaderStageFlags::COMPUTE)?);
+            sets.push(StorageBufferSet::new(ctx, &format!("{name} pass {pass}"), &buffers, Stages::COMPUTE)?);
         }
         let pipelines = Pipeline4 {
             keys: pipeline(ctx, "cell_projection/sort_keys.comp", CAMERA_BYTES as u32)?,
@@ -222,12 +222,10 @@ impl DeviceCentroidSort {
     /// push constants are counted in `counter`. Ends with the order visible
     /// to the graphics stages and to copies.
     pub fn record(&self, rec: &CommandRecorder, camera: &SortCamera, counter: &mut UploadCounter) -> VkResult<()> {
-        use raw::{AccessFlags2 as A, PipelineStageFlags2 as S};
-        let rw = A::SHADER_STORAGE_READ | A::SHADER_STORAGE_WRITE;
         // The previous frame's draw read `order`, its sort wrote every buffer.
-        rec.memory_barrier((S::PRE_RASTERIZATION_SHADERS | S::COMPUTE_SHADER | S::COPY, rw | A::TRANSFER_READ), (S::COMPUTE_SHADER, rw));
+        rec.consumers_to_compute();
         self.timestamps.reset(rec);
-        self.timestamps.write(rec, 0, S::TOP_OF_PIPE)?;
+        self.timestamps.write(rec, 0, TimestampAt::Start)?;
         if self.n > 0 {
             let p = &self.pipelines;
             rec.bind_compute(&p.keys, &[&self.sets[0]])?;
@@ -245,11 +243,8 @@ impl DeviceCentroidSort {
                 rec.dispatch_groups(u64::from(self.groups))?;
             }
         }
-        self.timestamps.write(rec, 1, S::COMPUTE_SHADER)?;
-        rec.memory_barrier(
-            (S::COMPUTE_SHADER, A::SHADER_STORAGE_WRITE),
-            (S::PRE_RASTERIZATION_SHADERS | S::COMPUTE_SHADER | S::COPY, A::SHADER_STORAGE_READ | A::TRANSFER_READ),
-        );
+        self.timestamps.write(rec, 1, TimestampAt::ComputeDone)?;
+        rec.compute_to_consumers();
         Ok(())
     }
 

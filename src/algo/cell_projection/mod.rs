@@ -22,7 +22,6 @@ pub mod vicp;
 
 use std::sync::Arc;
 
-use ash::vk as raw;
 use serde::Serialize;
 
 use crate::algo::host_memory::HostMemory;
@@ -34,6 +33,7 @@ use crate::vk::{
     Blend, ColorTarget, CommandRecorder, Context, GraphicsPipelineKey, GraphicsState, Pipeline, PipelineKey, ShaderKey,
     ShaderStage, UploadCounter, VertexAttribute, VkResult,
 };
+use crate::vk::{BufferUsage, Cull, Topology, Winding};
 
 crate::choices! {
     /// How view-dependent exit data is carried across a face under perspective.
@@ -65,7 +65,7 @@ impl Interpolation {
 /// (VICP's face lists, the balanced strip 0,1,2,3,0,1) have right-handed
 /// normals pointing into the tet, so faces the eye looks into (entry faces)
 /// appear clockwise on screen.
-pub const ENTRY_FACE_WINDING: raw::FrontFace = raw::FrontFace::CLOCKWISE;
+pub const ENTRY_FACE_WINDING: Winding = Winding::Clockwise;
 
 /// The faces of a tet as drawn, in the balanced strip's triangle order, each
 /// with its vertices in the order that makes it an entry face when seen from
@@ -104,10 +104,10 @@ impl Primitives {
         }
     }
 
-    pub fn topology(self) -> raw::PrimitiveTopology {
+    pub fn topology(self) -> Topology {
         match self {
-            Primitives::Strip => raw::PrimitiveTopology::TRIANGLE_STRIP,
-            Primitives::List => raw::PrimitiveTopology::TRIANGLE_LIST,
+            Primitives::Strip => Topology::TriangleStrip,
+            Primitives::List => Topology::TriangleList,
         }
     }
 
@@ -158,7 +158,7 @@ impl StaticIndices {
     pub fn upload(ctx: &Arc<Context>, name: &str, primitives: Primitives, cells: usize, counter: &mut UploadCounter) -> VkResult<Self> {
         let slot_bytes = primitives.indices_per_cell() * 4;
         let size = (cells * slot_bytes) as u64;
-        let buffer = upload_static_streamed(ctx, name, size, slot_bytes as u64, raw::BufferUsageFlags::INDEX_BUFFER, counter, |offset, chunk| {
+        let buffer = upload_static_streamed(ctx, name, size, slot_bytes as u64, BufferUsage::INDEX, counter, |offset, chunk| {
             primitives.write_indices(offset as usize / slot_bytes, bytemuck::cast_slice_mut(chunk));
         })?;
         Ok(StaticIndices { buffer, per_cell: primitives.indices_per_cell() })
@@ -536,7 +536,7 @@ pub(crate) fn build_pipeline(
     fragment_path: &str,
     stride: u32,
     attributes: &[VertexAttribute],
-    topology: raw::PrimitiveTopology,
+    topology: Topology,
     primitive_restart: bool,
     tables: &IntegrationTables,
     interpolation: Interpolation,
@@ -559,7 +559,7 @@ pub(crate) fn build_pipeline(
             attributes: attributes.to_vec(),
             topology,
             primitive_restart,
-            cull: raw::CullModeFlags::BACK,
+            cull: Cull::Back,
             front_face: ENTRY_FACE_WINDING,
             targets: vec![ColorTarget::rgba32f(Blend::PremultipliedOver)],
             depth_test: false,

@@ -20,7 +20,6 @@
 
 use std::sync::Arc;
 
-use ash::vk as raw;
 use rayon::prelude::*;
 
 use super::{build_pipeline, CellProjector, FrameSetup, Interpolation, RelativeMesh};
@@ -30,6 +29,7 @@ use crate::vk::{
     Buffer, BufferDesc, CommandRecorder, Context, DescriptorSet, DescriptorSetDesc, Pipeline, UploadClass, UploadCounter,
     VertexAttribute, VkResult,
 };
+use crate::vk::{BufferUsage, Format, Topology};
 
 /// pos 3, s_f 1, d 4, s 4, w 4, g 1, code 1.
 pub const FLOATS_PER_VERTEX: usize = 18;
@@ -95,13 +95,13 @@ impl NearCaps {
     ) -> VkResult<Self> {
         let f = |location, format, floats: u32| VertexAttribute { location, format, offset: floats * 4 };
         let attributes = [
-            f(0, raw::Format::R32G32B32_SFLOAT, 0),
-            f(1, raw::Format::R32_SFLOAT, 3),
-            f(2, raw::Format::R32G32B32A32_SFLOAT, 4),
-            f(3, raw::Format::R32G32B32A32_SFLOAT, 8),
-            f(4, raw::Format::R32G32B32A32_SFLOAT, 12),
-            f(5, raw::Format::R32_SFLOAT, 16),
-            f(6, raw::Format::R32_SFLOAT, 17),
+            f(0, Format::Rgb32Float, 0),
+            f(1, Format::R32Float, 3),
+            f(2, Format::Rgba32Float, 4),
+            f(3, Format::Rgba32Float, 8),
+            f(4, Format::Rgba32Float, 12),
+            f(5, Format::R32Float, 16),
+            f(6, Format::R32Float, 17),
         ];
         let (vertex, fragment) = if pieces_set.is_some() {
             ("cell_projection/cap_pieces.vert", "cell_projection/cap_pieces.frag")
@@ -114,7 +114,7 @@ impl NearCaps {
             fragment,
             (FLOATS_PER_VERTEX * 4) as u32,
             &attributes,
-            raw::PrimitiveTopology::TRIANGLE_LIST,
+            Topology::TriangleList,
             false,
             tables,
             interpolation,
@@ -187,7 +187,7 @@ impl NearCaps {
         let bytes = (self.records.len() * 4) as u64;
         if self.buffer.as_ref().is_none_or(|b| b.size() < bytes) {
             // Grown to twice what is needed, so an orbit does not reallocate every frame.
-            self.buffer = Some(Buffer::new(ctx, BufferDesc::upload("near caps", bytes * 2, raw::BufferUsageFlags::VERTEX_BUFFER))?);
+            self.buffer = Some(Buffer::new(ctx, BufferDesc::upload("near caps", bytes * 2, BufferUsage::VERTEX))?);
         }
         match self.buffer.as_mut() {
             Some(b) => b.write(0, bytemuck::cast_slice(&self.records), counter, UploadClass::FrameCells),

@@ -15,7 +15,6 @@
 use std::sync::Arc;
 use std::time::Instant;
 
-use ash::vk as raw;
 use rayon::prelude::*;
 
 use super::balanced::VERTICES_PER_CELL;
@@ -31,6 +30,7 @@ use crate::vk::{
     Image, ImageUse, Pipeline, PipelineKey, ShaderKey, ShaderStage, TexelBuffer, TimestampPool, UploadClass, UploadCounter, VkError,
     VkResult,
 };
+use crate::vk::{BufferUsage, Format, Stages, TimestampAt};
 
 /// The compositing workgroup in pixels, one invocation each. llvmpipe runs
 /// a workgroup as 8-lane vectors (AVX2) and executes both sides of a branch
@@ -70,7 +70,7 @@ fn create(inputs: MethodInputs) -> anyhow::Result<Box<dyn RenderMethod>> {
     // Per frame: a list entry per pixel a cell covers, about 36 per cell on
     // the oxygen post at 512^2 (18.4 M pairs); stored: resident's cell.
     let bytes = render::DeviceBytesPerCell { frame: PAIRS_PER_CELL * BYTES_PER_ENTRY, fixed: FLOATS_PER_STORED_CELL * 4 };
-    let stages = raw::ShaderStageFlags::FRAGMENT | raw::ShaderStageFlags::COMPUTE;
+    let stages = Stages::FRAGMENT | Stages::COMPUTE;
     render::CellProjection::create_for_stages(inputs, bytes, stages, |ctx, mesh, tables, draw, counter| {
         Ok(Box::new(PtCompute::new(ctx, mesh, tables, draw, counter)?))
     })
@@ -416,7 +416,7 @@ pub struct PtCompute {
 const COUNTER_WORDS: usize = 4;
 
 fn set_desc() -> DescriptorSetDesc {
-    let compute = raw::ShaderStageFlags::COMPUTE;
+    let compute = Stages::COMPUTE;
     DescriptorSetDesc::new(&[
         (DescriptorKind::UniformTexelBuffer, compute),
         (DescriptorKind::UniformTexelBuffer, compute),
@@ -427,12 +427,12 @@ fn set_desc() -> DescriptorSetDesc {
 
 /// A host-visible uniform texel buffer of `texels` texels of `format`
 /// (`texel_bytes` each), at least one.
-fn frame_texels(ctx: &Arc<Context>, name: &str, texels: usize, texel_bytes: usize, format: raw::Format) -> VkResult<TexelBuffer> {
+fn frame_texels(ctx: &Arc<Context>, name: &str, texels: usize, texel_bytes: usize, format: Format) -> VkResult<TexelBuffer> {
     let limit = ctx.info.max_texel_buffer_elements as usize;
     if texels > limit {
         return Err(VkError::Invalid(format!("{name}: {texels} texels, above the device's maxTexelBufferElements ({limit})")));
     }
-    let desc = BufferDesc::upload(name, (texels.max(1) * texel_bytes) as u64, raw::BufferUsageFlags::UNIFORM_TEXEL_BUFFER);
+    let desc = BufferDesc::upload(name, (texels.max(1) * texel_bytes) as u64, BufferUsage::UNIFORM_TEXEL);
     TexelBuffer::new(ctx, desc, format)
 }
 
@@ -450,14 +450,14 @@ impl PtCompute {
         let positions: Vec<[[f32; 3]; 4]> = (0..mesh.tets.len()).into_par_iter().map(|t| maker.cell(mesh, t).pos).collect();
         let n = positions.len();
         let cell_buffer = upload_cells(ctx, "pt-compute cells", mesh, counter)?;
-        let first = frame_texels(ctx, "pt-compute tile starts", 1, 4, raw::Format::R32_UINT)?;
-        let entries = frame_texels(ctx, "pt-compute pixel lists", 8 * n, BYTES_PER_ENTRY, raw::Format::R32_UINT)?;
+        let first = frame_texels(ctx, "pt-compute tile starts", 1, 4, Format::R32Uint)?;
+        let entries = frame_texels(ctx, "pt-compute pixel lists", 8 * n, BYTES_PER_ENTRY, Format::R32Uint)?;
         let counters = Buffer::new(
             ctx,
             BufferDesc::upload(
                 "pt-compute counters",
                 (COUNTER_WORDS * 4) as u64,
-                raw::BufferUsageFlags::STORAGE_BUFFER | raw::BufferUsageFlags::TRANSFER_DST,
+                BufferUsage::STORAGE | BufferUsage::TRANSFER_DST,
             ),
         )?;
         let set = DescriptorSet::new(
@@ -471,7 +471,7 @@ impl PtCompute {
                 DescriptorResource::StorageBuffer(&counters),
             ],
         )?;
-        let target_desc = DescriptorSetDesc::new(&[(DescriptorKind::StorageImage, raw::ShaderStageFlags::COMPUTE)]);
+        let target_desc = DescriptorSetDesc::new(&[(DescriptorKind::StorageImage, Stages::COMPUTE)]);
         let tile = TILE.map(|t| t.to_string());
         let ert = format!("{ERT_TRANSMITTANCE:e}");
         let defines: Vec<(&str, &str)> = draw
@@ -629,7 +629,6 @@ impl CellProjector for PtCompute {
         _frame: &FrameSetup,
         counter: &mut UploadCounter,
     ) -> VkResult<bool> {
-        use raw::{AccessFlags2 as A, PipelineStageFlags2 as S};
         if [target.width, target.height] != self.size {
             return Err(VkError::Invalid(format!(
                 "target '{}' is {}x{}, the tiles were binned for {}x{}",
@@ -640,7 +639,7 @@ impl CellProjector for PtCompute {
                 self.size[1]
             )));
         }
-        let id = raw::Handle::as_raw(target.raw);
+        let id = target.id();
         if self.target_set.as_ref().map(|(t, _)| *t) != Some(id) {
             let set = DescriptorSet::new(&self.ctx, "pt-compute target", &self.target_desc, &[DescriptorResource::StorageImage(target)])?;
             self.target_set = Some((id, set));
@@ -650,16 +649,13 @@ impl CellProjector for PtCompute {
         };
         self.timestamps.reset(rec);
         rec.fill_buffer(&self.counters, 0);
-        rec.memory_barrier(
-            (S::HOST | S::CLEAR | S::COPY, A::HOST_WRITE | A::TRANSFER_WRITE),
-            (S::COMPUTE_SHADER, A::SHADER_READ | A::SHADER_STORAGE_READ | A::SHADER_STORAGE_WRITE),
-        );
+        rec.uploads_to_compute();
         rec.image_barrier_discard(target, ImageUse::ComputeStorage);
-        self.timestamps.write(rec, 0, S::TOP_OF_PIPE)?;
+        self.timestamps.write(rec, 0, TimestampAt::Start)?;
         rec.bind_compute(&self.pipeline, &[&tables.set, &self.set, target_set])?;
         rec.push_constants(&self.pipeline, bytemuck::bytes_of(&self.constants), counter);
         rec.dispatch([self.size[0].div_ceil(TILE[0]), self.size[1].div_ceil(TILE[1]), 1])?;
-        self.timestamps.write(rec, 1, S::COMPUTE_SHADER)?;
+        self.timestamps.write(rec, 1, TimestampAt::ComputeDone)?;
         rec.compute_to_host();
         Ok(true)
     }

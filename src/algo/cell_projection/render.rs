@@ -25,6 +25,7 @@ use crate::algo::method::{
 };
 use crate::mesh::TetMesh;
 use crate::vk::{ColorAttachment, CommandRecorder, Context, Image, UploadCounter, VkResult};
+use crate::vk::Stages;
 
 crate::settings! {
     /// The typed settings of a cell-projection run: every option of the
@@ -306,7 +307,7 @@ pub struct CellProjection {
 
 impl CellProjection {
     pub fn create(inputs: MethodInputs, bytes: DeviceBytesPerCell, build: impl ProjectorBuilder) -> Result<Box<dyn RenderMethod>> {
-        Self::create_for_stages(inputs, bytes, ash::vk::ShaderStageFlags::FRAGMENT, build)
+        Self::create_for_stages(inputs, bytes, Stages::FRAGMENT, build)
     }
 
     /// `create` with the integration tables visible to `stages` (a
@@ -315,7 +316,7 @@ impl CellProjection {
     pub fn create_for_stages(
         inputs: MethodInputs,
         bytes: DeviceBytesPerCell,
-        stages: ash::vk::ShaderStageFlags,
+        stages: Stages,
         build: impl ProjectorBuilder,
     ) -> Result<Box<dyn RenderMethod>> {
         let SceneData::TetMesh { mesh } = inputs.data else {

@@ -9,7 +9,6 @@
 
 use std::sync::Arc;
 
-use ash::vk as raw;
 
 use super::balanced::VERTICES_PER_CELL;
 use super::render;
@@ -23,6 +22,7 @@ use crate::vk::{
     Buffer, BufferDesc, CommandRecorder, Context, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc,
     Pipeline, PipelineKey, TexelBuffer, UploadClass, UploadCounter, VkError, VkResult,
 };
+use crate::vk::{BufferUsage, Format, Stages};
 
 /// Per tet per frame: its index in the order.
 pub const BYTES_PER_CELL_PER_FRAME: usize = 4;
@@ -92,7 +92,7 @@ impl Resident {
         let pieces = chunks::ranges(n, per_draw);
         // Every piece draws from the start of the same indices.
         let indices = StaticIndices::upload(ctx, "resident indices", draw.primitives, pieces[0].len(), counter)?;
-        let usage = raw::BufferUsageFlags::STORAGE_BUFFER;
+        let usage = BufferUsage::STORAGE;
         let draws = pieces
             .iter()
             .enumerate()
@@ -122,7 +122,7 @@ fn cells_per_draw(limits: &ChunkLimits, primitives: Primitives) -> usize {
 /// u32 per vertex); cells beyond one texel buffer in `cell_chunks - 1`
 /// more bindings after them (`CELL_CHUNK_BINDING` in stored_cell.glsl).
 pub(super) fn set_desc(cell_chunks: usize) -> DescriptorSetDesc {
-    let vertex = raw::ShaderStageFlags::VERTEX;
+    let vertex = Stages::VERTEX;
     let mut desc = DescriptorSetDesc::new(&[(DescriptorKind::UniformTexelBuffer, vertex), (DescriptorKind::StorageBuffer, vertex)]);
     for _ in 1..cell_chunks {
         desc = desc.with(DescriptorKind::UniformTexelBuffer, vertex);
@@ -178,7 +178,7 @@ pub(super) fn upload_cell_chunks(
     use rayon::prelude::*;
     const CELL_BYTES: usize = FLOATS_PER_STORED_CELL * 4;
     let maker = CellMaker::new(mesh);
-    let format = raw::Format::R32G32B32A32_SFLOAT;
+    let format = Format::Rgba32Float;
     let per_chunk = limits.texel_chunk(CELL_BYTES as u64, (CELL_BYTES / 16) as u64);
     TexelChunks::upload(ctx, &format!("mesh '{}': {name}", mesh.name), mesh.tets.len(), CELL_BYTES, format, per_chunk, counter, |first, bytes| {
         bytes.par_chunks_mut(CELL_BYTES).with_min_len(1024).enumerate().for_each(|(i, dst)| {

@@ -6,7 +6,6 @@
 
 use std::sync::Arc;
 
-use ash::vk as raw;
 use rayon::prelude::*;
 
 use super::render;
@@ -16,6 +15,7 @@ use crate::algo::host_memory::HostMemory;
 use crate::algo::integrate::IntegrationTables;
 use crate::mesh::TetMesh;
 use crate::vk::{Buffer, BufferDesc, CommandRecorder, Context, Pipeline, PipelineKey, UploadClass, UploadCounter, VertexAttribute, VkResult};
+use crate::vk::{BufferUsage, Format, Topology};
 
 pub const FLOATS_PER_VERTEX: usize = 11;
 pub const VERTICES_PER_CELL: usize = 12;
@@ -83,14 +83,14 @@ impl Vicp {
         let mut records = vec![0f32; n * FLOATS_PER_CELL];
         records.par_chunks_mut(FLOATS_PER_CELL).zip(cells.par_iter()).for_each(|(out, c)| cell_records(c, out));
         let bytes = (n * FLOATS_PER_CELL * 4) as u64;
-        let vertex_buffer = Buffer::new(ctx, BufferDesc::upload("vicp vertex records", bytes, raw::BufferUsageFlags::VERTEX_BUFFER))?;
+        let vertex_buffer = Buffer::new(ctx, BufferDesc::upload("vicp vertex records", bytes, BufferUsage::VERTEX))?;
         let f = |location, format, floats: u32| VertexAttribute { location, format, offset: floats * 4 };
         let attributes = [
-            f(0, raw::Format::R32G32B32_SFLOAT, 0),
-            f(1, raw::Format::R32_SFLOAT, 3),
-            f(2, raw::Format::R32G32B32_SFLOAT, 4),
-            f(3, raw::Format::R32G32B32_SFLOAT, 7),
-            f(4, raw::Format::R32_SFLOAT, 10),
+            f(0, Format::Rgb32Float, 0),
+            f(1, Format::R32Float, 3),
+            f(2, Format::Rgb32Float, 4),
+            f(3, Format::Rgb32Float, 7),
+            f(4, Format::R32Float, 10),
         ];
         let (pipeline, pipeline_key) = build_pipeline(
             ctx,
@@ -98,7 +98,7 @@ impl Vicp {
             "cell_projection/vicp.frag",
             (FLOATS_PER_VERTEX * 4) as u32,
             &attributes,
-            raw::PrimitiveTopology::TRIANGLE_LIST,
+            Topology::TriangleList,
             false,
             tables,
             interpolation,

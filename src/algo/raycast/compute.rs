@@ -6,15 +6,15 @@ use std::sync::Arc;
 
 use anyhow::{bail, Result};
 use serde_json::json;
-use crate::vk::raw::Handle as _;
 
 use crate::algo::settings::MethodSettings;
 use super::{set0_desc, Settings, VolumeResources, COMPARE, OPTIONS, PUSH_BYTES, STRESS, SUITE, SWEEP};
 use crate::algo::method::{DataKind, MethodInfo, MethodInputs, Phases, RenderMethod, SceneData, View, Work};
 use crate::vk::{
-    raw, CommandRecorder, ComputePipelineKey, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc, Image, ImageUse,
+    CommandRecorder, ComputePipelineKey, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc, Image, ImageUse,
     Pipeline, PipelineKey, ShaderKey, ShaderStage, UploadCounter,
 };
+use crate::vk::Stages;
 
 /// Workgroup shape (pixels).
 pub const WORKGROUP: [u32; 2] = [8, 8];
@@ -43,7 +43,7 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
     let mut all: Vec<(&str, &str)> = defines.clone();
     all.push(("WG_X", &wg[0]));
     all.push(("WG_Y", &wg[1]));
-    let target_desc = DescriptorSetDesc::new(&[(DescriptorKind::StorageImage, raw::ShaderStageFlags::COMPUTE)]);
+    let target_desc = DescriptorSetDesc::new(&[(DescriptorKind::StorageImage, Stages::COMPUTE)]);
     let key = PipelineKey::Compute(ComputePipelineKey {
         shader: ShaderKey::new("raycast/march.comp", ShaderStage::Compute, &all),
         push_constant_bytes: PUSH_BYTES,
@@ -87,7 +87,7 @@ impl RenderMethod for RaycastCompute {
     }
 
     fn record(&mut self, rec: &CommandRecorder, target: &Image, view: &View, counter: &mut UploadCounter) -> Result<()> {
-        let id = target.raw.as_raw();
+        let id = target.id();
         if self.target_set.as_ref().map(|(t, _)| *t) != Some(id) {
             let set = DescriptorSet::new(&self.ctx, "raycast target", &self.target_desc, &[DescriptorResource::StorageImage(target)])?;
             self.target_set = Some((id, set));

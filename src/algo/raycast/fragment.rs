@@ -14,9 +14,10 @@ use crate::algo::settings::MethodSettings;
 use super::{set0_desc, Settings, VolumeResources, COMPARE, OPTIONS, PUSH_BYTES, STRESS, SUITE, SWEEP};
 use crate::algo::method::{DataKind, Feature, MethodInfo, MethodInputs, Phases, RenderMethod, SceneData, View, Work};
 use crate::vk::{
-    raw, Blend, ColorAttachment, ColorTarget, CommandRecorder, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc,
+    Blend, ColorAttachment, ColorTarget, CommandRecorder, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc,
     GraphicsPipelineKey, GraphicsState, Image, ImageUse, Pipeline, PipelineKey, Sampler, ShaderKey, ShaderStage, UploadCounter,
 };
+use crate::vk::{Cull, Stages, Topology, Winding};
 
 pub const METHOD: MethodInfo = MethodInfo {
     name: "raycast-fragment",
@@ -36,9 +37,9 @@ pub const METHOD: MethodInfo = MethodInfo {
 
 /// The box's triangles have outward right-handed normals: faces towards the
 /// eye appear counter-clockwise on screen (Vulkan's y-down framebuffer).
-const FRONT: raw::FrontFace = raw::FrontFace::COUNTER_CLOCKWISE;
+const FRONT: Winding = Winding::CounterClockwise;
 
-fn box_key(cull: raw::CullModeFlags) -> PipelineKey {
+fn box_key(cull: Cull) -> PipelineKey {
     PipelineKey::Graphics(GraphicsPipelineKey {
         vertex: ShaderKey::new("raycast/box.vert", ShaderStage::Vertex, &[]),
         geometry: None,
@@ -46,7 +47,7 @@ fn box_key(cull: raw::CullModeFlags) -> PipelineKey {
         state: GraphicsState {
             vertex_stride: 0,
             attributes: vec![],
-            topology: raw::PrimitiveTopology::TRIANGLE_LIST,
+            topology: Topology::TriangleList,
             primitive_restart: false,
             cull,
             front_face: FRONT,
@@ -66,11 +67,11 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
     let res = VolumeResources::new(ctx, vol, inputs.tf, &settings, inputs.counter)?;
     let entry = Image::render_target(ctx, "ray entry points", inputs.width, inputs.height)?;
     let exit = Image::render_target(ctx, "ray exit points", inputs.width, inputs.height)?;
-    if !entry.usage.contains(raw::ImageUsageFlags::SAMPLED) {
+    if !entry.is_sampled() {
         bail!("device '{}' cannot sample RGBA32F render targets (needed for the entry/exit points)", ctx.info.name);
     }
     let sampler = Sampler::nearest_clamp(ctx, "entry/exit")?;
-    let fs = raw::ShaderStageFlags::FRAGMENT;
+    let fs = Stages::FRAGMENT;
     let points_desc = DescriptorSetDesc::new(&[(DescriptorKind::CombinedImageSampler, fs), (DescriptorKind::CombinedImageSampler, fs)]);
     let points_set = DescriptorSet::new(
         ctx,
@@ -78,8 +79,8 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
         &points_desc,
         &[DescriptorResource::CombinedImageSampler(&entry, &sampler), DescriptorResource::CombinedImageSampler(&exit, &sampler)],
     )?;
-    let front_key = box_key(raw::CullModeFlags::BACK);
-    let back_key = box_key(raw::CullModeFlags::FRONT);
+    let front_key = box_key(Cull::Back);
+    let back_key = box_key(Cull::Front);
     let defines = settings.defines();
     let march_key = PipelineKey::Graphics(GraphicsPipelineKey {
         vertex: ShaderKey::new("raycast/fullscreen.vert", ShaderStage::Vertex, &[]),
@@ -88,9 +89,9 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
         state: GraphicsState {
             vertex_stride: 0,
             attributes: vec![],
-            topology: raw::PrimitiveTopology::TRIANGLE_LIST,
+            topology: Topology::TriangleList,
             primitive_restart: false,
-            cull: raw::CullModeFlags::NONE,
+            cull: Cull::None,
             front_face: FRONT,
             targets: vec![ColorTarget::rgba32f(Blend::None)],
             depth_test: false,

@@ -99,9 +99,10 @@ use super::settings::{choice, flag, float, int, MethodSettings};
 use crate::scene::TransferFunction;
 use crate::volume::{Samples, Volume};
 use crate::vk::{
-    raw, upload_static_texels, upload_texture, upload_texture_with, Buffer, BufferDesc, CommandRecorder, Context, DescriptorKind, DescriptorResource, DescriptorSet,
+    upload_static_texels, upload_texture, upload_texture_with, Buffer, BufferDesc, CommandRecorder, Context, DescriptorKind, DescriptorResource, DescriptorSet,
     DescriptorSetDesc, MemoryKind, Sampler, TexelBuffer, TextureDesc, UploadClass, UploadCounter,
 };
+use crate::vk::{BufferUsage, Format, Stages, Filter};
 
 /// Transfer-function table entries (1D) and pre-integration table side (2D).
 pub const TABLE_SIZE: usize = 1024;
@@ -253,7 +254,7 @@ pub struct VolumeResources {
 
 /// Set 0's layout (both variants).
 pub fn set0_desc() -> DescriptorSetDesc {
-    let st = raw::ShaderStageFlags::FRAGMENT | raw::ShaderStageFlags::COMPUTE | raw::ShaderStageFlags::VERTEX;
+    let st = Stages::FRAGMENT | Stages::COMPUTE | Stages::VERTEX;
     DescriptorSetDesc::default()
         .with(DescriptorKind::UniformBuffer, st)
         .with(DescriptorKind::CombinedImageSampler, st)
@@ -284,13 +285,12 @@ impl VolumeResources {
         if dims.iter().any(|&d| d < 2) {
             bail!("volume '{}': {:?} has no extent along some axis (at least 2 samples per axis are needed)", vol.name, dims);
         }
-        let linear = raw::FormatFeatureFlags::SAMPLED_IMAGE | raw::FormatFeatureFlags::SAMPLED_IMAGE_FILTER_LINEAR;
         // Native formats where the device filters them; texel value v maps
         // back to the sample as value = v * scale.
-        let native: Option<(raw::Format, &'static str, f64, &[u8])> = match vol.samples() {
-            Samples::U8(v) => Some((raw::Format::R8_UNORM, "r8-unorm", 255.0, v.as_slice())),
-            Samples::U16(v) => Some((raw::Format::R16_UNORM, "r16-unorm", 65535.0, bytemuck::cast_slice(v))),
-            Samples::I16(v) if !v.contains(&i16::MIN) => Some((raw::Format::R16_SNORM, "r16-snorm", 32767.0, bytemuck::cast_slice(v))),
+        let native: Option<(Format, &'static str, f64, &[u8])> = match vol.samples() {
+            Samples::U8(v) => Some((Format::R8Unorm, "r8-unorm", 255.0, v.as_slice())),
+            Samples::U16(v) => Some((Format::R16Unorm, "r16-unorm", 65535.0, bytemuck::cast_slice(v))),
+            Samples::I16(v) if !v.contains(&i16::MIN) => Some((Format::R16Snorm, "r16-snorm", 32767.0, bytemuck::cast_slice(v))),
             _ => None,
         };
         let (lo, mut hi) = vol.range();
@@ -303,10 +303,10 @@ impl VolumeResources {
         // are converted slab by slab into the staging buffer, never held
         // whole beside the volume.
         let (format, format_name, scale, offset, native_bytes) = match native {
-            Some((f, n, s, b)) if ctx.format_supports(f, linear) => (f, n, s, lo / s, Some(b)),
-            _ => (raw::Format::R32_SFLOAT, "r32-sfloat", 1.0, 0.0, None),
+            Some((f, n, s, b)) if ctx.can_sample(f, Filter::Linear) => (f, n, s, lo / s, Some(b)),
+            _ => (Format::R32Float, "r32-sfloat", 1.0, 0.0, None),
         };
-        if !ctx.format_supports(format, linear) {
+        if !ctx.can_sample(format, Filter::Linear) {
             bail!("device '{}' cannot filter {format_name} 3D textures linearly", ctx.info.name);
         }
         // Brick distances (module note): 0 on a flagged brick, else the
@@ -326,7 +326,7 @@ impl VolumeResources {
         // A uniform texel buffer: a distance is one texel fetch (as a storage
         // buffer, a per-ray index made llvmpipe loop over the SIMD lanes).
         // Uploaded (and its host copy dropped) before the volume's texture.
-        let bricks = upload_static_texels(ctx, "brick distances", &distance, raw::Format::R8_UINT, counter)?;
+        let bricks = upload_static_texels(ctx, "brick distances", &distance, Format::R8Uint, counter)?;
         drop(distance);
         let desc = TextureDesc::d3(&format!("volume '{}'", vol.name), dims_u32, format);
         let samples = vol.samples();
@@ -343,7 +343,7 @@ impl VolumeResources {
 
         let t0 = Instant::now();
         let table: Vec<f32> = tf.table(TABLE_SIZE, lo, hi).concat();
-        let tf_img = upload_texture(ctx, &TextureDesc::d1("transfer function", TABLE_SIZE as u32, raw::Format::R32G32B32A32_SFLOAT), &f32_bytes(&table), counter)?;
+        let tf_img = upload_texture(ctx, &TextureDesc::d1("transfer function", TABLE_SIZE as u32, Format::Rgba32Float), &f32_bytes(&table), counter)?;
         // Pre-integration table over (front, back) in [lo, hi]^2, texel
         // centres at the ends: premultiplied colour and optical depth of a
         // segment of `d0` world units, exact (`algo::segment`).
@@ -359,7 +359,7 @@ impl VolumeResources {
                 pre.extend([seg.color[0] as f32, seg.color[1] as f32, seg.color[2] as f32, depth as f32]);
             }
         }
-        let preint = upload_texture(ctx, &TextureDesc::d2("pre-integration table", n as u32, n as u32, raw::Format::R32G32B32A32_SFLOAT), &f32_bytes(&pre), counter)?;
+        let preint = upload_texture(ctx, &TextureDesc::d2("pre-integration table", n as u32, n as u32, Format::Rgba32Float), &f32_bytes(&pre), counter)?;
 
         let table_build_ms = bricks_ms + t0.elapsed().as_secs_f64() * 1e3;
 
@@ -377,14 +377,14 @@ impl VolumeResources {
             0.0, 0.0, 0.0, 0.0,
             0.3, 0.7, 0.25, 30.0,
         ];
-        let mut params_buf = Buffer::new(ctx, BufferDesc::upload("raycast parameters", 112, raw::BufferUsageFlags::UNIFORM_BUFFER))?;
+        let mut params_buf = Buffer::new(ctx, BufferDesc::upload("raycast parameters", 112, BufferUsage::UNIFORM))?;
         params_buf.write(0, &f32_bytes(&params), counter, UploadClass::Static)?;
         let counters = Buffer::new(
             ctx,
             BufferDesc {
                 name: "raycast counters".into(),
                 size: (COUNTER_WORDS * 4) as u64,
-                usage: raw::BufferUsageFlags::STORAGE_BUFFER | raw::BufferUsageFlags::TRANSFER_DST,
+                usage: BufferUsage::STORAGE | BufferUsage::TRANSFER_DST,
                 memory: MemoryKind::Readback,
             },
         )?;
@@ -445,24 +445,12 @@ impl VolumeResources {
     /// Clear the counters before the frame's passes.
     pub fn record_clear(&self, rec: &CommandRecorder) {
         rec.fill_buffer(&self.counters, 0);
-        rec.memory_barrier(
-            (raw::PipelineStageFlags2::CLEAR | raw::PipelineStageFlags2::COPY, raw::AccessFlags2::TRANSFER_WRITE),
-            (
-                raw::PipelineStageFlags2::COMPUTE_SHADER | raw::PipelineStageFlags2::FRAGMENT_SHADER,
-                raw::AccessFlags2::SHADER_STORAGE_READ | raw::AccessFlags2::SHADER_STORAGE_WRITE,
-            ),
-        );
+        rec.transfer_to_storage(Stages::COMPUTE | Stages::FRAGMENT);
     }
 
     /// Make the counters' writes visible to the host after the frame.
     pub fn record_counters_to_host(&self, rec: &CommandRecorder) {
-        rec.memory_barrier(
-            (
-                raw::PipelineStageFlags2::COMPUTE_SHADER | raw::PipelineStageFlags2::FRAGMENT_SHADER,
-                raw::AccessFlags2::SHADER_STORAGE_WRITE,
-            ),
-            (raw::PipelineStageFlags2::HOST, raw::AccessFlags2::HOST_READ),
-        );
+        rec.storage_to_host(Stages::COMPUTE | Stages::FRAGMENT);
     }
 
     /// The last frame's counters: (total samples, max per ray, bricks skipped, rays, leaps).

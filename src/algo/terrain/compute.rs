@@ -28,9 +28,10 @@ use super::tables::{triangle_digest, PcTables};
 use super::{TerrainScene, COMPARE, OPTIONS, SWEEP};
 use crate::algo::method::{DataKind, MethodInfo, MethodInputs, Phases, RenderMethod, SceneData, View, Work};
 use crate::vk::{
-    raw, Buffer, BufferDesc, CommandRecorder, ComputePipelineKey, DescriptorKind, DescriptorResource, DescriptorSet,
+    Buffer, BufferDesc, CommandRecorder, ComputePipelineKey, DescriptorKind, DescriptorResource, DescriptorSet,
     DescriptorSetDesc, Image, Pipeline, PipelineKey, ShaderKey, ShaderStage, TexelBuffer, TimestampPool, UploadClass, UploadCounter,
 };
+use crate::vk::{BufferUsage, Format, Stages, TimestampAt};
 
 pub const METHOD: MethodInfo = MethodInfo {
     name: "hm-compute",
@@ -68,22 +69,22 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
     if cells.is_empty() {
         cells.push([0; 4]);
     }
-    let storage = raw::BufferUsageFlags::STORAGE_BUFFER;
+    let storage = BufferUsage::STORAGE;
     let bytes: &[u8] = bytemuck::cast_slice(&cells);
     let mut cell_table = Buffer::new(ctx, BufferDesc::upload("hm-compute PC cells", bytes.len() as u64, storage))?;
     cell_table.write(0, bytes, counter, UploadClass::Static)?;
-    let tb = texel(ctx, "hm-compute TB coordinates", bytemuck::cast_slice(&tables.tb_xy), raw::Format::R32G32_SFLOAT, counter)?;
-    let chains = texel(ctx, "hm-compute chain list", bytemuck::cast_slice(&tables.chains), raw::Format::R32G32B32A32_UINT, counter)?;
+    let tb = texel(ctx, "hm-compute TB coordinates", bytemuck::cast_slice(&tables.tb_xy), Format::Rg32Float, counter)?;
+    let chains = texel(ctx, "hm-compute chain list", bytemuck::cast_slice(&tables.chains), Format::Rgba32Uint, counter)?;
     let capacity_cells = tables.frame_capacity(m, |_, _| 1).max(1);
     let capacity_indices = 3 * tables.frame_capacity(m, |k, i| tables.cells[k][i][3] as u64).max(1);
     let capacity_u32 = u32::try_from(capacity_indices).map_err(|_| anyhow::anyhow!("hm-compute: {capacity_indices} PC indices per frame"))?;
     let active = Buffer::new(ctx, BufferDesc::upload("hm-compute active PC cells", 4 * capacity_cells, storage))?;
-    let draw = Buffer::new(ctx, BufferDesc::upload("hm-compute draw arguments", 24, storage | raw::BufferUsageFlags::INDIRECT_BUFFER))?;
+    let draw = Buffer::new(ctx, BufferDesc::upload("hm-compute draw arguments", 24, storage | BufferUsage::INDIRECT))?;
     let output = Buffer::new(
         ctx,
-        BufferDesc::device_local("hm-compute PC triangles", 4 * capacity_indices, storage | raw::BufferUsageFlags::INDEX_BUFFER | raw::BufferUsageFlags::TRANSFER_SRC),
+        BufferDesc::device_local("hm-compute PC triangles", 4 * capacity_indices, storage | BufferUsage::INDEX | BufferUsage::TRANSFER_SRC),
     )?;
-    let stages = raw::ShaderStageFlags::COMPUTE;
+    let stages = Stages::COMPUTE;
     let desc = DescriptorSetDesc::new(&[
         (DescriptorKind::StorageBuffer, stages),
         (DescriptorKind::StorageBuffer, stages),
@@ -211,13 +212,10 @@ impl RenderMethod for HmCompute {
     fn record(&mut self, rec: &CommandRecorder, target: &Image, view: &View, counter: &mut UploadCounter) -> Result<()> {
         let n = self.active_list.len() as u64;
         self.timestamps.reset(rec);
-        self.timestamps.write(rec, 0, raw::PipelineStageFlags2::TOP_OF_PIPE)?;
+        self.timestamps.write(rec, 0, TimestampAt::Start)?;
         if n > 0 {
             // The previous frame's draw read the output and the arguments.
-            rec.memory_barrier(
-                (raw::PipelineStageFlags2::INDEX_INPUT | raw::PipelineStageFlags2::DRAW_INDIRECT, raw::AccessFlags2::INDEX_READ | raw::AccessFlags2::INDIRECT_COMMAND_READ),
-                (raw::PipelineStageFlags2::COMPUTE_SHADER, raw::AccessFlags2::SHADER_STORAGE_WRITE | raw::AccessFlags2::SHADER_STORAGE_READ),
-            );
+            rec.draw_fetch_to_compute();
             rec.bind_compute(&self.pipeline, &[&self.set])?;
             let m = &self.scene.model;
             let push = [n as u32, m.grid_base, m.domain[0] + 1, self.capacity_indices];
@@ -225,7 +223,7 @@ impl RenderMethod for HmCompute {
             rec.dispatch([n.div_ceil(LOCAL_SIZE) as u32, 1, 1])?;
             rec.compute_to_graphics();
         }
-        self.timestamps.write(rec, 1, raw::PipelineStageFlags2::COMPUTE_SHADER)?;
+        self.timestamps.write(rec, 1, TimestampAt::ComputeDone)?;
         let pc_push = self.scene.record_static(rec, target, view, counter)?;
         if n > 0 {
             rec.bind_index_buffer_u32(&self.output);
@@ -233,7 +231,7 @@ impl RenderMethod for HmCompute {
             rec.draw_indexed_indirect(&self.draw, 0)?;
         }
         rec.end_rendering();
-        self.timestamps.write(rec, 2, raw::PipelineStageFlags2::ALL_GRAPHICS)?;
+        self.timestamps.write(rec, 2, TimestampAt::GraphicsDone)?;
         self.recorded = true;
         // The draw arguments' count and error word are read on the host.
         rec.compute_to_host();

@@ -10,7 +10,8 @@ use serde_json::json;
 
 use super::{TerrainScene, COMPARE, OPTIONS, SWEEP};
 use crate::algo::method::{DataKind, MethodInfo, MethodInputs, Phases, RenderMethod, SceneData, View, Work};
-use crate::vk::{raw, Buffer, BufferDesc, CommandRecorder, Image, UploadClass, UploadCounter};
+use crate::vk::{Buffer, BufferDesc, CommandRecorder, Image, UploadClass, UploadCounter};
+use crate::vk::BufferUsage;
 
 pub const METHOD: MethodInfo = MethodInfo {
     name: "hm-cpu",
@@ -47,7 +48,7 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
         most += block_most;
     }
     let capacity = (most.max(3) * 4) as u64;
-    let buffer = Buffer::new(inputs.ctx, BufferDesc::upload("hm-cpu PC triangles", capacity, raw::BufferUsageFlags::INDEX_BUFFER))?;
+    let buffer = Buffer::new(inputs.ctx, BufferDesc::upload("hm-cpu PC triangles", capacity, BufferUsage::INDEX))?;
     Ok(Box::new(HmCpu { scene, buffer, indices: Vec::with_capacity(most), capacity_indices: most }))
 }
 

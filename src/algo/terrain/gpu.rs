@@ -32,9 +32,10 @@ use crate::algo::method::{
     DataKind, Feature, MethodInfo, MethodInputs, OptionSpec, OptionValues, Phases, RenderMethod, SceneData, View, Work,
 };
 use crate::vk::{
-    raw, Buffer, BufferDesc, CommandRecorder, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc, Image,
+    Buffer, BufferDesc, CommandRecorder, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc, Image,
     Pipeline, PipelineKey, ShaderKey, ShaderStage, TexelBuffer, UploadClass, UploadCounter, VertexAttribute,
 };
+use crate::vk::{BufferUsage, Format, Stages, Topology};
 
 /// Output components per emitted vertex as the validation layer counts
 /// them: gl_Position (4) and `world` (4).
@@ -112,14 +113,14 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
         entry_first.push(first);
     }
     let bytes: &[u8] = bytemuck::cast_slice(&entries);
-    let mut list = Buffer::new(ctx, BufferDesc::upload("hm-gpu PC list", bytes.len() as u64, raw::BufferUsageFlags::VERTEX_BUFFER))?;
+    let mut list = Buffer::new(ctx, BufferDesc::upload("hm-gpu PC list", bytes.len() as u64, BufferUsage::VERTEX))?;
     list.write(0, bytes, counter, UploadClass::Static)?;
-    let tb = texel(ctx, "hm-gpu TB coordinates", bytemuck::cast_slice(&tables.tb_xy), raw::Format::R32G32_SFLOAT, counter)?;
-    let chains = texel(ctx, "hm-gpu chain list", bytemuck::cast_slice(&tables.chains), raw::Format::R32G32B32A32_UINT, counter)?;
+    let tb = texel(ctx, "hm-gpu TB coordinates", bytemuck::cast_slice(&tables.tb_xy), Format::Rg32Float, counter)?;
+    let chains = texel(ctx, "hm-gpu chain list", bytemuck::cast_slice(&tables.chains), Format::Rgba32Uint, counter)?;
     let m = &scene.model;
     let capacity = tables.frame_capacity(m, |k, i| (entry_first[k][i + 1] - entry_first[k][i]) as u64) as usize;
-    let active = Buffer::new(ctx, BufferDesc::upload("hm-gpu active PC list", (capacity.max(1) * 4) as u64, raw::BufferUsageFlags::INDEX_BUFFER))?;
-    let stages = raw::ShaderStageFlags::GEOMETRY;
+    let active = Buffer::new(ctx, BufferDesc::upload("hm-gpu active PC list", (capacity.max(1) * 4) as u64, BufferUsage::INDEX))?;
+    let stages = Stages::GEOMETRY;
     let mut desc = DescriptorSetDesc::new(&[
         (DescriptorKind::UniformTexelBuffer, stages),
         (DescriptorKind::UniformTexelBuffer, stages),
@@ -129,7 +130,7 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
     let capture_buffer = if capture {
         desc = desc.with(DescriptorKind::StorageBuffer, stages);
         let size = (16 + 12 * max_pc_tris.max(1)) as usize;
-        let mut b = Buffer::new(ctx, BufferDesc::upload("hm-gpu capture", size as u64, raw::BufferUsageFlags::STORAGE_BUFFER))?;
+        let mut b = Buffer::new(ctx, BufferDesc::upload("hm-gpu capture", size as u64, BufferUsage::STORAGE))?;
         // Header: count, errors, capacity (indices); set per frame.
         b.write_staging(0, bytemuck::cast_slice(&[0u32, 0, (3 * max_pc_tris) as u32, 0]))?;
         Some(b)
@@ -151,8 +152,8 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
         &scene.settings,
         ShaderKey::new("terrain/pc.vert", ShaderStage::Vertex, &[]),
         Some(ShaderKey::new("terrain/pc.geom", ShaderStage::Geometry, &defines)),
-        VertexAttribute { location: 0, format: raw::Format::R32G32B32A32_UINT, offset: 0 },
-        raw::PrimitiveTopology::POINT_LIST,
+        VertexAttribute { location: 0, format: Format::Rgba32Uint, offset: 0 },
+        Topology::PointList,
         vec![desc],
     );
     let pipeline = crate::algo::pipelines::get(ctx, &key)?;
@@ -178,11 +179,11 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
 }
 
 /// A static texel buffer holding `bytes` (counted as static upload).
-pub(super) fn texel(ctx: &Arc<crate::vk::Context>, name: &str, bytes: &[u8], format: raw::Format, counter: &mut UploadCounter) -> Result<TexelBuffer> {
+pub(super) fn texel(ctx: &Arc<crate::vk::Context>, name: &str, bytes: &[u8], format: Format, counter: &mut UploadCounter) -> Result<TexelBuffer> {
     // An empty table still needs one texel for its view.
     let padded: Vec<u8> = if bytes.is_empty() { vec![0; 16] } else { bytes.to_vec() };
     let size = padded.len() as u64;
-    let mut t = TexelBuffer::new(ctx, BufferDesc::upload(name, size, raw::BufferUsageFlags::UNIFORM_TEXEL_BUFFER), format)?;
+    let mut t = TexelBuffer::new(ctx, BufferDesc::upload(name, size, BufferUsage::UNIFORM_TEXEL), format)?;
     t.buffer.write(0, &padded, counter, UploadClass::Static)?;
     Ok(t)
 }
@@ -265,10 +266,7 @@ impl RenderMethod for HmGpu {
         }
         rec.end_rendering();
         if self.capture.is_some() {
-            rec.memory_barrier(
-                (raw::PipelineStageFlags2::GEOMETRY_SHADER, raw::AccessFlags2::SHADER_STORAGE_WRITE),
-                (raw::PipelineStageFlags2::HOST, raw::AccessFlags2::HOST_READ),
-            );
+            rec.storage_to_host(Stages::GEOMETRY);
         }
         Ok(())
     }

@@ -43,9 +43,10 @@ use crate::scene::{Camera, Projection};
 use crate::terrain::hybrid::HybridModel;
 use crate::terrain::Heightmap;
 use crate::vk::{
-    raw, Blend, Buffer, BufferDesc, ColorTarget, CommandRecorder, Context, DescriptorSetDesc, GraphicsPipelineKey, GraphicsState,
+    Blend, Buffer, BufferDesc, ColorTarget, CommandRecorder, Context, DescriptorSetDesc, GraphicsPipelineKey, GraphicsState,
     Image, Pipeline, PipelineKey, ShaderKey, ShaderStage, TexelBuffer, UploadClass, UploadCounter, VertexAttribute,
 };
+use crate::vk::{BufferUsage, Cull, Format, Topology, Winding};
 
 crate::choices! {
     /// How the terrain is coloured.
@@ -169,7 +170,7 @@ pub fn mesh_key(
     vertex: ShaderKey,
     geometry: Option<ShaderKey>,
     attribute: VertexAttribute,
-    topology: raw::PrimitiveTopology,
+    topology: Topology,
     sets: Vec<DescriptorSetDesc>,
 ) -> PipelineKey {
     PipelineKey::Graphics(GraphicsPipelineKey {
@@ -181,8 +182,8 @@ pub fn mesh_key(
             attributes: vec![attribute],
             topology,
             primitive_restart: false,
-            cull: raw::CullModeFlags::NONE,
-            front_face: raw::FrontFace::COUNTER_CLOCKWISE,
+            cull: Cull::None,
+            front_face: Winding::CounterClockwise,
             targets: vec![ColorTarget::rgba32f(if settings.coverage { Blend::Additive } else { Blend::None })],
             depth_test: !settings.coverage,
             depth_clamp: false,
@@ -248,8 +249,8 @@ impl TerrainScene {
             anyhow::ensure!(l < model.levels.len(), "option 'level' = {l}: '{}' has levels 0 to {}", map.name, model.levels.len() - 1);
         }
         let geo = bytes_of(&model.vertices);
-        let usage = raw::BufferUsageFlags::VERTEX_BUFFER | raw::BufferUsageFlags::UNIFORM_TEXEL_BUFFER;
-        let mut geometry = TexelBuffer::new(ctx, BufferDesc::upload("terrain geometry", geo.len() as u64, usage), raw::Format::R32G32B32A32_SFLOAT)?;
+        let usage = BufferUsage::VERTEX | BufferUsage::UNIFORM_TEXEL;
+        let mut geometry = TexelBuffer::new(ctx, BufferDesc::upload("terrain geometry", geo.len() as u64, usage), Format::Rgba32Float)?;
         geometry.buffer.write(0, geo, counter, UploadClass::Static)?;
         let mut all = Vec::new();
         let (mut level_offsets, mut skirt_offsets) = (Vec::new(), Vec::new());
@@ -262,14 +263,14 @@ impl TerrainScene {
         let tin_first = all.len() as u32;
         all.extend_from_slice(&model.tin_indices);
         let idx = bytes_of(&all);
-        let mut static_indices = Buffer::new(ctx, BufferDesc::upload("terrain static indices", idx.len() as u64, raw::BufferUsageFlags::INDEX_BUFFER))?;
+        let mut static_indices = Buffer::new(ctx, BufferDesc::upload("terrain static indices", idx.len() as u64, BufferUsage::INDEX))?;
         static_indices.write(0, idx, counter, UploadClass::Static)?;
         let key = mesh_key(
             &settings,
             ShaderKey::new("terrain/mesh.vert", ShaderStage::Vertex, &[]),
             None,
-            VertexAttribute { location: 0, format: raw::Format::R32G32B32A32_SFLOAT, offset: 0 },
-            raw::PrimitiveTopology::TRIANGLE_LIST,
+            VertexAttribute { location: 0, format: Format::Rgba32Float, offset: 0 },
+            Topology::TriangleList,
             vec![],
         );
         let pipeline = crate::algo::pipelines::get(ctx, &key)?;
