@@ -658,7 +658,7 @@ fn descriptor_sets_check_their_resources() {
     assert!(err.contains("'params' binding 0") && err.contains("UniformBuffer"), "{err}");
     // The right kind but a buffer without the usage.
     let err = DescriptorSet::new(&ctx, "params", &desc, &[DescriptorResource::UniformBuffer(&storage)]).err().unwrap().to_string();
-    assert!(err.contains("ssbo") && err.contains("UNIFORM_BUFFER"), "{err}");
+    assert!(err.contains("ssbo") && err.contains("lacks BufferUsage(UNIFORM) usage"), "{err}");
     let err = DescriptorSet::new(&ctx, "params", &desc, &[]).err().unwrap().to_string();
     assert!(err.contains("1 binding(s) described, 0 resource(s) given"), "{err}");
     // A sampled texture is not a storage image.

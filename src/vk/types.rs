@@ -6,7 +6,12 @@
 //! (`CommandRecorder::compute_to_graphics` and its siblings), not masks.
 
 use ash::vk;
-use bitflags::bitflags;
+use bitflags::{bitflags, Flags};
+
+/// The union of the Vulkan values paired with the flags `set` holds.
+fn union_of<F: Flags + Copy, V: Copy + std::ops::BitOr<Output = V>>(set: F, empty: V, pairs: &[(F, V)]) -> V {
+    pairs.iter().filter(|(ours, _)| set.contains(*ours)).fold(empty, |acc, &(_, theirs)| acc | theirs)
+}
 
 bitflags! {
     /// The shader stages a descriptor binding (or a barrier's shader side)
@@ -22,34 +27,22 @@ bitflags! {
 
 impl Stages {
     pub(crate) fn to_vk(self) -> vk::ShaderStageFlags {
-        let mut out = vk::ShaderStageFlags::empty();
-        for (ours, theirs) in [
+        union_of(self, vk::ShaderStageFlags::empty(), &[
             (Stages::VERTEX, vk::ShaderStageFlags::VERTEX),
             (Stages::GEOMETRY, vk::ShaderStageFlags::GEOMETRY),
             (Stages::FRAGMENT, vk::ShaderStageFlags::FRAGMENT),
             (Stages::COMPUTE, vk::ShaderStageFlags::COMPUTE),
-        ] {
-            if self.contains(ours) {
-                out |= theirs;
-            }
-        }
-        out
+        ])
     }
 
     /// The pipeline stages these shaders run in (a barrier's shader side).
     pub(crate) fn pipeline_stages(self) -> vk::PipelineStageFlags2 {
-        let mut out = vk::PipelineStageFlags2::empty();
-        for (ours, theirs) in [
+        union_of(self, vk::PipelineStageFlags2::empty(), &[
             (Stages::VERTEX, vk::PipelineStageFlags2::VERTEX_SHADER),
             (Stages::GEOMETRY, vk::PipelineStageFlags2::GEOMETRY_SHADER),
             (Stages::FRAGMENT, vk::PipelineStageFlags2::FRAGMENT_SHADER),
             (Stages::COMPUTE, vk::PipelineStageFlags2::COMPUTE_SHADER),
-        ] {
-            if self.contains(ours) {
-                out |= theirs;
-            }
-        }
-        out
+        ])
     }
 }
 
@@ -80,8 +73,7 @@ bitflags! {
 
 impl BufferUsage {
     pub(crate) fn to_vk(self) -> vk::BufferUsageFlags {
-        let mut out = vk::BufferUsageFlags::empty();
-        for (ours, theirs) in [
+        union_of(self, vk::BufferUsageFlags::empty(), &[
             (BufferUsage::VERTEX, vk::BufferUsageFlags::VERTEX_BUFFER),
             (BufferUsage::INDEX, vk::BufferUsageFlags::INDEX_BUFFER),
             (BufferUsage::UNIFORM, vk::BufferUsageFlags::UNIFORM_BUFFER),
@@ -91,12 +83,7 @@ impl BufferUsage {
             (BufferUsage::INDIRECT, vk::BufferUsageFlags::INDIRECT_BUFFER),
             (BufferUsage::TRANSFER_SRC, vk::BufferUsageFlags::TRANSFER_SRC),
             (BufferUsage::TRANSFER_DST, vk::BufferUsageFlags::TRANSFER_DST),
-        ] {
-            if self.contains(ours) {
-                out |= theirs;
-            }
-        }
-        out
+        ])
     }
 }
 
