@@ -376,6 +376,27 @@ fn size_sensitive_cases_hold_at_a_second_size() {
     }
 }
 
+/// pt-compute with the eye in two of the grid's face planes (`eye-on-plane`)
+/// at two sizes: the faces in those planes project to lines, and snapping
+/// can leave such a face a sliver of positive area, through which the cell
+/// behind it covered the centres on the line that its neighbour in front
+/// covered too, so both integrated the chord along the face (5.9e-2 at
+/// pixel (140, 168) of 256x256, every integrator, both sorts; 64x64 and
+/// 128x128 passed). Faces seen edge-on now cover no pixel
+/// (`pt_compute::edge_on_faces`): 4.7e-5 at 256x256 with ppi.
+#[test]
+fn pt_compute_with_the_eye_in_face_planes_at_two_sizes() {
+    for size in [SIZE, SECOND_SIZE] {
+        let selected: Vec<StressCase> =
+            stress::stress_cases(size).into_iter().filter(|c| c.name == "eye-on-plane").collect();
+        let rows = run(&selected, &config_at(size, &["pt-compute"], &["ppi"], &["exact"], &["mpvo"]));
+        assert_eq!(rows.len(), 1);
+        let r = &rows[0];
+        assert_eq!(r.status, "ok", "at {size}: {} (bound {})", r.max_abs_error, r.bound);
+        assert!(r.max_abs_error <= 1e-3, "at {size}: {}", r.max_abs_error);
+    }
+}
+
 /// The papers' interpolation is held to the integrator's bound plus its f64
 /// model's own error against the reference, derived per image
 /// (`Extra::PapersModel`), not to a constant fitted at one size: at 64x64

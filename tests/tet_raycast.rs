@@ -232,6 +232,38 @@ fn stress_meshes_with_flat_and_sliver_cells() {
     }
 }
 
+/// Rays entering the mesh through the boundary faces of the slivers case's
+/// 1e-4 layer (a strip 1/8 long and 1e-4 wide on the top face), zoomed in
+/// from the oblique view's eye so that rows of pixels cross the strip, at
+/// two sizes. The edge value of a strip's 1e-4 side seen from 3.4 away is
+/// ~1e-6, the rounding of d . (q_lo x q_hi) as large: the face's
+/// barycentric weights were noise and the entry depth off by up to the
+/// strip's extent along the ray (2.2e-3 at one pixel of `volbench stress
+/// --size 512 --case slivers`). Taken as d . (q_lo x (p_hi - p_lo)), every
+/// pixel is within tet-raycast's accuracy bound (2e-3 with ppi).
+#[test]
+fn rays_entering_sliver_faces_hold_at_two_sizes() {
+    let case = volbench::harness::stress::stress_cases(64).into_iter().find(|c| c.name == "slivers").unwrap();
+    let mesh = case.mesh().unwrap().clone();
+    // Where pixel (260, 90) of the 512x512 view enters the strip.
+    let camera = Camera {
+        eye: [2.3, 1.7, 2.9],
+        target: [0.332142348, 1.0, 0.250091899],
+        up: [0.0, 1.0, 0.0],
+        projection: Projection::Perspective { fovy_deg: 0.01 },
+        near: 3.0,
+        far: 10.0,
+    };
+    for size in [64, 128] {
+        let (want, _) = reference(&mesh, &case.tf, &camera, size);
+        assert_eq!(want.covered_pixels(), (size * size) as usize, "the view is inside the top face");
+        let got = run(&mesh, &case.tf, "tet-raycast:integrator=ppi", camera, size);
+        let e = got.image.compare(&want).unwrap();
+        eprintln!("{size}x{size}: max {:.3e}, RMSE {:.3e}", e.max_abs, e.rmse);
+        assert!(e.max_abs <= 2e-3, "{size}x{size}: max error {} (RMSE {})", e.max_abs, e.rmse);
+    }
+}
+
 /// Rays exactly along edges and through vertices of a grid seen along an
 /// axis: the perturbation assigns each ray to the cells the f64 reference
 /// assigns it to, so (with every coordinate exact in binary) the walks are

@@ -313,12 +313,19 @@ vec3 rel(vec3 p) {
 // Edge value w = d . ((p_lo - o) x (p_hi - o)) of the canonically oriented
 // edge lo -> hi, and its sign with exact zeros resolved by the perturbation
 // o -> o + eps n1 + eps^2 n2 (see reference/raycast.rs, Ray::edge).
-vec2 edge_lo_hi(vec3 q_lo, vec3 q_hi, vec3 p_lo, vec3 p_hi) {
-    precise vec3 c = cross(q_lo, q_hi);
+// Computed as d . ((p_lo - o) x (p_hi - p_lo)), the same value: the cross
+// product of the two offsets from the eye cancels to the edge's length
+// times their distance, so for an edge short against that distance (a
+// sliver's 1e-4 side seen from 3.4 away: w ~ 1e-6, rounding ~ 1e-6) its
+// rounding was the whole value, the face's barycentric weights noise and
+// the crossing depth off by up to the face's extent (stress cases slivers
+// and needles-caps, 512x512: 2.2e-3 at one pixel each).
+vec2 edge_lo_hi(vec3 q_lo, vec3 p_lo, vec3 p_hi) {
+    precise vec3 e = p_hi - p_lo;
+    precise vec3 c = cross(q_lo, e);
     precise float w = dot(ray_d, c);
     float s = sign(w);
     if (s == 0.0) {
-        vec3 e = p_hi - p_lo;
         s = sign(-dot(e, ray_n1));
         if (s == 0.0) {
             s = sign(-dot(e, ray_n2));
@@ -330,9 +337,9 @@ vec2 edge_lo_hi(vec3 q_lo, vec3 q_hi, vec3 p_lo, vec3 p_hi) {
 // The edge a -> b (global indices a, b): (value, sign).
 vec2 oriented(uint a, uint b, vec3 qa, vec3 qb, vec3 pa, vec3 pb) {
     if (a < b) {
-        return edge_lo_hi(qa, qb, pa, pb);
+        return edge_lo_hi(qa, pa, pb);
     }
-    return -edge_lo_hi(qb, qa, pb, pa);
+    return -edge_lo_hi(qb, pb, pa);
 }
 
 // The crossing of the ray line with the face whose vertex offsets are q and

@@ -143,8 +143,9 @@ const GUARD_PIXELS: f32 = 8192.0;
 pub enum Footprint {
     Off,
     /// Projected vertices in fixed point (pixel units << SUBPIXEL_BITS, y down
-    /// as the rasterizer's framebuffer) and the rows it may cover.
-    Raster { xy: [[i32; 2]; 4], rows: [u32; 2] },
+    /// as the rasterizer's framebuffer), the rows it may cover, and the faces
+    /// (bit f: `FACES[f]`) seen edge-on, which cover no pixel (`edge_on_faces`).
+    Raster { xy: [[i32; 2]; 4], rows: [u32; 2], edge_on: u8 },
     /// The pixel box (x0, y0, x1, y1 inclusive) of a cell the pass tests by planes.
     Planes([u32; 4]),
 }
@@ -189,8 +190,16 @@ impl Footprint {
             Some([a.max(0) as u32, b.min(n - 1) as u32])
         };
         match (span(0), span(1)) {
-            (Some(_), Some(rows)) => Footprint::Raster { xy, rows },
+            (Some(_), Some(rows)) => Footprint::Raster { xy, rows, edge_on: 0 },
             _ => Footprint::Off,
+        }
+    }
+
+    /// This footprint with the faces in `mask` (`edge_on_faces`) left out of the rasterization.
+    pub fn without_faces(self, mask: u8) -> Footprint {
+        match self {
+            Footprint::Raster { xy, rows, edge_on } => Footprint::Raster { xy, rows, edge_on: edge_on | mask },
+            other => other,
         }
     }
 
@@ -208,18 +217,62 @@ impl Footprint {
 /// of positive area cover the tet's silhouette exactly once.
 const FACES: [[usize; 3]; 4] = [[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]];
 
+/// A face is seen edge-on when the eye lies in its plane (perspective) or
+/// the view direction does (orthographic) to within this sine of the angle:
+/// the compositing pass's test for a ray in a cell's plane
+/// (`pt_composite.comp`: |n . d| <= 1e-6 |n|), far above f32 rounding
+/// (~1e-7) and far below a pixel (2.8e-3 rad at 256^2, 40 degrees).
+pub const EDGE_ON_SINE: f64 = 1e-6;
+
+/// The faces of a tet (bit f: `FACES[f]`) seen edge-on from `eye` (a point
+/// under perspective) or along `view_dir` (orthographic): vertices, eye and
+/// direction in the same frame. Projected, such a face is a segment, but
+/// snapping its vertices to the sub-pixel grid can leave it a sliver of
+/// positive area: the cell behind it would then cover the centres on the
+/// segment through it while the cell in front covers them too, and both
+/// would integrate the whole chord the ray runs along the face (stress case
+/// `eye-on-plane`, one pixel at 256^2: 5.9e-2). Left out, the centres go
+/// to the one neighbour whose other faces cover them.
+pub fn edge_on_faces(v: &[[f32; 3]; 4], eye: [f32; 3], view_dir: [f32; 3], perspective: bool) -> u8 {
+    let p = v.map(|q| q.map(f64::from));
+    let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let norm = |a: [f64; 3]| dot(a, a).sqrt();
+    let e = eye.map(f64::from);
+    let mut mask = 0u8;
+    for (f, face) in FACES.iter().enumerate() {
+        let [a, b, c] = face.map(|i| p[i]);
+        let (u, w) = (sub(b, a), sub(c, a));
+        let n = [u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]];
+        // The sine of the angle between the plane and the direction from the
+        // eye to its farthest vertex (or the view direction).
+        let (along, length) = if perspective {
+            let far = [a, b, c].map(|q| norm(sub(q, e))).into_iter().fold(0.0, f64::max);
+            (dot(n, sub(a, e)), far)
+        } else {
+            let d = view_dir.map(f64::from);
+            (dot(n, d), norm(d))
+        };
+        if along.abs() <= EDGE_ON_SINE * norm(n) * length {
+            mask |= 1 << f;
+        }
+    }
+    mask
+}
+
 /// Calls `f(x, y)` for every pixel in rows [row0, row1] whose centre the
 /// tet's projection covers, by the rasterizer's rule: exact edge functions
 /// on the snapped vertices, a centre on an edge belongs to the triangle the
 /// edge is a top or left edge of. A face shared by two cells is the same
 /// edges from the same snapped points, so the two agree on every pixel.
-fn rasterize(xy: &[[i32; 2]; 4], row0: u32, row1: u32, width: u32, mut f: impl FnMut(u32, u32)) {
+/// Faces in `edge_on` (`edge_on_faces`) cover nothing.
+fn rasterize(xy: &[[i32; 2]; 4], edge_on: u8, row0: u32, row1: u32, width: u32, mut f: impl FnMut(u32, u32)) {
     let half = 1i64 << (SUBPIXEL_BITS - 1);
     let unit = 1i64 << SUBPIXEL_BITS;
-    for face in FACES {
+    for (index, face) in FACES.into_iter().enumerate() {
         let p = face.map(|i| [xy[i][0] as i64, xy[i][1] as i64]);
         let area = (p[1][0] - p[0][0]) * (p[2][1] - p[0][1]) - (p[1][1] - p[0][1]) * (p[2][0] - p[0][0]);
-        if area <= 0 {
+        if area <= 0 || edge_on & (1 << index) != 0 {
             continue;
         }
         // Edge (a, b): E(q) = (b - a) x (q - a), positive inside; its
@@ -304,8 +357,8 @@ impl PixelLists {
                     let cell = cell_of(slot as usize);
                     match &footprints[slot as usize] {
                         Footprint::Off => {}
-                        Footprint::Raster { xy, .. } => {
-                            rasterize(xy, row0, row1, width, |x, y| pairs.push([(y - row0) * width + x, cell]));
+                        Footprint::Raster { xy, edge_on, .. } => {
+                            rasterize(xy, *edge_on, row0, row1, width, |x, y| pairs.push([(y - row0) * width + x, cell]));
                         }
                         Footprint::Planes(bx) => {
                             for y in bx[1].max(row0)..=bx[3].min(row1) {
@@ -567,14 +620,17 @@ impl CellProjector for PtCompute {
         let min_w = eye_plane_w(frame);
         let size = frame.size;
         let positions = &self.positions;
+        let c = &frame.constants;
+        let (eye, view_dir) = ([c.eye[0], c.eye[1], c.eye[2]], [c.view_dir[0], c.view_dir[1], c.view_dir[2]]);
         order
             .par_iter()
             .with_min_len(4096)
             .map(|&t| {
-                let clip = positions[t as usize].map(|p| {
+                let v = &positions[t as usize];
+                let clip = v.map(|p| {
                     std::array::from_fn(|r| vp[0][r] * p[0] + vp[1][r] * p[1] + vp[2][r] * p[2] + vp[3][r])
                 });
-                Footprint::of(&clip, min_w, size)
+                Footprint::of(&clip, min_w, size).without_faces(edge_on_faces(v, eye, view_dir, frame.perspective))
             })
             .collect_into_vec(&mut self.footprints);
         let t1 = Instant::now();
@@ -686,6 +742,46 @@ mod tests {
     #[test]
     fn composite_phase_is_a_device_phase() {
         assert!(COMPOSITE_PHASE.ends_with(DEVICE_PHASE_SUFFIX));
+    }
+
+    /// Two cells sharing a face seen edge-on whose snapped projection is a
+    /// sliver 1/256 pixel wide, to the right of the line through the centres
+    /// of column 8 (as `eye-on-plane` at 256x256): through the sliver the
+    /// left cell covered column 8, which the right cell covers too. With the
+    /// face left out each centre is covered once.
+    #[test]
+    fn a_face_seen_edge_on_covers_no_pixel() {
+        let px = |x: f64, y: f64| [(x * 256.0) as i32, (y * 256.0) as i32];
+        let (v1, v2, v3) = (px(8.5, 1.0), [px(8.5, 8.0)[0] + 1, px(8.5, 8.0)[1]], px(8.5, 15.0));
+        // The shared face runs one way in each cell (FACES[3] = opposite vertex 3).
+        let left = [v1, v2, v3, px(2.0, 8.0)];
+        let right = [v1, v3, v2, px(14.0, 8.0)];
+        let coverage = |edge_on: u8| {
+            let mut n = vec![0u32; 256];
+            for xy in [left, right] {
+                rasterize(&xy, edge_on, 0, 15, 16, |x, y| n[(y * 16 + x) as usize] += 1);
+            }
+            n
+        };
+        let twice = coverage(0).iter().filter(|&&c| c == 2).count();
+        assert!(twice > 0, "the sliver double-covers column 8");
+        let once = coverage(1 << 3);
+        for y in 0..16u32 {
+            for x in 0..16u32 {
+                assert!(once[(y * 16 + x) as usize] <= 1, "pixel {x},{y}: {}", once[(y * 16 + x) as usize]);
+                if x == 8 && (2..=14).contains(&y) {
+                    assert_eq!(once[(y * 16 + x) as usize], 1, "pixel {x},{y}");
+                }
+            }
+        }
+        // Which faces: the eye in a face's plane, perspective; a face along
+        // the view direction, orthographic; none of a generic tet.
+        let tet = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        // FACES[3] = vertices 0, 2, 1: the plane z = 0.
+        assert_eq!(edge_on_faces(&tet, [3.0, 2.0, 0.0], [0.0; 3], true), 1 << 3);
+        assert_eq!(edge_on_faces(&tet, [3.0, 2.0, 1e-3], [0.0; 3], true), 0);
+        assert_eq!(edge_on_faces(&tet, [0.0; 3], [1.0, 1.0, 0.0], false), 1 << 3);
+        assert_eq!(edge_on_faces(&tet, [5.0, 4.0, 3.0], [0.0; 3], true), 0);
     }
 
     /// A grid of two cells sharing a face, seen along it: every pixel centre
