@@ -133,6 +133,16 @@ impl Dataset {
         Dataset { name: map.name.clone(), named, source, digest, data: DatasetData::Terrain(map) }
     }
 
+    /// A volume's samples, taken out for their last reader
+    /// (`harness::run::run_handing_over`); the volume keeps its grid.
+    /// `None` for other data.
+    pub fn take_volume_samples(&mut self) -> Option<crate::volume::Samples> {
+        match &mut self.data {
+            DatasetData::Volume(v) => Some(v.take_samples()),
+            _ => None,
+        }
+    }
+
     pub fn kind(&self) -> DataKind {
         self.scene().kind()
     }
