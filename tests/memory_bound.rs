@@ -55,6 +55,12 @@ fn tf(lo: f64, hi: f64) -> TransferFunction {
 /// fresh n³ volume of `kind` (above what was held before the volume was
 /// made: the samples count), and the samples' bytes.
 fn peak(method: &str, kind: &str, n: usize, hand_over: bool) -> (u64, u64) {
+    let (held, bytes, _) = peak_and_output(method, kind, n, hand_over);
+    (held, bytes)
+}
+
+/// As [`peak`], with the run's image and counts.
+fn peak_and_output(method: &str, kind: &str, n: usize, hand_over: bool) -> (u64, u64, (Vec<[f32; 4]>, String)) {
     let spec = registry::builtin().parse_spec(method, &[]).unwrap();
     let cfg = RunConfig { width: 32, height: 32, frames: 1, warmup: 0, overlap: false, ..RunConfig::default() };
     let ctx = common::context();
@@ -73,8 +79,9 @@ fn peak(method: &str, kind: &str, n: usize, hand_over: bool) -> (u64, u64) {
     let out = out.unwrap_or_else(|e| panic!("{method} on {kind} {n}³: {e:#}"));
     assert!(out.result.work.counts["samples"] > 0);
     assert!(ctx.validation_messages().is_empty(), "{:?}", ctx.validation_messages());
+    let seen = (out.image.pixels.clone(), format!("{:?}", out.result.work.counts));
     drop((out, dataset));
-    (meter::peak_bytes() - before, bytes)
+    (meter::peak_bytes() - before, bytes, seen)
 }
 
 #[test]
@@ -92,6 +99,15 @@ fn a_volume_run_holds_at_most_twice_its_samples_plus_a_fixed_overhead() {
             report.push(format!("{method} {kind} {n}³: {held} bytes held at most, samples {bytes}"));
             assert!(held <= 2 * bytes + FIXED, "{}\nmore than 2 × {bytes} + {FIXED}", report.join("\n"));
         }
+    }
+    // Handed over or shared, the same image and counts (the texture filled
+    // last slab first, the bricks flagged layer by layer as it fills): 160³
+    // floats are two slabs of the 8 MiB staging buffer, 81 layers and 79,
+    // so a slab's edge cuts a brick of 2 and of 3 voxels.
+    for (method, kind) in [("raycast-compute:brick=3", "f32"), ("raycast-fragment:integrator=preint", "f32")] {
+        let (_, _, handed) = peak_and_output(method, kind, 160, true);
+        let (_, _, shared) = peak_and_output(method, kind, 160, false);
+        assert!(handed == shared, "{method} on {kind}: the handed-over run differs from the shared one");
     }
     // Shared samples (a suite's) with a distance map as large as an 8-bit
     // volume (`brick=1`): the samples, their texture and the map.
