@@ -17,7 +17,7 @@ use volbench::harness::count;
 use volbench::harness::datasets::{self, Dataset, DatasetData};
 use volbench::harness::reference_cache::reference_image;
 use volbench::harness::report::{self, ComparisonRow};
-use volbench::harness::run::{run_handing_over, RunConfig};
+use volbench::harness::run::{run as run_method, RunConfig};
 use volbench::harness::sweep;
 use volbench::scene::{Projection, TransferFunction};
 use volbench::vk::{Context, ContextDesc};
@@ -553,7 +553,8 @@ fn run(cli: &Cli, registry: &Registry, args: &RunArgs) -> Result<()> {
         _ => None,
     };
     let mut dataset = dataset;
-    let mut out = run_handing_over(&ctx, &spec, &mut dataset, &tf, &cfg)
+    dataset.hand_over_samples();
+    let mut out = run_method(&ctx, &spec, &dataset, &tf, &cfg)
         .with_context(|| format!("running {} on {}", spec.canonical(), args.data))?;
     let mut diff = None;
     if with_reference && out.result.error.is_none() {

@@ -4,7 +4,7 @@
 //! buffers and images (`vk::meter`; on lavapipe device memory is host
 //! memory) never exceeds twice the samples' bytes plus a fixed overhead.
 //! Both ray casters, 8- and 16-bit and float samples, at two sizes, through
-//! `run_handing_over` (what `volbench run` does); and the same runs with
+//! `Dataset::hand_over_samples` (what `volbench run` does); and the same runs with
 //! the samples shared (`run`, what a suite does, which keeps them for the
 //! next method) exceed it at `brick=1`, so the accounting can fail.
 
@@ -12,7 +12,7 @@ mod common;
 
 use volbench::algo::registry;
 use volbench::harness::datasets::Dataset;
-use volbench::harness::run::{run, run_handing_over, RunConfig};
+use volbench::harness::run::{run, RunConfig};
 use volbench::scene::{ControlPoint, TransferFunction};
 use volbench::volume::{Samples, Volume};
 use volbench::vk::{meter, MeteredAlloc, UPLOAD_SLAB_BYTES};
@@ -75,7 +75,10 @@ fn peak_and_output(method: &str, kind: &str, n: usize, hand_over: bool) -> (u64,
     };
     let (lo, hi) = dataset.scalar_range();
     let tf = tf(lo, hi);
-    let out = if hand_over { run_handing_over(&ctx, &spec, &mut dataset, &tf, &cfg) } else { run(&ctx, &spec, &dataset, &tf, &cfg) };
+    if hand_over {
+        dataset.hand_over_samples();
+    }
+    let out = run(&ctx, &spec, &dataset, &tf, &cfg);
     let out = out.unwrap_or_else(|e| panic!("{method} on {kind} {n}³: {e:#}"));
     assert!(out.result.work.counts["samples"] > 0);
     assert!(ctx.validation_messages().is_empty(), "{:?}", ctx.validation_messages());

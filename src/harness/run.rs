@@ -470,19 +470,6 @@ impl MethodSession {
         tf: &TransferFunction,
         cfg: &RunConfig,
     ) -> Result<Self> {
-        Self::handing_over(ctx, spec, dataset, None, tf, cfg)
-    }
-
-    /// As [`MethodSession::new`], with a volume's samples taken from
-    /// `dataset` and handed to the method (`MethodInputs::samples`).
-    pub fn handing_over(
-        ctx: &Arc<Context>,
-        spec: &MethodSpec,
-        dataset: &Dataset,
-        samples: Option<crate::volume::Samples>,
-        tf: &TransferFunction,
-        cfg: &RunConfig,
-    ) -> Result<Self> {
         cfg.validate()?;
         cfg.check_device(&ctx.info)?;
         spec.check_renders(dataset.kind(), &dataset.name)?;
@@ -501,7 +488,7 @@ impl MethodSession {
             height: cfg.height,
             diagnostics: cfg.diagnostics,
             counter: &mut setup_counter,
-            samples,
+            samples: dataset.take_handed_samples(),
         })
         .with_context(|| format!("setting up {} for '{}'", spec.canonical(), dataset.name))?;
         let target = Image::render_target(ctx, "frame target", cfg.width, cfg.height)?;
@@ -725,33 +712,7 @@ fn check_image(image: &RgbaImage, dataset: &Dataset, tf: &TransferFunction, cfg:
 
 /// Run `spec` on `dataset` as `cfg` says.
 pub fn run(ctx: &Arc<Context>, spec: &MethodSpec, dataset: &Dataset, tf: &TransferFunction, cfg: &RunConfig) -> Result<RunOutput> {
-    run_with(ctx, spec, dataset, None, tf, cfg)
-}
-
-/// As [`run`], for the last reader of `dataset`'s samples: a volume's are
-/// taken from it and handed to the method, which gives them back as they
-/// reach the device (`MethodInputs::samples`); the dataset keeps its grid
-/// (bounds, range, sizes) for the rest of the run.
-pub fn run_handing_over(
-    ctx: &Arc<Context>,
-    spec: &MethodSpec,
-    dataset: &mut Dataset,
-    tf: &TransferFunction,
-    cfg: &RunConfig,
-) -> Result<RunOutput> {
-    let samples = dataset.take_volume_samples();
-    run_with(ctx, spec, dataset, samples, tf, cfg)
-}
-
-fn run_with(
-    ctx: &Arc<Context>,
-    spec: &MethodSpec,
-    dataset: &Dataset,
-    samples: Option<crate::volume::Samples>,
-    tf: &TransferFunction,
-    cfg: &RunConfig,
-) -> Result<RunOutput> {
-    let mut session = MethodSession::handing_over(ctx, spec, dataset, samples, tf, cfg)?;
+    let mut session = MethodSession::new(ctx, spec, dataset, tf, cfg)?;
     let mut counter = UploadCounter::default();
     let mut samples = Samples::default();
     let mut last_frame_counters = UploadCounter::default();
