@@ -356,15 +356,16 @@ impl VolumeResources {
                 }
             }
         };
-        // What is held at once never exceeds the samples twice (their
-        // texture and their host copy) plus a fixed overhead. Samples of
-        // our own: the texture is filled from the last slab to the first,
-        // each brick layer is flagged as soon as its sample layers are
-        // filled, and the samples are given back down to what is yet to be
-        // filled or flagged; the distances (their prefix counts are four
-        // bytes a brick) follow, when the samples are gone. Shared samples:
-        // the distances first (uploaded, their working memory dropped),
-        // then the texture.
+        // Memory (docs/bad-input.md, "Memory"). Samples of our own: the
+        // texture is filled from the last slab to the first, each brick
+        // layer is flagged as soon as its sample layers are filled, and the
+        // samples are given back down to what is yet to be filled or
+        // flagged, so samples and texture together stay one copy; the
+        // distances (their prefix counts are four bytes a brick) follow,
+        // when the samples are gone. Shared samples (they stay for the next
+        // method): the distances first (uploaded, their working memory
+        // dropped), then the texture: twice the samples, the map and the
+        // staging slab.
         let layer = dims[0] * dims[1];
         let ((bricks, bricks_visible), volume) = match given.take() {
             Some(mut own) => {
