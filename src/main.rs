@@ -14,7 +14,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use volbench::algo::registry::{self, Registry};
 use volbench::fsio::{self, OutputSet};
 use volbench::harness::count;
-use volbench::harness::datasets::{self, Dataset};
+use volbench::harness::datasets::{self, Dataset, DatasetData};
 use volbench::harness::reference_cache::reference_image;
 use volbench::harness::report::{self, ComparisonRow};
 use volbench::harness::run::{run as run_method, RunConfig};
@@ -544,11 +544,24 @@ fn run(cli: &Cli, registry: &Registry, args: &RunArgs) -> Result<()> {
     }
     let with_reference = args.reference || args.diff_png.is_some();
     let cfg = RunConfig { diagnostics: with_reference, ..cfg };
+    // A volume's reference comes first: nothing reads its samples after
+    // the method's set-up, which takes them over and frees them as they
+    // reach the device (docs/bad-input.md, "Memory").
+    let camera = cfg.frame_camera(&dataset, &spec.info.family, 0);
+    let early = match &dataset.data {
+        DatasetData::Volume(_) if with_reference => Some(reference_image(&dataset, &tf, &camera, cfg.width, cfg.height)?),
+        _ => None,
+    };
+    let mut dataset = dataset;
+    dataset.hand_over_samples();
     let mut out = run_method(&ctx, &spec, &dataset, &tf, &cfg)
         .with_context(|| format!("running {} on {}", spec.canonical(), args.data))?;
     let mut diff = None;
     if with_reference && out.result.error.is_none() {
-        let reference = reference_image(&dataset, &tf, &out.result.image.camera, cfg.width, cfg.height)?;
+        let reference = match early {
+            Some(r) => r,
+            None => reference_image(&dataset, &tf, &out.result.image.camera, cfg.width, cfg.height)?,
+        };
         diff = Some(out.attach_error(&reference)?);
     }
     let row = ComparisonRow { label: spec.label(), dataset: dataset.name.clone(), outcome: Ok(&out.result), rmse_vs_first: None };

@@ -258,6 +258,11 @@ pub struct MethodInputs<'a> {
     pub diagnostics: bool,
     /// One-time uploads made while building (static bytes).
     pub counter: &'a mut UploadCounter,
+    /// A volume's samples, taken from `data`'s volume
+    /// (`Volume::take_samples`) when nothing reads them after the set-up
+    /// (a single run): the method gives them back as they reach the device,
+    /// so the samples are held once, not twice. `None`: `data` holds them.
+    pub samples: Option<crate::volume::Samples>,
 }
 
 /// One frame's view: the camera and the image it is drawn into.

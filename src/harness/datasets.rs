@@ -81,6 +81,9 @@ pub struct Dataset {
     /// SHA-256 of the content the images depend on, hex.
     pub digest: String,
     pub data: DatasetData,
+    /// A volume's samples set aside for the next method set up
+    /// ([`Dataset::hand_over_samples`]).
+    handed: std::sync::Mutex<Option<crate::volume::Samples>>,
 }
 
 /// What every result records about its dataset.
@@ -104,7 +107,7 @@ impl Dataset {
         mesh.scalars.shrink_to_fit();
         mesh.tets.shrink_to_fit();
         let digest = mesh_digest(&mesh);
-        Dataset { name: mesh.name.clone(), named, source, digest, data: DatasetData::TetMesh { mesh } }
+        Dataset { name: mesh.name.clone(), named, source, digest, data: DatasetData::TetMesh { mesh }, handed: Default::default() }
     }
 
     /// A mesh read from a file or a shipped dataset: as `from_mesh`; with
@@ -125,12 +128,29 @@ impl Dataset {
 
     pub fn from_volume(volume: Volume, named: bool, source: String) -> Self {
         let digest = volume_digest(&volume);
-        Dataset { name: volume.name.clone(), named, source, digest, data: DatasetData::Volume(volume) }
+        Dataset { name: volume.name.clone(), named, source, digest, data: DatasetData::Volume(volume), handed: Default::default() }
     }
 
     pub fn from_heightmap(map: Heightmap, named: bool, source: String) -> Self {
         let digest = heightmap_digest(&map);
-        Dataset { name: map.name.clone(), named, source, digest, data: DatasetData::Terrain(map) }
+        Dataset { name: map.name.clone(), named, source, digest, data: DatasetData::Terrain(map), handed: Default::default() }
+    }
+
+    /// For a caller that reads a volume's samples no more after the next
+    /// method's set-up (a single run, its reference computed first): they
+    /// are taken from the volume (`Volume::take_samples`; it keeps its grid:
+    /// bounds, range, sizes) and given to that method
+    /// (`MethodInputs::samples`), which gives them back as they reach the
+    /// device. Nothing for other data.
+    pub fn hand_over_samples(&mut self) {
+        if let DatasetData::Volume(v) = &mut self.data {
+            *self.handed.get_mut().unwrap_or_else(|p| p.into_inner()) = Some(v.take_samples());
+        }
+    }
+
+    /// The samples [`Dataset::hand_over_samples`] set aside, once.
+    pub(crate) fn take_handed_samples(&self) -> Option<crate::volume::Samples> {
+        self.handed.lock().unwrap_or_else(|p| p.into_inner()).take()
     }
 
     pub fn kind(&self) -> DataKind {

@@ -488,6 +488,7 @@ impl MethodSession {
             height: cfg.height,
             diagnostics: cfg.diagnostics,
             counter: &mut setup_counter,
+            samples: dataset.take_handed_samples(),
         })
         .with_context(|| format!("setting up {} for '{}'", spec.canonical(), dataset.name))?;
         let target = Image::render_target(ctx, "frame target", cfg.width, cfg.height)?;

@@ -81,7 +81,7 @@ impl Buffer {
             MemoryKind::DeviceLocal => MemoryLocation::GpuOnly,
             MemoryKind::Readback => MemoryLocation::GpuToCpu,
         };
-        let allocation = ctx.allocator().allocate(&AllocationCreateDesc {
+        let allocation = ctx.allocate(&AllocationCreateDesc {
             name: &desc.name,
             requirements,
             location,
@@ -105,7 +105,7 @@ impl Buffer {
         // to a handle that is then only destroyed).
         let bound = unsafe { ctx.device.bind_buffer_memory(raw, allocation.memory(), allocation.offset()) };
         if let Err(result) = bound {
-            let _ = ctx.allocator().free(allocation);
+            ctx.free(allocation);
             // SAFETY: the handle was created just above, was never used or
             // submitted, and is destroyed once here, on the error path (the wrapper
             // that would own it is not built).
@@ -179,7 +179,7 @@ impl Drop for Buffer {
             return;
         }
         if let Some(a) = self.allocation.take() {
-            let _ = self.ctx.allocator().free(a);
+            self.ctx.free(a);
         }
         // SAFETY: the owner is being dropped: nothing else holds the handle,
         // no pending submission uses it (owners wait for their recorders before

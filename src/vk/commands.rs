@@ -272,7 +272,8 @@ impl CommandRecorder {
     /// Copy `count` layers (z slices of a 3D image, rows of a 2D one, the
     /// whole of a 1D one) from the start of `src` into `dst` from layer
     /// `first` on: a large upload goes through one small staging buffer.
-    /// The first part (`first` 0) discards what the image held.
+    /// Parts may come in any order; the image's contents are kept (a fresh
+    /// image's undefined state stays the barrier's source until written).
     pub fn copy_layers_to_image(&self, src: &Buffer, dst: &Image, first: u32, count: u32, counter: &mut UploadCounter) -> VkResult<()> {
         let (layers, offset, extent) = match dst.dim {
             ImageDim::D3 => (dst.depth, vk::Offset3D { x: 0, y: 0, z: first as i32 }, [dst.width, dst.height, count]),
@@ -288,7 +289,7 @@ impl CommandRecorder {
                 src.size()
             )));
         }
-        dst.barrier(self.raw, ImageUse::TransferDst, first > 0);
+        dst.barrier(self.raw, ImageUse::TransferDst, true);
         let region = [vk::BufferImageCopy::default()
             .image_subresource(color_layers())
             .image_offset(offset)

@@ -638,10 +638,26 @@ impl Context {
         Ok((physical, device, queue_family, info))
     }
 
-    pub(crate) fn allocator(&self) -> std::sync::MutexGuard<'_, Allocator> {
+    fn allocator(&self) -> std::sync::MutexGuard<'_, Allocator> {
         // A poisoned lock only means another thread panicked mid-allocation;
         // the allocator's state is still consistent for freeing.
         self.allocator.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    /// Device memory for a buffer or image, counted (`vk::meter`).
+    pub(crate) fn allocate(
+        &self,
+        desc: &gpu_allocator::vulkan::AllocationCreateDesc<'_>,
+    ) -> gpu_allocator::Result<gpu_allocator::vulkan::Allocation> {
+        let a = self.allocator().allocate(desc)?;
+        super::meter::device_allocated(a.size());
+        Ok(a)
+    }
+
+    /// Gives back what [`Context::allocate`] gave.
+    pub(crate) fn free(&self, a: gpu_allocator::vulkan::Allocation) {
+        super::meter::device_freed(a.size());
+        let _ = self.allocator().free(a);
     }
 
     /// Give a Vulkan object a debug name (visible in validation messages).

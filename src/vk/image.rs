@@ -291,7 +291,6 @@ impl Image {
         // SAFETY: the handle was created on this device just above and is live.
         let requirements = unsafe { ctx.device.get_image_memory_requirements(raw) };
         let allocation = ctx
-            .allocator()
             .allocate(&AllocationCreateDesc {
                 name,
                 requirements,
@@ -440,7 +439,7 @@ impl Drop for Image {
             self.ctx.device.destroy_image(self.raw, None);
         }
         if let Some(a) = self.allocation.take() {
-            let _ = self.ctx.allocator().free(a);
+            self.ctx.free(a);
         }
     }
 }

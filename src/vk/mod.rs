@@ -26,6 +26,7 @@ pub mod descriptors;
 pub mod error;
 pub mod format;
 pub mod image;
+pub mod meter;
 pub mod pipeline;
 pub mod pipeline_cache;
 pub mod query;
@@ -48,8 +49,9 @@ pub use descriptors::{
 };
 pub use error::{VkError, VkResult};
 pub use format::{Format, TARGET_FORMAT};
+pub use meter::MeteredAlloc;
 pub use image::{Filter, Image, ImageDim, ImageState, ImageUse, Sampler, TextureDesc};
-pub use transfer::{upload_texture, upload_texture_with};
+pub use transfer::{upload_texture, upload_texture_with, UPLOAD_SLAB_BYTES};
 pub use pipeline::{Blend, ColorTarget, ComputePipelineDesc, GraphicsPipelineDesc, Pipeline, VertexAttribute};
 pub use pipeline_cache::{
     fnv1a64, ComputePipelineKey, GraphicsPipelineKey, GraphicsState, PipelineCache, PipelineKey, ShaderKey,

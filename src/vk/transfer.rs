@@ -100,19 +100,23 @@ pub fn upload_texture_with(
         ctx,
         BufferDesc::upload(&format!("{} (staging)", desc.name), u64::from(per_slab) * layer_bytes, super::types::BufferUsage::TRANSFER_SRC),
     )?;
-    let mut first = 0u32;
-    while first < layers {
-        let count = per_slab.min(layers - first);
+    // Last slab first: a caller whose `fill` gives back its source's tail
+    // as it goes (a volume's samples, `Samples::truncate`) frees each slab
+    // as the image gets it, so source and image together stay one copy.
+    let mut end = layers;
+    while end > 0 {
+        let first = end - ((end - 1) % per_slab + 1);
+        let count = end - first;
         let len = (u64::from(count) * layer_bytes) as usize;
         fill((u64::from(first) * layer_bytes) as usize, &mut staging.mapped_for_write()?[..len]);
         let rec = CommandRecorder::new(ctx, &format!("{} upload", desc.name))?;
         rec.begin()?;
         rec.copy_layers_to_image(&staging, &image, first, count, counter)?;
-        if first + count == layers {
+        if first == 0 {
             rec.image_barrier(&image, ImageUse::Sampled);
         }
         rec.submit_and_wait()?;
-        first += count;
+        end = first;
     }
     Ok(image)
 }

@@ -111,6 +111,31 @@ impl Samples {
         }
     }
 
+    /// Keeps the first `n` samples and gives the rest's memory back (a
+    /// method releasing what it has copied to the device, from the end).
+    pub fn truncate(&mut self, n: usize) {
+        fn go<T>(v: &mut Vec<T>, n: usize) {
+            v.truncate(n);
+            v.shrink_to_fit();
+        }
+        match self {
+            Samples::U8(v) => go(v, n),
+            Samples::I16(v) => go(v, n),
+            Samples::U16(v) => go(v, n),
+            Samples::F32(v) => go(v, n),
+        }
+    }
+
+    /// The samples' bytes as they are in memory (native byte order).
+    pub fn as_bytes(&self) -> &[u8] {
+        match self {
+            Samples::U8(v) => v,
+            Samples::I16(v) => bytemuck::cast_slice(v),
+            Samples::U16(v) => bytemuck::cast_slice(v),
+            Samples::F32(v) => bytemuck::cast_slice(v),
+        }
+    }
+
     /// All samples as f32 (exact for every type).
     pub fn to_f32(&self) -> Vec<f32> {
         match self {
@@ -232,18 +257,33 @@ impl Volume {
         self.samples
     }
 
+    /// Moves the samples out, leaving none of the same type: for their last
+    /// reader (a single run's method, which gives them back to the system
+    /// as it copies them to the device). The grid (dims, spacing, origin,
+    /// range, [`Volume::len`]) stays; sample reads ([`Volume::get`]) find
+    /// nothing after.
+    pub fn take_samples(&mut self) -> Samples {
+        let empty = match self.samples {
+            Samples::U8(_) => Samples::U8(Vec::new()),
+            Samples::I16(_) => Samples::I16(Vec::new()),
+            Samples::U16(_) => Samples::U16(Vec::new()),
+            Samples::F32(_) => Samples::F32(Vec::new()),
+        };
+        std::mem::replace(&mut self.samples, empty)
+    }
+
     pub fn sample_type(&self) -> SampleType {
         self.samples.sample_type()
     }
 
-    /// Number of samples.
+    /// Number of samples of the grid (also after [`Volume::take_samples`]).
     pub fn len(&self) -> usize {
-        self.samples.len()
+        self.dims[0] * self.dims[1] * self.dims[2]
     }
 
     /// Never true (a volume has at least one sample); for clippy's sake.
     pub fn is_empty(&self) -> bool {
-        self.samples.is_empty()
+        self.len() == 0
     }
 
     /// Bytes of the samples in their native type.
@@ -272,7 +312,7 @@ impl Volume {
     pub fn value(&self, i: usize, j: usize, k: usize) -> f64 {
         match self.get(i, j, k) {
             Some(v) => v,
-            None => panic!("sample ({i}, {j}, {k}) is outside the {:?} grid of volume '{}'", self.dims, self.name),
+            None => panic!("sample ({i}, {j}, {k}) is outside the {:?} grid of volume '{}' (or its samples were taken)", self.dims, self.name),
         }
     }
 

@@ -12,7 +12,7 @@
 //! bricks would cost more iterations than the samples they save.
 
 use crate::scene::TransferFunction;
-use crate::volume::Volume;
+use crate::volume::Samples;
 
 use super::super::segment::transfer_at;
 
@@ -25,43 +25,76 @@ pub fn grid_of(dims: [usize; 3], brick: usize) -> [usize; 3] {
 
 /// Per brick (x fastest): whether the transfer function has attenuation
 /// anywhere over the range of the brick's samples (a trilinear value stays
-/// within its corners' range). One layer of bricks at a time (its samples'
-/// layers, each widening the range of the bricks that hold a sample): the
-/// working ranges are one layer's, never one per brick of the volume (16
-/// bytes a brick were twice an 8-bit volume's bytes at `brick=2`).
-pub fn attenuating(vol: &Volume, tf: &TransferFunction, brick: usize) -> Vec<bool> {
-    let dims = vol.dims();
+/// within its corners' range), one layer of bricks at a time
+/// ([`LayerFlags`]). `samples` are a volume's of `dims` (also when taken
+/// from it, `Volume::take_samples`).
+pub fn attenuating(dims: [usize; 3], samples: &Samples, tf: &TransferFunction, brick: usize) -> Vec<bool> {
+    assert_eq!(samples.len(), dims[0] * dims[1] * dims[2], "one sample per grid point");
+    let mut layers = LayerFlags::new(dims, tf, brick);
     let grid = grid_of(dims, brick);
-    // The bricks holding sample i along an axis: its own, and the one
-    // before when it is that brick's last layer.
-    let owners = |i: usize, g: usize| {
-        let own = (i / brick).min(g - 1);
-        let before = (i > 0 && i.is_multiple_of(brick)).then(|| i / brick - 1);
-        [Some(own), before.filter(|&b| b != own)]
-    };
-    let layer = grid[0] * grid[1];
-    let mut flags = Vec::with_capacity(layer * grid[2]);
-    let mut range = vec![(f64::INFINITY, f64::NEG_INFINITY); layer];
+    let mut flags = Vec::with_capacity(grid[0] * grid[1] * grid[2]);
     for bz in 0..grid[2] {
-        range.fill((f64::INFINITY, f64::NEG_INFINITY));
-        // The sample layers brick layer bz holds (its own and the next's first).
-        let last = if bz + 1 == grid[2] { dims[2] - 1 } else { (bz + 1) * brick };
-        for k in bz * brick..=last.min(dims[2] - 1) {
+        flags.extend(layers.flags(bz, samples));
+    }
+    flags
+}
+
+/// [`attenuating`] one layer of bricks at a time, in any order: a layer
+/// reads only its own sample layers ([`LayerFlags::sample_layers`]), so a
+/// caller that frees the samples from the end as it goes can flag the
+/// layers as it frees them. The working ranges are one layer's, never one
+/// per brick of the volume (16 bytes a brick were twice an 8-bit volume's
+/// bytes at `brick=2`).
+pub struct LayerFlags<'t> {
+    dims: [usize; 3],
+    grid: [usize; 3],
+    brick: usize,
+    tf: &'t TransferFunction,
+    range: Vec<(f64, f64)>,
+}
+
+impl<'t> LayerFlags<'t> {
+    pub fn new(dims: [usize; 3], tf: &'t TransferFunction, brick: usize) -> Self {
+        let grid = grid_of(dims, brick);
+        LayerFlags { dims, grid, brick, tf, range: vec![(f64::INFINITY, f64::NEG_INFINITY); grid[0] * grid[1]] }
+    }
+
+    /// The sample layers (z) brick layer `bz` holds: its own and the next's
+    /// first (the last brick layer: up to the volume's last).
+    pub fn sample_layers(&self, bz: usize) -> std::ops::RangeInclusive<usize> {
+        let last = if bz + 1 == self.grid[2] { self.dims[2] - 1 } else { (bz + 1) * self.brick };
+        bz * self.brick..=last.min(self.dims[2] - 1)
+    }
+
+    /// Brick layer `bz`'s flags (x fastest) from `samples`, which must
+    /// hold at least the volume's samples up to the end of
+    /// [`LayerFlags::sample_layers`]`(bz)` (a missing one reads as NaN, which
+    /// flags nothing: a caller's bug).
+    pub fn flags(&mut self, bz: usize, samples: &Samples) -> Vec<bool> {
+        let (dims, grid, brick) = (self.dims, self.grid, self.brick);
+        // The bricks holding sample i along an axis: its own, and the one
+        // before when it is that brick's last layer.
+        let owners = |i: usize, g: usize| {
+            let own = (i / brick).min(g - 1);
+            let before = (i > 0 && i.is_multiple_of(brick)).then(|| i / brick - 1);
+            [Some(own), before.filter(|&b| b != own)]
+        };
+        self.range.fill((f64::INFINITY, f64::NEG_INFINITY));
+        for k in self.sample_layers(bz) {
             for j in 0..dims[1] {
                 for i in 0..dims[0] {
-                    let v = vol.value(i, j, k);
+                    let v = samples.get(i + dims[0] * (j + dims[1] * k)).unwrap_or(f64::NAN);
                     for by in owners(j, grid[1]).into_iter().flatten() {
                         for bx in owners(i, grid[0]).into_iter().flatten() {
-                            let r = &mut range[bx + grid[0] * by];
+                            let r = &mut self.range[bx + grid[0] * by];
                             *r = (r.0.min(v), r.1.max(v));
                         }
                     }
                 }
             }
         }
-        flags.extend(range.iter().map(|&(lo, hi)| attenuates_over(tf, lo, hi)));
+        self.range.iter().map(|&(lo, hi)| attenuates_over(self.tf, lo, hi)).collect()
     }
-    flags
 }
 
 /// Whether τ > 0 somewhere on scalars [lo, hi]: τ is piecewise linear, so

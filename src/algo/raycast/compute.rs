@@ -37,7 +37,7 @@ pub const METHOD: MethodInfo = MethodInfo {
 fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
     let SceneData::Volume(vol) = inputs.data else { bail!("raycast-compute renders volumes only") };
     let settings = Settings::from_options(inputs.options)?;
-    let res = VolumeResources::new(inputs.ctx, vol, inputs.tf, &settings, inputs.counter)?;
+    let res = VolumeResources::new(inputs.ctx, vol, inputs.samples, inputs.tf, &settings, inputs.counter)?;
     let defines = settings.defines();
     let wg = [WORKGROUP[0].to_string(), WORKGROUP[1].to_string()];
     let mut all: Vec<(&str, &str)> = defines.clone();

@@ -64,7 +64,7 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
     let SceneData::Volume(vol) = inputs.data else { bail!("raycast-fragment renders volumes only") };
     let ctx = inputs.ctx;
     let settings = Settings::from_options(inputs.options)?;
-    let res = VolumeResources::new(ctx, vol, inputs.tf, &settings, inputs.counter)?;
+    let res = VolumeResources::new(ctx, vol, inputs.samples, inputs.tf, &settings, inputs.counter)?;
     let entry = Image::render_target(ctx, "ray entry points", inputs.width, inputs.height)?;
     let exit = Image::render_target(ctx, "ray exit points", inputs.width, inputs.height)?;
     if !entry.is_sampled() {

@@ -275,7 +275,18 @@ fn f32_bytes(v: &[f32]) -> Vec<u8> {
 }
 
 impl VolumeResources {
-    pub fn new(ctx: &Arc<Context>, vol: &Volume, tf: &TransferFunction, s: &Settings, counter: &mut UploadCounter) -> Result<Self> {
+    /// `given`: the volume's samples taken from it (`Volume::take_samples`)
+    /// when nothing reads them after this set-up: they are given back to
+    /// the system slab by slab as the texture receives them. `None`: they
+    /// are read from `vol`.
+    pub fn new(
+        ctx: &Arc<Context>,
+        vol: &Volume,
+        given: Option<Samples>,
+        tf: &TransferFunction,
+        s: &Settings,
+        counter: &mut UploadCounter,
+    ) -> Result<Self> {
         let dims = vol.dims();
         let dims_u32: [u32; 3] = [0, 1, 2].map(|a| dims[a] as u32);
         let max3 = ctx.info.max_image_dimension_3d as usize;
@@ -285,12 +296,17 @@ impl VolumeResources {
         if dims.iter().any(|&d| d < 2) {
             bail!("volume '{}': {:?} has no extent along some axis (at least 2 samples per axis are needed)", vol.name, dims);
         }
+        let mut given = given;
+        let samples: &Samples = given.as_ref().unwrap_or(vol.samples());
+        if samples.len() != vol.len() {
+            bail!("volume '{}': {} samples for its {:?} grid (its samples were taken)", vol.name, samples.len(), dims);
+        }
         // Native formats where the device filters them; texel value v maps
         // back to the sample as value = v * scale.
-        let native: Option<(Format, &'static str, f64, &[u8])> = match vol.samples() {
-            Samples::U8(v) => Some((Format::R8Unorm, "r8-unorm", 255.0, v.as_slice())),
-            Samples::U16(v) => Some((Format::R16Unorm, "r16-unorm", 65535.0, bytemuck::cast_slice(v))),
-            Samples::I16(v) if !v.contains(&i16::MIN) => Some((Format::R16Snorm, "r16-snorm", 32767.0, bytemuck::cast_slice(v))),
+        let native: Option<(Format, &'static str, f64)> = match samples {
+            Samples::U8(_) => Some((Format::R8Unorm, "r8-unorm", 255.0)),
+            Samples::U16(_) => Some((Format::R16Unorm, "r16-unorm", 65535.0)),
+            Samples::I16(v) if !v.contains(&i16::MIN) => Some((Format::R16Snorm, "r16-snorm", 32767.0)),
             _ => None,
         };
         let (lo, mut hi) = vol.range();
@@ -302,44 +318,87 @@ impl VolumeResources {
         // offset's (1e6 + [0, 1] would be filtered in steps of 1/16). They
         // are converted slab by slab into the staging buffer, never held
         // whole beside the volume.
-        let (format, format_name, scale, offset, native_bytes) = match native {
-            Some((f, n, s, b)) if ctx.can_sample(f, Filter::Linear) => (f, n, s, lo / s, Some(b)),
-            _ => (Format::R32Float, "r32-sfloat", 1.0, 0.0, None),
+        let (format, format_name, scale, offset, is_native) = match native {
+            Some((f, n, s)) if ctx.can_sample(f, Filter::Linear) => (f, n, s, lo / s, true),
+            _ => (Format::R32Float, "r32-sfloat", 1.0, 0.0, false),
         };
         if !ctx.can_sample(format, Filter::Linear) {
             bail!("device '{}' cannot filter {format_name} 3D textures linearly", ctx.info.name);
         }
         // Brick distances (module note): 0 on a flagged brick, else the
         // Chebyshev distance to the nearest one; for `preint` the flags are
-        // dilated by the bricks half a step may reach into. Computed before
-        // the volume's texture exists, so that their working memory (flags
-        // and prefix counts) never adds to the volume and its texture.
-        let t_bricks = Instant::now();
+        // dilated by the bricks half a step may reach into.
         let grid = bricks::grid_of(dims, s.brick);
-        let distance: Vec<u8> = {
-            let flagged = bricks::attenuating(vol, tf, s.brick);
-            let dilation = if s.preint() { (s.step / (2.0 * s.brick as f64)).ceil().max(1.0) as u8 } else { 0 };
-            bricks::distances(&flagged, grid).iter().map(|d| d.saturating_sub(dilation)).collect()
-        };
-        let bricks_ms = t_bricks.elapsed().as_secs_f64() * 1e3;
-        let bricks_visible = distance.iter().filter(|&&d| d == 0).count();
+        let dilation = if s.preint() { (s.step / (2.0 * s.brick as f64)).ceil().max(1.0) as u8 } else { 0 };
+        // Time spent flagging bricks and computing distances (the upload's not included).
+        let mut bricks_ms = 0.0;
         // A uniform texel buffer: a distance is one texel fetch (as a storage
         // buffer, a per-ray index made llvmpipe loop over the SIMD lanes).
-        // Uploaded (and its host copy dropped) before the volume's texture.
-        let bricks = upload_static_texels(ctx, "brick distances", &distance, Format::R8Uint, counter)?;
-        drop(distance);
+        let distances = |flagged: Vec<bool>, counter: &mut UploadCounter, ms: &mut f64| -> Result<(TexelBuffer, usize)> {
+            let t = Instant::now();
+            let distance: Vec<u8> = bricks::distances(&flagged, grid).iter().map(|d| d.saturating_sub(dilation)).collect();
+            drop(flagged);
+            let visible = distance.iter().filter(|&&d| d == 0).count();
+            *ms += t.elapsed().as_secs_f64() * 1e3;
+            Ok((upload_static_texels(ctx, "brick distances", &distance, Format::R8Uint, counter)?, visible))
+        };
         let desc = TextureDesc::d3(&format!("volume '{}'", vol.name), dims_u32, format);
-        let samples = vol.samples();
-        let volume = match native_bytes {
-            Some(bytes) => upload_texture(ctx, &desc, bytes, counter),
-            None => upload_texture_with(ctx, &desc, counter, &mut |offset, dst| {
-                for (k, texel) in dst.chunks_exact_mut(4).enumerate() {
+        // Texels from sample offset / texel size on: the native bytes, or
+        // floats relative to `lo`.
+        let texel = if is_native { samples.sample_type().size() } else { 4 };
+        let fill = |samples: &Samples, offset: usize, dst: &mut [u8]| {
+            if is_native {
+                dst.copy_from_slice(&samples.as_bytes()[offset..offset + dst.len()]);
+            } else {
+                for (k, t) in dst.chunks_exact_mut(4).enumerate() {
                     let v = samples.get(offset / 4 + k).unwrap_or(lo) as f32;
-                    texel.copy_from_slice(&((f64::from(v) - lo) as f32).to_ne_bytes());
+                    t.copy_from_slice(&((f64::from(v) - lo) as f32).to_ne_bytes());
                 }
-            }),
-        }
-        .with_context(|| format!("uploading volume '{}'", vol.name))?;
+            }
+        };
+        // Memory (docs/bad-input.md, "Memory"). Samples of our own: the
+        // texture is filled from the last slab to the first, each brick
+        // layer is flagged as soon as its sample layers are filled, and the
+        // samples are given back down to what is yet to be filled or
+        // flagged, so samples and texture together stay one copy; the
+        // distances (their prefix counts are four bytes a brick) follow,
+        // when the samples are gone. Shared samples (they stay for the next
+        // method): the distances first (uploaded, their working memory
+        // dropped), then the texture: twice the samples, the map and the
+        // staging slab.
+        let layer = dims[0] * dims[1];
+        let ((bricks, bricks_visible), volume) = match given.take() {
+            Some(mut own) => {
+                let mut flagger = bricks::LayerFlags::new(dims, tf, s.brick);
+                // Brick layers next.. are flagged, last first.
+                let (mut next, mut flagged_rev) = (grid[2], Vec::with_capacity(grid[2]));
+                let volume = upload_texture_with(ctx, &desc, counter, &mut |offset, dst| {
+                    fill(&own, offset, dst);
+                    let first = offset / texel / layer;
+                    let t = Instant::now();
+                    while next > 0 && (next - 1) * s.brick >= first {
+                        next -= 1;
+                        flagged_rev.push(flagger.flags(next, &own));
+                    }
+                    bricks_ms += t.elapsed().as_secs_f64() * 1e3;
+                    let keep = if next == 0 { first } else { first.max(flagger.sample_layers(next - 1).end() + 1) };
+                    own.truncate(keep * layer);
+                });
+                drop(own);
+                let volume = volume.with_context(|| format!("uploading volume '{}'", vol.name))?;
+                let flagged: Vec<bool> = flagged_rev.into_iter().rev().flatten().collect();
+                (distances(flagged, counter, &mut bricks_ms)?, volume)
+            }
+            None => {
+                let t = Instant::now();
+                let flagged = bricks::attenuating(dims, vol.samples(), tf, s.brick);
+                bricks_ms += t.elapsed().as_secs_f64() * 1e3;
+                let bricks = distances(flagged, counter, &mut bricks_ms)?;
+                let volume = upload_texture_with(ctx, &desc, counter, &mut |offset, dst| fill(vol.samples(), offset, dst))
+                    .with_context(|| format!("uploading volume '{}'", vol.name))?;
+                (bricks, volume)
+            }
+        };
 
         let t0 = Instant::now();
         let table: Vec<f32> = tf.table(TABLE_SIZE, lo, hi).concat();
