@@ -589,6 +589,19 @@ pub struct CellF32 {
     pub gradient: [f32; 3],
 }
 
+impl CellF32 {
+    /// A cell from its vertices and scalars and its planes and gradient;
+    /// `None` (degenerate): collapsed onto its first vertex, zero planes
+    /// and gradient.
+    #[inline]
+    pub fn assemble(pos: [[f32; 3]; 4], scalar: [f32; 4], planes: Option<&CellPlanes>) -> Self {
+        match planes {
+            Some(g) => CellF32 { pos, scalar, plane3: g.plane3, gradient: g.gradient },
+            None => CellF32 { pos: [pos[0]; 4], scalar, plane3: [[0.0; 3]; 4], gradient: [0.0; 3] },
+        }
+    }
+}
+
 /// Positions are relative to `render_origin(mesh)` and scalars mapped by
 /// `scalar_map(mesh)` (gradients scaled alike), both in f64 before the
 /// conversion (far from the origin the f32 values would otherwise have lost
@@ -618,14 +631,7 @@ impl CellMaker {
         let (o, so, ss) = (self.origin, self.scalar_origin, self.scalar_scale);
         let rel = move |v: [f64; 3]| -> [f32; 3] { std::array::from_fn(|k| (v[k] - o[k]) as f32) };
         let (p, s64) = mesh.cell(mesh.tets[t]);
-        let s = s64.map(|v| ((v - so) / ss) as f32);
-        match self.planes(mesh, t) {
-            None => {
-                let v0 = rel(p[0]);
-                CellF32 { pos: [v0; 4], scalar: s, plane3: [[0.0; 3]; 4], gradient: [0.0; 3] }
-            }
-            Some(g) => CellF32 { pos: p.map(rel), scalar: s, plane3: g.plane3, gradient: g.gradient },
-        }
+        CellF32::assemble(p.map(rel), s64.map(|v| ((v - so) / ss) as f32), self.planes(mesh, t).as_ref())
     }
 
     /// The view-independent f32 data of tet `t` beside its vertices: the
@@ -719,11 +725,8 @@ impl PlanesTable {
         let tet = r.tets[t];
         let pos = |v: u32| r.points[v as usize].map(|x| x as f32);
         let scalar = tet.map(|v| r.scalars[v as usize] as f32);
-        let c = &self.planes[t];
-        if self.degenerate[t / 64] >> (t % 64) & 1 == 1 {
-            return CellF32 { pos: [pos(tet[0]); 4], scalar, plane3: [[0.0; 3]; 4], gradient: [0.0; 3] };
-        }
-        CellF32 { pos: tet.map(pos), scalar, plane3: c.plane3, gradient: c.gradient }
+        let degenerate = self.degenerate[t / 64] >> (t % 64) & 1 == 1;
+        CellF32::assemble(tet.map(pos), scalar, (!degenerate).then_some(&self.planes[t]))
     }
 
     /// Its own structures (the relative mesh is counted by its owner).
