@@ -790,3 +790,35 @@ pub fn centroids_relative_f32(mesh: &TetMesh, origin: [f64; 3]) -> Vec<[f32; 3]>
         })
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `PlanesTable` gathers each cell back exactly as `CellMaker` makes it
+    /// (balanced's records depend on it), degenerate cells included, far
+    /// from the origin (a relative origin) and near it.
+    #[test]
+    fn planes_table_gives_back_the_cells_bit_for_bit() {
+        for offset in [0.0, 1e6] {
+            let corners = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.3, 0.4, 0.0]];
+            let mesh = TetMesh {
+                name: "two".into(),
+                points: corners.iter().map(|p: &[f64; 3]| p.map(|x| x + offset)).collect(),
+                scalars: vec![0.0, 1.0, 2.5, 3.0, 7.0],
+                // The second is flat: its fourth vertex lies on the first three's plane.
+                tets: vec![[0, 1, 2, 3], [0, 1, 2, 4]],
+                stats: Default::default(),
+            };
+            let maker = CellMaker::new(&mesh);
+            assert!(maker.planes(&mesh, 0).is_some() && maker.planes(&mesh, 1).is_none());
+            let table = PlanesTable::new(&mesh, RelativeMesh::new(&mesh, render_origin(&mesh))).unwrap();
+            for t in 0..2 {
+                // Debug prints an f32 by its shortest round-trip form: equal strings, equal bits.
+                assert_eq!(format!("{:?}", table.cell(t)), format!("{:?}", maker.cell(&mesh, t)), "cell {t} at offset {offset}");
+            }
+            let other = RelativeMesh::new(&mesh, [offset + 1.0, 0.0, 0.0]);
+            assert!(PlanesTable::new(&mesh, other).is_err(), "another origin's relative mesh is refused");
+        }
+    }
+}
