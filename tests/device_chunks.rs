@@ -3,10 +3,13 @@
 //! `VOLBENCH_TEST_DEVICE_LIMIT_BYTES`, post-small's arrays are split over
 //! several buffers, bindings and draws, as a 33 M-tet mesh's are on
 //! lavapipe, and the image must be the one drawn unsplit, bit for bit.
-//! Validation layer on. One test function: the knob is process-wide.
+//! balanced's records packed in place at upload (past its pack-ahead budget,
+//! lowered by `VOLBENCH_TEST_PACK_AHEAD_BYTES`) draw the same image too.
+//! Validation layer on. One test function: the knobs are process-wide.
 
 mod common;
 
+use volbench::algo::cell_projection::balanced::PACK_AHEAD_VAR;
 use volbench::algo::chunks::{DEVICE_LIMIT_VAR, MAX_CHUNKS};
 use volbench::harness::datasets;
 use volbench::harness::run::RunConfig;
@@ -46,6 +49,32 @@ fn data_split_at_lowered_limits_draws_the_same_image() {
         assert!(whole.image.covered_pixels() > 1000, "{spec}: the mesh should fill part of the image");
         assert_eq!(whole.result.work.counts["cells"], split.result.work.counts["cells"], "{spec}");
         assert_eq!(whole.image.compare(&split.image).unwrap().max_abs, 0.0, "{spec}: splitting the data changed the image");
+    }
+
+    // balanced packs the records past its pack-ahead budget straight into
+    // the vertex buffers at upload (`balanced::PACK_AHEAD_VAR` lowers the
+    // budget): none ahead, 1000 cells ahead (inside the first of 5 draws at
+    // 200 KiB, so one draw is part copied, part packed in place), and 4000
+    // (across two draws); the image and the bytes per frame are those of
+    // packing everything ahead.
+    let whole = common::run_mesh(&mesh, &tf, "balanced", &cfg);
+    assert!(whole.result.details["host_memory"]["by_structure"]["projector: order packed in upload"] == 0);
+    for (ahead_cells, limit) in [(0u64, None), (1000, None), (1000, Some(200u64 << 10)), (4000, Some(200 << 10)), (0, Some(200 << 10))] {
+        std::env::set_var(PACK_AHEAD_VAR, (ahead_cells * 112).to_string());
+        if let Some(l) = limit {
+            std::env::set_var(DEVICE_LIMIT_VAR, l.to_string());
+        }
+        let run = common::run_mesh(&mesh, &tf, "balanced", &cfg);
+        std::env::remove_var(PACK_AHEAD_VAR);
+        std::env::remove_var(DEVICE_LIMIT_VAR);
+        let what = format!("balanced, {ahead_cells} cells packed ahead, limit {limit:?}");
+        let memory = &run.result.details["host_memory"]["by_structure"];
+        assert_eq!(memory["projector: records packed ahead (at most PACK_AHEAD_BYTES)"].as_u64(), Some(ahead_cells * 112), "{what}");
+        let rest = memory["projector: order packed in upload"].as_u64().unwrap();
+        let drawn = run.result.work.counts["cells_drawn"];
+        assert!(rest >= (drawn - ahead_cells.min(drawn)) * 4 && rest <= (mesh.tets.len() as u64 - ahead_cells) * 4, "{what}: {rest} bytes of order kept");
+        assert_eq!(whole.result.upload.bytes_per_frame, run.result.upload.bytes_per_frame, "{what}: the same bytes cross");
+        assert_eq!(whole.image.compare(&run.image).unwrap().max_abs, 0.0, "{what}: packing in place changed the image");
     }
 
     // More pieces than the shader has bindings: a clear error, no picture.

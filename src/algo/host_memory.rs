@@ -12,6 +12,9 @@ use serde_json::json;
 #[derive(Debug, Clone, Default)]
 pub struct HostMemory {
     parts: Vec<(&'static str, u64)>,
+    /// Names whose size has a bound independent of the mesh (a buffer of
+    /// at most so many bytes): the rest is the per-cell part.
+    bounded: Vec<&'static str>,
 }
 
 /// Bytes a `Vec` holds (its capacity, not its length: what is allocated).
@@ -26,6 +29,21 @@ impl HostMemory {
             Some((_, b)) => *b += bytes,
             None => self.parts.push((name, bytes)),
         }
+    }
+
+    /// Count `bytes` under `name`, a structure whose size is bounded
+    /// whatever the mesh size (left out of the per-cell part).
+    pub fn bounded(&mut self, name: &'static str, bytes: u64) {
+        self.add(name, bytes);
+        if !self.bounded.contains(&name) {
+            self.bounded.push(name);
+        }
+    }
+
+    /// Bytes of the structures that grow with the mesh (all but the
+    /// `bounded` ones).
+    pub fn per_cell_part(&self) -> u64 {
+        self.parts.iter().filter(|(n, _)| !self.bounded.contains(n)).map(|(_, b)| b).sum()
     }
 
     /// Count a vector under `name`.
@@ -44,7 +62,11 @@ impl HostMemory {
     /// Everything in `other`, added under its names.
     pub fn extend(&mut self, other: &HostMemory) {
         for &(n, b) in &other.parts {
-            self.add(n, b);
+            if other.bounded.contains(&n) {
+                self.bounded(n, b);
+            } else {
+                self.add(n, b);
+            }
         }
     }
 
@@ -57,7 +79,9 @@ impl HostMemory {
     }
 
     /// `{ by_structure: {name: bytes}, bytes_per_cell: {name: b/cell},
-    /// total_bytes, total_bytes_per_cell }`.
+    /// total_bytes, total_bytes_per_cell, bounded: [names],
+    /// per_cell_part_bytes_per_cell }` (the last: the total without the
+    /// bounded structures, per cell).
     pub fn to_json(&self, cells: usize) -> serde_json::Value {
         let per = |b: u64| b as f64 / cells.max(1) as f64;
         let round = |x: f64| (x * 100.0).round() / 100.0;
@@ -69,6 +93,8 @@ impl HostMemory {
             "bytes_per_cell": per_cell,
             "total_bytes": self.total(),
             "total_bytes_per_cell": round(per(self.total())),
+            "bounded": self.bounded,
+            "per_cell_part_bytes_per_cell": round(per(self.per_cell_part())),
         })
     }
 }
@@ -99,9 +125,13 @@ mod tests {
         assert_eq!(m.get("centroids"), Some(120));
         assert_eq!(m.get("keys"), Some(16));
         assert_eq!(m.total(), 136);
+        m.bounded("ring", 64);
+        assert_eq!((m.total(), m.per_cell_part()), (200, 136));
         let j = m.to_json(4);
-        assert_eq!(j["total_bytes"], 136);
+        assert_eq!(j["total_bytes"], 200);
         assert_eq!(j["bytes_per_cell"]["keys"], 4.0);
+        assert_eq!(j["per_cell_part_bytes_per_cell"], 34.0);
+        assert_eq!(j["bounded"][0], "ring");
         assert_eq!(vm_hwm_kb("Name:\tx\nVmHWM:\t  1234 kB\n"), Some(1234));
         assert!(peak_rss_bytes().unwrap_or(1) > 0);
     }

@@ -6,6 +6,15 @@
 //! with primitive restart (7 u32 per tet), or the same faces as a triangle
 //! list (12 u32 per tet, the default; `Primitives`). Only the vertex records
 //! move when the order changes.
+//!
+//! Host memory (issue 22 item 3, docs/scaling.md): the records of the first
+//! `PACK_AHEAD_BYTES` of the order are packed in `prepare`, while the device
+//! draws the previous frame; the rest are packed straight into the vertex
+//! buffers in `upload`, after that draw is done. So the host copy of the
+//! records is bounded whatever the mesh size (meshes up to ~600 K tets are
+//! packed wholly ahead, as before), and each cell keeps its planes and
+//! gradient only (`PlanesTable`), its vertices gathered from the relative
+//! mesh culling and the near caps share.
 
 use std::sync::Arc;
 
@@ -13,7 +22,10 @@ use rayon::prelude::*;
 
 use super::render;
 use crate::algo::method::{MethodInfo, MethodInputs, RenderMethod};
-use super::{build_pipeline, cells_f32, CellF32, CellProjector, DrawSettings, StaticIndices, FrameSetup, Interpolation, MAX_INDICES_PER_CELL};
+use super::{
+    build_pipeline, render_origin, CellF32, CellProjector, DrawSettings, FrameSetup, Interpolation, PlanesTable, RelativeMesh, StaticIndices,
+    MAX_INDICES_PER_CELL,
+};
 use crate::algo::chunks::{self, ChunkLimits};
 use crate::algo::host_memory::HostMemory;
 use crate::algo::integrate::IntegrationTables;
@@ -48,9 +60,34 @@ const BALANCED: MethodInfo = render::method_info(
 fn create(inputs: MethodInputs) -> anyhow::Result<Box<dyn RenderMethod>> {
     // The records are split at the device's limits (one piece per draw).
     let bytes = render::DeviceBytesPerCell { frame: 0, fixed: FLOATS_PER_CELL * 4 + MAX_INDICES_PER_CELL * 4 };
-    render::CellProjection::create(inputs, bytes, |ctx, mesh, tables, draw, counter| {
-        Ok(Box::new(Balanced::new(ctx, mesh, tables, draw, counter)?))
+    let crate::algo::method::SceneData::TetMesh { mesh } = inputs.data else {
+        anyhow::bail!("cell projection renders tetrahedral meshes only");
+    };
+    let relative = RelativeMesh::new(mesh, render_origin(mesh));
+    let shared = relative.clone();
+    render::CellProjection::create_sharing(inputs, bytes, relative, move |ctx, mesh, tables, draw, counter| {
+        Ok(Box::new(Balanced::new(ctx, mesh, shared, tables, draw, counter)?))
     })
+}
+
+/// Host bytes of records packed ahead of the draw (see the module
+/// documentation): 599,186 cells.
+pub const PACK_AHEAD_BYTES: usize = 64 << 20;
+
+/// Test knob (tests only, docs/scaling.md): `VOLBENCH_TEST_PACK_AHEAD_BYTES=N`
+/// packs at most N bytes of records ahead, so a small mesh takes the path a
+/// large one does.
+pub const PACK_AHEAD_VAR: &str = "VOLBENCH_TEST_PACK_AHEAD_BYTES";
+
+/// Cells packed ahead: `PACK_AHEAD_BYTES` or the knob's bytes, in records.
+fn pack_ahead_cells() -> VkResult<usize> {
+    let bytes = match std::env::var(PACK_AHEAD_VAR) {
+        Err(_) => PACK_AHEAD_BYTES,
+        Ok(v) => v
+            .parse::<usize>()
+            .map_err(|_| crate::vk::VkError::Invalid(format!("{PACK_AHEAD_VAR}={v}: not a byte count")))?,
+    };
+    Ok(bytes / (FLOATS_PER_CELL * 4))
 }
 
 /// The vertex record's attributes: position, d, s_f, s_b and the vertex's
@@ -67,8 +104,14 @@ pub(super) fn record_attributes() -> [VertexAttribute; 5] {
 }
 
 pub struct Balanced {
-    cells: Vec<CellF32>,
-    packed: Vec<f32>,
+    cells: PlanesTable,
+    /// The records of the order's first `ahead.len() / FLOATS_PER_CELL`
+    /// cells, packed in `prepare` (at most `pack_ahead_cells()`).
+    ahead: Vec<f32>,
+    ahead_cells: usize,
+    /// The rest of the order, packed in `upload` with `frame`.
+    rest: Vec<u32>,
+    frame: Option<FrameSetup>,
     /// The records in pieces of at most `per_draw` cells (one buffer holds
     /// at most maxMemoryAllocationSize bytes), drawn one draw each, in order.
     vertex_buffers: Vec<Buffer>,
@@ -151,23 +194,25 @@ pub fn cell_records(c: &CellF32, frame: &FrameSetup, out: &mut [f32]) {
 
 /// The per-frame CPU work: records of the cells in `order`, written to `out`
 /// (28 floats per cell), in parallel.
-pub fn pack_records(cells: &[CellF32], order: &[u32], frame: &FrameSetup, out: &mut [f32]) {
+pub fn pack_records(cells: &PlanesTable, order: &[u32], frame: &FrameSetup, out: &mut [f32]) {
     out.par_chunks_mut(FLOATS_PER_CELL)
         .zip(order.par_iter())
         .with_min_len(4096)
-        .for_each(|(dst, &t)| cell_records(&cells[t as usize], frame, dst));
+        .for_each(|(dst, &t)| cell_records(&cells.cell(t as usize), frame, dst));
 }
 
 impl Balanced {
     pub fn new(
         ctx: &Arc<Context>,
         mesh: &TetMesh,
+        relative: Arc<RelativeMesh>,
         tables: &IntegrationTables,
         draw: DrawSettings,
         counter: &mut UploadCounter,
     ) -> VkResult<Self> {
-        let cells = cells_f32(mesh);
+        let cells = PlanesTable::new(mesh, relative)?;
         let n = cells.len();
+        let ahead_cells = pack_ahead_cells()?.min(n);
         let limits = ChunkLimits::of(ctx)?;
         let per_draw = limits
             .allocation_chunk((FLOATS_PER_CELL * 4) as u64)
@@ -199,7 +244,10 @@ impl Balanced {
             &[],
         )?;
         Ok(Balanced {
-            packed: vec![0f32; n * FLOATS_PER_CELL],
+            ahead: vec![0f32; ahead_cells * FLOATS_PER_CELL],
+            ahead_cells,
+            rest: Vec::new(),
+            frame: None,
             cells,
             vertex_buffers,
             per_draw,
@@ -233,22 +281,46 @@ impl CellProjector for Balanced {
     }
 
     fn host_bytes(&self, memory: &mut HostMemory) {
-        memory.vec("projector: f32 cells (CellF32)", &self.cells);
-        memory.vec("projector: packed records", &self.packed);
+        self.cells.host_bytes(memory);
+        memory.bounded("projector: records packed ahead (at most PACK_AHEAD_BYTES)", crate::algo::host_memory::vec_bytes(&self.ahead));
+        memory.vec("projector: order packed in upload", &self.rest);
     }
 
     fn pack(&mut self, order: &[u32], frame: &FrameSetup) {
         self.drawn = order.len().min(self.cells.len());
-        pack_records(&self.cells, &order[..self.drawn], frame, &mut self.packed[..self.drawn * FLOATS_PER_CELL]);
+        let ahead = self.drawn.min(self.ahead_cells);
+        pack_records(&self.cells, &order[..ahead], frame, &mut self.ahead[..ahead * FLOATS_PER_CELL]);
+        self.rest.clear();
+        // Exactly the largest rest so far (no amortised doubling).
+        self.rest.reserve_exact(self.drawn - ahead);
+        self.rest.extend_from_slice(&order[ahead..self.drawn]);
+        self.frame = Some(*frame);
     }
 
     fn upload(&mut self, counter: &mut UploadCounter) -> VkResult<()> {
+        let ahead = self.drawn.min(self.ahead_cells);
         for (k, buffer) in self.vertex_buffers.iter_mut().enumerate() {
             let start = k * self.per_draw;
             let end = self.drawn.min(start + self.per_draw);
-            if end > start {
-                let packed = &self.packed[start * FLOATS_PER_CELL..end * FLOATS_PER_CELL];
+            if end <= start {
+                continue;
+            }
+            // The part packed ahead: copied.
+            let copied = end.min(ahead).max(start);
+            if copied > start {
+                let packed = &self.ahead[start * FLOATS_PER_CELL..copied * FLOATS_PER_CELL];
                 buffer.write(0, bytemuck::cast_slice(packed), counter, UploadClass::FrameCells)?;
+            }
+            // The rest: packed straight into the mapped buffer (the device
+            // is done with the previous frame's records by now).
+            if end > copied {
+                let frame = self.frame.as_ref().ok_or_else(|| crate::vk::VkError::Invalid("balanced: upload before pack".into()))?;
+                let bytes = buffer.mapped_for_write()?;
+                let dst: &mut [f32] = bytemuck::try_cast_slice_mut(bytes)
+                    .map_err(|e| crate::vk::VkError::Invalid(format!("balanced vertex records: mapped memory as f32: {e}")))?;
+                let out = &mut dst[(copied - start) * FLOATS_PER_CELL..(end - start) * FLOATS_PER_CELL];
+                pack_records(&self.cells, &self.rest[copied - ahead..end - ahead], frame, out);
+                counter.add_direct(UploadClass::FrameCells, (out.len() * 4) as u64);
             }
         }
         Ok(())

@@ -589,6 +589,19 @@ pub struct CellF32 {
     pub gradient: [f32; 3],
 }
 
+impl CellF32 {
+    /// A cell from its vertices and scalars and its planes and gradient;
+    /// `None` (degenerate): collapsed onto its first vertex, zero planes
+    /// and gradient.
+    #[inline]
+    pub fn assemble(pos: [[f32; 3]; 4], scalar: [f32; 4], planes: Option<&CellPlanes>) -> Self {
+        match planes {
+            Some(g) => CellF32 { pos, scalar, plane3: g.plane3, gradient: g.gradient },
+            None => CellF32 { pos: [pos[0]; 4], scalar, plane3: [[0.0; 3]; 4], gradient: [0.0; 3] },
+        }
+    }
+}
+
 /// Positions are relative to `render_origin(mesh)` and scalars mapped by
 /// `scalar_map(mesh)` (gradients scaled alike), both in f64 before the
 /// conversion (far from the origin the f32 values would otherwise have lost
@@ -618,11 +631,17 @@ impl CellMaker {
         let (o, so, ss) = (self.origin, self.scalar_origin, self.scalar_scale);
         let rel = move |v: [f64; 3]| -> [f32; 3] { std::array::from_fn(|k| (v[k] - o[k]) as f32) };
         let (p, s64) = mesh.cell(mesh.tets[t]);
+        CellF32::assemble(p.map(rel), s64.map(|v| ((v - so) / ss) as f32), self.planes(mesh, t).as_ref())
+    }
+
+    /// The view-independent f32 data of tet `t` beside its vertices: the
+    /// planes and the (mapped) gradient; `None` for a degenerate tet (zero
+    /// planes and gradient, collapsed onto its first vertex: `CellF32`).
+    pub fn planes(&self, mesh: &TetMesh, t: usize) -> Option<CellPlanes> {
+        let (p, s64) = mesh.cell(mesh.tets[t]);
         let g = &TetPrecomputed::from_vertices(p, s64);
-        let s = s64.map(|v| ((v - so) / ss) as f32);
         if g.degenerate {
-            let v0 = rel(p[0]);
-            return CellF32 { pos: [v0; 4], scalar: s, plane3: [[0.0; 3]; 4], gradient: [0.0; 3] };
+            return None;
         }
         let mut plane3 = [[0f32; 3]; 4];
         for i in 0..4 {
@@ -639,12 +658,81 @@ impl CellMaker {
                 [0.0; 3]
             };
         }
-        CellF32 {
-            pos: p.map(rel),
-            scalar: s,
-            plane3,
-            gradient: g.gradient.map(|x| (x / ss) as f32),
+        Some(CellPlanes { plane3, gradient: g.gradient.map(|x| (x / self.scalar_scale) as f32) })
+    }
+}
+
+/// A cell's f32 planes and gradient (`CellF32` without its vertices): 60
+/// bytes per tet, where the whole cell is 124. A method that keeps these
+/// gathers the vertices from the shared relative mesh (`PlanesTable`).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct CellPlanes {
+    pub plane3: [[f32; 3]; 4],
+    pub gradient: [f32; 3],
+}
+
+/// Every cell's planes and gradient with a bit per degenerate cell; with
+/// the relative mesh (the same origin and scalar map as `CellMaker`) it
+/// gives back each `CellF32` bit for bit: the relative f64 points and mapped
+/// scalars are the numbers `CellMaker` converts.
+#[derive(Debug)]
+pub struct PlanesTable {
+    planes: Vec<CellPlanes>,
+    degenerate: Vec<u64>,
+    relative: Arc<RelativeMesh>,
+}
+
+impl PlanesTable {
+    /// `relative` must be `mesh`'s at `render_origin(mesh)` (checked).
+    pub fn new(mesh: &TetMesh, relative: Arc<RelativeMesh>) -> VkResult<Self> {
+        use rayon::prelude::*;
+        if relative.origin != render_origin(mesh) || relative.tets.len() != mesh.tets.len() {
+            return Err(crate::vk::VkError::Invalid(format!("mesh '{}': the relative mesh is not this mesh's", mesh.name)));
         }
+        let maker = CellMaker::new(mesh);
+        // Filled in place, 64 cells (one word of bits) at a time: no
+        // intermediate vector of `Option`s.
+        let mut planes = vec![CellPlanes::default(); mesh.tets.len()];
+        let degenerate = planes
+            .par_chunks_mut(64)
+            .enumerate()
+            .map(|(w, chunk)| {
+                let mut bits = 0u64;
+                for (i, p) in chunk.iter_mut().enumerate() {
+                    match maker.planes(mesh, w * 64 + i) {
+                        Some(made) => *p = made,
+                        None => bits |= 1 << i,
+                    }
+                }
+                bits
+            })
+            .collect();
+        Ok(PlanesTable { planes, degenerate, relative })
+    }
+
+    pub fn len(&self) -> usize {
+        self.planes.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.planes.is_empty()
+    }
+
+    /// `CellMaker::cell` of tet `t`, from the kept data.
+    #[inline]
+    pub fn cell(&self, t: usize) -> CellF32 {
+        let r = &*self.relative;
+        let tet = r.tets[t];
+        let pos = |v: u32| r.points[v as usize].map(|x| x as f32);
+        let scalar = tet.map(|v| r.scalars[v as usize] as f32);
+        let degenerate = self.degenerate[t / 64] >> (t % 64) & 1 == 1;
+        CellF32::assemble(tet.map(pos), scalar, (!degenerate).then_some(&self.planes[t]))
+    }
+
+    /// Its own structures (the relative mesh is counted by its owner).
+    pub fn host_bytes(&self, memory: &mut HostMemory) {
+        memory.vec("projector: f32 planes and gradient (CellPlanes)", &self.planes);
+        memory.vec("projector: degenerate-cell bits", &self.degenerate);
     }
 }
 
@@ -701,4 +789,36 @@ pub fn centroids_relative_f32(mesh: &TetMesh, origin: [f64; 3]) -> Vec<[f32; 3]>
             std::array::from_fn(|k| (c[k] - origin[k]) as f32)
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `PlanesTable` gathers each cell back exactly as `CellMaker` makes it
+    /// (balanced's records depend on it), degenerate cells included, far
+    /// from the origin (a relative origin) and near it.
+    #[test]
+    fn planes_table_gives_back_the_cells_bit_for_bit() {
+        for offset in [0.0, 1e6] {
+            let corners = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.3, 0.4, 0.0]];
+            let mesh = TetMesh {
+                name: "two".into(),
+                points: corners.iter().map(|p: &[f64; 3]| p.map(|x| x + offset)).collect(),
+                scalars: vec![0.0, 1.0, 2.5, 3.0, 7.0],
+                // The second is flat: its fourth vertex lies on the first three's plane.
+                tets: vec![[0, 1, 2, 3], [0, 1, 2, 4]],
+                stats: Default::default(),
+            };
+            let maker = CellMaker::new(&mesh);
+            assert!(maker.planes(&mesh, 0).is_some() && maker.planes(&mesh, 1).is_none());
+            let table = PlanesTable::new(&mesh, RelativeMesh::new(&mesh, render_origin(&mesh))).unwrap();
+            for t in 0..2 {
+                // Debug prints an f32 by its shortest round-trip form: equal strings, equal bits.
+                assert_eq!(format!("{:?}", table.cell(t)), format!("{:?}", maker.cell(&mesh, t)), "cell {t} at offset {offset}");
+            }
+            let other = RelativeMesh::new(&mesh, [offset + 1.0, 0.0, 0.0]);
+            assert!(PlanesTable::new(&mesh, other).is_err(), "another origin's relative mesh is refused");
+        }
+    }
 }

@@ -310,6 +310,19 @@ impl CellProjection {
         Self::create_for_stages(inputs, bytes, Stages::FRAGMENT, build)
     }
 
+    /// `create` for a projector that reads the relative mesh too (balanced
+    /// gathers its vertices from it): `relative` must be the mesh's at its
+    /// `render_origin` (`RelativeMesh::new`), shared with culling and the
+    /// near caps, so it is held once.
+    pub fn create_sharing(
+        inputs: MethodInputs,
+        bytes: DeviceBytesPerCell,
+        relative: Arc<RelativeMesh>,
+        build: impl ProjectorBuilder,
+    ) -> Result<Box<dyn RenderMethod>> {
+        Self::create_inner(inputs, bytes, ash::vk::ShaderStageFlags::FRAGMENT, Some(relative), build)
+    }
+
     /// `create` with the integration tables visible to `stages` (a
     /// projector that integrates in a compute stage adds COMPUTE; the near
     /// caps keep integrating in the fragment stage).
@@ -317,6 +330,16 @@ impl CellProjection {
         inputs: MethodInputs,
         bytes: DeviceBytesPerCell,
         stages: Stages,
+        build: impl ProjectorBuilder,
+    ) -> Result<Box<dyn RenderMethod>> {
+        Self::create_inner(inputs, bytes, stages, None, build)
+    }
+
+    fn create_inner(
+        inputs: MethodInputs,
+        bytes: DeviceBytesPerCell,
+        stages: ash::vk::ShaderStageFlags,
+        relative: Option<Arc<RelativeMesh>>,
         build: impl ProjectorBuilder,
     ) -> Result<Box<dyn RenderMethod>> {
         let SceneData::TetMesh { mesh } = inputs.data else {
@@ -348,7 +371,7 @@ impl CellProjection {
         let projector = build(ctx, mesh, &tables, draw, inputs.counter)?;
         let pieces = projector.pieces_set().map(|s| s.desc.clone());
         let origin = render_origin(mesh);
-        let relative = RelativeMesh::new(mesh, origin);
+        let relative = relative.unwrap_or_else(|| RelativeMesh::new(mesh, origin));
         let near = super::near::NearCaps::new(ctx, relative.clone(), &tables, settings.interpolation, pieces)?;
         let sorter = Sorter::new(settings.sort, mesh);
         // Cells a device sort orders are all drawn: culling is off for it.
