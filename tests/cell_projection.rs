@@ -330,8 +330,9 @@ fn integrators_on_a_linear_ramp_against_the_reference() {
 }
 
 /// `resident`: the balanced method with the cells stored on the device;
-/// per frame only the order crosses (4 bytes per tet), and the image is
-/// balanced's (the same IntersectBackFace, run in the vertex stage).
+/// per frame only the order crosses (4 bytes per tet, and per draw its
+/// length), and the image is balanced's (the same IntersectBackFace, run
+/// in a compute pass that writes balanced's records on the device).
 #[test]
 fn resident_sends_four_bytes_per_tet_and_renders_what_balanced_renders() {
     use volbench::algo::cell_projection::resident;
@@ -341,7 +342,8 @@ fn resident_sends_four_bytes_per_tet_and_renders_what_balanced_renders() {
     let r = run(&mesh, &tf, "resident", &small_config(64)).result;
     assert_eq!(r.upload.floats_per_cell, Some(1.0));
     assert_eq!(r.upload.bytes_per_cell, Some(4.0));
-    assert_eq!(r.upload.bytes_per_frame, 4 * n_post + PUSH_CONSTANT_BYTES);
+    // The frame constants are pushed twice: to the expansion and the draw.
+    assert_eq!(r.upload.bytes_per_frame, 4 * n_post + 4 + 2 * PUSH_CONSTANT_BYTES);
     let stored = (resident::FLOATS_PER_STORED_CELL as u64 * 4 + 12 * 4) * n_post;
     assert_eq!(r.upload.static_bytes, TABLE_BYTES + stored);
     assert_eq!(r.upload.frame_counters.static_bytes(), 0);

@@ -1,7 +1,8 @@
 #version 450
-// Device-resident balanced cell projection: the cells live in a uniform
-// texel buffer uploaded once; per frame only the sorted order (one u32 per
-// tet) crosses to the device. Vertex 4k+i of the static strips is vertex i
+// resident-gpusort's vertex stage (resident itself expands the order into
+// balanced's records in a compute pass, resident_expand.comp): the cells
+// live in a uniform texel buffer uploaded once; the sorted order (one u32
+// per tet) is made on the device. Vertex 4k+i of the static strips is vertex i
 // of the tet in slot k; the vertex stage runs what balanced's CPU does
 // (cell_projection/stored_cell.glsl), for all four vertices since the tet's
 // exit mask needs every c_j, then emits its own values exactly as

@@ -1,7 +1,8 @@
 // The balanced family's cells stored once on the device (resident.rs
 // `stored`), and balanced's per-frame CPU half (IntersectBackFace,
-// balanced.rs `cell_records`) run from them: resident.vert per vertex,
-// pt_composite.comp per cell. Include common/frame.glsl first.
+// balanced.rs `cell_records`) run from them: resident_expand.comp and
+// pt_composite.comp per cell, resident.vert (resident-gpusort) per vertex.
+// Include common/frame.glsl first.
 //
 // Cell t is texels 9t..9t+8: pos[4] (xyz: position relative to the render
 // origin; w: scalar), plane[4] (xyz: 3-float plane of the face opposite
@@ -13,27 +14,31 @@
 #ifndef CELL_CHUNKS
 #define CELL_CHUNKS 1
 #endif
-layout(set = 1, binding = 0) uniform samplerBuffer cells;
+// The set holding the cells (resident_expand.comp: 0).
+#ifndef CELL_SET
+#define CELL_SET 1
+#endif
+layout(set = CELL_SET, binding = 0) uniform samplerBuffer cells;
 #if CELL_CHUNKS > 1
-layout(set = 1, binding = CELL_CHUNK_BINDING + 0) uniform samplerBuffer cells_1;
+layout(set = CELL_SET, binding = CELL_CHUNK_BINDING + 0) uniform samplerBuffer cells_1;
 #endif
 #if CELL_CHUNKS > 2
-layout(set = 1, binding = CELL_CHUNK_BINDING + 1) uniform samplerBuffer cells_2;
+layout(set = CELL_SET, binding = CELL_CHUNK_BINDING + 1) uniform samplerBuffer cells_2;
 #endif
 #if CELL_CHUNKS > 3
-layout(set = 1, binding = CELL_CHUNK_BINDING + 2) uniform samplerBuffer cells_3;
+layout(set = CELL_SET, binding = CELL_CHUNK_BINDING + 2) uniform samplerBuffer cells_3;
 #endif
 #if CELL_CHUNKS > 4
-layout(set = 1, binding = CELL_CHUNK_BINDING + 3) uniform samplerBuffer cells_4;
+layout(set = CELL_SET, binding = CELL_CHUNK_BINDING + 3) uniform samplerBuffer cells_4;
 #endif
 #if CELL_CHUNKS > 5
-layout(set = 1, binding = CELL_CHUNK_BINDING + 4) uniform samplerBuffer cells_5;
+layout(set = CELL_SET, binding = CELL_CHUNK_BINDING + 4) uniform samplerBuffer cells_5;
 #endif
 #if CELL_CHUNKS > 6
-layout(set = 1, binding = CELL_CHUNK_BINDING + 5) uniform samplerBuffer cells_6;
+layout(set = CELL_SET, binding = CELL_CHUNK_BINDING + 5) uniform samplerBuffer cells_6;
 #endif
 #if CELL_CHUNKS > 7
-layout(set = 1, binding = CELL_CHUNK_BINDING + 6) uniform samplerBuffer cells_7;
+layout(set = CELL_SET, binding = CELL_CHUNK_BINDING + 6) uniform samplerBuffer cells_7;
 #endif
 
 // Texel k (0..8) of cell t.

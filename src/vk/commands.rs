@@ -889,6 +889,22 @@ impl CommandRecorder {
         );
     }
 
+    /// An earlier draw read vertex attributes from storage that compute
+    /// shaders now rewrite (write after read: a per-frame expansion into
+    /// vertex records).
+    pub fn vertex_input_to_compute(&self) {
+        use vk::{AccessFlags2 as A, PipelineStageFlags2 as S};
+        self.memory_barrier((S::VERTEX_ATTRIBUTE_INPUT, A::VERTEX_ATTRIBUTE_READ), (S::COMPUTE_SHADER, A::SHADER_STORAGE_WRITE));
+    }
+
+    /// Compute-shader storage writes before a draw reads them as vertex
+    /// attributes (the other half of
+    /// [`vertex_input_to_compute`](Self::vertex_input_to_compute)).
+    pub fn compute_to_vertex_input(&self) {
+        use vk::{AccessFlags2 as A, PipelineStageFlags2 as S};
+        self.memory_barrier((S::COMPUTE_SHADER, A::SHADER_STORAGE_WRITE), (S::VERTEX_ATTRIBUTE_INPUT, A::VERTEX_ATTRIBUTE_READ));
+    }
+
     /// Move `image` to its next use, keeping its contents (layout
     /// transitions and hazards handled from the image's tracked state).
     pub fn image_barrier(&self, image: &Image, to: ImageUse) {

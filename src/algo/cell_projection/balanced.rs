@@ -103,6 +103,25 @@ pub(super) fn record_attributes() -> [VertexAttribute; 5] {
     ]
 }
 
+/// The draw of balanced's records (vertex buffers of 4 records per tet,
+/// `balanced.vert` + `balanced.frag`); resident draws the records its
+/// compute pass writes with it too.
+pub(super) fn records_pipeline(ctx: &Arc<Context>, tables: &IntegrationTables, draw: DrawSettings) -> VkResult<(Arc<Pipeline>, PipelineKey)> {
+    build_pipeline(
+        ctx,
+        "cell_projection/balanced.vert",
+        "cell_projection/balanced.frag",
+        (FLOATS_PER_VERTEX * 4) as u32,
+        &record_attributes(),
+        draw.primitives.topology(),
+        draw.primitives.primitive_restart(),
+        tables,
+        draw.interpolation,
+        &[],
+        &[],
+    )
+}
+
 pub struct Balanced {
     cells: PlanesTable,
     /// The records of the order's first `ahead.len() / FLOATS_PER_CELL`
@@ -230,19 +249,7 @@ impl Balanced {
                 Buffer::new(ctx, BufferDesc::upload(&format!("balanced vertex records{label}"), bytes, BufferUsage::VERTEX))
             })
             .collect::<VkResult<Vec<_>>>()?;
-        let (pipeline, pipeline_key) = build_pipeline(
-            ctx,
-            "cell_projection/balanced.vert",
-            "cell_projection/balanced.frag",
-            (FLOATS_PER_VERTEX * 4) as u32,
-            &record_attributes(),
-            draw.primitives.topology(),
-            draw.primitives.primitive_restart(),
-            tables,
-            draw.interpolation,
-            &[],
-            &[],
-        )?;
+        let (pipeline, pipeline_key) = records_pipeline(ctx, tables, draw)?;
         Ok(Balanced {
             ahead: vec![0f32; ahead_cells * FLOATS_PER_CELL],
             ahead_cells,

@@ -1,34 +1,38 @@
 //! Device-resident balanced cell projection (beyond the thesis): the cells
 //! (positions, scalars, opposite-face planes, gradient) are uploaded once
-//! into a device-local storage buffer; each frame only the visibility order
-//! crosses to the device, one u32 per tet. The vertex stage runs what the
-//! balanced method's CPU does per vertex (IntersectBackFace from the stored
-//! planes) and feeds balanced's fragment stage unchanged, through the same
-//! static strips. What is left per frame on the CPU is the sort: the
-//! answer to "where does the time go once the bytes are gone".
+//! into device-local texel buffers; each frame only the visibility order
+//! crosses to the device, one u32 per tet. A compute pass
+//! (`resident_expand.comp`) runs what the balanced method's CPU does per
+//! tet (IntersectBackFace from the stored planes), once per tet on every
+//! core, into device-local vertex records, which balanced's own pipeline
+//! draws through the same static indices. What is left per frame on the
+//! CPU is the sort: the answer to "where does the time go once the bytes
+//! are gone".
 
 use std::sync::Arc;
 
 
-use super::balanced::VERTICES_PER_CELL;
+use super::balanced::{records_pipeline, FLOATS_PER_CELL, VERTICES_PER_CELL};
 use super::render;
-use super::{build_pipeline, CellF32, CellMaker, CellProjector, FrameSetup, DrawSettings, Primitives, StaticIndices, MAX_INDICES_PER_CELL};
+use super::{build_pipeline, CellF32, CellMaker, CellProjector, FrameConstants, FrameSetup, DrawSettings, Primitives, StaticIndices, MAX_INDICES_PER_CELL};
 use crate::algo::chunks::{self, ChunkLimits, TexelChunks};
 use crate::algo::host_memory::HostMemory;
 use crate::algo::integrate::IntegrationTables;
 use crate::algo::method::{MethodInfo, MethodInputs, RenderMethod};
 use crate::mesh::TetMesh;
 use crate::vk::{
-    Buffer, BufferDesc, CommandRecorder, Context, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc,
-    Pipeline, PipelineKey, TexelBuffer, UploadClass, UploadCounter, VkError, VkResult,
+    Buffer, BufferDesc, CommandRecorder, ComputePipelineKey, Context, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc,
+    Pipeline, PipelineKey, ShaderKey, ShaderStage, TexelBuffer, UploadClass, UploadCounter, VkError, VkResult,
 };
 use crate::vk::{BufferUsage, Format, Stages};
 
 /// Per tet per frame: its index in the order.
 pub const BYTES_PER_CELL_PER_FRAME: usize = 4;
-/// The stored cell (`Cell` in `resident.vert`): 4 × (position, scalar),
+/// The stored cell (`stored_cell.glsl`): 4 × (position, scalar),
 /// 4 × (plane, unused), (gradient, unused).
 pub const FLOATS_PER_STORED_CELL: usize = 36;
+/// Invocations per workgroup of `resident_expand.comp`.
+const EXPAND_GROUP: usize = 64;
 
 /// The registry entry.
 pub const METHOD: MethodInfo = render::method_info(
@@ -40,28 +44,41 @@ pub const METHOD: MethodInfo = render::method_info(
 );
 
 fn create(inputs: MethodInputs) -> anyhow::Result<Box<dyn RenderMethod>> {
-    // The order is split at the device's limits (one piece per draw).
+    // The order and the records are split at the device's limits (one
+    // piece per draw).
     let bytes = render::DeviceBytesPerCell {
         frame: 0,
-        fixed: BYTES_PER_CELL_PER_FRAME + MAX_INDICES_PER_CELL * 4 + FLOATS_PER_STORED_CELL * 4,
+        fixed: BYTES_PER_CELL_PER_FRAME + MAX_INDICES_PER_CELL * 4 + FLOATS_PER_STORED_CELL * 4 + FLOATS_PER_CELL * 4,
     };
     render::CellProjection::create(inputs, bytes, |ctx, mesh, tables, draw, counter| {
         Ok(Box::new(Resident::new(ctx, mesh, tables, draw, counter)?))
     })
 }
 
+/// One draw's piece of the order: its order buffer (a count, then the
+/// cells), the device-local vertex records the expansion writes from it,
+/// and the expansion's descriptor set.
+struct Piece {
+    order: Buffer,
+    records: Buffer,
+    set: DescriptorSet,
+}
+
 pub struct Resident {
     cells: usize,
     /// Cells in the last `pack` (the first `drawn` entries of `order`).
     drawn: usize,
+    /// The order's copy: the device may still read the order buffers while
+    /// the next frame is sorted (`run_overlapped`).
     order: Vec<u32>,
     /// The order drawn in pieces of at most `per_draw` cells (one storage
-    /// binding sees at most maxStorageBufferRange bytes of it): each piece
-    /// its own order buffer and set, drawn in order.
-    draws: Vec<(Buffer, DescriptorSet)>,
+    /// binding sees at most maxStorageBufferRange bytes of the order and of
+    /// the records), expanded and drawn in order.
+    pieces: Vec<Piece>,
     per_draw: usize,
     cell_chunks: TexelChunks,
     indices: StaticIndices,
+    expand: Arc<Pipeline>,
     pipeline: Arc<Pipeline>,
     pipeline_key: PipelineKey,
 }
@@ -88,24 +105,104 @@ impl Resident {
         let n = mesh.tets.len();
         let limits = ChunkLimits::of(ctx)?;
         let cells = upload_cell_chunks(ctx, "resident cells", mesh, &limits, counter)?;
-        let per_draw = cells_per_draw(&limits, draw.primitives);
-        let pieces = chunks::ranges(n, per_draw);
+        // The order's binding holds its count too; the records' binding a
+        // piece's records.
+        let per_draw = cells_per_draw(&limits, draw.primitives)
+            .min(limits.storage_chunk(4).saturating_sub(1))
+            .min(limits.storage_chunk((FLOATS_PER_CELL * 4) as u64))
+            .max(1);
+        let ranges = chunks::ranges(n, per_draw);
         // Every piece draws from the start of the same indices.
-        let indices = StaticIndices::upload(ctx, "resident indices", draw.primitives, pieces[0].len(), counter)?;
-        let usage = BufferUsage::STORAGE;
-        let draws = pieces
+        let indices = StaticIndices::upload(ctx, "resident indices", draw.primitives, ranges[0].len(), counter)?;
+        let desc = expand_set_desc(cells.buffers.len());
+        let pieces = ranges
             .iter()
             .enumerate()
             .map(|(k, piece)| {
-                let label = if pieces.len() == 1 { String::new() } else { format!(" [{k}]") };
-                let order = Buffer::new(ctx, BufferDesc::upload(&format!("resident order{label}"), (piece.len().max(1) * 4) as u64, usage))?;
-                let set = cells_and_order_set(ctx, &format!("resident cells and order{label}"), &cells, &order)?;
-                Ok((order, set))
+                let label = if ranges.len() == 1 { String::new() } else { format!(" [{k}]") };
+                let len = piece.len().max(1);
+                let order = Buffer::new(
+                    ctx,
+                    BufferDesc::upload(&format!("resident order{label}"), ((len + 1) * 4) as u64, BufferUsage::STORAGE),
+                )?;
+                let records = Buffer::new(
+                    ctx,
+                    BufferDesc::device_local(
+                        &format!("resident vertex records{label}"),
+                        (len * FLOATS_PER_CELL * 4) as u64,
+                        BufferUsage::STORAGE | BufferUsage::VERTEX,
+                    ),
+                )?;
+                let mut resources = vec![
+                    DescriptorResource::UniformTexelBuffer(&cells.buffers[0]),
+                    DescriptorResource::StorageBuffer(&order),
+                    DescriptorResource::StorageBuffer(&records),
+                ];
+                resources.extend(cells.buffers[1..].iter().map(DescriptorResource::UniformTexelBuffer));
+                let set = DescriptorSet::new(ctx, &format!("resident cells, order and records{label}"), &desc, &resources)?;
+                Ok(Piece { order, records, set })
             })
             .collect::<VkResult<Vec<_>>>()?;
-        let (pipeline, pipeline_key) = resident_pipeline(ctx, tables, draw, &cells)?;
-        Ok(Resident { cells: n, drawn: n, order: vec![0; n], draws, per_draw, cell_chunks: cells, indices, pipeline, pipeline_key })
+        let expand = expand_pipeline(ctx, draw, &cells, desc)?;
+        // The draw is balanced's: its vertex stage reads the records.
+        let (pipeline, pipeline_key) = records_pipeline(ctx, tables, draw)?;
+        Ok(Resident {
+            cells: n,
+            drawn: n,
+            order: vec![0; n],
+            pieces,
+            per_draw,
+            cell_chunks: cells,
+            indices,
+            expand,
+            pipeline,
+            pipeline_key,
+        })
     }
+
+    /// Cells of piece `k` in the last `pack`.
+    fn piece_len(&self, k: usize) -> usize {
+        let start = k * self.per_draw;
+        self.drawn.min(start + self.per_draw).saturating_sub(start)
+    }
+}
+
+/// The one set of `resident_expand.comp`: the stored cells (chunk 0), the
+/// piece's order, its records, then the other chunks of the cells
+/// (`CELL_CHUNK_BINDING` 3).
+fn expand_set_desc(cell_chunks: usize) -> DescriptorSetDesc {
+    let compute = Stages::COMPUTE;
+    let mut desc = DescriptorSetDesc::new(&[
+        (DescriptorKind::UniformTexelBuffer, compute),
+        (DescriptorKind::StorageBuffer, compute),
+        (DescriptorKind::StorageBuffer, compute),
+    ]);
+    for _ in 1..cell_chunks {
+        desc = desc.with(DescriptorKind::UniformTexelBuffer, compute);
+    }
+    desc
+}
+
+/// The expansion's compute pipeline: the frame constants as the draw's
+/// push constants; the cells, order and records in set 0.
+fn expand_pipeline(
+    ctx: &Arc<Context>,
+    draw: DrawSettings,
+    cells: &TexelChunks,
+    desc: DescriptorSetDesc,
+) -> VkResult<Arc<Pipeline>> {
+    let chunked = cells.defines("CELL");
+    let mut defines: Vec<(&str, &str)> = draw.interpolation.defines().to_vec();
+    defines.extend(chunked.iter().map(|(k, v)| (k.as_str(), v.as_str())));
+    if cells.buffers.len() > 1 {
+        defines.push(("CELL_CHUNK_BINDING", "3"));
+    }
+    let key = PipelineKey::Compute(ComputePipelineKey {
+        shader: ShaderKey::new("cell_projection/resident_expand.comp", ShaderStage::Compute, &defines),
+        push_constant_bytes: std::mem::size_of::<FrameConstants>() as u32,
+        sets: vec![desc],
+    });
+    crate::algo::pipelines::get(ctx, &key)
 }
 
 /// Cells one draw may cover: its piece of the order within one storage
@@ -114,7 +211,7 @@ fn cells_per_draw(limits: &ChunkLimits, primitives: Primitives) -> usize {
     limits.storage_chunk(4).min(limits.allocation_chunk(4 * primitives.indices_per_cell() as u64)).max(1)
 }
 
-/// Set 1 of `resident.vert`: the stored cells (a uniform texel buffer of
+/// Set 1 of `resident.vert` (resident-gpusort's draw): the stored cells (a uniform texel buffer of
 /// RGBA32F, `FLOATS_PER_STORED_CELL / 4` texels per cell: each vertex stage
 /// invocation reads all of its cell, and a texel fetch is one lookup where
 /// a storage-buffer load with a per-vertex index is, on llvmpipe, a loop
@@ -130,8 +227,8 @@ pub(super) fn set_desc(cell_chunks: usize) -> DescriptorSetDesc {
     desc
 }
 
-/// The pipeline of both resident methods: `resident.vert` (vertices from
-/// the stored cells, set 1) and balanced's fragment stage.
+/// resident-gpusort's pipeline: `resident.vert` (vertices from the stored
+/// cells, set 1) and balanced's fragment stage.
 pub(super) fn resident_pipeline(
     ctx: &Arc<Context>,
     tables: &IntegrationTables,
@@ -216,7 +313,7 @@ impl CellProjector for Resident {
         &self.pipeline_key
     }
     fn device_chunks(&self) -> serde_json::Value {
-        serde_json::json!({ "cell_buffers": self.cell_chunks.buffers.len(), "cells_per_buffer": self.cell_chunks.per_chunk, "draws": self.draws.len(), "cells_per_draw": self.per_draw })
+        serde_json::json!({ "cell_buffers": self.cell_chunks.buffers.len(), "cells_per_buffer": self.cell_chunks.per_chunk, "draws": self.pieces.len(), "cells_per_draw": self.per_draw })
     }
 
     fn drawn(&self) -> usize {
@@ -233,30 +330,52 @@ impl CellProjector for Resident {
     }
 
     fn upload(&mut self, counter: &mut UploadCounter) -> VkResult<()> {
-        for (k, (buffer, _)) in self.draws.iter_mut().enumerate() {
+        // Each piece's buffer: its length (a per-frame constant), then its
+        // cells.
+        for k in 0..self.pieces.len() {
             let start = k * self.per_draw;
-            let end = self.drawn.min(start + self.per_draw);
-            if end > start {
-                buffer.write(0, bytemuck::cast_slice(&self.order[start..end]), counter, UploadClass::FrameCells)?;
+            let len = self.piece_len(k);
+            if len > 0 || k == 0 {
+                let buffer = &mut self.pieces[k].order;
+                buffer.write(0, bytemuck::bytes_of(&(len as u32)), counter, UploadClass::FrameConstants)?;
+                buffer.write(4, bytemuck::cast_slice(&self.order[start..start + len]), counter, UploadClass::FrameCells)?;
             }
         }
         Ok(())
     }
 
+    /// The expansion, one dispatch per piece, before the draw. (Not timed
+    /// apart: lavapipe's timestamps around a dispatch do not wait for it,
+    /// 0.03 ms at 4.1 M tets; its cost is in `gpu`, and counted in `device`.)
+    fn record_before_draw(&self, rec: &CommandRecorder, frame: &FrameSetup, counter: &mut UploadCounter) -> VkResult<()> {
+        // The previous frame's draw read the records this pass writes.
+        rec.vertex_input_to_compute();
+        for (k, piece) in self.pieces.iter().enumerate() {
+            let len = self.piece_len(k);
+            if len == 0 {
+                continue;
+            }
+            rec.bind_compute(&self.expand, &[&piece.set])?;
+            if k == 0 {
+                rec.push_constants(&self.expand, bytemuck::bytes_of(&frame.constants), counter);
+            }
+            rec.dispatch_groups(len.div_ceil(EXPAND_GROUP) as u64)?;
+        }
+        rec.compute_to_vertex_input();
+        Ok(())
+    }
+
     fn record_draw(&self, rec: &CommandRecorder, tables: &IntegrationTables, frame: &FrameSetup, counter: &mut UploadCounter) -> VkResult<()> {
-        // One draw per piece of the order, in order, so back-to-front
-        // compositing is kept across pieces. Push constants survive the
-        // re-binds (same pipeline layout): pushed once.
-        for (k, (_, set)) in self.draws.iter().enumerate() {
-            let start = k * self.per_draw;
-            let count = self.drawn.min(start + self.per_draw).saturating_sub(start);
+        rec.bind_pipeline(&self.pipeline, Some(&tables.set));
+        rec.push_constants(&self.pipeline, bytemuck::bytes_of(&frame.constants), counter);
+        // One draw per piece of the records, in order (back-to-front
+        // compositing is kept across pieces).
+        for (k, piece) in self.pieces.iter().enumerate() {
+            let count = self.piece_len(k);
             if count == 0 && k > 0 {
                 break;
             }
-            rec.bind_graphics(&self.pipeline, &[&tables.set, set])?;
-            if k == 0 {
-                rec.push_constants(&self.pipeline, bytemuck::bytes_of(&frame.constants), counter);
-            }
+            rec.bind_vertex_buffer(&piece.records);
             self.indices.draw(rec, count);
         }
         Ok(())

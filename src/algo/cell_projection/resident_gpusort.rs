@@ -4,9 +4,10 @@
 //! cells by centroid depth into a device-local buffer that the vertex stage
 //! of `resident.vert` reads in place, so nothing but the camera crosses per
 //! frame (the sort's 32 bytes and the draw's frame constants, all push
-//! constants). The draw is `resident`'s: same shaders, strips and order
-//! (the device order equals the CPU's centroid order exactly), so the same
-//! image. The sort's GPU time is reported as the phase `sort_gpu`.
+//! constants). The vertex stage runs balanced's per-tet work per vertex
+//! from the stored cells (`resident` instead expands the order into
+//! balanced's records in a compute pass, once per tet); the order equals
+//! the CPU's centroid order exactly, so the image is `resident`'s. The sort's GPU time is reported as the phase `sort_gpu`.
 //!
 //! Only the centroid order: MPVO's order is a graph traversal, not a sort,
 //! and is not built on the device; `sort=mpvo` is refused when the spec is
