@@ -66,7 +66,7 @@ use crate::mesh::topology::Topology;
 use crate::scene::Camera;
 use crate::vk::raw::Handle as _;
 use crate::vk::{
-    raw, upload_static, Buffer, BufferDesc, CommandRecorder, ComputePipelineKey, Context, DescriptorKind, DescriptorResource,
+    raw, Buffer, BufferDesc, CommandRecorder, ComputePipelineKey, Context, DescriptorKind, DescriptorResource,
     DescriptorSet, DescriptorSetDesc, Image, ImageUse, MemoryKind, Pipeline, PipelineKey, ShaderKey, ShaderStage, TexelBuffer, UploadCounter,
 };
 
@@ -237,7 +237,6 @@ pub struct TetRaycast {
     scale: MeshScale,
     settings: Settings,
     mesh_set: DescriptorSet,
-    _buffers: Vec<Buffer>,
     _texel_buffers: Vec<TexelBuffer>,
     counters: Buffer,
     pipeline: Arc<Pipeline>,
@@ -257,19 +256,6 @@ pub struct TetRaycast {
     /// everything else per cell lives on the device).
     scene_memory: HostMemory,
     ctx: Arc<Context>,
-}
-
-/// Bytes of `count` elements of `elem` bytes, refused above the device's
-/// storage-buffer range (named by `what` and the mesh).
-fn buffer_bytes(ctx: &Context, mesh: &TetMesh, what: &str, count: usize, elem: usize) -> Result<u64> {
-    let limit = u64::from(ctx.info.max_storage_buffer_range);
-    let bytes = (count as u64).checked_mul(elem as u64).filter(|&b| b <= limit);
-    bytes.ok_or_else(|| {
-        anyhow::anyhow!(
-            "mesh '{}': the {what} ({count} x {elem} bytes) exceed the device's maxStorageBufferRange ({limit} bytes)",
-            mesh.name
-        )
-    })
 }
 
 impl TetRaycast {
@@ -336,24 +322,13 @@ impl TetRaycast {
         if bvh.depth > MAX_BVH_DEPTH {
             bail!("mesh '{}': boundary-face BVH {} levels deep, more than the shader's {MAX_BVH_DEPTH}", mesh.name, bvh.depth);
         }
-        buffer_bytes(ctx, mesh, "BVH nodes", bvh.nodes.len(), 32)?;
 
-        // What the walk reads per cell (points, cells, neighbours, solid
-        // flags) is in uniform texel buffers: a texel fetch per lookup,
-        // where a storage-buffer load with a per-ray index is, on llvmpipe,
-        // a loop over the SIMD lanes per component (integrate.rs). The BVH
-        // and its face list, read once per entry search, stay storage
-        // buffers (a node's uint fields must not pass through float texels).
-        // Empty arrays still need a buffer (zero-size buffers are invalid).
-        // (Borrowed when not empty: a copy of each array was a transient
-        // of its full size.)
-        fn nonempty(b: &[u8]) -> std::borrow::Cow<'_, [u8]> {
-            if b.is_empty() {
-                vec![0u8; 16].into()
-            } else {
-                b.into()
-            }
-        }
+        // Everything the shader reads per ray (points, cells, neighbours,
+        // solid flags, the BVH and its face list) is in uniform texel
+        // buffers: a texel fetch per lookup, where a storage-buffer load with
+        // a per-ray index is, on llvmpipe, a loop over the SIMD lanes per
+        // component (integrate.rs). The BVH nodes are uint texels (their
+        // float boxes pass as bits).
         // Each array in texel buffers within the device's limits; the three
         // per-cell arrays share one chunk length (the shader's CELL_PER_CHUNK),
         // that of the 16-byte texels.
@@ -384,12 +359,27 @@ impl TetRaycast {
             })
             .unzip();
         let extra: Vec<TexelBuffer> = rests.into_iter().flatten().collect();
-        let usage = raw::BufferUsageFlags::STORAGE_BUFFER;
-        let up = |name: &str, bytes: &[u8], counter: &mut UploadCounter| upload_static(ctx, name, bytes, usage, counter);
-        let buffers = vec![
-            up("tet-raycast boundary BVH", &nonempty(bytemuck::cast_slice(&bvh.nodes)), counter)?,
-            up("tet-raycast boundary faces", &nonempty(bytemuck::cast_slice(&bvh.prims)), counter)?,
+        // The BVH and its face list in one texel buffer each (the shader
+        // declares no chunks for them: a BVH that large would need more
+        // boundary faces than any mesh that fits the device).
+        let node_texels: &[[u32; 4]] = bytemuck::cast_slice(&bvh.nodes);
+        let bvh_buffers = [
+            TexelChunks::upload_slice(ctx, "tet-raycast boundary BVH", node_texels, raw::Format::R32G32B32A32_UINT, limits.texel_chunk(16, 1), counter)?,
+            TexelChunks::upload_slice(ctx, "tet-raycast boundary faces", &bvh.prims, raw::Format::R32_UINT, limits.texel_chunk(4, 1), counter)?,
         ];
+        let mut bvh_texel_buffers = Vec::with_capacity(2);
+        for chunks in bvh_buffers {
+            if chunks.buffers.len() > 1 {
+                bail!(
+                    "mesh '{}': the boundary-face BVH ({} nodes, {} faces) is larger than one texel buffer of the device ({} elements)",
+                    mesh.name,
+                    bvh.nodes.len(),
+                    bvh.prims.len(),
+                    chunks.per_chunk
+                );
+            }
+            bvh_texel_buffers.extend(chunks.buffers);
+        }
         let counters = Buffer::new(
             ctx,
             BufferDesc {
@@ -400,17 +390,15 @@ impl TetRaycast {
             },
         )?;
         let compute = raw::ShaderStageFlags::COMPUTE;
-        let mut mesh_desc = DescriptorSetDesc::new(&[(DescriptorKind::UniformTexelBuffer, compute); 4])
-            .with(DescriptorKind::StorageBuffer, compute)
-            .with(DescriptorKind::StorageBuffer, compute)
-            .with(DescriptorKind::StorageBuffer, compute);
+        let mut mesh_desc = DescriptorSetDesc::new(&[(DescriptorKind::UniformTexelBuffer, compute); 6]).with(DescriptorKind::StorageBuffer, compute);
         for _ in &extra {
             mesh_desc = mesh_desc.with(DescriptorKind::UniformTexelBuffer, compute);
         }
         let resources: Vec<DescriptorResource> = firsts
             .iter()
+            .chain(&bvh_texel_buffers)
             .map(DescriptorResource::UniformTexelBuffer)
-            .chain(buffers.iter().chain(std::iter::once(&counters)).map(DescriptorResource::StorageBuffer))
+            .chain(std::iter::once(DescriptorResource::StorageBuffer(&counters)))
             .chain(extra.iter().map(DescriptorResource::UniformTexelBuffer))
             .collect();
         let mesh_set = DescriptorSet::new(ctx, "tet-raycast mesh", &mesh_desc, &resources)?;
@@ -434,8 +422,7 @@ impl TetRaycast {
             scale: MeshScale::of(mesh),
             settings,
             mesh_set,
-            _buffers: buffers,
-            _texel_buffers: firsts.into_iter().chain(extra).collect(),
+            _texel_buffers: firsts.into_iter().chain(bvh_texel_buffers).chain(extra).collect(),
             counters,
             pipeline,
             key,
