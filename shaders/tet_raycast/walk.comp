@@ -29,6 +29,8 @@ layout(push_constant) uniform Frame {
     vec4 tf_range;  // as common/frame.glsl (read by common/integrate.glsl)
     vec4 limits;    // x: entry tolerance (world units); y: step budget per ray (uint bits);
                     // z: stall limit (uint bits); w: pre-integration length scale
+    uvec4 rect;     // the pixels whose rays may meet the mesh: x0, y0, x1, y1 inclusive
+                    // (tet_raycast.rs, pixel_rect); the others are left empty
 } frame;
 
 #include "common/integrate.glsl"
@@ -298,6 +300,8 @@ layout(std430, set = 1, binding = 6) buffer Counters {
     uint reversed;          // walks stopped going backwards (flat boundary cells)
     uint walks;             // walks started
     uint entry_searches;    // BVH searches
+    uint nodes_visited;     // BVH nodes popped by the searches
+    uint faces_tested;      // boundary faces tested by the searches
 } counters;
 
 // set 2: the image.
@@ -412,6 +416,15 @@ vec2 box_span(Node n, vec3 inv) {
     return vec2(max(tmin3.x, max(tmin3.y, tmin3.z)), min(tmax3.x, min(tmax3.y, tmax3.z)));
 }
 
+// Per-ray tallies, added to the counters once per ray.
+uint n_cells = 0u;
+uint n_nodes = 0u;
+uint n_faces = 0u;
+uint n_fallback = 0u;
+uint n_stalled = 0u;
+uint n_reversed = 0u;
+bool hit_bound = false;
+
 // The next boundary entry along the ray: the least (t, face) after
 // (t_prev, id_prev) (any when !have_prev) with t >= t_lo. Depth-first
 // through the BVH, pruned by the best entry so far: an inner node's two
@@ -438,6 +451,7 @@ bool next_entry(float t_lo, bool have_prev, float t_prev, uint id_prev, out floa
         --sp;
         if (stack_t[sp] > t_best) continue;
         Node n = node_at(stack[sp]);
+        n_nodes += 1u;
         if (n.count == 0u) {
             if (sp + 2 > 48) continue;  // cannot happen: the tree is at most 40 levels deep
             vec2 sl = box_span(node_at(n.first), inv);
@@ -460,6 +474,7 @@ bool next_entry(float t_lo, bool have_prev, float t_prev, uint id_prev, out floa
         }
         for (uint k = 0u; k < n.count; ++k) {
             uint slot = texelFetch(prims_tb, int(n.first + k)).r;
+            n_faces += 1u;
             vec2 ts;
             if (!enters(slot, ts)) continue;
             if (ts.x < t_lo) continue;
@@ -474,12 +489,6 @@ bool next_entry(float t_lo, bool have_prev, float t_prev, uint id_prev, out floa
     return id_best != NONE;
 }
 
-// Per-ray tallies, added to the counters once per ray.
-uint n_cells = 0u;
-uint n_fallback = 0u;
-uint n_stalled = 0u;
-uint n_reversed = 0u;
-bool hit_bound = false;
 
 // Front-to-back accumulation: colour and transmittance.
 vec3 acc_c = vec3(0.0);
@@ -657,6 +666,11 @@ void main() {
     ivec2 size = imageSize(target);
     ivec2 px = ivec2(gl_GlobalInvocationID.xy);
     if (px.x >= size.x || px.y >= size.y) return;
+    // Outside the boundary's projected box no ray meets the mesh: no search.
+    if (uint(px.x) < frame.rect.x || uint(px.y) < frame.rect.y || uint(px.x) > frame.rect.z || uint(px.y) > frame.rect.w) {
+        imageStore(target, px, vec4(0.0));
+        return;
+    }
     // The ray through the pixel's centre (scene::Camera::ray), relative to
     // the render origin.
     vec2 ndc = (vec2(px) + 0.5) / vec2(size) * 2.0 - 1.0;
@@ -737,4 +751,6 @@ void main() {
     if (n_fallback > 0u) atomicAdd(counters.fallback_exits, n_fallback);
     if (n_reversed > 0u) atomicAdd(counters.reversed, n_reversed);
     atomicAdd(counters.entry_searches, searches);
+    if (n_nodes > 0u) atomicAdd(counters.nodes_visited, n_nodes);
+    if (n_faces > 0u) atomicAdd(counters.faces_tested, n_faces);
 }
