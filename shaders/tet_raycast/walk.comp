@@ -29,6 +29,8 @@ layout(push_constant) uniform Frame {
     vec4 tf_range;  // as common/frame.glsl (read by common/integrate.glsl)
     vec4 limits;    // x: entry tolerance (world units); y: step budget per ray (uint bits);
                     // z: stall limit (uint bits); w: pre-integration length scale
+    uvec4 rect;     // the pixels whose rays may meet the mesh: x0, y0, x1, y1 inclusive
+                    // (tet_raycast.rs, pixel_rect); the others are left empty
 } frame;
 
 #include "common/integrate.glsl"
@@ -267,12 +269,24 @@ uint solid_at(uint c) {
     return texelFetch(solid_tb, int(c)).r;
 #endif
 }
+// The BVH over the boundary faces and its face list, as uint texels (a
+// node's box is float bits, its links uint: uintBitsToFloat keeps both
+// exact). Texel fetches, not storage-buffer loads: the traversal's node
+// index differs per lane, and llvmpipe loads a storage buffer at a per-lane
+// index one lane at a time, where a texel fetch is one gather.
 struct Node {
-    vec4 lo;  // xyz: box min; w: inner: left child index; leaf: first primitive (uint bits)
-    vec4 hi;  // xyz: box max; w: 0 for an inner node (right child = left + 1), else primitive count (uint bits)
+    vec3 lo;     // box min
+    vec3 hi;     // box max
+    uint first;  // inner: left child index (right = left + 1); leaf: first primitive
+    uint count;  // 0 for an inner node, else the primitive count
 };
-layout(std430, set = 1, binding = 4) readonly buffer Bvh { Node nodes[]; };
-layout(std430, set = 1, binding = 5) readonly buffer Prims { uint prims[]; };      // boundary face slots 4 c + f
+layout(set = 1, binding = 4) uniform usamplerBuffer bvh_tb;    // node n: texels 2n (min, first), 2n + 1 (max, count)
+layout(set = 1, binding = 5) uniform usamplerBuffer prims_tb;  // boundary face slots 4 c + f
+Node node_at(uint n) {
+    uvec4 a = texelFetch(bvh_tb, int(2u * n));
+    uvec4 b = texelFetch(bvh_tb, int(2u * n + 1u));
+    return Node(uintBitsToFloat(a.xyz), uintBitsToFloat(b.xyz), a.w, b.w);
+}
 layout(std430, set = 1, binding = 6) buffer Counters {
     uint cells_lo;          // cells visited, all rays (64 bits: lo, hi)
     uint cells_hi;
@@ -286,6 +300,8 @@ layout(std430, set = 1, binding = 6) buffer Counters {
     uint reversed;          // walks stopped going backwards (flat boundary cells)
     uint walks;             // walks started
     uint entry_searches;    // BVH searches
+    uint nodes_visited;     // BVH nodes popped by the searches
+    uint faces_tested;      // boundary faces tested by the searches
 } counters;
 
 // set 2: the image.
@@ -400,44 +416,72 @@ vec3 inverse_direction() {
 // The ray line's parameter span [t_near, t_far] through node `n`'s box
 // (t_near > t_far: missed); `inv` from inverse_direction().
 vec2 box_span(Node n, vec3 inv) {
-    vec3 a = (n.lo.xyz - ray_o) * inv;
-    vec3 b = (n.hi.xyz - ray_o) * inv;
+    vec3 a = (n.lo - ray_o) * inv;
+    vec3 b = (n.hi - ray_o) * inv;
     vec3 tmin3 = min(a, b);
     vec3 tmax3 = max(a, b);
     return vec2(max(tmin3.x, max(tmin3.y, tmin3.z)), min(tmax3.x, min(tmax3.y, tmax3.z)));
 }
 
+// Per-ray tallies, added to the counters once per ray.
+uint n_cells = 0u;
+uint n_nodes = 0u;
+uint n_faces = 0u;
+uint n_fallback = 0u;
+uint n_stalled = 0u;
+uint n_reversed = 0u;
+bool hit_bound = false;
+
 // The next boundary entry along the ray: the least (t, face) after
 // (t_prev, id_prev) (any when !have_prev) with t >= t_lo. Depth-first
-// through the BVH, nearer child first, pruned by the best entry so far.
+// through the BVH, pruned by the best entry so far: an inner node's two
+// children are tested where it is popped and pushed with their near depths,
+// the nearer last (popped first), so each node is fetched once and a child
+// whose box the ray misses is never pushed. The result is the least entry
+// whatever the order; the order only prunes sooner.
 bool next_entry(float t_lo, bool have_prev, float t_prev, uint id_prev, out float t_best, out float s_best, out uint id_best) {
     vec3 inv = inverse_direction();
     t_best = INF;
     s_best = 0.0;
     id_best = NONE;
     uint stack[48];
+    float stack_t[48];
     int sp = 0;
-    stack[sp++] = 0u;
+    Node root = node_at(0u);
+    vec2 root_span = box_span(root, inv);
+    if (root_span.x <= root_span.y && root_span.y >= t_lo) {
+        stack[sp] = 0u;
+        stack_t[sp] = root_span.x;
+        sp++;
+    }
     while (sp > 0) {
-        Node n = nodes[stack[--sp]];
-        vec2 span = box_span(n, inv);
-        float tn = span.x;
-        float tf = span.y;
-        if (tn > tf || tf < t_lo || tn > t_best) continue;
-        uint count = floatBitsToUint(n.hi.w);
-        uint first = floatBitsToUint(n.lo.w);
-        if (count == 0u) {
+        --sp;
+        if (stack_t[sp] > t_best) continue;
+        Node n = node_at(stack[sp]);
+        n_nodes += 1u;
+        if (n.count == 0u) {
             if (sp + 2 > 48) continue;  // cannot happen: the tree is at most 40 levels deep
-            // Push the farther child first (by the box centre along the ray).
-            vec3 cl = 0.5 * (nodes[first].lo.xyz + nodes[first].hi.xyz);
-            vec3 cr = 0.5 * (nodes[first + 1u].lo.xyz + nodes[first + 1u].hi.xyz);
-            bool left_first = dot(cl - ray_o, ray_d) <= dot(cr - ray_o, ray_d);
-            stack[sp++] = left_first ? first + 1u : first;
-            stack[sp++] = left_first ? first : first + 1u;
+            vec2 sl = box_span(node_at(n.first), inv);
+            vec2 sr = box_span(node_at(n.first + 1u), inv);
+            bool hl = sl.x <= sl.y && sl.y >= t_lo && sl.x <= t_best;
+            bool hr = sr.x <= sr.y && sr.y >= t_lo && sr.x <= t_best;
+            bool left_first = sl.x <= sr.x;
+            // Push the farther child first.
+            if (left_first ? hr : hl) {
+                stack[sp] = left_first ? n.first + 1u : n.first;
+                stack_t[sp] = left_first ? sr.x : sl.x;
+                sp++;
+            }
+            if (left_first ? hl : hr) {
+                stack[sp] = left_first ? n.first : n.first + 1u;
+                stack_t[sp] = left_first ? sl.x : sr.x;
+                sp++;
+            }
             continue;
         }
-        for (uint k = 0u; k < count; ++k) {
-            uint slot = prims[first + k];
+        for (uint k = 0u; k < n.count; ++k) {
+            uint slot = texelFetch(prims_tb, int(n.first + k)).r;
+            n_faces += 1u;
             vec2 ts;
             if (!enters(slot, ts)) continue;
             if (ts.x < t_lo) continue;
@@ -452,12 +496,6 @@ bool next_entry(float t_lo, bool have_prev, float t_prev, uint id_prev, out floa
     return id_best != NONE;
 }
 
-// Per-ray tallies, added to the counters once per ray.
-uint n_cells = 0u;
-uint n_fallback = 0u;
-uint n_stalled = 0u;
-uint n_reversed = 0u;
-bool hit_bound = false;
 
 // Front-to-back accumulation: colour and transmittance.
 vec3 acc_c = vec3(0.0);
@@ -635,6 +673,11 @@ void main() {
     ivec2 size = imageSize(target);
     ivec2 px = ivec2(gl_GlobalInvocationID.xy);
     if (px.x >= size.x || px.y >= size.y) return;
+    // Outside the boundary's projected box no ray meets the mesh: no search.
+    if (uint(px.x) < frame.rect.x || uint(px.y) < frame.rect.y || uint(px.x) > frame.rect.z || uint(px.y) > frame.rect.w) {
+        imageStore(target, px, vec4(0.0));
+        return;
+    }
     // The ray through the pixel's centre (scene::Camera::ray), relative to
     // the render origin.
     vec2 ndc = (vec2(px) + 0.5) / vec2(size) * 2.0 - 1.0;
@@ -671,7 +714,7 @@ void main() {
     // the search and the walk through cells it would clip away (a view
     // turned away from the mesh walked every cell behind the eye). The
     // margin keeps a box ending within f32 rounding of a clip depth.
-    vec2 root = box_span(nodes[0], inverse_direction());
+    vec2 root = box_span(node_at(0u), inverse_direction());
     bool in_depth = root.y >= t_min - 1e-4 * abs(t_min) && root.x <= t_max + 1e-4 * abs(t_max);
     while (in_depth) {
         float t_e;
@@ -715,4 +758,6 @@ void main() {
     if (n_fallback > 0u) atomicAdd(counters.fallback_exits, n_fallback);
     if (n_reversed > 0u) atomicAdd(counters.reversed, n_reversed);
     atomicAdd(counters.entry_searches, searches);
+    if (n_nodes > 0u) atomicAdd(counters.nodes_visited, n_nodes);
+    if (n_faces > 0u) atomicAdd(counters.faces_tested, n_faces);
 }

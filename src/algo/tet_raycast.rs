@@ -46,7 +46,8 @@
 //! **Counts** (device counters, read back after every frame, deterministic):
 //! cells visited (total, max per ray), rays that entered the mesh, rays that
 //! re-entered it, rays terminated early, walk-bound hits, stalled walks,
-//! fallback exits, reversed walks, BVH searches.
+//! fallback exits, reversed walks, BVH searches, BVH nodes visited and
+//! boundary faces tested by them.
 
 use std::sync::Arc;
 
@@ -65,7 +66,7 @@ use crate::mesh::TetMesh;
 use crate::mesh::topology::Topology;
 use crate::scene::Camera;
 use crate::vk::{
-    upload_static, Buffer, BufferDesc, CommandRecorder, ComputePipelineKey, Context, DescriptorKind, DescriptorResource,
+    Buffer, BufferDesc, CommandRecorder, ComputePipelineKey, Context, DescriptorKind, DescriptorResource,
     DescriptorSet, DescriptorSetDesc, Image, ImageUse, MemoryKind, Pipeline, PipelineKey, ShaderKey, ShaderStage, TexelBuffer, UploadCounter,
 };
 use crate::vk::{BufferUsage, Format, Stages};
@@ -80,10 +81,13 @@ pub const STEP_MARGIN: u64 = 1024;
 pub const STALL_LIMIT: u32 = 1024;
 /// The default early-termination opacity.
 pub const ERT_DEFAULT: f64 = 0.999;
-/// Push constants: 6 vec4.
-pub const PUSH_BYTES: u32 = 96;
+/// Push constants: 7 vec4.
+pub const PUSH_BYTES: u32 = 112;
+/// Pixels added around the boundary's projected box before pixels outside
+/// it are skipped (covers the f32 rounding of the shader's rays).
+const RECT_PAD: f64 = 2.0;
 /// Counter words read back after every frame (`Counters` in walk.comp).
-const COUNTER_WORDS: usize = 12;
+const COUNTER_WORDS: usize = 14;
 /// The BVH's depth bound the shader's traversal stack holds (48 entries).
 const MAX_BVH_DEPTH: usize = 40;
 
@@ -148,6 +152,48 @@ pub const METHOD: MethodInfo = MethodInfo {
 pub fn accuracy_bound(options: &Options, _perspective: bool) -> Option<f64> {
     let s = Settings::from_options(options).ok()?;
     Some(render::integrator_bound(s.integrator) + (1.0 - s.ert).max(0.0))
+}
+
+/// The pixels whose rays may meet the mesh: the box of the boundary
+/// vertices' projections (a ray enters only through a boundary face, which
+/// projects inside its vertices' box), padded by [`RECT_PAD`], as inclusive
+/// pixel bounds `[x0, y0, x1, y1]` (x0 > x1: no pixel). `None` when every
+/// pixel must search: in perspective a boundary vertex at or behind the eye
+/// plane (the shader searches the whole ray line, behind the eye too), or a
+/// projection that is not finite. `right`, `up` are the camera's image axes
+/// (`Camera::image_axes`: perpendicular to `forward`, scaled so that ndc 1
+/// is the image's edge), `points` relative to the eye.
+pub fn pixel_rect(points: &[[f64; 3]], forward: [f64; 3], right: [f64; 3], up: [f64; 3], perspective: bool, width: u32, height: u32) -> Option<[u32; 4]> {
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let (rr, uu) = (dot(right, right), dot(up, up));
+    let mut lo = [f64::INFINITY; 2];
+    let mut hi = [f64::NEG_INFINITY; 2];
+    for &q in points {
+        let depth = if perspective { dot(q, forward) } else { 1.0 };
+        if !(depth > 0.0) {
+            return None;
+        }
+        // ndc as the shader's ray maps a pixel centre (y down), then pixels.
+        let ndc = [dot(q, right) / (rr * depth), -dot(q, up) / (uu * depth)];
+        let px = [(ndc[0] + 1.0) * 0.5 * f64::from(width) - 0.5, (ndc[1] + 1.0) * 0.5 * f64::from(height) - 0.5];
+        for k in 0..2 {
+            lo[k] = lo[k].min(px[k]);
+            hi[k] = hi[k].max(px[k]);
+        }
+    }
+    if points.is_empty() {
+        return Some([1, 1, 0, 0]);
+    }
+    if !(lo.iter().chain(&hi).all(|v| v.is_finite())) {
+        return None;
+    }
+    let size = [f64::from(width), f64::from(height)];
+    let a: [f64; 2] = std::array::from_fn(|k| (lo[k] - RECT_PAD).floor().max(0.0));
+    let b: [f64; 2] = std::array::from_fn(|k| (hi[k] + RECT_PAD).ceil().min(size[k] - 1.0));
+    if a[0] > b[0] || a[1] > b[1] {
+        return Some([1, 1, 0, 0]);
+    }
+    Some([a[0] as u32, a[1] as u32, b[0] as u32, b[1] as u32])
 }
 
 /// A BVH over boundary faces, as the shader reads it.
@@ -237,7 +283,6 @@ pub struct TetRaycast {
     scale: MeshScale,
     settings: Settings,
     mesh_set: DescriptorSet,
-    _buffers: Vec<Buffer>,
     _texel_buffers: Vec<TexelBuffer>,
     counters: Buffer,
     pipeline: Arc<Pipeline>,
@@ -248,6 +293,11 @@ pub struct TetRaycast {
     pixels: u64,
     cells: usize,
     boundary_faces: usize,
+    /// The boundary faces' vertices (world coordinates), projected per frame
+    /// for the pixels that may meet the mesh ([`pixel_rect`]).
+    boundary_points: Vec<[f64; 3]>,
+    /// Pixels inside the last frame's rectangle.
+    rect_pixels: u64,
     bvh_nodes: usize,
     bvh_depth: usize,
     /// Texel buffers per array (`algo::chunks`): points, then each per-cell array.
@@ -257,19 +307,6 @@ pub struct TetRaycast {
     /// everything else per cell lives on the device).
     scene_memory: HostMemory,
     ctx: Arc<Context>,
-}
-
-/// Bytes of `count` elements of `elem` bytes, refused above the device's
-/// storage-buffer range (named by `what` and the mesh).
-fn buffer_bytes(ctx: &Context, mesh: &TetMesh, what: &str, count: usize, elem: usize) -> Result<u64> {
-    let limit = u64::from(ctx.info.max_storage_buffer_range);
-    let bytes = (count as u64).checked_mul(elem as u64).filter(|&b| b <= limit);
-    bytes.ok_or_else(|| {
-        anyhow::anyhow!(
-            "mesh '{}': the {what} ({count} x {elem} bytes) exceed the device's maxStorageBufferRange ({limit} bytes)",
-            mesh.name
-        )
-    })
 }
 
 impl TetRaycast {
@@ -331,29 +368,26 @@ impl TetRaycast {
                 }))
             })
             .collect();
+        let mut boundary_vertices: Vec<u32> = topo
+            .boundary
+            .iter()
+            .flat_map(|&slot| FACE_VERTS[(slot & 3) as usize].map(|l| mesh.tets[(slot >> 2) as usize][l]))
+            .collect();
+        boundary_vertices.sort_unstable();
+        boundary_vertices.dedup();
+        let boundary_points: Vec<[f64; 3]> = boundary_vertices.iter().map(|&i| mesh.points[i as usize]).collect();
         let diag = mesh.bounds().diagonal();
         let bvh = build_face_bvh(&faces, (1e-5 * diag) as f32);
         if bvh.depth > MAX_BVH_DEPTH {
             bail!("mesh '{}': boundary-face BVH {} levels deep, more than the shader's {MAX_BVH_DEPTH}", mesh.name, bvh.depth);
         }
-        buffer_bytes(ctx, mesh, "BVH nodes", bvh.nodes.len(), 32)?;
 
-        // What the walk reads per cell (points, cells, neighbours, solid
-        // flags) is in uniform texel buffers: a texel fetch per lookup,
-        // where a storage-buffer load with a per-ray index is, on llvmpipe,
-        // a loop over the SIMD lanes per component (integrate.rs). The BVH
-        // and its face list, read once per entry search, stay storage
-        // buffers (a node's uint fields must not pass through float texels).
-        // Empty arrays still need a buffer (zero-size buffers are invalid).
-        // (Borrowed when not empty: a copy of each array was a transient
-        // of its full size.)
-        fn nonempty(b: &[u8]) -> std::borrow::Cow<'_, [u8]> {
-            if b.is_empty() {
-                vec![0u8; 16].into()
-            } else {
-                b.into()
-            }
-        }
+        // Everything the shader reads per ray (points, cells, neighbours,
+        // solid flags, the BVH and its face list) is in uniform texel
+        // buffers: a texel fetch per lookup, where a storage-buffer load with
+        // a per-ray index is, on llvmpipe, a loop over the SIMD lanes per
+        // component (integrate.rs). The BVH nodes are uint texels (their
+        // float boxes pass as bits).
         // Each array in texel buffers within the device's limits; the three
         // per-cell arrays share one chunk length (the shader's CELL_PER_CHUNK),
         // that of the 16-byte texels.
@@ -384,12 +418,27 @@ impl TetRaycast {
             })
             .unzip();
         let extra: Vec<TexelBuffer> = rests.into_iter().flatten().collect();
-        let usage = BufferUsage::STORAGE;
-        let up = |name: &str, bytes: &[u8], counter: &mut UploadCounter| upload_static(ctx, name, bytes, usage, counter);
-        let buffers = vec![
-            up("tet-raycast boundary BVH", &nonempty(bytemuck::cast_slice(&bvh.nodes)), counter)?,
-            up("tet-raycast boundary faces", &nonempty(bytemuck::cast_slice(&bvh.prims)), counter)?,
+        // The BVH and its face list in one texel buffer each (the shader
+        // declares no chunks for them: a BVH that large would need more
+        // boundary faces than any mesh that fits the device).
+        let node_texels: &[[u32; 4]] = bytemuck::cast_slice(&bvh.nodes);
+        let bvh_buffers = [
+            TexelChunks::upload_slice(ctx, "tet-raycast boundary BVH", node_texels, Format::Rgba32Uint, limits.texel_chunk(16, 1), counter)?,
+            TexelChunks::upload_slice(ctx, "tet-raycast boundary faces", &bvh.prims, Format::R32Uint, limits.texel_chunk(4, 1), counter)?,
         ];
+        let mut bvh_texel_buffers = Vec::with_capacity(2);
+        for chunks in bvh_buffers {
+            if chunks.buffers.len() > 1 {
+                bail!(
+                    "mesh '{}': the boundary-face BVH ({} nodes, {} faces) is larger than one texel buffer of the device ({} elements)",
+                    mesh.name,
+                    bvh.nodes.len(),
+                    bvh.prims.len(),
+                    chunks.per_chunk
+                );
+            }
+            bvh_texel_buffers.extend(chunks.buffers);
+        }
         let counters = Buffer::new(
             ctx,
             BufferDesc {
@@ -400,17 +449,15 @@ impl TetRaycast {
             },
         )?;
         let compute = Stages::COMPUTE;
-        let mut mesh_desc = DescriptorSetDesc::new(&[(DescriptorKind::UniformTexelBuffer, compute); 4])
-            .with(DescriptorKind::StorageBuffer, compute)
-            .with(DescriptorKind::StorageBuffer, compute)
-            .with(DescriptorKind::StorageBuffer, compute);
+        let mut mesh_desc = DescriptorSetDesc::new(&[(DescriptorKind::UniformTexelBuffer, compute); 6]).with(DescriptorKind::StorageBuffer, compute);
         for _ in &extra {
             mesh_desc = mesh_desc.with(DescriptorKind::UniformTexelBuffer, compute);
         }
         let resources: Vec<DescriptorResource> = firsts
             .iter()
+            .chain(&bvh_texel_buffers)
             .map(DescriptorResource::UniformTexelBuffer)
-            .chain(buffers.iter().chain(std::iter::once(&counters)).map(DescriptorResource::StorageBuffer))
+            .chain(std::iter::once(DescriptorResource::StorageBuffer(&counters)))
             .chain(extra.iter().map(DescriptorResource::UniformTexelBuffer))
             .collect();
         let mesh_set = DescriptorSet::new(ctx, "tet-raycast mesh", &mesh_desc, &resources)?;
@@ -434,8 +481,7 @@ impl TetRaycast {
             scale: MeshScale::of(mesh),
             settings,
             mesh_set,
-            _buffers: buffers,
-            _texel_buffers: firsts.into_iter().chain(extra).collect(),
+            _texel_buffers: firsts.into_iter().chain(bvh_texel_buffers).chain(extra).collect(),
             counters,
             pipeline,
             key,
@@ -445,6 +491,8 @@ impl TetRaycast {
             pixels: u64::from(width) * u64::from(height),
             cells: n,
             boundary_faces: topo.boundary.len(),
+            boundary_points,
+            rect_pixels: 0,
             bvh_nodes: bvh.nodes.len(),
             bvh_depth: bvh.depth,
             device_chunks,
@@ -453,8 +501,9 @@ impl TetRaycast {
         })
     }
 
-    /// The frame's push constants (`Frame` in walk.comp).
-    fn push_constants(&self, view: &View) -> Vec<u8> {
+    /// The frame's push constants (`Frame` in walk.comp) and the number of
+    /// pixels inside its rectangle ([`pixel_rect`]).
+    fn push_constants(&self, view: &View) -> (Vec<u8>, u64) {
         let c: &Camera = &view.camera;
         // The table range and length scale exactly as the cell-projection
         // methods map them.
@@ -466,15 +515,20 @@ impl TetRaycast {
         let persp = if c.is_perspective() { 1.0 } else { 0.0 };
         let budget = u32::try_from(self.step_budget).unwrap_or(u32::MAX);
         let tol = 1e-5 * self.scale.diagonal;
-        let v: [f32; 24] = [
+        let rel: Vec<[f64; 3]> = self.boundary_points.iter().map(|p| std::array::from_fn(|k| p[k] - c.eye[k])).collect();
+        let (w, h) = (view.width, view.height);
+        let rect = pixel_rect(&rel, fwd.into(), right.into(), up.into(), c.is_perspective(), w, h).unwrap_or([0, 0, w.saturating_sub(1), h.saturating_sub(1)]);
+        let rect_pixels = if rect[0] > rect[2] || rect[1] > rect[3] { 0 } else { u64::from(rect[2] - rect[0] + 1) * u64::from(rect[3] - rect[1] + 1) };
+        let v: [f32; 28] = [
             eye[0] as f32, eye[1] as f32, eye[2] as f32, persp,
             fwd.x as f32, fwd.y as f32, fwd.z as f32, c.near as f32,
             right.x as f32, right.y as f32, right.z as f32, c.far as f32,
             up.x as f32, up.y as f32, up.z as f32, self.settings.ert as f32,
             setup.constants.tf_range[0], setup.constants.tf_range[1], setup.constants.tf_range[2], setup.constants.tf_range[3],
             tol as f32, f32::from_bits(budget), f32::from_bits(STALL_LIMIT), setup.constants.limits[3],
+            f32::from_bits(rect[0]), f32::from_bits(rect[1]), f32::from_bits(rect[2]), f32::from_bits(rect[3]),
         ];
-        bytemuck::cast_slice(&v).to_vec()
+        (bytemuck::cast_slice(&v).to_vec(), rect_pixels)
     }
 
     /// The last frame's counters (`Counters` in walk.comp).
@@ -501,6 +555,8 @@ struct Counts {
     reversed: u64,
     walks: u64,
     searches: u64,
+    nodes_visited: u64,
+    faces_tested: u64,
 }
 
 impl From<[u64; COUNTER_WORDS]> for Counts {
@@ -517,13 +573,15 @@ impl From<[u64; COUNTER_WORDS]> for Counts {
             reversed: c[9],
             walks: c[10],
             searches: c[11],
+            nodes_visited: c[12],
+            faces_tested: c[13],
         }
     }
 }
 
 impl RenderMethod for TetRaycast {
     fn prepare(&mut self, view: &View, _phases: &mut Phases) -> Result<()> {
-        self.push = self.push_constants(view);
+        (self.push, self.rect_pixels) = self.push_constants(view);
         Ok(())
     }
 
@@ -562,6 +620,10 @@ impl RenderMethod for TetRaycast {
             .with("stalled_walks", c.stalled)
             .with("fallback_exits", c.fallback_exits)
             .with("walks", c.walks)
+            .with("pixels_in_rect", self.rect_pixels)
+            .with("entry_searches", c.searches)
+            .with("bvh_nodes_visited", c.nodes_visited)
+            .with("boundary_faces_tested", c.faces_tested)
     }
 
     fn details(&self) -> serde_json::Value {
@@ -593,6 +655,9 @@ impl RenderMethod for TetRaycast {
             "reversed_walks": c.reversed,
             "walks": c.walks,
             "entry_searches": c.searches,
+            "bvh_nodes_visited": c.nodes_visited,
+            "boundary_faces_tested": c.faces_tested,
+            "bvh_nodes_per_search_mean": mean(c.nodes_visited, c.searches),
         })
     }
 
@@ -649,6 +714,49 @@ mod tests {
         let empty = build_face_bvh(&[], 0.0);
         assert_eq!(empty.nodes.len(), 1);
         assert!(empty.nodes[0][0] > empty.nodes[0][4]);
+    }
+
+    #[test]
+    fn pixel_rect_holds_every_ray_through_a_boundary_point() {
+        // The ray through a pixel centre as the shader forms it; the pixel
+        // nearest to where each point projects must be inside the rect, at
+        // two image sizes and in both projections.
+        let cam = Camera::orbit(&crate::mesh::Bounds { min: [-1.0, -2.0, -0.5], max: [3.0, 1.0, 0.5] }, 0.7, crate::scene::Projection::Perspective { fovy_deg: 30.0 });
+        let pts: Vec<[f64; 3]> = (0..200).map(|i| {
+            let f = i as f64;
+            [-1.0 + 4.0 * ((f * 0.37) % 1.0), -2.0 + 3.0 * ((f * 0.61) % 1.0), -0.5 + ((f * 0.13) % 1.0)]
+        }).collect();
+        for ortho in [false, true] {
+            let mut c = cam.clone();
+            if ortho {
+                c.projection = crate::scene::Projection::Orthographic { height: 6.0 };
+            }
+            for (w, h) in [(64u32, 48u32), (512, 512)] {
+                let rel: Vec<[f64; 3]> = pts.iter().map(|p| std::array::from_fn(|k| p[k] - c.eye[k])).collect();
+                let (right, up) = c.image_axes(w, h);
+                let fwd = c.forward();
+                let r = pixel_rect(&rel, fwd.into(), right.into(), up.into(), !ortho, w, h).unwrap();
+                assert!(r[0] <= r[2] && r[1] <= r[3] && r[2] < w && r[3] < h, "{r:?}");
+                for q in &rel {
+                    let q = glam::DVec3::from(*q);
+                    let depth = if ortho { 1.0 } else { q.dot(fwd) };
+                    let nx = q.dot(right) / (right.length_squared() * depth);
+                    let ny = -q.dot(up) / (up.length_squared() * depth);
+                    let px = ((nx + 1.0) * 0.5 * w as f64).floor().clamp(0.0, w as f64 - 1.0) as u32;
+                    let py = ((ny + 1.0) * 0.5 * h as f64).floor().clamp(0.0, h as f64 - 1.0) as u32;
+                    assert!(px >= r[0] && px <= r[2] && py >= r[1] && py <= r[3], "{w}x{h} ortho {ortho}: pixel ({px}, {py}) outside {r:?}");
+                }
+                // The rect is tight: not the whole image for this view.
+                assert!((r[2] - r[0] + 1) * (r[3] - r[1] + 1) < w * h, "{r:?}");
+            }
+        }
+        // A point behind the eye plane in perspective: every pixel searches.
+        let rel = vec![[0.0, 0.0, 0.0]];
+        let (right, up) = cam.image_axes(64, 64);
+        assert_eq!(pixel_rect(&rel, cam.forward().into(), right.into(), up.into(), true, 64, 64), None);
+        // No boundary: no pixel.
+        let r = pixel_rect(&[], cam.forward().into(), right.into(), up.into(), true, 64, 64).unwrap();
+        assert!(r[0] > r[2]);
     }
 
     #[test]

@@ -320,7 +320,7 @@ impl CellProjection {
         relative: Arc<RelativeMesh>,
         build: impl ProjectorBuilder,
     ) -> Result<Box<dyn RenderMethod>> {
-        Self::create_inner(inputs, bytes, ash::vk::ShaderStageFlags::FRAGMENT, Some(relative), build)
+        Self::create_inner(inputs, bytes, Stages::FRAGMENT, Some(relative), build)
     }
 
     /// `create` with the integration tables visible to `stages` (a
@@ -338,7 +338,7 @@ impl CellProjection {
     fn create_inner(
         inputs: MethodInputs,
         bytes: DeviceBytesPerCell,
-        stages: ash::vk::ShaderStageFlags,
+        stages: Stages,
         relative: Option<Arc<RelativeMesh>>,
         build: impl ProjectorBuilder,
     ) -> Result<Box<dyn RenderMethod>> {
