@@ -18,8 +18,9 @@ layout(std430, set = 0, binding = 1) readonly buffer Order {
     uint count;
     uint order[];
 };
-// 4 records of 7 floats per slot (balanced.rs FLOATS_PER_CELL).
-layout(std430, set = 0, binding = 2) writeonly buffer Records { float records[]; };
+// 4 records of 7 floats per slot (balanced.rs FLOATS_PER_CELL), written as
+// 7 vec4 (one store each, not 28 scalar ones).
+layout(std430, set = 0, binding = 2) writeonly buffer Records { vec4 records[]; };
 
 void main() {
     uint slot = linear_invocation_id();
@@ -30,18 +31,21 @@ void main() {
     uint exits;
     vec4 c = cell_view_values(t, exits);
     vec3 g = cell_gradient(t);
-    uint base = slot * 28u;
+    // Record k: position, c_k, s_f, b, code (record.glsl: k | exits << 2,
+    // exact in f32).
+    float r[28];
     for (int k = 0; k < 4; ++k) {
         vec4 pk = cell_pos(t, k);
-        float b = cell_vertex_b(g, pk.xyz, pk.w, c[k]);
-        uint r = base + uint(7 * k);
-        records[r + 0u] = pk.x;
-        records[r + 1u] = pk.y;
-        records[r + 2u] = pk.z;
-        records[r + 3u] = c[k];
-        records[r + 4u] = pk.w;
-        records[r + 5u] = b;
-        // record.glsl: i | exits << 2, exact in f32.
-        records[r + 6u] = float(uint(k) | (exits << 2));
+        r[7 * k + 0] = pk.x;
+        r[7 * k + 1] = pk.y;
+        r[7 * k + 2] = pk.z;
+        r[7 * k + 3] = c[k];
+        r[7 * k + 4] = pk.w;
+        r[7 * k + 5] = cell_vertex_b(g, pk.xyz, pk.w, c[k]);
+        r[7 * k + 6] = float(uint(k) | (exits << 2));
+    }
+    uint base = slot * 7u;
+    for (int i = 0; i < 7; ++i) {
+        records[base + uint(i)] = vec4(r[4 * i], r[4 * i + 1], r[4 * i + 2], r[4 * i + 3]);
     }
 }
