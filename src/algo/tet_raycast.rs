@@ -733,7 +733,7 @@ mod tests {
             [-1.0 + 4.0 * ((f * 0.37) % 1.0), -2.0 + 3.0 * ((f * 0.61) % 1.0), -0.5 + ((f * 0.13) % 1.0)]
         }).collect();
         for ortho in [false, true] {
-            let mut c = cam.clone();
+            let mut c = cam;
             if ortho {
                 c.projection = crate::scene::Projection::Orthographic { height: 6.0 };
             }
