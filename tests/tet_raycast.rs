@@ -364,7 +364,7 @@ fn only_the_camera_crosses_per_frame() {
     let out = run(&mesh, &tf, "tet-raycast", orbit(&mesh, 0.0), 48);
     let u = &out.result.upload;
     assert_eq!(u.cell_bytes_per_frame, 0);
-    assert_eq!(u.bytes_per_frame, 96, "the push constants");
+    assert_eq!(u.bytes_per_frame, 112, "the push constants (camera, table range, limits, pixel rectangle)");
     assert!(u.static_bytes > 16 * mesh.tets.len() as u64);
     assert_eq!(u.frame_counters.static_bytes(), 0);
     common_schema(&out);

@@ -170,7 +170,7 @@ pub fn pixel_rect(points: &[[f64; 3]], forward: [f64; 3], right: [f64; 3], up: [
     let mut hi = [f64::NEG_INFINITY; 2];
     for &q in points {
         let depth = if perspective { dot(q, forward) } else { 1.0 };
-        if !(depth > 0.0) {
+        if depth.is_nan() || depth <= 0.0 {
             return None;
         }
         // ndc as the shader's ray maps a pixel centre (y down), then pixels.
@@ -727,7 +727,7 @@ mod tests {
             [-1.0 + 4.0 * ((f * 0.37) % 1.0), -2.0 + 3.0 * ((f * 0.61) % 1.0), -0.5 + ((f * 0.13) % 1.0)]
         }).collect();
         for ortho in [false, true] {
-            let mut c = cam.clone();
+            let mut c = cam;
             if ortho {
                 c.projection = crate::scene::Projection::Orthographic { height: 6.0 };
             }
