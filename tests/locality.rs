@@ -32,7 +32,15 @@ fn renumbering_keeps_the_image() {
         assert!(a.image.covered_pixels() > 1000, "{spec}: the mesh should fill part of the image");
         let e = a.image.compare(&b.image).unwrap();
         assert!(e.rmse <= 1e-6, "{spec}: renumbering moved the image: rmse {} max {}", e.rmse, e.max_abs);
-        assert_eq!(a.result.work.counts, b.result.work.counts, "{spec}: the same work");
+        // The boundary BVH splits faces in their numbered order, so how
+        // much of it a search visits may change with the numbering; the
+        // work that makes the picture (cells, rays, walks) may not.
+        let walked = |counts: &std::collections::BTreeMap<&'static str, u64>| {
+            let mut c = counts.clone();
+            c.retain(|k, _| !matches!(*k, "boundary_faces_tested" | "bvh_nodes_visited"));
+            c
+        };
+        assert_eq!(walked(&a.result.work.counts), walked(&b.result.work.counts), "{spec}: the same work");
     }
 }
 
