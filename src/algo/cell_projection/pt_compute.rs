@@ -195,10 +195,11 @@ impl Footprint {
         }
     }
 
-    /// This footprint with the faces in `mask` (`edge_on_faces`) left out of the rasterization.
-    pub fn without_faces(self, mask: u8) -> Footprint {
+    /// This footprint with the faces in `mask()` (`edge_on_faces`) left out
+    /// of the rasterization; `mask` runs only for a rasterized footprint.
+    pub fn without_faces(self, mask: impl FnOnce() -> u8) -> Footprint {
         match self {
-            Footprint::Raster { xy, rows, edge_on } => Footprint::Raster { xy, rows, edge_on: edge_on | mask },
+            Footprint::Raster { xy, rows, edge_on } => Footprint::Raster { xy, rows, edge_on: edge_on | mask() },
             other => other,
         }
     }
@@ -237,23 +238,20 @@ pub fn edge_on_faces(v: &[[f32; 3]; 4], eye: [f32; 3], view_dir: [f32; 3], persp
     let p = v.map(|q| q.map(f64::from));
     let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
     let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-    let norm = |a: [f64; 3]| dot(a, a).sqrt();
     let e = eye.map(f64::from);
+    // Squared distances from the eye (or the view direction's), once per vertex.
+    let d = view_dir.map(f64::from);
+    let reach: [f64; 4] = if perspective { p.map(|q| dot(sub(q, e), sub(q, e))) } else { [dot(d, d); 4] };
     let mut mask = 0u8;
     for (f, face) in FACES.iter().enumerate() {
         let [a, b, c] = face.map(|i| p[i]);
         let (u, w) = (sub(b, a), sub(c, a));
         let n = [u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]];
         // The sine of the angle between the plane and the direction from the
-        // eye to its farthest vertex (or the view direction).
-        let (along, length) = if perspective {
-            let far = [a, b, c].map(|q| norm(sub(q, e))).into_iter().fold(0.0, f64::max);
-            (dot(n, sub(a, e)), far)
-        } else {
-            let d = view_dir.map(f64::from);
-            (dot(n, d), norm(d))
-        };
-        if along.abs() <= EDGE_ON_SINE * norm(n) * length {
+        // eye to its farthest vertex (or the view direction), compared squared.
+        let along = if perspective { dot(n, sub(a, e)) } else { dot(n, d) };
+        let length2 = face.iter().map(|&i| reach[i]).fold(0.0, f64::max);
+        if along * along <= EDGE_ON_SINE * EDGE_ON_SINE * dot(n, n) * length2 {
             mask |= 1 << f;
         }
     }
@@ -630,7 +628,7 @@ impl CellProjector for PtCompute {
                 let clip = v.map(|p| {
                     std::array::from_fn(|r| vp[0][r] * p[0] + vp[1][r] * p[1] + vp[2][r] * p[2] + vp[3][r])
                 });
-                Footprint::of(&clip, min_w, size).without_faces(edge_on_faces(v, eye, view_dir, frame.perspective))
+                Footprint::of(&clip, min_w, size).without_faces(|| edge_on_faces(v, eye, view_dir, frame.perspective))
             })
             .collect_into_vec(&mut self.footprints);
         let t1 = Instant::now();
