@@ -131,6 +131,26 @@ pub(crate) fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
         a[0] * b[1] - a[1] * b[0],
     ]
 }
+
+/// The section of a tet (vertices `v` at view depths `z`) by the plane at
+/// depth `cap`: 3 or 4 points, in order around the polygon (the near caps,
+/// `near.rs`, and the papers' model of them, `reference::papers`).
+pub fn plane_section(v: &[[f64; 3]; 4], z: &[f64; 4], cap: f64) -> Vec<[f64; 3]> {
+    let below: Vec<usize> = (0..4).filter(|&i| z[i] < cap).collect();
+    let above: Vec<usize> = (0..4).filter(|&i| z[i] >= cap).collect();
+    let cut = |i: usize, j: usize| {
+        let t = (cap - z[i]) / (z[j] - z[i]);
+        std::array::from_fn(|k| v[i][k] + (v[j][k] - v[i][k]) * t)
+    };
+    match (below.len(), above.len()) {
+        (1, 3) => above.iter().map(|&j| cut(below[0], j)).collect(),
+        (3, 1) => below.iter().map(|&i| cut(i, above[0])).collect(),
+        // Around the quad: (b0,a0), (b0,a1), (b1,a1), (b1,a0).
+        (2, 2) => vec![cut(below[0], above[0]), cut(below[0], above[1]), cut(below[1], above[1]), cut(below[1], above[0])],
+        _ => Vec::new(),
+    }
+}
+
 #[inline]
 fn len2(a: [f64; 3]) -> f64 {
     dot(a, a)

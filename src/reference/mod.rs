@@ -169,7 +169,7 @@ pub fn render_reference(
 
 /// The f64 model of the papers' interpolation of exit data ([`papers`]):
 /// the same walk and integration as the reference, each cell's segment
-/// (but the one holding the eye) as those methods compute it, with exit
+/// as those methods compute it (the one holding the eye by its near cap), with exit
 /// distances clamped at `distance_clamp_diagonals` mesh diagonals as they
 /// clamp them.
 pub fn render_papers_model(
@@ -186,6 +186,8 @@ pub fn render_papers_model(
         perspective: camera.is_perspective(),
         max_distance: (distance_clamp_diagonals * mesh_diagonal(mesh)).max(1e-30),
         max_length: 1.01 * longest_edge(mesh),
+        near: camera.near,
+        cap_depth: camera.near_cap_depth(),
     };
     render(mesh, camera, tf, width, height, Some(model)).map(|(img, _)| img)
 }

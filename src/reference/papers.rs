@@ -20,12 +20,18 @@
 //! (∇λ_k · dir(p)) / (∇λ_k · dir(v_k)) between the vertex's and the ray's
 //! directions to the plane.
 //!
-//! The cell holding the eye is drawn by a near cap (`near.rs`), whose
-//! corners are points of the section, not vertices: that cell is not
-//! modelled here (its exact segment is used) and the cases with the eye
-//! inside the mesh keep their measured allowance.
+//! The cell holding the eye is drawn by a near cap (`near.rs`,
+//! `cap.frag`): its section by a plane just behind the near plane
+//! (`Camera::near_cap_depth`), fanned into triangles from its first corner,
+//! with at each corner c the same records taken along c's own ray
+//! (d_k = λ_k(c) t_k(dir(c)), s_k, w_k = λ_k(c)), which the rasterizer
+//! interpolates (perspective-correct: p's weights on the triangle in 3-D).
+//! [`PapersModel::cap_segment`] does the same; the exit planes are those
+//! with 0 < d_k / w_k < half the clamp (`exit_planes`, its ratio test; the
+//! shader's gradient form where |w_k| < 1e-3 is not modelled), and the
+//! segment is extended back to the near plane as `cap.frag` extends it.
 
-use crate::mesh::geometry::{cross, dot, sub};
+use crate::mesh::geometry::{cross, dot, plane_section, sub};
 
 /// What the model needs beyond the cell: the view and the methods' clamps.
 #[derive(Debug, Clone, Copy)]
@@ -39,6 +45,10 @@ pub struct PapersModel {
     pub max_distance: f64,
     /// Segments longer than this contribute nothing (1.01 × longest edge).
     pub max_length: f64,
+    /// View depths of the near plane and of the near caps' plane behind it
+    /// (`Camera::near_cap_depth`).
+    pub near: f64,
+    pub cap_depth: f64,
 }
 
 impl PapersModel {
@@ -49,16 +59,7 @@ impl PapersModel {
     /// contributes nothing on this ray (no exit plane, a flat cell, or
     /// longer than any cell).
     pub fn segment(&self, v: &[[f64; 3]; 4], s: &[f64; 4], f_in: usize, p: [f64; 3], s_front: f64) -> Option<(f64, f64)> {
-        let e = [sub(v[1], v[0]), sub(v[2], v[0]), sub(v[3], v[0])];
-        let det = dot(e[0], cross(e[1], e[2]));
-        if det == 0.0 || !det.is_finite() {
-            return None;
-        }
-        let mut grad = [[0.0; 3]; 4];
-        grad[1] = cross(e[1], e[2]).map(|x| x / det);
-        grad[2] = cross(e[2], e[0]).map(|x| x / det);
-        grad[3] = cross(e[0], e[1]).map(|x| x / det);
-        grad[0] = std::array::from_fn(|c| -(grad[1][c] + grad[2][c] + grad[3][c]));
+        let grad = gradients(v)?;
         // p's weights on its face (the fourth is 0 there exactly, as on the GPU).
         let mut lambda: [f64; 4] = std::array::from_fn(|k| 1.0 + dot(grad[k], sub(p, v[k])));
         lambda[f_in] = 0.0;
@@ -84,6 +85,68 @@ impl PapersModel {
         best.filter(|&(len, _)| len <= self.max_length)
     }
 
+    /// The segment the near cap gives the ray with unit direction `d` from
+    /// the eye (perspective) in the cell holding the eye (vertices `v` relative to the eye,
+    /// scalars `s`): (t, scalar) at its start on the near plane and at its
+    /// end. `None`: the cap draws nothing on this ray (the ray leaves the
+    /// cell before the cap's plane, no exit plane, or longer than any cell).
+    pub fn cap_segment(&self, v: &[[f64; 3]; 4], s: &[f64; 4], d: [f64; 3]) -> Option<((f64, f64), (f64, f64))> {
+        let fwd = self.view_dir;
+        let cos = dot(d, fwd);
+        if cos <= 0.0 {
+            return None;
+        }
+        let polygon = plane_section(v, &v.map(|q| dot(q, fwd)), self.cap_depth);
+        let t_p = self.cap_depth / cos;
+        let p = d.map(|x| x * t_p);
+        // The fan's triangle holding p, and p's weights on it.
+        let (corners, weights) = (1..polygon.len().saturating_sub(1)).find_map(|i| {
+            let tri = [polygon[0], polygon[i], polygon[i + 1]];
+            let n = cross(sub(tri[1], tri[0]), sub(tri[2], tri[0]));
+            let area = dot(n, n);
+            if area == 0.0 || !area.is_finite() {
+                return None;
+            }
+            let w: [f64; 3] = std::array::from_fn(|j| {
+                dot(n, cross(sub(tri[(j + 1) % 3], p), sub(tri[(j + 2) % 3], p))) / area
+            });
+            w.iter().all(|&x| x >= -1e-9).then_some((tri, w))
+        })?;
+        let grad = gradients(v)?;
+        let g: [f64; 3] = std::array::from_fn(|c| (0..4).map(|k| s[k] * grad[k][c]).sum());
+        // Each corner's record (near.rs `cap_records`), summed with p's weights.
+        let (mut sf, mut dk, mut sk, mut wk) = (0.0, [0.0; 4], [0.0; 4], [0.0; 4]);
+        for (c, &weight) in corners.iter().zip(&weights) {
+            let l: [f64; 4] = std::array::from_fn(|k| 1.0 + dot(grad[k], sub(*c, v[k])));
+            let sc: f64 = (0..4).map(|k| l[k] * s[k]).sum();
+            let dir = self.direction(*c);
+            let gd = dot(g, dir);
+            sf += weight * sc;
+            for k in 0..4 {
+                let t = (-1.0 / dot(grad[k], dir)).clamp(-self.max_distance, self.max_distance);
+                dk[k] += weight * l[k] * t;
+                sk[k] += weight * (sc + gd * l[k] * t);
+                wk[k] += weight * l[k];
+            }
+        }
+        let mut best: Option<(f64, f64)> = None;
+        for k in 0..4 {
+            let (num, den) = (dk[k] * wk[k], wk[k] * wk[k]);
+            if !(num > 0.0 && den > 0.0 && num < 0.5 * self.max_distance * den) {
+                continue;
+            }
+            let len = dk[k].max(0.0);
+            if best.is_none_or(|(l, _)| len < l) {
+                best = Some((len, sk[k]));
+            }
+        }
+        let (len, sb) = best.filter(|&(len, _)| len <= self.max_length)?;
+        // Back to the near plane, the scalar extended linearly (cap.frag).
+        let back = (self.cap_depth - self.near) / cos;
+        let rate = if len > 0.0 { (sb - sf) / len } else { 0.0 };
+        Some(((t_p - back, sf - rate * back), (t_p + len, sb)))
+    }
+
     /// Unit direction of the ray through `q` (relative to the eye).
     fn direction(&self, q: [f64; 3]) -> [f64; 3] {
         if !self.perspective {
@@ -98,6 +161,21 @@ impl PapersModel {
     }
 }
 
+/// The gradients of the tet's barycentric coordinates; `None` for a flat tet.
+fn gradients(v: &[[f64; 3]; 4]) -> Option<[[f64; 3]; 4]> {
+    let e = [sub(v[1], v[0]), sub(v[2], v[0]), sub(v[3], v[0])];
+    let det = dot(e[0], cross(e[1], e[2]));
+    if det == 0.0 || !det.is_finite() {
+        return None;
+    }
+    let mut grad = [[0.0; 3]; 4];
+    grad[1] = cross(e[1], e[2]).map(|x| x / det);
+    grad[2] = cross(e[2], e[0]).map(|x| x / det);
+    grad[3] = cross(e[0], e[1]).map(|x| x / det);
+    grad[0] = std::array::from_fn(|c| -(grad[1][c] + grad[2][c] + grad[3][c]));
+    Some(grad)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -109,7 +187,7 @@ mod tests {
     }
 
     fn model(perspective: bool, view_dir: [f64; 3]) -> PapersModel {
-        PapersModel { view_dir, perspective, max_distance: 1e3, max_length: 1.01 * 2f64.sqrt() }
+        PapersModel { view_dir, perspective, max_distance: 1e3, max_length: 1.01 * 2f64.sqrt(), near: 1e-3, cap_depth: 1e-3 }
     }
 
     #[test]
@@ -154,5 +232,48 @@ mod tests {
         // The papers' value: λ_0 = 1/3 of vertex 0's distance to its plane
         // along its own ray (planes 1, 2 and 3 lie behind their vertices).
         assert!((len - exact0 / 3.0).abs() < 1e-12, "{len} vs {}", exact0 / 3.0);
+    }
+
+    #[test]
+    fn cap_interpolates_its_corners_records() {
+        // The eye inside a unit corner tet (relative coordinates: the tet
+        // moved by -eye) near its corner, looking along (1, 1, 1): the cap
+        // is a triangle whose corners lie on the edges from vertex 0, and
+        // every ray through it leaves by the slanted face, about 0.4 away.
+        // Each corner's records are taken along its own ray, which grazes
+        // that face: λ_0 t_0 = 2.26 at every corner, so the interpolated
+        // exit is 2.26 away everywhere, farther than any cell, and the cap
+        // draws nothing (as near.rs + cap.frag draw it: issue 20). Without
+        // that guard the segment starts on the near plane with the exact
+        // scalar (affine, interpolated exactly) and ends 2.26 away.
+        let eye = [0.1, 0.1, 0.1];
+        let v = tet(eye.map(|x| -x));
+        let s = [0.0, 1.0, 2.0, 3.0]; // s = x + 2y + 3z
+        let r = 1.0 / 3f64.sqrt();
+        let mut m = model(true, [r, r, r]);
+        (m.near, m.cap_depth) = (0.05, 0.05 + 1e-7);
+        let c = plane_section(&v, &v.map(|q| dot(q, m.view_dir)), m.cap_depth);
+        assert_eq!(c.len(), 3);
+        let scalar = |d: [f64; 3], t: f64| (0..3).map(|k| [1.0, 2.0, 3.0][k] * (eye[k] + t * d[k])).sum::<f64>();
+        // The corners' common d_0: λ_0(c) (-1 / (∇λ_0 · dir(c))).
+        let corner = c[0].map(|x| x / dot(c[0], c[0]).sqrt());
+        let d0 = (1.0 - eye.iter().sum::<f64>() - dot([1.0; 3], c[0])) / dot([1.0; 3], corner);
+        assert!((d0 - 2.2637).abs() < 1e-3, "{d0}");
+        let unguarded = PapersModel { max_length: 10.0, ..m };
+        for i in 1..10 {
+            for j in 1..10 - i {
+                let w = [f64::from(i) / 10.0, f64::from(j) / 10.0, f64::from(10 - i - j) / 10.0];
+                let q: [f64; 3] = std::array::from_fn(|k| w[0] * c[0][k] + w[1] * c[1][k] + w[2] * c[2][k]);
+                let d = q.map(|x| x / dot(q, q).sqrt());
+                assert!(m.cap_segment(&v, &s, d).is_none(), "{w:?}");
+                let ((t0, s0), (t1, _)) = unguarded.cap_segment(&v, &s, d).unwrap();
+                let t_p = m.cap_depth / dot(d, m.view_dir);
+                assert!((t0 - m.near / dot(d, m.view_dir)).abs() < 1e-12, "starts on the near plane: {t0}");
+                assert!((s0 - scalar(d, t0)).abs() < 1e-6, "{s0} vs {}", scalar(d, t0));
+                assert!((t1 - t_p - d0).abs() < 1e-9, "{t1} vs {}", t_p + d0);
+            }
+        }
+        // A ray that leaves the cell before the cap's plane: no cap.
+        assert!(unguarded.cap_segment(&v, &s, [-r, -r, -r]).is_none());
     }
 }

@@ -528,22 +528,31 @@ impl Tracer<'_> {
             } else {
                 (t_in, s_in)
             };
-            // The segment this cell contributes: exact, or the papers'
-            // from its entry point (but in the cell holding the eye, whose
-            // near cap the model leaves exact).
-            let (t_end, s_end) = match &self.papers {
-                Some(m) if t_in > 0.0 => {
-                    let p = std::array::from_fn(|c| ray.o[c] + t_in * ray.d[c]);
+            // The segment this cell contributes: exact, or the papers' from
+            // its entry point, or in the cell holding the eye (perspective:
+            // entered at or behind the eye) from its near cap.
+            let ((t_start, s_start), (t_end, s_end)) = match &self.papers {
+                Some(m) => {
                     let q = [0, 1, 2, 3].map(|i| sub(mesh.points[v[i] as usize], self.eye));
                     let s = [0, 1, 2, 3].map(|i| scalars[v[i] as usize]);
-                    m.segment(&q, &s, f_in, p, s_in).map_or((t_in, s_in), |(len, sb)| (t_in + len, sb))
+                    let nothing = ((t_in, s_in), (t_in, s_in));
+                    if t_in > 0.0 {
+                        let p = std::array::from_fn(|c| ray.o[c] + t_in * ray.d[c]);
+                        m.segment(&q, &s, f_in, p, s_in).map_or(nothing, |(len, sb)| ((t_in, s_in), (t_in + len, sb)))
+                    } else if m.perspective && t_out > 0.0 {
+                        m.cap_segment(&q, &s, ray.d).unwrap_or(nothing)
+                    } else {
+                        // Behind the eye, or (orthographic) a cell the view
+                        // plane cuts: not modelled, exact.
+                        ((t_in, s_in), (t_out, s_out))
+                    }
                 }
-                _ => (t_out, s_out),
+                None => ((t_in, s_in), (t_out, s_out)),
             };
-            if t_end > t_in && t_end > t_min && t_in < t_max {
-                let (ta, tb) = (t_in.max(t_min), t_end.min(t_max));
-                let lerp = |t: f64| s_in + (s_end - s_in) * ((t - t_in) / (t_end - t_in));
-                let sa = if ta > t_in { lerp(ta) } else { s_in };
+            if t_end > t_start && t_end > t_min && t_start < t_max {
+                let (ta, tb) = (t_start.max(t_min), t_end.min(t_max));
+                let lerp = |t: f64| s_start + (s_end - s_start) * ((t - t_start) / (t_end - t_start));
+                let sa = if ta > t_start { lerp(ta) } else { s_start };
                 let sb = if tb < t_end { lerp(tb) } else { s_end };
                 acc.add(&integrate_segment(self.tf, sa, sb, tb - ta));
             }

@@ -77,6 +77,14 @@ impl Camera {
         matches!(self.projection, Projection::Perspective { .. })
     }
 
+    /// View depth of the plane the near caps lie on (the cell-projection
+    /// methods' `near.rs`, and the papers' model of them): just behind the
+    /// near plane, by a part of the near distance and of the depth range, so
+    /// that rounding does not clip it.
+    pub fn near_cap_depth(&self) -> f64 {
+        self.near + 1e-5 * self.near.abs() + 1e-6 * (self.far - self.near)
+    }
+
     /// Unit vector from the eye towards the target.
     pub fn forward(&self) -> DVec3 {
         (DVec3::from(self.target) - DVec3::from(self.eye)).normalize()

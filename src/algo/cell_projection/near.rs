@@ -7,7 +7,7 @@
 //! starts inside it. So each frame the CPU finds the cells that hold the
 //! eye (none unless the eye is in the mesh's bounding box) and reach past
 //! the near plane, and sends the section of each by a plane just behind the
-//! near plane (`CAP_OFFSET`) as one or two triangles, with the records
+//! near plane (`Camera::near_cap_depth`) as one or two triangles, with the records
 //! `cap.frag` needs at each corner. They are drawn after all cells: on any
 //! ray the segment from the near plane is the first one, so "over" puts it
 //! on top. `cap.frag` integrates from the near plane to the exit, stopped
@@ -24,6 +24,7 @@ use rayon::prelude::*;
 
 use super::{build_pipeline, CellProjector, FrameSetup, Interpolation, RelativeMesh};
 use crate::algo::integrate::IntegrationTables;
+use crate::mesh::geometry::plane_section;
 use crate::scene::Camera;
 use crate::vk::{
     Buffer, BufferDesc, CommandRecorder, Context, DescriptorSet, DescriptorSetDesc, Pipeline, UploadClass, UploadCounter,
@@ -33,12 +34,6 @@ use crate::vk::{BufferUsage, Format, Topology};
 
 /// pos 3, s_f 1, d 4, s 4, w 4, g 1, code 1.
 pub const FLOATS_PER_VERTEX: usize = 18;
-
-/// The cap's plane lies this far behind the near plane, relative to the
-/// near distance, plus this much of the depth range (so that it is not
-/// clipped by rounding; `cap.frag` integrates from the near plane itself).
-const CAP_OFFSET_NEAR: f64 = 1e-5;
-const CAP_OFFSET_RANGE: f64 = 1e-6;
 
 pub struct NearCaps {
     /// Positions relative to the mesh's render origin, and scalars mapped as
@@ -146,7 +141,8 @@ impl NearCaps {
         let fwd = camera.forward();
         let fwd = [fwd.x, fwd.y, fwd.z];
         let depth = |p: [f64; 3]| dot(sub(p, eye), fwd);
-        let cap = camera.near + CAP_OFFSET_NEAR * camera.near.abs() + CAP_OFFSET_RANGE * (camera.far - camera.near);
+        // Just behind the near plane (`cap.frag` integrates from the plane itself).
+        let cap = camera.near_cap_depth();
         // Quick reject: the eye is outside the points' bounding box.
         let (lo, hi) = self.bounds;
         if (0..3).any(|k| eye[k] < lo[k] || eye[k] > hi[k]) {
@@ -171,7 +167,7 @@ impl NearCaps {
             let tet = self.mesh.tets[t];
             let v = tet.map(|i| self.mesh.points[i as usize]);
             let s = tet.map(|i| self.mesh.scalars[i as usize]);
-            let polygon = section(&v, &v.map(depth), cap);
+            let polygon = plane_section(&v, &v.map(depth), cap);
             codes.clear();
             projector.cap_pieces(t, frame, &mut |code| codes.push(code));
             cap_records(&v, &s, &polygon, eye, fwd, frame, &codes, &mut self.records);
@@ -231,24 +227,6 @@ fn holds(v: &[[f64; 3]; 4], p: [f64; 3]) -> bool {
     let l: [f64; 3] = std::array::from_fn(|k| dot(grad[k + 1], r));
     let l0 = 1.0 - l[0] - l[1] - l[2];
     l0 >= -1e-9 && l.iter().all(|&x| x >= -1e-9)
-}
-
-/// The section of a tet (vertices `v` at view depths `z`) by the plane at
-/// depth `cap`: 3 or 4 points, in order around the polygon.
-fn section(v: &[[f64; 3]; 4], z: &[f64; 4], cap: f64) -> Vec<[f64; 3]> {
-    let below: Vec<usize> = (0..4).filter(|&i| z[i] < cap).collect();
-    let above: Vec<usize> = (0..4).filter(|&i| z[i] >= cap).collect();
-    let cut = |i: usize, j: usize| {
-        let t = (cap - z[i]) / (z[j] - z[i]);
-        std::array::from_fn(|k| v[i][k] + (v[j][k] - v[i][k]) * t)
-    };
-    match (below.len(), above.len()) {
-        (1, 3) => above.iter().map(|&j| cut(below[0], j)).collect(),
-        (3, 1) => below.iter().map(|&i| cut(i, above[0])).collect(),
-        // Around the quad: (b0,a0), (b0,a1), (b1,a1), (b1,a0).
-        (2, 2) => vec![cut(below[0], above[0]), cut(below[0], above[1]), cut(below[1], above[1]), cut(below[1], above[0])],
-        _ => Vec::new(),
-    }
 }
 
 /// The records of a cap polygon's triangles, once per piece code, each
@@ -346,18 +324,18 @@ mod tests {
     fn sections_are_polygons_on_the_plane() {
         let v = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
         let z = v.map(|p| p[2]);
-        let tri = section(&v, &z, 0.5);
+        let tri = plane_section(&v, &z, 0.5);
         assert_eq!(tri.len(), 3);
         assert!(tri.iter().all(|p| (p[2] - 0.5).abs() < 1e-12));
         let z = v.map(|p| p[0] + p[1]);
-        let quad = section(&v, &z, 0.5);
+        let quad = plane_section(&v, &z, 0.5);
         assert_eq!(quad.len(), 4);
         // Consecutive corners share a face of the tet: the quad is not self-crossing.
         let area = |a: [f64; 3], b: [f64; 3], c: [f64; 3]| cross(sub(b, a), sub(c, a));
         let n1 = area(quad[0], quad[1], quad[2]);
         let n2 = area(quad[0], quad[2], quad[3]);
         assert!(dot(n1, n2) > 0.0);
-        assert!(section(&v, &z, 5.0).is_empty());
+        assert!(plane_section(&v, &z, 5.0).is_empty());
         let (grad, _) = barycentric(&v).unwrap();
         assert_eq!(grad[1], [1.0, 0.0, 0.0]);
     }

@@ -12,16 +12,8 @@ pub(super) fn camera_inside() -> StressCase {
     StressCase {
         name: "camera-inside".into(),
         description: "eye inside the 8^3 grid, near plane 1e-3, 60 degree field of view".into(),
-        allowances: vec![Allowance {
-            when: &[("interpolation", &["paper"])],
-            extra: Extra::Fixed(5e-2),
-            reason: "the near cap of the cell holding the eye (near.rs), which the papers' model \
-                     (reference::papers, the derived allowance) leaves exact: the cap interpolates the papers' exit \
-                     data from the section's corners, over a polygon that spans much of the image. Not derived: \
-                     measured max |image - model| 8.2e-2 at 128x128 (balanced, vicp), and the rows within 0.258 \
-                     (ppi) with the derived part; exact interpolation meets the accuracy bound at every size"
-                .into(),
-        }],
+        // The papers' allowance (every perspective mesh case) models its near cap.
+        allowances: Vec::new(),
         data: CaseData::TetMesh(mesh),
         camera,
         tf,
