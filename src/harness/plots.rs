@@ -283,22 +283,6 @@ pub fn time_error_scatter(path: &Path, title: &str, y_desc: &str, legend_note: &
         e0 = e0.min(p.error.max(floor));
         e1 = e1.max(p.error.max(floor));
     }
-    // Explicit ticks at 1, 2, 3, 5, 7 x 10^k: a plot often spans less than a
-    // decade, where the log axis would otherwise show no labels at all.
-    let ticks = |lo: f64, hi: f64| -> Vec<f64> {
-        let mut v = Vec::new();
-        let mut decade = 10f64.powf(lo.log10().floor());
-        while decade <= hi {
-            for m in [1.0, 2.0, 3.0, 5.0, 7.0] {
-                let t = m * decade;
-                if t >= lo && t <= hi {
-                    v.push(t);
-                }
-            }
-            decade *= 10.0;
-        }
-        v
-    };
     let (x_range, y_range) = ((t0 / 1.3, t1 * 1.6), (e0 / 1.5, e1 * 1.5));
     let legend_w = series.iter().map(|s| text_width(s, 14)).max().unwrap_or(0).max(text_width(legend_note, 13).min(320)) + 50;
     let (plot_w, h) = (900u32, 700u32);
@@ -315,8 +299,8 @@ pub fn time_error_scatter(path: &Path, title: &str, y_desc: &str, legend_note: &
                 .x_label_area_size(50)
                 .y_label_area_size(80)
                 .build_cartesian_2d(
-                    (x_range.0..x_range.1).log_scale().with_key_points(ticks(x_range.0, x_range.1)),
-                    (y_range.0..y_range.1).log_scale().with_key_points(ticks(y_range.0, y_range.1)),
+                    (x_range.0..x_range.1).log_scale().with_key_points(log_ticks(x_range.0, x_range.1)),
+                    (y_range.0..y_range.1).log_scale().with_key_points(log_ticks(y_range.0, y_range.1)),
                 )?;
             chart
                 .configure_mesh()
@@ -376,9 +360,48 @@ pub fn mark_front<T>(points: &mut [T], key: impl Fn(&T) -> Option<(f64, f64)>, m
     }
 }
 
+
+/// Ticks of a log axis at 1, 2, 3, 5, 7 × 10^k: a plot often spans less
+/// than a decade, where the log axis would otherwise show no label at all.
+pub(crate) fn log_ticks(lo: f64, hi: f64) -> Vec<f64> {
+    let mut v = Vec::new();
+    let mut decade = 10f64.powf(lo.log10().floor());
+    while decade <= hi {
+        for m in [1.0, 2.0, 3.0, 5.0, 7.0] {
+            let t = m * decade;
+            if t >= lo && t <= hi {
+                v.push(t);
+            }
+        }
+        decade *= 10.0;
+    }
+    v
+}
+
+/// A count as an axis label: 500, 20 K, 4 M, 1.5 G.
+pub(crate) fn count_label(v: f64) -> String {
+    let (x, unit) = match v.abs() {
+        a if a >= 1e9 => (v / 1e9, " G"),
+        a if a >= 1e6 => (v / 1e6, " M"),
+        a if a >= 1e3 => (v / 1e3, " K"),
+        _ => (v, ""),
+    };
+    let digits = if x.fract().abs() < 1e-9 { 0 } else { 1 };
+    format!("{x:.digits$}{unit}")
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn log_ticks_label_every_axis_and_counts_read_short() {
+        assert_eq!(log_ticks(300_000.0, 6_000_000.0), vec![300_000.0, 500_000.0, 700_000.0, 1e6, 2e6, 3e6, 5e6]);
+        assert_eq!(count_label(500_000.0), "500 K");
+        assert_eq!(count_label(4_000_000.0), "4 M");
+        assert_eq!(count_label(1_500_000_000.0), "1.5 G");
+        assert_eq!(count_label(20.0), "20");
+    }
 
     fn image(v: f32) -> RgbaImage {
         RgbaImage { width: 8, height: 8, pixels: vec![[v, v, v, 1.0]; 64] }

@@ -446,9 +446,18 @@ fn draw_loglog<B: plotters::prelude::DrawingBackend>(backend: B, title: &str, se
             .margin(20)
             .x_label_area_size(45)
             .y_label_area_size(70)
-            .build_cartesian_2d((x0 / 1.5..x1 * 1.5).log_scale(), (y0 / 1.5..y1 * 1.5).log_scale())
+            .build_cartesian_2d(
+                (x0 / 1.5..x1 * 1.5).log_scale().with_key_points(super::plots::log_ticks(x0 / 1.5, x1 * 1.5)),
+                (y0 / 1.5..y1 * 1.5).log_scale().with_key_points(super::plots::log_ticks(y0 / 1.5, y1 * 1.5)),
+            )
             .map_err(|e| e.to_string())?;
-        chart.configure_mesh().x_desc("tets").label_style(("sans-serif", 14)).draw().map_err(|e| e.to_string())?;
+        chart
+            .configure_mesh()
+            .x_desc("tets")
+            .label_style(("sans-serif", 14))
+            .x_label_formatter(&|v| super::plots::count_label(*v))
+            .y_label_formatter(&|v| if *v >= 10.0 { format!("{v:.0}") } else { format!("{v:.1}") })
+            .draw().map_err(|e| e.to_string())?;
         for (i, (name, pts)) in series.iter().enumerate() {
             let color = Palette99::pick(i).to_rgba();
             chart
