@@ -239,6 +239,11 @@ Node node_at(uint n) {
     uvec4 b = texelFetch(bvh_tb, int(2u * n + 1u));
     return Node(uintBitsToFloat(a.xyz), uintBitsToFloat(b.xyz), a.w, b.w);
 }
+// A node's link and primitive count in one word (first << LINK_SHIFT |
+// count; tet_raycast.rs checks that node and face indices fit).
+const uint LINK_SHIFT = 3u;
+const uint LINK_COUNT_MASK = 7u;
+uint node_link(Node n) { return (n.first << LINK_SHIFT) | n.count; }
 layout(std430, set = 1, binding = 5) buffer Counters {
     uint cells_lo;          // cells visited, all rays (64 bits: lo, hi)
     uint cells_hi;
@@ -302,12 +307,14 @@ vec2 edge_lo_hi(vec3 q_lo, vec3 p_lo, vec3 p_hi) {
     return vec2(w, s);
 }
 
-// The edge a -> b (global indices a, b): (value, sign).
+// The edge a -> b (global indices a, b): (value, sign). The canonical
+// orientation is chosen by selects, not a branch: lanes of one SIMD vector
+// disagree on a < b about half the time, and a branch would run
+// edge_lo_hi twice for all of them.
 vec2 oriented(uint a, uint b, vec3 qa, vec3 qb, vec3 pa, vec3 pb) {
-    if (a < b) {
-        return edge_lo_hi(qa, pa, pb);
-    }
-    return -edge_lo_hi(qb, pb, pa);
+    bool fwd = a < b;
+    vec2 e = edge_lo_hi(fwd ? qa : qb, fwd ? pa : pb, fwd ? pb : pa);
+    return fwd ? e : -e;
 }
 
 // The crossing of the ray line with the face whose vertex offsets are q and
@@ -385,51 +392,57 @@ bool hit_bound = false;
 // (t_prev, id_prev) (any when !have_prev) with t >= t_lo. Depth-first
 // through the BVH, pruned by the best entry so far: an inner node's two
 // children are tested where it is popped and pushed with their near depths,
-// the nearer last (popped first), so each node is fetched once and a child
-// whose box the ray misses is never pushed. The result is the least entry
-// whatever the order; the order only prunes sooner.
+// the nearer last (popped first) with their links, so each node is fetched
+// once (as a child) and a child whose box the ray misses is never pushed.
+// The result is the least entry whatever the order; the order only prunes
+// sooner.
 bool next_entry(float t_lo, bool have_prev, float t_prev, uint id_prev, out float t_best, out float s_best, out uint id_best) {
     vec3 inv = inverse_direction();
     t_best = INF;
     s_best = 0.0;
     id_best = NONE;
+    // An entry holds the node's link and count (node_link), not its index:
+    // the box was read where the node was pushed, so a pop reads nothing.
     uint stack[48];
     float stack_t[48];
     int sp = 0;
     Node root = node_at(0u);
     vec2 root_span = box_span(root, inv);
     if (root_span.x <= root_span.y && root_span.y >= t_lo) {
-        stack[sp] = 0u;
+        stack[sp] = node_link(root);
         stack_t[sp] = root_span.x;
         sp++;
     }
     while (sp > 0) {
         --sp;
         if (stack_t[sp] > t_best) continue;
-        Node n = node_at(stack[sp]);
+        uint first = stack[sp] >> LINK_SHIFT;
+        uint count = stack[sp] & LINK_COUNT_MASK;
         n_nodes += 1u;
-        if (n.count == 0u) {
+        if (count == 0u) {
             if (sp + 2 > 48) continue;  // cannot happen: the tree is at most 40 levels deep
-            vec2 sl = box_span(node_at(n.first), inv);
-            vec2 sr = box_span(node_at(n.first + 1u), inv);
+            Node l = node_at(first);
+            Node r = node_at(first + 1u);
+            vec2 sl = box_span(l, inv);
+            vec2 sr = box_span(r, inv);
             bool hl = sl.x <= sl.y && sl.y >= t_lo && sl.x <= t_best;
             bool hr = sr.x <= sr.y && sr.y >= t_lo && sr.x <= t_best;
             bool left_first = sl.x <= sr.x;
             // Push the farther child first.
             if (left_first ? hr : hl) {
-                stack[sp] = left_first ? n.first + 1u : n.first;
+                stack[sp] = left_first ? node_link(r) : node_link(l);
                 stack_t[sp] = left_first ? sr.x : sl.x;
                 sp++;
             }
             if (left_first ? hl : hr) {
-                stack[sp] = left_first ? n.first : n.first + 1u;
+                stack[sp] = left_first ? node_link(l) : node_link(r);
                 stack_t[sp] = left_first ? sl.x : sr.x;
                 sp++;
             }
             continue;
         }
-        for (uint k = 0u; k < n.count; ++k) {
-            uvec4 face = texelFetch(prims_tb, int(n.first + k));
+        for (uint k = 0u; k < count; ++k) {
+            uvec4 face = texelFetch(prims_tb, int(first + k));
             uint slot = face.x & ~SOLID_BIT;
             n_faces += 1u;
             vec2 ts;

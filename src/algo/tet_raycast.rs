@@ -91,6 +91,10 @@ const RECT_PAD: f64 = 2.0;
 const SOLID_BIT: u32 = 1 << 31;
 /// Counter words read back after every frame (`Counters` in walk.comp).
 const COUNTER_WORDS: usize = 14;
+/// Bits of a BVH stack entry below the node's link, holding its face count
+/// (`LINK_SHIFT` in walk.comp).
+const LINK_SHIFT: u32 = 3;
+const _: () = assert!(LEAF_FACES < 1 << LINK_SHIFT);
 /// The BVH's depth bound the shader's traversal stack holds (48 entries).
 const MAX_BVH_DEPTH: usize = 40;
 
@@ -389,6 +393,10 @@ impl TetRaycast {
         let bvh = build_face_bvh(&faces, (1e-5 * diag) as f32);
         if bvh.depth > MAX_BVH_DEPTH {
             bail!("mesh '{}': boundary-face BVH {} levels deep, more than the shader's {MAX_BVH_DEPTH}", mesh.name, bvh.depth);
+        }
+        // The traversal stack holds a node's link and count in one word.
+        if bvh.nodes.len().max(bvh.prims.len()) as u64 >= 1u64 << (32 - LINK_SHIFT) {
+            bail!("mesh '{}': boundary-face BVH of {} nodes over {} faces is too large for the shader's node links", mesh.name, bvh.nodes.len(), bvh.prims.len());
         }
 
         // Everything the shader reads per ray (points, cells with their
