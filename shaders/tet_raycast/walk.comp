@@ -40,22 +40,24 @@ layout(push_constant) uniform Frame {
 // A mesh larger than one texel buffer may hold (algo/chunks.rs) comes in
 // POINT_CHUNKS buffers of POINT_PER_CHUNK points and, for each per-cell
 // array, CELL_CHUNKS buffers of CELL_PER_CHUNK cells: chunk 0 at the
-// array's binding below, the others after the counters (binding 7 on), the
-// points' first, then the cells', the neighbours' and the solid flags'.
+// array's binding below, the others after the counters (binding 6 on), the
+// points' first, then the cells' and the neighbours'.
 #ifndef POINT_CHUNKS
 #define POINT_CHUNKS 1
 #endif
 #ifndef CELL_CHUNKS
 #define CELL_CHUNKS 1
 #endif
-#define POINT_CHUNK_BINDING 7
+#define POINT_CHUNK_BINDING 6
 #define TET_CHUNK_BINDING (POINT_CHUNK_BINDING + POINT_CHUNKS - 1)
 #define NEIGHBOR_CHUNK_BINDING (TET_CHUNK_BINDING + CELL_CHUNKS - 1)
-#define SOLID_CHUNK_BINDING (NEIGHBOR_CHUNK_BINDING + CELL_CHUNKS - 1)
 layout(set = 1, binding = 0) uniform samplerBuffer points_tb;      // xyz: position; w: scalar
-layout(set = 1, binding = 1) uniform usamplerBuffer tets_tb;       // vertex indices
+layout(set = 1, binding = 1) uniform usamplerBuffer tets_tb;       // vertex indices, w | SOLID_BIT if solid
 layout(set = 1, binding = 2) uniform usamplerBuffer neighbors_tb;  // cell c: [f] = 4 c' + f', NONE on the boundary
-layout(set = 1, binding = 3) uniform usamplerBuffer solid_tb;      // 1: positive volume; 0: flat
+// A cell's solid flag (positive volume; flat cells are crossed either way)
+// rides in the top bit of its fourth vertex index and of its boundary faces'
+// slots (tet_raycast.rs checks both stay below it): no fetch of its own.
+const uint SOLID_BIT = 0x80000000u;
 #if POINT_CHUNKS > 1
 layout(set = 1, binding = POINT_CHUNK_BINDING + 0) uniform samplerBuffer points_tb_1;
 #endif
@@ -118,27 +120,6 @@ layout(set = 1, binding = NEIGHBOR_CHUNK_BINDING + 5) uniform usamplerBuffer nei
 #endif
 #if CELL_CHUNKS > 7
 layout(set = 1, binding = NEIGHBOR_CHUNK_BINDING + 6) uniform usamplerBuffer neighbors_tb_7;
-#endif
-#if CELL_CHUNKS > 1
-layout(set = 1, binding = SOLID_CHUNK_BINDING + 0) uniform usamplerBuffer solid_tb_1;
-#endif
-#if CELL_CHUNKS > 2
-layout(set = 1, binding = SOLID_CHUNK_BINDING + 1) uniform usamplerBuffer solid_tb_2;
-#endif
-#if CELL_CHUNKS > 3
-layout(set = 1, binding = SOLID_CHUNK_BINDING + 2) uniform usamplerBuffer solid_tb_3;
-#endif
-#if CELL_CHUNKS > 4
-layout(set = 1, binding = SOLID_CHUNK_BINDING + 3) uniform usamplerBuffer solid_tb_4;
-#endif
-#if CELL_CHUNKS > 5
-layout(set = 1, binding = SOLID_CHUNK_BINDING + 4) uniform usamplerBuffer solid_tb_5;
-#endif
-#if CELL_CHUNKS > 6
-layout(set = 1, binding = SOLID_CHUNK_BINDING + 5) uniform usamplerBuffer solid_tb_6;
-#endif
-#if CELL_CHUNKS > 7
-layout(set = 1, binding = SOLID_CHUNK_BINDING + 6) uniform usamplerBuffer solid_tb_7;
 #endif
 vec4 point_at(uint i) {
 #if POINT_CHUNKS > 1
@@ -237,38 +218,6 @@ uvec4 neighbors_of(uint c) {
 #endif
 }
 uint neighbor_at(uint slot) { return neighbors_of(slot >> 2)[slot & 3u]; }
-uint solid_at(uint c) {
-#if CELL_CHUNKS > 1
-    uint k = (c) / uint(CELL_PER_CHUNK);
-    int j = int((c) - k * uint(CELL_PER_CHUNK));
-    switch (k) {
-#if CELL_CHUNKS > 1
-    case 1u: return texelFetch(solid_tb_1, j).r;
-#endif
-#if CELL_CHUNKS > 2
-    case 2u: return texelFetch(solid_tb_2, j).r;
-#endif
-#if CELL_CHUNKS > 3
-    case 3u: return texelFetch(solid_tb_3, j).r;
-#endif
-#if CELL_CHUNKS > 4
-    case 4u: return texelFetch(solid_tb_4, j).r;
-#endif
-#if CELL_CHUNKS > 5
-    case 5u: return texelFetch(solid_tb_5, j).r;
-#endif
-#if CELL_CHUNKS > 6
-    case 6u: return texelFetch(solid_tb_6, j).r;
-#endif
-#if CELL_CHUNKS > 7
-    case 7u: return texelFetch(solid_tb_7, j).r;
-#endif
-    default: return texelFetch(solid_tb, j).r;
-    }
-#else
-    return texelFetch(solid_tb, int(c)).r;
-#endif
-}
 // The BVH over the boundary faces and its face list, as uint texels (a
 // node's box is float bits, its links uint: uintBitsToFloat keeps both
 // exact). Texel fetches, not storage-buffer loads: the traversal's node
@@ -280,14 +229,22 @@ struct Node {
     uint first;  // inner: left child index (right = left + 1); leaf: first primitive
     uint count;  // 0 for an inner node, else the primitive count
 };
-layout(set = 1, binding = 4) uniform usamplerBuffer bvh_tb;    // node n: texels 2n (min, first), 2n + 1 (max, count)
-layout(set = 1, binding = 5) uniform usamplerBuffer prims_tb;  // boundary face slots 4 c + f
+layout(set = 1, binding = 3) uniform usamplerBuffer bvh_tb;    // node n: texels 2n (min, first), 2n + 1 (max, count)
+// Boundary faces in leaf order: (slot 4 c + f | SOLID_BIT if cell c is
+// solid, the face's three vertex indices in FACE_VERTS order), so a face
+// test fetches this texel and the three points, not the cell too.
+layout(set = 1, binding = 4) uniform usamplerBuffer prims_tb;
 Node node_at(uint n) {
     uvec4 a = texelFetch(bvh_tb, int(2u * n));
     uvec4 b = texelFetch(bvh_tb, int(2u * n + 1u));
     return Node(uintBitsToFloat(a.xyz), uintBitsToFloat(b.xyz), a.w, b.w);
 }
-layout(std430, set = 1, binding = 6) buffer Counters {
+// A node's link and primitive count in one word (first << LINK_SHIFT |
+// count; tet_raycast.rs checks that node and face indices fit).
+const uint LINK_SHIFT = 3u;
+const uint LINK_COUNT_MASK = 7u;
+uint node_link(Node n) { return (n.first << LINK_SHIFT) | n.count; }
+layout(std430, set = 1, binding = 5) buffer Counters {
     uint cells_lo;          // cells visited, all rays (64 bits: lo, hi)
     uint cells_hi;
     uint max_cells;         // most cells one ray visited
@@ -350,12 +307,14 @@ vec2 edge_lo_hi(vec3 q_lo, vec3 p_lo, vec3 p_hi) {
     return vec2(w, s);
 }
 
-// The edge a -> b (global indices a, b): (value, sign).
+// The edge a -> b (global indices a, b): (value, sign). The canonical
+// orientation is chosen by selects, not a branch: lanes of one SIMD vector
+// disagree on a < b about half the time, and a branch would run
+// edge_lo_hi twice for all of them.
 vec2 oriented(uint a, uint b, vec3 qa, vec3 qb, vec3 pa, vec3 pb) {
-    if (a < b) {
-        return edge_lo_hi(qa, pa, pb);
-    }
-    return -edge_lo_hi(qb, pb, pa);
+    bool fwd = a < b;
+    vec2 e = edge_lo_hi(fwd ? qa : qb, fwd ? pa : pb, fwd ? pb : pa);
+    return fwd ? e : -e;
 }
 
 // The crossing of the ray line with the face whose vertex offsets are q and
@@ -381,18 +340,15 @@ bool crossing(vec3 q0, vec3 q1, vec3 q2, vec3 bw, vec3 sv, out vec2 ts) {
 
 // Whether the ray crosses boundary face `slot` entering the mesh (any way
 // for a flat cell, whose orientation says nothing), and where: (t, s).
-bool enters(uint slot, out vec2 ts) {
-    uint c = slot >> 2;
-    uvec3 fv = FACE_VERTS[slot & 3u];
-    uvec4 t4 = tet_at(c);
-    uint v[3] = uint[3](t4[fv.x], t4[fv.y], t4[fv.z]);
+bool enters(uvec4 face, out vec2 ts) {
+    uint v[3] = uint[3](face.y, face.z, face.w);
     vec4 p0 = point_at(v[0]);
     vec4 p1 = point_at(v[1]);
     vec4 p2 = point_at(v[2]);
     vec3 q0 = rel(p0.xyz);
     vec3 q1 = rel(p1.xyz);
     vec3 q2 = rel(p2.xyz);
-    bool either_way = solid_at(c) == 0u;
+    bool either_way = face.x < SOLID_BIT;
     vec2 e01 = oriented(v[0], v[1], q0, q1, p0.xyz, p1.xyz);
     if (e01.y == 0.0 || (e01.y > 0.0 && !either_way)) return false;
     vec2 e12 = oriented(v[1], v[2], q1, q2, p1.xyz, p2.xyz);
@@ -436,54 +392,61 @@ bool hit_bound = false;
 // (t_prev, id_prev) (any when !have_prev) with t >= t_lo. Depth-first
 // through the BVH, pruned by the best entry so far: an inner node's two
 // children are tested where it is popped and pushed with their near depths,
-// the nearer last (popped first), so each node is fetched once and a child
-// whose box the ray misses is never pushed. The result is the least entry
-// whatever the order; the order only prunes sooner.
+// the nearer last (popped first) with their links, so each node is fetched
+// once (as a child) and a child whose box the ray misses is never pushed.
+// The result is the least entry whatever the order; the order only prunes
+// sooner.
 bool next_entry(float t_lo, bool have_prev, float t_prev, uint id_prev, out float t_best, out float s_best, out uint id_best) {
     vec3 inv = inverse_direction();
     t_best = INF;
     s_best = 0.0;
     id_best = NONE;
+    // An entry holds the node's link and count (node_link), not its index:
+    // the box was read where the node was pushed, so a pop reads nothing.
     uint stack[48];
     float stack_t[48];
     int sp = 0;
     Node root = node_at(0u);
     vec2 root_span = box_span(root, inv);
     if (root_span.x <= root_span.y && root_span.y >= t_lo) {
-        stack[sp] = 0u;
+        stack[sp] = node_link(root);
         stack_t[sp] = root_span.x;
         sp++;
     }
     while (sp > 0) {
         --sp;
         if (stack_t[sp] > t_best) continue;
-        Node n = node_at(stack[sp]);
+        uint first = stack[sp] >> LINK_SHIFT;
+        uint count = stack[sp] & LINK_COUNT_MASK;
         n_nodes += 1u;
-        if (n.count == 0u) {
+        if (count == 0u) {
             if (sp + 2 > 48) continue;  // cannot happen: the tree is at most 40 levels deep
-            vec2 sl = box_span(node_at(n.first), inv);
-            vec2 sr = box_span(node_at(n.first + 1u), inv);
+            Node l = node_at(first);
+            Node r = node_at(first + 1u);
+            vec2 sl = box_span(l, inv);
+            vec2 sr = box_span(r, inv);
             bool hl = sl.x <= sl.y && sl.y >= t_lo && sl.x <= t_best;
             bool hr = sr.x <= sr.y && sr.y >= t_lo && sr.x <= t_best;
             bool left_first = sl.x <= sr.x;
             // Push the farther child first.
             if (left_first ? hr : hl) {
-                stack[sp] = left_first ? n.first + 1u : n.first;
+                stack[sp] = left_first ? node_link(r) : node_link(l);
                 stack_t[sp] = left_first ? sr.x : sl.x;
                 sp++;
             }
             if (left_first ? hl : hr) {
-                stack[sp] = left_first ? n.first : n.first + 1u;
+                stack[sp] = left_first ? node_link(l) : node_link(r);
                 stack_t[sp] = left_first ? sl.x : sr.x;
                 sp++;
             }
             continue;
         }
-        for (uint k = 0u; k < n.count; ++k) {
-            uint slot = texelFetch(prims_tb, int(n.first + k)).r;
+        for (uint k = 0u; k < count; ++k) {
+            uvec4 face = texelFetch(prims_tb, int(first + k));
+            uint slot = face.x & ~SOLID_BIT;
             n_faces += 1u;
             vec2 ts;
-            if (!enters(slot, ts)) continue;
+            if (!enters(face, ts)) continue;
             if (ts.x < t_lo) continue;
             if (have_prev && !before(t_prev, id_prev, ts.x, slot)) continue;
             if (before(ts.x, slot, t_best, id_best)) {
@@ -526,6 +489,8 @@ int walk(uint face, float t_in, float s_in, float t_min, float t_max, out float 
     uint stall = 0u;
     t_exit = t_in;
     uvec4 v = tet_at(tet);
+    bool solid = v.w >= SOLID_BIT;
+    v.w &= ~SOLID_BIT;
     uvec3 fv0 = FACE_VERTS[f_in];
     uint a0 = v[fv0.x];
     uint a1 = v[fv0.y];
@@ -549,7 +514,7 @@ int walk(uint face, float t_in, float s_in, float t_min, float t_max, out float 
         // entry face's outward order, FACE_VERTS, carries sign +1) is being
         // walked backwards (only after a flat boundary cell): stop there, as
         // the reference does.
-        if (solid_at(tet) != 0u) {
+        if (solid) {
             uvec3 fv = FACE_VERTS[f_in];
             uint x = v[fv.x];
             uint y = v[fv.y];
@@ -665,6 +630,8 @@ int walk(uint face, float t_in, float s_in, float t_min, float t_max, out float 
         t_in = t_out;
         s_in = s_out;
         v = tet_at(tet);
+        solid = v.w >= SOLID_BIT;
+        v.w &= ~SOLID_BIT;
     }
     return WALK_DONE;
 }

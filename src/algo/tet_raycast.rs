@@ -61,7 +61,7 @@ use super::chunks::{ChunkLimits, TexelChunks};
 use super::host_memory::HostMemory;
 use super::integrate::{check_table_size, IntegrationTables, Integrator};
 use super::method::{DataKind, Family, MethodInfo, MethodInputs, OptionSpec, Options, Phases, RenderMethod, SceneData, View, Work};
-use crate::mesh::adjacency::{FACE_VERTS, NONE};
+use crate::mesh::adjacency::FACE_VERTS;
 use crate::mesh::TetMesh;
 use crate::mesh::topology::Topology;
 use crate::scene::Camera;
@@ -86,8 +86,15 @@ pub const PUSH_BYTES: u32 = 112;
 /// Pixels added around the boundary's projected box before pixels outside
 /// it are skipped (covers the f32 rounding of the shader's rays).
 const RECT_PAD: f64 = 2.0;
+/// The top bit of a cell's fourth vertex index and of a boundary face's
+/// slot: the cell is solid (`SOLID_BIT` in walk.comp).
+const SOLID_BIT: u32 = 1 << 31;
 /// Counter words read back after every frame (`Counters` in walk.comp).
 const COUNTER_WORDS: usize = 14;
+/// Bits of a BVH stack entry below the node's link, holding its face count
+/// (`LINK_SHIFT` in walk.comp).
+const LINK_SHIFT: u32 = 3;
+const _: () = assert!(LEAF_FACES < 1 << LINK_SHIFT);
 /// The BVH's depth bound the shader's traversal stack holds (48 entries).
 const MAX_BVH_DEPTH: usize = 40;
 
@@ -321,8 +328,13 @@ impl TetRaycast {
         counter: &mut UploadCounter,
     ) -> Result<Self> {
         let n = mesh.tets.len();
-        if (n as u64) * 4 >= u64::from(NONE) {
-            bail!("mesh '{}': {n} cells are too many for 32-bit face slots", mesh.name);
+        // Face slots 4 c + f and vertex indices leave the top bit free for
+        // the solid flag (SOLID_BIT in walk.comp).
+        if (n as u64) * 4 > u64::from(!SOLID_BIT) {
+            bail!("mesh '{}': {n} cells are too many for 31-bit face slots", mesh.name);
+        }
+        if mesh.points.len() as u64 > u64::from(!SOLID_BIT) {
+            bail!("mesh '{}': {} points are too many for 31-bit vertex indices", mesh.name, mesh.points.len());
         }
         // The per-point and per-cell arrays are split at the device's
         // limits (`algo::chunks`); their total is checked against its memory.
@@ -355,7 +367,8 @@ impl TetRaycast {
             .zip(&mesh.scalars)
             .map(|(p, s)| [(p[0] - origin[0]) as f32, (p[1] - origin[1]) as f32, (p[2] - origin[2]) as f32, ((s - so) / ss) as f32])
             .collect();
-        let solid: Vec<u32> = topo.solid.iter().map(|&s| s as u32).collect();
+        let solid_bit = |c: usize| if topo.solid[c] { SOLID_BIT } else { 0 };
+        let cells: Vec<[u32; 4]> = mesh.tets.iter().enumerate().map(|(c, t)| [t[0], t[1], t[2], t[3] | solid_bit(c)]).collect();
         let faces: Vec<(u32, [[f32; 3]; 3])> = topo
             .boundary
             .iter()
@@ -381,14 +394,18 @@ impl TetRaycast {
         if bvh.depth > MAX_BVH_DEPTH {
             bail!("mesh '{}': boundary-face BVH {} levels deep, more than the shader's {MAX_BVH_DEPTH}", mesh.name, bvh.depth);
         }
+        // The traversal stack holds a node's link and count in one word.
+        if bvh.nodes.len().max(bvh.prims.len()) as u64 >= 1u64 << (32 - LINK_SHIFT) {
+            bail!("mesh '{}': boundary-face BVH of {} nodes over {} faces is too large for the shader's node links", mesh.name, bvh.nodes.len(), bvh.prims.len());
+        }
 
-        // Everything the shader reads per ray (points, cells, neighbours,
-        // solid flags, the BVH and its face list) is in uniform texel
+        // Everything the shader reads per ray (points, cells with their
+        // solid flags, neighbours, the BVH and its face list) is in uniform texel
         // buffers: a texel fetch per lookup, where a storage-buffer load with
         // a per-ray index is, on llvmpipe, a loop over the SIMD lanes per
         // component (integrate.rs). The BVH nodes are uint texels (their
         // float boxes pass as bits).
-        // Each array in texel buffers within the device's limits; the three
+        // Each array in texel buffers within the device's limits; the two
         // per-cell arrays share one chunk length (the shader's CELL_PER_CHUNK),
         // that of the 16-byte texels.
         let per_point = limits.texel_chunk(16, 1);
@@ -396,9 +413,8 @@ impl TetRaycast {
         let neighbours: &[[u32; 4]] = bytemuck::cast_slice(&topo.neighbor);
         let chunked = [
             TexelChunks::upload_slice(ctx, "tet-raycast points", &points, Format::Rgba32Float, per_point, counter)?,
-            TexelChunks::upload_slice(ctx, "tet-raycast cells", &mesh.tets, Format::Rgba32Uint, per_cell, counter)?,
+            TexelChunks::upload_slice(ctx, "tet-raycast cells", &cells, Format::Rgba32Uint, per_cell, counter)?,
             TexelChunks::upload_slice(ctx, "tet-raycast neighbours", neighbours, Format::Rgba32Uint, per_cell, counter)?,
-            TexelChunks::upload_slice(ctx, "tet-raycast solid flags", &solid, Format::R32Uint, per_cell, counter)?,
         ];
         let device_chunks = json!({
             "point_buffers": chunked[0].buffers.len(),
@@ -407,7 +423,7 @@ impl TetRaycast {
             "cells_per_buffer": chunked[1].per_chunk,
         });
         let chunk_defines: Vec<(String, String)> = chunked[0].defines("POINT").into_iter().chain(chunked[1].defines("CELL")).collect();
-        // Chunk 0 of each array at bindings 0-3, the others from binding 7
+        // Chunk 0 of each array at bindings 0-2, the others from binding 6
         // on (walk.comp).
         let (firsts, rests): (Vec<TexelBuffer>, Vec<Vec<TexelBuffer>>) = chunked
             .into_iter()
@@ -422,9 +438,18 @@ impl TetRaycast {
         // declares no chunks for them: a BVH that large would need more
         // boundary faces than any mesh that fits the device).
         let node_texels: &[[u32; 4]] = bytemuck::cast_slice(&bvh.nodes);
+        let face_texels: Vec<[u32; 4]> = bvh
+            .prims
+            .iter()
+            .map(|&slot| {
+                let (c, f) = ((slot >> 2) as usize, (slot & 3) as usize);
+                let [a, b, d] = FACE_VERTS[f].map(|l| mesh.tets[c][l]);
+                [slot | solid_bit(c), a, b, d]
+            })
+            .collect();
         let bvh_buffers = [
             TexelChunks::upload_slice(ctx, "tet-raycast boundary BVH", node_texels, Format::Rgba32Uint, limits.texel_chunk(16, 1), counter)?,
-            TexelChunks::upload_slice(ctx, "tet-raycast boundary faces", &bvh.prims, Format::R32Uint, limits.texel_chunk(4, 1), counter)?,
+            TexelChunks::upload_slice(ctx, "tet-raycast boundary faces", &face_texels, Format::Rgba32Uint, limits.texel_chunk(16, 1), counter)?,
         ];
         let mut bvh_texel_buffers = Vec::with_capacity(2);
         for chunks in bvh_buffers {
@@ -449,7 +474,7 @@ impl TetRaycast {
             },
         )?;
         let compute = Stages::COMPUTE;
-        let mut mesh_desc = DescriptorSetDesc::new(&[(DescriptorKind::UniformTexelBuffer, compute); 6]).with(DescriptorKind::StorageBuffer, compute);
+        let mut mesh_desc = DescriptorSetDesc::new(&[(DescriptorKind::UniformTexelBuffer, compute); 5]).with(DescriptorKind::StorageBuffer, compute);
         for _ in &extra {
             mesh_desc = mesh_desc.with(DescriptorKind::UniformTexelBuffer, compute);
         }
