@@ -28,9 +28,14 @@ fn data_split_at_lowered_limits_draws_the_same_image() {
     // per storage binding);
     // balanced's 112-byte records in 5 draws of 1828. 32 KiB: tet-raycast's
     // points (2,288) in 2 buffers of 2048 texels, each per-cell array in 5.
-    let cases: [Case; 3] = [
+    // 1 MiB: VICP's 528-byte records in 5 draws of 1985. 200 KiB: ATFS's
+    // 112-byte pieces (11,263 with post-small's transfer function) in 7
+    // draws of 1828.
+    let cases: [Case; 5] = [
         ("resident", 200 << 10, &[("cell_buffers", 7), ("cells_per_buffer", 1422), ("draws", 5), ("cells_per_draw", 1828)]),
         ("balanced", 200 << 10, &[("draws", 5), ("cells_per_draw", 1828)]),
+        ("vicp", 1 << 20, &[("draws", 5), ("cells_per_draw", 1985)]),
+        ("atfs", 200 << 10, &[("draws", 7), ("pieces_per_draw", 1828)]),
         ("tet-raycast", 32 << 10, &[("point_buffers", 2), ("points_per_buffer", 2048), ("buffers_per_cell_array", 5)]),
     ];
     for (spec, limit, expected) in cases {

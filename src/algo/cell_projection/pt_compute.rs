@@ -69,7 +69,12 @@ pub const METHOD: MethodInfo = render::method_info(
 fn create(inputs: MethodInputs) -> anyhow::Result<Box<dyn RenderMethod>> {
     // Per frame: a list entry per pixel a cell covers, about 36 per cell on
     // the oxygen post at 512^2 (18.4 M pairs); stored: resident's cell.
-    let bytes = render::DeviceBytesPerCell { frame: PAIRS_PER_CELL * BYTES_PER_ENTRY, fixed: FLOATS_PER_STORED_CELL * 4 };
+    // Host: positions (48), footprints (at most 40) and the pixel lists.
+    let bytes = render::DeviceBytesPerCell {
+        frame: PAIRS_PER_CELL * BYTES_PER_ENTRY,
+        fixed: FLOATS_PER_STORED_CELL * 4,
+        host: 48 + std::mem::size_of::<Footprint>() + PAIRS_PER_CELL * BYTES_PER_ENTRY,
+    };
     let stages = Stages::FRAGMENT | Stages::COMPUTE;
     render::CellProjection::create_for_stages(inputs, bytes, stages, |ctx, mesh, tables, draw, counter| {
         Ok(Box::new(PtCompute::new(ctx, mesh, tables, draw, counter)?))

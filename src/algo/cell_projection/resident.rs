@@ -49,6 +49,8 @@ fn create(inputs: MethodInputs) -> anyhow::Result<Box<dyn RenderMethod>> {
     let bytes = render::DeviceBytesPerCell {
         frame: 0,
         fixed: BYTES_PER_CELL_PER_FRAME + MAX_INDICES_PER_CELL * 4 + FLOATS_PER_STORED_CELL * 4 + FLOATS_PER_CELL * 4,
+        // The order's copy.
+        host: 4,
     };
     render::CellProjection::create(inputs, bytes, |ctx, mesh, tables, draw, counter| {
         Ok(Box::new(Resident::new(ctx, mesh, tables, draw, counter)?))

@@ -98,6 +98,7 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
     let bytes = render::DeviceBytesPerCell {
         frame: 0,
         fixed: MAX_INDICES_PER_CELL * 4 + FLOATS_PER_STORED_CELL * 4 + super::device_sort::DEVICE_BYTES_PER_CELL,
+        host: 0,
     };
     render::CellProjection::create(inputs, bytes, |ctx, mesh, tables, draw, counter| {
         Ok(Box::new(ResidentGpuSort::new(ctx, mesh, tables, draw, counter)?))
