@@ -29,13 +29,15 @@ fn data_split_at_lowered_limits_draws_the_same_image() {
     // balanced's 112-byte records in 5 draws of 1828. 32 KiB: tet-raycast's
     // points (2,288) in 2 buffers of 2048 texels, each per-cell array in 5.
     // 1 MiB: VICP's 528-byte records in 5 draws of 1985. 200 KiB: ATFS's
-    // 112-byte pieces (11,263 with post-small's transfer function) in 7
-    // draws of 1828.
-    let cases: [Case; 5] = [
+    // 112-byte pieces (11,193 with post-small's transfer function) in 7
+    // draws of 1828; pt-compute's 144-byte stored cells as resident's, in 7
+    // texel buffers of 1422.
+    let cases: [Case; 6] = [
         ("resident", 200 << 10, &[("cell_buffers", 7), ("cells_per_buffer", 1422), ("draws", 5), ("cells_per_draw", 1828)]),
         ("balanced", 200 << 10, &[("draws", 5), ("cells_per_draw", 1828)]),
         ("vicp", 1 << 20, &[("draws", 5), ("cells_per_draw", 1985)]),
         ("atfs", 200 << 10, &[("draws", 7), ("pieces_per_draw", 1828)]),
+        ("pt-compute", 200 << 10, &[("cell_buffers", 7), ("cells_per_buffer", 1422)]),
         ("tet-raycast", 32 << 10, &[("point_buffers", 2), ("points_per_buffer", 2048), ("buffers_per_cell_array", 5)]),
     ];
     for (spec, limit, expected) in cases {
@@ -93,6 +95,15 @@ fn data_split_at_lowered_limits_draws_the_same_image() {
     let msg = format!("{e:#}");
     assert!(msg.contains("resident cells") && msg.contains(&format!("more than the {MAX_CHUNKS} bindings")), "{msg}");
     assert!(ctx.validation_messages().is_empty(), "{:?}", ctx.validation_messages());
+
+    // Memory is checked before allocating, host bytes with device bytes: a
+    // trillion cells are refused naming the memory (on a CPU device both
+    // together), a thousand pass.
+    let e = volbench::algo::chunks::check_memory(&ctx.info, 1 << 40, 528, 1120).expect_err("a trillion cells cannot fit");
+    let msg = format!("{e:#}");
+    let names = if ctx.info.is_cpu() { "device and host memory together" } else { "memory" };
+    assert!(msg.contains(names) && msg.contains("1099511627776 cells"), "{msg}");
+    volbench::algo::chunks::check_memory(&ctx.info, 1000, 528, 1120).unwrap();
 
     // A knob that is not a byte count is refused naming it.
     std::env::set_var(DEVICE_LIMIT_VAR, "lots");
