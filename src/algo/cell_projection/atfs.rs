@@ -35,7 +35,7 @@ use super::balanced::{
     cell_records, CODE_FLAGS_SHIFT, CODE_MAX_PIECES, CODE_PIECE_SHIFT, FLOATS_PER_CELL, FLOATS_PER_VERTEX, VERTICES_PER_CELL};
 use super::render;
 use super::{build_pipeline, cells_f32, scalar_map, CellF32, CellProjector, FrameSetup, DrawSettings, StaticIndices, MAX_INDICES_PER_CELL};
-use crate::algo::chunks::{ChunkLimits, VertexChunks};
+use crate::algo::chunks::VertexChunks;
 use crate::algo::host_memory::HostMemory;
 use crate::algo::integrate::IntegrationTables;
 use crate::algo::method::{MethodInfo, MethodInputs, Published, PublishedFigure, RenderMethod};
@@ -289,14 +289,7 @@ impl Atfs {
         let usage = BufferUsage::STORAGE;
         let interval_buffer = upload_static(ctx, "atfs intervals", bytemuck::cast_slice(&intervals.gpu), usage, counter)?;
         let set = StorageBufferSet::new(ctx, "atfs intervals", &[&interval_buffer], Stages::VERTEX)?;
-        let limits = ChunkLimits::of(ctx)?;
-        let per_draw = limits
-            .allocation_chunk((FLOATS_PER_PIECE * 4) as u64)
-            .min(limits.allocation_chunk(4 * draw.primitives.indices_per_cell() as u64))
-            .max(1);
-        // Every run draws from the start of the same indices.
-        let indices = StaticIndices::upload(ctx, "atfs indices", draw.primitives, pieces.min(per_draw), counter)?;
-        let vertex_buffers = VertexChunks::new(ctx, "atfs vertex records", pieces, FLOATS_PER_PIECE * 4, per_draw)?;
+        let (indices, vertex_buffers) = super::balanced::split_records(ctx, "atfs", pieces, draw, counter)?;
         let (pipeline, pipeline_key) = build_pipeline(
             ctx,
             "cell_projection/atfs.vert",

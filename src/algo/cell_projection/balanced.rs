@@ -123,6 +123,26 @@ pub(super) fn records_pipeline(ctx: &Arc<Context>, tables: &IntegrationTables, d
     )
 }
 
+/// Vertex buffers for `count` cells' (or ATFS's pieces') 4 records, split
+/// at the device's limits (one draw per buffer), and the static indices
+/// of one draw, which every draw uses from their start.
+pub(super) fn split_records(
+    ctx: &Arc<Context>,
+    name: &str,
+    count: usize,
+    draw: DrawSettings,
+    counter: &mut UploadCounter,
+) -> VkResult<(StaticIndices, VertexChunks)> {
+    let limits = ChunkLimits::of(ctx)?;
+    let per_draw = limits
+        .allocation_chunk((FLOATS_PER_CELL * 4) as u64)
+        .min(limits.allocation_chunk(4 * draw.primitives.indices_per_cell() as u64))
+        .max(1);
+    let indices = StaticIndices::upload(ctx, &format!("{name} indices"), draw.primitives, count.min(per_draw), counter)?;
+    let records = VertexChunks::new(ctx, &format!("{name} vertex records"), count, FLOATS_PER_CELL * 4, per_draw)?;
+    Ok((indices, records))
+}
+
 pub struct Balanced {
     cells: PlanesTable,
     /// The records of the order's first `ahead.len() / FLOATS_PER_CELL`
@@ -232,14 +252,7 @@ impl Balanced {
         let cells = PlanesTable::new(mesh, relative)?;
         let n = cells.len();
         let ahead_cells = pack_ahead_cells()?.min(n);
-        let limits = ChunkLimits::of(ctx)?;
-        let per_draw = limits
-            .allocation_chunk((FLOATS_PER_CELL * 4) as u64)
-            .min(limits.allocation_chunk(4 * draw.primitives.indices_per_cell() as u64))
-            .max(1);
-        // Every piece draws from the start of the same indices.
-        let indices = StaticIndices::upload(ctx, "balanced indices", draw.primitives, n.min(per_draw), counter)?;
-        let vertex_buffers = VertexChunks::new(ctx, "balanced vertex records", n, FLOATS_PER_CELL * 4, per_draw)?;
+        let (indices, vertex_buffers) = split_records(ctx, "balanced", n, draw, counter)?;
         let (pipeline, pipeline_key) = records_pipeline(ctx, tables, draw)?;
         Ok(Balanced {
             ahead: vec![0f32; ahead_cells * FLOATS_PER_CELL],
