@@ -85,6 +85,39 @@ fn data_split_at_lowered_limits_draws_the_same_image() {
         assert_eq!(whole.image.compare(&run.image).unwrap().max_abs, 0.0, "{what}: packing in place changed the image");
     }
 
+    // resident-gpusort's device sort with its centroids in 5 storage
+    // buffers of 2048 (32 KiB; its cells would need more than 8 texel
+    // buffers there, so the sort is run on its own): the order read back is
+    // the one sorted from one buffer.
+    {
+        use volbench::algo::cell_projection::device_sort::{DeviceCentroidSort, SortCamera};
+        use volbench::algo::cell_projection::{centroids_relative_f32, render_origin};
+        let origin = render_origin(&mesh);
+        let centroids = centroids_relative_f32(&mesh, origin);
+        let camera = volbench::scene::Camera::orbit(&mesh.bounds(), 1.0, volbench::scene::Projection::Perspective { fovy_deg: 30.0 });
+        let ctx = common::context();
+        let order = |limit: Option<u64>| {
+            match limit {
+                Some(l) => std::env::set_var(DEVICE_LIMIT_VAR, l.to_string()),
+                None => std::env::remove_var(DEVICE_LIMIT_VAR),
+            }
+            let mut setup = volbench::vk::UploadCounter::default();
+            let sort = DeviceCentroidSort::new(&ctx, "test sort", &centroids, &mut setup).expect("device sort");
+            std::env::remove_var(DEVICE_LIMIT_VAR);
+            let rec = volbench::vk::CommandRecorder::new(&ctx, "test sort").expect("recorder");
+            rec.begin().expect("begin");
+            sort.record(&rec, &SortCamera::new(&camera, origin), &mut volbench::vk::UploadCounter::default()).expect("record");
+            rec.submit_and_wait().expect("submit");
+            (sort.centroid_buffers(), sort.read_order(&ctx).expect("read back"))
+        };
+        let (whole_split, whole) = order(None);
+        let (split_split, split) = order(Some(32 << 10));
+        assert_eq!((whole_split.0, split_split), (1, (5, 2048)));
+        assert_eq!(whole.len(), mesh.tets.len());
+        assert_eq!(whole, split, "splitting the centroids changed the order");
+        assert!(ctx.validation_messages().is_empty(), "{:?}", ctx.validation_messages());
+    }
+
     // More pieces than the shader has bindings: a clear error, no picture.
     std::env::set_var(DEVICE_LIMIT_VAR, (16u64 << 10).to_string());
     let dataset = datasets::Dataset::from_mesh(mesh.clone(), false, "test".into());
