@@ -13,7 +13,7 @@
 //   4 keys_dst  5 vals_dst   its output pairs
 //   6 counts    digit-major counts per workgroup (counts[d * groups + g]),
 //               turned by the scan into each (digit, workgroup)'s first slot
-//   7..         the centroids' further buffers, when they are split at
+//   7-13        the centroids' further buffers, when they are split at
 //               the device's limits (CENTROID_CHUNKS buffers of
 //               CENTROID_PER_CHUNK; algo/chunks.rs): read with centroid_at
 
@@ -48,29 +48,15 @@ layout(std430, set = 0, binding = 4) buffer KeysDst { uint keys_dst[]; };
 layout(std430, set = 0, binding = 5) buffer ValsDst { uint vals_dst[]; };
 layout(std430, set = 0, binding = 6) buffer Counts { uint counts[]; };
 
+// Split centroids: chunk k (1..7) at binding 6 + k. All seven are declared
+// and bound (the Rust side repeats the last buffer in the unused ones);
+// CENTROID_CHUNKS only says that there is a split.
 #ifndef CENTROID_CHUNKS
 #define CENTROID_CHUNKS 1
 #endif
 #if CENTROID_CHUNKS > 1
-layout(std430, set = 0, binding = 7) readonly buffer Centroids1 { vec4 centroids_1[]; };
-#endif
-#if CENTROID_CHUNKS > 2
-layout(std430, set = 0, binding = 8) readonly buffer Centroids2 { vec4 centroids_2[]; };
-#endif
-#if CENTROID_CHUNKS > 3
-layout(std430, set = 0, binding = 9) readonly buffer Centroids3 { vec4 centroids_3[]; };
-#endif
-#if CENTROID_CHUNKS > 4
-layout(std430, set = 0, binding = 10) readonly buffer Centroids4 { vec4 centroids_4[]; };
-#endif
-#if CENTROID_CHUNKS > 5
-layout(std430, set = 0, binding = 11) readonly buffer Centroids5 { vec4 centroids_5[]; };
-#endif
-#if CENTROID_CHUNKS > 6
-layout(std430, set = 0, binding = 12) readonly buffer Centroids6 { vec4 centroids_6[]; };
-#endif
-#if CENTROID_CHUNKS > 7
-layout(std430, set = 0, binding = 13) readonly buffer Centroids7 { vec4 centroids_7[]; };
+#define CENTROID_CHUNK(k) layout(std430, set = 0, binding = 6 + k) readonly buffer Centroids##k { vec4 centroids_##k[]; };
+CENTROID_CHUNK(1) CENTROID_CHUNK(2) CENTROID_CHUNK(3) CENTROID_CHUNK(4) CENTROID_CHUNK(5) CENTROID_CHUNK(6) CENTROID_CHUNK(7)
 #endif
 
 // Cell i's centroid, from the buffer holding it.
@@ -79,26 +65,9 @@ vec4 centroid_at(uint i) {
     uint c = i / uint(CENTROID_PER_CHUNK);
     uint j = i - c * uint(CENTROID_PER_CHUNK);
     switch (c) {
-    case 1u: return centroids_1[j];
-#if CENTROID_CHUNKS > 2
-    case 2u: return centroids_2[j];
-#endif
-#if CENTROID_CHUNKS > 3
-    case 3u: return centroids_3[j];
-#endif
-#if CENTROID_CHUNKS > 4
-    case 4u: return centroids_4[j];
-#endif
-#if CENTROID_CHUNKS > 5
-    case 5u: return centroids_5[j];
-#endif
-#if CENTROID_CHUNKS > 6
-    case 6u: return centroids_6[j];
-#endif
-#if CENTROID_CHUNKS > 7
-    case 7u: return centroids_7[j];
-#endif
-    default: return centroids[j];
+    case 1u: return centroids_1[j]; case 2u: return centroids_2[j]; case 3u: return centroids_3[j];
+    case 4u: return centroids_4[j]; case 5u: return centroids_5[j]; case 6u: return centroids_6[j];
+    case 7u: return centroids_7[j]; default: return centroids[j];
     }
 #else
     return centroids[i];

@@ -31,7 +31,7 @@
 //!
 //! Centroids beyond one storage binding (8.4 M cells at lavapipe's 128 MiB)
 //! come in several buffers at the device's limits (`algo::chunks`): bindings
-//! 7 and up, read by `centroid_at` in `radix_sort.glsl`. The keys, the
+//! 7-13, read by `centroid_at` in `radix_sort.glsl`. The keys, the
 //! order and the counts stay one binding each (33.5 M cells at 128 MiB).
 
 use std::sync::Arc;
@@ -115,9 +115,11 @@ fn defines(centroids: CentroidChunks) -> Vec<(&'static str, String)> {
     d
 }
 
-/// Bindings 0-6 (`radix_sort.glsl`) and the centroids' further buffers.
+/// Bindings 0-6 (`radix_sort.glsl`) and, split, the centroids' seven
+/// further bindings.
 fn set_desc(centroids: CentroidChunks) -> DescriptorSetDesc {
-    DescriptorSetDesc::storage_buffers(6 + centroids.buffers, Stages::COMPUTE)
+    let bindings = if centroids.buffers > 1 { 6 + MAX_CHUNKS } else { 7 };
+    DescriptorSetDesc::storage_buffers(bindings, Stages::COMPUTE)
 }
 
 fn pipeline(ctx: &Arc<Context>, shader: &str, push_constant_bytes: u32, centroids: CentroidChunks) -> VkResult<Arc<Pipeline>> {
@@ -223,7 +225,11 @@ impl DeviceCentroidSort {
             // Even passes read A (`keys_a`, `order`) and write B, odd ones back.
             let (src, dst) = if pass % 2 == 0 { ([&keys_a, &order], [&keys_b, &vals_b]) } else { ([&keys_b, &vals_b], [&keys_a, &order]) };
             let mut buffers = vec![p, &centroid_buffers[0], src[0], src[1], dst[0], dst[1], &counts];
-            buffers.extend(&centroid_buffers[1..]);
+            if let (Some(last), true) = (centroid_buffers.last(), centroid_buffers.len() > 1) {
+                // Chunks 1.., the last repeated in the bindings no chunk uses.
+                buffers.extend(&centroid_buffers[1..]);
+                buffers.resize(6 + MAX_CHUNKS, last);
+            }
             sets.push(StorageBufferSet::new(ctx, &format!("{name} pass {pass}"), &buffers, Stages::COMPUTE)?);
         }
         let pipelines = Pipeline4 {
