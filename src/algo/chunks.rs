@@ -5,7 +5,8 @@
 //! several buffers of whole elements ("chunks"), element `e` in chunk
 //! `e / per_chunk` at `e % per_chunk`. Shaders see the chunks as separate
 //! bindings (at most [`MAX_CHUNKS`], selected by the element's chunk:
-//! `shaders/cell_projection/stored_cell.glsl`, `shaders/tet_raycast/walk.comp`);
+//! `shaders/cell_projection/stored_cell.glsl`, `shaders/tet_raycast/walk.comp`,
+//! `shaders/cell_projection/radix_sort.glsl`);
 //! per-frame arrays read in draw order are instead drawn in several draws
 //! ([`VertexChunks`]: balanced, VICP, ATFS).
 //!
