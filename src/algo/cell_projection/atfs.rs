@@ -207,13 +207,8 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
         .map(|t| intervals.span(&t.map(|i| ((mesh.scalars[i as usize] - origin) / scale) as f32)))
         .collect();
     let pieces: u64 = spans.iter().map(|&(a, b)| u64::from(b - a) + 1).sum();
-    // Indices 4 per piece must stay below the restart marker; the draw
-    // counts 7 per piece in a u32.
-    ensure!(
-        pieces.checked_mul(MAX_INDICES_PER_CELL as u64).is_some_and(|n| n < u64::from(u32::MAX)),
-        "mesh '{}': {pieces} pieces (cells x transfer-function intervals) are more than one draw can index",
-        mesh.name
-    );
+    // (Any number of pieces: they are drawn in runs whose indices fit a
+    // u32, `balanced::split_records`.)
     let n = mesh.tets.len().max(1) as u64;
     let per_cell = |bytes_per_piece: u64| pieces.saturating_mul(bytes_per_piece).div_ceil(n) as usize;
     // The pieces' records are split at the device's limits (one run of

@@ -134,9 +134,12 @@ pub(super) fn split_records(
     counter: &mut UploadCounter,
 ) -> VkResult<(StaticIndices, VertexChunks)> {
     let limits = ChunkLimits::of(ctx)?;
+    // A draw's index values and count are u32 (the top value is the
+    // primitive-restart marker).
     let per_draw = limits
         .allocation_chunk((FLOATS_PER_CELL * 4) as u64)
         .min(limits.allocation_chunk(4 * draw.primitives.indices_per_cell() as u64))
+        .min((u32::MAX as usize - 1) / MAX_INDICES_PER_CELL)
         .max(1);
     let indices = StaticIndices::upload(ctx, &format!("{name} indices"), draw.primitives, count.min(per_draw), counter)?;
     let records = VertexChunks::new(ctx, &format!("{name} vertex records"), count, FLOATS_PER_CELL * 4, per_draw)?;
