@@ -28,9 +28,16 @@ fn data_split_at_lowered_limits_draws_the_same_image() {
     // per storage binding);
     // balanced's 112-byte records in 5 draws of 1828. 32 KiB: tet-raycast's
     // points (2,288) in 2 buffers of 2048 texels, each per-cell array in 5.
-    let cases: [Case; 3] = [
+    // 1 MiB: VICP's 528-byte records in 5 draws of 1985. 200 KiB: ATFS's
+    // 112-byte pieces (11,193 with post-small's transfer function) in 7
+    // draws of 1828; pt-compute's 144-byte stored cells as resident's, in 7
+    // texel buffers of 1422.
+    let cases: [Case; 6] = [
         ("resident", 200 << 10, &[("cell_buffers", 7), ("cells_per_buffer", 1422), ("draws", 5), ("cells_per_draw", 1828)]),
         ("balanced", 200 << 10, &[("draws", 5), ("cells_per_draw", 1828)]),
+        ("vicp", 1 << 20, &[("draws", 5), ("cells_per_draw", 1985)]),
+        ("atfs", 200 << 10, &[("draws", 7), ("pieces_per_draw", 1828)]),
+        ("pt-compute", 200 << 10, &[("cell_buffers", 7), ("cells_per_buffer", 1422)]),
         ("tet-raycast", 32 << 10, &[("point_buffers", 2), ("points_per_buffer", 2048), ("buffers_per_cell_array", 5)]),
     ];
     for (spec, limit, expected) in cases {
@@ -78,6 +85,39 @@ fn data_split_at_lowered_limits_draws_the_same_image() {
         assert_eq!(whole.image.compare(&run.image).unwrap().max_abs, 0.0, "{what}: packing in place changed the image");
     }
 
+    // resident-gpusort's device sort with its centroids in 5 storage
+    // buffers of 2048 (32 KiB; its cells would need more than 8 texel
+    // buffers there, so the sort is run on its own): the order read back is
+    // the one sorted from one buffer.
+    {
+        use volbench::algo::cell_projection::device_sort::{DeviceCentroidSort, SortCamera};
+        use volbench::algo::cell_projection::{centroids_relative_f32, render_origin};
+        let origin = render_origin(&mesh);
+        let centroids = centroids_relative_f32(&mesh, origin);
+        let camera = volbench::scene::Camera::orbit(&mesh.bounds(), 1.0, volbench::scene::Projection::Perspective { fovy_deg: 30.0 });
+        let ctx = common::context();
+        let order = |limit: Option<u64>| {
+            match limit {
+                Some(l) => std::env::set_var(DEVICE_LIMIT_VAR, l.to_string()),
+                None => std::env::remove_var(DEVICE_LIMIT_VAR),
+            }
+            let mut setup = volbench::vk::UploadCounter::default();
+            let sort = DeviceCentroidSort::new(&ctx, "test sort", &centroids, &mut setup).expect("device sort");
+            std::env::remove_var(DEVICE_LIMIT_VAR);
+            let rec = volbench::vk::CommandRecorder::new(&ctx, "test sort").expect("recorder");
+            rec.begin().expect("begin");
+            sort.record(&rec, &SortCamera::new(&camera, origin), &mut volbench::vk::UploadCounter::default()).expect("record");
+            rec.submit_and_wait().expect("submit");
+            (sort.centroid_buffers(), sort.read_order(&ctx).expect("read back"))
+        };
+        let (whole_split, whole) = order(None);
+        let (split_split, split) = order(Some(32 << 10));
+        assert_eq!((whole_split.0, split_split), (1, (5, 2048)));
+        assert_eq!(whole.len(), mesh.tets.len());
+        assert_eq!(whole, split, "splitting the centroids changed the order");
+        assert!(ctx.validation_messages().is_empty(), "{:?}", ctx.validation_messages());
+    }
+
     // More pieces than the shader has bindings: a clear error, no picture.
     std::env::set_var(DEVICE_LIMIT_VAR, (16u64 << 10).to_string());
     let dataset = datasets::Dataset::from_mesh(mesh.clone(), false, "test".into());
@@ -88,6 +128,15 @@ fn data_split_at_lowered_limits_draws_the_same_image() {
     let msg = format!("{e:#}");
     assert!(msg.contains("resident cells") && msg.contains(&format!("more than the {MAX_CHUNKS} bindings")), "{msg}");
     assert!(ctx.validation_messages().is_empty(), "{:?}", ctx.validation_messages());
+
+    // Memory is checked before allocating, host bytes with device bytes: a
+    // trillion cells are refused naming the memory (on a CPU device both
+    // together), a thousand pass.
+    let e = volbench::algo::chunks::check_memory(&ctx.info, 1 << 40, 528, 1120).expect_err("a trillion cells cannot fit");
+    let msg = format!("{e:#}");
+    let names = if ctx.info.is_cpu() { "device and host memory together" } else { "memory" };
+    assert!(msg.contains(names) && msg.contains("1099511627776 cells"), "{msg}");
+    volbench::algo::chunks::check_memory(&ctx.info, 1000, 528, 1120).unwrap();
 
     // A knob that is not a byte count is refused naming it.
     std::env::set_var(DEVICE_LIMIT_VAR, "lots");

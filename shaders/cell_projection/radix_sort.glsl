@@ -13,6 +13,9 @@
 //   4 keys_dst  5 vals_dst   its output pairs
 //   6 counts    digit-major counts per workgroup (counts[d * groups + g]),
 //               turned by the scan into each (digit, workgroup)'s first slot
+//   7-13        the centroids' further buffers, when they are split at
+//               the device's limits (CENTROID_CHUNKS buffers of
+//               CENTROID_PER_CHUNK; algo/chunks.rs): read with centroid_at
 
 #ifndef VOLBENCH_RADIX_SORT_GLSL
 #define VOLBENCH_RADIX_SORT_GLSL
@@ -44,6 +47,32 @@ layout(std430, set = 0, binding = 3) buffer ValsSrc { uint vals_src[]; };
 layout(std430, set = 0, binding = 4) buffer KeysDst { uint keys_dst[]; };
 layout(std430, set = 0, binding = 5) buffer ValsDst { uint vals_dst[]; };
 layout(std430, set = 0, binding = 6) buffer Counts { uint counts[]; };
+
+// Split centroids: chunk k (1..7) at binding 6 + k. All seven are declared
+// and bound (the Rust side repeats the last buffer in the unused ones);
+// CENTROID_CHUNKS only says that there is a split.
+#ifndef CENTROID_CHUNKS
+#define CENTROID_CHUNKS 1
+#endif
+#if CENTROID_CHUNKS > 1
+#define CENTROID_CHUNK(k) layout(std430, set = 0, binding = 6 + k) readonly buffer Centroids##k { vec4 centroids_##k[]; };
+CENTROID_CHUNK(1) CENTROID_CHUNK(2) CENTROID_CHUNK(3) CENTROID_CHUNK(4) CENTROID_CHUNK(5) CENTROID_CHUNK(6) CENTROID_CHUNK(7)
+#endif
+
+// Cell i's centroid, from the buffer holding it.
+vec4 centroid_at(uint i) {
+#if CENTROID_CHUNKS > 1
+    uint c = i / uint(CENTROID_PER_CHUNK);
+    uint j = i - c * uint(CENTROID_PER_CHUNK);
+    switch (c) {
+    case 1u: return centroids_1[j]; case 2u: return centroids_2[j]; case 3u: return centroids_3[j];
+    case 4u: return centroids_4[j]; case 5u: return centroids_5[j]; case 6u: return centroids_6[j];
+    case 7u: return centroids_7[j]; default: return centroids[j];
+    }
+#else
+    return centroids[i];
+#endif
+}
 
 uint digit_of(uint key) {
     return (key >> params.shift) & (RADIX - 1u);

@@ -27,7 +27,7 @@ void main() {
     if (i >= params.n) {
         return;
     }
-    vec3 c = centroids[i].xyz;
+    vec3 c = centroid_at(i).xyz;
     precise float dx = c.x - cam.eye.x;
     precise float dy = c.y - cam.eye.y;
     precise float dz = c.z - cam.eye.z;

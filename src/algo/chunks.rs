@@ -5,8 +5,10 @@
 //! several buffers of whole elements ("chunks"), element `e` in chunk
 //! `e / per_chunk` at `e % per_chunk`. Shaders see the chunks as separate
 //! bindings (at most [`MAX_CHUNKS`], selected by the element's chunk:
-//! `shaders/cell_projection/stored_cell.glsl`, `shaders/tet_raycast/walk.comp`);
-//! per-frame arrays read in draw order are instead drawn in several draws.
+//! `shaders/cell_projection/stored_cell.glsl`, `shaders/tet_raycast/walk.comp`,
+//! `shaders/cell_projection/radix_sort.glsl`);
+//! per-frame arrays read in draw order are instead drawn in several draws
+//! ([`VertexChunks`]: balanced, VICP, ATFS).
 //!
 //! Test knob (docs/scaling.md, test only): `VOLBENCH_TEST_DEVICE_LIMIT_BYTES=N`
 //! lowers the limits the chunked arrays are split at (the largest allocation
@@ -16,7 +18,7 @@
 
 use std::sync::Arc;
 
-use crate::vk::{upload_static_streamed, Context, TexelBuffer, UploadCounter, VkError, VkResult};
+use crate::vk::{upload_static_streamed, Buffer, BufferDesc, Context, TexelBuffer, UploadClass, UploadCounter, VkError, VkResult};
 use crate::vk::{BufferUsage, Format};
 
 /// The test knob (see the module documentation).
@@ -112,6 +114,29 @@ pub fn device_memory_bound(info: &crate::vk::DeviceInfo) -> (u64, &'static str) 
     (info.device_local_heap_bytes, "the device's largest device-local heap")
 }
 
+/// Check, before anything is allocated, that `cells` cells fit: `device`
+/// bytes each on the device ([`device_memory_bound`]) and `host` bytes each
+/// that the method keeps on the host (against MemAvailable, measured after
+/// the mesh is loaded). On a CPU device both come out of the process's
+/// memory, so their sum is checked: a mesh too large for a method is a
+/// clear error naming the memory, not an out-of-memory kill mid-build.
+pub fn check_memory(info: &crate::vk::DeviceInfo, cells: usize, device: usize, host: usize) -> anyhow::Result<()> {
+    use anyhow::Context as _;
+    let (bound, what) = device_memory_bound(info);
+    let available = available_memory();
+    if info.is_cpu() && available.is_some() {
+        return crate::mesh::check_fits(cells, device + host, bound).with_context(|| {
+            format!("device and host memory together ({device} device + {host} host bytes per cell; {what})")
+        });
+    }
+    crate::mesh::check_fits(cells, device, bound).with_context(|| format!("device memory ({what})"))?;
+    match available {
+        Some(avail) => crate::mesh::check_fits(cells, host, avail)
+            .with_context(|| format!("host memory ({host} bytes per cell kept by the method; the host's available memory)")),
+        None => Ok(()),
+    }
+}
+
 /// `count` elements in pieces of at most `per_chunk`: the pieces' element
 /// ranges, in order (one empty piece for no elements).
 pub fn ranges(count: usize, per_chunk: usize) -> Vec<std::ops::Range<usize>> {
@@ -199,6 +224,65 @@ impl TexelChunks {
             return Vec::new();
         }
         vec![(format!("{prefix}_CHUNKS"), self.buffers.len().to_string()), (format!("{prefix}_PER_CHUNK"), self.per_chunk.to_string())]
+    }
+}
+
+/// Per-frame vertex records in draw order, in host-visible vertex buffers
+/// of at most `per_draw` elements each: drawn one draw per buffer, in
+/// order, so back-to-front compositing is kept across the pieces.
+pub struct VertexChunks {
+    pub buffers: Vec<Buffer>,
+    /// Elements per buffer (all but the last are full).
+    pub per_draw: usize,
+}
+
+impl VertexChunks {
+    /// Buffers for `count` elements of `elem_bytes` bytes, `per_draw` each
+    /// (the caller's bound: [`ChunkLimits::allocation_chunk`] and whatever
+    /// else one draw must fit, such as its index buffer).
+    pub fn new(ctx: &Arc<Context>, name: &str, count: usize, elem_bytes: usize, per_draw: usize) -> VkResult<Self> {
+        let per_draw = per_draw.max(1);
+        let pieces = ranges(count, per_draw);
+        let buffers = pieces
+            .iter()
+            .enumerate()
+            .map(|(k, piece)| {
+                let label = if pieces.len() == 1 { name.to_string() } else { format!("{name} [{k}]") };
+                // Empty arrays still get one element (zero-size buffers are invalid).
+                let bytes = (piece.len().max(1) * elem_bytes) as u64;
+                Buffer::new(ctx, BufferDesc::upload(&label, bytes, BufferUsage::VERTEX))
+            })
+            .collect::<VkResult<Vec<_>>>()?;
+        Ok(VertexChunks { buffers, per_draw })
+    }
+
+    /// The buffers holding the first `drawn` elements, each with its
+    /// elements' range, in order (none for no elements).
+    pub fn drawn_mut(&mut self, drawn: usize) -> impl Iterator<Item = (&mut Buffer, std::ops::Range<usize>)> {
+        let per = self.per_draw;
+        self.buffers.iter_mut().enumerate().map(move |(k, b)| (b, k * per..drawn.min((k + 1) * per))).take_while(|(_, r)| !r.is_empty())
+    }
+
+    /// [`VertexChunks::drawn_mut`], to record the draws.
+    pub fn drawn(&self, drawn: usize) -> impl Iterator<Item = (&Buffer, std::ops::Range<usize>)> {
+        let per = self.per_draw;
+        self.buffers.iter().enumerate().map(move |(k, b)| (b, k * per..drawn.min((k + 1) * per))).take_while(|(_, r)| !r.is_empty())
+    }
+
+    /// Write the first `packed.len() / elem_floats` elements (`elem_floats`
+    /// floats each) into the buffers.
+    pub fn write(&mut self, packed: &[f32], elem_floats: usize, counter: &mut UploadCounter) -> VkResult<()> {
+        let drawn = packed.len() / elem_floats.max(1);
+        for (buffer, r) in self.drawn_mut(drawn) {
+            let part = &packed[r.start * elem_floats..r.end * elem_floats];
+            buffer.write(0, bytemuck::cast_slice(part), counter, UploadClass::FrameCells)?;
+        }
+        Ok(())
+    }
+
+    /// The split for `details.device_chunks`: draws and `{unit}_per_draw`.
+    pub fn describe(&self, unit: &str) -> serde_json::Value {
+        serde_json::json!({ "draws": self.buffers.len(), format!("{unit}_per_draw"): self.per_draw })
     }
 }
 

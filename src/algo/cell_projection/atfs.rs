@@ -20,6 +20,11 @@
 //! are met in the order of their distance in scalar from the value the
 //! cell's linear field extrapolates to at the eye, and they are drawn
 //! farthest first (back to front, like the cells).
+//!
+//! The packed pieces are split at the device's limits (`algo::chunks`, as
+//! balanced's records): one vertex buffer and one draw per run of pieces,
+//! in order (a cell's pieces may straddle two draws; the draws keep the
+//! order).
 
 use std::sync::Arc;
 
@@ -30,6 +35,7 @@ use super::balanced::{
     cell_records, CODE_FLAGS_SHIFT, CODE_MAX_PIECES, CODE_PIECE_SHIFT, FLOATS_PER_CELL, FLOATS_PER_VERTEX, VERTICES_PER_CELL};
 use super::render;
 use super::{build_pipeline, cells_f32, scalar_map, CellF32, CellProjector, FrameSetup, DrawSettings, StaticIndices, MAX_INDICES_PER_CELL};
+use crate::algo::chunks::VertexChunks;
 use crate::algo::host_memory::HostMemory;
 use crate::algo::integrate::IntegrationTables;
 use crate::algo::method::{MethodInfo, MethodInputs, Published, PublishedFigure, RenderMethod};
@@ -37,8 +43,8 @@ use crate::mesh::TetMesh;
 use crate::scene::transfer_function::TABLE_MAX;
 use crate::scene::TransferFunction;
 use crate::vk::{
-    upload_static, Buffer, BufferDesc, CommandRecorder, Context, DescriptorSet, DescriptorSetDesc, Pipeline, PipelineKey,
-    StorageBufferSet, UploadClass, UploadCounter, VkError, VkResult,
+    upload_static, Buffer, CommandRecorder, Context, DescriptorSet, DescriptorSetDesc, Pipeline, PipelineKey,
+    StorageBufferSet, UploadCounter, VkError, VkResult,
 };
 use crate::vk::{BufferUsage, Stages};
 
@@ -201,18 +207,18 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
         .map(|t| intervals.span(&t.map(|i| ((mesh.scalars[i as usize] - origin) / scale) as f32)))
         .collect();
     let pieces: u64 = spans.iter().map(|&(a, b)| u64::from(b - a) + 1).sum();
-    // Indices 4 per piece must stay below the restart marker; the draw
-    // counts 7 per piece in a u32.
-    ensure!(
-        pieces.checked_mul(MAX_INDICES_PER_CELL as u64).is_some_and(|n| n < u64::from(u32::MAX)),
-        "mesh '{}': {pieces} pieces (cells x transfer-function intervals) are more than one draw can index",
-        mesh.name
-    );
+    // (Any number of pieces: they are drawn in runs whose indices fit a
+    // u32, `balanced::split_records`.)
     let n = mesh.tets.len().max(1) as u64;
     let per_cell = |bytes_per_piece: u64| pieces.saturating_mul(bytes_per_piece).div_ceil(n) as usize;
+    // The pieces' records are split at the device's limits (one run of
+    // pieces per draw), so none must fit one allocation.
+    // Host: f32 cells, spans, offsets and the packed pieces.
+    let host = std::mem::size_of::<CellF32>() + std::mem::size_of::<(u32, u32)>() + std::mem::size_of::<usize>();
     let bytes = render::DeviceBytesPerCell {
-        frame: per_cell((FLOATS_PER_PIECE * 4) as u64),
-        fixed: per_cell((MAX_INDICES_PER_CELL * 4) as u64),
+        frame: 0,
+        fixed: per_cell(((FLOATS_PER_PIECE + MAX_INDICES_PER_CELL) * 4) as u64),
+        host: host + per_cell((FLOATS_PER_PIECE * 4) as u64),
     };
     let pieces = pieces as usize;
     render::CellProjection::create(inputs, bytes, move |ctx, mesh, tables, draw, counter| {
@@ -232,7 +238,9 @@ pub struct Atfs {
     drawn: usize,
     drawn_pieces: usize,
     packed: Vec<f32>,
-    vertex_buffer: Buffer,
+    /// The packed pieces in runs (one buffer holds at most
+    /// maxMemoryAllocationSize bytes), one draw each.
+    vertex_buffers: VertexChunks,
     indices: StaticIndices,
     _interval_buffer: Buffer,
     set: StorageBufferSet,
@@ -276,9 +284,7 @@ impl Atfs {
         let usage = BufferUsage::STORAGE;
         let interval_buffer = upload_static(ctx, "atfs intervals", bytemuck::cast_slice(&intervals.gpu), usage, counter)?;
         let set = StorageBufferSet::new(ctx, "atfs intervals", &[&interval_buffer], Stages::VERTEX)?;
-        let indices = StaticIndices::upload(ctx, "atfs indices", draw.primitives, pieces, counter)?;
-        let bytes = (pieces.max(1) * FLOATS_PER_PIECE * 4) as u64;
-        let vertex_buffer = Buffer::new(ctx, BufferDesc::upload("atfs vertex records", bytes, BufferUsage::VERTEX))?;
+        let (indices, vertex_buffers) = super::balanced::split_records(ctx, "atfs", pieces, draw, counter)?;
         let (pipeline, pipeline_key) = build_pipeline(
             ctx,
             "cell_projection/atfs.vert",
@@ -301,7 +307,7 @@ impl Atfs {
             intervals,
             spans,
             pieces,
-            vertex_buffer,
+            vertex_buffers,
             indices,
             _interval_buffer: interval_buffer,
             set,
@@ -376,6 +382,9 @@ impl CellProjector for Atfs {
     fn pipeline_key(&self) -> &PipelineKey {
         &self.pipeline_key
     }
+    fn device_chunks(&self) -> serde_json::Value {
+        self.vertex_buffers.describe("pieces")
+    }
     fn cap_pieces(&self, cell: usize, frame: &FrameSetup, emit: &mut dyn FnMut(u32)) {
         let (c, (first, last)) = (&self.cells[cell], self.spans[cell]);
         let eye = self.intervals.index_of(Self::scalar_at_eye(c, frame)).min(u32::MAX as usize) as u32;
@@ -421,15 +430,18 @@ impl CellProjector for Atfs {
     }
 
     fn upload(&mut self, counter: &mut UploadCounter) -> VkResult<()> {
-        self.vertex_buffer.write(0, bytemuck::cast_slice(&self.packed[..self.drawn_pieces * FLOATS_PER_PIECE]), counter, UploadClass::FrameCells)
+        self.vertex_buffers.write(&self.packed[..self.drawn_pieces * FLOATS_PER_PIECE], FLOATS_PER_PIECE, counter)
     }
 
     fn record_draw(&self, rec: &CommandRecorder, tables: &IntegrationTables, frame: &FrameSetup, counter: &mut UploadCounter) -> VkResult<()> {
         let sets: [&DescriptorSet; 2] = [&tables.set, &self.set];
         rec.bind_graphics(&self.pipeline, &sets)?;
         rec.push_constants(&self.pipeline, bytemuck::bytes_of(&frame.constants), counter);
-        rec.bind_vertex_buffer(&self.vertex_buffer);
-        self.indices.draw(rec, self.drawn_pieces);
+        // One draw per run of pieces, in order (back to front across runs).
+        for (buffer, pieces) in self.vertex_buffers.drawn(self.drawn_pieces) {
+            rec.bind_vertex_buffer(buffer);
+            self.indices.draw(rec, pieces.len());
+        }
         Ok(())
     }
 }

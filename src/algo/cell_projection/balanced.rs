@@ -26,15 +26,15 @@ use super::{
     build_pipeline, render_origin, CellF32, CellProjector, DrawSettings, FrameSetup, Interpolation, PlanesTable, RelativeMesh, StaticIndices,
     MAX_INDICES_PER_CELL,
 };
-use crate::algo::chunks::{self, ChunkLimits};
+use crate::algo::chunks::{ChunkLimits, VertexChunks};
 use crate::algo::host_memory::HostMemory;
 use crate::algo::integrate::IntegrationTables;
 use crate::mesh::TetMesh;
 use crate::vk::{
-    Buffer, BufferDesc, CommandRecorder, Context, Pipeline, PipelineKey, UploadClass, UploadCounter, VertexAttribute,
+    CommandRecorder, Context, Pipeline, PipelineKey, UploadClass, UploadCounter, VertexAttribute,
     VkResult,
 };
-use crate::vk::{BufferUsage, Format};
+use crate::vk::Format;
 
 pub const FLOATS_PER_VERTEX: usize = 7;
 pub const VERTICES_PER_CELL: usize = 4;
@@ -59,7 +59,8 @@ const BALANCED: MethodInfo = render::method_info(
 
 fn create(inputs: MethodInputs) -> anyhow::Result<Box<dyn RenderMethod>> {
     // The records are split at the device's limits (one piece per draw).
-    let bytes = render::DeviceBytesPerCell { frame: 0, fixed: FLOATS_PER_CELL * 4 + MAX_INDICES_PER_CELL * 4 };
+    // Host: the planes table (60) and the order past the pack-ahead budget (4).
+    let bytes = render::DeviceBytesPerCell { frame: 0, fixed: FLOATS_PER_CELL * 4 + MAX_INDICES_PER_CELL * 4, host: 64 };
     let crate::algo::method::SceneData::TetMesh { mesh } = inputs.data else {
         anyhow::bail!("cell projection renders tetrahedral meshes only");
     };
@@ -122,6 +123,29 @@ pub(super) fn records_pipeline(ctx: &Arc<Context>, tables: &IntegrationTables, d
     )
 }
 
+/// Vertex buffers for `count` cells' (or ATFS's pieces') 4 records, split
+/// at the device's limits (one draw per buffer), and the static indices
+/// of one draw, which every draw uses from their start.
+pub(super) fn split_records(
+    ctx: &Arc<Context>,
+    name: &str,
+    count: usize,
+    draw: DrawSettings,
+    counter: &mut UploadCounter,
+) -> VkResult<(StaticIndices, VertexChunks)> {
+    let limits = ChunkLimits::of(ctx)?;
+    // A draw's index values and count are u32 (the top value is the
+    // primitive-restart marker).
+    let per_draw = limits
+        .allocation_chunk((FLOATS_PER_CELL * 4) as u64)
+        .min(limits.allocation_chunk(4 * draw.primitives.indices_per_cell() as u64))
+        .min((u32::MAX as usize - 1) / MAX_INDICES_PER_CELL)
+        .max(1);
+    let indices = StaticIndices::upload(ctx, &format!("{name} indices"), draw.primitives, count.min(per_draw), counter)?;
+    let records = VertexChunks::new(ctx, &format!("{name} vertex records"), count, FLOATS_PER_CELL * 4, per_draw)?;
+    Ok((indices, records))
+}
+
 pub struct Balanced {
     cells: PlanesTable,
     /// The records of the order's first `ahead.len() / FLOATS_PER_CELL`
@@ -131,10 +155,9 @@ pub struct Balanced {
     /// The rest of the order, packed in `upload` with `frame`.
     rest: Vec<u32>,
     frame: Option<FrameSetup>,
-    /// The records in pieces of at most `per_draw` cells (one buffer holds
-    /// at most maxMemoryAllocationSize bytes), drawn one draw each, in order.
-    vertex_buffers: Vec<Buffer>,
-    per_draw: usize,
+    /// The records in pieces (one buffer holds at most
+    /// maxMemoryAllocationSize bytes), drawn one draw each, in order.
+    vertex_buffers: VertexChunks,
     indices: StaticIndices,
     pipeline: Arc<Pipeline>,
     pipeline_key: PipelineKey,
@@ -232,23 +255,7 @@ impl Balanced {
         let cells = PlanesTable::new(mesh, relative)?;
         let n = cells.len();
         let ahead_cells = pack_ahead_cells()?.min(n);
-        let limits = ChunkLimits::of(ctx)?;
-        let per_draw = limits
-            .allocation_chunk((FLOATS_PER_CELL * 4) as u64)
-            .min(limits.allocation_chunk(4 * draw.primitives.indices_per_cell() as u64))
-            .max(1);
-        let pieces = chunks::ranges(n, per_draw);
-        // Every piece draws from the start of the same indices.
-        let indices = StaticIndices::upload(ctx, "balanced indices", draw.primitives, pieces[0].len(), counter)?;
-        let vertex_buffers = pieces
-            .iter()
-            .enumerate()
-            .map(|(k, piece)| {
-                let label = if pieces.len() == 1 { String::new() } else { format!(" [{k}]") };
-                let bytes = (piece.len().max(1) * FLOATS_PER_CELL * 4) as u64;
-                Buffer::new(ctx, BufferDesc::upload(&format!("balanced vertex records{label}"), bytes, BufferUsage::VERTEX))
-            })
-            .collect::<VkResult<Vec<_>>>()?;
+        let (indices, vertex_buffers) = split_records(ctx, "balanced", n, draw, counter)?;
         let (pipeline, pipeline_key) = records_pipeline(ctx, tables, draw)?;
         Ok(Balanced {
             ahead: vec![0f32; ahead_cells * FLOATS_PER_CELL],
@@ -257,7 +264,6 @@ impl Balanced {
             frame: None,
             cells,
             vertex_buffers,
-            per_draw,
             indices,
             pipeline,
             pipeline_key,
@@ -280,7 +286,7 @@ impl CellProjector for Balanced {
         &self.pipeline_key
     }
     fn device_chunks(&self) -> serde_json::Value {
-        serde_json::json!({ "draws": self.vertex_buffers.len(), "cells_per_draw": self.per_draw })
+        self.vertex_buffers.describe("cells")
     }
 
     fn drawn(&self) -> usize {
@@ -306,12 +312,8 @@ impl CellProjector for Balanced {
 
     fn upload(&mut self, counter: &mut UploadCounter) -> VkResult<()> {
         let ahead = self.drawn.min(self.ahead_cells);
-        for (k, buffer) in self.vertex_buffers.iter_mut().enumerate() {
-            let start = k * self.per_draw;
-            let end = self.drawn.min(start + self.per_draw);
-            if end <= start {
-                continue;
-            }
+        for (buffer, range) in self.vertex_buffers.drawn_mut(self.drawn) {
+            let (start, end) = (range.start, range.end);
             // The part packed ahead: copied.
             let copied = end.min(ahead).max(start);
             if copied > start {
@@ -338,14 +340,9 @@ impl CellProjector for Balanced {
         rec.push_constants(&self.pipeline, bytemuck::bytes_of(&frame.constants), counter);
         // One draw per piece of the sorted records, in order (back-to-front
         // compositing is kept across pieces).
-        for (k, buffer) in self.vertex_buffers.iter().enumerate() {
-            let start = k * self.per_draw;
-            let count = self.drawn.min(start + self.per_draw).saturating_sub(start);
-            if count == 0 && k > 0 {
-                break;
-            }
+        for (buffer, cells) in self.vertex_buffers.drawn(self.drawn) {
             rec.bind_vertex_buffer(buffer);
-            self.indices.draw(rec, count);
+            self.indices.draw(rec, cells.len());
         }
         Ok(())
     }

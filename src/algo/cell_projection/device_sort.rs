@@ -28,10 +28,16 @@
 //! compute-to-compute barrier separates every two dispatches; the last one
 //! makes the order visible to the vertex stage (`record`). Timestamps
 //! around the whole sort give its GPU time (`gpu_ms`).
+//!
+//! Centroids beyond one storage binding (8.4 M cells at lavapipe's 128 MiB)
+//! come in several buffers at the device's limits (`algo::chunks`): bindings
+//! 7-13, read by `centroid_at` in `radix_sort.glsl`. The keys, the
+//! order and the counts stay one binding each (33.5 M cells at 128 MiB).
 
 use std::sync::Arc;
 
 
+use crate::algo::chunks::{self, ChunkLimits, MAX_CHUNKS};
 use crate::scene::Camera;
 use crate::vk::{
     upload_static, Buffer, BufferDesc, CommandRecorder, ComputePipelineKey, Context, DescriptorSetDesc,
@@ -91,22 +97,38 @@ impl SortCamera {
     }
 }
 
-/// The pipelines' defines: the constants above, set in one place.
-fn defines() -> Vec<(&'static str, String)> {
-    vec![("WG", WORKGROUP.to_string()), ("ITEMS", ITEMS_PER_INVOCATION.to_string()), ("RADIX_BITS", RADIX_BITS.to_string())]
+/// How the centroids are split: buffers, and centroids per buffer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct CentroidChunks {
+    buffers: usize,
+    per_chunk: usize,
 }
 
-fn set_desc() -> DescriptorSetDesc {
-    DescriptorSetDesc::storage_buffers(7, Stages::COMPUTE)
+/// The pipelines' defines: the constants above, set in one place, and the
+/// centroids' split when there is one.
+fn defines(centroids: CentroidChunks) -> Vec<(&'static str, String)> {
+    let mut d = vec![("WG", WORKGROUP.to_string()), ("ITEMS", ITEMS_PER_INVOCATION.to_string()), ("RADIX_BITS", RADIX_BITS.to_string())];
+    if centroids.buffers > 1 {
+        d.push(("CENTROID_CHUNKS", centroids.buffers.to_string()));
+        d.push(("CENTROID_PER_CHUNK", centroids.per_chunk.to_string()));
+    }
+    d
 }
 
-fn pipeline(ctx: &Arc<Context>, shader: &str, push_constant_bytes: u32) -> VkResult<Arc<Pipeline>> {
-    let d = defines();
+/// Bindings 0-6 (`radix_sort.glsl`) and, split, the centroids' seven
+/// further bindings.
+fn set_desc(centroids: CentroidChunks) -> DescriptorSetDesc {
+    let bindings = if centroids.buffers > 1 { 6 + MAX_CHUNKS } else { 7 };
+    DescriptorSetDesc::storage_buffers(bindings, Stages::COMPUTE)
+}
+
+fn pipeline(ctx: &Arc<Context>, shader: &str, push_constant_bytes: u32, centroids: CentroidChunks) -> VkResult<Arc<Pipeline>> {
+    let d = defines(centroids);
     let d: Vec<(&str, &str)> = d.iter().map(|(k, v)| (*k, v.as_str())).collect();
     let key = PipelineKey::Compute(ComputePipelineKey {
         shader: ShaderKey::new(shader, ShaderStage::Compute, &d),
         push_constant_bytes,
-        sets: vec![set_desc()],
+        sets: vec![set_desc(centroids)],
     });
     crate::algo::pipelines::get(ctx, &key)
 }
@@ -125,7 +147,8 @@ pub struct DeviceCentroidSort {
     /// The sorted cell indices after `record` (farthest first).
     order: Buffer,
     _params: Vec<Buffer>,
-    _centroids: Buffer,
+    centroids: Vec<Buffer>,
+    centroid_chunks: CentroidChunks,
     _buffers: [Buffer; 4],
 }
 
@@ -149,19 +172,39 @@ impl DeviceCentroidSort {
             .filter(|&n| n <= u32::MAX - TILE)
             .ok_or_else(|| VkError::Invalid(format!("{name}: {len} cells are more than the device sort indexes (u32)")))?;
         let groups = n.div_ceil(TILE);
+        // The keys, values and counts are one binding each.
         let limit = u64::from(ctx.info.max_storage_buffer_range);
-        let centroid_bytes = len as u64 * 16;
+        let key_bytes = len as u64 * 4;
         let count_bytes = u64::from(groups) * (1 << RADIX_BITS) * 4;
-        if centroid_bytes.max(count_bytes) > limit {
+        if key_bytes.max(count_bytes) > limit {
             return Err(VkError::Invalid(format!(
-                "{name}: {len} cells need a {centroid_bytes}-byte centroid buffer, above the device's \
+                "{name}: {len} cells need a {key_bytes}-byte key buffer, above the device's \
                  maxStorageBufferRange ({limit} bytes)"
             )));
         }
+        // The centroids (16 bytes each) in as many bindings as the limits need.
+        let per_chunk = ChunkLimits::of(ctx)?.storage_chunk(16);
+        let pieces = chunks::ranges(len, per_chunk);
+        if per_chunk == 0 || pieces.len() > MAX_CHUNKS {
+            return Err(VkError::Invalid(format!(
+                "{name} centroids: {len} cells need {} storage buffers at the device's limits ({per_chunk} centroids each), \
+                 more than the {MAX_CHUNKS} bindings the shader declares",
+                pieces.len()
+            )));
+        }
+        let centroid_chunks = CentroidChunks { buffers: pieces.len(), per_chunk };
         let storage = BufferUsage::STORAGE;
         let padded: Vec<[f32; 4]> = centroids.iter().map(|c| [c[0], c[1], c[2], 0.0]).collect();
-        let centroid_buffer =
-            upload_static(ctx, &format!("{name} centroids"), bytemuck::cast_slice(&padded), storage, counter)?;
+        let centroid_buffers = pieces
+            .iter()
+            .enumerate()
+            .map(|(k, piece)| {
+                let label = if pieces.len() == 1 { format!("{name} centroids") } else { format!("{name} centroids [{k}]") };
+                // An empty mesh still gets one (zero) centroid: zero-size buffers are invalid.
+                let data: &[[f32; 4]] = if piece.is_empty() { &[[0.0; 4]] } else { &padded[piece.clone()] };
+                upload_static(ctx, &label, bytemuck::cast_slice(data), storage, counter)
+            })
+            .collect::<VkResult<Vec<_>>>()?;
         let pair_bytes = (len.max(1) * 4) as u64;
         let local = |what: &str, usage| Buffer::new(ctx, BufferDesc::device_local(&format!("{name} {what}"), pair_bytes, usage));
         // The order is read by the draw and, in tests, copied back.
@@ -181,14 +224,19 @@ impl DeviceCentroidSort {
         for (pass, p) in params.iter().enumerate() {
             // Even passes read A (`keys_a`, `order`) and write B, odd ones back.
             let (src, dst) = if pass % 2 == 0 { ([&keys_a, &order], [&keys_b, &vals_b]) } else { ([&keys_b, &vals_b], [&keys_a, &order]) };
-            let buffers = [p, &centroid_buffer, src[0], src[1], dst[0], dst[1], &counts];
+            let mut buffers = vec![p, &centroid_buffers[0], src[0], src[1], dst[0], dst[1], &counts];
+            if let (Some(last), true) = (centroid_buffers.last(), centroid_buffers.len() > 1) {
+                // Chunks 1.., the last repeated in the bindings no chunk uses.
+                buffers.extend(&centroid_buffers[1..]);
+                buffers.resize(6 + MAX_CHUNKS, last);
+            }
             sets.push(StorageBufferSet::new(ctx, &format!("{name} pass {pass}"), &buffers, Stages::COMPUTE)?);
         }
         let pipelines = Pipeline4 {
-            keys: pipeline(ctx, "cell_projection/sort_keys.comp", CAMERA_BYTES as u32)?,
-            histogram: pipeline(ctx, "cell_projection/sort_histogram.comp", 0)?,
-            scan: pipeline(ctx, "cell_projection/sort_scan.comp", 0)?,
-            scatter: pipeline(ctx, "cell_projection/sort_scatter.comp", 0)?,
+            keys: pipeline(ctx, "cell_projection/sort_keys.comp", CAMERA_BYTES as u32, centroid_chunks)?,
+            histogram: pipeline(ctx, "cell_projection/sort_histogram.comp", 0, centroid_chunks)?,
+            scan: pipeline(ctx, "cell_projection/sort_scan.comp", 0, centroid_chunks)?,
+            scatter: pipeline(ctx, "cell_projection/sort_scatter.comp", 0, centroid_chunks)?,
         };
         let timestamps = TimestampPool::new(ctx, &format!("{name} timestamps"), 2)?;
         Ok(DeviceCentroidSort {
@@ -199,7 +247,8 @@ impl DeviceCentroidSort {
             timestamps,
             order,
             _params: params,
-            _centroids: centroid_buffer,
+            centroids: centroid_buffers,
+            centroid_chunks,
             _buffers: [keys_a, keys_b, vals_b, counts],
         })
     }
@@ -210,6 +259,13 @@ impl DeviceCentroidSort {
 
     pub fn is_empty(&self) -> bool {
         self.n == 0
+    }
+
+    /// The centroids' storage buffers (more than one beyond one binding's
+    /// range), and the centroids in each but the last.
+    pub fn centroid_buffers(&self) -> (usize, usize) {
+        debug_assert_eq!(self.centroids.len(), self.centroid_chunks.buffers);
+        (self.centroid_chunks.buffers, self.centroid_chunks.per_chunk)
     }
 
     /// The device-local buffer of sorted cell indices (u32, farthest first)

@@ -10,7 +10,9 @@
 //! on the device as `resident` stores them; per frame the tile lists cross
 //! (8 bytes per tile entry, 4 per tile). No triangle reaches lavapipe's
 //! serial vertex/setup/binning front end (PLATFORM.md): the compositing
-//! dispatch runs on every core.
+//! dispatch runs on every core. A mesh whose cells one texel buffer cannot
+//! hold has them in several (`algo::chunks`, as resident's), read through
+//! `stored_cell.glsl`'s chunk bindings after the set's four.
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -19,8 +21,9 @@ use rayon::prelude::*;
 
 use super::balanced::VERTICES_PER_CELL;
 use super::render;
-use super::resident::{upload_cells, FLOATS_PER_STORED_CELL};
+use super::resident::{upload_cell_chunks, FLOATS_PER_STORED_CELL};
 use super::{CellMaker, CellProjector, DrawSettings, FrameConstants, FrameSetup};
+use crate::algo::chunks::{ChunkLimits, TexelChunks};
 use crate::algo::integrate::IntegrationTables;
 use crate::algo::method::{MethodInfo, MethodInputs, RenderMethod};
 use crate::algo::host_memory::HostMemory;
@@ -69,7 +72,12 @@ pub const METHOD: MethodInfo = render::method_info(
 fn create(inputs: MethodInputs) -> anyhow::Result<Box<dyn RenderMethod>> {
     // Per frame: a list entry per pixel a cell covers, about 36 per cell on
     // the oxygen post at 512^2 (18.4 M pairs); stored: resident's cell.
-    let bytes = render::DeviceBytesPerCell { frame: PAIRS_PER_CELL * BYTES_PER_ENTRY, fixed: FLOATS_PER_STORED_CELL * 4 };
+    // Host: positions (48), footprints (at most 40) and the pixel lists.
+    let bytes = render::DeviceBytesPerCell {
+        frame: PAIRS_PER_CELL * BYTES_PER_ENTRY,
+        fixed: FLOATS_PER_STORED_CELL * 4,
+        host: 48 + std::mem::size_of::<Footprint>() + PAIRS_PER_CELL * BYTES_PER_ENTRY,
+    };
     let stages = Stages::FRAGMENT | Stages::COMPUTE;
     render::CellProjection::create_for_stages(inputs, bytes, stages, |ctx, mesh, tables, draw, counter| {
         Ok(Box::new(PtCompute::new(ctx, mesh, tables, draw, counter)?))
@@ -448,7 +456,7 @@ pub struct PtCompute {
     bin_ms: f64,
     /// An error of the last `pack` (a frame whose tile lists the device cannot hold), reported by `upload`.
     pack_error: Option<String>,
-    _cells: TexelBuffer,
+    cells: TexelChunks,
     first: TexelBuffer,
     entries: TexelBuffer,
     counters: Buffer,
@@ -466,14 +474,35 @@ pub struct PtCompute {
 
 const COUNTER_WORDS: usize = 4;
 
-fn set_desc() -> DescriptorSetDesc {
+/// Binding of the cells' second texel buffer (`CELL_CHUNK_BINDING` in
+/// stored_cell.glsl), after the set's cells, starts, lists and counters.
+const CELL_CHUNK_BINDING: usize = 4;
+
+/// The cells and tiles set, with `cell_chunks - 1` more cell bindings.
+fn set_desc(cell_chunks: usize) -> DescriptorSetDesc {
     let compute = Stages::COMPUTE;
-    DescriptorSetDesc::new(&[
+    let mut desc = DescriptorSetDesc::new(&[
         (DescriptorKind::UniformTexelBuffer, compute),
         (DescriptorKind::UniformTexelBuffer, compute),
         (DescriptorKind::UniformTexelBuffer, compute),
         (DescriptorKind::StorageBuffer, compute),
-    ])
+    ]);
+    for _ in 1..cell_chunks {
+        desc = desc.with(DescriptorKind::UniformTexelBuffer, compute);
+    }
+    desc
+}
+
+/// The resources of `set_desc`, in its order.
+fn set_resources<'a>(cells: &'a TexelChunks, first: &'a TexelBuffer, entries: &'a TexelBuffer, counters: &'a Buffer) -> Vec<DescriptorResource<'a>> {
+    let mut resources = vec![
+        DescriptorResource::UniformTexelBuffer(&cells.buffers[0]),
+        DescriptorResource::UniformTexelBuffer(first),
+        DescriptorResource::UniformTexelBuffer(entries),
+        DescriptorResource::StorageBuffer(counters),
+    ];
+    resources.extend(cells.buffers[1..].iter().map(DescriptorResource::UniformTexelBuffer));
+    resources
 }
 
 /// A host-visible uniform texel buffer of `texels` texels of `format`
@@ -500,9 +529,11 @@ impl PtCompute {
         let maker = CellMaker::new(mesh);
         let positions: Vec<[[f32; 3]; 4]> = (0..mesh.tets.len()).into_par_iter().map(|t| maker.cell(mesh, t).pos).collect();
         let n = positions.len();
-        let cell_buffer = upload_cells(ctx, "pt-compute cells", mesh, counter)?;
+        let cells = upload_cell_chunks(ctx, "pt-compute cells", mesh, &ChunkLimits::of(ctx)?, counter)?;
         let first = frame_texels(ctx, "pt-compute tile starts", 1, 4, Format::R32Uint)?;
-        let entries = frame_texels(ctx, "pt-compute pixel lists", 8 * n, BYTES_PER_ENTRY, Format::R32Uint)?;
+        // A first guess at the lists (they grow with the frame's entries).
+        let guess = (8 * n).min(ctx.info.max_texel_buffer_elements as usize);
+        let entries = frame_texels(ctx, "pt-compute pixel lists", guess, BYTES_PER_ENTRY, Format::R32Uint)?;
         let counters = Buffer::new(
             ctx,
             BufferDesc::upload(
@@ -514,17 +545,14 @@ impl PtCompute {
         let set = DescriptorSet::new(
             ctx,
             "pt-compute cells and tiles",
-            &set_desc(),
-            &[
-                DescriptorResource::UniformTexelBuffer(&cell_buffer),
-                DescriptorResource::UniformTexelBuffer(&first),
-                DescriptorResource::UniformTexelBuffer(&entries),
-                DescriptorResource::StorageBuffer(&counters),
-            ],
+            &set_desc(cells.buffers.len()),
+            &set_resources(&cells, &first, &entries, &counters),
         )?;
         let target_desc = DescriptorSetDesc::new(&[(DescriptorKind::StorageImage, Stages::COMPUTE)]);
         let tile = TILE.map(|t| t.to_string());
         let ert = format!("{ERT_TRANSMITTANCE:e}");
+        let chunked = cells.defines("CELL");
+        let chunk_binding = (!chunked.is_empty()).then(|| CELL_CHUNK_BINDING.to_string());
         let defines: Vec<(&str, &str)> = draw
             .interpolation
             .defines()
@@ -532,11 +560,13 @@ impl PtCompute {
             .copied()
             .chain(tables.integrator.define())
             .chain([("TILE_W", tile[0].as_str()), ("TILE_H", tile[1].as_str()), ("ERT_TRANSMITTANCE", ert.as_str())])
+            .chain(chunked.iter().map(|(k, v)| (k.as_str(), v.as_str())))
+            .chain(chunk_binding.iter().map(|b| ("CELL_CHUNK_BINDING", b.as_str())))
             .collect();
         let pipeline_key = PipelineKey::Compute(ComputePipelineKey {
             shader: ShaderKey::new("cell_projection/pt_composite.comp", ShaderStage::Compute, &defines),
             push_constant_bytes: std::mem::size_of::<FrameConstants>() as u32,
-            sets: vec![tables.set.desc.clone(), set_desc(), target_desc.clone()],
+            sets: vec![tables.set.desc.clone(), set_desc(cells.buffers.len()), target_desc.clone()],
         });
         let pipeline = crate::algo::pipelines::get(ctx, &pipeline_key)?;
         Ok(PtCompute {
@@ -547,7 +577,7 @@ impl PtCompute {
             project_ms: 0.0,
             bin_ms: 0.0,
             pack_error: None,
-            _cells: cell_buffer,
+            cells,
             first,
             entries,
             counters,
@@ -595,6 +625,9 @@ impl CellProjector for PtCompute {
 
     fn cells(&self) -> usize {
         self.positions.len()
+    }
+    fn device_chunks(&self) -> serde_json::Value {
+        serde_json::json!({ "cell_buffers": self.cells.buffers.len(), "cells_per_buffer": self.cells.per_chunk })
     }
     fn vertices_per_cell(&self) -> usize {
         VERTICES_PER_CELL
@@ -655,12 +688,7 @@ impl CellProjector for PtCompute {
         let grown_first = Self::ensure(&ctx, &mut self.first, self.lists.first.len(), 4, "pt-compute pixel starts")?;
         let grown_entries = Self::ensure(&ctx, &mut self.entries, self.lists.entries(), BYTES_PER_ENTRY, "pt-compute pixel lists")?;
         if grown_first || grown_entries {
-            self.set.update(&[
-                DescriptorResource::UniformTexelBuffer(&self._cells),
-                DescriptorResource::UniformTexelBuffer(&self.first),
-                DescriptorResource::UniformTexelBuffer(&self.entries),
-                DescriptorResource::StorageBuffer(&self.counters),
-            ])?;
+            self.set.update(&set_resources(&self.cells, &self.first, &self.entries, &self.counters))?;
         }
         self.first.buffer.write(0, bytemuck::cast_slice(&self.lists.first), counter, UploadClass::FrameCells)?;
         let mut offset = 0;

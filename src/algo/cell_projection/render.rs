@@ -267,15 +267,24 @@ impl<F> ProjectorBuilder for F where
 {
 }
 
-/// Bytes a projector needs on the device per cell: per-frame records in one
-/// allocation, plus static data (checked before anything is allocated).
+/// Bytes a projector needs per cell: on the device, per-frame records in one
+/// allocation plus static data; on the host, what it keeps between frames
+/// (checked before anything is allocated, `chunks::check_memory`).
 #[derive(Debug, Clone, Copy)]
 pub struct DeviceBytesPerCell {
     /// Per-frame bytes per cell in one allocation (0 when the projector
     /// splits them at the device's limits, `algo::chunks`: then in `fixed`).
     pub frame: usize,
     pub fixed: usize,
+    /// Host bytes per cell the projector keeps (its `host_bytes` at the
+    /// oxygen post, rounded up).
+    pub host: usize,
 }
+
+/// Host bytes per cell every cell projection keeps beside its projector's:
+/// culling and the near caps' relative mesh, the sort's centroids, keys and
+/// order (57 at the oxygen post, `details.host_memory`), rounded up.
+pub const SHARED_HOST_BYTES_PER_CELL: usize = 64;
 
 /// Cell projection as a registry method.
 pub struct CellProjection {
@@ -349,11 +358,10 @@ impl CellProjection {
         let ctx = inputs.ctx;
         // Refuse meshes the device cannot hold before allocating anything.
         let info = &ctx.info;
-        let (memory, what) = crate::algo::chunks::device_memory_bound(info);
         crate::mesh::check_fits(mesh.tets.len(), bytes.frame, info.max_memory_allocation_size)
             .with_context(|| format!("mesh '{}' on {}: the per-frame records in one allocation", mesh.name, info.name))?;
-        crate::mesh::check_fits(mesh.tets.len(), bytes.frame + bytes.fixed, memory)
-            .with_context(|| format!("mesh '{}' on {}: device memory ({what})", mesh.name, info.name))?;
+        crate::algo::chunks::check_memory(info, mesh.tets.len(), bytes.frame + bytes.fixed, bytes.host + SHARED_HOST_BYTES_PER_CELL)
+            .with_context(|| format!("mesh '{}' on {}", mesh.name, info.name))?;
         // A typical cell size: the bounding box shared out among the cells.
         let length_scale = mesh.bounds().diagonal() / (mesh.tets.len().max(1) as f64).cbrt();
         let tables = IntegrationTables::for_stages(

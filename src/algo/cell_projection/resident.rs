@@ -22,7 +22,7 @@ use crate::algo::method::{MethodInfo, MethodInputs, RenderMethod};
 use crate::mesh::TetMesh;
 use crate::vk::{
     Buffer, BufferDesc, CommandRecorder, ComputePipelineKey, Context, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc,
-    Pipeline, PipelineKey, ShaderKey, ShaderStage, TexelBuffer, UploadClass, UploadCounter, VkError, VkResult,
+    Pipeline, PipelineKey, ShaderKey, ShaderStage, UploadClass, UploadCounter, VkResult,
 };
 use crate::vk::{BufferUsage, Format, Stages};
 
@@ -49,6 +49,8 @@ fn create(inputs: MethodInputs) -> anyhow::Result<Box<dyn RenderMethod>> {
     let bytes = render::DeviceBytesPerCell {
         frame: 0,
         fixed: BYTES_PER_CELL_PER_FRAME + MAX_INDICES_PER_CELL * 4 + FLOATS_PER_STORED_CELL * 4 + FLOATS_PER_CELL * 4,
+        // The order's copy.
+        host: 4,
     };
     render::CellProjection::create(inputs, bytes, |ctx, mesh, tables, draw, counter| {
         Ok(Box::new(Resident::new(ctx, mesh, tables, draw, counter)?))
@@ -282,21 +284,6 @@ pub(super) fn upload_cell_chunks(
             dst.copy_from_slice(bytemuck::cast_slice(&stored(&maker.cell(mesh, first + i))));
         });
     })
-}
-
-/// [`upload_cell_chunks`] for a method that reads its cells from one texel
-/// buffer (pt-compute): more than one is an error naming the mesh.
-pub(super) fn upload_cells(ctx: &Arc<Context>, name: &str, mesh: &TetMesh, counter: &mut UploadCounter) -> VkResult<TexelBuffer> {
-    let mut cells = upload_cell_chunks(ctx, name, mesh, &ChunkLimits::of(ctx)?, counter)?;
-    if cells.buffers.len() > 1 {
-        return Err(VkError::Invalid(format!(
-            "mesh '{}': {name}: {} cells need {} texel buffers at the device's limits; this method reads one",
-            mesh.name,
-            mesh.tets.len(),
-            cells.buffers.len()
-        )));
-    }
-    Ok(cells.buffers.remove(0))
 }
 
 impl CellProjector for Resident {

@@ -98,6 +98,7 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
     let bytes = render::DeviceBytesPerCell {
         frame: 0,
         fixed: MAX_INDICES_PER_CELL * 4 + FLOATS_PER_STORED_CELL * 4 + super::device_sort::DEVICE_BYTES_PER_CELL,
+        host: 0,
     };
     render::CellProjection::create(inputs, bytes, |ctx, mesh, tables, draw, counter| {
         Ok(Box::new(ResidentGpuSort::new(ctx, mesh, tables, draw, counter)?))
@@ -108,7 +109,7 @@ pub struct ResidentGpuSort {
     cells: usize,
     set: DescriptorSet,
     sort: DeviceCentroidSort,
-    _cells: TexelChunks,
+    cell_chunks: TexelChunks,
     indices: StaticIndices,
     pipeline: Arc<Pipeline>,
     pipeline_key: PipelineKey,
@@ -130,7 +131,7 @@ impl ResidentGpuSort {
         let indices = StaticIndices::upload(ctx, "resident-gpusort indices", draw.primitives, n, counter)?;
         let set = cells_and_order_set(ctx, "resident-gpusort cells and order", &cells, sort.order())?;
         let (pipeline, pipeline_key) = resident_pipeline(ctx, tables, draw, &cells)?;
-        Ok(ResidentGpuSort { cells: n, set, sort, _cells: cells, indices, pipeline, pipeline_key })
+        Ok(ResidentGpuSort { cells: n, set, sort, cell_chunks: cells, indices, pipeline, pipeline_key })
     }
 }
 
@@ -150,6 +151,15 @@ impl CellProjector for ResidentGpuSort {
 
     fn pipeline_key(&self) -> &PipelineKey {
         &self.pipeline_key
+    }
+    fn device_chunks(&self) -> serde_json::Value {
+        let (centroid_buffers, centroids_per_buffer) = self.sort.centroid_buffers();
+        serde_json::json!({
+            "cell_buffers": self.cell_chunks.buffers.len(),
+            "cells_per_buffer": self.cell_chunks.per_chunk,
+            "centroid_buffers": centroid_buffers,
+            "centroids_per_buffer": centroids_per_buffer,
+        })
     }
 
     /// Nothing: the order is made on the device.

@@ -2,7 +2,9 @@
 //! sent as 12 vertex records (4 faces x 3 vertices) of 11 floats,
 //! (v: 3, s_v: 1, P_v: 3, g: 3, i: 1) = 132 floats; all view-dependent work
 //! happens in the vertex stage. Records don't depend on the view, so they are
-//! built once; per frame the CPU only gathers them in sorted order.
+//! built once; per frame the CPU only gathers them in sorted order. The
+//! gathered records are split at the device's limits (`algo::chunks`, as
+//! balanced's): one vertex buffer and one draw per piece, in order.
 
 use std::sync::Arc;
 
@@ -11,11 +13,12 @@ use rayon::prelude::*;
 use super::render;
 use crate::algo::method::{MethodInfo, MethodInputs, RenderMethod};
 use super::{build_pipeline, cells_f32, CellProjector, FrameSetup, Interpolation, FACES};
+use crate::algo::chunks::{ChunkLimits, VertexChunks};
 use crate::algo::host_memory::HostMemory;
 use crate::algo::integrate::IntegrationTables;
 use crate::mesh::TetMesh;
-use crate::vk::{Buffer, BufferDesc, CommandRecorder, Context, Pipeline, PipelineKey, UploadClass, UploadCounter, VertexAttribute, VkResult};
-use crate::vk::{BufferUsage, Format, Topology};
+use crate::vk::{CommandRecorder, Context, Pipeline, PipelineKey, UploadCounter, VertexAttribute, VkResult};
+use crate::vk::{Format, Topology};
 
 pub const FLOATS_PER_VERTEX: usize = 11;
 pub const VERTICES_PER_CELL: usize = 12;
@@ -34,7 +37,9 @@ pub const METHOD: MethodInfo = render::method_info(
 );
 
 fn create(inputs: MethodInputs) -> anyhow::Result<Box<dyn RenderMethod>> {
-    let bytes = render::DeviceBytesPerCell { frame: FLOATS_PER_CELL * 4, fixed: 0 };
+    // The records are split at the device's limits (one piece per draw).
+    // Host: the view-independent records and this frame's, packed.
+    let bytes = render::DeviceBytesPerCell { frame: 0, fixed: FLOATS_PER_CELL * 4, host: 2 * FLOATS_PER_CELL * 4 };
     render::CellProjection::create(inputs, bytes, |ctx, mesh, tables, draw, _counter| {
         Ok(Box::new(Vicp::new(ctx, mesh, tables, draw.interpolation)?))
     })
@@ -45,7 +50,9 @@ pub struct Vicp {
     records: Vec<f32>,
     /// This frame's records in draw order.
     packed: Vec<f32>,
-    vertex_buffer: Buffer,
+    /// The packed records in pieces (one buffer holds at most
+    /// maxMemoryAllocationSize bytes), one draw each.
+    vertex_buffers: VertexChunks,
     pipeline: Arc<Pipeline>,
     pipeline_key: PipelineKey,
     cells: usize,
@@ -82,8 +89,8 @@ impl Vicp {
         let n = cells.len();
         let mut records = vec![0f32; n * FLOATS_PER_CELL];
         records.par_chunks_mut(FLOATS_PER_CELL).zip(cells.par_iter()).for_each(|(out, c)| cell_records(c, out));
-        let bytes = (n * FLOATS_PER_CELL * 4) as u64;
-        let vertex_buffer = Buffer::new(ctx, BufferDesc::upload("vicp vertex records", bytes, BufferUsage::VERTEX))?;
+        let per_draw = ChunkLimits::of(ctx)?.allocation_chunk((FLOATS_PER_CELL * 4) as u64).max(1);
+        let vertex_buffers = VertexChunks::new(ctx, "vicp vertex records", n, FLOATS_PER_CELL * 4, per_draw)?;
         let f = |location, format, floats: u32| VertexAttribute { location, format, offset: floats * 4 };
         let attributes = [
             f(0, Format::Rgb32Float, 0),
@@ -105,7 +112,7 @@ impl Vicp {
             &[],
             &[],
         )?;
-        Ok(Vicp { packed: vec![0f32; records.len()], records, vertex_buffer, pipeline, pipeline_key, cells: n, drawn: n })
+        Ok(Vicp { packed: vec![0f32; records.len()], records, vertex_buffers, pipeline, pipeline_key, cells: n, drawn: n })
     }
 }
 
@@ -127,6 +134,9 @@ impl CellProjector for Vicp {
     fn pipeline_key(&self) -> &PipelineKey {
         &self.pipeline_key
     }
+    fn device_chunks(&self) -> serde_json::Value {
+        self.vertex_buffers.describe("cells")
+    }
 
     fn drawn(&self) -> usize {
         self.drawn
@@ -142,15 +152,18 @@ impl CellProjector for Vicp {
     }
 
     fn upload(&mut self, counter: &mut UploadCounter) -> VkResult<()> {
-        let packed = &self.packed[..self.drawn * FLOATS_PER_CELL];
-        self.vertex_buffer.write(0, bytemuck::cast_slice(packed), counter, UploadClass::FrameCells)
+        self.vertex_buffers.write(&self.packed[..self.drawn * FLOATS_PER_CELL], FLOATS_PER_CELL, counter)
     }
 
     fn record_draw(&self, rec: &CommandRecorder, tables: &IntegrationTables, frame: &FrameSetup, counter: &mut UploadCounter) -> VkResult<()> {
         rec.bind_pipeline(&self.pipeline, Some(&tables.set));
         rec.push_constants(&self.pipeline, bytemuck::bytes_of(&frame.constants), counter);
-        rec.bind_vertex_buffer(&self.vertex_buffer);
-        rec.draw((self.drawn * VERTICES_PER_CELL) as u32);
+        // One draw per piece of the sorted records, in order (back-to-front
+        // compositing is kept across pieces).
+        for (buffer, cells) in self.vertex_buffers.drawn(self.drawn) {
+            rec.bind_vertex_buffer(buffer);
+            rec.draw((cells.len() * VERTICES_PER_CELL) as u32);
+        }
         Ok(())
     }
 }
