@@ -539,6 +539,9 @@ fn run(cli: &Cli, registry: &Registry, args: &RunArgs) -> Result<()> {
     let ctx = context(cli)?;
     cfg.check_device(&ctx.info)?;
     if args.serve {
+        // One method, no reference: it takes the samples over, as below.
+        let mut dataset = dataset;
+        dataset.hand_over_samples();
         return volbench::harness::serve::serve_run(&ctx, &spec, &dataset, &tf, &cfg)
             .with_context(|| format!("serving {} on {}", spec.canonical(), args.data));
     }
@@ -620,7 +623,7 @@ fn compare(cli: &Cli, registry: &Registry, args: &CompareArgs) -> Result<()> {
     if let Some(dir) = &args.out {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
-    let rows = sweep::compare(&ctx, registry, &jobs, &cfg, args.out.as_deref())?;
+    let rows = sweep::compare(&ctx, registry, &mut jobs, &cfg, args.out.as_deref())?;
     outln!("device: {} ({}, {})", ctx.info.name, ctx.info.driver_name, ctx.info.driver_info);
     out!("{}", sweep::comparison_markdown(&rows, registry)?);
     let failed = rows.iter().filter(|r| r.outcome.is_err() && !r.skipped).count();
@@ -661,7 +664,7 @@ fn track(baseline: &Path, new: &Path, args: &CompareArgs) -> Result<()> {
 
 fn pareto(cli: &Cli, registry: &Registry, args: &ParetoArgs) -> Result<()> {
     let cfg = args.frame.config()?;
-    let dataset = datasets::load(&args.data)?;
+    let mut dataset = datasets::load(&args.data)?;
     let tf = args.frame.transfer_function(&dataset)?;
     let specs = sweep::pareto_specs(registry, &args.methods, dataset.kind(), &args.frame.method.pairs())?;
     let out_dir = args.out.clone().unwrap_or_else(|| PathBuf::from(format!("results/runs/pareto-{}", dataset.name)));
@@ -669,7 +672,7 @@ fn pareto(cli: &Cli, registry: &Registry, args: &ParetoArgs) -> Result<()> {
     let ctx = context(cli)?;
     cfg.check_device(&ctx.info)?;
     std::fs::create_dir_all(&out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
-    let points = sweep::pareto(&ctx, &dataset, &tf, &specs, &cfg, &out_dir)?;
+    let points = sweep::pareto(&ctx, &mut dataset, &tf, &specs, &cfg, &out_dir)?;
     out!("{}", volbench::harness::pareto::markdown(&dataset.name, &points));
     outln!("written: {}/pareto.{{csv,md,json,png}}", out_dir.display());
     let failed = points.iter().filter(|p| p.error.is_some() && !p.skipped).count();

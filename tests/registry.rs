@@ -196,14 +196,14 @@ fn a_test_only_method_runs_through_the_runner_with_the_common_schema() {
 #[test]
 fn sweeps_iterate_over_the_registry_and_survive_a_failing_row() {
     let registry = registry_with_box().with(FAILS);
-    let dataset = datasets::load("post-small").unwrap();
+    let mut dataset = datasets::load("post-small").unwrap();
     let tf = dataset.default_transfer_function().unwrap();
     let dir = tempfile::tempdir().unwrap();
     let ctx = context();
     // pareto over the box's own sweep, with no harness code naming it.
     let specs = sweep::pareto_specs(&registry, &["test-solid-box".into()], DataKind::TetMesh, &[]).unwrap();
     assert_eq!(specs.len(), 2);
-    let points = sweep::pareto(&ctx, &dataset, &tf, &specs, &small(), dir.path()).unwrap();
+    let points = sweep::pareto(&ctx, &mut dataset, &tf, &specs, &small(), dir.path()).unwrap();
     assert_eq!(points.len(), 2);
     assert!(points.iter().all(|p| p.error.is_none() && p.rmse > 0.0));
     for f in ["pareto.csv", "pareto.md", "pareto.json", "pareto.png"] {
@@ -222,9 +222,9 @@ fn sweeps_iterate_over_the_registry_and_survive_a_failing_row() {
         registry.parse_spec("test-fails", &[]).unwrap(),
         registry.parse_spec("balanced", &[]).unwrap(),
     ];
-    let jobs = vec![sweep::CompareJob { dataset, tf, specs }];
+    let mut jobs = vec![sweep::CompareJob { dataset, tf, specs }];
     sweep::check_compare_outputs(&jobs).unwrap();
-    let rows = sweep::compare(&ctx, &registry, &jobs, &small(), Some(dir.path())).unwrap();
+    let rows = sweep::compare(&ctx, &registry, &mut jobs, &small(), Some(dir.path())).unwrap();
     assert_eq!(rows.len(), 3, "the failing row does not end the sweep");
     assert!(rows[0].outcome.is_ok() && rows[2].outcome.is_ok());
     let err = rows[1].outcome.as_ref().err().expect("the failing method fails");

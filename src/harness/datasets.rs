@@ -84,6 +84,9 @@ pub struct Dataset {
     /// A volume's samples set aside for the next method set up
     /// ([`Dataset::hand_over_samples`]).
     handed: std::sync::Mutex<Option<crate::volume::Samples>>,
+    /// What [`load`] was given for a volume: where its samples are read
+    /// again after a method took them ([`Dataset::run_handing_over`]).
+    loaded_from: Option<String>,
 }
 
 /// What every result records about its dataset.
@@ -107,7 +110,7 @@ impl Dataset {
         mesh.scalars.shrink_to_fit();
         mesh.tets.shrink_to_fit();
         let digest = mesh_digest(&mesh);
-        Dataset { name: mesh.name.clone(), named, source, digest, data: DatasetData::TetMesh { mesh }, handed: Default::default() }
+        Dataset { name: mesh.name.clone(), named, source, digest, data: DatasetData::TetMesh { mesh }, handed: Default::default(), loaded_from: None }
     }
 
     /// A mesh read from a file or a shipped dataset: as `from_mesh`; with
@@ -128,12 +131,12 @@ impl Dataset {
 
     pub fn from_volume(volume: Volume, named: bool, source: String) -> Self {
         let digest = volume_digest(&volume);
-        Dataset { name: volume.name.clone(), named, source, digest, data: DatasetData::Volume(volume), handed: Default::default() }
+        Dataset { name: volume.name.clone(), named, source, digest, data: DatasetData::Volume(volume), handed: Default::default(), loaded_from: None }
     }
 
     pub fn from_heightmap(map: Heightmap, named: bool, source: String) -> Self {
         let digest = heightmap_digest(&map);
-        Dataset { name: map.name.clone(), named, source, digest, data: DatasetData::Terrain(map), handed: Default::default() }
+        Dataset { name: map.name.clone(), named, source, digest, data: DatasetData::Terrain(map), handed: Default::default(), loaded_from: None }
     }
 
     /// For a caller that reads a volume's samples no more after the next
@@ -146,6 +149,38 @@ impl Dataset {
         if let DatasetData::Volume(v) = &mut self.data {
             *self.handed.get_mut().unwrap_or_else(|p| p.into_inner()) = Some(v.take_samples());
         }
+    }
+
+    /// One method's run (`run`) on this dataset in a command that runs
+    /// several: a volume loaded from a file ([`load`]) hands its samples over
+    /// to the method, which frees them as they reach the device, and reads
+    /// them again from the file after the run (loading is not in frame
+    /// time; the content is checked against the digest). So a suite holds
+    /// one copy of the volume at a time, as `volbench run` does
+    /// (docs/bad-input.md, "Memory"). Other data, and a volume made in
+    /// memory, are shared as they are. The run's own error is `run`'s
+    /// result; reading the volume again is this one's.
+    pub fn run_handing_over<T>(&mut self, run: impl FnOnce(&Dataset) -> T) -> Result<T> {
+        let Some(from) = self.loaded_from.clone().filter(|_| matches!(self.data, DatasetData::Volume(_))) else {
+            return Ok(run(self));
+        };
+        self.hand_over_samples();
+        let out = run(self);
+        // Set aside but not taken (the run failed before its set-up).
+        let unused = self.take_handed_samples();
+        let DatasetData::Volume(v) = &mut self.data else { unreachable!("checked above") };
+        match unused {
+            Some(samples) => v.give_samples_back(samples),
+            None => {
+                let again = load(&from).with_context(|| format!("reading '{from}' again for the next method"))?;
+                anyhow::ensure!(
+                    again.digest == self.digest,
+                    "'{from}' changed while it was being run (its content's digest is not the one it was loaded with)"
+                );
+                self.data = again.data;
+            }
+        }
+        Ok(out)
     }
 
     /// The samples [`Dataset::hand_over_samples`] set aside, once.
@@ -406,6 +441,15 @@ pub const RENUMBER_VAR: &str = "VOLBENCH_TEST_RENUMBER";
 
 /// Load a dataset by shipped name or path.
 pub fn load(spec: &str) -> Result<Dataset> {
+    let mut dataset = load_once(spec)?;
+    if let DatasetData::Volume(_) = dataset.data {
+        dataset.loaded_from = Some(spec.to_string());
+    }
+    Ok(dataset)
+}
+
+/// [`load`]'s reading.
+fn load_once(spec: &str) -> Result<Dataset> {
     let dir = data_dir();
     let named = |name: &str, mesh: Result<TetMesh>, source: String| -> Result<Dataset> {
         let mut mesh = mesh.with_context(|| format!("loading dataset '{name}' ({})", crate::data_dir::search_note()))?;

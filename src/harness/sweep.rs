@@ -128,10 +128,10 @@ pub fn check_compare_outputs(jobs: &[CompareJob]) -> Result<()> {
 
 /// Run every job's specs; with `out`, each row's JSON, PNG and difference
 /// PNG (all or none) and the table so far are written as the row completes.
-pub fn compare(ctx: &Arc<Context>, registry: &Registry, jobs: &[CompareJob], cfg: &RunConfig, out: Option<&Path>) -> Result<Vec<CompareRow>> {
+pub fn compare(ctx: &Arc<Context>, registry: &Registry, jobs: &mut [CompareJob], cfg: &RunConfig, out: Option<&Path>) -> Result<Vec<CompareRow>> {
     let mut rows = Vec::new();
-    for job in jobs {
-        let dataset = &job.dataset;
+    for job in jobs.iter_mut() {
+        let dataset = &mut job.dataset;
         let mut reference = None;
         for spec in &job.specs {
             if let Some(why) = skip_reason(spec, &ctx.info) {
@@ -141,7 +141,7 @@ pub fn compare(ctx: &Arc<Context>, registry: &Registry, jobs: &[CompareJob], cfg
             }
             crate::progress!("volbench: {} on {}...", spec.label(), dataset.name);
             let outcome = (|| -> Result<RunOutput> {
-                let mut result = run(ctx, spec, dataset, &job.tf, cfg)?;
+                let mut result = dataset.run_handing_over(|d| run(ctx, spec, d, &job.tf, cfg))??;
                 if reference.is_none() && result.result.error.is_none() {
                     crate::progress!("volbench: f64 reference of {}...", dataset.name);
                     reference = Some(reference_image(dataset, &job.tf, &result.result.image.camera, cfg.width, cfg.height)?);
@@ -202,7 +202,7 @@ pub fn comparison_markdown(rows: &[CompareRow], registry: &Registry) -> Result<S
 /// `pareto.md`, `pareto.json` and `pareto.png` in `out_dir`. Failed rows are recorded.
 pub fn pareto(
     ctx: &Arc<Context>,
-    dataset: &Dataset,
+    dataset: &mut Dataset,
     tf: &TransferFunction,
     specs: &[MethodSpec],
     cfg: &RunConfig,
@@ -221,7 +221,7 @@ pub fn pareto(
         }
         crate::progress!("volbench: {label}...");
         let point = (|| -> Result<ParetoPoint> {
-            let mut out = run(ctx, spec, dataset, tf, cfg)?;
+            let mut out = dataset.run_handing_over(|d| run(ctx, spec, d, tf, cfg))??;
             // A method's own error (terrain height error) needs no image.
             if out.result.error.is_none() {
                 if reference.is_none() {

@@ -35,6 +35,7 @@
 //! `tests/raycast.rs`.
 
 use anyhow::{ensure, Result};
+use bit_vec::BitVec;
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -70,12 +71,15 @@ pub fn brick_grid(dims: [usize; 3], brick: usize) -> [usize; 3] {
 /// One layer of bricks at a time: each layer's sample range per (x brick,
 /// y row), then per (x brick, y brick); memory is two such rows of ranges,
 /// never a multiple of the volume (each sample is read about once).
-pub fn attenuating_bricks(vol: &Volume, tf: &TransferFunction, brick: usize) -> Vec<bool> {
+/// One bit a brick: the reference flags cells (`brick` 1), and a byte a
+/// cell was as large as an 8-bit volume beside it (issue 21's bound,
+/// docs/bad-input.md "Memory").
+pub fn attenuating_bricks(vol: &Volume, tf: &TransferFunction, brick: usize) -> BitVec {
     let dims = vol.dims();
     let grid = brick_grid(dims, brick);
     // The samples of brick b along one axis of n samples.
     let span = |b: usize, n: usize| (b * brick).min(n - 1)..=((b + 1) * brick).min(n - 1);
-    let mut flags = Vec::with_capacity(grid[0] * grid[1] * grid[2]);
+    let mut flags = BitVec::with_capacity(grid[0] * grid[1] * grid[2]);
     let rows = grid[0] * dims[1];
     let (mut lo, mut hi) = (vec![f64::INFINITY; rows], vec![f64::NEG_INFINITY; rows]);
     for bz in 0..grid[2] {
@@ -187,7 +191,7 @@ struct Walker<'a> {
     spacing: DVec3,
     origin: DVec3,
     /// Per cell (x fastest, dims − 1 per axis): some attenuation is possible.
-    visible: Vec<bool>,
+    visible: BitVec,
 }
 
 impl<'a> Walker<'a> {
@@ -238,7 +242,7 @@ impl<'a> Walker<'a> {
                 }
             }
             let t_exit = t_exit.max(t);
-            if t_exit > t && self.visible[c[0] + cells[0] * (c[1] + cells[1] * c[2])] {
+            if t_exit > t && self.visible.get(c[0] + cells[0] * (c[1] + cells[1] * c[2])).unwrap_or(false) {
                 let n = ((t_exit - t) * vox_per_t * SUBSTEPS_PER_VOXEL).ceil().max(1.0);
                 let cell_origin = DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64);
                 let local = |tt: f64| uo + ud * tt - cell_origin;
@@ -388,7 +392,7 @@ mod tests {
         let tf = transparent_below(0.5, 4.0);
         let vol = ramp_volume([8, 3, 3], [1.0; 3], |p| if p[0] > 3.0 { 1.0 } else { 0.0 });
         let w = Walker::new(&vol, &tf);
-        let cells = w.visible.iter().filter(|&&v| v).count();
+        let cells = w.visible.iter().filter(|&v| v).count();
         // Samples at x = -1..6: x > 3 from i = 5 on, so cells 4, 5, 6 along x.
         assert_eq!(cells, 3 * 2 * 2);
         assert_eq!(max_attenuation(&tf, 0.1, 0.4), 0.0);
@@ -408,7 +412,7 @@ mod tests {
             let grid = brick_grid([nx, ny, nz], brick);
             let flags = attenuating_bricks(&vol, &tf, brick);
             proptest::prop_assert_eq!(flags.len(), grid[0] * grid[1] * grid[2]);
-            for (n, &flag) in flags.iter().enumerate() {
+            for (n, flag) in flags.iter().enumerate() {
                 let b = [n % grid[0], n / grid[0] % grid[1], n / (grid[0] * grid[1])];
                 let span = |a: usize, d: usize| (b[a] * brick).min(d - 1)..=((b[a] + 1) * brick).min(d - 1);
                 let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);

@@ -272,6 +272,14 @@ impl Volume {
         std::mem::replace(&mut self.samples, empty)
     }
 
+    /// Puts back samples [`Volume::take_samples`] took, unused (a method
+    /// that failed before reading them). Others are ignored: a caller's bug.
+    pub fn give_samples_back(&mut self, samples: Samples) {
+        if samples.len() == self.len() && samples.sample_type() == self.sample_type() {
+            self.samples = samples;
+        }
+    }
+
     pub fn sample_type(&self) -> SampleType {
         self.samples.sample_type()
     }

@@ -99,7 +99,7 @@ use super::settings::{choice, flag, float, int, MethodSettings};
 use crate::scene::TransferFunction;
 use crate::volume::{Samples, Volume};
 use crate::vk::{
-    upload_static_texels, upload_texture, upload_texture_with, Buffer, BufferDesc, CommandRecorder, Context, DescriptorKind, DescriptorResource, DescriptorSet,
+    upload_texture, upload_texture_with, Buffer, BufferDesc, CommandRecorder, Context, DescriptorKind, DescriptorResource, DescriptorSet,
     DescriptorSetDesc, MemoryKind, Sampler, TexelBuffer, TextureDesc, UploadClass, UploadCounter,
 };
 use crate::vk::{BufferUsage, Format, Stages, Filter};
@@ -232,6 +232,58 @@ pub fn preint_length(vol: &Volume, step: f64) -> f64 {
     step * s[0].min(s[1]).min(s[2])
 }
 
+/// How a volume's samples become texels.
+#[derive(Clone, Copy)]
+enum Texels {
+    /// The samples' own bytes (a normalized format of their width).
+    Native,
+    /// int16 shifted by 32768 into uint16 (for a volume holding -32768).
+    ShiftedI16,
+    /// f32 relative to the smallest sample.
+    Float,
+}
+
+impl Texels {
+    /// What is added to a sample to give the stored integer.
+    fn bias(self) -> f64 {
+        match self {
+            Texels::ShiftedI16 => 32768.0,
+            _ => 0.0,
+        }
+    }
+
+    /// Bytes per texel.
+    fn size(self, t: crate::volume::SampleType) -> usize {
+        match self {
+            Texels::Native => t.size(),
+            Texels::ShiftedI16 => 2,
+            Texels::Float => 4,
+        }
+    }
+
+    /// Fills `dst` with the texels of samples `first..` (`lo`: the
+    /// smallest sample, subtracted from floats).
+    fn fill(self, samples: &Samples, lo: f64, first: usize, dst: &mut [u8]) {
+        match (self, samples) {
+            (Texels::ShiftedI16, Samples::I16(v)) => {
+                for (t, &x) in dst.chunks_exact_mut(2).zip(&v[first..]) {
+                    t.copy_from_slice(&((x as u16) ^ 0x8000).to_ne_bytes());
+                }
+            }
+            (Texels::Native, _) => {
+                let size = samples.sample_type().size();
+                dst.copy_from_slice(&samples.as_bytes()[first * size..first * size + dst.len()]);
+            }
+            _ => {
+                for (k, t) in dst.chunks_exact_mut(4).enumerate() {
+                    let v = samples.get(first + k).unwrap_or(lo) as f32;
+                    t.copy_from_slice(&((f64::from(v) - lo) as f32).to_ne_bytes());
+                }
+            }
+        }
+    }
+}
+
 /// The device-side volume: texture, tables, brick flags, counters and the
 /// static parameters (set 0 of both variants).
 pub struct VolumeResources {
@@ -302,12 +354,16 @@ impl VolumeResources {
             bail!("volume '{}': {} samples for its {:?} grid (its samples were taken)", vol.name, samples.len(), dims);
         }
         // Native formats where the device filters them; texel value v maps
-        // back to the sample as value = v * scale.
-        let native: Option<(Format, &'static str, f64)> = match samples {
-            Samples::U8(_) => Some((Format::R8Unorm, "r8-unorm", 255.0)),
-            Samples::U16(_) => Some((Format::R16Unorm, "r16-unorm", 65535.0)),
-            Samples::I16(v) if !v.contains(&i16::MIN) => Some((Format::R16Snorm, "r16-snorm", 32767.0)),
-            _ => None,
+        // back to the sample as value = v * scale - bias. int16 with -32768
+        // (which snorm maps to -1 like -32767) is stored shifted by 32768 as
+        // unorm: linear filtering commutes with the shift, so the filtered
+        // values are the samples' (a float texture was twice the bytes).
+        let native: Option<(Format, &'static str, f64, Texels)> = match samples {
+            Samples::U8(_) => Some((Format::R8Unorm, "r8-unorm", 255.0, Texels::Native)),
+            Samples::U16(_) => Some((Format::R16Unorm, "r16-unorm", 65535.0, Texels::Native)),
+            Samples::I16(v) if !v.contains(&i16::MIN) => Some((Format::R16Snorm, "r16-snorm", 32767.0, Texels::Native)),
+            Samples::I16(_) => Some((Format::R16Unorm, "r16-unorm-shifted", 65535.0, Texels::ShiftedI16)),
+            Samples::F32(_) => None,
         };
         let (lo, mut hi) = vol.range();
         if !(hi > lo) {
@@ -318,9 +374,9 @@ impl VolumeResources {
         // offset's (1e6 + [0, 1] would be filtered in steps of 1/16). They
         // are converted slab by slab into the staging buffer, never held
         // whole beside the volume.
-        let (format, format_name, scale, offset, is_native) = match native {
-            Some((f, n, s)) if ctx.can_sample(f, Filter::Linear) => (f, n, s, lo / s, true),
-            _ => (Format::R32Float, "r32-sfloat", 1.0, 0.0, false),
+        let (format, format_name, scale, offset, texels) = match native {
+            Some((f, n, s, t)) if ctx.can_sample(f, Filter::Linear) => (f, n, s, (lo + t.bias()) / s, t),
+            _ => (Format::R32Float, "r32-sfloat", 1.0, 0.0, Texels::Float),
         };
         if !ctx.can_sample(format, Filter::Linear) {
             bail!("device '{}' cannot filter {format_name} 3D textures linearly", ctx.info.name);
@@ -332,53 +388,43 @@ impl VolumeResources {
         let dilation = if s.preint() { (s.step / (2.0 * s.brick as f64)).ceil().max(1.0) as u8 } else { 0 };
         // Time spent flagging bricks and computing distances (the upload's not included).
         let mut bricks_ms = 0.0;
-        // A uniform texel buffer: a distance is one texel fetch (as a storage
-        // buffer, a per-ray index made llvmpipe loop over the SIMD lanes).
-        let distances = |flagged: Vec<bool>, counter: &mut UploadCounter, ms: &mut f64| -> Result<(TexelBuffer, usize)> {
-            let t = Instant::now();
-            let distance: Vec<u8> = bricks::distances(&flagged, grid).iter().map(|d| d.saturating_sub(dilation)).collect();
-            drop(flagged);
-            let visible = distance.iter().filter(|&&d| d == 0).count();
-            *ms += t.elapsed().as_secs_f64() * 1e3;
-            Ok((upload_static_texels(ctx, "brick distances", &distance, Format::R8Uint, counter)?, visible))
-        };
+        // A uniform texel buffer (a distance is one texel fetch; as a storage
+        // buffer, a per-ray index made llvmpipe loop over the SIMD lanes),
+        // host-visible: the distances are computed in the memory the device
+        // reads, one byte a brick and no other copy (at `brick=1` the map is
+        // as large as an 8-bit volume).
+        let layer_bricks = grid[0] * grid[1];
+        let map_bytes = layer_bricks * grid[2];
+        let new_map = || Buffer::new(ctx, BufferDesc::upload("brick distances", map_bytes as u64, BufferUsage::UNIFORM_TEXEL));
         let desc = TextureDesc::d3(&format!("volume '{}'", vol.name), dims_u32, format);
-        // Texels from sample offset / texel size on: the native bytes, or
-        // floats relative to `lo`.
-        let texel = if is_native { samples.sample_type().size() } else { 4 };
-        let fill = |samples: &Samples, offset: usize, dst: &mut [u8]| {
-            if is_native {
-                dst.copy_from_slice(&samples.as_bytes()[offset..offset + dst.len()]);
-            } else {
-                for (k, t) in dst.chunks_exact_mut(4).enumerate() {
-                    let v = samples.get(offset / 4 + k).unwrap_or(lo) as f32;
-                    t.copy_from_slice(&((f64::from(v) - lo) as f32).to_ne_bytes());
-                }
-            }
-        };
+        // Texels from sample offset / texel size on.
+        let texel = texels.size(samples.sample_type());
+        let fill = |samples: &Samples, offset: usize, dst: &mut [u8]| texels.fill(samples, lo, offset / texel, dst);
         // Memory (docs/bad-input.md, "Memory"). Samples of our own: the
         // texture is filled from the last slab to the first, each brick
         // layer is flagged as soon as its sample layers are filled, and the
         // samples are given back down to what is yet to be filled or
-        // flagged, so samples and texture together stay one copy; the
-        // distances (their prefix counts are four bytes a brick) follow,
-        // when the samples are gone. Shared samples (they stay for the next
-        // method): the distances first (uploaded, their working memory
-        // dropped), then the texture: twice the samples, the map and the
-        // staging slab.
+        // flagged. Shared samples (they stay for the next method): the
+        // flags first, then the texture. The distances follow in the map.
         let layer = dims[0] * dims[1];
-        let ((bricks, bricks_visible), volume) = match given.take() {
+        let (mut map, volume) = match given.take() {
             Some(mut own) => {
+                // One bit a brick while the texture fills (samples and
+                // texture are then two copies at the first slab); the map
+                // once the samples are gone.
                 let mut flagger = bricks::LayerFlags::new(dims, tf, s.brick);
+                let mut flagged = bit_vec::BitVec::from_elem(map_bytes, false);
                 // Brick layers next.. are flagged, last first.
-                let (mut next, mut flagged_rev) = (grid[2], Vec::with_capacity(grid[2]));
+                let mut next = grid[2];
                 let volume = upload_texture_with(ctx, &desc, counter, &mut |offset, dst| {
                     fill(&own, offset, dst);
                     let first = offset / texel / layer;
                     let t = Instant::now();
                     while next > 0 && (next - 1) * s.brick >= first {
                         next -= 1;
-                        flagged_rev.push(flagger.flags(next, &own));
+                        for (b, f) in flagger.flags(next, &own).into_iter().enumerate() {
+                            flagged.set(next * layer_bricks + b, f);
+                        }
                     }
                     bricks_ms += t.elapsed().as_secs_f64() * 1e3;
                     let keep = if next == 0 { first } else { first.max(flagger.sample_layers(next - 1).end() + 1) };
@@ -386,19 +432,34 @@ impl VolumeResources {
                 });
                 drop(own);
                 let volume = volume.with_context(|| format!("uploading volume '{}'", vol.name))?;
-                let flagged: Vec<bool> = flagged_rev.into_iter().rev().flatten().collect();
-                (distances(flagged, counter, &mut bricks_ms)?, volume)
+                let mut map = new_map()?;
+                bricks::mark(flagged.iter(), map.mapped_for_write()?);
+                (map, volume)
             }
             None => {
+                // The flags first, straight into the map.
                 let t = Instant::now();
-                let flagged = bricks::attenuating(dims, vol.samples(), tf, s.brick);
+                let mut map = new_map()?;
+                let mut flagger = bricks::LayerFlags::new(dims, tf, s.brick);
+                for (bz, cells) in map.mapped_for_write()?.chunks_exact_mut(layer_bricks).enumerate() {
+                    bricks::mark(flagger.flags(bz, vol.samples()), cells);
+                }
                 bricks_ms += t.elapsed().as_secs_f64() * 1e3;
-                let bricks = distances(flagged, counter, &mut bricks_ms)?;
                 let volume = upload_texture_with(ctx, &desc, counter, &mut |offset, dst| fill(vol.samples(), offset, dst))
                     .with_context(|| format!("uploading volume '{}'", vol.name))?;
-                (bricks, volume)
+                (map, volume)
             }
         };
+        let cells = map.mapped_for_write()?;
+        let t = Instant::now();
+        bricks::chebyshev_in_place(cells, grid);
+        for d in cells.iter_mut() {
+            *d = d.saturating_sub(dilation);
+        }
+        let bricks_visible = cells.iter().filter(|&&d| d == 0).count();
+        bricks_ms += t.elapsed().as_secs_f64() * 1e3;
+        counter.add_direct(UploadClass::Static, map_bytes as u64);
+        let bricks = TexelBuffer::over(ctx, map, Format::R8Uint)?;
 
         let t0 = Instant::now();
         let table: Vec<f32> = tf.table(TABLE_SIZE, lo, hi).concat();

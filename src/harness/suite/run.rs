@@ -72,7 +72,7 @@ pub fn run_suite(
         if loaded.as_ref().is_none_or(|(n, _)| *n != p.dataset) {
             loaded = Some((p.dataset, datasets::load(p.dataset).map_err(|e| format!("{e:#}"))));
         }
-        let Some((_, loaded_dataset)) = &loaded else { continue };
+        let Some((_, loaded_dataset)) = &mut loaded else { continue };
         // A dataset that cannot be loaded fails its rows; the suite goes on.
         let dataset = match loaded_dataset {
             Ok(d) => d,
@@ -118,7 +118,7 @@ pub fn run_suite(
             let outcome = (|| -> Result<(RunOutput, Option<RgbaImage>)> {
                 let tf = p.scene.transfer_function(dataset)?;
                 let cfg = p.scene.config(&cfg);
-                let mut r = run(ctx, &p.spec, dataset, &tf, &cfg)?;
+                let mut r = dataset.run_handing_over(|d| run(ctx, &p.spec, d, &tf, &cfg))??;
                 let stem = format!("{}-{}", p.dataset, p.file_stem());
                 let (json, png, dpng) = (runs_dir.join(format!("{stem}.json")), runs_dir.join(format!("{stem}.png")), runs_dir.join(format!("{stem}-diff.png")));
                 // A method with its own error (terrain) has no image reference.
