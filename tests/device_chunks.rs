@@ -10,6 +10,7 @@
 mod common;
 
 use volbench::algo::cell_projection::balanced::PACK_AHEAD_VAR;
+use volbench::algo::cell_projection::resident::RESIDENT_BATCH_VAR;
 use volbench::algo::chunks::{DEVICE_LIMIT_VAR, MAX_CHUNKS};
 use volbench::harness::datasets;
 use volbench::harness::run::RunConfig;
@@ -78,6 +79,31 @@ fn data_split_at_lowered_limits_draws_the_same_image() {
         assert_eq!(whole.image.compare(&run.image).unwrap().max_abs, 0.0, "{what}: packing in place changed the image");
     }
 
+    // resident expands and draws its order batch by batch into one
+    // records buffer (`resident::RESIDENT_BATCH_VAR` lowers the batch): 9
+    // batches of 1000, 137 of 64, and 1000 under the 200 KiB limit (the
+    // cells in 7 texel buffers) draw the image of one batch, bit for bit,
+    // and per frame only each batch's length is added to the order.
+    let whole = common::run_mesh(&mesh, &tf, "resident", &cfg);
+    let n = mesh.tets.len() as u64;
+    for (batch, limit) in [(1000u64, None), (64, None), (1000, Some(200u64 << 10))] {
+        std::env::set_var(RESIDENT_BATCH_VAR, batch.to_string());
+        if let Some(l) = limit {
+            std::env::set_var(DEVICE_LIMIT_VAR, l.to_string());
+        }
+        let run = common::run_mesh(&mesh, &tf, "resident", &cfg);
+        std::env::remove_var(RESIDENT_BATCH_VAR);
+        std::env::remove_var(DEVICE_LIMIT_VAR);
+        let what = format!("resident, batches of {batch}, limit {limit:?}");
+        let chunks = &run.result.details["device_chunks"];
+        assert_eq!(chunks["draws"].as_u64(), Some(n.div_ceil(batch)), "{what}: {chunks}");
+        assert_eq!(chunks["cells_per_draw"].as_u64(), Some(batch), "{what}: {chunks}");
+        let lengths = 4 * (n.div_ceil(batch) - 1);
+        assert_eq!(run.result.upload.bytes_per_frame, whole.result.upload.bytes_per_frame + lengths, "{what}");
+        assert_eq!(run.result.stats.unwrap().fragment_invocations, whole.result.stats.unwrap().fragment_invocations, "{what}");
+        assert_eq!(whole.image.compare(&run.image).unwrap().max_abs, 0.0, "{what}: batching changed the image");
+    }
+
     // More pieces than the shader has bindings: a clear error, no picture.
     std::env::set_var(DEVICE_LIMIT_VAR, (16u64 << 10).to_string());
     let dataset = datasets::Dataset::from_mesh(mesh.clone(), false, "test".into());
@@ -94,4 +120,8 @@ fn data_split_at_lowered_limits_draws_the_same_image() {
     let e = volbench::harness::run::run(&ctx, &spec, &dataset, &tf, &cfg).err().expect("a bad knob must be refused");
     std::env::remove_var(DEVICE_LIMIT_VAR);
     assert!(format!("{e:#}").contains(DEVICE_LIMIT_VAR), "{e:#}");
+    std::env::set_var(RESIDENT_BATCH_VAR, "0");
+    let e = volbench::harness::run::run(&ctx, &spec, &dataset, &tf, &cfg).err().expect("a zero batch must be refused");
+    std::env::remove_var(RESIDENT_BATCH_VAR);
+    assert!(format!("{e:#}").contains(RESIDENT_BATCH_VAR), "{e:#}");
 }
