@@ -5,7 +5,8 @@
 //! (`resident_expand.comp`) runs what the balanced method's CPU does per
 //! tet (IntersectBackFace from the stored planes), once per tet on every
 //! core, into device-local vertex records, which balanced's own pipeline
-//! draws through the same static indices. What is left per frame on the
+//! draws through the same static indices, batch by batch (`RECORDS_BATCH`
+//! cells into one records buffer). What is left per frame on the
 //! CPU is the sort: the answer to "where does the time go once the bytes
 //! are gone".
 
@@ -34,11 +35,11 @@ pub const FLOATS_PER_STORED_CELL: usize = 36;
 /// Invocations per workgroup of `resident_expand.comp`.
 const EXPAND_GROUP: usize = 64;
 /// Cells expanded and drawn per batch (docs/scaling.md, "Resident against
-/// balanced"): the batch's records (112 bytes per cell, 3.5 MiB) are read
-/// by the draw from the last-level cache the expansion just wrote them to,
-/// instead of going out to memory and back (460 MB per frame at 4.1 M
-/// tets), and the one records buffer is this size whatever the mesh.
-pub const RECORDS_BATCH: usize = 32_768;
+/// balanced"): the one records buffer holds a batch (112 MiB), whatever the
+/// mesh, instead of 112 bytes per tet. Not smaller: batches that fit the
+/// cache (32,768 cells, 3.5 MiB) measured slower, since each batch's pass
+/// ends with the rasterizer drained while the next expansion runs.
+pub const RECORDS_BATCH: usize = 1 << 20;
 /// Test knob (tests and measurements only, docs/scaling.md):
 /// `VOLBENCH_TEST_RESIDENT_BATCH=N` expands and draws N cells per batch, so
 /// a small mesh takes the many-batch path a large one does.
@@ -372,10 +373,9 @@ impl CellProjector for Resident {
 
     /// Piece by piece, in order: the expansion (one dispatch) into the one
     /// records buffer, then balanced's draw of them in a rendering pass of
-    /// its own (the first clears the target, the others keep it), so the
-    /// draw reads records still in the cache and the next expansion
-    /// overwrites them only after it. Back-to-front compositing is kept
-    /// across pieces. (The expansion is not timed apart: lavapipe's
+    /// its own (the first clears the target, the others keep it); the next
+    /// expansion overwrites the records only after the draw. Back-to-front
+    /// compositing is kept across pieces. (The expansion is not timed apart: lavapipe's
     /// timestamps around a dispatch do not wait for it; its cost is in
     /// `gpu`, and counted in `device`.)
     fn record_composite(
