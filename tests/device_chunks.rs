@@ -19,6 +19,26 @@ use volbench::harness::run::RunConfig;
 /// `details.device_chunks`.
 type Case = (&'static str, u64, &'static [(&'static str, u64)]);
 
+/// `spec` run with the test knob `knob` set, and the device limit knob too
+/// when `limit` is given; both removed after.
+fn run_with_knobs(
+    mesh: &volbench::mesh::TetMesh,
+    tf: &volbench::scene::TransferFunction,
+    spec: &str,
+    cfg: &RunConfig,
+    knob: (&str, u64),
+    limit: Option<u64>,
+) -> volbench::harness::run::RunOutput {
+    std::env::set_var(knob.0, knob.1.to_string());
+    if let Some(l) = limit {
+        std::env::set_var(DEVICE_LIMIT_VAR, l.to_string());
+    }
+    let run = common::run_mesh(mesh, tf, spec, cfg);
+    std::env::remove_var(knob.0);
+    std::env::remove_var(DEVICE_LIMIT_VAR);
+    run
+}
+
 #[test]
 fn data_split_at_lowered_limits_draws_the_same_image() {
     let mesh = datasets::load_mesh("post-small").unwrap();
@@ -62,13 +82,7 @@ fn data_split_at_lowered_limits_draws_the_same_image() {
     let whole = common::run_mesh(&mesh, &tf, "balanced", &cfg);
     assert!(whole.result.details["host_memory"]["by_structure"]["projector: order packed in upload"] == 0);
     for (ahead_cells, limit) in [(0u64, None), (1000, None), (1000, Some(200u64 << 10)), (4000, Some(200 << 10)), (0, Some(200 << 10))] {
-        std::env::set_var(PACK_AHEAD_VAR, (ahead_cells * 112).to_string());
-        if let Some(l) = limit {
-            std::env::set_var(DEVICE_LIMIT_VAR, l.to_string());
-        }
-        let run = common::run_mesh(&mesh, &tf, "balanced", &cfg);
-        std::env::remove_var(PACK_AHEAD_VAR);
-        std::env::remove_var(DEVICE_LIMIT_VAR);
+        let run = run_with_knobs(&mesh, &tf, "balanced", &cfg, (PACK_AHEAD_VAR, ahead_cells * 112), limit);
         let what = format!("balanced, {ahead_cells} cells packed ahead, limit {limit:?}");
         let memory = &run.result.details["host_memory"]["by_structure"];
         assert_eq!(memory["projector: records packed ahead (at most PACK_AHEAD_BYTES)"].as_u64(), Some(ahead_cells * 112), "{what}");
@@ -87,13 +101,7 @@ fn data_split_at_lowered_limits_draws_the_same_image() {
     let whole = common::run_mesh(&mesh, &tf, "resident", &cfg);
     let n = mesh.tets.len() as u64;
     for (batch, limit) in [(1000u64, None), (64, None), (1000, Some(200u64 << 10))] {
-        std::env::set_var(RESIDENT_BATCH_VAR, batch.to_string());
-        if let Some(l) = limit {
-            std::env::set_var(DEVICE_LIMIT_VAR, l.to_string());
-        }
-        let run = common::run_mesh(&mesh, &tf, "resident", &cfg);
-        std::env::remove_var(RESIDENT_BATCH_VAR);
-        std::env::remove_var(DEVICE_LIMIT_VAR);
+        let run = run_with_knobs(&mesh, &tf, "resident", &cfg, (RESIDENT_BATCH_VAR, batch), limit);
         let what = format!("resident, batches of {batch}, limit {limit:?}");
         let chunks = &run.result.details["device_chunks"];
         assert_eq!(chunks["draws"].as_u64(), Some(n.div_ceil(batch)), "{what}: {chunks}");
