@@ -123,6 +123,7 @@ impl Resident {
         counter: &mut UploadCounter,
     ) -> VkResult<Self> {
         let n = mesh.tets.len();
+        let batch = records_batch()?;
         let limits = ChunkLimits::of(ctx)?;
         let cells = upload_cell_chunks(ctx, "resident cells", mesh, &limits, counter)?;
         // The order's binding holds its count too; the records' binding a
@@ -130,7 +131,7 @@ impl Resident {
         let per_draw = cells_per_draw(&limits, draw.primitives)
             .min(limits.storage_chunk(4).saturating_sub(1))
             .min(limits.storage_chunk((FLOATS_PER_CELL * 4) as u64))
-            .min(records_batch()?)
+            .min(batch)
             .max(1);
         let ranges = chunks::ranges(n, per_draw);
         let records = Buffer::new(
