@@ -10,6 +10,7 @@
 mod common;
 
 use volbench::algo::cell_projection::balanced::PACK_AHEAD_VAR;
+use volbench::algo::cell_projection::resident::RESIDENT_BATCH_VAR;
 use volbench::algo::chunks::{DEVICE_LIMIT_VAR, MAX_CHUNKS};
 use volbench::harness::datasets;
 use volbench::harness::run::RunConfig;
@@ -17,6 +18,26 @@ use volbench::harness::run::RunConfig;
 /// A method, the lowered limit in bytes, and the split expected in its
 /// `details.device_chunks`.
 type Case = (&'static str, u64, &'static [(&'static str, u64)]);
+
+/// `spec` run with the test knob `knob` set, and the device limit knob too
+/// when `limit` is given; both removed after.
+fn run_with_knobs(
+    mesh: &volbench::mesh::TetMesh,
+    tf: &volbench::scene::TransferFunction,
+    spec: &str,
+    cfg: &RunConfig,
+    knob: (&str, u64),
+    limit: Option<u64>,
+) -> volbench::harness::run::RunOutput {
+    std::env::set_var(knob.0, knob.1.to_string());
+    if let Some(l) = limit {
+        std::env::set_var(DEVICE_LIMIT_VAR, l.to_string());
+    }
+    let run = common::run_mesh(mesh, tf, spec, cfg);
+    std::env::remove_var(knob.0);
+    std::env::remove_var(DEVICE_LIMIT_VAR);
+    run
+}
 
 #[test]
 fn data_split_at_lowered_limits_draws_the_same_image() {
@@ -68,13 +89,7 @@ fn data_split_at_lowered_limits_draws_the_same_image() {
     let whole = common::run_mesh(&mesh, &tf, "balanced", &cfg);
     assert!(whole.result.details["host_memory"]["by_structure"]["projector: order packed in upload"] == 0);
     for (ahead_cells, limit) in [(0u64, None), (1000, None), (1000, Some(200u64 << 10)), (4000, Some(200 << 10)), (0, Some(200 << 10))] {
-        std::env::set_var(PACK_AHEAD_VAR, (ahead_cells * 112).to_string());
-        if let Some(l) = limit {
-            std::env::set_var(DEVICE_LIMIT_VAR, l.to_string());
-        }
-        let run = common::run_mesh(&mesh, &tf, "balanced", &cfg);
-        std::env::remove_var(PACK_AHEAD_VAR);
-        std::env::remove_var(DEVICE_LIMIT_VAR);
+        let run = run_with_knobs(&mesh, &tf, "balanced", &cfg, (PACK_AHEAD_VAR, ahead_cells * 112), limit);
         let what = format!("balanced, {ahead_cells} cells packed ahead, limit {limit:?}");
         let memory = &run.result.details["host_memory"]["by_structure"];
         assert_eq!(memory["projector: records packed ahead (at most PACK_AHEAD_BYTES)"].as_u64(), Some(ahead_cells * 112), "{what}");
@@ -118,6 +133,25 @@ fn data_split_at_lowered_limits_draws_the_same_image() {
         assert!(ctx.validation_messages().is_empty(), "{:?}", ctx.validation_messages());
     }
 
+    // resident expands and draws its order batch by batch into one
+    // records buffer (`resident::RESIDENT_BATCH_VAR` lowers the batch): 9
+    // batches of 1000, 137 of 64, and 1000 under the 200 KiB limit (the
+    // cells in 7 texel buffers) draw the image of one batch, bit for bit,
+    // and per frame only each batch's length is added to the order.
+    let whole = common::run_mesh(&mesh, &tf, "resident", &cfg);
+    let n = mesh.tets.len() as u64;
+    for (batch, limit) in [(1000u64, None), (64, None), (1000, Some(200u64 << 10))] {
+        let run = run_with_knobs(&mesh, &tf, "resident", &cfg, (RESIDENT_BATCH_VAR, batch), limit);
+        let what = format!("resident, batches of {batch}, limit {limit:?}");
+        let chunks = &run.result.details["device_chunks"];
+        assert_eq!(chunks["draws"].as_u64(), Some(n.div_ceil(batch)), "{what}: {chunks}");
+        assert_eq!(chunks["cells_per_draw"].as_u64(), Some(batch), "{what}: {chunks}");
+        let lengths = 4 * (n.div_ceil(batch) - 1);
+        assert_eq!(run.result.upload.bytes_per_frame, whole.result.upload.bytes_per_frame + lengths, "{what}");
+        assert_eq!(run.result.stats.unwrap().fragment_invocations, whole.result.stats.unwrap().fragment_invocations, "{what}");
+        assert_eq!(whole.image.compare(&run.image).unwrap().max_abs, 0.0, "{what}: batching changed the image");
+    }
+
     // More pieces than the shader has bindings: a clear error, no picture.
     std::env::set_var(DEVICE_LIMIT_VAR, (16u64 << 10).to_string());
     let dataset = datasets::Dataset::from_mesh(mesh.clone(), false, "test".into());
@@ -143,4 +177,8 @@ fn data_split_at_lowered_limits_draws_the_same_image() {
     let e = volbench::harness::run::run(&ctx, &spec, &dataset, &tf, &cfg).err().expect("a bad knob must be refused");
     std::env::remove_var(DEVICE_LIMIT_VAR);
     assert!(format!("{e:#}").contains(DEVICE_LIMIT_VAR), "{e:#}");
+    std::env::set_var(RESIDENT_BATCH_VAR, "0");
+    let e = volbench::harness::run::run(&ctx, &spec, &dataset, &tf, &cfg).err().expect("a zero batch must be refused");
+    std::env::remove_var(RESIDENT_BATCH_VAR);
+    assert!(format!("{e:#}").contains(RESIDENT_BATCH_VAR), "{e:#}");
 }

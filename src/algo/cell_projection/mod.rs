@@ -481,8 +481,10 @@ pub trait CellProjector {
     fn pack_phases(&self) -> Vec<(&'static str, f64)> {
         Vec::new()
     }
-    /// Composite the cells into `target` in compute instead of drawing them
-    /// (every pixel written; the near caps are drawn over it after).
+    /// Record the cells' passes into `target` itself: composite them in
+    /// compute (pt-compute), or draw them in rendering passes of its own
+    /// between device work (resident's batches); every pixel written, the
+    /// first pass clearing, and the near caps are drawn over it after.
     /// `false`: the projector draws (`record_draw`).
     fn record_composite(
         &mut self,

@@ -5,7 +5,8 @@
 //! (`resident_expand.comp`) runs what the balanced method's CPU does per
 //! tet (IntersectBackFace from the stored planes), once per tet on every
 //! core, into device-local vertex records, which balanced's own pipeline
-//! draws through the same static indices. What is left per frame on the
+//! draws through the same static indices, batch by batch (`RECORDS_BATCH`
+//! cells into one records buffer). What is left per frame on the
 //! CPU is the sort: the answer to "where does the time go once the bytes
 //! are gone".
 
@@ -22,9 +23,9 @@ use crate::algo::method::{MethodInfo, MethodInputs, RenderMethod};
 use crate::mesh::TetMesh;
 use crate::vk::{
     Buffer, BufferDesc, CommandRecorder, ComputePipelineKey, Context, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc,
-    Pipeline, PipelineKey, ShaderKey, ShaderStage, UploadClass, UploadCounter, VkResult,
+    Pipeline, PipelineKey, ShaderKey, ShaderStage, UploadClass, UploadCounter, VkError, VkResult,
 };
-use crate::vk::{BufferUsage, Format, Stages};
+use crate::vk::{BufferUsage, ColorAttachment, Format, Image, Stages};
 
 /// Per tet per frame: its index in the order.
 pub const BYTES_PER_CELL_PER_FRAME: usize = 4;
@@ -33,6 +34,27 @@ pub const BYTES_PER_CELL_PER_FRAME: usize = 4;
 pub const FLOATS_PER_STORED_CELL: usize = 36;
 /// Invocations per workgroup of `resident_expand.comp`.
 const EXPAND_GROUP: usize = 64;
+/// Cells expanded and drawn per batch (docs/scaling.md, "Resident against
+/// balanced"): the one records buffer holds a batch (112 MiB), whatever the
+/// mesh, instead of 112 bytes per tet. Not smaller: batches that fit the
+/// cache (32,768 cells, 3.5 MiB) measured slower, since each batch's pass
+/// ends with the rasterizer drained while the next expansion runs.
+pub const RECORDS_BATCH: usize = 1 << 20;
+/// Test knob (tests and measurements only, docs/scaling.md):
+/// `VOLBENCH_TEST_RESIDENT_BATCH=N` expands and draws N cells per batch, so
+/// a small mesh takes the many-batch path a large one does.
+pub const RESIDENT_BATCH_VAR: &str = "VOLBENCH_TEST_RESIDENT_BATCH";
+
+/// Cells per batch: `RECORDS_BATCH` or the knob's count.
+fn records_batch() -> VkResult<usize> {
+    match std::env::var(RESIDENT_BATCH_VAR) {
+        Err(_) => Ok(RECORDS_BATCH),
+        Ok(v) => match v.parse::<usize>() {
+            Ok(n) if n > 0 => Ok(n),
+            _ => Err(VkError::Invalid(format!("{RESIDENT_BATCH_VAR}={v}: not a positive cell count"))),
+        },
+    }
+}
 
 /// The registry entry.
 pub const METHOD: MethodInfo = render::method_info(
@@ -44,11 +66,12 @@ pub const METHOD: MethodInfo = render::method_info(
 );
 
 fn create(inputs: MethodInputs) -> anyhow::Result<Box<dyn RenderMethod>> {
-    // The order and the records are split at the device's limits (one
-    // piece per draw).
+    // The order is split at the device's limits and in batches (one piece
+    // per draw); the records are one batch's, whatever the mesh (at most
+    // RECORDS_BATCH cells: a fixed 112 MiB, not a per-cell cost).
     let bytes = render::DeviceBytesPerCell {
         frame: 0,
-        fixed: BYTES_PER_CELL_PER_FRAME + MAX_INDICES_PER_CELL * 4 + FLOATS_PER_STORED_CELL * 4 + FLOATS_PER_CELL * 4,
+        fixed: BYTES_PER_CELL_PER_FRAME + MAX_INDICES_PER_CELL * 4 + FLOATS_PER_STORED_CELL * 4,
         // The order's copy.
         host: 4,
     };
@@ -57,12 +80,11 @@ fn create(inputs: MethodInputs) -> anyhow::Result<Box<dyn RenderMethod>> {
     })
 }
 
-/// One draw's piece of the order: its order buffer (a count, then the
-/// cells), the device-local vertex records the expansion writes from it,
-/// and the expansion's descriptor set.
+/// One batch's piece of the order: its order buffer (a count, then the
+/// cells) and the expansion's descriptor set (the cells, this order, the
+/// shared records).
 struct Piece {
     order: Buffer,
-    records: Buffer,
     set: DescriptorSet,
 }
 
@@ -73,11 +95,13 @@ pub struct Resident {
     /// The order's copy: the device may still read the order buffers while
     /// the next frame is sorted (`run_overlapped`).
     order: Vec<u32>,
-    /// The order drawn in pieces of at most `per_draw` cells (one storage
-    /// binding sees at most maxStorageBufferRange bytes of the order and of
-    /// the records), expanded and drawn in order.
+    /// The order drawn in pieces of at most `per_draw` cells (a batch, or
+    /// less where one storage binding sees fewer), each expanded into
+    /// `records` and drawn before the next is expanded.
     pieces: Vec<Piece>,
     per_draw: usize,
+    /// One piece's vertex records (device-local), rewritten per piece.
+    records: Buffer,
     cell_chunks: TexelChunks,
     indices: StaticIndices,
     expand: Arc<Pipeline>,
@@ -105,6 +129,7 @@ impl Resident {
         counter: &mut UploadCounter,
     ) -> VkResult<Self> {
         let n = mesh.tets.len();
+        let batch = records_batch()?;
         let limits = ChunkLimits::of(ctx)?;
         let cells = upload_cell_chunks(ctx, "resident cells", mesh, &limits, counter)?;
         // The order's binding holds its count too; the records' binding a
@@ -112,8 +137,17 @@ impl Resident {
         let per_draw = cells_per_draw(&limits, draw.primitives)
             .min(limits.storage_chunk(4).saturating_sub(1))
             .min(limits.storage_chunk((FLOATS_PER_CELL * 4) as u64))
+            .min(batch)
             .max(1);
         let ranges = chunks::ranges(n, per_draw);
+        let records = Buffer::new(
+            ctx,
+            BufferDesc::device_local(
+                "resident vertex records (one batch)",
+                (ranges[0].len().max(1) * FLOATS_PER_CELL * 4) as u64,
+                BufferUsage::STORAGE | BufferUsage::VERTEX,
+            ),
+        )?;
         // Every piece draws from the start of the same indices.
         let indices = StaticIndices::upload(ctx, "resident indices", draw.primitives, ranges[0].len(), counter)?;
         let desc = expand_set_desc(cells.buffers.len());
@@ -127,14 +161,6 @@ impl Resident {
                     ctx,
                     BufferDesc::upload(&format!("resident order{label}"), ((len + 1) * 4) as u64, BufferUsage::STORAGE),
                 )?;
-                let records = Buffer::new(
-                    ctx,
-                    BufferDesc::device_local(
-                        &format!("resident vertex records{label}"),
-                        (len * FLOATS_PER_CELL * 4) as u64,
-                        BufferUsage::STORAGE | BufferUsage::VERTEX,
-                    ),
-                )?;
                 let mut resources = vec![
                     DescriptorResource::UniformTexelBuffer(&cells.buffers[0]),
                     DescriptorResource::StorageBuffer(&order),
@@ -142,7 +168,7 @@ impl Resident {
                 ];
                 resources.extend(cells.buffers[1..].iter().map(DescriptorResource::UniformTexelBuffer));
                 let set = DescriptorSet::new(ctx, &format!("resident cells, order and records{label}"), &desc, &resources)?;
-                Ok(Piece { order, records, set })
+                Ok(Piece { order, set })
             })
             .collect::<VkResult<Vec<_>>>()?;
         let expand = expand_pipeline(ctx, draw, &cells, desc)?;
@@ -154,6 +180,7 @@ impl Resident {
             order: vec![0; n],
             pieces,
             per_draw,
+            records,
             cell_chunks: cells,
             indices,
             expand,
@@ -331,40 +358,52 @@ impl CellProjector for Resident {
         Ok(())
     }
 
-    /// The expansion, one dispatch per piece, before the draw. (Not timed
-    /// apart: lavapipe's timestamps around a dispatch do not wait for it,
-    /// 0.03 ms at 4.1 M tets; its cost is in `gpu`, and counted in `device`.)
-    fn record_before_draw(&self, rec: &CommandRecorder, frame: &FrameSetup, counter: &mut UploadCounter) -> VkResult<()> {
-        // The previous frame's draw read the records this pass writes.
-        rec.vertex_input_to_compute();
-        for (k, piece) in self.pieces.iter().enumerate() {
-            let len = self.piece_len(k);
-            if len == 0 {
-                continue;
-            }
-            rec.bind_compute(&self.expand, &[&piece.set])?;
-            if k == 0 {
-                rec.push_constants(&self.expand, bytemuck::bytes_of(&frame.constants), counter);
-            }
-            rec.dispatch_groups(len.div_ceil(EXPAND_GROUP) as u64)?;
-        }
-        rec.compute_to_vertex_input();
-        Ok(())
+    /// Has no draw of its own apart from the expansion: see `record_composite`.
+    fn record_draw(&self, _rec: &CommandRecorder, _tables: &IntegrationTables, _frame: &FrameSetup, _counter: &mut UploadCounter) -> VkResult<()> {
+        Err(VkError::Invalid("resident records its draws between its expansions (record_composite)".into()))
     }
 
-    fn record_draw(&self, rec: &CommandRecorder, tables: &IntegrationTables, frame: &FrameSetup, counter: &mut UploadCounter) -> VkResult<()> {
-        rec.bind_pipeline(&self.pipeline, Some(&tables.set));
-        rec.push_constants(&self.pipeline, bytemuck::bytes_of(&frame.constants), counter);
-        // One draw per piece of the records, in order (back-to-front
-        // compositing is kept across pieces).
+    /// Piece by piece, in order: the expansion (one dispatch) into the one
+    /// records buffer, then balanced's draw of them in a rendering pass of
+    /// its own (the first clears the target, the others keep it); the next
+    /// expansion overwrites the records only after the draw. Back-to-front
+    /// compositing is kept across pieces. (The expansion is not timed apart: lavapipe's
+    /// timestamps around a dispatch do not wait for it; its cost is in
+    /// `gpu`, and counted in `device`.)
+    fn record_composite(
+        &mut self,
+        rec: &CommandRecorder,
+        target: &Image,
+        tables: &IntegrationTables,
+        frame: &FrameSetup,
+        counter: &mut UploadCounter,
+    ) -> VkResult<bool> {
         for (k, piece) in self.pieces.iter().enumerate() {
             let count = self.piece_len(k);
             if count == 0 && k > 0 {
                 break;
             }
-            rec.bind_vertex_buffer(&piece.records);
+            // The previous draw read the records this expansion writes.
+            rec.vertex_input_to_compute();
+            rec.bind_compute(&self.expand, &[&piece.set])?;
+            if k == 0 {
+                rec.push_constants(&self.expand, bytemuck::bytes_of(&frame.constants), counter);
+            }
+            rec.dispatch_groups(count.div_ceil(EXPAND_GROUP) as u64)?;
+            rec.compute_to_vertex_input();
+            if k == 0 {
+                rec.begin_rendering(target, [0.0; 4]);
+            } else {
+                rec.begin_rendering_targets(&[ColorAttachment { image: target, clear: None }])?;
+            }
+            rec.bind_pipeline(&self.pipeline, Some(&tables.set));
+            if k == 0 {
+                rec.push_constants(&self.pipeline, bytemuck::bytes_of(&frame.constants), counter);
+            }
+            rec.bind_vertex_buffer(&self.records);
             self.indices.draw(rec, count);
+            rec.end_rendering();
         }
-        Ok(())
+        Ok(true)
     }
 }
