@@ -381,3 +381,22 @@ fn the_volume_crosses_once_and_frames_move_only_constants() {
         assert_eq!(u.static_bytes, (volume_bytes + 1024 * 16 + 4 * 16 + bricks + 112) as u64, "{method}");
     }
 }
+
+/// The brick map computed in host memory and uploaded (what a discrete GPU
+/// does; `BRICK_MAP_HOST_VAR` takes that way on lavapipe) gives the image,
+/// the work and the static bytes of the map computed in place.
+#[test]
+fn brick_map_uploaded_from_host_memory_is_the_in_place_map() {
+    let (d, tf, cam) = cores_scene();
+    for spec in ["raycast-compute:ert=1,brick=1", "raycast-fragment:ert=1,brick=2"] {
+        std::env::remove_var(volbench::algo::raycast::BRICK_MAP_HOST_VAR);
+        let in_place = render(spec, &d, &tf, cam);
+        std::env::set_var(volbench::algo::raycast::BRICK_MAP_HOST_VAR, "1");
+        let uploaded = render(spec, &d, &tf, cam);
+        std::env::remove_var(volbench::algo::raycast::BRICK_MAP_HOST_VAR);
+        assert_eq!(in_place.image.compare(&uploaded.image).unwrap().max_abs, 0.0, "{spec}: the image changed");
+        assert_eq!(in_place.result.work.counts, uploaded.result.work.counts, "{spec}: the work changed");
+        assert_eq!(in_place.result.upload.static_bytes, uploaded.result.upload.static_bytes, "{spec}: the map is counted once either way");
+    }
+}
+

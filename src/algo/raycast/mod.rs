@@ -99,7 +99,7 @@ use super::settings::{choice, flag, float, int, MethodSettings};
 use crate::scene::TransferFunction;
 use crate::volume::{Samples, Volume};
 use crate::vk::{
-    upload_texture, upload_texture_with, Buffer, BufferDesc, CommandRecorder, Context, DescriptorKind, DescriptorResource, DescriptorSet,
+    upload_static_texels, upload_texture, upload_texture_with, Buffer, BufferDesc, CommandRecorder, Context, DescriptorKind, DescriptorResource, DescriptorSet,
     DescriptorSetDesc, MemoryKind, Sampler, TexelBuffer, TextureDesc, UploadClass, UploadCounter,
 };
 use crate::vk::{BufferUsage, Format, Stages, Filter};
@@ -284,6 +284,47 @@ impl Texels {
     }
 }
 
+/// Where the brick distances are computed ([`VolumeResources`]): in the
+/// buffer the device reads on a CPU device (its memory is the process's:
+/// no second copy), in host memory elsewhere, uploaded when done.
+enum BrickMap {
+    InPlace(Buffer),
+    Host(Vec<u8>),
+}
+
+/// Test knob: `VOLBENCH_TEST_BRICK_MAP_HOST=1` takes the other devices' way
+/// (host memory, then an upload) on a CPU device too, so that path is
+/// tested on lavapipe.
+pub const BRICK_MAP_HOST_VAR: &str = "VOLBENCH_TEST_BRICK_MAP_HOST";
+
+impl BrickMap {
+    fn new(ctx: &Arc<Context>, bytes: usize) -> Result<Self> {
+        Ok(if ctx.info.is_cpu() && std::env::var_os(BRICK_MAP_HOST_VAR).is_none() {
+            BrickMap::InPlace(Buffer::new(ctx, BufferDesc::upload("brick distances", bytes as u64, BufferUsage::UNIFORM_TEXEL))?)
+        } else {
+            BrickMap::Host(vec![0; bytes])
+        })
+    }
+
+    fn mapped_for_write(&mut self) -> Result<&mut [u8]> {
+        Ok(match self {
+            BrickMap::InPlace(b) => b.mapped_for_write()?,
+            BrickMap::Host(v) => v,
+        })
+    }
+
+    /// The map as the shader's texel buffer, its bytes counted as uploaded.
+    fn into_texels(self, ctx: &Arc<Context>, counter: &mut UploadCounter) -> Result<TexelBuffer> {
+        Ok(match self {
+            BrickMap::InPlace(b) => {
+                counter.add_direct(UploadClass::Static, b.size());
+                TexelBuffer::over(ctx, b, Format::R8Uint)?
+            }
+            BrickMap::Host(v) => upload_static_texels(ctx, "brick distances", &v, Format::R8Uint, counter)?,
+        })
+    }
+}
+
 /// The device-side volume: texture, tables, brick flags, counters and the
 /// static parameters (set 0 of both variants).
 pub struct VolumeResources {
@@ -389,13 +430,15 @@ impl VolumeResources {
         // Time spent flagging bricks and computing distances (the upload's not included).
         let mut bricks_ms = 0.0;
         // A uniform texel buffer (a distance is one texel fetch; as a storage
-        // buffer, a per-ray index made llvmpipe loop over the SIMD lanes),
-        // host-visible: the distances are computed in the memory the device
+        // buffer, a per-ray index made llvmpipe loop over the SIMD lanes).
+        // On a CPU device the distances are computed in the memory the device
         // reads, one byte a brick and no other copy (at `brick=1` the map is
-        // as large as an 8-bit volume).
+        // as large as an 8-bit volume); elsewhere in host memory and uploaded
+        // to device-local memory (host-visible memory there is uncached for
+        // the CPU's reads and crosses the bus for the shader's).
         let layer_bricks = grid[0] * grid[1];
         let map_bytes = layer_bricks * grid[2];
-        let new_map = || Buffer::new(ctx, BufferDesc::upload("brick distances", map_bytes as u64, BufferUsage::UNIFORM_TEXEL));
+        let new_map = || BrickMap::new(ctx, map_bytes);
         let desc = TextureDesc::d3(&format!("volume '{}'", vol.name), dims_u32, format);
         // Texels from sample offset / texel size on.
         let texel = texels.size(samples.sample_type());
@@ -458,8 +501,7 @@ impl VolumeResources {
         }
         let bricks_visible = cells.iter().filter(|&&d| d == 0).count();
         bricks_ms += t.elapsed().as_secs_f64() * 1e3;
-        counter.add_direct(UploadClass::Static, map_bytes as u64);
-        let bricks = TexelBuffer::over(ctx, map, Format::R8Uint)?;
+        let bricks = map.into_texels(ctx, counter)?;
 
         let t0 = Instant::now();
         let table: Vec<f32> = tf.table(TABLE_SIZE, lo, hi).concat();
