@@ -329,6 +329,13 @@ pub fn write_dataset(dataset: &Dataset, path: &Path) -> Result<PeerDataset> {
             "vtk-legacy-unstructured-grid"
         }
         DatasetData::Volume(v) => {
+            // A method took the samples and reading them again failed
+            // (`Dataset::run_handing_over`): no file of a different length.
+            anyhow::ensure!(
+                v.samples().len() == v.len(),
+                "volume '{}': its samples were handed to a method and could not be read again, so it is not exported to the peers",
+                dataset.name
+            );
             fsio::write_output_with(path, |w| {
                 let [nx, ny, nz] = v.dims();
                 let [sx, sy, sz] = v.spacing();
@@ -674,5 +681,20 @@ mod tests {
         bad.points[1].attenuation = f64::INFINITY;
         let err = encode_transfer_function(&bad, OpacityModel::Attenuation).unwrap_err().to_string();
         assert!(err.contains("not finite"), "{err}");
+    }
+
+    #[test]
+    fn a_volume_whose_samples_were_taken_is_not_exported() {
+        let v = crate::volume::Volume::new("t", "t", [2, 2, 2], [1.0; 3], [0.0; 3], crate::volume::Samples::U8(vec![1; 8])).unwrap();
+        let mut d = Dataset::from_volume(v, false, "t".into());
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("t.vtk");
+        write_dataset(&d, &path).unwrap();
+        std::fs::remove_file(&path).unwrap();
+        let DatasetData::Volume(v) = &mut d.data else { unreachable!() };
+        drop(v.take_samples());
+        let err = write_dataset(&d, &path).unwrap_err().to_string();
+        assert!(err.contains("could not be read again"), "{err}");
+        assert!(!path.exists(), "no file written");
     }
 }
