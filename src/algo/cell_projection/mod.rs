@@ -460,8 +460,11 @@ pub trait CellProjector {
     fn pack(&mut self, order: &[u32], frame: &FrameSetup);
     /// Copy the packed data to where the device reads it (counted).
     fn upload(&mut self, counter: &mut UploadCounter) -> VkResult<()>;
-    /// Bind and draw (inside dynamic rendering).
-    fn record_draw(&self, rec: &CommandRecorder, tables: &IntegrationTables, frame: &FrameSetup, counter: &mut UploadCounter) -> VkResult<()>;
+    /// Bind and draw (inside dynamic rendering). A projector that records
+    /// its own passes (`record_composite` returns true) is never asked.
+    fn record_draw(&self, _rec: &CommandRecorder, _tables: &IntegrationTables, _frame: &FrameSetup, _counter: &mut UploadCounter) -> VkResult<()> {
+        Err(crate::vk::VkError::Invalid("this projector records its own passes (record_composite); it has no draw of its own".into()))
+    }
     /// True when the projector orders the cells itself on the device: the
     /// CPU sort is skipped and `pack` gets an empty order.
     fn sorts_on_device(&self) -> bool {

@@ -699,10 +699,6 @@ impl CellProjector for PtCompute {
         Ok(())
     }
 
-    fn record_draw(&self, _rec: &CommandRecorder, _tables: &IntegrationTables, _frame: &FrameSetup, _counter: &mut UploadCounter) -> VkResult<()> {
-        Err(VkError::Invalid("pt-compute composites in compute (record_composite); it has no draw".into()))
-    }
-
     fn record_composite(
         &mut self,
         rec: &CommandRecorder,

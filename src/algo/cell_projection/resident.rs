@@ -358,11 +358,6 @@ impl CellProjector for Resident {
         Ok(())
     }
 
-    /// Has no draw of its own apart from the expansion: see `record_composite`.
-    fn record_draw(&self, _rec: &CommandRecorder, _tables: &IntegrationTables, _frame: &FrameSetup, _counter: &mut UploadCounter) -> VkResult<()> {
-        Err(VkError::Invalid("resident records its draws between its expansions (record_composite)".into()))
-    }
-
     /// Piece by piece, in order: the expansion (one dispatch) into the one
     /// records buffer, then balanced's draw of them in a rendering pass of
     /// its own (the first clears the target, the others keep it); the next
