@@ -256,17 +256,21 @@ impl VertexChunks {
         Ok(VertexChunks { buffers, per_draw })
     }
 
+    /// The element ranges of the buffers holding the first `drawn`
+    /// elements, in order (none for no elements).
+    fn drawn_ranges(per_draw: usize, drawn: usize) -> impl Iterator<Item = std::ops::Range<usize>> {
+        (0..).map(move |k| k * per_draw..drawn.min((k + 1) * per_draw)).take_while(|r| !r.is_empty())
+    }
+
     /// The buffers holding the first `drawn` elements, each with its
     /// elements' range, in order (none for no elements).
     pub fn drawn_mut(&mut self, drawn: usize) -> impl Iterator<Item = (&mut Buffer, std::ops::Range<usize>)> {
-        let per = self.per_draw;
-        self.buffers.iter_mut().enumerate().map(move |(k, b)| (b, k * per..drawn.min((k + 1) * per))).take_while(|(_, r)| !r.is_empty())
+        self.buffers.iter_mut().zip(Self::drawn_ranges(self.per_draw, drawn))
     }
 
     /// [`VertexChunks::drawn_mut`], to record the draws.
     pub fn drawn(&self, drawn: usize) -> impl Iterator<Item = (&Buffer, std::ops::Range<usize>)> {
-        let per = self.per_draw;
-        self.buffers.iter().enumerate().map(move |(k, b)| (b, k * per..drawn.min((k + 1) * per))).take_while(|(_, r)| !r.is_empty())
+        self.buffers.iter().zip(Self::drawn_ranges(self.per_draw, drawn))
     }
 
     /// Write the first `packed.len() / elem_floats` elements (`elem_floats`
