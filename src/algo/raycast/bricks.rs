@@ -109,17 +109,6 @@ fn attenuates_over(tf: &TransferFunction, lo: f64, hi: f64) -> bool {
 /// (a smaller cube than possible: still empty).
 pub const MAX_DISTANCE: u8 = 255;
 
-/// Per brick (x fastest): 0 where `flags` is set, else the Chebyshev
-/// distance in bricks to the nearest set brick, at most [`MAX_DISTANCE`]
-/// (also when none is set). The flags dilated by a cube of radius r have
-/// distances `d.saturating_sub(r)`. [`mark`] then [`chebyshev_in_place`].
-pub fn distances(flags: &[bool], grid: [usize; 3]) -> Vec<u8> {
-    let mut map = vec![0u8; flags.len()];
-    mark(flags.iter().copied(), &mut map);
-    chebyshev_in_place(&mut map, grid);
-    map
-}
-
 /// Writes flags as a brick map's start: 0 on a set brick, [`MAX_DISTANCE`]
 /// elsewhere (one layer of bricks at a time, as [`LayerFlags`] gives them).
 pub fn mark(flags: impl IntoIterator<Item = bool>, map: &mut [u8]) {
@@ -129,7 +118,9 @@ pub fn mark(flags: impl IntoIterator<Item = bool>, map: &mut [u8]) {
 }
 
 /// Turns a marked map ([`mark`]) into each brick's Chebyshev distance to
-/// the nearest set brick, capped at [`MAX_DISTANCE`], in place: the
+/// the nearest set brick, capped at [`MAX_DISTANCE`] (also when none is
+/// set; the flags dilated by a cube of radius r have distances
+/// `d.saturating_sub(r)`), in place: the
 /// two-pass chamfer transform with the 26 neighbours at distance 1 (exact
 /// for the chessboard metric, Rosenfeld & Pfaltz 1966), so no memory but
 /// the map's own, one byte a brick (the prefix counts it replaced took four
@@ -181,6 +172,14 @@ pub fn chebyshev_in_place(map: &mut [u8], grid: [usize; 3]) {
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    /// The map of `flags` (x fastest): [`mark`] then [`chebyshev_in_place`].
+    fn distances(flags: &[bool], grid: [usize; 3]) -> Vec<u8> {
+        let mut map = vec![0u8; flags.len()];
+        mark(flags.iter().copied(), &mut map);
+        chebyshev_in_place(&mut map, grid);
+        map
+    }
 
     fn brute_force(flags: &[bool], grid: [usize; 3]) -> Vec<u8> {
         let pos = |n: usize| [n % grid[0], n / grid[0] % grid[1], n / (grid[0] * grid[1])];

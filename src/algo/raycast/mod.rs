@@ -58,7 +58,7 @@
 //! ⌈step / (2·brick)⌉ bricks, so a segment whose middle lies in an unflagged
 //! brick lies where the attenuation is zero everywhere. Every unflagged brick
 //! also holds its Chebyshev distance d to the nearest flagged brick
-//! ([`bricks::distances`]): the cube of 2d − 1 bricks around it is empty and
+//! ([`bricks::chebyshev_in_place`]): the cube of 2d − 1 bricks around it is empty and
 //! the march leaps to the cube's exit in one iteration. Leaping is what makes
 //! small bricks pay: on llvmpipe a skipped brick costs a loop iteration as
 //! dear as a sample (both sides of every branch run), and with one iteration
