@@ -30,7 +30,7 @@ layout(push_constant) uniform Frame {
     vec4 limits;    // x: entry tolerance (world units); y: step budget per ray (uint bits);
                     // z: stall limit (uint bits); w: pre-integration length scale
     uvec4 rect;     // the pixels whose rays may meet the mesh: x0, y0, x1, y1 inclusive
-                    // (tet_raycast.rs, pixel_rect); the others are left empty
+                    // (tet_raycast.rs, pixel_rect); the dispatch starts at x0, y0
 } frame;
 
 #include "common/integrate.glsl"
@@ -638,13 +638,11 @@ int walk(uint face, float t_in, float s_in, float t_min, float t_max, out float 
 
 void main() {
     ivec2 size = imageSize(target);
-    ivec2 px = ivec2(gl_GlobalInvocationID.xy);
-    if (px.x >= size.x || px.y >= size.y) return;
-    // Outside the boundary's projected box no ray meets the mesh: no search.
-    if (uint(px.x) < frame.rect.x || uint(px.y) < frame.rect.y || uint(px.x) > frame.rect.z || uint(px.y) > frame.rect.w) {
-        imageStore(target, px, vec4(0.0));
-        return;
-    }
+    // The dispatch covers the rectangle (the boundary's projected box) from
+    // its corner; outside it no ray meets the mesh, and tet_raycast.rs
+    // cleared those pixels.
+    ivec2 px = ivec2(gl_GlobalInvocationID.xy + frame.rect.xy);
+    if (px.x >= size.x || px.y >= size.y || uint(px.x) > frame.rect.z || uint(px.y) > frame.rect.w) return;
     // The ray through the pixel's centre (scene::Camera::ray), relative to
     // the render origin.
     vec2 ndc = (vec2(px) + 0.5) / vec2(size) * 2.0 - 1.0;

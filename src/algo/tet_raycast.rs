@@ -165,9 +165,12 @@ pub fn accuracy_bound(options: &Options, _perspective: bool) -> Option<f64> {
 /// vertices' projections (a ray enters only through a boundary face, which
 /// projects inside its vertices' box), padded by [`RECT_PAD`], as inclusive
 /// pixel bounds `[x0, y0, x1, y1]` (x0 > x1: no pixel). `None` when every
-/// pixel must search: in perspective a boundary vertex at or behind the eye
-/// plane (the shader searches the whole ray line, behind the eye too), or a
-/// projection that is not finite. `right`, `up` are the camera's image axes
+/// pixel must search: in perspective some boundary vertices at or behind the
+/// eye plane and some in front of it (the shader searches the whole ray line,
+/// behind the eye too), or a projection that is not finite. In perspective
+/// with every boundary vertex at or behind the eye plane no pixel: the mesh
+/// lies in their hull, behind the eye, and a ray integrates only from the
+/// near plane on (the camera turned away). `right`, `up` are the camera's image axes
 /// (`Camera::image_axes`: perpendicular to `forward`, scaled so that ndc 1
 /// is the image's edge), `points` relative to the eye.
 pub fn pixel_rect(points: &[[f64; 3]], forward: [f64; 3], right: [f64; 3], up: [f64; 3], perspective: bool, width: u32, height: u32) -> Option<[u32; 4]> {
@@ -175,10 +178,15 @@ pub fn pixel_rect(points: &[[f64; 3]], forward: [f64; 3], right: [f64; 3], up: [
     let (rr, uu) = (dot(right, right), dot(up, up));
     let mut lo = [f64::INFINITY; 2];
     let mut hi = [f64::NEG_INFINITY; 2];
+    let mut behind = 0usize;
     for &q in points {
         let depth = if perspective { dot(q, forward) } else { 1.0 };
-        if depth.is_nan() || depth <= 0.0 {
+        if depth.is_nan() {
             return None;
+        }
+        if depth <= 0.0 {
+            behind += 1;
+            continue;
         }
         // ndc as the shader's ray maps a pixel centre (y down), then pixels.
         let ndc = [dot(q, right) / (rr * depth), -dot(q, up) / (uu * depth)];
@@ -188,8 +196,11 @@ pub fn pixel_rect(points: &[[f64; 3]], forward: [f64; 3], right: [f64; 3], up: [
             hi[k] = hi[k].max(px[k]);
         }
     }
-    if points.is_empty() {
+    if behind == points.len() {
         return Some([1, 1, 0, 0]);
+    }
+    if behind > 0 {
+        return None;
     }
     if !(lo.iter().chain(&hi).all(|v| v.is_finite())) {
         return None;
@@ -303,7 +314,9 @@ pub struct TetRaycast {
     /// The boundary faces' vertices (world coordinates), projected per frame
     /// for the pixels that may meet the mesh ([`pixel_rect`]).
     boundary_points: Vec<[f64; 3]>,
-    /// Pixels inside the last frame's rectangle.
+    /// The last frame's rectangle ([`pixel_rect`]) and its pixel count: the
+    /// dispatch covers only it.
+    rect: [u32; 4],
     rect_pixels: u64,
     bvh_nodes: usize,
     bvh_depth: usize,
@@ -517,6 +530,7 @@ impl TetRaycast {
             cells: n,
             boundary_faces: topo.boundary.len(),
             boundary_points,
+            rect: [1, 1, 0, 0],
             rect_pixels: 0,
             bvh_nodes: bvh.nodes.len(),
             bvh_depth: bvh.depth,
@@ -526,9 +540,9 @@ impl TetRaycast {
         })
     }
 
-    /// The frame's push constants (`Frame` in walk.comp) and the number of
-    /// pixels inside its rectangle ([`pixel_rect`]).
-    fn push_constants(&self, view: &View) -> (Vec<u8>, u64) {
+    /// The frame's push constants (`Frame` in walk.comp), its rectangle
+    /// ([`pixel_rect`]) and the number of pixels inside.
+    fn push_constants(&self, view: &View) -> (Vec<u8>, [u32; 4], u64) {
         let c: &Camera = &view.camera;
         // The table range and length scale exactly as the cell-projection
         // methods map them.
@@ -553,7 +567,7 @@ impl TetRaycast {
             tol as f32, f32::from_bits(budget), f32::from_bits(STALL_LIMIT), setup.constants.limits[3],
             f32::from_bits(rect[0]), f32::from_bits(rect[1]), f32::from_bits(rect[2]), f32::from_bits(rect[3]),
         ];
-        (bytemuck::cast_slice(&v).to_vec(), rect_pixels)
+        (bytemuck::cast_slice(&v).to_vec(), rect, rect_pixels)
     }
 
     /// The last frame's counters (`Counters` in walk.comp).
@@ -606,7 +620,7 @@ impl From<[u64; COUNTER_WORDS]> for Counts {
 
 impl RenderMethod for TetRaycast {
     fn prepare(&mut self, view: &View, _phases: &mut Phases) -> Result<()> {
-        (self.push, self.rect_pixels) = self.push_constants(view);
+        (self.push, self.rect, self.rect_pixels) = self.push_constants(view);
         Ok(())
     }
 
@@ -623,10 +637,22 @@ impl RenderMethod for TetRaycast {
         let Some((_, set)) = &self.target_set else { bail!("no target set") };
         rec.fill_buffer(&self.counters, 0);
         rec.transfer_to_storage(Stages::COMPUTE);
-        rec.image_barrier_discard(target, ImageUse::ComputeStorage);
+        // Only the rectangle's pixels run the shader: on llvmpipe an
+        // invocation that returns at once still runs the whole shader
+        // masked (its branches and loops are not skipped), ~50 ns a pixel
+        // at 512x512 (docs/compute-speed.md). The rest is cleared.
+        let [x0, y0, x1, y1] = self.rect;
+        let groups = if x0 > x1 || y0 > y1 { [0, 0, 1] } else { [(x1 - x0 + 1).div_ceil(WORKGROUP[0]), (y1 - y0 + 1).div_ceil(WORKGROUP[1]), 1] };
+        if self.rect_pixels < u64::from(view.width) * u64::from(view.height) {
+            rec.begin_rendering(target, [0.0; 4]);
+            rec.end_rendering();
+            rec.image_barrier(target, ImageUse::ComputeStorage);
+        } else {
+            rec.image_barrier_discard(target, ImageUse::ComputeStorage);
+        }
         rec.bind_compute(&self.pipeline, &[&self.tables.set, &self.mesh_set, set])?;
         rec.push_constants(&self.pipeline, &self.push, counter);
-        rec.dispatch([view.width.div_ceil(WORKGROUP[0]), view.height.div_ceil(WORKGROUP[1]), 1])?;
+        rec.dispatch(groups)?;
         rec.compute_to_host();
         Ok(())
     }
@@ -775,10 +801,17 @@ mod tests {
                 assert!((r[2] - r[0] + 1) * (r[3] - r[1] + 1) < w * h, "{r:?}");
             }
         }
-        // A point behind the eye plane in perspective: every pixel searches.
-        let rel = vec![[0.0, 0.0, 0.0]];
+        // Points on both sides of the eye plane in perspective: every pixel
+        // searches; all at or behind it: none does.
+        let f: [f64; 3] = cam.forward().into();
         let (right, up) = cam.image_axes(64, 64);
-        assert_eq!(pixel_rect(&rel, cam.forward().into(), right.into(), up.into(), true, 64, 64), None);
+        let rel = vec![[0.0, 0.0, 0.0], f];
+        assert_eq!(pixel_rect(&rel, f, right.into(), up.into(), true, 64, 64), None);
+        let rel = vec![[0.0, 0.0, 0.0], f.map(|v| -v), [-f[0] + 1.0, -f[1], -f[2]]];
+        let r = pixel_rect(&rel, f, right.into(), up.into(), true, 64, 64).unwrap();
+        assert!(r[0] > r[2], "{r:?}");
+        // In orthographic projection depth does not matter.
+        assert!(pixel_rect(&rel, f, right.into(), up.into(), false, 64, 64).is_some_and(|r| r[0] <= r[2]));
         // No boundary: no pixel.
         let r = pixel_rect(&[], cam.forward().into(), right.into(), up.into(), true, 64, 64).unwrap();
         assert!(r[0] > r[2]);
