@@ -212,6 +212,27 @@ fn non_convex_block_reenters_at_the_next_boundary_face() {
     at_least_as_good_as_balanced("notched ortho", &mesh, &tf, cam, 64, &["ppi"]);
 }
 
+/// A ray that leaves a convex mesh leaves it through a face on its hull
+/// and searches no further: one entry search per ray (the one that finds
+/// its entry or nothing), not a second one after the exit.
+#[test]
+fn leaving_through_the_hull_ends_the_ray() {
+    let mesh = grid("block", [6, 5, 4], [0.0; 3], [1.0; 3]);
+    let tf = ramp(&mesh);
+    for (size, eye) in [(64, [2.3, 1.7, 2.9]), (97, [0.55, 0.45, 3.2])] {
+        let out = at_least_as_good_as_balanced("block", &mesh, &tf, oblique(eye), size, &["ppi"]);
+        let (searches, hit, in_rect) = (count(&out, "entry_searches"), count(&out, "rays_hit"), count(&out, "pixels_in_rect"));
+        assert!(hit > 0 && searches <= in_rect, "{eye:?}: {:?}", out.result.work.counts);
+        assert_eq!(count(&out, "walks"), hit);
+        assert_eq!(out.result.details["hull_faces"], out.result.details["boundary_faces"]);
+    }
+    // Through the notched block's hole and notch the search still runs.
+    let mesh = notched_block();
+    let out = run(&mesh, &ramp(&mesh), "tet-raycast", oblique([0.55, 0.45, 3.2]), 64);
+    assert!(count(&out, "rays_reentering") > 0);
+    assert!(out.result.details["hull_faces"].as_u64() < out.result.details["boundary_faces"].as_u64());
+}
+
 #[test]
 fn coincident_unshared_boundaries_are_crossed() {
     let mesh = two_blocks();

@@ -53,7 +53,7 @@ layout(push_constant) uniform Frame {
 #define NEIGHBOR_CHUNK_BINDING (TET_CHUNK_BINDING + CELL_CHUNKS - 1)
 layout(set = 1, binding = 0) uniform samplerBuffer points_tb;      // xyz: position; w: scalar
 layout(set = 1, binding = 1) uniform usamplerBuffer tets_tb;       // vertex indices, w | SOLID_BIT if solid
-layout(set = 1, binding = 2) uniform usamplerBuffer neighbors_tb;  // cell c: [f] = 4 c' + f', NONE on the boundary
+layout(set = 1, binding = 2) uniform usamplerBuffer neighbors_tb;  // cell c: [f] = 4 c' + f', NONE or REENTER on the boundary
 // A cell's solid flag (positive volume; flat cells are crossed either way)
 // rides in the top bit of its fourth vertex index and of its boundary faces'
 // slots (tet_raycast.rs checks both stay below it): no fetch of its own.
@@ -265,6 +265,9 @@ layout(std430, set = 1, binding = 5) buffer Counters {
 layout(set = 2, binding = 0, rgba32f) uniform writeonly image2D target;
 
 const uint NONE = 0xFFFFFFFFu;
+// A boundary face's neighbour when the ray may meet the mesh again after it
+// (NONE: a face on the convex hull).
+const uint REENTER = 0xFFFFFFFEu;
 // Stands for infinity (depths are far below it).
 const float INF = 3.0e38;
 // Local vertices of face f (opposite vertex f), counter-clockwise seen from
@@ -469,7 +472,7 @@ const int WALK_DONE = 1;
 const int WALK_TERMINATED = 2;
 
 // Walk from boundary face `face` entered at (t_in, s_in) until the ray leaves
-// the mesh (WALK_EXIT, t_exit), is done (far plane, budget) or opaque.
+// the mesh (WALK_EXIT, t_exit), is done (far plane, budget, left through a face on the convex hull) or opaque.
 //
 // The line crosses exactly two faces of a cell. The entry face (a0, a1, a2)
 // and its directed edge values (a0->a1, a1->a2, a2->a0), all of sign sigma,
@@ -611,9 +614,12 @@ int walk(uint face, float t_in, float s_in, float t_min, float t_max, out float 
         // The exit face is the one opposite r0 in this cell.
         uint f_out = v.x == r0 ? 0u : (v.y == r0 ? 1u : (v.z == r0 ? 2u : 3u));
         uint nb = neighbor_at(4u * tet + f_out);
-        if (nb == NONE) {
+        if (nb >= REENTER) {
+            // Out of the mesh. Through a face on its convex hull (NONE) the
+            // ray meets no more of it: no entry search (tet_raycast.rs,
+            // hull_faces).
             t_exit = t_out;
-            return WALK_EXIT;
+            return nb == NONE ? WALK_DONE : WALK_EXIT;
         }
         a0 = nid;
         a1 = r1;

@@ -89,6 +89,11 @@ const RECT_PAD: f64 = 2.0;
 /// The top bit of a cell's fourth vertex index and of a boundary face's
 /// slot: the cell is solid (`SOLID_BIT` in walk.comp).
 const SOLID_BIT: u32 = 1 << 31;
+/// The neighbour of a boundary face the ray may meet the mesh again after
+/// (`REENTER` in walk.comp); a boundary face on the convex hull keeps
+/// `topology::NONE`, and the walk ends there ([`hull_faces`]).
+const REENTER: u32 = 0xFFFF_FFFE;
+
 /// Counter words read back after every frame (`Counters` in walk.comp).
 const COUNTER_WORDS: usize = 14;
 /// Bits of a BVH stack entry below the node's link, holding its face count
@@ -287,6 +292,82 @@ pub fn build_face_bvh(faces: &[(u32, [[f32; 3]; 3])], pad: f32) -> FaceBvh {
     FaceBvh { nodes, prims: items.iter().map(|it| it.slot).collect(), depth }
 }
 
+/// Most BVH nodes one boundary face's hull test visits before it gives up
+/// (the face is then treated as one the ray may re-enter after): a tilted
+/// flat side of many coplanar faces would otherwise make the test quadratic.
+const HULL_TEST_NODES: usize = 1024;
+
+/// Per boundary face of `bvh` (in `faces`' order): whether it lies on the
+/// mesh's convex hull, i.e. no boundary vertex is more than `tol` beyond its
+/// plane on the side away from its cell. A ray that leaves the mesh through
+/// such a face is outside that plane and moving away from it, so it meets
+/// no more of the mesh (every cell lies in the hull of the boundary
+/// vertices): the walk ends without the entry search that would find
+/// nothing (walk.comp, `HULL_EXIT`). A face whose cell is flat or that has no
+/// area, or whose test visits more than [`HULL_TEST_NODES`] nodes, is
+/// `false`: the search runs, as for every face before. `corners(slot)`
+/// gives a face's three vertices and its cell's fourth; `pad` is what the
+/// BVH's boxes were padded by.
+pub fn hull_faces(faces: &[u32], corners: impl Fn(u32) -> ([[f32; 3]; 3], [f32; 3]) + Sync, bvh: &FaceBvh, pad: f32, tol: f64) -> Vec<bool> {
+    use rayon::prelude::*;
+    let f64s = |p: [f32; 3]| p.map(f64::from);
+    let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    faces
+        .par_iter()
+        .map(|&slot| {
+            let (tri, opposite) = corners(slot);
+            let [a, b, c] = tri.map(f64s);
+            let (u, v) = (sub(b, a), sub(c, a));
+            let mut n = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
+            let len = dot(n, n).sqrt();
+            if !(len > 0.0 && len.is_finite()) {
+                return false;
+            }
+            n = n.map(|x| x / len);
+            // Outward: away from the cell's fourth vertex; a flat cell says
+            // nothing about which side is out.
+            let side = dot(n, sub(f64s(opposite), a));
+            if !(side.abs() > tol) {
+                return false;
+            }
+            if side > 0.0 {
+                n = n.map(|x| -x);
+            }
+            let limit = dot(n, a).max(dot(n, b)).max(dot(n, c)) + tol;
+            // Depth first, pruning a node whose box (its padding taken off)
+            // lies within the limit along n.
+            let slack = f64::from(pad) * (n[0].abs() + n[1].abs() + n[2].abs());
+            let mut stack = vec![0usize];
+            let mut visited = 0;
+            while let Some(i) = stack.pop() {
+                visited += 1;
+                if visited > HULL_TEST_NODES {
+                    return false;
+                }
+                let node = &bvh.nodes[i];
+                let reach: f64 = (0..3).map(|k| (n[k] * f64::from(node[k])).max(n[k] * f64::from(node[4 + k]))).sum::<f64>() - slack;
+                if reach <= limit {
+                    continue;
+                }
+                let first = node[3].to_bits() as usize;
+                let count = node[7].to_bits() as usize;
+                if count == 0 {
+                    stack.push(first);
+                    stack.push(first + 1);
+                    continue;
+                }
+                for &other in &bvh.prims[first..first + count] {
+                    if corners(other).0.iter().any(|&p| dot(n, f64s(p)) > limit) {
+                        return false;
+                    }
+                }
+            }
+            true
+        })
+        .collect()
+}
+
 fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
     let SceneData::TetMesh { mesh } = inputs.data else {
         bail!("tet-raycast renders tetrahedral meshes only");
@@ -311,6 +392,8 @@ pub struct TetRaycast {
     pixels: u64,
     cells: usize,
     boundary_faces: usize,
+    /// Boundary faces on the convex hull ([`hull_faces`]).
+    hull_faces: usize,
     /// The boundary faces' vertices (world coordinates), projected per frame
     /// for the pixels that may meet the mesh ([`pixel_rect`]).
     boundary_points: Vec<[f64; 3]>,
@@ -368,7 +451,7 @@ impl TetRaycast {
             counter,
         )
         .context("building the integration tables")?;
-        let topo = Topology::build(mesh);
+        let mut topo = Topology::build(mesh);
 
         // Points relative to the render origin and scalars mapped, in f64
         // before the f32 conversion (as every tetrahedral method sends them).
@@ -403,7 +486,8 @@ impl TetRaycast {
         boundary_vertices.dedup();
         let boundary_points: Vec<[f64; 3]> = boundary_vertices.iter().map(|&i| mesh.points[i as usize]).collect();
         let diag = mesh.bounds().diagonal();
-        let bvh = build_face_bvh(&faces, (1e-5 * diag) as f32);
+        let pad = (1e-5 * diag) as f32;
+        let bvh = build_face_bvh(&faces, pad);
         if bvh.depth > MAX_BVH_DEPTH {
             bail!("mesh '{}': boundary-face BVH {} levels deep, more than the shader's {MAX_BVH_DEPTH}", mesh.name, bvh.depth);
         }
@@ -423,6 +507,24 @@ impl TetRaycast {
         // that of the 16-byte texels.
         let per_point = limits.texel_chunk(16, 1);
         let per_cell = limits.texel_chunk(16, 1);
+        // A boundary face on the convex hull keeps NONE (the walk ends there);
+        // the others become REENTER (the ray may meet the mesh again).
+        let corners = |slot: u32| {
+            let t = &mesh.tets[(slot >> 2) as usize];
+            let f = (slot & 3) as usize;
+            let p = |i: u32| {
+                let q = points[i as usize];
+                [q[0], q[1], q[2]]
+            };
+            (FACE_VERTS[f].map(|l| p(t[l])), p(t[f]))
+        };
+        let on_hull = hull_faces(&topo.boundary, corners, &bvh, pad, 1e-6 * diag);
+        let hull_faces_count = on_hull.iter().filter(|&&h| h).count();
+        for (&slot, hull) in topo.boundary.iter().zip(on_hull) {
+            if !hull {
+                topo.neighbor[slot as usize] = REENTER;
+            }
+        }
         let neighbours: &[[u32; 4]] = bytemuck::cast_slice(&topo.neighbor);
         let chunked = [
             TexelChunks::upload_slice(ctx, "tet-raycast points", &points, Format::Rgba32Float, per_point, counter)?,
@@ -529,6 +631,7 @@ impl TetRaycast {
             pixels: u64::from(width) * u64::from(height),
             cells: n,
             boundary_faces: topo.boundary.len(),
+            hull_faces: hull_faces_count,
             boundary_points,
             rect: [1, 1, 0, 0],
             rect_pixels: 0,
@@ -688,6 +791,7 @@ impl RenderMethod for TetRaycast {
             "table_size": self.tables.table_size,
             "ert": self.settings.ert,
             "boundary_faces": self.boundary_faces,
+            "hull_faces": self.hull_faces,
             "device_chunks": self.device_chunks,
             "bvh_nodes": self.bvh_nodes,
             "bvh_depth": self.bvh_depth,
@@ -720,6 +824,57 @@ impl RenderMethod for TetRaycast {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `hull_faces` over a mesh's boundary, as `TetRaycast::new` calls it.
+    fn hull_of(mesh: &TetMesh) -> Vec<(u32, bool)> {
+        let topo = Topology::build(mesh);
+        let p = |i: u32| mesh.points[i as usize].map(|v| v as f32);
+        let corners = |slot: u32| {
+            let t = &mesh.tets[(slot >> 2) as usize];
+            let f = (slot & 3) as usize;
+            (FACE_VERTS[f].map(|l| p(t[l])), p(t[f]))
+        };
+        let faces: Vec<(u32, [[f32; 3]; 3])> = topo.boundary.iter().map(|&s| (s, corners(s).0)).collect();
+        let pad = 1e-5;
+        let bvh = build_face_bvh(&faces, pad);
+        topo.boundary.iter().copied().zip(hull_faces(&topo.boundary, corners, &bvh, pad, 1e-6)).collect()
+    }
+
+    #[test]
+    fn hull_faces_are_the_faces_on_the_convex_hull() {
+        // An L of three unit cubes (a 2x2x1 block without the cube at
+        // x, y > 1), split into tets: the faces on the block's box planes
+        // are on the hull, the two inner sides of the L (x = 1 or y = 1,
+        // facing the missing cube) are not.
+        let dims = [3usize, 3, 2];
+        let points: Vec<[f64; 3]> = (0..18).map(|i| [(i % 3) as f64, ((i / 3) % 3) as f64, (i / 9) as f64]).collect();
+        let scalars = vec![0.0; points.len()];
+        let mut mesh = crate::mesh::split::hex_grid_to_tets("L", dims, points, scalars).unwrap();
+        let centroid = |t: &[u32; 4]| -> [f64; 3] { std::array::from_fn(|a| t.iter().map(|&v| mesh.points[v as usize][a]).sum::<f64>() / 4.0) };
+        mesh.tets = mesh.tets.iter().copied().filter(|t| { let c = centroid(t); !(c[0] > 1.0 && c[1] > 1.0) }).collect();
+        let hull = hull_of(&mesh);
+        assert!(!hull.is_empty());
+        let mut inner = 0;
+        for (slot, on) in hull {
+            let t = mesh.tets[(slot >> 2) as usize];
+            let v = FACE_VERTS[(slot & 3) as usize].map(|l| mesh.points[t[l] as usize]);
+            let on_box = (0..3).any(|a| v.iter().all(|p| p[a] == 0.0) || v.iter().all(|p| p[a] == if a == 2 { 1.0 } else { 2.0 }));
+            inner += usize::from(!on_box);
+            assert_eq!(on, on_box, "face {slot}: {v:?}");
+        }
+        // The L's two inner sides, two triangles each.
+        assert_eq!(inner, 4);
+
+        // A flat cell says nothing about which side is out.
+        let flat = TetMesh {
+            name: "flat".into(),
+            points: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0]],
+            scalars: vec![0.0; 4],
+            tets: vec![[0, 1, 2, 3]],
+            stats: Default::default(),
+        };
+        assert!(hull_of(&flat).iter().all(|&(_, on)| !on));
+    }
 
     #[test]
     fn bvh_holds_every_face_once_within_its_leaf_boxes() {
