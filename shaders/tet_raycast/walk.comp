@@ -501,11 +501,8 @@ int walk(uint face, float t_in, float s_in, float t_min, float t_max, out float 
     vec4 p0 = point_at(a0);
     vec4 p1 = point_at(a1);
     vec4 p2 = point_at(a2);
-    vec3 q0 = rel(p0.xyz);
-    vec3 q1 = rel(p1.xyz);
-    vec3 q2 = rel(p2.xyz);
-    vec2 e01 = oriented(a0, a1, q0, q1, p0.xyz, p1.xyz);
-    vec3 ae = vec3(e01.x, oriented(a1, a2, q1, q2, p1.xyz, p2.xyz).x, oriented(a2, a0, q2, q0, p2.xyz, p0.xyz).x);
+    vec2 e01 = oriented(a0, a1, rel(p0.xyz), rel(p1.xyz), p0.xyz, p1.xyz);
+    vec3 ae = vec3(e01.x, oriented(a1, a2, rel(p1.xyz), rel(p2.xyz), p1.xyz, p2.xyz).x, oriented(a2, a0, rel(p2.xyz), rel(p0.xyz), p2.xyz, p0.xyz).x);
     float sigma = e01.y;
     while (true) {
         if (n_cells >= budget) {
@@ -531,7 +528,13 @@ int walk(uint face, float t_in, float s_in, float t_min, float t_max, out float 
         }
         uint nid = v[f_in];
         vec4 pn = point_at(nid);
+        // The offsets from the ray origin are recomputed from the carried
+        // points (the same precise subtraction, so the same bits): carrying
+        // them too spilled more vectors than the subtractions cost.
         vec3 qn = rel(pn.xyz);
+        vec3 q0 = rel(p0.xyz);
+        vec3 q1 = rel(p1.xyz);
+        vec3 q2 = rel(p2.xyz);
         vec2 e0 = oriented(nid, a0, qn, q0, pn.xyz, p0.xyz);
         vec2 e1 = oriented(nid, a1, qn, q1, pn.xyz, p1.xyz);
         vec2 e2 = oriented(nid, a2, qn, q2, pn.xyz, p2.xyz);
@@ -573,10 +576,8 @@ int walk(uint face, float t_in, float s_in, float t_min, float t_max, out float 
         uint r2 = k == 0u ? a2 : (k == 1u ? a0 : a1);
         vec4 pr1 = k == 0u ? p1 : (k == 1u ? p2 : p0);
         vec4 pr2 = k == 0u ? p2 : (k == 1u ? p0 : p1);
-        vec3 qr1 = k == 0u ? q1 : (k == 1u ? q2 : q0);
-        vec3 qr2 = k == 0u ? q2 : (k == 1u ? q0 : q1);
         vec2 ts;
-        bool usable = crossing(qn, qr1, qr2, bw, vec3(pn.w, pr1.w, pr2.w), ts);
+        bool usable = crossing(qn, rel(pr1.xyz), rel(pr2.xyz), bw, vec3(pn.w, pr1.w, pr2.w), ts);
         float t_out = t_in;
         float s_out = s_in;
         if (usable) {
@@ -627,9 +628,6 @@ int walk(uint face, float t_in, float s_in, float t_min, float t_max, out float 
         p0 = pn;
         p1 = pr1;
         p2 = pr2;
-        q0 = qn;
-        q1 = qr1;
-        q2 = qr2;
         ae = vec3(bk.z, bk.x, bk.y);
         tet = nb >> 2;
         f_in = nb & 3u;
