@@ -233,6 +233,34 @@ fn leaving_through_the_hull_ends_the_ray() {
     assert!(out.result.details["hull_faces"].as_u64() < out.result.details["boundary_faces"].as_u64());
 }
 
+/// The per-tile face lists and the BVH find the same entries: the same
+/// image to the bit and the same walks, on meshes that re-enter (hole,
+/// notch, coincident boundaries, the oxygen post's seam) and in both
+/// projections, at two sizes.
+#[test]
+fn tile_lists_and_the_bvh_find_the_same_entries() {
+    let post = datasets::load_mesh("oxygenpost").unwrap();
+    let cases: Vec<(TetMesh, TransferFunction, Camera, u32)> = vec![
+        { let m = notched_block(); let tf = ramp(&m); (m, tf, oblique([0.55, 0.45, 3.2]), 64) },
+        { let m = notched_block(); let tf = ramp(&m); (m, tf, Camera { projection: Projection::Orthographic { height: 1.6 }, ..oblique([0.5, 0.5, 4.0]) }, 75) },
+        { let m = two_blocks(); let tf = ramp(&m); (m, tf, oblique([2.6, 1.4, 2.2]), 80) },
+        { let tf = preset(&post, "oxygenpost"); let cam = orbit(&post, 20.0); (post, tf, cam, 96) },
+    ];
+    for (mesh, tf, cam, size) in cases {
+        let lists = run(&mesh, &tf, "tet-raycast", cam, size);
+        assert_eq!(lists.result.details["entry_search"], "tile lists", "{}", mesh.name);
+        std::env::set_var(volbench::algo::tet_raycast::BVH_SEARCH_VAR, "1");
+        let bvh = run(&mesh, &tf, "tet-raycast", cam, size);
+        std::env::remove_var(volbench::algo::tet_raycast::BVH_SEARCH_VAR);
+        assert_eq!(bvh.result.details["entry_search"], "bvh", "{}", mesh.name);
+        assert!(lists.image.pixels == bvh.image.pixels, "{}: images differ", mesh.name);
+        for name in ["cells_visited", "rays_hit", "walks", "rays_reentering", "entry_searches"] {
+            assert_eq!(count(&lists, name), count(&bvh, name), "{}: {name}", mesh.name);
+        }
+        assert!(count(&lists, "tile_list_entries") > 0 && count(&lists, "bvh_nodes_visited") == 0, "{}", mesh.name);
+    }
+}
+
 #[test]
 fn coincident_unshared_boundaries_are_crossed() {
     let mesh = two_blocks();
@@ -377,15 +405,20 @@ fn walks_through_stacks_of_flat_cells_are_bounded() {
     assert!(count(&out, "max_cells_per_ray") <= mesh.tets.len() as u64 + 1024);
 }
 
-/// Per frame only the camera crosses: the push constants, no cell data.
+/// Per frame the camera crosses (the push constants) and the tile lists
+/// (4 bytes per tile start and per entry), no cell data.
 #[test]
-fn only_the_camera_crosses_per_frame() {
+fn only_the_camera_and_the_tile_lists_cross_per_frame() {
     let mesh = datasets::load_mesh("post-small").unwrap();
     let tf = preset(&mesh, "post-small");
     let out = run(&mesh, &tf, "tet-raycast", orbit(&mesh, 0.0), 48);
     let u = &out.result.upload;
-    assert_eq!(u.cell_bytes_per_frame, 0);
-    assert_eq!(u.bytes_per_frame, 112, "the push constants (camera, table range, limits, pixel rectangle)");
+    let tiles = &out.result.details["tiles"];
+    let starts = tiles[0].as_u64().unwrap() * tiles[1].as_u64().unwrap() + 1;
+    let lists = 4 * (starts + count(&out, "tile_list_entries"));
+    assert!(count(&out, "tile_list_entries") > 0);
+    assert_eq!(u.cell_bytes_per_frame, lists);
+    assert_eq!(u.bytes_per_frame, 112 + lists, "the push constants (camera, table range, limits, pixel rectangle) and the lists");
     assert!(u.static_bytes > 16 * mesh.tets.len() as u64);
     assert_eq!(u.frame_counters.static_bytes(), 0);
     common_schema(&out);

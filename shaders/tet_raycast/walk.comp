@@ -391,6 +391,44 @@ uint n_stalled = 0u;
 uint n_reversed = 0u;
 bool hit_bound = false;
 
+// Boundary face `face` (a face-list texel) as a candidate for the next
+// entry: kept in (t_best, s_best, id_best) when the ray enters the mesh
+// through it at t >= t_lo, after (t_prev, id_prev), before the best so far.
+void consider(uvec4 face, float t_lo, bool have_prev, float t_prev, uint id_prev, inout float t_best, inout float s_best, inout uint id_best) {
+    uint slot = face.x & ~SOLID_BIT;
+    n_faces += 1u;
+    vec2 ts;
+    if (enters(face, ts) && ts.x >= t_lo && (!have_prev || before(t_prev, id_prev, ts.x, slot)) && before(ts.x, slot, t_best, id_best)) {
+        t_best = ts.x;
+        s_best = ts.y;
+        id_best = slot;
+    }
+}
+
+#ifdef TILE_LISTS
+// The faces a ray may enter, per tile of TILE_W x TILE_H pixels of the
+// frame's rectangle (tet_raycast/tiles.rs): tile t's are
+// tile_faces[tile_first[t] .. tile_first[t + 1]], indices into the face list.
+layout(set = 3, binding = 0) uniform usamplerBuffer tile_first_tb;
+layout(set = 3, binding = 1) uniform usamplerBuffer tile_faces_tb;
+// The ray's tile (main).
+uint ray_tile;
+
+// The next boundary entry along the ray: the least (t, face) after
+// (t_prev, id_prev) (any when !have_prev) with t >= t_lo, among its tile's
+// faces, which hold every face it may enter.
+bool next_entry(float t_lo, bool have_prev, float t_prev, uint id_prev, out float t_best, out float s_best, out uint id_best) {
+    t_best = INF;
+    s_best = 0.0;
+    id_best = NONE;
+    uint first = texelFetch(tile_first_tb, int(ray_tile)).x;
+    uint end = texelFetch(tile_first_tb, int(ray_tile) + 1).x;
+    for (uint i = first; i < end; ++i) {
+        consider(texelFetch(prims_tb, int(texelFetch(tile_faces_tb, int(i)).x)), t_lo, have_prev, t_prev, id_prev, t_best, s_best, id_best);
+    }
+    return id_best != NONE;
+}
+#else
 // The next boundary entry along the ray: the least (t, face) after
 // (t_prev, id_prev) (any when !have_prev) with t >= t_lo. Depth-first
 // through the BVH, pruned by the best entry so far: an inner node's two
@@ -445,23 +483,12 @@ bool next_entry(float t_lo, bool have_prev, float t_prev, uint id_prev, out floa
             continue;
         }
         for (uint k = 0u; k < count; ++k) {
-            uvec4 face = texelFetch(prims_tb, int(first + k));
-            uint slot = face.x & ~SOLID_BIT;
-            n_faces += 1u;
-            vec2 ts;
-            if (!enters(face, ts)) continue;
-            if (ts.x < t_lo) continue;
-            if (have_prev && !before(t_prev, id_prev, ts.x, slot)) continue;
-            if (before(ts.x, slot, t_best, id_best)) {
-                t_best = ts.x;
-                s_best = ts.y;
-                id_best = slot;
-            }
+            consider(texelFetch(prims_tb, int(first + k)), t_lo, have_prev, t_prev, id_prev, t_best, s_best, id_best);
         }
     }
     return id_best != NONE;
 }
-
+#endif
 
 // Front-to-back accumulation: colour and transmittance.
 vec3 acc_c = vec3(0.0);
@@ -647,6 +674,10 @@ void main() {
     // cleared those pixels.
     ivec2 px = ivec2(gl_GlobalInvocationID.xy + frame.rect.xy);
     if (px.x >= size.x || px.y >= size.y || uint(px.x) > frame.rect.z || uint(px.y) > frame.rect.w) return;
+#ifdef TILE_LISTS
+    uint tiles_x = (frame.rect.z - frame.rect.x + uint(TILE_W)) / uint(TILE_W);
+    ray_tile = gl_GlobalInvocationID.y / uint(TILE_H) * tiles_x + gl_GlobalInvocationID.x / uint(TILE_W);
+#endif
     // The ray through the pixel's centre (scene::Camera::ray), relative to
     // the render origin.
     vec2 ndc = (vec2(px) + 0.5) / vec2(size) * 2.0 - 1.0;

@@ -23,7 +23,7 @@ use super::balanced::VERTICES_PER_CELL;
 use super::render;
 use super::resident::{upload_cell_chunks, FLOATS_PER_STORED_CELL};
 use super::{CellMaker, CellProjector, DrawSettings, FrameConstants, FrameSetup};
-use crate::algo::chunks::{ChunkLimits, TexelChunks};
+use crate::algo::chunks::{ensure_frame_texels, frame_texels, ChunkLimits, TexelChunks};
 use crate::algo::integrate::IntegrationTables;
 use crate::algo::method::{MethodInfo, MethodInputs, RenderMethod};
 use crate::algo::host_memory::HostMemory;
@@ -505,17 +505,6 @@ fn set_resources<'a>(cells: &'a TexelChunks, first: &'a TexelBuffer, entries: &'
     resources
 }
 
-/// A host-visible uniform texel buffer of `texels` texels of `format`
-/// (`texel_bytes` each), at least one.
-fn frame_texels(ctx: &Arc<Context>, name: &str, texels: usize, texel_bytes: usize, format: Format) -> VkResult<TexelBuffer> {
-    let limit = ctx.info.max_texel_buffer_elements as usize;
-    if texels > limit {
-        return Err(VkError::Invalid(format!("{name}: {texels} texels, above the device's maxTexelBufferElements ({limit})")));
-    }
-    let desc = BufferDesc::upload(name, (texels.max(1) * texel_bytes) as u64, BufferUsage::UNIFORM_TEXEL);
-    TexelBuffer::new(ctx, desc, format)
-}
-
 impl PtCompute {
     pub fn new(
         ctx: &Arc<Context>,
@@ -530,7 +519,7 @@ impl PtCompute {
         let positions: Vec<[[f32; 3]; 4]> = (0..mesh.tets.len()).into_par_iter().map(|t| maker.cell(mesh, t).pos).collect();
         let n = positions.len();
         let cells = upload_cell_chunks(ctx, "pt-compute cells", mesh, &ChunkLimits::of(ctx)?, counter)?;
-        let first = frame_texels(ctx, "pt-compute tile starts", 1, 4, Format::R32Uint)?;
+        let first = frame_texels(ctx, "pt-compute pixel starts", 1, 4, Format::R32Uint)?;
         // A first guess at the lists (they grow with the frame's entries).
         let guess = (8 * n).min(ctx.info.max_texel_buffer_elements as usize);
         let entries = frame_texels(ctx, "pt-compute pixel lists", guess, BYTES_PER_ENTRY, Format::R32Uint)?;
@@ -603,16 +592,6 @@ impl PtCompute {
         }
     }
 
-    /// Grow a frame texel buffer to hold `texels` (by half again, so that
-    /// growing frames do not reallocate every time); true when replaced.
-    fn ensure(ctx: &Arc<Context>, buffer: &mut TexelBuffer, texels: usize, texel_bytes: usize, name: &str) -> VkResult<bool> {
-        if buffer.texels as usize >= texels {
-            return Ok(false);
-        }
-        let grown = (texels + texels / 2).min(ctx.info.max_texel_buffer_elements as usize).max(texels);
-        *buffer = frame_texels(ctx, name, grown, texel_bytes, buffer.format)?;
-        Ok(true)
-    }
 }
 
 impl CellProjector for PtCompute {
@@ -685,8 +664,8 @@ impl CellProjector for PtCompute {
             return Err(VkError::Invalid(e));
         }
         let ctx = self.ctx.clone();
-        let grown_first = Self::ensure(&ctx, &mut self.first, self.lists.first.len(), 4, "pt-compute pixel starts")?;
-        let grown_entries = Self::ensure(&ctx, &mut self.entries, self.lists.entries(), BYTES_PER_ENTRY, "pt-compute pixel lists")?;
+        let grown_first = ensure_frame_texels(&ctx, &mut self.first, self.lists.first.len(), 4, "pt-compute pixel starts")?;
+        let grown_entries = ensure_frame_texels(&ctx, &mut self.entries, self.lists.entries(), BYTES_PER_ENTRY, "pt-compute pixel lists")?;
         if grown_first || grown_entries {
             self.set.update(&set_resources(&self.cells, &self.first, &self.entries, &self.counters))?;
         }

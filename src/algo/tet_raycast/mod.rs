@@ -49,6 +49,8 @@
 //! fallback exits, reversed walks, BVH searches, BVH nodes visited and
 //! boundary faces tested by them.
 
+mod tiles;
+
 use std::sync::Arc;
 
 use anyhow::{bail, Context as _, Result};
@@ -57,7 +59,8 @@ use serde_json::json;
 use super::cell_projection::render;
 use super::settings::{choice, float, int, MethodSettings};
 use super::cell_projection::{render_origin, scalar_map, ExitTolerances, FrameSetup, Interpolation, MeshScale};
-use super::chunks::{ChunkLimits, TexelChunks};
+use super::chunks::{ensure_frame_texels, frame_texels, ChunkLimits, TexelChunks};
+use tiles::{TileLists, TILE};
 use super::host_memory::HostMemory;
 use super::integrate::{check_table_size, IntegrationTables, Integrator};
 use super::method::{DataKind, Family, MethodInfo, MethodInputs, OptionSpec, Options, Phases, RenderMethod, SceneData, View, Work};
@@ -67,7 +70,7 @@ use crate::mesh::topology::Topology;
 use crate::scene::Camera;
 use crate::vk::{
     Buffer, BufferDesc, CommandRecorder, ComputePipelineKey, Context, DescriptorKind, DescriptorResource,
-    DescriptorSet, DescriptorSetDesc, Image, ImageUse, MemoryKind, Pipeline, PipelineKey, ShaderKey, ShaderStage, TexelBuffer, UploadCounter,
+    DescriptorSet, DescriptorSetDesc, Image, ImageUse, MemoryKind, Pipeline, PipelineKey, ShaderKey, ShaderStage, TexelBuffer, UploadClass, UploadCounter,
 };
 use crate::vk::{BufferUsage, Format, Stages};
 
@@ -89,6 +92,12 @@ const RECT_PAD: f64 = 2.0;
 /// The top bit of a cell's fourth vertex index and of a boundary face's
 /// slot: the cell is solid (`SOLID_BIT` in walk.comp).
 const SOLID_BIT: u32 = 1 << 31;
+/// Test knob: `VOLBENCH_TEST_BVH_SEARCH=1` makes every frame search the
+/// boundary BVH, as a view whose rays meet the mesh behind the eye does,
+/// instead of the tile lists ([`tiles`]), so both searches are tested on
+/// the same views (they find the same entries).
+pub const BVH_SEARCH_VAR: &str = "VOLBENCH_TEST_BVH_SEARCH";
+
 /// The neighbour of a boundary face the ray may meet the mesh again after
 /// (`REENTER` in walk.comp); a boundary face on the convex hull keeps
 /// `topology::NONE`, and the walk ends there ([`hull_faces`]).
@@ -406,6 +415,15 @@ pub struct TetRaycast {
     /// dispatch covers only it.
     rect: [u32; 4],
     rect_pixels: u64,
+    /// The boundary faces per screen tile ([`tiles`]), when the frame's
+    /// rays search them (`pipeline_lists`) instead of the BVH.
+    tile_faces: tiles::Faces,
+    lists: TileLists,
+    lists_active: bool,
+    pipeline_lists: Arc<Pipeline>,
+    lists_set: DescriptorSet,
+    tile_first: TexelBuffer,
+    tile_entries: TexelBuffer,
     bvh_nodes: usize,
     bvh_depth: usize,
     /// Texel buffers per array (`algo::chunks`): points, then each per-cell array.
@@ -615,9 +633,35 @@ impl TetRaycast {
         let key = PipelineKey::Compute(ComputePipelineKey {
             shader: ShaderKey::new("tet_raycast/walk.comp", ShaderStage::Compute, &defines),
             push_constant_bytes: PUSH_BYTES,
-            sets: vec![tables.set.desc.clone(), mesh_desc, target_desc.clone()],
+            sets: vec![tables.set.desc.clone(), mesh_desc.clone(), target_desc.clone()],
         });
+        let mesh_desc_lists = mesh_desc;
         let pipeline = crate::algo::pipelines::get(ctx, &key)?;
+        // The same shader searching per-tile face lists (set 3).
+        let tile_w = TILE[0].to_string();
+        let tile_h = TILE[1].to_string();
+        let mut list_defines = defines.clone();
+        list_defines.extend([("TILE_LISTS", "1"), ("TILE_W", tile_w.as_str()), ("TILE_H", tile_h.as_str())]);
+        let lists_desc = DescriptorSetDesc::new(&[(DescriptorKind::UniformTexelBuffer, compute); 2]);
+        let key_lists = PipelineKey::Compute(ComputePipelineKey {
+            shader: ShaderKey::new("tet_raycast/walk.comp", ShaderStage::Compute, &list_defines),
+            push_constant_bytes: PUSH_BYTES,
+            sets: vec![tables.set.desc.clone(), mesh_desc_lists, target_desc.clone(), lists_desc.clone()],
+        });
+        let pipeline_lists = crate::algo::pipelines::get(ctx, &key_lists)?;
+        let tile_first = frame_texels(ctx, "tet-raycast tile starts", 1, 4, Format::R32Uint)?;
+        let tile_entries = frame_texels(ctx, "tet-raycast tile faces", 1, 4, Format::R32Uint)?;
+        let lists_set = DescriptorSet::new(ctx, "tet-raycast tile lists", &lists_desc, &[DescriptorResource::UniformTexelBuffer(&tile_first), DescriptorResource::UniformTexelBuffer(&tile_entries)])?;
+        // Per face of the shader's face list: its corners among the boundary
+        // points and its cell's solidity.
+        let boundary_index = |v: u32| boundary_vertices.binary_search(&v).map(|i| i as u32).map_err(|_| anyhow::anyhow!("boundary vertex {v} not indexed"));
+        let mut tile_faces = tiles::Faces { corners: Vec::with_capacity(bvh.prims.len()), solid: Vec::with_capacity(bvh.prims.len()) };
+        for &slot in &bvh.prims {
+            let (c, f) = ((slot >> 2) as usize, (slot & 3) as usize);
+            let [a, b, d] = FACE_VERTS[f].map(|l| mesh.tets[c][l]);
+            tile_faces.corners.push([boundary_index(a)?, boundary_index(b)?, boundary_index(d)?]);
+            tile_faces.solid.push(topo.solid[c]);
+        }
         let mut scene_memory = HostMemory::default();
         scene_memory.scene_mesh(mesh);
         Ok(TetRaycast {
@@ -640,6 +684,13 @@ impl TetRaycast {
             boundary_points,
             rect: [1, 1, 0, 0],
             rect_pixels: 0,
+            tile_faces,
+            lists: TileLists::default(),
+            lists_active: false,
+            pipeline_lists,
+            lists_set,
+            tile_first,
+            tile_entries,
             bvh_nodes: bvh.nodes.len(),
             bvh_depth: bvh.depth,
             device_chunks,
@@ -727,12 +778,38 @@ impl From<[u64; COUNTER_WORDS]> for Counts {
 }
 
 impl RenderMethod for TetRaycast {
-    fn prepare(&mut self, view: &View, _phases: &mut Phases) -> Result<()> {
+    fn prepare(&mut self, view: &View, phases: &mut Phases) -> Result<()> {
         (self.push, self.rect, self.rect_pixels) = self.push_constants(view);
+        let start = std::time::Instant::now();
+        let c: &Camera = &view.camera;
+        let (right, up) = c.image_axes(view.width, view.height);
+        let camera = tiles::View {
+            eye: c.eye,
+            forward: c.forward().into(),
+            right: right.into(),
+            up: up.into(),
+            perspective: c.is_perspective(),
+            size: [view.width, view.height],
+        };
+        self.lists_active = self.rect_pixels > 0
+            && std::env::var_os(BVH_SEARCH_VAR).is_none()
+            && self.lists.build(&self.tile_faces, &self.boundary_points, &camera, self.rect, RECT_PAD);
+        phases.ended("bin", start.elapsed().as_secs_f64() * 1e3);
         Ok(())
     }
 
-    fn upload(&mut self, _counter: &mut UploadCounter) -> Result<()> {
+    fn upload(&mut self, counter: &mut UploadCounter) -> Result<()> {
+        if !self.lists_active {
+            return Ok(());
+        }
+        let ctx = self.ctx.clone();
+        let grown_first = ensure_frame_texels(&ctx, &mut self.tile_first, self.lists.first.len(), 4, "tet-raycast tile starts")?;
+        let grown_entries = ensure_frame_texels(&ctx, &mut self.tile_entries, self.lists.faces.len(), 4, "tet-raycast tile faces")?;
+        if grown_first || grown_entries {
+            self.lists_set.update(&[DescriptorResource::UniformTexelBuffer(&self.tile_first), DescriptorResource::UniformTexelBuffer(&self.tile_entries)])?;
+        }
+        self.tile_first.buffer.write(0, bytemuck::cast_slice(&self.lists.first), counter, UploadClass::FrameCells)?;
+        self.tile_entries.buffer.write(0, bytemuck::cast_slice(&self.lists.faces), counter, UploadClass::FrameCells)?;
         Ok(())
     }
 
@@ -758,8 +835,13 @@ impl RenderMethod for TetRaycast {
         } else {
             rec.image_barrier_discard(target, ImageUse::ComputeStorage);
         }
-        rec.bind_compute(&self.pipeline, &[&self.tables.set, &self.mesh_set, set])?;
-        rec.push_constants(&self.pipeline, &self.push, counter);
+        if self.lists_active {
+            rec.bind_compute(&self.pipeline_lists, &[&self.tables.set, &self.mesh_set, set, &self.lists_set])?;
+            rec.push_constants(&self.pipeline_lists, &self.push, counter);
+        } else {
+            rec.bind_compute(&self.pipeline, &[&self.tables.set, &self.mesh_set, set])?;
+            rec.push_constants(&self.pipeline, &self.push, counter);
+        }
         rec.dispatch(groups)?;
         rec.compute_to_host();
         Ok(())
@@ -780,6 +862,7 @@ impl RenderMethod for TetRaycast {
             .with("fallback_exits", c.fallback_exits)
             .with("walks", c.walks)
             .with("pixels_in_rect", self.rect_pixels)
+            .with("tile_list_entries", if self.lists_active { self.lists.faces.len() as u64 } else { 0 })
             .with("entry_searches", c.searches)
             .with("bvh_nodes_visited", c.nodes_visited)
             .with("boundary_faces_tested", c.faces_tested)
@@ -797,6 +880,9 @@ impl RenderMethod for TetRaycast {
             "ert": self.settings.ert,
             "boundary_faces": self.boundary_faces,
             "hull_faces": self.hull_faces,
+            "entry_search": if self.lists_active { "tile lists" } else { "bvh" },
+            "tile": TILE,
+            "tiles": if self.lists_active { self.lists.tiles } else { [0, 0] },
             "device_chunks": self.device_chunks,
             "bvh_nodes": self.bvh_nodes,
             "bvh_depth": self.bvh_depth,
