@@ -12,8 +12,9 @@
 //! (orthographic); otherwise a ray's line meets the mesh behind the eye too,
 //! and the BVH search runs.
 //!
-//! A face is listed in every tile its projected vertices' box, padded by
-//! `pad` pixels, reaches: a superset of the pixels whose rays cross it. A face
+//! A face is listed in every tile its projected triangle, padded by `pad`
+//! pixels, reaches (per row of tiles, the triangle's part within the row's
+//! padded band): a superset of the pixels whose rays cross it. A face
 //! of a solid cell that faces away from the eye (orthographic: from the view
 //! direction) is left out: a ray crosses it leaving the mesh, never entering
 //! (walk.comp's `enters` refuses that orientation). Faces seen nearly edge-on,
@@ -44,7 +45,8 @@ pub struct TileLists {
     pub faces: Vec<u32>,
     /// Tiles across and down the rectangle.
     pub tiles: [u32; 2],
-    /// Per face, its tile range this frame (reused between frames).
+    /// Per face, the rows of tiles it reaches this frame (`[_, first, _,
+    /// last]`; first > last: none), reused between frames.
     span: Vec<[u32; 4]>,
 }
 
@@ -67,6 +69,33 @@ fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
 }
 fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+}
+
+/// The x extent of triangle `p`'s part within the band `y` in
+/// [band[0], band[1]] (pixel coordinates), or None when it has none: the
+/// extremes of the polygon the band cuts from the triangle lie at its
+/// vertices within the band or where its edges cross the band's lines.
+fn x_extent(p: &[[f64; 2]; 3], band: [f64; 2]) -> Option<[f64; 2]> {
+    let mut lo = f64::INFINITY;
+    let mut hi = f64::NEG_INFINITY;
+    let mut take = |x: f64| {
+        lo = lo.min(x);
+        hi = hi.max(x);
+    };
+    for k in 0..3 {
+        let (a, b) = (p[k], p[(k + 1) % 3]);
+        if (band[0]..=band[1]).contains(&a[1]) {
+            take(a[0]);
+        }
+        for y in band {
+            // The edge crosses the line y (an edge along it has its vertices
+            // taken above).
+            if (a[1] - y) * (b[1] - y) < 0.0 {
+                take(a[0] + (b[0] - a[0]) * (y - a[1]) / (b[1] - a[1]));
+            }
+        }
+    }
+    (lo <= hi).then_some([lo, hi])
 }
 
 impl TileLists {
@@ -110,25 +139,31 @@ impl TileLists {
                 }
             }
             let p = c.map(|k| px[k as usize]);
-            let lo = [p[0][0].min(p[1][0]).min(p[2][0]) - pad, p[0][1].min(p[1][1]).min(p[2][1]) - pad];
-            let hi = [p[0][0].max(p[1][0]).max(p[2][0]) + pad, p[0][1].max(p[1][1]).max(p[2][1]) + pad];
-            // Clamped to the rectangle, then in tiles from its corner.
-            let fx = [lo[0].floor().max(f64::from(x0)), hi[0].ceil().min(f64::from(x1))];
-            let fy = [lo[1].floor().max(f64::from(y0)), hi[1].ceil().min(f64::from(y1))];
-            if fx[0] > fx[1] || fy[0] > fy[1] {
+            let lo_y = p[0][1].min(p[1][1]).min(p[2][1]) - pad;
+            let hi_y = p[0][1].max(p[1][1]).max(p[2][1]) + pad;
+            // The rows of tiles the padded box reaches, clamped to the
+            // rectangle; per row, the columns of tiles the triangle's part
+            // within the row's band (padded) reaches.
+            let fy = [lo_y.floor().max(f64::from(y0)), hi_y.ceil().min(f64::from(y1))];
+            if fy[0] > fy[1] {
                 continue;
             }
-            let t = [
-                (fx[0] as u32 - x0) / TILE[0],
-                (fy[0] as u32 - y0) / TILE[1],
-                (fx[1] as u32 - x0) / TILE[0],
-                (fy[1] as u32 - y0) / TILE[1],
-            ];
-            self.span[i] = t;
-            for ty in t[1]..=t[3] {
-                for tx in t[0]..=t[2] {
+            let rows = [(fy[0] as u32 - y0) / TILE[1], (fy[1] as u32 - y0) / TILE[1]];
+            let mut any = false;
+            for ty in rows[0]..=rows[1] {
+                let band = [f64::from(y0 + ty * TILE[1]) - pad, f64::from(y0 + (ty + 1) * TILE[1] - 1) + pad];
+                let Some([lx, hx]) = x_extent(&p, band) else { continue };
+                let fx = [(lx - pad).floor().max(f64::from(x0)), (hx + pad).ceil().min(f64::from(x1))];
+                if fx[0] > fx[1] {
+                    continue;
+                }
+                any = true;
+                for tx in (fx[0] as u32 - x0) / TILE[0]..=(fx[1] as u32 - x0) / TILE[0] {
                     count[(ty * self.tiles[0] + tx) as usize + 1] += 1;
                 }
+            }
+            if any {
+                self.span[i] = [0, rows[0], 0, rows[1]];
             }
         }
         for t in 0..n_tiles {
@@ -140,8 +175,15 @@ impl TileLists {
             if t[0] > t[2] || t[1] > t[3] {
                 continue;
             }
+            let p = faces.corners[i].map(|k| px[k as usize]);
             for ty in t[1]..=t[3] {
-                for tx in t[0]..=t[2] {
+                let band = [f64::from(y0 + ty * TILE[1]) - pad, f64::from(y0 + (ty + 1) * TILE[1] - 1) + pad];
+                let Some([lx, hx]) = x_extent(&p, band) else { continue };
+                let fx = [(lx - pad).floor().max(f64::from(x0)), (hx + pad).ceil().min(f64::from(x1))];
+                if fx[0] > fx[1] {
+                    continue;
+                }
+                for tx in (fx[0] as u32 - x0) / TILE[0]..=(fx[1] as u32 - x0) / TILE[0] {
                     let slot = &mut next[(ty * self.tiles[0] + tx) as usize];
                     self.faces[*slot as usize] = i as u32;
                     *slot += 1;
