@@ -244,7 +244,7 @@ mod tests {
             let v = view(perspective);
             for rect in [[0, 0, 63, 47], [5, 3, 50, 40]] {
                 let mut lists = TileLists::default();
-                assert!(lists.build(&faces, &points, &v, rect, 2.0));
+                assert!(lists.build(&faces, &points, &v, rect, 0.25));
                 assert_eq!(lists.first.len() as u32, lists.tiles[0] * lists.tiles[1] + 1);
                 for (i, c) in faces.corners.iter().enumerate() {
                     let [a, b, d] = c.map(|k| points[k as usize]);
