@@ -290,6 +290,30 @@ impl VertexChunks {
     }
 }
 
+/// A host-visible uniform texel buffer written every frame (pt-compute's
+/// pixel lists, tet-raycast's tile lists), of `texels` texels of `format`
+/// (`texel_bytes` each), at least one. Refused past maxTexelBufferElements.
+pub fn frame_texels(ctx: &Arc<Context>, name: &str, texels: usize, texel_bytes: usize, format: Format) -> VkResult<TexelBuffer> {
+    let limit = ctx.info.max_texel_buffer_elements as usize;
+    if texels > limit {
+        return Err(VkError::Invalid(format!("{name}: {texels} texels, above the device's maxTexelBufferElements ({limit})")));
+    }
+    let desc = BufferDesc::upload(name, (texels.max(1) * texel_bytes) as u64, BufferUsage::UNIFORM_TEXEL);
+    TexelBuffer::new(ctx, desc, format)
+}
+
+/// Grows a [`frame_texels`] buffer to hold `texels` (by half again, so that
+/// growing frames do not reallocate every time); true when it was replaced
+/// (descriptor sets that name it must be updated).
+pub fn ensure_frame_texels(ctx: &Arc<Context>, buffer: &mut TexelBuffer, texels: usize, texel_bytes: usize, name: &str) -> VkResult<bool> {
+    if buffer.texels as usize >= texels {
+        return Ok(false);
+    }
+    let grown = (texels + texels / 2).min(ctx.info.max_texel_buffer_elements as usize).max(texels);
+    *buffer = frame_texels(ctx, name, grown, texel_bytes, buffer.format)?;
+    Ok(true)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -317,28 +341,4 @@ mod tests {
         // 33 M tets at lavapipe's limits: resident's cells take 3 buffers.
         assert_eq!(ranges(32_856_000, l.texel_chunk(144, 9)).len(), 3);
     }
-}
-
-/// A host-visible uniform texel buffer written every frame (pt-compute's
-/// pixel lists, tet-raycast's tile lists), of `texels` texels of `format`
-/// (`texel_bytes` each), at least one. Refused past maxTexelBufferElements.
-pub fn frame_texels(ctx: &Arc<Context>, name: &str, texels: usize, texel_bytes: usize, format: Format) -> VkResult<TexelBuffer> {
-    let limit = ctx.info.max_texel_buffer_elements as usize;
-    if texels > limit {
-        return Err(VkError::Invalid(format!("{name}: {texels} texels, above the device's maxTexelBufferElements ({limit})")));
-    }
-    let desc = BufferDesc::upload(name, (texels.max(1) * texel_bytes) as u64, BufferUsage::UNIFORM_TEXEL);
-    TexelBuffer::new(ctx, desc, format)
-}
-
-/// Grows a [`frame_texels`] buffer to hold `texels` (by half again, so that
-/// growing frames do not reallocate every time); true when it was replaced
-/// (descriptor sets that name it must be updated).
-pub fn ensure_frame_texels(ctx: &Arc<Context>, buffer: &mut TexelBuffer, texels: usize, texel_bytes: usize, name: &str) -> VkResult<bool> {
-    if buffer.texels as usize >= texels {
-        return Ok(false);
-    }
-    let grown = (texels + texels / 2).min(ctx.info.max_texel_buffer_elements as usize).max(texels);
-    *buffer = frame_texels(ctx, name, grown, texel_bytes, buffer.format)?;
-    Ok(true)
 }
