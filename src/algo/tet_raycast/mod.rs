@@ -7,8 +7,15 @@
 //! the mesh continues at the next boundary face it enters (non-convex meshes,
 //! the oxygen post's unmerged seam). No sort and no per-frame cell data: the
 //! mesh (points with scalars, cells, face adjacency, which cells are solid)
-//! and a BVH over the boundary faces are uploaded once; per frame only the
-//! camera crosses (push constants).
+//! and a BVH over the boundary faces are uploaded once; per frame the camera
+//! crosses (push constants) and, when the search uses them, the boundary
+//! faces listed per screen tile ([`tiles`]: 4 bytes per tile and per entry).
+//!
+//! **Only the pixels that may meet the mesh run** (issue 24): the dispatch
+//! covers the boundary's projected rectangle ([`pixel_rect`]) and the rest of
+//! the image is cleared. On llvmpipe an invocation that returns at once
+//! still runs its whole shader masked, so the 190 k pixels outside
+//! post-small's rectangle cost 13 ms a frame before (docs/compute-speed.md).
 //!
 //! **Same walk as the f64 reference.** The adjacency is the reference's
 //! ([`Topology`]: `mesh::adjacency` by vertex index, cells with a repeated
@@ -21,13 +28,22 @@
 //! eye and integrates from the near plane on (not required by issue 12; it
 //! costs the cells behind the eye).
 //!
-//! **Entry search: a BVH over the boundary faces**, built once on the CPU
-//! (median split on the longest centroid axis, up to [`LEAF_FACES`] faces per
-//! leaf), traversed nearest child first for the least entry (t, face) after
-//! the previous one. The alternatives were a per-frame screen-tile binning
-//! (per-frame data crossing to the device) or a depth peel of boundary faces
-//! (a pass per layer); the BVH keeps the frame to the camera's bytes and
-//! handles any number of re-entries.
+//! **Entry search: per-tile face lists, else a BVH.** When every boundary
+//! vertex is in front of the eye (or the view is orthographic) the boundary
+//! faces that face the eye are binned per frame into tiles of 8x1 pixels
+//! ([`tiles`]) and a ray's searches test its tile's faces. Otherwise a ray's
+//! line may meet the mesh behind the eye as well, and the search walks a BVH
+//! over the boundary faces, built once on the CPU (median split on the
+//! longest centroid axis, up to [`LEAF_FACES`] faces per leaf), nearest child
+//! first. Both return the least entry (t, face) after the previous one, so
+//! they find the same entries (tested); on llvmpipe a BVH step costs a
+//! node-pair test and a face test whatever a lane needs, about twice a cell
+//! step, so the lists cut the searches' cost by more than half.
+//!
+//! **No search after leaving through the hull.** A ray that leaves the mesh
+//! through a boundary face on its convex hull ([`hull_faces`], marked once)
+//! meets no more of it: the walk ends there without the search that would
+//! find nothing.
 //!
 //! **Bounded walks.** A ray visits at most (cells + [`STEP_MARGIN`]) cells
 //! over all its walks, and a walk that makes no progress in depth for
@@ -46,8 +62,8 @@
 //! **Counts** (device counters, read back after every frame, deterministic):
 //! cells visited (total, max per ray), rays that entered the mesh, rays that
 //! re-entered it, rays terminated early, walk-bound hits, stalled walks,
-//! fallback exits, reversed walks, BVH searches, BVH nodes visited and
-//! boundary faces tested by them.
+//! fallback exits, reversed walks, entry searches, BVH nodes visited and
+//! boundary faces tested by them; per frame the tile lists' entries.
 
 mod tiles;
 
@@ -143,8 +159,8 @@ pub const OPTIONS: &[OptionSpec] = Settings::OPTIONS;
 pub const METHOD: MethodInfo = MethodInfo {
     name: "tet-raycast",
     data: DataKind::TetMesh,
-    summary: "tetrahedral ray casting in compute (Weiler et al. 2003): BVH entry, cell-to-cell walk through face \
-              adjacency, re-entry; only the camera per frame",
+    summary: "tetrahedral ray casting in compute (Weiler et al. 2003): entry through per-tile boundary-face lists \
+              (else a BVH), cell-to-cell walk through face adjacency, re-entry; the camera and the tile lists per frame",
     options: OPTIONS,
     features: &[],
     sweep: &[
