@@ -236,7 +236,8 @@ fn leaving_through_the_hull_ends_the_ray() {
 /// The per-tile face lists and the BVH find the same entries: the same
 /// image to the bit and the same walks, on meshes that re-enter (hole,
 /// notch, coincident boundaries, the oxygen post's seam) and in both
-/// projections, at two sizes.
+/// projections, at several sizes (`search=bvh` takes the BVH on the same
+/// views).
 #[test]
 fn tile_lists_and_the_bvh_find_the_same_entries() {
     let post = datasets::load_mesh("oxygenpost").unwrap();
@@ -249,9 +250,7 @@ fn tile_lists_and_the_bvh_find_the_same_entries() {
     for (mesh, tf, cam, size) in cases {
         let lists = run(&mesh, &tf, "tet-raycast", cam, size);
         assert_eq!(lists.result.details["entry_search"], "tile lists", "{}", mesh.name);
-        std::env::set_var(volbench::algo::tet_raycast::BVH_SEARCH_VAR, "1");
-        let bvh = run(&mesh, &tf, "tet-raycast", cam, size);
-        std::env::remove_var(volbench::algo::tet_raycast::BVH_SEARCH_VAR);
+        let bvh = run(&mesh, &tf, "tet-raycast:search=bvh", cam, size);
         assert_eq!(bvh.result.details["entry_search"], "bvh", "{}", mesh.name);
         assert!(lists.image.pixels == bvh.image.pixels, "{}: images differ", mesh.name);
         for name in ["cells_visited", "rays_hit", "walks", "rays_reentering", "entry_searches"] {

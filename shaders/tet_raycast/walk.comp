@@ -577,7 +577,8 @@ int walk(uint face, float t_in, float s_in, float t_min, float t_max, out float 
         vec3 b2 = vec3(ae.x, -w.y, w.x);
         uint k;
         vec3 bw;
-        if (int(x0) + int(x1) + int(x2) == 1) {
+        bool fell_back = int(x0) + int(x1) + int(x2) != 1;
+        if (!fell_back) {
             k = x0 ? 0u : (x1 ? 1u : 2u);
             bw = x0 ? b0 : (x1 ? b1 : b2);
         } else {
@@ -645,9 +646,11 @@ int walk(uint face, float t_in, float s_in, float t_min, float t_max, out float 
         if (nb >= REENTER) {
             // Out of the mesh. Through a face on its convex hull (NONE) the
             // ray meets no more of it: no entry search (tet_raycast.rs,
-            // hull_faces).
+            // hull_faces). Not when the exit face was the fallback's
+            // choice or the cell is flat: the ray may then be leaving
+            // through another face.
             t_exit = t_out;
-            return nb == NONE ? WALK_DONE : WALK_EXIT;
+            return nb == NONE && solid && !fell_back ? WALK_DONE : WALK_EXIT;
         }
         a0 = nid;
         a1 = r1;

@@ -113,12 +113,6 @@ const SOLID_BIT: u32 = 1 << 31;
 /// far less (~1e-4 pixel at 512x512).
 const TILE_PAD: f64 = 0.25;
 
-/// Test knob: `VOLBENCH_TEST_BVH_SEARCH=1` makes every frame search the
-/// boundary BVH, as a view whose rays meet the mesh behind the eye does,
-/// instead of the tile lists ([`tiles`]), so both searches are tested on
-/// the same views (they find the same entries).
-pub const BVH_SEARCH_VAR: &str = "VOLBENCH_TEST_BVH_SEARCH";
-
 /// The neighbour of a boundary face the ray may meet the mesh again after
 /// (`REENTER` in walk.comp); a boundary face on the convex hull keeps
 /// `topology::NONE`, and the walk ends there ([`hull_faces`]).
@@ -133,15 +127,33 @@ const _: () = assert!(LEAF_FACES < 1 << LINK_SHIFT);
 /// The BVH's depth bound the shader's traversal stack holds (48 entries).
 const MAX_BVH_DEPTH: usize = 40;
 
+crate::choices! {
+    /// How a ray finds the boundary face it enters.
+    #[derive(Default)]
+    pub enum Search {
+        /// The faces listed for its screen tile ([`tiles`]) when every
+        /// boundary vertex is in front of the eye or the view is
+        /// orthographic, else the BVH.
+        #[default]
+        Auto = "auto",
+        /// The BVH over the boundary faces, always (the same entries).
+        Bvh = "bvh",
+    }
+}
+
 crate::settings! {
     /// Integrator and table size as the cell-projection methods take them,
-    /// plus the termination threshold.
+    /// the termination threshold and the entry search.
     pub struct Settings {
         integrator: Integrator = "ppi", choice::<Integrator>(), build, "", render::INTEGRATOR_HELP;
         table_size: usize = "0", int(0, 4096), run, "samples per side", render::TABLE_SIZE_HELP;
         ert: f64 = "0.999", float(0.5, 1.0), run, "opacity",
             "early ray termination: stop once the ray's opacity reaches this (1 = only when fully opaque); \
              adds at most 1 - ert to a pixel's error";
+        search: Search = "auto", choice::<Search>(), run, "",
+            "how a ray finds the boundary face it enters: auto (the faces binned per frame into its 8x1-pixel tile \
+             when every boundary vertex is in front of the eye or the view is orthographic, else the BVH) or bvh \
+             (always the BVH over the boundary faces); both find the same entries";
     }
     impl {
         fn check(&self) -> Result<()> {
@@ -209,13 +221,12 @@ pub fn accuracy_bound(options: &Options, _perspective: bool) -> Option<f64> {
 /// (`Camera::image_axes`: perpendicular to `forward`, scaled so that ndc 1
 /// is the image's edge), `points` relative to the eye.
 pub fn pixel_rect(points: &[[f64; 3]], forward: [f64; 3], right: [f64; 3], up: [f64; 3], perspective: bool, width: u32, height: u32) -> Option<[u32; 4]> {
-    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-    let (rr, uu) = (dot(right, right), dot(up, up));
+    let view = tiles::View { eye: [0.0; 3], forward, right, up, perspective, size: [width, height] };
     let mut lo = [f64::INFINITY; 2];
     let mut hi = [f64::NEG_INFINITY; 2];
     let mut behind = 0usize;
     for &q in points {
-        let depth = if perspective { dot(q, forward) } else { 1.0 };
+        let depth = if perspective { glam::DVec3::from(q).dot(forward.into()) } else { 1.0 };
         if depth.is_nan() {
             return None;
         }
@@ -223,9 +234,9 @@ pub fn pixel_rect(points: &[[f64; 3]], forward: [f64; 3], right: [f64; 3], up: [
             behind += 1;
             continue;
         }
-        // ndc as the shader's ray maps a pixel centre (y down), then pixels.
-        let ndc = [dot(q, right) / (rr * depth), -dot(q, up) / (uu * depth)];
-        let px = [(ndc[0] + 1.0) * 0.5 * f64::from(width) - 0.5, (ndc[1] + 1.0) * 0.5 * f64::from(height) - 0.5];
+        // Where the shader's ray through a pixel centre meets q; None also
+        // for a point too near the eye plane to project reliably.
+        let px = view.pixel(q)?;
         for k in 0..2 {
             lo[k] = lo[k].min(px[k]);
             hi[k] = hi[k].max(px[k]);
@@ -235,9 +246,6 @@ pub fn pixel_rect(points: &[[f64; 3]], forward: [f64; 3], right: [f64; 3], up: [
         return Some([1, 1, 0, 0]);
     }
     if behind > 0 {
-        return None;
-    }
-    if !(lo.iter().chain(&hi).all(|v| v.is_finite())) {
         return None;
     }
     let size = [f64::from(width), f64::from(height)];
@@ -338,41 +346,39 @@ const HULL_TEST_NODES: usize = 1 << 14;
 /// such a face is outside that plane and moving away from it, so it meets
 /// no more of the mesh (every cell lies in the hull of the boundary
 /// vertices): the walk ends without the entry search that would find
-/// nothing (walk.comp, `HULL_EXIT`). A face whose cell is flat or that has no
+/// nothing (walk.comp: its neighbour stays `NONE`). A face whose cell is flat or that has no
 /// area, or whose test visits more than [`HULL_TEST_NODES`] nodes, is
 /// `false`: the search runs, as for every face before. `corners(slot)`
 /// gives a face's three vertices and its cell's fourth; `pad` is what the
 /// BVH's boxes were padded by.
 pub fn hull_faces(faces: &[u32], corners: impl Fn(u32) -> ([[f32; 3]; 3], [f32; 3]) + Sync, bvh: &FaceBvh, pad: f32, tol: f64) -> Vec<bool> {
+    use glam::DVec3;
     use rayon::prelude::*;
-    let f64s = |p: [f32; 3]| p.map(f64::from);
-    let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
-    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let f64s = |p: [f32; 3]| DVec3::from(p.map(f64::from));
     faces
         .par_iter()
         .map(|&slot| {
             let (tri, opposite) = corners(slot);
             let [a, b, c] = tri.map(f64s);
-            let (u, v) = (sub(b, a), sub(c, a));
-            let mut n = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
-            let len = dot(n, n).sqrt();
+            let n = (b - a).cross(c - a);
+            let len = n.length();
             if !(len > 0.0 && len.is_finite()) {
                 return false;
             }
-            n = n.map(|x| x / len);
+            let mut n = n / len;
             // Outward: away from the cell's fourth vertex; a flat cell says
             // nothing about which side is out.
-            let side = dot(n, sub(f64s(opposite), a));
+            let side = n.dot(f64s(opposite) - a);
             if !(side.abs() > tol) {
                 return false;
             }
             if side > 0.0 {
-                n = n.map(|x| -x);
+                n = -n;
             }
-            let limit = dot(n, a).max(dot(n, b)).max(dot(n, c)) + tol;
+            let limit = n.dot(a).max(n.dot(b)).max(n.dot(c)) + tol;
             // Depth first, pruning a node whose box (its padding taken off)
             // lies within the limit along n.
-            let slack = f64::from(pad) * (n[0].abs() + n[1].abs() + n[2].abs());
+            let slack = f64::from(pad) * n.abs().element_sum();
             let mut stack = vec![0usize];
             let mut visited = 0;
             while let Some(i) = stack.pop() {
@@ -393,7 +399,7 @@ pub fn hull_faces(faces: &[u32], corners: impl Fn(u32) -> ([[f32; 3]; 3], [f32; 
                     continue;
                 }
                 for &other in &bvh.prims[first..first + count] {
-                    if corners(other).0.iter().any(|&p| dot(n, f64s(p)) > limit) {
+                    if corners(other).0.iter().any(|&p| n.dot(f64s(p)) > limit) {
                         return false;
                     }
                 }
@@ -432,6 +438,9 @@ pub struct TetRaycast {
     /// The boundary faces' vertices (world coordinates), projected per frame
     /// for the pixels that may meet the mesh ([`pixel_rect`]).
     boundary_points: Vec<[f64; 3]>,
+    /// The same points as the shader holds them (f32, relative to the render
+    /// origin): which way a face faces is decided from these.
+    boundary_points_shader: Vec<[f32; 3]>,
     /// The last frame's rectangle ([`pixel_rect`]) and its pixel count: the
     /// dispatch covers only it.
     rect: [u32; 4],
@@ -529,6 +538,10 @@ impl TetRaycast {
         boundary_vertices.sort_unstable();
         boundary_vertices.dedup();
         let boundary_points: Vec<[f64; 3]> = boundary_vertices.iter().map(|&i| mesh.points[i as usize]).collect();
+        let boundary_points_shader: Vec<[f32; 3]> = boundary_vertices.iter().map(|&i| {
+            let p = points[i as usize];
+            [p[0], p[1], p[2]]
+        }).collect();
         let diag = mesh.bounds().diagonal();
         let pad = (1e-5 * diag) as f32;
         let bvh = build_face_bvh(&faces, pad);
@@ -703,6 +716,7 @@ impl TetRaycast {
             boundary_faces: topo.boundary.len(),
             hull_faces: hull_faces_count,
             boundary_points,
+            boundary_points_shader,
             rect: [1, 1, 0, 0],
             rect_pixels: 0,
             tile_faces,
@@ -813,8 +827,17 @@ impl RenderMethod for TetRaycast {
             size: [view.width, view.height],
         };
         self.lists_active = self.rect_pixels > 0
-            && std::env::var_os(BVH_SEARCH_VAR).is_none()
-            && self.lists.build(&self.tile_faces, &self.boundary_points, &camera, self.rect, TILE_PAD);
+            && self.settings.search == Search::Auto
+            && self.lists.build(
+                &self.tile_faces,
+                &self.boundary_points,
+                &self.boundary_points_shader,
+                std::array::from_fn(|k| f64::from((c.eye[k] - self.scale.origin[k]) as f32)),
+                &camera,
+                self.rect,
+                TILE_PAD,
+                u64::from(self.ctx.info.max_texel_buffer_elements),
+            );
         phases.ended("bin", start.elapsed().as_secs_f64() * 1e3);
         Ok(())
     }

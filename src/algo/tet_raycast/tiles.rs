@@ -20,12 +20,21 @@
 //! (walk.comp's `enters` refuses that orientation). Faces seen nearly edge-on,
 //! and those of flat cells (crossed either way), are listed.
 
+use glam::DVec3;
+
 /// Pixels per tile: a row of 8, the SIMD vector of llvmpipe's 8-lane
 /// compute (WORKGROUP is 8 wide).
 pub const TILE: [u32; 2] = [8, 1];
 
-/// Relative tolerance under which a face counts as seen edge-on (listed).
-const EDGE_ON: f64 = 1e-6;
+/// A face of a solid cell counts as facing away only beyond this share of
+/// |n| |to eye| (the cosine): the shader decides crossings in f32, so a face
+/// seen nearly edge-on is listed.
+const EDGE_ON: f64 = 1e-4;
+
+/// A point nearer the eye plane than this share of its distance from the
+/// eye is not projected (its pixel coordinates would be too large to bin
+/// within the pad): the BVH search runs instead.
+const MIN_DEPTH: f64 = 1e-6;
 
 /// The boundary faces as the tiles need them: per face (in the order of the
 /// shader's face list), its three vertices as indices into the boundary
@@ -45,13 +54,11 @@ pub struct TileLists {
     pub faces: Vec<u32>,
     /// Tiles across and down the rectangle.
     pub tiles: [u32; 2],
-    /// Per face, the rows of tiles it reaches this frame (`[_, first, _,
-    /// last]`; first > last: none), reused between frames.
-    span: Vec<[u32; 4]>,
 }
 
 /// The camera as the lists see it: the eye, the view direction and the
-/// image axes (`Camera::image_axes`), in world coordinates.
+/// image axes (`Camera::image_axes`: perpendicular to `forward`, scaled so
+/// that ndc 1 is the image's edge), in world coordinates.
 pub struct View {
     pub eye: [f64; 3],
     pub forward: [f64; 3],
@@ -61,14 +68,20 @@ pub struct View {
     pub size: [u32; 2],
 }
 
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+impl View {
+    /// Where `q` (relative to the eye) projects, in pixel coordinates (the
+    /// pixel centre x + 0.5 of the shader's rays at x): None at or behind
+    /// the eye plane, within [`MIN_DEPTH`] of it, or not finite.
+    pub fn pixel(&self, q: [f64; 3]) -> Option<[f64; 2]> {
+        let (q, f, r, u) = (DVec3::from(q), DVec3::from(self.forward), DVec3::from(self.right), DVec3::from(self.up));
+        let depth = if self.perspective { q.dot(f) } else { 1.0 };
+        if !(depth > MIN_DEPTH * q.length()) {
+            return None;
+        }
+        let ndc = [q.dot(r) / (r.length_squared() * depth), -q.dot(u) / (u.length_squared() * depth)];
+        let xy = [(ndc[0] + 1.0) * 0.5 * f64::from(self.size[0]) - 0.5, (ndc[1] + 1.0) * 0.5 * f64::from(self.size[1]) - 0.5];
+        (xy[0].is_finite() && xy[1].is_finite()).then_some(xy)
+    }
 }
 
 /// The x extent of triangle `p`'s part within the band `y` in
@@ -99,96 +112,106 @@ fn x_extent(p: &[[f64; 2]; 3], band: [f64; 2]) -> Option<[f64; 2]> {
 }
 
 impl TileLists {
-    /// Lists `faces` (vertices in `points`, world coordinates) over the tiles
-    /// of `rect` (inclusive pixel bounds, non-empty). Returns false, listing
-    /// nothing, when a boundary vertex is at or behind the eye plane in
-    /// perspective (the BVH search must run) or a projection is not finite.
-    pub fn build(&mut self, faces: &Faces, points: &[[f64; 3]], view: &View, rect: [u32; 4], pad: f64) -> bool {
+    /// Lists `faces` over the tiles of `rect` (inclusive pixel bounds,
+    /// non-empty): `points` are the boundary points in world coordinates
+    /// (projected to bin), `shader_points` the same points as the shader
+    /// holds them (f32, relative to the render origin) and `shader_eye` the
+    /// eye likewise (what decides which way a face faces). Returns false,
+    /// listing nothing, when the BVH search must run instead: a boundary
+    /// point not projectable ([`View::pixel`]), or more tiles or entries
+    /// than `max_texels` (the device's texel-buffer limit).
+    #[allow(clippy::too_many_arguments)]
+    pub fn build(
+        &mut self,
+        faces: &Faces,
+        points: &[[f64; 3]],
+        shader_points: &[[f32; 3]],
+        shader_eye: [f64; 3],
+        view: &View,
+        rect: [u32; 4],
+        pad: f64,
+        max_texels: u64,
+    ) -> bool {
         self.first.clear();
         self.faces.clear();
-        let (rr, uu) = (dot(view.right, view.right), dot(view.up, view.up));
-        // Every boundary point in pixel coordinates, as pixel_rect maps them.
         let mut px = Vec::with_capacity(points.len());
         for &p in points {
-            let q = sub(p, view.eye);
-            let depth = if view.perspective { dot(q, view.forward) } else { 1.0 };
-            if !(depth > 0.0) {
-                return false;
+            match view.pixel((DVec3::from(p) - DVec3::from(view.eye)).into()) {
+                Some(xy) => px.push(xy),
+                None => return false,
             }
-            let ndc = [dot(q, view.right) / (rr * depth), -dot(q, view.up) / (uu * depth)];
-            let xy = [(ndc[0] + 1.0) * 0.5 * f64::from(view.size[0]) - 0.5, (ndc[1] + 1.0) * 0.5 * f64::from(view.size[1]) - 0.5];
-            if !(xy[0].is_finite() && xy[1].is_finite()) {
-                return false;
-            }
-            px.push(xy);
         }
         let [x0, y0, x1, y1] = rect;
         self.tiles = [(x1 - x0 + 1).div_ceil(TILE[0]), (y1 - y0 + 1).div_ceil(TILE[1])];
-        let n_tiles = self.tiles[0] as usize * self.tiles[1] as usize;
+        let tiles_x = self.tiles[0];
+        let n_tiles = u64::from(self.tiles[0]) * u64::from(self.tiles[1]);
+        if n_tiles + 1 > max_texels {
+            return false;
+        }
+        let n_tiles = n_tiles as usize;
+        let eye = DVec3::from(shader_eye);
+        let forward = DVec3::from(view.forward);
+        let listed = |i: usize| {
+            if !faces.solid[i] {
+                return true;
+            }
+            let [a, b, d] = faces.corners[i].map(|k| DVec3::from(shader_points[k as usize].map(f64::from)));
+            let n = (b - a).cross(d - a);
+            let to = if view.perspective { a - eye } else { forward };
+            n.dot(to) <= EDGE_ON * n.length() * to.length()
+        };
+        // Per row of tiles a face reaches, the columns of tiles its
+        // triangle's part within the row's band (padded) reaches.
+        let rows = |p: &[[f64; 2]; 3]| -> Option<[u32; 2]> {
+            let lo = p[0][1].min(p[1][1]).min(p[2][1]) - pad;
+            let hi = p[0][1].max(p[1][1]).max(p[2][1]) + pad;
+            let fy = [lo.floor().max(f64::from(y0)), hi.ceil().min(f64::from(y1))];
+            (fy[0] <= fy[1]).then(|| [(fy[0] as u32 - y0) / TILE[1], (fy[1] as u32 - y0) / TILE[1]])
+        };
+        let columns = |p: &[[f64; 2]; 3], ty: u32| -> Option<[u32; 2]> {
+            let band = [f64::from(y0 + ty * TILE[1]) - pad, f64::from(y0 + (ty + 1) * TILE[1] - 1) + pad];
+            let [lx, hx] = x_extent(p, band)?;
+            let fx = [(lx - pad).floor().max(f64::from(x0)), (hx + pad).ceil().min(f64::from(x1))];
+            (fx[0] <= fx[1]).then(|| [(fx[0] as u32 - x0) / TILE[0], (fx[1] as u32 - x0) / TILE[0]])
+        };
+        let visit = |i: usize, f: &mut dyn FnMut(usize)| {
+            if !listed(i) {
+                return;
+            }
+            let p = faces.corners[i].map(|k| px[k as usize]);
+            let Some([r0, r1]) = rows(&p) else { return };
+            for ty in r0..=r1 {
+                if let Some([c0, c1]) = columns(&p, ty) {
+                    for tx in c0..=c1 {
+                        f((ty * tiles_x + tx) as usize);
+                    }
+                }
+            }
+        };
+        // Count, check the total against the limit, then fill: the same
+        // visit both times.
         let mut count = vec![0u32; n_tiles + 1];
-        self.span.clear();
-        self.span.resize(faces.corners.len(), [1, 1, 0, 0]);
-        for (i, c) in faces.corners.iter().enumerate() {
-            let [a, b, d] = c.map(|k| points[k as usize]);
-            if faces.solid[i] {
-                let n = cross(sub(b, a), sub(d, a));
-                let to = if view.perspective { sub(a, view.eye) } else { view.forward };
-                let facing = dot(n, to);
-                if facing > EDGE_ON * dot(n, n).sqrt() * dot(to, to).sqrt() {
-                    continue;
-                }
-            }
-            let p = c.map(|k| px[k as usize]);
-            let lo_y = p[0][1].min(p[1][1]).min(p[2][1]) - pad;
-            let hi_y = p[0][1].max(p[1][1]).max(p[2][1]) + pad;
-            // The rows of tiles the padded box reaches, clamped to the
-            // rectangle; per row, the columns of tiles the triangle's part
-            // within the row's band (padded) reaches.
-            let fy = [lo_y.floor().max(f64::from(y0)), hi_y.ceil().min(f64::from(y1))];
-            if fy[0] > fy[1] {
-                continue;
-            }
-            let rows = [(fy[0] as u32 - y0) / TILE[1], (fy[1] as u32 - y0) / TILE[1]];
-            let mut any = false;
-            for ty in rows[0]..=rows[1] {
-                let band = [f64::from(y0 + ty * TILE[1]) - pad, f64::from(y0 + (ty + 1) * TILE[1] - 1) + pad];
-                let Some([lx, hx]) = x_extent(&p, band) else { continue };
-                let fx = [(lx - pad).floor().max(f64::from(x0)), (hx + pad).ceil().min(f64::from(x1))];
-                if fx[0] > fx[1] {
-                    continue;
-                }
-                any = true;
-                for tx in (fx[0] as u32 - x0) / TILE[0]..=(fx[1] as u32 - x0) / TILE[0] {
-                    count[(ty * self.tiles[0] + tx) as usize + 1] += 1;
-                }
-            }
-            if any {
-                self.span[i] = [0, rows[0], 0, rows[1]];
+        let mut total = 0u64;
+        for i in 0..faces.corners.len() {
+            visit(i, &mut |t| {
+                count[t + 1] += 1;
+                total += 1;
+            });
+            if total > max_texels {
+                return false;
             }
         }
         for t in 0..n_tiles {
             count[t + 1] += count[t];
         }
-        self.faces.resize(count[n_tiles] as usize, 0);
         let mut next = count.clone();
-        for (i, t) in self.span.iter().enumerate() {
-            if t[0] > t[2] || t[1] > t[3] {
-                continue;
-            }
-            let p = faces.corners[i].map(|k| px[k as usize]);
-            for ty in t[1]..=t[3] {
-                let band = [f64::from(y0 + ty * TILE[1]) - pad, f64::from(y0 + (ty + 1) * TILE[1] - 1) + pad];
-                let Some([lx, hx]) = x_extent(&p, band) else { continue };
-                let fx = [(lx - pad).floor().max(f64::from(x0)), (hx + pad).ceil().min(f64::from(x1))];
-                if fx[0] > fx[1] {
-                    continue;
-                }
-                for tx in (fx[0] as u32 - x0) / TILE[0]..=(fx[1] as u32 - x0) / TILE[0] {
-                    let slot = &mut next[(ty * self.tiles[0] + tx) as usize];
-                    self.faces[*slot as usize] = i as u32;
-                    *slot += 1;
-                }
-            }
+        self.faces.resize(total as usize, 0);
+        let out = &mut self.faces;
+        for i in 0..faces.corners.len() {
+            visit(i, &mut |t| {
+                out[next[t] as usize] = i as u32;
+                next[t] += 1;
+            });
         }
         self.first = count;
         true
@@ -206,10 +229,13 @@ mod tests {
     }
 
     fn pixel(v: &View, p: [f64; 3]) -> [f64; 2] {
-        let q = sub(p, v.eye);
-        let depth = if v.perspective { dot(q, v.forward) } else { 1.0 };
-        let ndc = [dot(q, v.right) / depth, -dot(q, v.up) / depth];
-        [(ndc[0] + 1.0) * 0.5 * f64::from(v.size[0]) - 0.5, (ndc[1] + 1.0) * 0.5 * f64::from(v.size[1]) - 0.5]
+        v.pixel((DVec3::from(p) - DVec3::from(v.eye)).into()).unwrap()
+    }
+
+    /// The lists with the points as their own shader points (f32).
+    fn build(l: &mut TileLists, faces: &Faces, points: &[[f64; 3]], v: &View, rect: [u32; 4], max: u64) -> bool {
+        let shader: Vec<[f32; 3]> = points.iter().map(|p| p.map(|c| c as f32)).collect();
+        l.build(faces, points, &shader, v.eye, v, rect, 0.25, max)
     }
 
     fn listed(l: &TileLists, rect: [u32; 4], x: u32, y: u32) -> &[u32] {
@@ -244,14 +270,15 @@ mod tests {
             let v = view(perspective);
             for rect in [[0, 0, 63, 47], [5, 3, 50, 40]] {
                 let mut lists = TileLists::default();
-                assert!(lists.build(&faces, &points, &v, rect, 0.25));
+                assert!(build(&mut lists, &faces, &points, &v, rect, u64::MAX));
                 assert_eq!(lists.first.len() as u32, lists.tiles[0] * lists.tiles[1] + 1);
                 for (i, c) in faces.corners.iter().enumerate() {
-                    let [a, b, d] = c.map(|k| points[k as usize]);
-                    let n = cross(sub(b, a), sub(d, a));
-                    let to = if perspective { sub(a, v.eye) } else { v.forward };
-                    let front = dot(n, to) < 0.0;
-                    let p = [a, b, d].map(|q| pixel(&v, q));
+                    let [a, b, d] = c.map(|k| DVec3::from(points[k as usize]));
+                    let n = (b - a).cross(d - a);
+                    let to = if perspective { a - DVec3::from(v.eye) } else { DVec3::from(v.forward) };
+                    let front = n.dot(to) < 0.0;
+                    let clearly_back = n.dot(to) > 1e-3 * n.length() * to.length();
+                    let p = c.map(|k| pixel(&v, points[k as usize]));
                     for y in rect[1]..=rect[3] {
                         for x in rect[0]..=rect[2] {
                             let e = |s: [f64; 2], t: [f64; 2]| (t[0] - s[0]) * (y as f64 - s[1]) - (t[1] - s[1]) * (x as f64 - s[0]);
@@ -262,7 +289,7 @@ mod tests {
                                 assert!(has, "face {i} at pixel ({x}, {y}) not listed ({perspective}, {rect:?})");
                                 hits += 1;
                             }
-                            if faces.solid[i] && !front {
+                            if faces.solid[i] && clearly_back {
                                 assert!(!has, "face {i} faces away but is listed");
                             }
                         }
@@ -274,9 +301,16 @@ mod tests {
         assert!(hits > 500, "{hits}");
         // A boundary point at or behind the eye plane in perspective: no
         // lists (the BVH search runs).
-        points.push([0.0, 0.0, 5.0]);
         let mut lists = TileLists::default();
-        assert!(!lists.build(&faces, &points, &view(true), [0, 0, 63, 47], 2.0));
-        assert!(lists.build(&faces, &points, &view(false), [0, 0, 63, 47], 2.0));
+        let mut behind = points.clone();
+        behind.push([0.3, 0.0, 5.0]);
+        assert!(!build(&mut lists, &faces, &behind, &view(true), [0, 0, 63, 47], u64::MAX));
+        assert!(build(&mut lists, &faces, &behind, &view(false), [0, 0, 63, 47], u64::MAX));
+        // More tiles or entries than the device's texel buffers hold: the
+        // BVH instead.
+        assert!(build(&mut lists, &faces, &points, &view(true), [0, 0, 63, 47], 10_000));
+        let entries = lists.faces.len() as u64;
+        assert!(!build(&mut lists, &faces, &points, &view(true), [0, 0, 63, 47], entries - 1));
+        assert!(!build(&mut lists, &faces, &points, &view(true), [0, 0, 63, 47], 64 * 48 / 8));
     }
 }
