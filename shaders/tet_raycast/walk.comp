@@ -542,11 +542,15 @@ int walk(uint face, float t_in, float s_in, float t_min, float t_max, out float 
         // walked backwards (only after a flat boundary cell): stop there, as
         // the reference does.
         if (solid) {
-            uvec3 fv = FACE_VERTS[f_in];
-            uint x = v[fv.x];
-            uint y = v[fv.y];
-            uint z = v[fv.z];
-            bool same_order = (a0 == x && a1 == y) || (a0 == y && a1 == z) || (a0 == z && a1 == x);
+            // (a0, a1, a2) is face f_in in FACE_VERTS's cyclic order iff the
+            // permutation (slot of a0, slot of a1, slot of a2, f_in) of the
+            // cell's vertices is odd (every FACE_VERTS row with its face
+            // index is): the parity by selects, no indexed lookup.
+            uint s0 = a0 == v.x ? 0u : (a0 == v.y ? 1u : (a0 == v.z ? 2u : 3u));
+            uint s1 = a1 == v.x ? 0u : (a1 == v.y ? 1u : (a1 == v.z ? 2u : 3u));
+            uint s2 = a2 == v.x ? 0u : (a2 == v.y ? 1u : (a2 == v.z ? 2u : 3u));
+            uint inversions = uint(s0 > s1) + uint(s0 > s2) + uint(s0 > f_in) + uint(s1 > s2) + uint(s1 > f_in) + uint(s2 > f_in);
+            bool same_order = (inversions & 1u) == 1u;
             if ((same_order ? sigma : -sigma) > 0.0) {
                 n_reversed += 1u;
                 t_exit = t_in;
