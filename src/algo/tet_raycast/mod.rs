@@ -76,7 +76,7 @@ use super::cell_projection::render;
 use super::settings::{choice, float, int, MethodSettings};
 use super::cell_projection::{render_origin, scalar_map, ExitTolerances, FrameSetup, Interpolation, MeshScale};
 use super::chunks::{ensure_frame_texels, frame_texels, ChunkLimits, TexelChunks};
-use tiles::{TileLists, TILE};
+use tiles::{Projected, TileLists, TILE};
 use super::host_memory::HostMemory;
 use super::integrate::{check_table_size, IntegrationTables, Integrator};
 use super::method::{DataKind, Family, MethodInfo, MethodInputs, OptionSpec, Options, Phases, RenderMethod, SceneData, View, Work};
@@ -222,33 +222,26 @@ pub fn accuracy_bound(options: &Options, _perspective: bool) -> Option<f64> {
 /// is the image's edge), `points` relative to the eye.
 pub fn pixel_rect(points: &[[f64; 3]], forward: [f64; 3], right: [f64; 3], up: [f64; 3], perspective: bool, width: u32, height: u32) -> Option<[u32; 4]> {
     let view = tiles::View { eye: [0.0; 3], forward, right, up, perspective, size: [width, height] };
+    rect_of(&view.project(points), [width, height])
+}
+
+/// [`pixel_rect`] from the points' projection, made once per frame for the
+/// rectangle and the tile lists.
+fn rect_of(projected: &Projected, size: [u32; 2]) -> Option<[u32; 4]> {
+    let px = match projected {
+        Projected::Pixels(px) => px,
+        Projected::NoneInFront => return Some([1, 1, 0, 0]),
+        Projected::Unplaced => return None,
+    };
     let mut lo = [f64::INFINITY; 2];
     let mut hi = [f64::NEG_INFINITY; 2];
-    let mut behind = 0usize;
-    for &q in points {
-        let depth = if perspective { glam::DVec3::from(q).dot(forward.into()) } else { 1.0 };
-        if depth.is_nan() {
-            return None;
-        }
-        if depth <= 0.0 {
-            behind += 1;
-            continue;
-        }
-        // Where the shader's ray through a pixel centre meets q; None also
-        // for a point too near the eye plane to project reliably.
-        let px = view.pixel(q)?;
+    for p in px {
         for k in 0..2 {
-            lo[k] = lo[k].min(px[k]);
-            hi[k] = hi[k].max(px[k]);
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
         }
     }
-    if behind == points.len() {
-        return Some([1, 1, 0, 0]);
-    }
-    if behind > 0 {
-        return None;
-    }
-    let size = [f64::from(width), f64::from(height)];
+    let size = size.map(f64::from);
     let a: [f64; 2] = std::array::from_fn(|k| (lo[k] - RECT_PAD).floor().max(0.0));
     let b: [f64; 2] = std::array::from_fn(|k| (hi[k] + RECT_PAD).ceil().min(size[k] - 1.0));
     if a[0] > b[0] || a[1] > b[1] {
@@ -734,9 +727,9 @@ impl TetRaycast {
         })
     }
 
-    /// The frame's push constants (`Frame` in walk.comp), its rectangle
-    /// ([`pixel_rect`]) and the number of pixels inside.
-    fn push_constants(&self, view: &View) -> (Vec<u8>, [u32; 4], u64) {
+    /// The frame's push constants (`Frame` in walk.comp) for its pixel
+    /// rectangle `rect`.
+    fn push_constants(&self, view: &View, rect: [u32; 4]) -> Vec<u8> {
         let c: &Camera = &view.camera;
         // The table range and length scale exactly as the cell-projection
         // methods map them.
@@ -748,10 +741,6 @@ impl TetRaycast {
         let persp = if c.is_perspective() { 1.0 } else { 0.0 };
         let budget = u32::try_from(self.step_budget).unwrap_or(u32::MAX);
         let tol = 1e-5 * self.scale.diagonal;
-        let rel: Vec<[f64; 3]> = self.boundary_points.iter().map(|p| std::array::from_fn(|k| p[k] - c.eye[k])).collect();
-        let (w, h) = (view.width, view.height);
-        let rect = pixel_rect(&rel, fwd.into(), right.into(), up.into(), c.is_perspective(), w, h).unwrap_or([0, 0, w.saturating_sub(1), h.saturating_sub(1)]);
-        let rect_pixels = if rect[0] > rect[2] || rect[1] > rect[3] { 0 } else { u64::from(rect[2] - rect[0] + 1) * u64::from(rect[3] - rect[1] + 1) };
         let v: [f32; 28] = [
             eye[0] as f32, eye[1] as f32, eye[2] as f32, persp,
             fwd.x as f32, fwd.y as f32, fwd.z as f32, c.near as f32,
@@ -761,7 +750,7 @@ impl TetRaycast {
             tol as f32, f32::from_bits(budget), f32::from_bits(STALL_LIMIT), setup.constants.limits[3],
             f32::from_bits(rect[0]), f32::from_bits(rect[1]), f32::from_bits(rect[2]), f32::from_bits(rect[3]),
         ];
-        (bytemuck::cast_slice(&v).to_vec(), rect, rect_pixels)
+        bytemuck::cast_slice(&v).to_vec()
     }
 
     /// The last frame's counters (`Counters` in walk.comp).
@@ -814,23 +803,29 @@ impl From<[u64; COUNTER_WORDS]> for Counts {
 
 impl RenderMethod for TetRaycast {
     fn prepare(&mut self, view: &View, phases: &mut Phases) -> Result<()> {
-        (self.push, self.rect, self.rect_pixels) = self.push_constants(view);
         let start = std::time::Instant::now();
         let c: &Camera = &view.camera;
-        let (right, up) = c.image_axes(view.width, view.height);
+        let (w, h) = (view.width, view.height);
+        let (right, up) = c.image_axes(w, h);
         let camera = tiles::View {
             eye: c.eye,
             forward: c.forward().into(),
             right: right.into(),
             up: up.into(),
             perspective: c.is_perspective(),
-            size: [view.width, view.height],
+            size: [w, h],
         };
+        // The boundary points projected once: the rectangle, then the lists.
+        let projected = camera.project(&self.boundary_points);
+        self.rect = rect_of(&projected, [w, h]).unwrap_or([0, 0, w.saturating_sub(1), h.saturating_sub(1)]);
+        let [x0, y0, x1, y1] = self.rect;
+        self.rect_pixels = if x0 > x1 || y0 > y1 { 0 } else { u64::from(x1 - x0 + 1) * u64::from(y1 - y0 + 1) };
+        self.push = self.push_constants(view, self.rect);
         self.lists_active = self.rect_pixels > 0
             && self.settings.search == Search::Auto
             && self.lists.build(
                 &self.tile_faces,
-                &self.boundary_points,
+                &projected,
                 &self.boundary_points_shader,
                 std::array::from_fn(|k| f64::from((c.eye[k] - self.scale.origin[k]) as f32)),
                 &camera,

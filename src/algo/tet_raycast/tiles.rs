@@ -84,6 +84,50 @@ impl View {
     }
 }
 
+/// Where a set of points falls on the image ([`View::project`]).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Projected {
+    /// Every point in front of the eye: its pixel coordinates, in order.
+    Pixels(Vec<[f64; 2]>),
+    /// Every point at or behind the eye plane in perspective (or no
+    /// points): nothing the rays integrate lies in their hull.
+    NoneInFront,
+    /// Points on both sides of the eye plane, or one too near it or not
+    /// finite: a ray's line may meet their hull anywhere.
+    Unplaced,
+}
+
+impl View {
+    /// Projects `points` (world coordinates) once: for the frame's pixel
+    /// rectangle (`pixel_rect`) and the tile lists ([`TileLists::build`]).
+    pub fn project(&self, points: &[[f64; 3]]) -> Projected {
+        let eye = DVec3::from(self.eye);
+        let forward = DVec3::from(self.forward);
+        let mut px = Vec::with_capacity(points.len());
+        let mut behind = 0usize;
+        for &p in points {
+            let q = DVec3::from(p) - eye;
+            let depth = if self.perspective { q.dot(forward) } else { 1.0 };
+            if depth.is_nan() {
+                return Projected::Unplaced;
+            }
+            if depth <= 0.0 {
+                behind += 1;
+                continue;
+            }
+            match self.pixel(q.into()) {
+                Some(xy) => px.push(xy),
+                None => return Projected::Unplaced,
+            }
+        }
+        match behind {
+            0 if !points.is_empty() => Projected::Pixels(px),
+            b if b == points.len() => Projected::NoneInFront,
+            _ => Projected::Unplaced,
+        }
+    }
+}
+
 /// The x extent of triangle `p`'s part within the band `y` in
 /// [band[0], band[1]] (pixel coordinates), or None when it has none: the
 /// extremes of the polygon the band cuts from the triangle lie at its
@@ -113,18 +157,18 @@ fn x_extent(p: &[[f64; 2]; 3], band: [f64; 2]) -> Option<[f64; 2]> {
 
 impl TileLists {
     /// Lists `faces` over the tiles of `rect` (inclusive pixel bounds,
-    /// non-empty): `points` are the boundary points in world coordinates
-    /// (projected to bin), `shader_points` the same points as the shader
+    /// non-empty): `projected` is the boundary points' projection
+    /// ([`View::project`]), `shader_points` the same points as the shader
     /// holds them (f32, relative to the render origin) and `shader_eye` the
     /// eye likewise (what decides which way a face faces). Returns false,
     /// listing nothing, when the BVH search must run instead: a boundary
-    /// point not projectable ([`View::pixel`]), or more tiles or entries
-    /// than `max_texels` (the device's texel-buffer limit).
+    /// point not in front of the eye or not placed ([`Projected`]), or more
+    /// tiles or entries than `max_texels` (the device's texel-buffer limit).
     #[allow(clippy::too_many_arguments)]
     pub fn build(
         &mut self,
         faces: &Faces,
-        points: &[[f64; 3]],
+        projected: &Projected,
         shader_points: &[[f32; 3]],
         shader_eye: [f64; 3],
         view: &View,
@@ -134,13 +178,7 @@ impl TileLists {
     ) -> bool {
         self.first.clear();
         self.faces.clear();
-        let mut px = Vec::with_capacity(points.len());
-        for &p in points {
-            match view.pixel((DVec3::from(p) - DVec3::from(view.eye)).into()) {
-                Some(xy) => px.push(xy),
-                None => return false,
-            }
-        }
+        let Projected::Pixels(px) = projected else { return false };
         let [x0, y0, x1, y1] = rect;
         self.tiles = [(x1 - x0 + 1).div_ceil(TILE[0]), (y1 - y0 + 1).div_ceil(TILE[1])];
         let tiles_x = self.tiles[0];
@@ -235,7 +273,7 @@ mod tests {
     /// The lists with the points as their own shader points (f32).
     fn build(l: &mut TileLists, faces: &Faces, points: &[[f64; 3]], v: &View, rect: [u32; 4], max: u64) -> bool {
         let shader: Vec<[f32; 3]> = points.iter().map(|p| p.map(|c| c as f32)).collect();
-        l.build(faces, points, &shader, v.eye, v, rect, 0.25, max)
+        l.build(faces, &v.project(points), &shader, v.eye, v, rect, 0.25, max)
     }
 
     fn listed(l: &TileLists, rect: [u32; 4], x: u32, y: u32) -> &[u32] {
