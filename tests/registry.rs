@@ -319,7 +319,7 @@ fn the_suite_runs_the_option_sets_published_figures_name_and_reports_the_ratios(
     let defaults = |labels: &[String]| -> Vec<String> { labels.iter().filter(|l| !l.contains([':', '@'])).cloned().collect() };
     let bluntfin = labels("bluntfin");
     assert_eq!(defaults(&bluntfin), tet);
-    for l in ["balanced:integrator=average", "balanced:integrator=linear-exact", "balanced:primitives=strip"] {
+    for l in ["balanced:integrator=average", "balanced:integrator=linear-exact", "balanced:primitives=strip", "balanced:sort=mpvo"] {
         assert!(bluntfin.contains(&l.to_string()), "{l} missing from {bluntfin:?}");
     }
     // The oxygen post also has the culling scenes, culling on and off

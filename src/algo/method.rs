@@ -444,7 +444,8 @@ pub struct MethodInfo {
     pub stress: &'static [&'static str],
     /// Option sets the benchmark suite runs besides the defaults and the
     /// published figures' sets: the cheaper end of the method's accuracy
-    /// trade-off, so a report can set it beside a peer at matched error.
+    /// trade-off, so a report can set it beside a peer at matched error, or
+    /// its exact end, so other methods' errors can be set beside it.
     pub suite: &'static [&'static str],
     /// Published figures for this method (reports).
     pub published: &'static [Published],

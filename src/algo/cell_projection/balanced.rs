@@ -41,8 +41,13 @@ pub const VERTICES_PER_CELL: usize = 4;
 pub const FLOATS_PER_CELL: usize = FLOATS_PER_VERTEX * VERTICES_PER_CELL;
 
 /// The registry entry; the suite also runs the thesis's strip indices, so
-/// the report sets the two index layouts side by side in one run.
-pub const METHOD: MethodInfo = MethodInfo { suite: &["primitives=strip"], ..BALANCED };
+/// the report sets the two index layouts side by side in one run, and the
+/// exact visibility order (MPVO): the centroid order's mistakes move a
+/// pixel's colour, never its opacity, and on a transfer function with
+/// control points inside cells they can cancel part of the integrator's own
+/// error (docs/compute-speed.md, fourth round), so the exactly ordered run
+/// is the fair yardstick for the methods that never sort.
+pub const METHOD: MethodInfo = MethodInfo { suite: &["primitives=strip", "sort=mpvo"], ..BALANCED };
 const BALANCED: MethodInfo = render::method_info(
     "balanced",
     "GPU-CPU balanced cell projection (Moreland 2004): 4 vertices, 28 floats per tet per frame, static indices",
