@@ -47,6 +47,16 @@ impl BufferDesc {
     pub fn readback(name: &str, size: u64) -> Self {
         BufferDesc { name: name.into(), size, usage: BufferUsage::TRANSFER_DST, memory: MemoryKind::Readback }
     }
+    /// `words` u32 counters a shader adds to and the host reads after the
+    /// frame: a storage buffer the device clears (a fill) and the host maps.
+    pub fn counters(name: &str, words: usize) -> Self {
+        BufferDesc {
+            name: name.into(),
+            size: (words * 4) as u64,
+            usage: BufferUsage::STORAGE | BufferUsage::TRANSFER_DST,
+            memory: MemoryKind::Readback,
+        }
+    }
 }
 
 pub struct Buffer {

@@ -368,6 +368,40 @@ impl Drop for DescriptorSet {
     }
 }
 
+/// A compute pass's storage-image target as a one-binding set: made for the
+/// first target and made again only when the target is another image
+/// (`Image::id`), so a pass that draws into the same image every frame
+/// writes no descriptor per frame.
+pub struct TargetImageSet {
+    name: String,
+    /// The binding, for the pipeline's layout.
+    pub desc: DescriptorSetDesc,
+    current: Option<(u64, DescriptorSet)>,
+}
+
+impl TargetImageSet {
+    pub fn new(name: &str, stages: Stages) -> Self {
+        TargetImageSet {
+            name: name.to_string(),
+            desc: DescriptorSetDesc::new(&[(DescriptorKind::StorageImage, stages)]),
+            current: None,
+        }
+    }
+
+    /// The set pointing at `target`. Replacing the set of an earlier target
+    /// requires that no pending submission still uses it (owners wait for
+    /// their recorders before recording again: the sync model of
+    /// `context.rs`).
+    pub fn for_target(&mut self, ctx: &Arc<Context>, target: &Image) -> VkResult<&DescriptorSet> {
+        let id = target.id();
+        if self.current.as_ref().is_none_or(|(t, _)| *t != id) {
+            let set = DescriptorSet::new(ctx, &self.name, &self.desc, &[DescriptorResource::StorageImage(target)])?;
+            self.current = Some((id, set));
+        }
+        self.current.as_ref().map(|(_, s)| s).ok_or_else(|| VkError::Invalid(format!("{}: no set for the target", self.name)))
+    }
+}
+
 /// One descriptor set of read-only storage buffers at bindings 0..n: a thin
 /// constructor over `DescriptorSet` (derefs to it, so `.layout` and
 /// `bind_pipeline(.., Some(&set))` work as before).

@@ -45,7 +45,7 @@ pub use context::{
 };
 pub use descriptors::{
     DescriptorBinding, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc, DescriptorSetLayout,
-    StorageBufferSet,
+    StorageBufferSet, TargetImageSet,
 };
 pub use error::{VkError, VkResult};
 pub use format::{Format, TARGET_FORMAT};

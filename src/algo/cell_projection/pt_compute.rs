@@ -30,10 +30,10 @@ use crate::algo::host_memory::HostMemory;
 use crate::mesh::TetMesh;
 use crate::vk::{
     Buffer, BufferDesc, CommandRecorder, ComputePipelineKey, Context, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc,
-    Image, ImageUse, Pipeline, PipelineKey, ShaderKey, ShaderStage, TexelBuffer, TimestampPool, UploadClass, UploadCounter, VkError,
+    Image, ImageUse, Pipeline, PipelineKey, ShaderKey, ShaderStage, TargetImageSet, TexelBuffer, TimestampPool, UploadClass, UploadCounter, VkError,
     VkResult,
 };
-use crate::vk::{BufferUsage, Format, Stages, TimestampAt};
+use crate::vk::{Format, Stages, TimestampAt};
 
 /// The compositing workgroup in pixels, one invocation each. llvmpipe runs
 /// a workgroup as 8-lane vectors (AVX2) and executes both sides of a branch
@@ -461,8 +461,7 @@ pub struct PtCompute {
     entries: TexelBuffer,
     counters: Buffer,
     set: DescriptorSet,
-    target_desc: DescriptorSetDesc,
-    target_set: Option<(u64, DescriptorSet)>,
+    target_set: TargetImageSet,
     constants: FrameConstants,
     /// The image size the last `pack` binned for.
     size: [u32; 2],
@@ -523,21 +522,14 @@ impl PtCompute {
         // A first guess at the lists (they grow with the frame's entries).
         let guess = (8 * n).min(ctx.info.max_texel_buffer_elements as usize);
         let entries = frame_texels(ctx, "pt-compute pixel lists", guess, BYTES_PER_ENTRY, Format::R32Uint)?;
-        let counters = Buffer::new(
-            ctx,
-            BufferDesc::upload(
-                "pt-compute counters",
-                (COUNTER_WORDS * 4) as u64,
-                BufferUsage::STORAGE | BufferUsage::TRANSFER_DST,
-            ),
-        )?;
+        let counters = Buffer::new(ctx, BufferDesc::counters("pt-compute counters", COUNTER_WORDS))?;
         let set = DescriptorSet::new(
             ctx,
             "pt-compute cells and tiles",
             &set_desc(cells.buffers.len()),
             &set_resources(&cells, &first, &entries, &counters),
         )?;
-        let target_desc = DescriptorSetDesc::new(&[(DescriptorKind::StorageImage, Stages::COMPUTE)]);
+        let target_set = TargetImageSet::new("pt-compute target", Stages::COMPUTE);
         let tile = TILE.map(|t| t.to_string());
         let ert = format!("{ERT_TRANSMITTANCE:e}");
         let chunked = cells.defines("CELL");
@@ -555,7 +547,7 @@ impl PtCompute {
         let pipeline_key = PipelineKey::Compute(ComputePipelineKey {
             shader: ShaderKey::new("cell_projection/pt_composite.comp", ShaderStage::Compute, &defines),
             push_constant_bytes: std::mem::size_of::<FrameConstants>() as u32,
-            sets: vec![tables.set.desc.clone(), set_desc(cells.buffers.len()), target_desc.clone()],
+            sets: vec![tables.set.desc.clone(), set_desc(cells.buffers.len()), target_set.desc.clone()],
         });
         let pipeline = crate::algo::pipelines::get(ctx, &pipeline_key)?;
         Ok(PtCompute {
@@ -571,8 +563,7 @@ impl PtCompute {
             entries,
             counters,
             set,
-            target_desc,
-            target_set: None,
+            target_set,
             constants: bytemuck::Zeroable::zeroed(),
             size: [0, 0],
             pipeline,
@@ -696,14 +687,7 @@ impl CellProjector for PtCompute {
                 self.size[1]
             )));
         }
-        let id = target.id();
-        if self.target_set.as_ref().map(|(t, _)| *t) != Some(id) {
-            let set = DescriptorSet::new(&self.ctx, "pt-compute target", &self.target_desc, &[DescriptorResource::StorageImage(target)])?;
-            self.target_set = Some((id, set));
-        }
-        let Some((_, target_set)) = &self.target_set else {
-            return Err(VkError::Invalid("pt-compute: no target set".into()));
-        };
+        let target_set = self.target_set.for_target(&self.ctx, target)?;
         self.timestamps.reset(rec);
         rec.fill_buffer(&self.counters, 0);
         rec.uploads_to_compute();

@@ -11,8 +11,8 @@ use crate::algo::settings::MethodSettings;
 use super::{set0_desc, Settings, VolumeResources, COMPARE, OPTIONS, PUSH_BYTES, STRESS, SUITE, SWEEP};
 use crate::algo::method::{DataKind, MethodInfo, MethodInputs, Phases, RenderMethod, SceneData, View, Work};
 use crate::vk::{
-    CommandRecorder, ComputePipelineKey, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc, Image, ImageUse,
-    Pipeline, PipelineKey, ShaderKey, ShaderStage, UploadCounter,
+    CommandRecorder, ComputePipelineKey, Image, ImageUse, Pipeline, PipelineKey, ShaderKey, ShaderStage, TargetImageSet,
+    UploadCounter,
 };
 use crate::vk::Stages;
 
@@ -43,11 +43,11 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
     let mut all: Vec<(&str, &str)> = defines.clone();
     all.push(("WG_X", &wg[0]));
     all.push(("WG_Y", &wg[1]));
-    let target_desc = DescriptorSetDesc::new(&[(DescriptorKind::StorageImage, Stages::COMPUTE)]);
+    let target_set = TargetImageSet::new("raycast target", Stages::COMPUTE);
     let key = PipelineKey::Compute(ComputePipelineKey {
         shader: ShaderKey::new("raycast/march.comp", ShaderStage::Compute, &all),
         push_constant_bytes: PUSH_BYTES,
-        sets: vec![set0_desc(), target_desc.clone()],
+        sets: vec![set0_desc(), target_set.desc.clone()],
     });
     let pipeline = crate::algo::pipelines::get(inputs.ctx, &key)?;
     Ok(Box::new(RaycastCompute {
@@ -55,8 +55,7 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
         settings,
         pipeline,
         key,
-        target_desc,
-        target_set: None,
+        target_set,
         push: Vec::new(),
         pixels: inputs.width as u64 * inputs.height as u64,
         ctx: inputs.ctx.clone(),
@@ -68,9 +67,8 @@ pub struct RaycastCompute {
     settings: Settings,
     pipeline: Arc<Pipeline>,
     key: PipelineKey,
-    target_desc: DescriptorSetDesc,
-    /// Set 1 (the target as a storage image), made for the first target seen.
-    target_set: Option<(u64, DescriptorSet)>,
+    /// Set 1: the target as a storage image.
+    target_set: TargetImageSet,
     push: Vec<u8>,
     pixels: u64,
     ctx: Arc<crate::vk::Context>,
@@ -87,12 +85,7 @@ impl RenderMethod for RaycastCompute {
     }
 
     fn record(&mut self, rec: &CommandRecorder, target: &Image, view: &View, counter: &mut UploadCounter) -> Result<()> {
-        let id = target.id();
-        if self.target_set.as_ref().map(|(t, _)| *t) != Some(id) {
-            let set = DescriptorSet::new(&self.ctx, "raycast target", &self.target_desc, &[DescriptorResource::StorageImage(target)])?;
-            self.target_set = Some((id, set));
-        }
-        let Some((_, set)) = &self.target_set else { bail!("no target set") };
+        let set = self.target_set.for_target(&self.ctx, target)?;
         self.res.record_clear(rec);
         rec.image_barrier_discard(target, ImageUse::ComputeStorage);
         rec.bind_compute(&self.pipeline, &[&self.res.set, set])?;

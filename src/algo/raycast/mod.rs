@@ -100,7 +100,7 @@ use crate::scene::TransferFunction;
 use crate::volume::{Samples, Volume};
 use crate::vk::{
     upload_static_texels, upload_texture, upload_texture_with, Buffer, BufferDesc, CommandRecorder, Context, DescriptorKind, DescriptorResource, DescriptorSet,
-    DescriptorSetDesc, MemoryKind, Sampler, TexelBuffer, TextureDesc, UploadClass, UploadCounter,
+    DescriptorSetDesc, Sampler, TexelBuffer, TextureDesc, UploadClass, UploadCounter,
 };
 use crate::vk::{BufferUsage, Format, Stages, Filter};
 
@@ -541,15 +541,7 @@ impl VolumeResources {
         ];
         let mut params_buf = Buffer::new(ctx, BufferDesc::upload("raycast parameters", 112, BufferUsage::UNIFORM))?;
         params_buf.write(0, &f32_bytes(&params), counter, UploadClass::Static)?;
-        let counters = Buffer::new(
-            ctx,
-            BufferDesc {
-                name: "raycast counters".into(),
-                size: (COUNTER_WORDS * 4) as u64,
-                usage: BufferUsage::STORAGE | BufferUsage::TRANSFER_DST,
-                memory: MemoryKind::Readback,
-            },
-        )?;
+        let counters = Buffer::new(ctx, BufferDesc::counters("raycast counters", COUNTER_WORDS))?;
         let sampler = Sampler::linear_clamp(ctx, "raycast linear")?;
         let set = DescriptorSet::new(
             ctx,

@@ -86,9 +86,10 @@ use crate::mesh::topology::Topology;
 use crate::scene::Camera;
 use crate::vk::{
     Buffer, BufferDesc, CommandRecorder, ComputePipelineKey, Context, DescriptorKind, DescriptorResource,
-    DescriptorSet, DescriptorSetDesc, Image, ImageUse, MemoryKind, Pipeline, PipelineKey, ShaderKey, ShaderStage, TexelBuffer, UploadClass, UploadCounter,
+    DescriptorSet, DescriptorSetDesc, Image, ImageUse, Pipeline, PipelineKey, ShaderKey, ShaderStage, TargetImageSet, TexelBuffer, UploadClass,
+    UploadCounter,
 };
-use crate::vk::{BufferUsage, Format, Stages};
+use crate::vk::{Format, Stages};
 
 /// Workgroup shape (pixels).
 pub const WORKGROUP: [u32; 2] = [8, 8];
@@ -333,6 +334,15 @@ pub fn build_face_bvh(faces: &[(u32, [[f32; 3]; 3])], pad: f32) -> FaceBvh {
 /// all (266,400 at 32.9 M) and the tests take 2.5 s of the 9.9 s set-up.
 const HULL_TEST_NODES: usize = 1 << 14;
 
+/// Face `slot` (4 c + f) of the tets: its three corners in FACE_VERTS
+/// order and the cell's fourth vertex, the one opposite it (`point` gives a
+/// vertex's position). What `hull_faces` takes as `corners`.
+fn face_corners(tets: &[[u32; 4]], slot: u32, point: impl Fn(u32) -> [f32; 3]) -> ([[f32; 3]; 3], [f32; 3]) {
+    let t = &tets[(slot >> 2) as usize];
+    let f = (slot & 3) as usize;
+    (FACE_VERTS[f].map(|l| point(t[l])), point(t[f]))
+}
+
 /// Per boundary face of `bvh` (in `faces`' order): whether it lies on the
 /// mesh's convex hull, i.e. no boundary vertex is more than `tol` beyond its
 /// plane on the side away from its cell. A ray that leaves the mesh through
@@ -420,8 +430,7 @@ pub struct TetRaycast {
     counters: Buffer,
     pipeline: Arc<Pipeline>,
     key: PipelineKey,
-    target_desc: DescriptorSetDesc,
-    target_set: Option<(u64, DescriptorSet)>,
+    target_set: TargetImageSet,
     push: Vec<u8>,
     pixels: u64,
     cells: usize,
@@ -560,13 +569,10 @@ impl TetRaycast {
         // A boundary face on the convex hull keeps NONE (the walk ends there);
         // the others become REENTER (the ray may meet the mesh again).
         let corners = |slot: u32| {
-            let t = &mesh.tets[(slot >> 2) as usize];
-            let f = (slot & 3) as usize;
-            let p = |i: u32| {
+            face_corners(&mesh.tets, slot, |i| {
                 let q = points[i as usize];
                 [q[0], q[1], q[2]]
-            };
-            (FACE_VERTS[f].map(|l| p(t[l])), p(t[f]))
+            })
         };
         let on_hull = hull_faces(&topo.boundary, corners, &bvh, pad, 1e-6 * diag);
         let hull_faces_count = on_hull.iter().filter(|&&h| h).count();
@@ -629,15 +635,7 @@ impl TetRaycast {
             }
             bvh_texel_buffers.extend(chunks.buffers);
         }
-        let counters = Buffer::new(
-            ctx,
-            BufferDesc {
-                name: "tet-raycast counters".into(),
-                size: (COUNTER_WORDS * 4) as u64,
-                usage: BufferUsage::STORAGE | BufferUsage::TRANSFER_DST,
-                memory: MemoryKind::Readback,
-            },
-        )?;
+        let counters = Buffer::new(ctx, BufferDesc::counters("tet-raycast counters", COUNTER_WORDS))?;
         let compute = Stages::COMPUTE;
         let mut mesh_desc = DescriptorSetDesc::new(&[(DescriptorKind::UniformTexelBuffer, compute); 5]).with(DescriptorKind::StorageBuffer, compute);
         for _ in &extra {
@@ -651,7 +649,7 @@ impl TetRaycast {
             .chain(extra.iter().map(DescriptorResource::UniformTexelBuffer))
             .collect();
         let mesh_set = DescriptorSet::new(ctx, "tet-raycast mesh", &mesh_desc, &resources)?;
-        let target_desc = DescriptorSetDesc::new(&[(DescriptorKind::StorageImage, Stages::COMPUTE)]);
+        let target_set = TargetImageSet::new("tet-raycast target", Stages::COMPUTE);
         let wg = WORKGROUP.map(|v| v.to_string());
         let mut defines: Vec<(&str, &str)> = settings.defines();
         defines.push(("WG_X", &wg[0]));
@@ -660,7 +658,7 @@ impl TetRaycast {
         let key = PipelineKey::Compute(ComputePipelineKey {
             shader: ShaderKey::new("tet_raycast/walk.comp", ShaderStage::Compute, &defines),
             push_constant_bytes: PUSH_BYTES,
-            sets: vec![tables.set.desc.clone(), mesh_desc.clone(), target_desc.clone()],
+            sets: vec![tables.set.desc.clone(), mesh_desc.clone(), target_set.desc.clone()],
         });
         let mesh_desc_lists = mesh_desc;
         let pipeline = crate::algo::pipelines::get(ctx, &key)?;
@@ -673,7 +671,7 @@ impl TetRaycast {
         let key_lists = PipelineKey::Compute(ComputePipelineKey {
             shader: ShaderKey::new("tet_raycast/walk.comp", ShaderStage::Compute, &list_defines),
             push_constant_bytes: PUSH_BYTES,
-            sets: vec![tables.set.desc.clone(), mesh_desc_lists, target_desc.clone(), lists_desc.clone()],
+            sets: vec![tables.set.desc.clone(), mesh_desc_lists, target_set.desc.clone(), lists_desc.clone()],
         });
         let pipeline_lists = crate::algo::pipelines::get(ctx, &key_lists)?;
         let tile_first = frame_texels(ctx, "tet-raycast tile starts", 1, 4, Format::R32Uint)?;
@@ -701,8 +699,7 @@ impl TetRaycast {
             counters,
             pipeline,
             key,
-            target_desc,
-            target_set: None,
+            target_set,
             push: Vec::new(),
             pixels: u64::from(width) * u64::from(height),
             cells: n,
@@ -853,12 +850,7 @@ impl RenderMethod for TetRaycast {
     }
 
     fn record(&mut self, rec: &CommandRecorder, target: &Image, view: &View, counter: &mut UploadCounter) -> Result<()> {
-        let id = target.id();
-        if self.target_set.as_ref().map(|(t, _)| *t) != Some(id) {
-            let set = DescriptorSet::new(&self.ctx, "tet-raycast target", &self.target_desc, &[DescriptorResource::StorageImage(target)])?;
-            self.target_set = Some((id, set));
-        }
-        let Some((_, set)) = &self.target_set else { bail!("no target set") };
+        let set = self.target_set.for_target(&self.ctx, target)?;
         rec.fill_buffer(&self.counters, 0);
         rec.transfer_to_storage(Stages::COMPUTE);
         // Only the rectangle's pixels run the shader: on llvmpipe an
@@ -958,12 +950,7 @@ mod tests {
     /// `hull_faces` over a mesh's boundary, as `TetRaycast::new` calls it.
     fn hull_of(mesh: &TetMesh) -> Vec<(u32, bool)> {
         let topo = Topology::build(mesh);
-        let p = |i: u32| mesh.points[i as usize].map(|v| v as f32);
-        let corners = |slot: u32| {
-            let t = &mesh.tets[(slot >> 2) as usize];
-            let f = (slot & 3) as usize;
-            (FACE_VERTS[f].map(|l| p(t[l])), p(t[f]))
-        };
+        let corners = |slot: u32| face_corners(&mesh.tets, slot, |i| mesh.points[i as usize].map(|v| v as f32));
         let faces: Vec<(u32, [[f32; 3]; 3])> = topo.boundary.iter().map(|&s| (s, corners(s).0)).collect();
         let pad = 1e-5;
         let bvh = build_face_bvh(&faces, pad);
