@@ -725,6 +725,27 @@ impl CommandRecorder {
         Ok(())
     }
 
+    /// Dispatch the workgroups `base .. base + groups` (per dimension): the
+    /// shader's `gl_WorkGroupID` starts at `base`, so a pass over part of an
+    /// image needs no offset of its own. Every compute pipeline here is made
+    /// with `DISPATCH_BASE` (pipeline.rs).
+    pub fn dispatch_base(&self, base: [u32; 3], groups: [u32; 3]) -> VkResult<()> {
+        let max = self.ctx.info.max_compute_work_group_count;
+        if (0..3).any(|k| base[k] >= max[k] || groups[k] > max[k] - base[k]) {
+            return Err(VkError::Unsupported {
+                device: self.ctx.info.name.clone(),
+                what: format!("a dispatch of {groups:?} workgroups from {base:?} (maxComputeWorkGroupCount is {max:?})"),
+            });
+        }
+        // SAFETY: the command buffer is a recorder's own, recording between its
+        // `begin` and submit (the recorder's state machine); every handle recorded
+        // is live, borrowed for the call and kept alive by its owner until the
+        // submission is waited for. Base and counts are within the device's
+        // limits (checked above); the bound pipeline allows a base.
+        unsafe { self.ctx.device.cmd_dispatch_base(self.raw, base[0], base[1], base[2], groups[0], groups[1], groups[2]) };
+        Ok(())
+    }
+
     /// Dispatch `groups` workgroups however many that is, folded into a grid
     /// by [`fold_groups`]; returns the grid. The shader must compute its
     /// linear group id with `linear_workgroup_id()` from
@@ -915,6 +936,20 @@ impl CommandRecorder {
     /// overwrites every texel).
     pub fn image_barrier_discard(&self, image: &Image, to: ImageUse) {
         image.barrier(self.raw, to, false);
+    }
+
+    /// Make `target` ready for a compute pass's image stores: when the pass
+    /// writes only part of it (`whole` false), the rest is cleared to zero
+    /// first by an empty rendering pass; when it writes every texel, the old
+    /// contents are discarded.
+    pub fn storage_target(&self, target: &Image, whole: bool) {
+        if whole {
+            self.image_barrier_discard(target, ImageUse::ComputeStorage);
+        } else {
+            self.begin_rendering(target, [0.0; 4]);
+            self.end_rendering();
+            self.image_barrier(target, ImageUse::ComputeStorage);
+        }
     }
 }
 

@@ -316,7 +316,9 @@ impl Pipeline {
             .stage(vk::ShaderStageFlags::COMPUTE)
             .module(desc.shader.raw)
             .name(c"main");
-        let info = vk::ComputePipelineCreateInfo::default().stage(stage).layout(layout);
+        // DISPATCH_BASE: any compute pass may be dispatched over part of
+        // its grid (CommandRecorder::dispatch_base).
+        let info = vk::ComputePipelineCreateInfo::default().flags(vk::PipelineCreateFlags::DISPATCH_BASE).stage(stage).layout(layout);
         // SAFETY: the create info and everything it points to live for the
         // call; the device outlives the handle (the owner holds the Context in
         // an Arc) and the handle is destroyed once, by its owner's Drop or the

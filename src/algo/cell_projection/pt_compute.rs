@@ -30,7 +30,7 @@ use crate::algo::host_memory::HostMemory;
 use crate::mesh::TetMesh;
 use crate::vk::{
     Buffer, BufferDesc, CommandRecorder, ComputePipelineKey, Context, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc,
-    Image, ImageUse, Pipeline, PipelineKey, ShaderKey, ShaderStage, TargetImageSet, TexelBuffer, TimestampPool, UploadClass, UploadCounter, VkError,
+    Image, Pipeline, PipelineKey, ShaderKey, ShaderStage, TargetImageSet, TexelBuffer, TimestampPool, UploadClass, UploadCounter, VkError,
     VkResult,
 };
 use crate::vk::{Format, Stages, TimestampAt};
@@ -407,6 +407,26 @@ impl PixelLists {
         PixelLists { size, first, band_cells }
     }
 
+    /// The tiles (`TILE` pixels each) around every pixel with a non-empty
+    /// list: [x0, y0, x1, y1] in tiles, inclusive; none when no list has an
+    /// entry.
+    pub fn covered_tiles(&self) -> Option<[u32; 4]> {
+        let [w, h] = self.size.map(|v| v as usize);
+        let mut lo = [usize::MAX; 2];
+        let mut hi = [0usize; 2];
+        for y in 0..h {
+            let row = &self.first[y * w..=(y + 1) * w];
+            let Some(x0) = row.windows(2).position(|p| p[1] > p[0]) else { continue };
+            let x1 = row.windows(2).rposition(|p| p[1] > p[0]).unwrap_or(x0);
+            lo = [lo[0].min(x0), lo[1].min(y)];
+            hi = [hi[0].max(x1), y];
+        }
+        (lo[1] <= hi[1]).then(|| {
+            let t = TILE.map(|v| v as usize);
+            [lo[0] / t[0], lo[1] / t[1], hi[0] / t[0], hi[1] / t[1]].map(|v| v as u32)
+        })
+    }
+
     /// Entries in all.
     pub fn entries(&self) -> usize {
         self.band_cells.iter().map(Vec::len).sum()
@@ -451,6 +471,9 @@ pub struct PtCompute {
     positions: Vec<[[f32; 3]; 4]>,
     drawn: usize,
     lists: PixelLists,
+    /// The tiles the compositing pass runs over this frame
+    /// (`PixelLists::covered_tiles`).
+    covered: Option<[u32; 4]>,
     footprints: Vec<Footprint>,
     project_ms: f64,
     bin_ms: f64,
@@ -554,6 +577,7 @@ impl PtCompute {
             positions,
             drawn: n,
             lists: PixelLists::default(),
+            covered: None,
             footprints: Vec::new(),
             project_ms: 0.0,
             bin_ms: 0.0,
@@ -637,6 +661,7 @@ impl CellProjector for PtCompute {
         let t1 = Instant::now();
         self.project_ms = (t1 - t0).as_secs_f64() * 1e3;
         self.lists = PixelLists::build(&self.footprints, |slot| order[slot], size);
+        self.covered = self.lists.covered_tiles();
         let limit = self.ctx.info.max_texel_buffer_elements as usize;
         self.pack_error = (self.lists.entries() >= limit.min(u32::MAX as usize)).then(|| {
             format!("pt-compute: {} (pixel, cell) pairs this frame, above the device's maxTexelBufferElements ({limit}); use a smaller image", self.lists.entries())
@@ -687,15 +712,20 @@ impl CellProjector for PtCompute {
                 self.size[1]
             )));
         }
+        let (base, groups) = self.dispatched();
         let target_set = self.target_set.for_target(&self.ctx, target)?;
         self.timestamps.reset(rec);
         rec.fill_buffer(&self.counters, 0);
         rec.uploads_to_compute();
-        rec.image_barrier_discard(target, ImageUse::ComputeStorage);
+        // Only the tiles around the covered pixels run the pass: on llvmpipe
+        // a workgroup with nothing to do still runs the whole shader masked
+        // (docs/compute-speed.md, third round). The rest is cleared.
+        let all = [self.size[0].div_ceil(TILE[0]), self.size[1].div_ceil(TILE[1])];
+        rec.storage_target(target, groups[..2] == all);
         self.timestamps.write(rec, 0, TimestampAt::Start)?;
         rec.bind_compute(&self.pipeline, &[&tables.set, &self.set, target_set])?;
         rec.push_constants(&self.pipeline, bytemuck::bytes_of(&self.constants), counter);
-        rec.dispatch([self.size[0].div_ceil(TILE[0]), self.size[1].div_ceil(TILE[1]), 1])?;
+        rec.dispatch_base(base, groups)?;
         self.timestamps.write(rec, 1, TimestampAt::ComputeDone)?;
         rec.compute_to_host();
         Ok(true)
@@ -715,7 +745,19 @@ impl CellProjector for PtCompute {
             ("pixels_integrated", c[0] | (c[1] << 32)),
             ("pixels_covered", c[3]),
             ("pixels_terminated_early", c[2]),
+            ("tiles_dispatched", u64::from(self.dispatched().1[0]) * u64::from(self.dispatched().1[1])),
         ]
+    }
+}
+
+impl PtCompute {
+    /// The compositing pass's workgroups this frame: (first, count), the
+    /// tiles of `covered` (none when nothing is covered).
+    fn dispatched(&self) -> ([u32; 3], [u32; 3]) {
+        match self.covered {
+            Some([x0, y0, x1, y1]) => ([x0, y0, 0], [x1 - x0 + 1, y1 - y0 + 1, 1]),
+            None => ([0; 3], [0, 0, 1]),
+        }
     }
 }
 
@@ -723,6 +765,35 @@ impl CellProjector for PtCompute {
 mod tests {
     use super::*;
     use crate::algo::method::DEVICE_PHASE_SUFFIX;
+
+    /// The dispatch covers the tiles around every listed pixel and no more.
+    #[test]
+    fn covered_tiles_hold_every_listed_pixel() {
+        let lists_with = |size: [u32; 2], pixels: &[(u32, u32)]| {
+            let mut first = vec![0u32];
+            for y in 0..size[1] {
+                for x in 0..size[0] {
+                    let n = pixels.iter().filter(|&&p| p == (x, y)).count() as u32;
+                    first.push(first.last().unwrap() + n);
+                }
+            }
+            let entries = *first.last().unwrap() as usize;
+            PixelLists { size, first, band_cells: vec![vec![0; entries]] }
+        };
+        assert_eq!(lists_with([16, 8], &[]).covered_tiles(), None);
+        assert_eq!(lists_with([16, 8], &[(5, 3), (10, 6)]).covered_tiles(), Some([1, 1, 2, 3]));
+        assert_eq!(lists_with([16, 8], &[(0, 0), (15, 7), (15, 7)]).covered_tiles(), Some([0, 0, 3, 3]));
+        // A partial last tile (size not a multiple of TILE).
+        assert_eq!(lists_with([17, 9], &[(16, 8)]).covered_tiles(), Some([4, 4, 4, 4]));
+        // The tiles hold the pixels, at two image sizes.
+        for size in [[16u32, 8u32], [33, 21]] {
+            let px = [(3, 1), (size[0] - 2, size[1] / 2)];
+            let [x0, y0, x1, y1] = lists_with(size, &px).covered_tiles().unwrap();
+            for (x, y) in px {
+                assert!((x0 * TILE[0]..(x1 + 1) * TILE[0]).contains(&x) && (y0 * TILE[1]..(y1 + 1) * TILE[1]).contains(&y));
+            }
+        }
+    }
 
     #[test]
     fn composite_phase_is_a_device_phase() {

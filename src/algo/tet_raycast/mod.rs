@@ -86,7 +86,7 @@ use crate::mesh::topology::Topology;
 use crate::scene::Camera;
 use crate::vk::{
     Buffer, BufferDesc, CommandRecorder, ComputePipelineKey, Context, DescriptorKind, DescriptorResource,
-    DescriptorSet, DescriptorSetDesc, Image, ImageUse, Pipeline, PipelineKey, ShaderKey, ShaderStage, TargetImageSet, TexelBuffer, UploadClass,
+    DescriptorSet, DescriptorSetDesc, Image, Pipeline, PipelineKey, ShaderKey, ShaderStage, TargetImageSet, TexelBuffer, UploadClass,
     UploadCounter,
 };
 use crate::vk::{Format, Stages};
@@ -859,13 +859,7 @@ impl RenderMethod for TetRaycast {
         // at 512x512 (docs/compute-speed.md). The rest is cleared.
         let [x0, y0, x1, y1] = self.rect;
         let groups = if x0 > x1 || y0 > y1 { [0, 0, 1] } else { [(x1 - x0 + 1).div_ceil(WORKGROUP[0]), (y1 - y0 + 1).div_ceil(WORKGROUP[1]), 1] };
-        if self.rect_pixels < u64::from(view.width) * u64::from(view.height) {
-            rec.begin_rendering(target, [0.0; 4]);
-            rec.end_rendering();
-            rec.image_barrier(target, ImageUse::ComputeStorage);
-        } else {
-            rec.image_barrier_discard(target, ImageUse::ComputeStorage);
-        }
+        rec.storage_target(target, self.rect_pixels == u64::from(view.width) * u64::from(view.height));
         if self.lists_active {
             rec.bind_compute(&self.pipeline_lists, &[&self.tables.set, &self.mesh_set, set, &self.lists_set])?;
             rec.push_constants(&self.pipeline_lists, &self.push, counter);
