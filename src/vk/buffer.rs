@@ -150,6 +150,16 @@ impl Buffer {
             .ok_or(VkError::Unsupported { device: self.desc.name.clone(), what: "host-mapped memory".into() })
     }
 
+    /// The first `N` u32 words of a counters buffer (`BufferDesc::counters`)
+    /// as the host reads them after the frame, widened to u64; all zero
+    /// when the buffer is not mapped or shorter.
+    pub fn read_counters<const N: usize>(&self) -> [u64; N] {
+        match self.read() {
+            Ok(b) if b.len() >= N * 4 => std::array::from_fn(|i| u32::from_ne_bytes([b[4 * i], b[4 * i + 1], b[4 * i + 2], b[4 * i + 3]]) as u64),
+            _ => [0; N],
+        }
+    }
+
     /// Copy `data` into this host-visible buffer at `offset` and count it as
     /// bytes crossing to the device (the device reads this memory in place).
     pub fn write(&mut self, offset: usize, data: &[u8], counter: &mut UploadCounter, class: UploadClass) -> VkResult<()> {

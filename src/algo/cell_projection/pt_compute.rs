@@ -599,12 +599,7 @@ impl PtCompute {
 
     /// The last frame's counters (`Counters` in pt_composite.comp).
     fn counters(&self) -> [u64; COUNTER_WORDS] {
-        match self.counters.read() {
-            Ok(b) if b.len() >= COUNTER_WORDS * 4 => {
-                std::array::from_fn(|i| u32::from_ne_bytes([b[4 * i], b[4 * i + 1], b[4 * i + 2], b[4 * i + 3]]) as u64)
-            }
-            _ => [0; COUNTER_WORDS],
-        }
+        self.counters.read_counters()
     }
 
 }
@@ -737,6 +732,7 @@ impl CellProjector for PtCompute {
 
     fn work_counts(&self) -> Vec<(&'static str, u64)> {
         let c = self.counters();
+        let (_, groups) = self.dispatched();
         vec![
             ("cells_binned", self.footprints.iter().filter(|f| **f != Footprint::Off).count() as u64),
             ("cells_plane_tested", self.footprints.iter().filter(|f| matches!(f, Footprint::Planes(_))).count() as u64),
@@ -745,7 +741,7 @@ impl CellProjector for PtCompute {
             ("pixels_integrated", c[0] | (c[1] << 32)),
             ("pixels_covered", c[3]),
             ("pixels_terminated_early", c[2]),
-            ("tiles_dispatched", u64::from(self.dispatched().1[0]) * u64::from(self.dispatched().1[1])),
+            ("tiles_dispatched", groups[0] as u64 * groups[1] as u64),
         ]
     }
 }

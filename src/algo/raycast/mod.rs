@@ -609,12 +609,7 @@ impl VolumeResources {
 
     /// The last frame's counters: (total samples, max per ray, bricks skipped, rays, leaps).
     pub fn counters(&self) -> [u64; COUNTER_WORDS] {
-        match self.counters.read() {
-            Ok(b) if b.len() >= COUNTER_WORDS * 4 => {
-                std::array::from_fn(|i| u32::from_ne_bytes([b[4 * i], b[4 * i + 1], b[4 * i + 2], b[4 * i + 3]]) as u64)
-            }
-            _ => [0; COUNTER_WORDS],
-        }
+        self.counters.read_counters()
     }
 
     pub fn work(&self, pixels: u64) -> Work {

@@ -334,13 +334,19 @@ pub fn build_face_bvh(faces: &[(u32, [[f32; 3]; 3])], pad: f32) -> FaceBvh {
 /// all (266,400 at 32.9 M) and the tests take 2.5 s of the 9.9 s set-up.
 const HULL_TEST_NODES: usize = 1 << 14;
 
-/// Face `slot` (4 c + f) of the tets: its three corners in FACE_VERTS
-/// order and the cell's fourth vertex, the one opposite it (`point` gives a
-/// vertex's position). What `hull_faces` takes as `corners`.
-fn face_corners(tets: &[[u32; 4]], slot: u32, point: impl Fn(u32) -> [f32; 3]) -> ([[f32; 3]; 3], [f32; 3]) {
+/// The vertex indices of face `slot` (4 c + f) of the tets, in FACE_VERTS
+/// order (counter-clockwise seen from outside a positively oriented cell).
+fn face_vertices(tets: &[[u32; 4]], slot: u32) -> [u32; 3] {
     let t = &tets[(slot >> 2) as usize];
-    let f = (slot & 3) as usize;
-    (FACE_VERTS[f].map(|l| point(t[l])), point(t[f]))
+    FACE_VERTS[(slot & 3) as usize].map(|l| t[l])
+}
+
+/// Face `slot` of the tets: its three corners ([`face_vertices`]) and the
+/// cell's fourth vertex, the one opposite it (`point` gives a vertex's
+/// position). What `hull_faces` takes as `corners`.
+fn face_corners(tets: &[[u32; 4]], slot: u32, point: impl Fn(u32) -> [f32; 3]) -> ([[f32; 3]; 3], [f32; 3]) {
+    let opposite = tets[(slot >> 2) as usize][(slot & 3) as usize];
+    (face_vertices(tets, slot).map(&point), point(opposite))
 }
 
 /// Per boundary face of `bvh` (in `faces`' order): whether it lies on the
@@ -520,30 +526,19 @@ impl TetRaycast {
             .collect();
         let solid_bit = |c: usize| if topo.solid[c] { SOLID_BIT } else { 0 };
         let cells: Vec<[u32; 4]> = mesh.tets.iter().enumerate().map(|(c, t)| [t[0], t[1], t[2], t[3] | solid_bit(c)]).collect();
-        let faces: Vec<(u32, [[f32; 3]; 3])> = topo
-            .boundary
-            .iter()
-            .map(|&slot| {
-                let t = &mesh.tets[(slot >> 2) as usize];
-                let fv = FACE_VERTS[(slot & 3) as usize];
-                (slot, fv.map(|l| {
-                    let p = points[t[l] as usize];
-                    [p[0], p[1], p[2]]
-                }))
-            })
-            .collect();
-        let mut boundary_vertices: Vec<u32> = topo
-            .boundary
-            .iter()
-            .flat_map(|&slot| FACE_VERTS[(slot & 3) as usize].map(|l| mesh.tets[(slot >> 2) as usize][l]))
-            .collect();
+        // A point's position as the shader holds it.
+        let xyz = |i: u32| {
+            let p = points[i as usize];
+            [p[0], p[1], p[2]]
+        };
+        // A boundary face's corners and its cell's fourth vertex.
+        let corners = |slot: u32| face_corners(&mesh.tets, slot, xyz);
+        let faces: Vec<(u32, [[f32; 3]; 3])> = topo.boundary.iter().map(|&slot| (slot, corners(slot).0)).collect();
+        let mut boundary_vertices: Vec<u32> = topo.boundary.iter().flat_map(|&slot| face_vertices(&mesh.tets, slot)).collect();
         boundary_vertices.sort_unstable();
         boundary_vertices.dedup();
         let boundary_points: Vec<[f64; 3]> = boundary_vertices.iter().map(|&i| mesh.points[i as usize]).collect();
-        let boundary_points_shader: Vec<[f32; 3]> = boundary_vertices.iter().map(|&i| {
-            let p = points[i as usize];
-            [p[0], p[1], p[2]]
-        }).collect();
+        let boundary_points_shader: Vec<[f32; 3]> = boundary_vertices.iter().map(|&i| xyz(i)).collect();
         let diag = mesh.bounds().diagonal();
         let pad = (1e-5 * diag) as f32;
         let bvh = build_face_bvh(&faces, pad);
@@ -568,12 +563,6 @@ impl TetRaycast {
         let per_cell = limits.texel_chunk(16, 1);
         // A boundary face on the convex hull keeps NONE (the walk ends there);
         // the others become REENTER (the ray may meet the mesh again).
-        let corners = |slot: u32| {
-            face_corners(&mesh.tets, slot, |i| {
-                let q = points[i as usize];
-                [q[0], q[1], q[2]]
-            })
-        };
         let on_hull = hull_faces(&topo.boundary, corners, &bvh, pad, 1e-6 * diag);
         let hull_faces_count = on_hull.iter().filter(|&&h| h).count();
         for (&slot, hull) in topo.boundary.iter().zip(on_hull) {
@@ -613,9 +602,8 @@ impl TetRaycast {
             .prims
             .iter()
             .map(|&slot| {
-                let (c, f) = ((slot >> 2) as usize, (slot & 3) as usize);
-                let [a, b, d] = FACE_VERTS[f].map(|l| mesh.tets[c][l]);
-                [slot | solid_bit(c), a, b, d]
+                let [a, b, d] = face_vertices(&mesh.tets, slot);
+                [slot | solid_bit((slot >> 2) as usize), a, b, d]
             })
             .collect();
         let bvh_buffers = [
@@ -682,10 +670,9 @@ impl TetRaycast {
         let boundary_index = |v: u32| boundary_vertices.binary_search(&v).map(|i| i as u32).map_err(|_| anyhow::anyhow!("boundary vertex {v} not indexed"));
         let mut tile_faces = tiles::Faces { corners: Vec::with_capacity(bvh.prims.len()), solid: Vec::with_capacity(bvh.prims.len()) };
         for &slot in &bvh.prims {
-            let (c, f) = ((slot >> 2) as usize, (slot & 3) as usize);
-            let [a, b, d] = FACE_VERTS[f].map(|l| mesh.tets[c][l]);
+            let [a, b, d] = face_vertices(&mesh.tets, slot);
             tile_faces.corners.push([boundary_index(a)?, boundary_index(b)?, boundary_index(d)?]);
-            tile_faces.solid.push(topo.solid[c]);
+            tile_faces.solid.push(topo.solid[(slot >> 2) as usize]);
         }
         let mut scene_memory = HostMemory::default();
         scene_memory.scene_mesh(mesh);
@@ -752,12 +739,7 @@ impl TetRaycast {
 
     /// The last frame's counters (`Counters` in walk.comp).
     fn counters(&self) -> [u64; COUNTER_WORDS] {
-        match self.counters.read() {
-            Ok(b) if b.len() >= COUNTER_WORDS * 4 => {
-                std::array::from_fn(|i| u32::from_ne_bytes([b[4 * i], b[4 * i + 1], b[4 * i + 2], b[4 * i + 3]]) as u64)
-            }
-            _ => [0; COUNTER_WORDS],
-        }
+        self.counters.read_counters()
     }
 }
 
