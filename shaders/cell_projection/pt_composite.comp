@@ -35,8 +35,8 @@ layout(local_size_x = TILE_W, local_size_y = TILE_H) in;
 
 // Pixel i's entries (row-major) are [first[i], first[i + 1]); an entry is a
 // cell, with PLANE_TEST_BIT where its coverage is decided here.
-layout(set = 1, binding = 1) uniform usamplerBuffer pixel_first;
-layout(set = 1, binding = 2) uniform usamplerBuffer entries;
+layout(set = 1, binding = 1, r32ui) uniform readonly uimageBuffer pixel_first;
+layout(set = 1, binding = 2, r32ui) uniform readonly uimageBuffer entries;
 const uint PLANE_TEST_BIT = 0x80000000u;
 layout(std430, set = 1, binding = 3) buffer Counters {
     uint integrated_lo;    // (pixel, cell) segments integrated (64 bits: lo, hi)
@@ -86,14 +86,14 @@ void main() {
     vec4 lambda_b;
 
     uint k = uint(px.y) * uint(size.x) + uint(px.x);
-    uint first = inside ? texelFetch(pixel_first, int(k)).x : 0u;
-    uint last = inside ? texelFetch(pixel_first, int(k) + 1).x : 0u;
+    uint first = inside ? imageLoad(pixel_first, int(k)).x : 0u;
+    uint last = inside ? imageLoad(pixel_first, int(k) + 1).x : 0u;
     vec3 acc = vec3(0.0);
     float trans = 1.0;
     uint integrated = 0u;
     bool done = !inside;
     for (uint e = last; e > first && !done; --e) {
-        uint entry = texelFetch(entries, int(e - 1u)).x;
+        uint entry = imageLoad(entries, int(e - 1u)).x;
         uint t = entry & ~PLANE_TEST_BIT;
         bool plane_test = entry >= PLANE_TEST_BIT;
         // lambda_j along the ray: a_j + s b_j (1 at vertex j, 0 on its

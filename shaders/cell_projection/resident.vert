@@ -1,7 +1,7 @@
 #version 450
 // resident-gpusort's vertex stage (resident itself expands the order into
 // balanced's records in a compute pass, resident_expand.comp): the cells
-// live in a uniform texel buffer uploaded once; the sorted order (one u32
+// live in a storage texel buffer uploaded once; the sorted order (one u32
 // per tet) is made on the device. Vertex 4k+i of the static strips is vertex i
 // of the tet in slot k; the vertex stage runs what balanced's CPU does
 // (cell_projection/stored_cell.glsl), for all four vertices since the tet's

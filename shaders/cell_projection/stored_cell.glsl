@@ -18,27 +18,27 @@
 #ifndef CELL_SET
 #define CELL_SET 1
 #endif
-layout(set = CELL_SET, binding = 0) uniform samplerBuffer cells;
+layout(set = CELL_SET, binding = 0, rgba32f) uniform readonly imageBuffer cells;
 #if CELL_CHUNKS > 1
-layout(set = CELL_SET, binding = CELL_CHUNK_BINDING + 0) uniform samplerBuffer cells_1;
+layout(set = CELL_SET, binding = CELL_CHUNK_BINDING + 0, rgba32f) uniform readonly imageBuffer cells_1;
 #endif
 #if CELL_CHUNKS > 2
-layout(set = CELL_SET, binding = CELL_CHUNK_BINDING + 1) uniform samplerBuffer cells_2;
+layout(set = CELL_SET, binding = CELL_CHUNK_BINDING + 1, rgba32f) uniform readonly imageBuffer cells_2;
 #endif
 #if CELL_CHUNKS > 3
-layout(set = CELL_SET, binding = CELL_CHUNK_BINDING + 2) uniform samplerBuffer cells_3;
+layout(set = CELL_SET, binding = CELL_CHUNK_BINDING + 2, rgba32f) uniform readonly imageBuffer cells_3;
 #endif
 #if CELL_CHUNKS > 4
-layout(set = CELL_SET, binding = CELL_CHUNK_BINDING + 3) uniform samplerBuffer cells_4;
+layout(set = CELL_SET, binding = CELL_CHUNK_BINDING + 3, rgba32f) uniform readonly imageBuffer cells_4;
 #endif
 #if CELL_CHUNKS > 5
-layout(set = CELL_SET, binding = CELL_CHUNK_BINDING + 4) uniform samplerBuffer cells_5;
+layout(set = CELL_SET, binding = CELL_CHUNK_BINDING + 4, rgba32f) uniform readonly imageBuffer cells_5;
 #endif
 #if CELL_CHUNKS > 6
-layout(set = CELL_SET, binding = CELL_CHUNK_BINDING + 5) uniform samplerBuffer cells_6;
+layout(set = CELL_SET, binding = CELL_CHUNK_BINDING + 5, rgba32f) uniform readonly imageBuffer cells_6;
 #endif
 #if CELL_CHUNKS > 7
-layout(set = CELL_SET, binding = CELL_CHUNK_BINDING + 6) uniform samplerBuffer cells_7;
+layout(set = CELL_SET, binding = CELL_CHUNK_BINDING + 6, rgba32f) uniform readonly imageBuffer cells_7;
 #endif
 
 // Texel k (0..8) of cell t.
@@ -48,30 +48,30 @@ vec4 cell_texel(uint t, int k) {
     int i = int(9u * (t - c * uint(CELL_PER_CHUNK))) + k;
     switch (c) {
 #if CELL_CHUNKS > 1
-    case 1u: return texelFetch(cells_1, i);
+    case 1u: return imageLoad(cells_1, i);
 #endif
 #if CELL_CHUNKS > 2
-    case 2u: return texelFetch(cells_2, i);
+    case 2u: return imageLoad(cells_2, i);
 #endif
 #if CELL_CHUNKS > 3
-    case 3u: return texelFetch(cells_3, i);
+    case 3u: return imageLoad(cells_3, i);
 #endif
 #if CELL_CHUNKS > 4
-    case 4u: return texelFetch(cells_4, i);
+    case 4u: return imageLoad(cells_4, i);
 #endif
 #if CELL_CHUNKS > 5
-    case 5u: return texelFetch(cells_5, i);
+    case 5u: return imageLoad(cells_5, i);
 #endif
 #if CELL_CHUNKS > 6
-    case 6u: return texelFetch(cells_6, i);
+    case 6u: return imageLoad(cells_6, i);
 #endif
 #if CELL_CHUNKS > 7
-    case 7u: return texelFetch(cells_7, i);
+    case 7u: return imageLoad(cells_7, i);
 #endif
-    default: return texelFetch(cells, i);
+    default: return imageLoad(cells, i);
     }
 #else
-    return texelFetch(cells, int(9u * t) + k);
+    return imageLoad(cells, int(9u * t) + k);
 #endif
 }
 vec4 cell_pos(uint t, int i) { return cell_texel(t, i); }

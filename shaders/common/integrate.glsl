@@ -16,10 +16,10 @@
 // INTEGRATOR_PREINT also integrate_values(front, back, len) from the colour
 // and attenuation at the two ends (rgb = L, a = tau).
 
-// Both tables are uniform texel buffers of RGBA32F (one texelFetch per
-// lookup; integrate.rs says why not storage buffers).
-layout(set = 0, binding = 0) uniform samplerBuffer tf;      // rgb = L, a = tau
-layout(set = 0, binding = 1) uniform samplerBuffer table;
+// Both tables are storage texel buffers of RGBA32F, read with imageLoad
+// (integrate.rs says why neither storage buffers nor texelFetch).
+layout(set = 0, binding = 0, rgba32f) uniform readonly imageBuffer tf;      // rgb = L, a = tau
+layout(set = 0, binding = 1, rgba32f) uniform readonly imageBuffer table;
 
 // Transfer-function table entries are clamped to 1e30 when the table is
 // built (TransferFunction::table): an Inf entry would make
@@ -34,7 +34,7 @@ vec4 transfer(float s) {
     float x = clamp((s - frame.tf_range.x) * frame.tf_range.y, 0.0, 1.0) * (n - 1.0);
     float i = min(floor(x), n - 2.0);
     int k = int(i);
-    return mix(texelFetch(tf, k), texelFetch(tf, k + 1), x - i);
+    return mix(imageLoad(tf, k), imageLoad(tf, k + 1), x - i);
 }
 
 // Optical depth tau * len, finite and in [0, DEPTH_MAX] (len >= 0, tau <= 1e30).
@@ -63,7 +63,7 @@ vec4 integrate_values(vec4 front, vec4 back, float len) {
 // back scalar b (n samples over the transfer function's range each) and
 // length index d (n_d samples of x = D / (D + D_half) in [0, 1]).
 vec4 preint_at(int f, int b, int d, int n) {
-    return texelFetch(table, (d * n + b) * n + f);
+    return imageLoad(table, (d * n + b) * n + f);
 }
 
 vec4 integrate_segment(float s_front, float s_back, float len) {
@@ -178,7 +178,7 @@ float psi_lookup(float gamma_f, float gamma_b) {
     vec2 x = clamp(vec2(gamma_f, gamma_b), 0.0, 1.0) * (m - 1.0);
     vec2 i = min(floor(x), vec2(m - 2.0));
     vec2 f = x - i;
-    vec4 q = texelFetch(table, int(i.y) * int(m - 1.0) + int(i.x));  // corners (f0b0, f1b0, f0b1, f1b1)
+    vec4 q = imageLoad(table, int(i.y) * int(m - 1.0) + int(i.x));  // corners (f0b0, f1b0, f0b1, f1b1)
     vec2 along_f = mix(q.xz, q.yw, f.x);
     return mix(along_f.x, along_f.y, f.y);
 }

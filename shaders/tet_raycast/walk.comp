@@ -36,7 +36,8 @@ layout(push_constant) uniform Frame {
 #include "common/integrate.glsl"
 
 // set 1: the mesh, uploaded once. What the walk reads per cell is in
-// uniform texel buffers (one texel fetch per lookup; tet_raycast.rs says why).
+// storage texel buffers, read with imageLoad (one load per lookup, inlined;
+// tet_raycast.rs and integrate.rs say why).
 // A mesh larger than one texel buffer may hold (algo/chunks.rs) comes in
 // POINT_CHUNKS buffers of POINT_PER_CHUNK points and, for each per-cell
 // array, CELL_CHUNKS buffers of CELL_PER_CHUNK cells: chunk 0 at the
@@ -51,75 +52,75 @@ layout(push_constant) uniform Frame {
 #define POINT_CHUNK_BINDING 6
 #define TET_CHUNK_BINDING (POINT_CHUNK_BINDING + POINT_CHUNKS - 1)
 #define NEIGHBOR_CHUNK_BINDING (TET_CHUNK_BINDING + CELL_CHUNKS - 1)
-layout(set = 1, binding = 0) uniform samplerBuffer points_tb;      // xyz: position; w: scalar
-layout(set = 1, binding = 1) uniform usamplerBuffer tets_tb;       // vertex indices, w | SOLID_BIT if solid
-layout(set = 1, binding = 2) uniform usamplerBuffer neighbors_tb;  // cell c: [f] = 4 c' + f', NONE or REENTER on the boundary
+layout(set = 1, binding = 0, rgba32f) uniform readonly imageBuffer points_tb;      // xyz: position; w: scalar
+layout(set = 1, binding = 1, rgba32ui) uniform readonly uimageBuffer tets_tb;       // vertex indices, w | SOLID_BIT if solid
+layout(set = 1, binding = 2, rgba32ui) uniform readonly uimageBuffer neighbors_tb;  // cell c: [f] = 4 c' + f', NONE or REENTER on the boundary
 // A cell's solid flag (positive volume; flat cells are crossed either way)
 // rides in the top bit of its fourth vertex index and of its boundary faces'
 // slots (tet_raycast.rs checks both stay below it): no fetch of its own.
 const uint SOLID_BIT = 0x80000000u;
 #if POINT_CHUNKS > 1
-layout(set = 1, binding = POINT_CHUNK_BINDING + 0) uniform samplerBuffer points_tb_1;
+layout(set = 1, binding = POINT_CHUNK_BINDING + 0, rgba32f) uniform readonly imageBuffer points_tb_1;
 #endif
 #if POINT_CHUNKS > 2
-layout(set = 1, binding = POINT_CHUNK_BINDING + 1) uniform samplerBuffer points_tb_2;
+layout(set = 1, binding = POINT_CHUNK_BINDING + 1, rgba32f) uniform readonly imageBuffer points_tb_2;
 #endif
 #if POINT_CHUNKS > 3
-layout(set = 1, binding = POINT_CHUNK_BINDING + 2) uniform samplerBuffer points_tb_3;
+layout(set = 1, binding = POINT_CHUNK_BINDING + 2, rgba32f) uniform readonly imageBuffer points_tb_3;
 #endif
 #if POINT_CHUNKS > 4
-layout(set = 1, binding = POINT_CHUNK_BINDING + 3) uniform samplerBuffer points_tb_4;
+layout(set = 1, binding = POINT_CHUNK_BINDING + 3, rgba32f) uniform readonly imageBuffer points_tb_4;
 #endif
 #if POINT_CHUNKS > 5
-layout(set = 1, binding = POINT_CHUNK_BINDING + 4) uniform samplerBuffer points_tb_5;
+layout(set = 1, binding = POINT_CHUNK_BINDING + 4, rgba32f) uniform readonly imageBuffer points_tb_5;
 #endif
 #if POINT_CHUNKS > 6
-layout(set = 1, binding = POINT_CHUNK_BINDING + 5) uniform samplerBuffer points_tb_6;
+layout(set = 1, binding = POINT_CHUNK_BINDING + 5, rgba32f) uniform readonly imageBuffer points_tb_6;
 #endif
 #if POINT_CHUNKS > 7
-layout(set = 1, binding = POINT_CHUNK_BINDING + 6) uniform samplerBuffer points_tb_7;
+layout(set = 1, binding = POINT_CHUNK_BINDING + 6, rgba32f) uniform readonly imageBuffer points_tb_7;
 #endif
 #if CELL_CHUNKS > 1
-layout(set = 1, binding = TET_CHUNK_BINDING + 0) uniform usamplerBuffer tets_tb_1;
+layout(set = 1, binding = TET_CHUNK_BINDING + 0, rgba32ui) uniform readonly uimageBuffer tets_tb_1;
 #endif
 #if CELL_CHUNKS > 2
-layout(set = 1, binding = TET_CHUNK_BINDING + 1) uniform usamplerBuffer tets_tb_2;
+layout(set = 1, binding = TET_CHUNK_BINDING + 1, rgba32ui) uniform readonly uimageBuffer tets_tb_2;
 #endif
 #if CELL_CHUNKS > 3
-layout(set = 1, binding = TET_CHUNK_BINDING + 2) uniform usamplerBuffer tets_tb_3;
+layout(set = 1, binding = TET_CHUNK_BINDING + 2, rgba32ui) uniform readonly uimageBuffer tets_tb_3;
 #endif
 #if CELL_CHUNKS > 4
-layout(set = 1, binding = TET_CHUNK_BINDING + 3) uniform usamplerBuffer tets_tb_4;
+layout(set = 1, binding = TET_CHUNK_BINDING + 3, rgba32ui) uniform readonly uimageBuffer tets_tb_4;
 #endif
 #if CELL_CHUNKS > 5
-layout(set = 1, binding = TET_CHUNK_BINDING + 4) uniform usamplerBuffer tets_tb_5;
+layout(set = 1, binding = TET_CHUNK_BINDING + 4, rgba32ui) uniform readonly uimageBuffer tets_tb_5;
 #endif
 #if CELL_CHUNKS > 6
-layout(set = 1, binding = TET_CHUNK_BINDING + 5) uniform usamplerBuffer tets_tb_6;
+layout(set = 1, binding = TET_CHUNK_BINDING + 5, rgba32ui) uniform readonly uimageBuffer tets_tb_6;
 #endif
 #if CELL_CHUNKS > 7
-layout(set = 1, binding = TET_CHUNK_BINDING + 6) uniform usamplerBuffer tets_tb_7;
+layout(set = 1, binding = TET_CHUNK_BINDING + 6, rgba32ui) uniform readonly uimageBuffer tets_tb_7;
 #endif
 #if CELL_CHUNKS > 1
-layout(set = 1, binding = NEIGHBOR_CHUNK_BINDING + 0) uniform usamplerBuffer neighbors_tb_1;
+layout(set = 1, binding = NEIGHBOR_CHUNK_BINDING + 0, rgba32ui) uniform readonly uimageBuffer neighbors_tb_1;
 #endif
 #if CELL_CHUNKS > 2
-layout(set = 1, binding = NEIGHBOR_CHUNK_BINDING + 1) uniform usamplerBuffer neighbors_tb_2;
+layout(set = 1, binding = NEIGHBOR_CHUNK_BINDING + 1, rgba32ui) uniform readonly uimageBuffer neighbors_tb_2;
 #endif
 #if CELL_CHUNKS > 3
-layout(set = 1, binding = NEIGHBOR_CHUNK_BINDING + 2) uniform usamplerBuffer neighbors_tb_3;
+layout(set = 1, binding = NEIGHBOR_CHUNK_BINDING + 2, rgba32ui) uniform readonly uimageBuffer neighbors_tb_3;
 #endif
 #if CELL_CHUNKS > 4
-layout(set = 1, binding = NEIGHBOR_CHUNK_BINDING + 3) uniform usamplerBuffer neighbors_tb_4;
+layout(set = 1, binding = NEIGHBOR_CHUNK_BINDING + 3, rgba32ui) uniform readonly uimageBuffer neighbors_tb_4;
 #endif
 #if CELL_CHUNKS > 5
-layout(set = 1, binding = NEIGHBOR_CHUNK_BINDING + 4) uniform usamplerBuffer neighbors_tb_5;
+layout(set = 1, binding = NEIGHBOR_CHUNK_BINDING + 4, rgba32ui) uniform readonly uimageBuffer neighbors_tb_5;
 #endif
 #if CELL_CHUNKS > 6
-layout(set = 1, binding = NEIGHBOR_CHUNK_BINDING + 5) uniform usamplerBuffer neighbors_tb_6;
+layout(set = 1, binding = NEIGHBOR_CHUNK_BINDING + 5, rgba32ui) uniform readonly uimageBuffer neighbors_tb_6;
 #endif
 #if CELL_CHUNKS > 7
-layout(set = 1, binding = NEIGHBOR_CHUNK_BINDING + 6) uniform usamplerBuffer neighbors_tb_7;
+layout(set = 1, binding = NEIGHBOR_CHUNK_BINDING + 6, rgba32ui) uniform readonly uimageBuffer neighbors_tb_7;
 #endif
 vec4 point_at(uint i) {
 #if POINT_CHUNKS > 1
@@ -127,30 +128,30 @@ vec4 point_at(uint i) {
     int j = int((i) - k * uint(POINT_PER_CHUNK));
     switch (k) {
 #if POINT_CHUNKS > 1
-    case 1u: return texelFetch(points_tb_1, j);
+    case 1u: return imageLoad(points_tb_1, j);
 #endif
 #if POINT_CHUNKS > 2
-    case 2u: return texelFetch(points_tb_2, j);
+    case 2u: return imageLoad(points_tb_2, j);
 #endif
 #if POINT_CHUNKS > 3
-    case 3u: return texelFetch(points_tb_3, j);
+    case 3u: return imageLoad(points_tb_3, j);
 #endif
 #if POINT_CHUNKS > 4
-    case 4u: return texelFetch(points_tb_4, j);
+    case 4u: return imageLoad(points_tb_4, j);
 #endif
 #if POINT_CHUNKS > 5
-    case 5u: return texelFetch(points_tb_5, j);
+    case 5u: return imageLoad(points_tb_5, j);
 #endif
 #if POINT_CHUNKS > 6
-    case 6u: return texelFetch(points_tb_6, j);
+    case 6u: return imageLoad(points_tb_6, j);
 #endif
 #if POINT_CHUNKS > 7
-    case 7u: return texelFetch(points_tb_7, j);
+    case 7u: return imageLoad(points_tb_7, j);
 #endif
-    default: return texelFetch(points_tb, j);
+    default: return imageLoad(points_tb, j);
     }
 #else
-    return texelFetch(points_tb, int(i));
+    return imageLoad(points_tb, int(i));
 #endif
 }
 uvec4 tet_at(uint c) {
@@ -159,30 +160,30 @@ uvec4 tet_at(uint c) {
     int j = int((c) - k * uint(CELL_PER_CHUNK));
     switch (k) {
 #if CELL_CHUNKS > 1
-    case 1u: return texelFetch(tets_tb_1, j);
+    case 1u: return imageLoad(tets_tb_1, j);
 #endif
 #if CELL_CHUNKS > 2
-    case 2u: return texelFetch(tets_tb_2, j);
+    case 2u: return imageLoad(tets_tb_2, j);
 #endif
 #if CELL_CHUNKS > 3
-    case 3u: return texelFetch(tets_tb_3, j);
+    case 3u: return imageLoad(tets_tb_3, j);
 #endif
 #if CELL_CHUNKS > 4
-    case 4u: return texelFetch(tets_tb_4, j);
+    case 4u: return imageLoad(tets_tb_4, j);
 #endif
 #if CELL_CHUNKS > 5
-    case 5u: return texelFetch(tets_tb_5, j);
+    case 5u: return imageLoad(tets_tb_5, j);
 #endif
 #if CELL_CHUNKS > 6
-    case 6u: return texelFetch(tets_tb_6, j);
+    case 6u: return imageLoad(tets_tb_6, j);
 #endif
 #if CELL_CHUNKS > 7
-    case 7u: return texelFetch(tets_tb_7, j);
+    case 7u: return imageLoad(tets_tb_7, j);
 #endif
-    default: return texelFetch(tets_tb, j);
+    default: return imageLoad(tets_tb, j);
     }
 #else
-    return texelFetch(tets_tb, int(c));
+    return imageLoad(tets_tb, int(c));
 #endif
 }
 uvec4 neighbors_of(uint c) {
@@ -191,52 +192,52 @@ uvec4 neighbors_of(uint c) {
     int j = int((c) - k * uint(CELL_PER_CHUNK));
     switch (k) {
 #if CELL_CHUNKS > 1
-    case 1u: return texelFetch(neighbors_tb_1, j);
+    case 1u: return imageLoad(neighbors_tb_1, j);
 #endif
 #if CELL_CHUNKS > 2
-    case 2u: return texelFetch(neighbors_tb_2, j);
+    case 2u: return imageLoad(neighbors_tb_2, j);
 #endif
 #if CELL_CHUNKS > 3
-    case 3u: return texelFetch(neighbors_tb_3, j);
+    case 3u: return imageLoad(neighbors_tb_3, j);
 #endif
 #if CELL_CHUNKS > 4
-    case 4u: return texelFetch(neighbors_tb_4, j);
+    case 4u: return imageLoad(neighbors_tb_4, j);
 #endif
 #if CELL_CHUNKS > 5
-    case 5u: return texelFetch(neighbors_tb_5, j);
+    case 5u: return imageLoad(neighbors_tb_5, j);
 #endif
 #if CELL_CHUNKS > 6
-    case 6u: return texelFetch(neighbors_tb_6, j);
+    case 6u: return imageLoad(neighbors_tb_6, j);
 #endif
 #if CELL_CHUNKS > 7
-    case 7u: return texelFetch(neighbors_tb_7, j);
+    case 7u: return imageLoad(neighbors_tb_7, j);
 #endif
-    default: return texelFetch(neighbors_tb, j);
+    default: return imageLoad(neighbors_tb, j);
     }
 #else
-    return texelFetch(neighbors_tb, int(c));
+    return imageLoad(neighbors_tb, int(c));
 #endif
 }
 uint neighbor_at(uint slot) { return neighbors_of(slot >> 2)[slot & 3u]; }
 // The BVH over the boundary faces and its face list, as uint texels (a
 // node's box is float bits, its links uint: uintBitsToFloat keeps both
-// exact). Texel fetches, not storage-buffer loads: the traversal's node
+// exact). Texel loads, not storage-buffer loads: the traversal's node
 // index differs per lane, and llvmpipe loads a storage buffer at a per-lane
-// index one lane at a time, where a texel fetch is one gather.
+// index one lane at a time, where a texel load is one gather.
 struct Node {
     vec3 lo;     // box min
     vec3 hi;     // box max
     uint first;  // inner: left child index (right = left + 1); leaf: first primitive
     uint count;  // 0 for an inner node, else the primitive count
 };
-layout(set = 1, binding = 3) uniform usamplerBuffer bvh_tb;    // node n: texels 2n (min, first), 2n + 1 (max, count)
+layout(set = 1, binding = 3, rgba32ui) uniform readonly uimageBuffer bvh_tb;    // node n: texels 2n (min, first), 2n + 1 (max, count)
 // Boundary faces in leaf order: (slot 4 c + f | SOLID_BIT if cell c is
 // solid, the face's three vertex indices in FACE_VERTS order), so a face
 // test fetches this texel and the three points, not the cell too.
-layout(set = 1, binding = 4) uniform usamplerBuffer prims_tb;
+layout(set = 1, binding = 4, rgba32ui) uniform readonly uimageBuffer prims_tb;
 Node node_at(uint n) {
-    uvec4 a = texelFetch(bvh_tb, int(2u * n));
-    uvec4 b = texelFetch(bvh_tb, int(2u * n + 1u));
+    uvec4 a = imageLoad(bvh_tb, int(2u * n));
+    uvec4 b = imageLoad(bvh_tb, int(2u * n + 1u));
     return Node(uintBitsToFloat(a.xyz), uintBitsToFloat(b.xyz), a.w, b.w);
 }
 // A node's link and primitive count in one word (first << LINK_SHIFT |
@@ -409,8 +410,8 @@ void consider(uvec4 face, float t_lo, bool have_prev, float t_prev, uint id_prev
 // The faces a ray may enter, per tile of TILE_W x TILE_H pixels of the
 // frame's rectangle (tet_raycast/tiles.rs): tile t's are
 // tile_faces[tile_first[t] .. tile_first[t + 1]], indices into the face list.
-layout(set = 3, binding = 0) uniform usamplerBuffer tile_first_tb;
-layout(set = 3, binding = 1) uniform usamplerBuffer tile_faces_tb;
+layout(set = 3, binding = 0, r32ui) uniform readonly uimageBuffer tile_first_tb;
+layout(set = 3, binding = 1, r32ui) uniform readonly uimageBuffer tile_faces_tb;
 // The ray's tile (main).
 uint ray_tile;
 
@@ -421,10 +422,10 @@ bool next_entry(float t_lo, bool have_prev, float t_prev, uint id_prev, out floa
     t_best = INF;
     s_best = 0.0;
     id_best = NONE;
-    uint first = texelFetch(tile_first_tb, int(ray_tile)).x;
-    uint end = texelFetch(tile_first_tb, int(ray_tile) + 1).x;
+    uint first = imageLoad(tile_first_tb, int(ray_tile)).x;
+    uint end = imageLoad(tile_first_tb, int(ray_tile) + 1).x;
     for (uint i = first; i < end; ++i) {
-        consider(texelFetch(prims_tb, int(texelFetch(tile_faces_tb, int(i)).x)), t_lo, have_prev, t_prev, id_prev, t_best, s_best, id_best);
+        consider(imageLoad(prims_tb, int(imageLoad(tile_faces_tb, int(i)).x)), t_lo, have_prev, t_prev, id_prev, t_best, s_best, id_best);
     }
     return id_best != NONE;
 }
@@ -483,7 +484,7 @@ bool next_entry(float t_lo, bool have_prev, float t_prev, uint id_prev, out floa
             continue;
         }
         for (uint k = 0u; k < count; ++k) {
-            consider(texelFetch(prims_tb, int(first + k)), t_lo, have_prev, t_prev, id_prev, t_best, s_best, id_best);
+            consider(imageLoad(prims_tb, int(first + k)), t_lo, have_prev, t_prev, id_prev, t_best, s_best, id_best);
         }
     }
     return id_best != NONE;

@@ -181,7 +181,8 @@ impl TexelChunks {
                 pieces.len()
             )));
         }
-        let usage = BufferUsage::UNIFORM_TEXEL;
+        // Read with imageLoad (integrate.rs says why not texelFetch).
+        let usage = BufferUsage::STORAGE_TEXEL;
         let mut buffers = Vec::with_capacity(pieces.len());
         for (k, piece) in pieces.iter().enumerate() {
             // Empty arrays still get one element (zero-size buffers are invalid).
@@ -290,7 +291,7 @@ impl VertexChunks {
     }
 }
 
-/// A host-visible uniform texel buffer written every frame (pt-compute's
+/// A host-visible storage texel buffer (read with imageLoad) written every frame (pt-compute's
 /// pixel lists, tet-raycast's tile lists), of `texels` texels of `format`
 /// (`texel_bytes` each), at least one. Refused past maxTexelBufferElements.
 pub fn frame_texels(ctx: &Arc<Context>, name: &str, texels: usize, texel_bytes: usize, format: Format) -> VkResult<TexelBuffer> {
@@ -298,7 +299,7 @@ pub fn frame_texels(ctx: &Arc<Context>, name: &str, texels: usize, texel_bytes: 
     if texels > limit {
         return Err(VkError::Invalid(format!("{name}: {texels} texels, above the device's maxTexelBufferElements ({limit})")));
     }
-    let desc = BufferDesc::upload(name, (texels.max(1) * texel_bytes) as u64, BufferUsage::UNIFORM_TEXEL);
+    let desc = BufferDesc::upload(name, (texels.max(1) * texel_bytes) as u64, BufferUsage::STORAGE_TEXEL);
     TexelBuffer::new(ctx, desc, format)
 }
 

@@ -13,7 +13,7 @@ use std::sync::Arc;
 use rayon::prelude::*;
 
 use crate::scene::TransferFunction;
-use crate::vk::{upload_static_texels, Context, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc, TexelBuffer, UploadCounter};
+use crate::vk::{upload_static_texels, BufferUsage, Context, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc, TexelBuffer, UploadCounter};
 use crate::vk::{Format, Stages};
 
 /// Default sizes: the TF table resolves control points to 1/1023 of the
@@ -295,22 +295,27 @@ impl IntegrationTables {
             Integrator::Average | Integrator::LinearExact => Arc::new(vec![[0.0; 4]]),
         };
         let build_ms = t0.elapsed().as_secs_f64() * 1e3;
-        // Uniform texel buffers (`samplerBuffer`, texelFetch): a lookup is one
-        // texel fetch. As storage buffers each of a fragment's five vec4
-        // lookups was, on llvmpipe, a per-lane loop of guarded scalar loads
-        // per component, about half of balanced's frame on the oxygen post
-        // (README: the balanced method at its speed limit).
+        // Texel buffers: a lookup is one texel load. As storage buffers each
+        // of a fragment's five vec4 lookups was, on llvmpipe, a per-lane loop
+        // of guarded scalar loads per component, about half of balanced's
+        // frame on the oxygen post (README: the balanced method at its speed
+        // limit). Read as storage texel buffers (`imageBuffer`, imageLoad),
+        // not uniform ones (texelFetch): llvmpipe (Mesa 22.3) makes a
+        // texelFetch from a float or 32-bit-integer format a call to a
+        // sampling function, around which the caller spills every live
+        // vector register, and inlines an imageLoad (tet-raycast's walk:
+        // counted device instructions -6 %, docs/compute-speed.md).
         let texels = |name: &str, data: &[[f32; 4]], counter: &mut UploadCounter| {
-            upload_static_texels(ctx, name, bytemuck::cast_slice(data), Format::Rgba32Float, counter)
+            upload_static_texels(ctx, name, bytemuck::cast_slice(data), Format::Rgba32Float, BufferUsage::STORAGE_TEXEL, counter)
         };
         let tf_buf = texels("transfer function table", &tf_table, counter)?;
         let table_buf = texels("integration table", table.as_slice(), counter)?;
-        let desc = DescriptorSetDesc::new(&[(DescriptorKind::UniformTexelBuffer, stages), (DescriptorKind::UniformTexelBuffer, stages)]);
+        let desc = DescriptorSetDesc::new(&[(DescriptorKind::StorageTexelBuffer, stages), (DescriptorKind::StorageTexelBuffer, stages)]);
         let set = DescriptorSet::new(
             ctx,
             "integration tables",
             &desc,
-            &[DescriptorResource::UniformTexelBuffer(&tf_buf), DescriptorResource::UniformTexelBuffer(&table_buf)],
+            &[DescriptorResource::StorageTexelBuffer(&tf_buf), DescriptorResource::StorageTexelBuffer(&table_buf)],
         )?;
         Ok(IntegrationTables {
             integrator,

@@ -397,17 +397,19 @@ pub fn upload_static_streamed(
     Ok(dst)
 }
 
-/// [`upload_static`] into a uniform texel buffer of `format` texels (read
-/// with `texelFetch` from a `samplerBuffer`), checked as `TexelBuffer::over`
-/// checks it.
+/// [`upload_static`] into a texel buffer of `format` texels, a uniform one
+/// (`texelFetch` from a `samplerBuffer`) or a storage one (`imageLoad` from
+/// an `imageBuffer`) as `usage` says, checked as `TexelBuffer::over` checks
+/// it.
 pub fn upload_static_texels(
     ctx: &Arc<Context>,
     name: &str,
     data: &[u8],
     format: Format,
+    usage: BufferUsage,
     counter: &mut UploadCounter,
 ) -> VkResult<TexelBuffer> {
-    let buffer = upload_static(ctx, name, data, BufferUsage::UNIFORM_TEXEL, counter)?;
+    let buffer = upload_static(ctx, name, data, usage, counter)?;
     TexelBuffer::over(ctx, buffer, format)
 }
 

@@ -504,13 +504,13 @@ const CELL_CHUNK_BINDING: usize = 4;
 fn set_desc(cell_chunks: usize) -> DescriptorSetDesc {
     let compute = Stages::COMPUTE;
     let mut desc = DescriptorSetDesc::new(&[
-        (DescriptorKind::UniformTexelBuffer, compute),
-        (DescriptorKind::UniformTexelBuffer, compute),
-        (DescriptorKind::UniformTexelBuffer, compute),
+        (DescriptorKind::StorageTexelBuffer, compute),
+        (DescriptorKind::StorageTexelBuffer, compute),
+        (DescriptorKind::StorageTexelBuffer, compute),
         (DescriptorKind::StorageBuffer, compute),
     ]);
     for _ in 1..cell_chunks {
-        desc = desc.with(DescriptorKind::UniformTexelBuffer, compute);
+        desc = desc.with(DescriptorKind::StorageTexelBuffer, compute);
     }
     desc
 }
@@ -518,12 +518,12 @@ fn set_desc(cell_chunks: usize) -> DescriptorSetDesc {
 /// The resources of `set_desc`, in its order.
 fn set_resources<'a>(cells: &'a TexelChunks, first: &'a TexelBuffer, entries: &'a TexelBuffer, counters: &'a Buffer) -> Vec<DescriptorResource<'a>> {
     let mut resources = vec![
-        DescriptorResource::UniformTexelBuffer(&cells.buffers[0]),
-        DescriptorResource::UniformTexelBuffer(first),
-        DescriptorResource::UniformTexelBuffer(entries),
+        DescriptorResource::StorageTexelBuffer(&cells.buffers[0]),
+        DescriptorResource::StorageTexelBuffer(first),
+        DescriptorResource::StorageTexelBuffer(entries),
         DescriptorResource::StorageBuffer(counters),
     ];
-    resources.extend(cells.buffers[1..].iter().map(DescriptorResource::UniformTexelBuffer));
+    resources.extend(cells.buffers[1..].iter().map(DescriptorResource::StorageTexelBuffer));
     resources
 }
 

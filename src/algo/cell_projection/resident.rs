@@ -162,11 +162,11 @@ impl Resident {
                     BufferDesc::upload(&format!("resident order{label}"), ((len + 1) * 4) as u64, BufferUsage::STORAGE),
                 )?;
                 let mut resources = vec![
-                    DescriptorResource::UniformTexelBuffer(&cells.buffers[0]),
+                    DescriptorResource::StorageTexelBuffer(&cells.buffers[0]),
                     DescriptorResource::StorageBuffer(&order),
                     DescriptorResource::StorageBuffer(&records),
                 ];
-                resources.extend(cells.buffers[1..].iter().map(DescriptorResource::UniformTexelBuffer));
+                resources.extend(cells.buffers[1..].iter().map(DescriptorResource::StorageTexelBuffer));
                 let set = DescriptorSet::new(ctx, &format!("resident cells, order and records{label}"), &desc, &resources)?;
                 Ok(Piece { order, set })
             })
@@ -202,12 +202,12 @@ impl Resident {
 fn expand_set_desc(cell_chunks: usize) -> DescriptorSetDesc {
     let compute = Stages::COMPUTE;
     let mut desc = DescriptorSetDesc::new(&[
-        (DescriptorKind::UniformTexelBuffer, compute),
+        (DescriptorKind::StorageTexelBuffer, compute),
         (DescriptorKind::StorageBuffer, compute),
         (DescriptorKind::StorageBuffer, compute),
     ]);
     for _ in 1..cell_chunks {
-        desc = desc.with(DescriptorKind::UniformTexelBuffer, compute);
+        desc = desc.with(DescriptorKind::StorageTexelBuffer, compute);
     }
     desc
 }
@@ -240,18 +240,18 @@ fn cells_per_draw(limits: &ChunkLimits, primitives: Primitives) -> usize {
     limits.storage_chunk(4).min(limits.allocation_chunk(4 * primitives.indices_per_cell() as u64)).max(1)
 }
 
-/// Set 1 of `resident.vert` (resident-gpusort's draw): the stored cells (a uniform texel buffer of
+/// Set 1 of `resident.vert` (resident-gpusort's draw): the stored cells (a storage texel buffer of
 /// RGBA32F, `FLOATS_PER_STORED_CELL / 4` texels per cell: each vertex stage
-/// invocation reads all of its cell, and a texel fetch is one lookup where
+/// invocation reads all of its cell, and an imageLoad is one inlined lookup where
 /// a storage-buffer load with a per-vertex index is, on llvmpipe, a loop
-/// over the SIMD lanes per component) and the order (a storage buffer, one
+/// over the SIMD lanes per component and a texelFetch a call, integrate.rs) and the order (a storage buffer, one
 /// u32 per vertex); cells beyond one texel buffer in `cell_chunks - 1`
 /// more bindings after them (`CELL_CHUNK_BINDING` in stored_cell.glsl).
 pub(super) fn set_desc(cell_chunks: usize) -> DescriptorSetDesc {
     let vertex = Stages::VERTEX;
-    let mut desc = DescriptorSetDesc::new(&[(DescriptorKind::UniformTexelBuffer, vertex), (DescriptorKind::StorageBuffer, vertex)]);
+    let mut desc = DescriptorSetDesc::new(&[(DescriptorKind::StorageTexelBuffer, vertex), (DescriptorKind::StorageBuffer, vertex)]);
     for _ in 1..cell_chunks {
-        desc = desc.with(DescriptorKind::UniformTexelBuffer, vertex);
+        desc = desc.with(DescriptorKind::StorageTexelBuffer, vertex);
     }
     desc
 }
@@ -285,8 +285,8 @@ pub(super) fn resident_pipeline(
 }
 
 pub(super) fn cells_and_order_set(ctx: &Arc<Context>, name: &str, cells: &TexelChunks, order: &Buffer) -> VkResult<DescriptorSet> {
-    let mut resources = vec![DescriptorResource::UniformTexelBuffer(&cells.buffers[0]), DescriptorResource::StorageBuffer(order)];
-    resources.extend(cells.buffers[1..].iter().map(DescriptorResource::UniformTexelBuffer));
+    let mut resources = vec![DescriptorResource::StorageTexelBuffer(&cells.buffers[0]), DescriptorResource::StorageBuffer(order)];
+    resources.extend(cells.buffers[1..].iter().map(DescriptorResource::StorageTexelBuffer));
     DescriptorSet::new(ctx, name, &set_desc(cells.buffers.len()), &resources)
 }
 

@@ -320,7 +320,7 @@ impl BrickMap {
                 counter.add_direct(UploadClass::Static, b.size());
                 TexelBuffer::over(ctx, b, Format::R8Uint)?
             }
-            BrickMap::Host(v) => upload_static_texels(ctx, "brick distances", &v, Format::R8Uint, counter)?,
+            BrickMap::Host(v) => upload_static_texels(ctx, "brick distances", &v, Format::R8Uint, BufferUsage::UNIFORM_TEXEL, counter)?,
         })
     }
 }

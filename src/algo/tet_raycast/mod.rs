@@ -551,11 +551,12 @@ impl TetRaycast {
         }
 
         // Everything the shader reads per ray (points, cells with their
-        // solid flags, neighbours, the BVH and its face list) is in uniform texel
-        // buffers: a texel fetch per lookup, where a storage-buffer load with
-        // a per-ray index is, on llvmpipe, a loop over the SIMD lanes per
-        // component (integrate.rs). The BVH nodes are uint texels (their
-        // float boxes pass as bits).
+        // solid flags, neighbours, the BVH and its face list) is in storage
+        // texel buffers: one inlined imageLoad per lookup, where a
+        // storage-buffer load with a per-ray index is, on llvmpipe, a loop
+        // over the SIMD lanes per component, and a texelFetch a call
+        // (integrate.rs). The BVH nodes are uint texels (their float boxes
+        // pass as bits).
         // Each array in texel buffers within the device's limits; the two
         // per-cell arrays share one chunk length (the shader's CELL_PER_CHUNK),
         // that of the 16-byte texels.
@@ -625,16 +626,16 @@ impl TetRaycast {
         }
         let counters = Buffer::new(ctx, BufferDesc::counters("tet-raycast counters", COUNTER_WORDS))?;
         let compute = Stages::COMPUTE;
-        let mut mesh_desc = DescriptorSetDesc::new(&[(DescriptorKind::UniformTexelBuffer, compute); 5]).with(DescriptorKind::StorageBuffer, compute);
+        let mut mesh_desc = DescriptorSetDesc::new(&[(DescriptorKind::StorageTexelBuffer, compute); 5]).with(DescriptorKind::StorageBuffer, compute);
         for _ in &extra {
-            mesh_desc = mesh_desc.with(DescriptorKind::UniformTexelBuffer, compute);
+            mesh_desc = mesh_desc.with(DescriptorKind::StorageTexelBuffer, compute);
         }
         let resources: Vec<DescriptorResource> = firsts
             .iter()
             .chain(&bvh_texel_buffers)
-            .map(DescriptorResource::UniformTexelBuffer)
+            .map(DescriptorResource::StorageTexelBuffer)
             .chain(std::iter::once(DescriptorResource::StorageBuffer(&counters)))
-            .chain(extra.iter().map(DescriptorResource::UniformTexelBuffer))
+            .chain(extra.iter().map(DescriptorResource::StorageTexelBuffer))
             .collect();
         let mesh_set = DescriptorSet::new(ctx, "tet-raycast mesh", &mesh_desc, &resources)?;
         let target_set = TargetImageSet::new("tet-raycast target", Stages::COMPUTE);
@@ -655,7 +656,7 @@ impl TetRaycast {
         let tile_h = TILE[1].to_string();
         let mut list_defines = defines.clone();
         list_defines.extend([("TILE_LISTS", "1"), ("TILE_W", tile_w.as_str()), ("TILE_H", tile_h.as_str())]);
-        let lists_desc = DescriptorSetDesc::new(&[(DescriptorKind::UniformTexelBuffer, compute); 2]);
+        let lists_desc = DescriptorSetDesc::new(&[(DescriptorKind::StorageTexelBuffer, compute); 2]);
         let key_lists = PipelineKey::Compute(ComputePipelineKey {
             shader: ShaderKey::new("tet_raycast/walk.comp", ShaderStage::Compute, &list_defines),
             push_constant_bytes: PUSH_BYTES,
@@ -664,7 +665,7 @@ impl TetRaycast {
         let pipeline_lists = crate::algo::pipelines::get(ctx, &key_lists)?;
         let tile_first = frame_texels(ctx, "tet-raycast tile starts", 1, 4, Format::R32Uint)?;
         let tile_entries = frame_texels(ctx, "tet-raycast tile faces", 1, 4, Format::R32Uint)?;
-        let lists_set = DescriptorSet::new(ctx, "tet-raycast tile lists", &lists_desc, &[DescriptorResource::UniformTexelBuffer(&tile_first), DescriptorResource::UniformTexelBuffer(&tile_entries)])?;
+        let lists_set = DescriptorSet::new(ctx, "tet-raycast tile lists", &lists_desc, &[DescriptorResource::StorageTexelBuffer(&tile_first), DescriptorResource::StorageTexelBuffer(&tile_entries)])?;
         // Per face of the shader's face list: its corners among the boundary
         // points and its cell's solidity.
         let boundary_index = |v: u32| boundary_vertices.binary_search(&v).map(|i| i as u32).map_err(|_| anyhow::anyhow!("boundary vertex {v} not indexed"));
@@ -824,7 +825,7 @@ impl RenderMethod for TetRaycast {
         let grown_first = ensure_frame_texels(&ctx, &mut self.tile_first, self.lists.first.len(), 4, "tet-raycast tile starts")?;
         let grown_entries = ensure_frame_texels(&ctx, &mut self.tile_entries, self.lists.faces.len(), 4, "tet-raycast tile faces")?;
         if grown_first || grown_entries {
-            self.lists_set.update(&[DescriptorResource::UniformTexelBuffer(&self.tile_first), DescriptorResource::UniformTexelBuffer(&self.tile_entries)])?;
+            self.lists_set.update(&[DescriptorResource::StorageTexelBuffer(&self.tile_first), DescriptorResource::StorageTexelBuffer(&self.tile_entries)])?;
         }
         self.tile_first.buffer.write(0, bytemuck::cast_slice(&self.lists.first), counter, UploadClass::FrameCells)?;
         self.tile_entries.buffer.write(0, bytemuck::cast_slice(&self.lists.faces), counter, UploadClass::FrameCells)?;
