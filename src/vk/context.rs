@@ -247,6 +247,12 @@ pub struct DeviceInfo {
     /// All components (built-ins included) one geometry-shader invocation
     /// may emit over all its vertices.
     pub max_geometry_total_output_components: u32,
+    /// Descriptors one shader stage may see, per class (every set of a
+    /// pipeline together; checked when its layout is made).
+    pub max_per_stage_storage_images: u32,
+    pub max_per_stage_sampled_images: u32,
+    pub max_per_stage_storage_buffers: u32,
+    pub max_per_stage_uniform_buffers: u32,
 }
 
 impl DeviceInfo {
@@ -634,6 +640,10 @@ impl Context {
             max_compute_work_group_invocations: limits.max_compute_work_group_invocations,
             max_geometry_output_vertices: limits.max_geometry_output_vertices,
             max_geometry_total_output_components: limits.max_geometry_total_output_components,
+            max_per_stage_storage_images: limits.max_per_stage_descriptor_storage_images,
+            max_per_stage_sampled_images: limits.max_per_stage_descriptor_sampled_images,
+            max_per_stage_storage_buffers: limits.max_per_stage_descriptor_storage_buffers,
+            max_per_stage_uniform_buffers: limits.max_per_stage_descriptor_uniform_buffers,
         };
         Ok((physical, device, queue_family, info))
     }

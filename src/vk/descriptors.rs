@@ -23,7 +23,7 @@ use super::buffer::{Buffer, TexelBuffer};
 use super::error::{Check, VkError, VkResult};
 use super::image::{Filter, Image, Sampler};
 use super::types::{BufferUsage, Stages};
-use super::Context;
+use super::{Context, DeviceInfo};
 
 /// What a binding holds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -93,6 +93,56 @@ impl DescriptorSetDesc {
         self.bindings.push(DescriptorBinding { kind, stages });
         self
     }
+}
+
+/// The per-stage descriptor classes Vulkan limits: storage images (storage
+/// texel buffers count as ones), sampled images (uniform texel buffers
+/// too), storage buffers, uniform buffers.
+const STAGE_CLASSES: [&str; 4] = ["storage images", "sampled images", "storage buffers", "uniform buffers"];
+
+impl DescriptorKind {
+    fn stage_class(self) -> usize {
+        match self {
+            DescriptorKind::StorageImage | DescriptorKind::StorageTexelBuffer => 0,
+            DescriptorKind::CombinedImageSampler | DescriptorKind::UniformTexelBuffer => 1,
+            DescriptorKind::StorageBuffer => 2,
+            DescriptorKind::UniformBuffer => 3,
+        }
+    }
+}
+
+/// Descriptors of each class (`STAGE_CLASSES`) that `stage` sees over all
+/// of a pipeline's sets.
+fn stage_counts(sets: &[DescriptorSetDesc], stage: Stages) -> [u32; 4] {
+    let mut n = [0u32; 4];
+    for b in sets.iter().flat_map(|s| &s.bindings).filter(|b| b.stages.intersects(stage)) {
+        n[b.kind.stage_class()] += 1;
+    }
+    n
+}
+
+/// Refuses a pipeline whose sets give one stage more descriptors of a class
+/// than the device's `maxPerStageDescriptor*` limit allows (a mesh split
+/// over many texel buffers, `algo::chunks`, binds one per piece).
+pub fn check_stage_limits(info: &DeviceInfo, pipeline: &str, sets: &[DescriptorSetDesc]) -> VkResult<()> {
+    let limits = [
+        info.max_per_stage_storage_images,
+        info.max_per_stage_sampled_images,
+        info.max_per_stage_storage_buffers,
+        info.max_per_stage_uniform_buffers,
+    ];
+    for (stage_name, stage) in Stages::all().iter_names() {
+        let counts = stage_counts(sets, stage);
+        for (k, (&n, &max)) in counts.iter().zip(&limits).enumerate() {
+            if n > max {
+                return Err(VkError::Unsupported {
+                    device: info.name.clone(),
+                    what: format!("{n} {} in the {} stage of pipeline '{pipeline}' (the per-stage limit is {max})", STAGE_CLASSES[k], stage_name.to_lowercase()),
+                });
+            }
+        }
+    }
+    Ok(())
 }
 
 /// A descriptor-set layout destroyed on drop (pipelines own the layouts
@@ -419,5 +469,24 @@ impl Deref for StorageBufferSet {
     type Target = DescriptorSet;
     fn deref(&self) -> &DescriptorSet {
         &self.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stage_counts_add_every_set_a_stage_sees_by_class() {
+        let c = Stages::COMPUTE;
+        let f = Stages::FRAGMENT;
+        let sets = [
+            DescriptorSetDesc::new(&[(DescriptorKind::StorageTexelBuffer, c | f), (DescriptorKind::UniformTexelBuffer, c)]),
+            DescriptorSetDesc::new(&[(DescriptorKind::StorageImage, c), (DescriptorKind::StorageBuffer, c), (DescriptorKind::UniformBuffer, f)]),
+            DescriptorSetDesc::new(&[(DescriptorKind::CombinedImageSampler, f), (DescriptorKind::StorageTexelBuffer, c)]),
+        ];
+        assert_eq!(stage_counts(&sets, c), [3, 1, 1, 0]);
+        assert_eq!(stage_counts(&sets, f), [1, 1, 0, 1]);
+        assert_eq!(stage_counts(&sets, Stages::VERTEX), [0; 4]);
     }
 }

@@ -21,7 +21,7 @@ use std::sync::{Arc, Mutex};
 
 use ash::vk;
 
-use super::descriptors::{DescriptorSetDesc, DescriptorSetLayout};
+use super::descriptors::{check_stage_limits, DescriptorSetDesc, DescriptorSetLayout};
 use super::error::{Check, VkResult};
 use super::pipeline::{ColorTarget, ComputePipelineDesc, GraphicsPipelineDesc, Pipeline, VertexAttribute};
 use super::shader::{compile_glsl, ShaderModule, ShaderStage};
@@ -251,6 +251,7 @@ impl PipelineCache {
             ShaderModule::new(ctx, &s.path, s.stage, &spirv)
         };
         let layouts = |sets: &[DescriptorSetDesc]| -> VkResult<Vec<DescriptorSetLayout>> {
+            check_stage_limits(&ctx.info, &name, sets)?;
             sets.iter().map(|s| DescriptorSetLayout::new(ctx, s)).collect()
         };
         match key {
