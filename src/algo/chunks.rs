@@ -291,9 +291,10 @@ impl VertexChunks {
     }
 }
 
-/// A host-visible storage texel buffer (read with imageLoad) written every frame (pt-compute's
-/// pixel lists, tet-raycast's tile lists), of `texels` texels of `format`
-/// (`texel_bytes` each), at least one. Refused past maxTexelBufferElements.
+/// A host-visible storage texel buffer (read with imageLoad) written every
+/// frame (pt-compute's pixel lists, tet-raycast's tile lists), of `texels`
+/// texels of `format` (`texel_bytes` each), at least one. Refused past
+/// maxTexelBufferElements.
 pub fn frame_texels(ctx: &Arc<Context>, name: &str, texels: usize, texel_bytes: usize, format: Format) -> VkResult<TexelBuffer> {
     let limit = ctx.info.max_texel_buffer_elements as usize;
     if texels > limit {

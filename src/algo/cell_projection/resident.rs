@@ -240,13 +240,15 @@ fn cells_per_draw(limits: &ChunkLimits, primitives: Primitives) -> usize {
     limits.storage_chunk(4).min(limits.allocation_chunk(4 * primitives.indices_per_cell() as u64)).max(1)
 }
 
-/// Set 1 of `resident.vert` (resident-gpusort's draw): the stored cells (a storage texel buffer of
-/// RGBA32F, `FLOATS_PER_STORED_CELL / 4` texels per cell: each vertex stage
-/// invocation reads all of its cell, and an imageLoad is one inlined lookup where
-/// a storage-buffer load with a per-vertex index is, on llvmpipe, a loop
-/// over the SIMD lanes per component and a texelFetch a call, integrate.rs) and the order (a storage buffer, one
-/// u32 per vertex); cells beyond one texel buffer in `cell_chunks - 1`
-/// more bindings after them (`CELL_CHUNK_BINDING` in stored_cell.glsl).
+/// Set 1 of `resident.vert` (resident-gpusort's draw): the stored cells (a
+/// storage texel buffer of RGBA32F, `FLOATS_PER_STORED_CELL / 4` texels per
+/// cell: each vertex stage invocation reads all of its cell, and an
+/// imageLoad is one inlined lookup where a storage-buffer load with a
+/// per-vertex index is, on llvmpipe, a loop over the SIMD lanes per
+/// component and a texelFetch a call, integrate.rs) and the order (a
+/// storage buffer, one u32 per vertex); cells beyond one texel buffer in
+/// `cell_chunks - 1` more bindings after them (`CELL_CHUNK_BINDING` in
+/// stored_cell.glsl).
 pub(super) fn set_desc(cell_chunks: usize) -> DescriptorSetDesc {
     let vertex = Stages::VERTEX;
     let mut desc = DescriptorSetDesc::new(&[(DescriptorKind::StorageTexelBuffer, vertex), (DescriptorKind::StorageBuffer, vertex)]);
