@@ -129,6 +129,13 @@ struct AbArgs {
     /// Run these specs instead of every method at its defaults (repeat).
     #[arg(long, value_name = "SPEC")]
     spec: Vec<String>,
+    /// An environment variable set for BASE's processes only (repeat), e.g.
+    /// a driver setting measured with the same binary on both sides.
+    #[arg(long, value_name = "VAR=VALUE")]
+    base_env: Vec<String>,
+    /// An environment variable set for NEW's processes only (repeat).
+    #[arg(long, value_name = "VAR=VALUE")]
+    new_env: Vec<String>,
     /// Samples per binary and benchmark (default: 300 per frame, 10 per run).
     #[arg(long)]
     pairs: Option<usize>,
@@ -806,8 +813,19 @@ fn ab(registry: &Registry, args: &AbArgs) -> Result<()> {
         .clone()
         .or_else(|| std::env::var_os("CARGO_TARGET_DIR").map(PathBuf::from))
         .unwrap_or_else(|| PathBuf::from("target"));
-    let base = ab::resolve(&args.base, "BASE", &target)?;
-    let new = ab::resolve(&args.new, "NEW", &target)?;
+    let env = |option: &str, given: &[String]| -> Result<std::collections::BTreeMap<String, String>> {
+        let mut env = std::collections::BTreeMap::new();
+        for text in given {
+            let (var, value) = ab::parse_env(option, text)?;
+            anyhow::ensure!(env.insert(var.clone(), value).is_none(), "{option}: {var} given twice");
+        }
+        Ok(env)
+    };
+    let (base_env, new_env) = (env("--base-env", &args.base_env)?, env("--new-env", &args.new_env)?);
+    let mut base = ab::resolve(&args.base, "BASE", &target)?;
+    let mut new = ab::resolve(&args.new, "NEW", &target)?;
+    base.env = base_env;
+    new.env = new_env;
     let report = ab::run(&base, &new, &benches, &settings, |b, p| {
         volbench::progress!("volbench: ab: [{}/{}] {} on {}, pair {}/{}", b + 1, benches.len(), benches[b].label, benches[b].dataset, p + 1, settings.pairs);
     }, |note| volbench::progress!("volbench: ab: {note}"))?;

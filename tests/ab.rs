@@ -35,6 +35,9 @@ fn bad_binaries_and_revisions_are_clear_errors() {
         (vec!["--threshold", "0"], "--threshold"),
         (vec!["--filter", "nope"], "--filter nope"),
         (vec!["--spec", "balanced:nope=1"], "--spec"),
+        (vec!["--base-env", "NOEQUALS"], "--base-env NOEQUALS: expected VAR=VALUE"),
+        (vec!["--new-env", "=1"], "--new-env =1"),
+        (vec!["--new-env", "A=1", "--new-env", "A=2"], "--new-env: A given twice"),
     ] {
         let out = volbench().args(["ab", exe, exe]).args(&args).output().unwrap();
         assert_eq!(out.status.code(), Some(1), "{args:?}");
@@ -195,4 +198,36 @@ fn a_serve_process_answers_refuses_bad_commands_and_exits_on_eof() {
     // Serve mode writes nothing but its answers: no outputs beside it.
     let out = volbench().args(["run", "--data", "post-small", "--method", "balanced", "--serve", "--json", "x.json"]).output().unwrap();
     assert_eq!(out.status.code(), Some(2));
+}
+
+/// `--new-env` reaches NEW's processes and not BASE's: pointing NEW's
+/// VOLBENCH_DATA at an empty directory fails NEW alone, in both modes, and
+/// the report records each side's environment.
+#[test]
+fn a_per_side_environment_reaches_that_side_only() {
+    let exe = env!("CARGO_BIN_EXE_volbench");
+    let empty = tempfile::tempdir().unwrap();
+    let data = format!("VOLBENCH_DATA={}", empty.path().display());
+    for mode in [&[][..], &["--per-run"][..]] {
+        let dir = tempfile::tempdir().unwrap();
+        let out = volbench()
+            .args(["ab", exe, exe, "--spec", "balanced", "--filter", "post-small", "--pairs", "2", "--processes", "2", "--size", "32x32", "--warmup", "0"])
+            .args(["--base-env", "VOLBENCH_TEST_UNUSED=1", "--new-env", &data])
+            .args(mode)
+            .arg("--out")
+            .arg(dir.path())
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{mode:?}: {stderr}");
+        assert!(stderr.contains("benchmarks failed"), "{mode:?}: {stderr}");
+        let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.path().join("ab.json")).unwrap()).unwrap();
+        assert_eq!(v["base"]["env"]["VOLBENCH_TEST_UNUSED"], "1", "{v}");
+        assert_eq!(v["new"]["env"]["VOLBENCH_DATA"], empty.path().display().to_string(), "{v}");
+        let error = v["rows"][0]["error"].as_str().unwrap_or_default();
+        // The data directory named in the failure is NEW's alone.
+        assert!(error.contains("post-small") && error.contains(&empty.path().display().to_string()), "{mode:?}: {error}");
+        let md = std::fs::read_to_string(dir.path().join("ab.md")).unwrap();
+        assert!(md.contains("VOLBENCH_TEST_UNUSED=1") && md.contains(&data), "{md}");
+    }
 }

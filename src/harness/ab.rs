@@ -23,6 +23,7 @@
 //! "same", and otherwise undecided: the machine was too noisy for this many
 //! pairs.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Duration;
@@ -83,6 +84,10 @@ pub struct Binary {
     pub version: String,
     /// The git revision it was built from, when `ab` built it.
     pub revision: Option<String>,
+    /// Environment variables set for this side's processes only
+    /// (`--base-env`, `--new-env`): e.g. a driver setting measured with the
+    /// same binary on both sides.
+    pub env: BTreeMap<String, String>,
 }
 
 /// `arg` (BASE or NEW, named `role` in errors) as a binary: an executable
@@ -97,7 +102,7 @@ pub fn resolve(arg: &str, role: &str, target_dir: &Path) -> Result<Binary> {
         ensure!(path.is_file(), "{role} {arg}: is not a file (give a volbench binary or a git revision)");
         let version = version_of(path).with_context(|| format!("{role} {arg}"))?;
         let path = path.canonicalize().with_context(|| format!("{role} {arg}"))?;
-        return Ok(Binary { path, version, revision: None });
+        return Ok(Binary { path, version, revision: None, env: BTreeMap::new() });
     }
     let commit = git(&["rev-parse", "--verify", "--quiet", &format!("{arg}^{{commit}}")])
         .ok()
@@ -105,7 +110,7 @@ pub fn resolve(arg: &str, role: &str, target_dir: &Path) -> Result<Binary> {
         .with_context(|| format!("{role} {arg}: neither an existing file nor a git revision of this repository"))?;
     let binary = build_revision(&commit, target_dir).with_context(|| format!("{role} {arg}: building revision {commit}"))?;
     let version = version_of(&binary).with_context(|| format!("{role} {arg}: the binary built from {commit}"))?;
-    Ok(Binary { path: binary, version, revision: Some(commit) })
+    Ok(Binary { path: binary, version, revision: Some(commit), env: BTreeMap::new() })
 }
 
 /// `volbench --version` of `path`, or an error if it is not volbench.
@@ -439,21 +444,30 @@ impl AbReport {
     }
 }
 
+/// `VAR=VALUE` (an `--base-env` / `--new-env` value) as a pair; `option`
+/// names it in the error.
+pub fn parse_env(option: &str, text: &str) -> Result<(String, String)> {
+    let (var, value) = text.split_once('=').with_context(|| format!("{option} {text}: expected VAR=VALUE"))?;
+    ensure!(!var.is_empty() && !var.contains('\0') && !value.contains('\0'), "{option} {text}: expected VAR=VALUE with a non-empty name and no NUL");
+    Ok((var.to_string(), value.to_string()))
+}
+
 /// The median frame time (ms) of one `volbench run` of `bench` by `binary`.
-fn sample(binary: &Path, bench: &Benchmark, s: &AbSettings, scratch: &Path) -> Result<f64> {
+fn sample(binary: &Binary, bench: &Benchmark, s: &AbSettings, scratch: &Path) -> Result<f64> {
     let json = scratch.join("run.json");
     let _ = std::fs::remove_file(&json);
-    let out = Command::new(binary)
+    let out = Command::new(&binary.path)
         .args(["run", "--data", &bench.dataset, "--method", &bench.spec])
         .args(["--size", &format!("{}x{}", s.width, s.height)])
         .args(["--frames", &s.frames.to_string(), "--warmup", &s.warmup.to_string(), "--json"])
         .arg(&json)
         .env("VOLBENCH_DATA", super::datasets::data_dir())
+        .envs(&binary.env)
         .output()
-        .with_context(|| format!("running {}", binary.display()))?;
+        .with_context(|| format!("running {}", binary.path.display()))?;
     if !out.status.success() {
         let err = String::from_utf8_lossy(&out.stderr);
-        bail!("{} run failed ({}): {}", binary.display(), out.status, crate::fsio::clip_message(err.trim()));
+        bail!("{} run failed ({}): {}", binary.path.display(), out.status, crate::fsio::clip_message(err.trim()));
     }
     let text = std::fs::read_to_string(&json).with_context(|| format!("reading {}", json.display()))?;
     let v: serde_json::Value = serde_json::from_str(&text).with_context(|| format!("{}: not JSON", json.display()))?;
@@ -502,7 +516,7 @@ fn frame_pairs(
 ) -> std::result::Result<Vec<Pair>, std::result::Result<String, anyhow::Error>> {
     let timeout = Duration::from_secs_f64(s.timeout_s);
     let args = serve_args(bench, s);
-    let start = |b: &Binary| match Server::start(&b.path, &args, timeout) {
+    let start = |b: &Binary| match Server::start(&b.path, &b.env, &args, timeout) {
         Ok(server) => Ok(server),
         Err(StartError::Unsupported(why)) => Err(Ok(why)),
         Err(StartError::Failed(e)) => Err(Err(e)),
@@ -548,11 +562,11 @@ fn run_pairs(
         progress(p);
         let new_first = order.new_first();
         let pair = if new_first {
-            let new_ms = sample(&new.path, bench, s, scratch)?;
-            Pair { new_ms, base_ms: sample(&base.path, bench, s, scratch)?, new_first }
+            let new_ms = sample(new, bench, s, scratch)?;
+            Pair { new_ms, base_ms: sample(base, bench, s, scratch)?, new_first }
         } else {
-            let base_ms = sample(&base.path, bench, s, scratch)?;
-            Pair { base_ms, new_ms: sample(&new.path, bench, s, scratch)?, new_first }
+            let base_ms = sample(base, bench, s, scratch)?;
+            Pair { base_ms, new_ms: sample(new, bench, s, scratch)?, new_first }
         };
         pairs.push(pair);
     }
@@ -630,12 +644,15 @@ pub fn run(
 /// The report as a Markdown table (also what stdout shows).
 pub fn markdown(r: &AbReport) -> String {
     let s = &r.settings;
+    let env = |b: &Binary| b.env.iter().map(|(k, v)| format!(" {k}={v}")).collect::<String>();
     let mut out = format!(
-        "BASE {} ({})\nNEW  {} ({})\n{} pairs per benchmark at {}x{}, {}, seed {}\n{}; threshold {:.1} %\n\n",
+        "BASE {} ({}){}\nNEW  {} ({}){}\n{} pairs per benchmark at {}x{}, {}, seed {}\n{}; threshold {:.1} %\n\n",
         r.base.path.display(),
         r.base.revision.as_deref().unwrap_or(&r.base.version),
+        env(&r.base),
         r.new.path.display(),
         r.new.revision.as_deref().unwrap_or(&r.new.version),
+        env(&r.new),
         s.pairs,
         s.width,
         s.height,

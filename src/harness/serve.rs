@@ -15,6 +15,7 @@
 //! - anything else: `{"error":"…"}` and the server keeps serving; a frame
 //!   that fails answers `{"error":"…"}` and the server exits 1.
 
+use std::collections::BTreeMap;
 use std::io::{BufRead, BufReader, Write};
 use std::path::Path;
 use std::os::unix::process::CommandExt as _;
@@ -169,15 +170,16 @@ pub struct Server {
 
 impl Server {
     /// Start `binary run --serve` with `args` (dataset, method, size,
-    /// warm-up) in a process group of its own and wait up to `timeout` for
-    /// its handshake.
-    pub fn start(binary: &Path, args: &[String], timeout: Duration) -> std::result::Result<Server, StartError> {
+    /// warm-up) and `env` added to its environment, in a process group of
+    /// its own, and wait up to `timeout` for its handshake.
+    pub fn start(binary: &Path, env: &BTreeMap<String, String>, args: &[String], timeout: Duration) -> std::result::Result<Server, StartError> {
         let name = binary.display().to_string();
         let mut child = Command::new(binary)
             .arg("run")
             .args(args)
             .arg("--serve")
             .env("VOLBENCH_DATA", super::datasets::data_dir())
+            .envs(env)
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
