@@ -139,6 +139,25 @@ pub fn clip_message(text: &str) -> String {
     format!("{}… ({} more bytes)", &text[..end], text.len() - end)
 }
 
+/// Another process's error output, shortened to at most ~1,000 bytes by
+/// cutting its middle: an error chain names what was being done first and
+/// the root cause (often a path) last, so both ends are kept.
+pub fn clip_child_output(text: &str) -> String {
+    const KEEP: usize = 500;
+    if text.len() <= 2 * KEEP {
+        return text.to_string();
+    }
+    let mut head = KEEP;
+    while !text.is_char_boundary(head) {
+        head -= 1;
+    }
+    let mut tail = text.len() - KEEP;
+    while !text.is_char_boundary(tail) {
+        tail += 1;
+    }
+    format!("{} … ({} bytes) … {}", &text[..head], tail - head, &text[tail..])
+}
+
 /// Where an output goes.
 #[derive(Debug, Clone, PartialEq, Eq, Hash)]
 pub enum OutputTarget {
@@ -449,6 +468,16 @@ fn canonical_for_compare(p: &Path) -> PathBuf {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_child_output_keeps_both_ends() {
+        assert_eq!(clip_child_output("short"), "short");
+        let long = format!("context: {}: /the/root/cause/é.txt", "é".repeat(2_000));
+        let clipped = clip_child_output(&long);
+        assert!(clipped.len() < 1_100, "{}", clipped.len());
+        assert!(clipped.starts_with("context: ") && clipped.ends_with("/the/root/cause/é.txt"), "{clipped}");
+        assert!(clipped.contains(" bytes) … "), "{clipped}");
+    }
 
     #[test]
     fn replaces_regular_files_atomically_and_leaves_no_temp() {

@@ -467,7 +467,7 @@ fn sample(binary: &Binary, bench: &Benchmark, s: &AbSettings, scratch: &Path) ->
         .with_context(|| format!("running {}", binary.path.display()))?;
     if !out.status.success() {
         let err = String::from_utf8_lossy(&out.stderr);
-        bail!("{} run failed ({}): {}", binary.path.display(), out.status, crate::fsio::clip_message(err.trim()));
+        bail!("{} run failed ({}): {}", binary.path.display(), out.status, crate::fsio::clip_child_output(err.trim()));
     }
     let text = std::fs::read_to_string(&json).with_context(|| format!("reading {}", json.display()))?;
     let v: serde_json::Value = serde_json::from_str(&text).with_context(|| format!("{}: not JSON", json.display()))?;

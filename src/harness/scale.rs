@@ -173,7 +173,7 @@ pub fn run_method(exe: &Path, file: &Path, spec: &str, level: usize, label: &str
     cmd.args(["run", "--data"]).arg(file).args(["--method", spec]).args(args).arg("--json").arg(json);
     let (status, err, peak) = run_measured(cmd)?;
     if !status.success() {
-        bail!("{status}: {}", crate::fsio::clip_message(err.trim()));
+        bail!("{status}: {}", crate::fsio::clip_child_output(err.trim()));
     }
     let text = std::fs::read_to_string(json).with_context(|| format!("reading {}", json.display()))?;
     let v: serde_json::Value = serde_json::from_str(&text).with_context(|| format!("{}: not JSON", json.display()))?;

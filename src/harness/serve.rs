@@ -334,7 +334,7 @@ impl Server {
 
 /// The last three of `lines`, on one line.
 fn tail(lines: &[String]) -> String {
-    crate::fsio::clip_message(lines[lines.len().saturating_sub(3)..].join(" / ").trim())
+    crate::fsio::clip_child_output(lines[lines.len().saturating_sub(3)..].join(" / ").trim())
 }
 
 impl Drop for Server {
