@@ -400,3 +400,79 @@ fn brick_map_uploaded_from_host_memory_is_the_in_place_map() {
     }
 }
 
+
+/// The blob's samples as `kind` (u8, u16, i16 holding -32768, f32), the
+/// field's range spread over the type's so each native texture format is
+/// exercised; with the map from field value to sample value (scale, offset).
+fn blob_as(kind: &str, dims: [usize; 3]) -> (Volume, f64, f64) {
+    let f = blob(dims, [1.0, 1.0, 1.0]);
+    let Samples::F32(v) = f.samples() else { unreachable!() };
+    let top = v.iter().cloned().fold(f32::MIN, f32::max) as f64;
+    let (scale, offset) = match kind {
+        "u8" => (255.0 / top, 0.0),
+        "u16" => (65535.0 / top, 0.0),
+        // -32768 present: stored shifted as unorm (raycast/mod.rs, Texels).
+        "i16" => (65535.0 / top, -32768.0),
+        _ => (1.0, 0.0),
+    };
+    let q = |x: f32| (x as f64 * scale + offset).round();
+    let samples = match kind {
+        "u8" => Samples::U8(v.iter().map(|&x| q(x) as u8).collect()),
+        "u16" => Samples::U16(v.iter().map(|&x| q(x) as u16).collect()),
+        "i16" => Samples::I16(v.iter().map(|&x| q(x) as i16).collect()),
+        _ => Samples::F32(v.clone()),
+    };
+    (Volume::new("test", kind, dims, [1.0, 1.0, 1.0], [0.5, -1.0, 2.0], samples).unwrap(), scale, offset)
+}
+
+/// `reads=loads` (eight imageLoads blended in f32 in the shader) and
+/// `reads=texture` (the sampler's filter) read the same trilinear field for
+/// every texture format, at two image sizes: both within the reference
+/// bound, the same samples taken, and loads never further from the f64
+/// reference (lavapipe filters 8-bit textures with 8-bit weights: there
+/// loads is closer).
+#[test]
+fn texel_loads_and_the_sampler_read_the_same_field() {
+    for kind in ["u8", "u16", "i16", "f32"] {
+        let (vol, scale, offset) = blob_as(kind, [24, 20, 16]);
+        let d = dataset(vol);
+        let volbench::harness::datasets::DatasetData::Volume(v) = &d.data else { unreachable!() };
+        // The transfer function moved to the samples' values.
+        let mut tf = tf(d.bounds().diagonal());
+        for p in &mut tf.points {
+            p.scalar = p.scalar * scale + offset;
+        }
+        let cam = orbit(&d);
+        for size in [48u32, 80] {
+            let r = render_volume_reference(v, &cam, &tf, size, size).unwrap();
+            let want = RgbaImage { width: size, height: size, pixels: r.pixels.iter().map(|p| p.map(|c| c as f32)).collect() };
+            for method in ["raycast-compute", "raycast-fragment"] {
+                let tex = render_sized(&format!("{method}:reads=texture"), &d, &tf, cam, size);
+                let loads = render_sized(&format!("{method}:reads=loads"), &d, &tf, cam, size);
+                assert_eq!(tex.result.details["volume_reads"], "texture");
+                assert_eq!(loads.result.details["volume_reads"], "loads");
+                let (et, el) = (rmse(&tex.image, &want), rmse(&loads.image, &want));
+                let between = rmse(&tex.image, &loads.image);
+                eprintln!("{kind} {size} {method}: texture {et:.3e}, loads {el:.3e}, between {between:.3e}");
+                assert!(et <= REFERENCE_BOUND && el <= REFERENCE_BOUND, "{kind} {size} {method}: {et} {el}");
+                assert!(el <= et * 1.01 + 1e-7, "{kind} {size} {method}: loads {el} further than texture {et}");
+                // On lavapipe the same field up to f32 rounding, but for
+                // 8-bit texels, which its sampler blends with 8-bit weights
+                // (as GPUs' texture units do for every format).
+                let same = if kind != "u8" && context().info.is_cpu() { 1e-6 } else { 1e-3 };
+                assert!(between <= same, "{kind} {size} {method}: {between}");
+                // The same march; only where the two fields differ by a
+                // rounding (8-bit weights) may a ray cross the termination
+                // threshold a step sooner or later.
+                let (st, sl) = (samples(&tex) as f64, samples(&loads) as f64);
+                assert!((st - sl).abs() <= 1e-3 * st, "{kind} {size} {method}: samples {st} {sl}");
+            }
+        }
+    }
+    // auto: loads on a CPU device (lavapipe), the texture unit elsewhere.
+    let d = dataset(blob([24, 20, 16], [1.0, 1.0, 1.0]));
+    let tf = tf(d.bounds().diagonal());
+    let auto = render("raycast-compute", &d, &tf, orbit(&d));
+    let want = if context().info.is_cpu() { "loads" } else { "texture" };
+    assert_eq!(auto.result.details["volume_reads"], want);
+}

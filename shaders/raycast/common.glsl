@@ -28,7 +28,14 @@ layout(std140, set = 0, binding = 0) uniform Params {
     vec4 material;   // x: ambient, y: diffuse, z: specular, w: shininess
 } params;
 
+#ifdef VOLUME_LOADS
+// Read with imageLoad and blended here (option `reads`): on lavapipe a
+// texture sample is an out-of-line call whose filter weights have 8 bits,
+// an imageLoad is inlined.
+layout(set = 0, binding = 1, VOLUME_FORMAT) uniform readonly image3D volume_img;
+#else
 layout(set = 0, binding = 1) uniform sampler3D volume_tex;
+#endif
 layout(set = 0, binding = 2) uniform sampler1D tf_tex;
 // Per brick: 0 when some sample in it may have attenuation > 0, else the
 // Chebyshev distance in bricks to the nearest such brick (at most 255).
@@ -47,8 +54,35 @@ layout(push_constant) uniform Frame {
 // Samples are taken with an explicit level (single-level textures): the
 // march loop is non-uniform control flow, where implicit derivatives are
 // undefined, and the explicit level spares llvmpipe computing them.
+#ifdef VOLUME_LOADS
+// The trilinear field at voxel coordinate u, clamped to the box as the
+// sampler's clamp-to-edge does (every axis has at least 2 samples).
+float volume_at(vec3 u) {
+    vec3 uc = clamp(u, vec3(0.0), params.box_max.xyz);
+    vec3 i = min(floor(uc), params.box_max.xyz - 1.0);
+    vec3 f = uc - i;
+    ivec3 k = ivec3(i);
+    float c000 = imageLoad(volume_img, k).r;
+    float c100 = imageLoad(volume_img, k + ivec3(1, 0, 0)).r;
+    float c010 = imageLoad(volume_img, k + ivec3(0, 1, 0)).r;
+    float c110 = imageLoad(volume_img, k + ivec3(1, 1, 0)).r;
+    float c001 = imageLoad(volume_img, k + ivec3(0, 0, 1)).r;
+    float c101 = imageLoad(volume_img, k + ivec3(1, 0, 1)).r;
+    float c011 = imageLoad(volume_img, k + ivec3(0, 1, 1)).r;
+    float c111 = imageLoad(volume_img, k + ivec3(1, 1, 1)).r;
+    vec2 y0 = mix(vec2(c000, c001), vec2(c100, c101), f.x);
+    vec2 y1 = mix(vec2(c010, c011), vec2(c110, c111), f.x);
+    vec2 z = mix(y0, y1, f.y);
+    return mix(z.x, z.y, f.z);
+}
+#else
+float volume_at(vec3 u) {
+    return textureLod(volume_tex, (u + 0.5) * params.inv_dims.xyz, 0.0).r;
+}
+#endif
+
 float table_coord(vec3 u) {
-    float v = textureLod(volume_tex, (u + 0.5) * params.inv_dims.xyz, 0.0).r;
+    float v = volume_at(u);
     return clamp(params.tf_map.x * (v - params.tf_map.y), 0.0, 1.0);
 }
 

@@ -144,6 +144,9 @@ pub struct DeviceFeatures {
     pub vertex_pipeline_stores_and_atomics: bool,
     /// Storage images declared without a format qualifier can be written.
     pub shader_storage_image_write_without_format: bool,
+    /// Storage images of the extended formats (r8, r16, r16_snorm, ...) in
+    /// shaders: an 8- or 16-bit volume read with imageLoad.
+    pub shader_storage_image_extended_formats: bool,
     /// Primitives are not clipped at the near and far planes (depth clamped).
     pub depth_clamp: bool,
     /// Vertex shaders can write gl_ClipDistance (user clip planes).
@@ -172,6 +175,11 @@ impl DeviceFeatures {
                 have.shader_storage_image_write_without_format,
                 "shaderStorageImageWriteWithoutFormat",
             ),
+            (
+                self.shader_storage_image_extended_formats,
+                have.shader_storage_image_extended_formats,
+                "shaderStorageImageExtendedFormats",
+            ),
             (self.depth_clamp, have.depth_clamp, "depthClamp"),
             (self.shader_clip_distance, have.shader_clip_distance, "shaderClipDistance"),
         ];
@@ -190,6 +198,7 @@ impl DeviceFeatures {
             fragment_stores_and_atomics: b(f.fragment_stores_and_atomics),
             vertex_pipeline_stores_and_atomics: b(f.vertex_pipeline_stores_and_atomics),
             shader_storage_image_write_without_format: b(f.shader_storage_image_write_without_format),
+            shader_storage_image_extended_formats: b(f.shader_storage_image_extended_formats),
             depth_clamp: b(f.depth_clamp),
             shader_clip_distance: b(f.shader_clip_distance),
         }
@@ -206,6 +215,7 @@ impl DeviceFeatures {
             .fragment_stores_and_atomics(self.fragment_stores_and_atomics)
             .vertex_pipeline_stores_and_atomics(self.vertex_pipeline_stores_and_atomics)
             .shader_storage_image_write_without_format(self.shader_storage_image_write_without_format)
+            .shader_storage_image_extended_formats(self.shader_storage_image_extended_formats)
             .depth_clamp(self.depth_clamp)
             .shader_clip_distance(self.shader_clip_distance)
     }
@@ -712,6 +722,13 @@ impl Context {
             features |= vk::FormatFeatureFlags::SAMPLED_IMAGE_FILTER_LINEAR;
         }
         self.format_supports(format, features)
+    }
+
+    /// Whether shaders may read images of `format` with imageLoad (as a
+    /// storage image declared with its format qualifier).
+    pub fn can_load(&self, format: Format) -> bool {
+        let Some((_, extended)) = format.glsl_image_format() else { return false };
+        self.format_supports(format, vk::FormatFeatureFlags::STORAGE_IMAGE) && (!extended || self.info.features.shader_storage_image_extended_formats)
     }
 
     /// The largest extent (and layers, max resource size) an optimal-tiling

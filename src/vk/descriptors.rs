@@ -196,7 +196,7 @@ pub enum DescriptorResource<'a> {
     UniformBuffer(&'a Buffer),
     /// Sampled in layout SHADER_READ_ONLY_OPTIMAL (`ImageUse::Sampled`).
     CombinedImageSampler(&'a Image, &'a Sampler),
-    /// Accessed in layout GENERAL (`ImageUse::ComputeStorage`).
+    /// Accessed in layout GENERAL (`ImageUse::ComputeStorage`, `ImageUse::ShaderLoad`).
     StorageImage(&'a Image),
     UniformTexelBuffer(&'a TexelBuffer),
     StorageTexelBuffer(&'a TexelBuffer),

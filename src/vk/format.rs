@@ -48,6 +48,26 @@ impl Format {
         }
     }
 
+    /// The format's GLSL image format qualifier (`layout(r8) image3D`) and
+    /// whether it is one of the extended storage formats (SPIR-V's
+    /// StorageImageExtendedFormats, the device feature
+    /// shaderStorageImageExtendedFormats); `None` for a depth format.
+    pub fn glsl_image_format(self) -> Option<(&'static str, bool)> {
+        Some(match self {
+            Format::R8Unorm => ("r8", true),
+            Format::R8Uint => ("r8ui", true),
+            Format::R16Unorm => ("r16", true),
+            Format::R16Snorm => ("r16_snorm", true),
+            Format::R16Sint => ("r16i", true),
+            Format::R32Float => ("r32f", false),
+            Format::R32Uint => ("r32ui", false),
+            Format::Rg32Float => ("rg32f", false),
+            Format::Rgb32Float | Format::Depth32Float => return None,
+            Format::Rgba32Float => ("rgba32f", false),
+            Format::Rgba32Uint => ("rgba32ui", false),
+        })
+    }
+
     /// Bytes per texel.
     pub fn texel_bytes(self) -> u64 {
         match self {

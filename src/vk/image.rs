@@ -55,7 +55,7 @@ impl ImageDim {
     }
 }
 
-/// A sampled (optionally also storage) image, as data. Texels are given
+/// A sampled image (or one read with imageLoad), as data. Texels are given
 /// x fastest, then y, then z, tightly packed.
 #[derive(Debug, Clone, PartialEq, Eq, Hash)]
 pub struct TextureDesc {
@@ -67,19 +67,26 @@ pub struct TextureDesc {
     /// 1 for 1D and 2D images.
     pub depth: u32,
     pub format: Format,
-    /// Also usable as a storage image (compute writes).
-    pub storage: bool,
+    /// Read by shaders with imageLoad, as a storage image left in layout
+    /// GENERAL after the upload (`ImageUse::ShaderLoad`), not sampled.
+    pub loads: bool,
 }
 
 impl TextureDesc {
     pub fn d1(name: &str, width: u32, format: Format) -> Self {
-        TextureDesc { name: name.into(), dim: ImageDim::D1, width, height: 1, depth: 1, format, storage: false }
+        TextureDesc { name: name.into(), dim: ImageDim::D1, width, height: 1, depth: 1, format, loads: false }
     }
     pub fn d2(name: &str, width: u32, height: u32, format: Format) -> Self {
-        TextureDesc { name: name.into(), dim: ImageDim::D2, width, height, depth: 1, format, storage: false }
+        TextureDesc { name: name.into(), dim: ImageDim::D2, width, height, depth: 1, format, loads: false }
     }
     pub fn d3(name: &str, [width, height, depth]: [u32; 3], format: Format) -> Self {
-        TextureDesc { name: name.into(), dim: ImageDim::D3, width, height, depth, format, storage: false }
+        TextureDesc { name: name.into(), dim: ImageDim::D3, width, height, depth, format, loads: false }
+    }
+
+    /// The same image, read with imageLoad instead of sampled.
+    pub fn for_loads(mut self) -> Self {
+        self.loads = true;
+        self
     }
 
     /// Bytes of the whole image (checked; `None` on overflow).
@@ -102,6 +109,9 @@ pub enum ImageUse {
     ComputeStorage,
     /// Sampled by any shader stage (fragment, compute, pre-rasterisation).
     Sampled,
+    /// Read with imageLoad, never written, by any shader stage (layout
+    /// GENERAL, as storage images are bound).
+    ShaderLoad,
     /// Source of a copy (readback).
     TransferSrc,
     /// Destination of a copy (upload).
@@ -136,6 +146,11 @@ impl ImageUse {
                 L::SHADER_READ_ONLY_OPTIMAL,
                 S::FRAGMENT_SHADER | S::COMPUTE_SHADER | S::PRE_RASTERIZATION_SHADERS,
                 A::SHADER_SAMPLED_READ,
+            ),
+            ImageUse::ShaderLoad => (
+                L::GENERAL,
+                S::FRAGMENT_SHADER | S::COMPUTE_SHADER | S::PRE_RASTERIZATION_SHADERS,
+                A::SHADER_STORAGE_READ,
             ),
             ImageUse::TransferSrc => (L::TRANSFER_SRC_OPTIMAL, S::COPY, A::TRANSFER_READ),
             ImageUse::TransferDst => (L::TRANSFER_DST_OPTIMAL, S::COPY, A::TRANSFER_WRITE),
@@ -198,7 +213,7 @@ impl Image {
     pub fn texture(ctx: &Arc<Context>, desc: &TextureDesc) -> VkResult<Image> {
         let mut usage = vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_DST | vk::ImageUsageFlags::TRANSFER_SRC;
         let mut features = vk::FormatFeatureFlags::SAMPLED_IMAGE | vk::FormatFeatureFlags::TRANSFER_DST;
-        if desc.storage {
+        if desc.loads {
             usage |= vk::ImageUsageFlags::STORAGE;
             features |= vk::FormatFeatureFlags::STORAGE_IMAGE;
         }

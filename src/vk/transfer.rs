@@ -54,7 +54,8 @@ impl Image {
 
 /// Create a sampled image and fill it with `data` through a staging buffer;
 /// the bytes are counted as static at the copy. The image is left ready to
-/// sample (`ImageUse::Sampled`) by any later submission.
+/// sample (`ImageUse::Sampled`), or to load from (`ImageUse::ShaderLoad`)
+/// for `desc.loads`, by any later submission.
 pub fn upload_texture(ctx: &Arc<Context>, desc: &TextureDesc, data: &[u8], counter: &mut UploadCounter) -> VkResult<Image> {
     let expected = texture_bytes(desc)?;
     if data.len() as u64 != expected {
@@ -113,7 +114,7 @@ pub fn upload_texture_with(
         rec.begin()?;
         rec.copy_layers_to_image(&staging, &image, first, count, counter)?;
         if first == 0 {
-            rec.image_barrier(&image, ImageUse::Sampled);
+            rec.image_barrier(&image, if desc.loads { ImageUse::ShaderLoad } else { ImageUse::Sampled });
         }
         rec.submit_and_wait()?;
         end = first;

@@ -8,7 +8,7 @@ use anyhow::{bail, Result};
 use serde_json::json;
 
 use crate::algo::settings::MethodSettings;
-use super::{set0_desc, Settings, VolumeResources, COMPARE, OPTIONS, PUSH_BYTES, STRESS, SUITE, SWEEP};
+use super::{Settings, VolumeResources, COMPARE, OPTIONS, PUSH_BYTES, STRESS, SUITE, SWEEP};
 use crate::algo::method::{DataKind, MethodInfo, MethodInputs, Phases, RenderMethod, SceneData, View, Work};
 use crate::vk::{
     CommandRecorder, ComputePipelineKey, Image, ImageUse, Pipeline, PipelineKey, ShaderKey, ShaderStage, TargetImageSet,
@@ -38,7 +38,7 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
     let SceneData::Volume(vol) = inputs.data else { bail!("raycast-compute renders volumes only") };
     let settings = Settings::from_options(inputs.options)?;
     let res = VolumeResources::new(inputs.ctx, vol, inputs.samples, inputs.tf, &settings, inputs.counter)?;
-    let defines = settings.defines();
+    let defines = res.defines(&settings);
     let wg = [WORKGROUP[0].to_string(), WORKGROUP[1].to_string()];
     let mut all: Vec<(&str, &str)> = defines.clone();
     all.push(("WG_X", &wg[0]));
@@ -47,7 +47,7 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
     let key = PipelineKey::Compute(ComputePipelineKey {
         shader: ShaderKey::new("raycast/march.comp", ShaderStage::Compute, &all),
         push_constant_bytes: PUSH_BYTES,
-        sets: vec![set0_desc(), target_set.desc.clone()],
+        sets: vec![res.set0_desc(), target_set.desc.clone()],
     });
     let pipeline = crate::algo::pipelines::get(inputs.ctx, &key)?;
     Ok(Box::new(RaycastCompute {

@@ -11,7 +11,7 @@ use anyhow::{bail, Result};
 use serde_json::json;
 
 use crate::algo::settings::MethodSettings;
-use super::{set0_desc, Settings, VolumeResources, COMPARE, OPTIONS, PUSH_BYTES, STRESS, SUITE, SWEEP};
+use super::{Settings, VolumeResources, COMPARE, OPTIONS, PUSH_BYTES, STRESS, SUITE, SWEEP};
 use crate::algo::method::{DataKind, Feature, MethodInfo, MethodInputs, Phases, RenderMethod, SceneData, View, Work};
 use crate::vk::{
     Blend, ColorAttachment, ColorTarget, CommandRecorder, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc,
@@ -39,9 +39,11 @@ pub const METHOD: MethodInfo = MethodInfo {
 /// eye appear counter-clockwise on screen (Vulkan's y-down framebuffer).
 const FRONT: Winding = Winding::CounterClockwise;
 
-fn box_key(cull: Cull) -> PipelineKey {
+/// The box pass (its vertex stage includes raycast/common.glsl, so it
+/// takes set 0's layout and defines).
+fn box_key(cull: Cull, res: &VolumeResources, defines: &[(&str, &str)]) -> PipelineKey {
     PipelineKey::Graphics(GraphicsPipelineKey {
-        vertex: ShaderKey::new("raycast/box.vert", ShaderStage::Vertex, &[]),
+        vertex: ShaderKey::new("raycast/box.vert", ShaderStage::Vertex, defines),
         geometry: None,
         fragment: ShaderKey::new("raycast/box.frag", ShaderStage::Fragment, &[]),
         state: GraphicsState {
@@ -56,7 +58,7 @@ fn box_key(cull: Cull) -> PipelineKey {
             depth_clamp: false,
         },
         push_constant_bytes: PUSH_BYTES,
-        sets: vec![set0_desc()],
+        sets: vec![res.set0_desc()],
     })
 }
 
@@ -79,9 +81,9 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
         &points_desc,
         &[DescriptorResource::CombinedImageSampler(&entry, &sampler), DescriptorResource::CombinedImageSampler(&exit, &sampler)],
     )?;
-    let front_key = box_key(Cull::Back);
-    let back_key = box_key(Cull::Front);
-    let defines = settings.defines();
+    let defines = res.defines(&settings);
+    let front_key = box_key(Cull::Back, &res, &defines);
+    let back_key = box_key(Cull::Front, &res, &defines);
     let march_key = PipelineKey::Graphics(GraphicsPipelineKey {
         vertex: ShaderKey::new("raycast/fullscreen.vert", ShaderStage::Vertex, &[]),
         geometry: None,
@@ -98,7 +100,7 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
             depth_clamp: false,
         },
         push_constant_bytes: PUSH_BYTES,
-        sets: vec![set0_desc(), points_desc],
+        sets: vec![res.set0_desc(), points_desc],
     });
     let get = |k: &PipelineKey| crate::algo::pipelines::get(ctx, k);
     Ok(Box::new(RaycastFragment {

@@ -118,6 +118,19 @@ crate::choices! {
     }
 }
 
+crate::choices! {
+    /// How the shader reads the volume's trilinear field.
+    pub enum VolumeReads {
+        /// Eight texel loads blended in the shader on a CPU device (lavapipe),
+        /// the texture unit's filter elsewhere.
+        Auto = "auto",
+        /// The sampler's trilinear filter (`textureLod`).
+        Texture = "texture",
+        /// Eight `imageLoad`s blended in f32 in the shader.
+        Loads = "loads",
+    }
+}
+
 crate::settings! {
     /// The options both variants share, as typed values.
     pub struct Settings {
@@ -130,6 +143,10 @@ crate::settings! {
         skip: bool = "on", flag(), build, "",
             "empty-space skipping: bricks classified against the transfer function, leaps over empty cubes of bricks";
         brick: usize = "2", int(1, 64), run, "voxels", "edge of the empty-space skipping bricks";
+        reads: VolumeReads = "auto", choice::<VolumeReads>(), build, "",
+            "how a sample reads the volume: texture (the sampler's trilinear filter), loads (eight texel loads \
+             blended in f32 in the shader: on lavapipe the sampler is an out-of-line call with 8-bit weights), \
+             auto (loads on a CPU device, texture elsewhere); the same field either way";
     }
     impl {
         /// The build-time options as shader defines.
@@ -337,6 +354,9 @@ pub struct VolumeResources {
     counters: Buffer,
     _sampler: Sampler,
     pub texture_format: &'static str,
+    /// The volume is read with imageLoad in this GLSL format (option
+    /// `reads`), else sampled.
+    volume_load_format: Option<&'static str>,
     pub brick_grid: [usize; 3],
     pub bricks_visible: usize,
     pub table_build_ms: f64,
@@ -346,11 +366,14 @@ pub struct VolumeResources {
 }
 
 /// Set 0's layout (both variants).
-pub fn set0_desc() -> DescriptorSetDesc {
+/// Set 0's layout; the volume (binding 1) is a storage image when read
+/// with loads (`VolumeResources::loads`).
+pub fn set0_desc(loads: bool) -> DescriptorSetDesc {
     let st = Stages::FRAGMENT | Stages::COMPUTE | Stages::VERTEX;
+    let volume = if loads { DescriptorKind::StorageImage } else { DescriptorKind::CombinedImageSampler };
     DescriptorSetDesc::default()
         .with(DescriptorKind::UniformBuffer, st)
-        .with(DescriptorKind::CombinedImageSampler, st)
+        .with(volume, st)
         .with(DescriptorKind::CombinedImageSampler, st)
         .with(DescriptorKind::UniformTexelBuffer, st)
         .with(DescriptorKind::StorageBuffer, st)
@@ -419,9 +442,19 @@ impl VolumeResources {
             Some((f, n, s, t)) if ctx.can_sample(f, Filter::Linear) => (f, n, s, (lo + t.bias()) / s, t),
             _ => (Format::R32Float, "r32-sfloat", 1.0, 0.0, Texels::Float),
         };
-        if !ctx.can_sample(format, Filter::Linear) {
+        let loadable = ctx.can_load(format);
+        let loads = match s.reads {
+            VolumeReads::Texture => false,
+            VolumeReads::Loads if !loadable => {
+                bail!("reads=loads: device '{}' cannot read {format_name} 3D images with imageLoad (use reads=texture)", ctx.info.name)
+            }
+            VolumeReads::Loads => true,
+            VolumeReads::Auto => loadable && ctx.info.is_cpu(),
+        };
+        if !loads && !ctx.can_sample(format, Filter::Linear) {
             bail!("device '{}' cannot filter {format_name} 3D textures linearly", ctx.info.name);
         }
+        let volume_load_format = if loads { format.glsl_image_format().map(|(f, _)| f) } else { None };
         // Brick distances (module note): 0 on a flagged brick, else the
         // Chebyshev distance to the nearest one; for `preint` the flags are
         // dilated by the bricks half a step may reach into.
@@ -439,7 +472,10 @@ impl VolumeResources {
         let layer_bricks = grid[0] * grid[1];
         let map_bytes = layer_bricks * grid[2];
         let new_map = || BrickMap::new(ctx, map_bytes);
-        let desc = TextureDesc::d3(&format!("volume '{}'", vol.name), dims_u32, format);
+        let mut desc = TextureDesc::d3(&format!("volume '{}'", vol.name), dims_u32, format);
+        if loads {
+            desc = desc.for_loads();
+        }
         // Texels from sample offset / texel size on.
         let texel = texels.size(samples.sample_type());
         let fill = |samples: &Samples, offset: usize, dst: &mut [u8]| texels.fill(samples, lo, offset / texel, dst);
@@ -546,10 +582,10 @@ impl VolumeResources {
         let set = DescriptorSet::new(
             ctx,
             "raycast volume",
-            &set0_desc(),
+            &set0_desc(loads),
             &[
                 DescriptorResource::UniformBuffer(&params_buf),
-                DescriptorResource::CombinedImageSampler(&volume, &sampler),
+                if loads { DescriptorResource::StorageImage(&volume) } else { DescriptorResource::CombinedImageSampler(&volume, &sampler) },
                 DescriptorResource::CombinedImageSampler(&tf_img, &sampler),
                 DescriptorResource::UniformTexelBuffer(&bricks),
                 DescriptorResource::StorageBuffer(&counters),
@@ -566,6 +602,7 @@ impl VolumeResources {
             counters,
             _sampler: sampler,
             texture_format: format_name,
+            volume_load_format,
             brick_grid: grid,
             bricks_visible,
             table_build_ms,
@@ -623,12 +660,33 @@ impl VolumeResources {
             .with("leaps", leaps)
     }
 
+    /// Whether the volume is read with imageLoad (set 0's binding 1 a storage image).
+    pub fn loads(&self) -> bool {
+        self.volume_load_format.is_some()
+    }
+
+    /// Set 0's layout for these resources.
+    pub fn set0_desc(&self) -> DescriptorSetDesc {
+        set0_desc(self.loads())
+    }
+
+    /// The shader defines: the build-time options and how the volume is read.
+    pub fn defines(&self, s: &Settings) -> Vec<(&'static str, &'static str)> {
+        let mut d = s.defines();
+        if let Some(format) = self.volume_load_format {
+            d.push(("VOLUME_LOADS", "1"));
+            d.push(("VOLUME_FORMAT", format));
+        }
+        d
+    }
+
     pub fn details(&self, s: &Settings, variant: serde_json::Value) -> serde_json::Value {
         let [total, max, skipped, rays, leaps] = self.counters();
         json!({
             "family": "raycast",
             "variant": variant,
             "texture_format": self.texture_format,
+            "volume_reads": if self.loads() { "loads" } else { "texture" },
             "dims": self.dims,
             "step_voxels": s.step,
             "ert": s.ert,
