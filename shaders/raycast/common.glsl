@@ -251,6 +251,28 @@ vec4 march(vec3 a, vec3 b, out uint samples) {
             stride = TAIL_STRIDE;
         }
     }
+#ifdef SUBGROUP_COUNTERS
+    // One atomic per counter and subgroup, not per ray (compute only,
+    // where the device has subgroup arithmetic: raycast/compute.rs): on
+    // lavapipe a per-ray atomic is a loop over the SIMD lanes, each lane's
+    // add a locked instruction on the one cache line both threads update.
+#ifdef SKIP
+    uint g_skipped = subgroupAdd(skipped);
+    uint g_leaps = subgroupAdd(leaps);
+#endif
+    uint g_samples = subgroupAdd(samples);
+    uint g_max = subgroupMax(samples);
+    uint g_rays = subgroupAdd(1u);
+    if (subgroupElect()) {
+#ifdef SKIP
+        atomicAdd(counters.skipped_bricks, g_skipped);
+        atomicAdd(counters.leaps, g_leaps);
+#endif
+        atomicAdd(counters.total_samples, g_samples);
+        atomicMax(counters.max_samples, g_max);
+        atomicAdd(counters.rays, g_rays);
+    }
+#else
 #ifdef SKIP
     atomicAdd(counters.skipped_bricks, skipped);
     atomicAdd(counters.leaps, leaps);
@@ -258,6 +280,7 @@ vec4 march(vec3 a, vec3 b, out uint samples) {
     atomicAdd(counters.total_samples, samples);
     atomicMax(counters.max_samples, samples);
     atomicAdd(counters.rays, 1u);
+#endif
     return acc;
 }
 

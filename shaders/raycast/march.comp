@@ -1,4 +1,8 @@
 #version 450
+#ifdef SUBGROUP_COUNTERS
+#extension GL_KHR_shader_subgroup_arithmetic : require
+#extension GL_KHR_shader_subgroup_basic : require
+#endif
 // The whole integral in one compute pass: per pixel the viewing ray between
 // the near and far planes, clipped analytically to the box, then marched
 // exactly as the fragment variant does. Workgroup WG_X x WG_Y (defines).

@@ -263,6 +263,11 @@ pub struct DeviceInfo {
     pub max_per_stage_sampled_images: u32,
     pub max_per_stage_storage_buffers: u32,
     pub max_per_stage_uniform_buffers: u32,
+    /// Invocations per subgroup (lavapipe: its SIMD width in 32-bit lanes).
+    pub subgroup_size: u32,
+    /// Compute shaders may use subgroup basic and arithmetic operations
+    /// (subgroupAdd, subgroupElect, ...).
+    pub compute_subgroup_arithmetic: bool,
 }
 
 impl DeviceInfo {
@@ -613,7 +618,8 @@ impl Context {
             .max()
             .unwrap_or(0);
         let mut m3 = vk::PhysicalDeviceMaintenance3Properties::default();
-        let mut p2 = vk::PhysicalDeviceProperties2::default().push_next(&mut m3);
+        let mut subgroup = vk::PhysicalDeviceSubgroupProperties::default();
+        let mut p2 = vk::PhysicalDeviceProperties2::default().push_next(&mut m3).push_next(&mut subgroup);
         // SAFETY: queries of live instance/physical-device handles; output
         // structures are owned here, and any p_next chain points at locals that
         // outlive the call.
@@ -654,6 +660,9 @@ impl Context {
             max_per_stage_sampled_images: limits.max_per_stage_descriptor_sampled_images,
             max_per_stage_storage_buffers: limits.max_per_stage_descriptor_storage_buffers,
             max_per_stage_uniform_buffers: limits.max_per_stage_descriptor_uniform_buffers,
+            subgroup_size: subgroup.subgroup_size,
+            compute_subgroup_arithmetic: subgroup.supported_stages.contains(vk::ShaderStageFlags::COMPUTE)
+                && subgroup.supported_operations.contains(vk::SubgroupFeatureFlags::BASIC | vk::SubgroupFeatureFlags::ARITHMETIC),
         };
         Ok((physical, device, queue_family, info))
     }

@@ -41,6 +41,11 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
     let defines = res.defines(&settings);
     let wg = [WORKGROUP[0].to_string(), WORKGROUP[1].to_string()];
     let mut all: Vec<(&str, &str)> = defines.clone();
+    // The march's counters reduced per subgroup (common.glsl) where the
+    // device can.
+    if inputs.ctx.info.compute_subgroup_arithmetic {
+        all.push(("SUBGROUP_COUNTERS", "1"));
+    }
     all.push(("WG_X", &wg[0]));
     all.push(("WG_Y", &wg[1]));
     let target_set = TargetImageSet::new("raycast target", Stages::COMPUTE);
@@ -105,6 +110,7 @@ impl RenderMethod for RaycastCompute {
             json!({
                 "name": "compute",
                 "workgroup": WORKGROUP,
+                "counter_atomics": if self.ctx.info.compute_subgroup_arithmetic { "per subgroup" } else { "per ray" },
                 "pipeline": { "key": self.key.id(), "name": self.key.name() },
             }),
         )
