@@ -251,36 +251,38 @@ vec4 march(vec3 a, vec3 b, out uint samples) {
             stride = TAIL_STRIDE;
         }
     }
+    // The ray's counts, added to the counters once.
+#ifdef SKIP
+    uint n_skipped = skipped;
+    uint n_leaps = leaps;
+#endif
+    uint n_samples = samples;
+    uint n_max = samples;
+    uint n_rays = 1u;
+    bool adds = true;
 #ifdef SUBGROUP_COUNTERS
     // One atomic per counter and subgroup, not per ray (compute only,
     // where the device has subgroup arithmetic: raycast/compute.rs): on
     // lavapipe a per-ray atomic is a loop over the SIMD lanes, each lane's
     // add a locked instruction on the one cache line both threads update.
 #ifdef SKIP
-    uint g_skipped = subgroupAdd(skipped);
-    uint g_leaps = subgroupAdd(leaps);
+    n_skipped = subgroupAdd(n_skipped);
+    n_leaps = subgroupAdd(n_leaps);
 #endif
-    uint g_samples = subgroupAdd(samples);
-    uint g_max = subgroupMax(samples);
-    uint g_rays = subgroupAdd(1u);
-    if (subgroupElect()) {
+    n_samples = subgroupAdd(n_samples);
+    n_max = subgroupMax(n_max);
+    n_rays = subgroupAdd(n_rays);
+    adds = subgroupElect();
+#endif
+    if (adds) {
 #ifdef SKIP
-        atomicAdd(counters.skipped_bricks, g_skipped);
-        atomicAdd(counters.leaps, g_leaps);
+        atomicAdd(counters.skipped_bricks, n_skipped);
+        atomicAdd(counters.leaps, n_leaps);
 #endif
-        atomicAdd(counters.total_samples, g_samples);
-        atomicMax(counters.max_samples, g_max);
-        atomicAdd(counters.rays, g_rays);
+        atomicAdd(counters.total_samples, n_samples);
+        atomicMax(counters.max_samples, n_max);
+        atomicAdd(counters.rays, n_rays);
     }
-#else
-#ifdef SKIP
-    atomicAdd(counters.skipped_bricks, skipped);
-    atomicAdd(counters.leaps, leaps);
-#endif
-    atomicAdd(counters.total_samples, samples);
-    atomicMax(counters.max_samples, samples);
-    atomicAdd(counters.rays, 1u);
-#endif
     return acc;
 }
 
