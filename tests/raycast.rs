@@ -287,6 +287,44 @@ fn anisotropic_spacing_is_honoured() {
     assert!(rmse(&render("raycast-compute", &dc, &tf, cam).image, &want) <= REFERENCE_BOUND);
 }
 
+/// The passes run only over the pixels the box covers (`BoxOnScreen`):
+/// views where it reaches past the image's edge (a clamped rectangle),
+/// where the far plane cuts it (every pixel runs), and where it is behind
+/// the camera (nothing runs) keep every ray the reference integrates.
+#[test]
+fn every_ray_is_kept_wherever_the_box_lies() {
+    let d = dataset(blob([24, 20, 16], [1.0, 1.0, 1.0]));
+    let tf = tf(d.bounds().diagonal());
+    let base = orbit(&d);
+    let fwd = base.forward();
+    let right = fwd.cross(DVec3::from(base.up)).normalize();
+    let dist = (DVec3::from(base.target) - DVec3::from(base.eye)).length();
+    // Turned by 14 degrees of the 15 to the image's edge: the box's middle
+    // near the left edge.
+    let edge = Camera { target: (DVec3::from(base.target) + right * dist * 0.25).into(), ..base };
+    let far_cut = Camera { far: dist, ..base };
+    let away = Camera { target: (DVec3::from(base.eye) - fwd).into(), ..base };
+    for (name, cam) in [("past the edge", edge), ("far plane through it", far_cut), ("behind the camera", away)] {
+        let want = reference(&d, &tf, &cam);
+        for method in ["raycast-fragment", "raycast-compute"] {
+            let got = render(method, &d, &tf, cam);
+            let e = rmse(&got.image, &want);
+            eprintln!("{method}, {name}: rmse {e:.2e}, covered {} / {}", got.image.covered_pixels(), want.covered_pixels());
+            assert!(e <= REFERENCE_BOUND, "{method}, {name}: {e}");
+            if name == "behind the camera" {
+                assert_eq!(got.image.covered_pixels(), 0, "{method}");
+                assert_eq!(got.result.work.counts["rays"], 0, "{method}");
+            } else {
+                assert!(want.covered_pixels() > 100, "{name}: {}", want.covered_pixels());
+            }
+            if name == "past the edge" {
+                let left_column = (0..SIZE as usize).filter(|&y| want.pixels[y * SIZE as usize][3] > 0.0).count();
+                assert!(left_column > 5, "the blob must reach the image's left edge: {left_column}");
+            }
+        }
+    }
+}
+
 #[test]
 fn camera_inside_the_volume() {
     let d = dataset(blob([24, 20, 16], [1.0, 1.0, 1.0]));

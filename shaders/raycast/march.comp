@@ -17,7 +17,12 @@ layout(set = 1, binding = 0, rgba32f) uniform writeonly image2D target;
 
 void main() {
     ivec2 size = imageSize(target);
-    ivec2 px = ivec2(gl_GlobalInvocationID.xy);
+    // The workgroup's tile: rows taken in a scattered order so that each
+    // thread's contiguous run of workgroups spreads over the image
+    // (crate::algo::screen::row_stride), from the first tile over the box.
+    uint row = frame.tiles.z > 0u ? gl_WorkGroupID.y * frame.tiles.w % frame.tiles.z : gl_WorkGroupID.y;
+    uvec2 tile = uvec2(gl_WorkGroupID.x, row) + frame.tiles.xy;
+    ivec2 px = ivec2(tile * uvec2(WG_X, WG_Y) + gl_LocalInvocationID.xy);
     if (px.x >= size.x || px.y >= size.y) return;
     vec2 ndc = (vec2(px) + 0.5) / vec2(size) * 2.0 - 1.0;
     vec3 a, b;

@@ -10,6 +10,7 @@ pub mod pipelines;
 pub mod psi;
 pub mod raycast;
 pub mod registry;
+pub mod screen;
 pub mod segment;
 pub mod settings;
 pub mod terrain;

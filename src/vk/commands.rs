@@ -560,6 +560,22 @@ impl CommandRecorder {
         }
     }
 
+    /// Restrict the draws that follow in this rendering pass to the
+    /// inclusive pixel bounds `rect` (`[x0, y0, x1, y1]`; x0 > x1 or
+    /// y0 > y1: no pixel); `begin_rendering` resets it to the whole target.
+    pub fn set_scissor(&self, rect: [u32; 4]) {
+        let [x0, y0, x1, y1] = rect.map(|v| v.min(i32::MAX as u32 - 1));
+        let area = vk::Rect2D {
+            offset: vk::Offset2D { x: x0 as i32, y: y0 as i32 },
+            extent: vk::Extent2D { width: (x1 + 1).saturating_sub(x0), height: (y1 + 1).saturating_sub(y0) },
+        };
+        // SAFETY: the command buffer is a recorder's own, recording between its
+        // `begin` and submit (the recorder's state machine); the offset and
+        // extent are non-negative and their sums fit in an i32, as
+        // vkCmdSetScissor requires.
+        unsafe { self.ctx.device.cmd_set_scissor(self.raw, 0, &[area]) };
+    }
+
     pub fn end_rendering(&self) {
         // SAFETY: the command buffer is a recorder's own, recording between its
         // `begin` and submit (the recorder's state machine); every handle recorded

@@ -7,11 +7,12 @@ use std::sync::Arc;
 use anyhow::{bail, Result};
 use serde_json::json;
 
+use crate::algo::screen;
 use crate::algo::settings::MethodSettings;
-use super::{Settings, VolumeResources, COMPARE, OPTIONS, PUSH_BYTES, STRESS, SUITE, SWEEP};
+use super::{BoxOnScreen, Settings, VolumeResources, COMPARE, OPTIONS, PUSH_BYTES, STRESS, SUITE, SWEEP};
 use crate::algo::method::{DataKind, MethodInfo, MethodInputs, Phases, RenderMethod, SceneData, View, Work};
 use crate::vk::{
-    CommandRecorder, ComputePipelineKey, Image, ImageUse, Pipeline, PipelineKey, ShaderKey, ShaderStage, TargetImageSet,
+    CommandRecorder, ComputePipelineKey, Image, Pipeline, PipelineKey, ShaderKey, ShaderStage, TargetImageSet,
     UploadCounter,
 };
 use crate::vk::Stages;
@@ -62,6 +63,9 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
         key,
         target_set,
         push: Vec::new(),
+        placement: BoxOnScreen::Cut,
+        groups: [0, 0, 1],
+        whole_image: false,
         pixels: inputs.width as u64 * inputs.height as u64,
         ctx: inputs.ctx.clone(),
     }))
@@ -75,13 +79,28 @@ pub struct RaycastCompute {
     /// Set 1: the target as a storage image.
     target_set: TargetImageSet,
     push: Vec<u8>,
+    /// Where the box lies in the frame's view: the tiles dispatched.
+    placement: BoxOnScreen,
+    /// Workgroups dispatched (over the box's tiles), and whether they cover
+    /// the whole image.
+    groups: [u32; 3],
+    whole_image: bool,
     pixels: u64,
     ctx: Arc<crate::vk::Context>,
 }
 
 impl RenderMethod for RaycastCompute {
     fn prepare(&mut self, view: &View, _phases: &mut Phases) -> Result<()> {
-        self.push = self.res.push_constants(view, true);
+        self.placement = self.res.on_screen(view);
+        let all = [view.width.div_ceil(WORKGROUP[0]), view.height.div_ceil(WORKGROUP[1])];
+        let (base, groups) = match self.placement {
+            BoxOnScreen::Hidden => ([0; 3], [0, 0, 1]),
+            BoxOnScreen::Whole { rect } => screen::groups_over(rect, WORKGROUP),
+            BoxOnScreen::Cut => ([0; 3], [all[0], all[1], 1]),
+        };
+        self.groups = groups;
+        self.whole_image = groups[..2] == all;
+        self.push = self.res.push_constants(view, true, [base[0], base[1], groups[1], screen::row_stride(groups[1])]);
         Ok(())
     }
 
@@ -89,13 +108,18 @@ impl RenderMethod for RaycastCompute {
         Ok(())
     }
 
-    fn record(&mut self, rec: &CommandRecorder, target: &Image, view: &View, counter: &mut UploadCounter) -> Result<()> {
+    fn record(&mut self, rec: &CommandRecorder, target: &Image, _view: &View, counter: &mut UploadCounter) -> Result<()> {
         let set = self.target_set.for_target(&self.ctx, target)?;
         self.res.record_clear(rec);
-        rec.image_barrier_discard(target, ImageUse::ComputeStorage);
-        rec.bind_compute(&self.pipeline, &[&self.res.set, set])?;
-        rec.push_constants(&self.pipeline, &self.push, counter);
-        rec.dispatch([view.width.div_ceil(WORKGROUP[0]), view.height.div_ceil(WORKGROUP[1]), 1])?;
+        // Only the tiles over the box's pixels run the march (on llvmpipe an
+        // invocation whose ray misses still runs the whole shader masked:
+        // crate::algo::screen); the rest of the target is cleared.
+        rec.storage_target(target, self.whole_image);
+        if self.groups[0] > 0 && self.groups[1] > 0 {
+            rec.bind_compute(&self.pipeline, &[&self.res.set, set])?;
+            rec.push_constants(&self.pipeline, &self.push, counter);
+            rec.dispatch(self.groups)?;
+        }
         self.res.record_counters_to_host(rec);
         Ok(())
     }

@@ -11,7 +11,7 @@ use anyhow::{bail, Result};
 use serde_json::json;
 
 use crate::algo::settings::MethodSettings;
-use super::{Settings, VolumeResources, COMPARE, OPTIONS, PUSH_BYTES, STRESS, SUITE, SWEEP};
+use super::{BoxOnScreen, Settings, VolumeResources, COMPARE, OPTIONS, PUSH_BYTES, STRESS, SUITE, SWEEP};
 use crate::algo::method::{DataKind, Feature, MethodInfo, MethodInputs, Phases, RenderMethod, SceneData, View, Work};
 use crate::vk::{
     Blend, ColorAttachment, ColorTarget, CommandRecorder, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc,
@@ -108,6 +108,7 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
         back: get(&back_key)?,
         march: get(&march_key)?,
         march_key,
+        placement: BoxOnScreen::Cut,
         res,
         settings,
         entry,
@@ -125,6 +126,8 @@ pub struct RaycastFragment {
     back: Arc<Pipeline>,
     march: Arc<Pipeline>,
     march_key: PipelineKey,
+    /// Where the box lies in the frame's view: which march is drawn.
+    placement: BoxOnScreen,
     res: VolumeResources,
     settings: Settings,
     entry: Image,
@@ -138,8 +141,9 @@ pub struct RaycastFragment {
 
 impl RenderMethod for RaycastFragment {
     fn prepare(&mut self, view: &View, _phases: &mut Phases) -> Result<()> {
-        self.box_push = self.res.push_constants(view, false);
-        self.march_push = self.res.push_constants(view, true);
+        self.box_push = self.res.push_constants(view, false, [0; 4]);
+        self.march_push = self.res.push_constants(view, true, [0; 4]);
+        self.placement = self.res.on_screen(view);
         Ok(())
     }
 
@@ -158,9 +162,22 @@ impl RenderMethod for RaycastFragment {
             rec.image_barrier(image, ImageUse::Sampled);
         }
         rec.begin_rendering(target, [0.0; 4]);
-        rec.bind_graphics(&self.march, &[&self.res.set, &self.points_set])?;
-        rec.push_constants(&self.march, &self.march_push, counter);
-        rec.draw(3);
+        // The march runs only over the box's pixels: a fragment whose ray
+        // misses still runs the whole shader masked on llvmpipe. One
+        // scissored triangle, not the box's faces: on llvmpipe a block of
+        // pixels cut by an edge between two faces runs the march once per
+        // face.
+        let rect = match self.placement {
+            BoxOnScreen::Hidden => None,
+            BoxOnScreen::Whole { rect } => Some(rect),
+            BoxOnScreen::Cut => Some([0, 0, target.width - 1, target.height - 1]),
+        };
+        if let Some(rect) = rect {
+            rec.set_scissor(rect);
+            rec.bind_graphics(&self.march, &[&self.res.set, &self.points_set])?;
+            rec.push_constants(&self.march, &self.march_push, counter);
+            rec.draw(3);
+        }
         rec.end_rendering();
         self.res.record_counters_to_host(rec);
         Ok(())

@@ -4,12 +4,14 @@
 //! - `raycast-fragment` ([`fragment`]): the lab's three passes. The bounding
 //!   box's front faces are drawn into one RGBA32F target and its back faces
 //!   into another (entry and exit points of every pixel's ray, in voxel
-//!   coordinates), then a full-screen pass marches each pixel from entry to
-//!   exit. The eye inside the box clips the front faces away: the ray then
+//!   coordinates), then a full-screen pass (scissored to the box's pixels,
+//!   [`BoxOnScreen`]) marches each pixel from entry to exit. The eye inside the box clips the front faces away: the ray then
 //!   starts on the near plane.
 //! - `raycast-compute` ([`compute`]): one compute pass; each invocation
 //!   clips its pixel's ray (near to far plane) to the box analytically and
-//!   runs the same march, writing the runner's target as a storage image.
+//!   runs the same march, writing the runner's target as a storage image;
+//!   only the tiles over the box's pixels are dispatched, their rows in a
+//!   scattered order (`algo::screen::row_stride`).
 //!
 //! **Conventions** (the f64 reference's, `reference::volume`): node-centred
 //! samples, sample (i, j, k) at `Volume::position(i, j, k)`; voxel
@@ -383,6 +385,43 @@ pub fn set0_desc(loads: bool) -> DescriptorSetDesc {
 /// Push constants: mat4 + eye + light.
 pub const PUSH_BYTES: u32 = 96;
 
+/// Where the volume's box lies in a frame's view ([`VolumeResources::on_screen`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BoxOnScreen {
+    /// Every corner beyond one and the same clip plane: no ray meets the box.
+    Hidden,
+    /// The box lies inside the depth range (each corner at least
+    /// [`DEPTH_MARGIN`] of it from the near and far planes), so a ray that
+    /// meets it enters through a front face and leaves through a back face;
+    /// the pixels it covers lie in `rect` (inclusive bounds).
+    Whole { rect: [u32; 4] },
+    /// The near or far plane cuts the box, or it reaches behind the eye.
+    Cut,
+}
+
+/// How far (a part of the clip w) every corner must be from the near and
+/// far planes for [`BoxOnScreen::Whole`]: far beyond the f32 rounding of
+/// the device's clip coordinates.
+pub const DEPTH_MARGIN: f64 = 1e-4;
+
+/// [`BoxOnScreen`] of a box whose corners have the clip coordinates `clip`
+/// (Vulkan's: -w <= x, y <= w, 0 <= z <= w) on an image of `size`.
+pub fn box_on_screen(clip: &[glam::DVec4], size: [u32; 2]) -> BoxOnScreen {
+    let outside = |f: &dyn Fn(&glam::DVec4) -> f64| clip.iter().all(|c| f(c) < 0.0);
+    let planes: [&dyn Fn(&glam::DVec4) -> f64; 6] =
+        [&|c| c.w + c.x, &|c| c.w - c.x, &|c| c.w + c.y, &|c| c.w - c.y, &|c| c.z, &|c| c.w - c.z];
+    if planes.iter().any(|f| outside(*f)) {
+        return BoxOnScreen::Hidden;
+    }
+    let inside_depth = |c: &glam::DVec4| c.w > 0.0 && c.z >= DEPTH_MARGIN * c.w && c.w - c.z >= DEPTH_MARGIN * c.w && c.is_finite();
+    if !clip.iter().all(inside_depth) {
+        return BoxOnScreen::Cut;
+    }
+    // NDC to pixels as the viewport maps them (x + 0.5 the centre of pixel x).
+    let pixels = clip.iter().map(|c| [(c.x / c.w * 0.5 + 0.5) * f64::from(size[0]), (c.y / c.w * 0.5 + 0.5) * f64::from(size[1])]);
+    BoxOnScreen::Whole { rect: super::screen::pixel_bounds(pixels, 1.0, size) }
+}
+
 /// Counter words read back after every frame.
 const COUNTER_WORDS: usize = 5;
 
@@ -617,20 +656,35 @@ impl VolumeResources {
         DMat4::from_translation(self.origin) * DMat4::from_scale(self.spacing)
     }
 
+    /// Where the box falls in `view` (its corners through the same f64
+    /// voxel -> clip matrix the box pass draws with).
+    pub fn on_screen(&self, view: &View) -> BoxOnScreen {
+        let m = view.camera.view_proj(view.width, view.height) * self.world_from_voxel();
+        let hi = DVec3::new((self.dims[0] - 1) as f64, (self.dims[1] - 1) as f64, (self.dims[2] - 1) as f64);
+        let clip: Vec<glam::DVec4> = (0..8)
+            .map(|c| {
+                let u = DVec3::new(if c & 1 != 0 { hi.x } else { 0.0 }, if c & 2 != 0 { hi.y } else { 0.0 }, if c & 4 != 0 { hi.z } else { 0.0 });
+                m * u.extend(1.0)
+            })
+            .collect();
+        box_on_screen(&clip, [view.width, view.height])
+    }
+
     /// Push constants for the view: `m` (voxel -> clip, or NDC -> voxel),
-    /// the eye in voxel coordinates and the light direction (world axes).
-    pub fn push_constants(&self, view: &View, ndc_to_voxel: bool) -> Vec<u8> {
+    /// `tiles` (the compute pass's tile order: first workgroup x, y, rows
+    /// of workgroups, row stride; `crate::algo::screen::row_stride`) and
+    /// the light direction (world axes).
+    pub fn push_constants(&self, view: &View, ndc_to_voxel: bool, tiles: [u32; 4]) -> Vec<u8> {
         let vp = view.camera.view_proj(view.width, view.height);
         let w = self.world_from_voxel();
         let m = if ndc_to_voxel { w.inverse() * vp.inverse() } else { vp * w };
-        let eye = (DVec3::from(view.camera.eye) - self.origin) / self.spacing;
         // A headlight raised a little above the view direction.
         let fwd = view.camera.forward();
         let light = (-fwd + DVec3::from(view.camera.up) * 0.5).normalize();
-        let mut v: Vec<f32> = m.to_cols_array().iter().map(|&x| x as f32).collect();
-        v.extend([eye.x as f32, eye.y as f32, eye.z as f32, view.camera.is_perspective() as u32 as f32]);
-        v.extend([light.x as f32, light.y as f32, light.z as f32, 0.0]);
-        f32_bytes(&v)
+        let mut bytes = f32_bytes(&m.to_cols_array().map(|x| x as f32));
+        bytes.extend(tiles.iter().flat_map(|t| t.to_ne_bytes()));
+        bytes.extend(f32_bytes(&[light.x as f32, light.y as f32, light.z as f32, 0.0]));
+        bytes
     }
 
     /// Clear the counters before the frame's passes.
@@ -699,5 +753,44 @@ impl VolumeResources {
             "bricks_skipped": skipped,
             "leaps": leaps,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::DVec4;
+
+    fn corners(lo: [f64; 3], hi: [f64; 3]) -> Vec<DVec4> {
+        (0..8)
+            .map(|c| {
+                let pick = |k: usize| if c & (1 << k) != 0 { hi[k] } else { lo[k] };
+                DVec4::new(pick(0), pick(1), pick(2), 1.0)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_box_is_placed_by_its_corners_clip_coordinates() {
+        let size = [100, 80];
+        // Clip coordinates with w = 1: inside the depth range, centred; x in
+        // [25, 75] px, y in [30, 50] px, padded by one pixel.
+        let inside = corners([-0.5, -0.25, 0.2], [0.5, 0.25, 0.8]);
+        assert_eq!(box_on_screen(&inside, size), BoxOnScreen::Whole { rect: [24, 29, 76, 51] });
+        // Past the right edge: clamped.
+        assert_eq!(box_on_screen(&corners([0.5, -0.25, 0.2], [1.5, 0.25, 0.8]), size), BoxOnScreen::Whole { rect: [74, 29, 99, 51] });
+        // Wholly beyond one plane: hidden.
+        assert_eq!(box_on_screen(&corners([1.1, -0.25, 0.2], [2.0, 0.25, 0.8]), size), BoxOnScreen::Hidden);
+        assert_eq!(box_on_screen(&corners([-0.5, -0.25, -0.8], [0.5, 0.25, -0.1]), size), BoxOnScreen::Hidden);
+        assert_eq!(box_on_screen(&corners([-0.5, -0.25, 1.1], [0.5, 0.25, 1.5]), size), BoxOnScreen::Hidden);
+        // The near or the far plane through it, or a corner within the
+        // margin of one: cut.
+        assert_eq!(box_on_screen(&corners([-0.5, -0.25, -0.1], [0.5, 0.25, 0.8]), size), BoxOnScreen::Cut);
+        assert_eq!(box_on_screen(&corners([-0.5, -0.25, 0.2], [0.5, 0.25, 1.2]), size), BoxOnScreen::Cut);
+        assert_eq!(box_on_screen(&corners([-0.5, -0.25, 0.5 * DEPTH_MARGIN], [0.5, 0.25, 0.8]), size), BoxOnScreen::Cut);
+        // A corner behind the eye (w < 0): cut, never whole.
+        let mut behind = inside.clone();
+        behind[0] = DVec4::new(0.1, 0.1, -0.5, -1.0);
+        assert_eq!(box_on_screen(&behind, size), BoxOnScreen::Cut);
     }
 }

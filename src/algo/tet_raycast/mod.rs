@@ -231,24 +231,10 @@ pub fn pixel_rect(points: &[[f64; 3]], forward: [f64; 3], right: [f64; 3], up: [
 fn rect_of(projected: &Projected, size: [u32; 2]) -> Option<[u32; 4]> {
     let px = match projected {
         Projected::Pixels(px) => px,
-        Projected::NoneInFront => return Some([1, 1, 0, 0]),
+        Projected::NoneInFront => return Some(crate::algo::screen::NO_PIXELS),
         Projected::Unplaced => return None,
     };
-    let mut lo = [f64::INFINITY; 2];
-    let mut hi = [f64::NEG_INFINITY; 2];
-    for p in px {
-        for k in 0..2 {
-            lo[k] = lo[k].min(p[k]);
-            hi[k] = hi[k].max(p[k]);
-        }
-    }
-    let size = size.map(f64::from);
-    let a: [f64; 2] = std::array::from_fn(|k| (lo[k] - RECT_PAD).floor().max(0.0));
-    let b: [f64; 2] = std::array::from_fn(|k| (hi[k] + RECT_PAD).ceil().min(size[k] - 1.0));
-    if a[0] > b[0] || a[1] > b[1] {
-        return Some([1, 1, 0, 0]);
-    }
-    Some([a[0] as u32, a[1] as u32, b[0] as u32, b[1] as u32])
+    Some(crate::algo::screen::pixel_bounds(px.iter().copied(), RECT_PAD, size))
 }
 
 /// A BVH over boundary faces, as the shader reads it.
@@ -695,7 +681,7 @@ impl TetRaycast {
             hull_faces: hull_faces_count,
             boundary_points,
             boundary_points_shader,
-            rect: [1, 1, 0, 0],
+            rect: crate::algo::screen::NO_PIXELS,
             rect_pixels: 0,
             tile_faces,
             lists: TileLists::default(),
