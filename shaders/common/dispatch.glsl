@@ -28,4 +28,17 @@ uint linear_workgroup_id() {
 #define linear_invocation_id() \
     (linear_workgroup_id() * (gl_WorkGroupSize.x * gl_WorkGroupSize.y * gl_WorkGroupSize.z) + gl_LocalInvocationIndex)
 
+// The tile row of this workgroup when a pass over `rows` rows of
+// workgroups is dispatched as algo::screen::interleaved_rows(rows, runs)
+// rows: dispatch row y is tile row (y % len) * runs + y / len, len =
+// ceil(rows / runs), so each of the device's `runs` contiguous runs of
+// workgroups (lavapipe gives each compute thread one) takes every runs-th
+// row of the whole image, not one band of it. A result >= rows is padding:
+// the caller returns.
+uint interleaved_row(uint rows, uint runs) {
+    if (runs <= 1u || rows == 0u) return gl_WorkGroupID.y;
+    uint len = (rows + runs - 1u) / runs;
+    return gl_WorkGroupID.y % len * runs + gl_WorkGroupID.y / len;
+}
+
 #endif

@@ -47,7 +47,7 @@ layout(set = 0, binding = 5) uniform sampler2D preint_tex;
 
 layout(push_constant) uniform Frame {
     mat4 m;          // box pass: voxel -> clip; march: NDC -> voxel (homogeneous)
-    uvec4 tiles;     // compute march: first workgroup (x, y), rows of workgroups, row stride (0 rows: in order)
+    uvec4 tiles;     // compute march: first workgroup (x, y), rows of workgroups, runs (common/dispatch.glsl)
     vec4 light;      // xyz: unit direction towards the light, world axes
 } frame;
 

@@ -7,6 +7,7 @@
 // the near and far planes, clipped analytically to the box, then marched
 // exactly as the fragment variant does. Workgroup WG_X x WG_Y (defines).
 #include "raycast/common.glsl"
+#include "common/dispatch.glsl"
 
 #ifndef WG_X
 #define WG_X 8
@@ -17,13 +18,13 @@ layout(set = 1, binding = 0, rgba32f) uniform writeonly image2D target;
 
 void main() {
     ivec2 size = imageSize(target);
-    // The workgroup's tile: rows taken in a scattered order so that each
-    // thread's contiguous run of workgroups spreads over the image
-    // (crate::algo::screen::row_stride), from the first tile over the box.
-    uint row = frame.tiles.z > 0u ? gl_WorkGroupID.y * frame.tiles.w % frame.tiles.z : gl_WorkGroupID.y;
+    // The workgroup's tile, rows interleaved over the device's runs of
+    // workgroups (common/dispatch.glsl), from the first tile over the box.
+    uint row = interleaved_row(frame.tiles.z, frame.tiles.w);
     uvec2 tile = uvec2(gl_WorkGroupID.x, row) + frame.tiles.xy;
     ivec2 px = ivec2(tile * uvec2(WG_X, WG_Y) + gl_LocalInvocationID.xy);
-    if (px.x >= size.x || px.y >= size.y) return;
+    // Padding rows (row >= rows) run nothing.
+    if (px.x >= size.x || px.y >= size.y || row >= frame.tiles.z) return;
     vec2 ndc = (vec2(px) + 0.5) / vec2(size) * 2.0 - 1.0;
     vec3 a, b;
     ndc_ray(ndc, a, b);

@@ -31,9 +31,11 @@ layout(push_constant) uniform Frame {
                     // z: stall limit (uint bits); w: pre-integration length scale
     uvec4 rect;     // the pixels whose rays may meet the mesh: x0, y0, x1, y1 inclusive
                     // (tet_raycast.rs, pixel_rect); the dispatch starts at x0, y0
+    uvec4 order;    // x: rows of workgroups, y: runs (common/dispatch.glsl, interleaved_row)
 } frame;
 
 #include "common/integrate.glsl"
+#include "common/dispatch.glsl"
 
 // set 1: the mesh, uploaded once. What the walk reads per cell is in
 // storage texel buffers, read with imageLoad (one load per lookup, inlined;
@@ -680,11 +682,15 @@ void main() {
     // The dispatch covers the rectangle (the boundary's projected box) from
     // its corner; outside it no ray meets the mesh, and tet_raycast.rs
     // cleared those pixels.
-    ivec2 px = ivec2(gl_GlobalInvocationID.xy + frame.rect.xy);
+    // Workgroup rows interleaved over the device's runs of workgroups
+    // (common/dispatch.glsl).
+    // Padding rows (row >= rows) lie below the rectangle: the test below.
+    uvec2 at = uvec2(gl_WorkGroupID.x, interleaved_row(frame.order.x, frame.order.y)) * uvec2(WG_X, WG_Y) + gl_LocalInvocationID.xy;
+    ivec2 px = ivec2(at + frame.rect.xy);
     if (px.x >= size.x || px.y >= size.y || uint(px.x) > frame.rect.z || uint(px.y) > frame.rect.w) return;
 #ifdef TILE_LISTS
     uint tiles_x = (frame.rect.z - frame.rect.x + uint(TILE_W)) / uint(TILE_W);
-    ray_tile = gl_GlobalInvocationID.y / uint(TILE_H) * tiles_x + gl_GlobalInvocationID.x / uint(TILE_W);
+    ray_tile = at.y / uint(TILE_H) * tiles_x + at.x / uint(TILE_W);
 #endif
     // The ray through the pixel's centre (scene::Camera::ray), relative to
     // the render origin.

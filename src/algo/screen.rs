@@ -42,30 +42,21 @@ pub fn groups_over(rect: [u32; 4], group: [u32; 2]) -> ([u32; 3], [u32; 3]) {
     ([base[0], base[1], 0], [end[0] - base[0], end[1] - base[1], 1])
 }
 
-/// The stride of the order in which a pass of `rows` rows of workgroups
-/// takes them: the pass's row r (in dispatch order) is image row
-/// `r * stride % rows`. lavapipe's compute thread pool hands each thread one
-/// contiguous run of the dispatch's workgroups (`lp_cs_tpool`: the count
-/// divided by the threads), so in image order one thread gets the top of
-/// the image and another the bottom, and the frame waits for the costlier
-/// part. A stride near the golden section of `rows`, coprime with it, spreads
-/// every contiguous run of rows over the whole image. 1 (in order) for up
-/// to 2 rows.
-pub fn row_stride(rows: u32) -> u32 {
-    if rows <= 2 {
-        return 1;
+/// The rows of workgroups a pass over `rows` rows dispatches when its
+/// device shares the workgroups out in `runs` contiguous runs
+/// (`DeviceInfo::compute_runs`): rows enough for `runs` runs of
+/// ceil(rows / runs) each. The shader takes dispatch row y as tile row
+/// `(y % len) * runs + y / len` (`interleaved_row` in
+/// shaders/common/dispatch.glsl; len = ceil(rows / runs)) and skips rows
+/// past `rows`, so run t gets the tile rows t, t + runs, t + 2 runs, ...:
+/// every thread a share of every part of the image. In image order, on two
+/// threads, one would march the top half of the image and the other the
+/// bottom half, and the frame would wait for the costlier half.
+pub fn interleaved_rows(rows: u32, runs: u32) -> u32 {
+    if runs <= 1 {
+        return rows;
     }
-    let gcd = |mut a: u32, mut b: u32| {
-        while b != 0 {
-            (a, b) = (b, a % b);
-        }
-        a
-    };
-    let mut s = ((f64::from(rows) * 0.618_033_988_749_895).round() as u32).max(1);
-    while gcd(s, rows) != 1 {
-        s += 1;
-    }
-    s
+    rows.div_ceil(runs) * runs
 }
 
 #[cfg(test)]
@@ -91,18 +82,25 @@ mod tests {
     }
 
     #[test]
-    fn the_row_order_is_a_permutation_that_spreads_each_half() {
-        for rows in 1..200u32 {
-            let s = row_stride(rows);
-            let mut seen = vec![false; rows as usize];
-            for r in 0..rows {
-                seen[(r * s % rows) as usize] = true;
-            }
-            assert!(seen.iter().all(|&x| x), "rows {rows} stride {s}");
-            if rows >= 16 {
-                // The first half of the order reaches both halves of the image about equally.
-                let top = (0..rows / 2).filter(|r| r * s % rows < rows / 2).count() as f64;
-                assert!((top / f64::from(rows / 2) - 0.5).abs() < 0.2, "rows {rows} stride {s}: {top}");
+    fn interleaved_rows_give_each_run_every_runs_th_row_once() {
+        for rows in 0..70u32 {
+            for runs in 1..6u32 {
+                let dispatched = interleaved_rows(rows, runs);
+                assert!(dispatched >= rows && dispatched < rows + runs.max(1), "{rows} {runs}");
+                // The shader's map (common/dispatch.glsl, interleaved_row).
+                let len = rows.div_ceil(runs).max(1);
+                let mut seen = vec![0; rows as usize];
+                for y in 0..dispatched {
+                    let row = if runs <= 1 { y } else { (y % len) * runs + y / len };
+                    if row < rows {
+                        seen[row as usize] += 1;
+                        // Run t (a contiguous share of the dispatch) holds rows t mod runs.
+                        if runs > 1 {
+                            assert_eq!(row % runs, y / len, "{rows} {runs} {y}");
+                        }
+                    }
+                }
+                assert!(seen.iter().all(|&n| n == 1), "{rows} {runs}: {seen:?}");
             }
         }
     }

@@ -275,6 +275,23 @@ impl DeviceInfo {
     pub fn is_cpu(&self) -> bool {
         self.device_type == format!("{:?}", vk::PhysicalDeviceType::CPU)
     }
+
+    /// In how many contiguous runs the device shares out a compute
+    /// dispatch's workgroups: on a CPU device (lavapipe) its compute
+    /// thread pool gives each thread one run (`lp_cs_tpool`: the count
+    /// divided by the threads), and it has `LP_NUM_THREADS` threads, else
+    /// one per CPU, at most 32 (0: the caller's thread alone). 1 elsewhere:
+    /// a GPU's scheduler hands out workgroups as its units free up.
+    pub fn compute_runs(&self) -> u32 {
+        if !self.is_cpu() {
+            return 1;
+        }
+        let threads = match std::env::var("LP_NUM_THREADS").ok().and_then(|v| v.trim().parse::<u32>().ok()) {
+            Some(n) => n,
+            None => std::thread::available_parallelism().map_or(1, |n| n.get() as u32),
+        };
+        threads.clamp(1, 32)
+    }
 }
 
 /// Messages the validation layer reported, shared with its callback.

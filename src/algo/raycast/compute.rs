@@ -98,9 +98,12 @@ impl RenderMethod for RaycastCompute {
             BoxOnScreen::Whole { rect } => screen::groups_over(rect, WORKGROUP),
             BoxOnScreen::Cut => ([0; 3], [all[0], all[1], 1]),
         };
-        self.groups = groups;
+        // Rows interleaved over the device's runs of workgroups
+        // (algo::screen::interleaved_rows).
+        let runs = self.ctx.info.compute_runs();
+        self.groups = [groups[0], screen::interleaved_rows(groups[1], runs), 1];
         self.whole_image = groups[..2] == all;
-        self.push = self.res.push_constants(view, true, [base[0], base[1], groups[1], screen::row_stride(groups[1])]);
+        self.push = self.res.push_constants(view, true, [base[0], base[1], groups[1], runs]);
         Ok(())
     }
 

@@ -10,8 +10,9 @@
 //! - `raycast-compute` ([`compute`]): one compute pass; each invocation
 //!   clips its pixel's ray (near to far plane) to the box analytically and
 //!   runs the same march, writing the runner's target as a storage image;
-//!   only the tiles over the box's pixels are dispatched, their rows in a
-//!   scattered order (`algo::screen::row_stride`).
+//!   only the tiles over the box's pixels are dispatched, their rows
+//!   interleaved over the device's runs of workgroups
+//!   (`algo::screen::interleaved_rows`).
 //!
 //! **Conventions** (the f64 reference's, `reference::volume`): node-centred
 //! samples, sample (i, j, k) at `Volume::position(i, j, k)`; voxel
@@ -671,8 +672,8 @@ impl VolumeResources {
     }
 
     /// Push constants for the view: `m` (voxel -> clip, or NDC -> voxel),
-    /// `tiles` (the compute pass's tile order: first workgroup x, y, rows
-    /// of workgroups, row stride; `crate::algo::screen::row_stride`) and
+    /// `tiles` (the compute pass's tiles: first workgroup x, y, rows of
+    /// workgroups, the device's runs; `crate::algo::screen::interleaved_rows`) and
     /// the light direction (world axes).
     pub fn push_constants(&self, view: &View, ndc_to_voxel: bool, tiles: [u32; 4]) -> Vec<u8> {
         let vp = view.camera.view_proj(view.width, view.height);

@@ -78,6 +78,7 @@ use super::cell_projection::{render_origin, scalar_map, ExitTolerances, FrameSet
 use super::chunks::{ensure_frame_texels, frame_texels, ChunkLimits, TexelChunks};
 use tiles::{Projected, TileLists, TILE};
 use super::host_memory::HostMemory;
+use super::screen;
 use super::integrate::{check_table_size, IntegrationTables, Integrator};
 use super::method::{DataKind, Family, MethodInfo, MethodInputs, OptionSpec, Options, Phases, RenderMethod, SceneData, View, Work};
 use crate::mesh::adjacency::FACE_VERTS;
@@ -101,8 +102,8 @@ pub const STEP_MARGIN: u64 = 1024;
 pub const STALL_LIMIT: u32 = 1024;
 /// The default early-termination opacity.
 pub const ERT_DEFAULT: f64 = 0.999;
-/// Push constants: 7 vec4.
-pub const PUSH_BYTES: u32 = 112;
+/// Push constants: 8 vec4.
+pub const PUSH_BYTES: u32 = 128;
 /// Pixels added around the boundary's projected box before pixels outside
 /// it are skipped (covers the f32 rounding of the shader's rays).
 const RECT_PAD: f64 = 2.0;
@@ -224,6 +225,15 @@ pub fn accuracy_bound(options: &Options, _perspective: bool) -> Option<f64> {
 pub fn pixel_rect(points: &[[f64; 3]], forward: [f64; 3], right: [f64; 3], up: [f64; 3], perspective: bool, width: u32, height: u32) -> Option<[u32; 4]> {
     let view = tiles::View { eye: [0.0; 3], forward, right, up, perspective, size: [width, height] };
     rect_of(&view.project(points), [width, height])
+}
+
+/// The workgroups dispatched over the inclusive pixel bounds `rect`, from
+/// its corner (walk.comp adds it).
+fn rect_groups([x0, y0, x1, y1]: [u32; 4]) -> [u32; 3] {
+    if x0 > x1 || y0 > y1 {
+        return [0, 0, 1];
+    }
+    [(x1 - x0 + 1).div_ceil(WORKGROUP[0]), (y1 - y0 + 1).div_ceil(WORKGROUP[1]), 1]
 }
 
 /// [`pixel_rect`] from the points' projection, made once per frame for the
@@ -712,7 +722,10 @@ impl TetRaycast {
         let persp = if c.is_perspective() { 1.0 } else { 0.0 };
         let budget = u32::try_from(self.step_budget).unwrap_or(u32::MAX);
         let tol = 1e-5 * self.scale.diagonal;
-        let v: [f32; 28] = [
+        // The rectangle's rows of workgroups, interleaved over the device's
+        // runs (algo::screen::interleaved_rows).
+        let rows = rect_groups(rect)[1];
+        let v: [f32; 32] = [
             eye[0] as f32, eye[1] as f32, eye[2] as f32, persp,
             fwd.x as f32, fwd.y as f32, fwd.z as f32, c.near as f32,
             right.x as f32, right.y as f32, right.z as f32, c.far as f32,
@@ -720,6 +733,7 @@ impl TetRaycast {
             setup.constants.tf_range[0], setup.constants.tf_range[1], setup.constants.tf_range[2], setup.constants.tf_range[3],
             tol as f32, f32::from_bits(budget), f32::from_bits(STALL_LIMIT), setup.constants.limits[3],
             f32::from_bits(rect[0]), f32::from_bits(rect[1]), f32::from_bits(rect[2]), f32::from_bits(rect[3]),
+            f32::from_bits(rows), f32::from_bits(self.ctx.info.compute_runs()), 0.0, 0.0,
         ];
         bytemuck::cast_slice(&v).to_vec()
     }
@@ -826,8 +840,8 @@ impl RenderMethod for TetRaycast {
         // invocation that returns at once still runs the whole shader
         // masked (its branches and loops are not skipped), ~50 ns a pixel
         // at 512x512 (docs/compute-speed.md). The rest is cleared.
-        let [x0, y0, x1, y1] = self.rect;
-        let groups = if x0 > x1 || y0 > y1 { [0, 0, 1] } else { [(x1 - x0 + 1).div_ceil(WORKGROUP[0]), (y1 - y0 + 1).div_ceil(WORKGROUP[1]), 1] };
+        let [gx, gy, _] = rect_groups(self.rect);
+        let groups = [gx, screen::interleaved_rows(gy, self.ctx.info.compute_runs()), 1];
         rec.storage_target(target, self.rect_pixels == u64::from(view.width) * u64::from(view.height));
         if self.lists_active {
             rec.bind_compute(&self.pipeline_lists, &[&self.tables.set, &self.mesh_set, set, &self.lists_set])?;
