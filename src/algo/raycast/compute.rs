@@ -63,7 +63,6 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
         key,
         target_set,
         push: Vec::new(),
-        placement: BoxOnScreen::Cut,
         groups: [0, 0, 1],
         whole_image: false,
         pixels: inputs.width as u64 * inputs.height as u64,
@@ -79,8 +78,6 @@ pub struct RaycastCompute {
     /// Set 1: the target as a storage image.
     target_set: TargetImageSet,
     push: Vec<u8>,
-    /// Where the box lies in the frame's view: the tiles dispatched.
-    placement: BoxOnScreen,
     /// Workgroups dispatched (over the box's tiles), and whether they cover
     /// the whole image.
     groups: [u32; 3],
@@ -91,9 +88,9 @@ pub struct RaycastCompute {
 
 impl RenderMethod for RaycastCompute {
     fn prepare(&mut self, view: &View, _phases: &mut Phases) -> Result<()> {
-        self.placement = self.res.on_screen(view);
         let all = [view.width.div_ceil(WORKGROUP[0]), view.height.div_ceil(WORKGROUP[1])];
-        let (base, groups) = match self.placement {
+        // Only the tiles over the box's pixels (its place in the view).
+        let (base, groups) = match self.res.on_screen(view) {
             BoxOnScreen::Hidden => ([0; 3], [0, 0, 1]),
             BoxOnScreen::Whole { rect } => screen::groups_over(rect, WORKGROUP),
             BoxOnScreen::Cut => ([0; 3], [all[0], all[1], 1]),

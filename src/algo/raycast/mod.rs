@@ -5,8 +5,9 @@
 //!   box's front faces are drawn into one RGBA32F target and its back faces
 //!   into another (entry and exit points of every pixel's ray, in voxel
 //!   coordinates), then a full-screen pass (scissored to the box's pixels,
-//!   [`BoxOnScreen`]) marches each pixel from entry to exit. The eye inside the box clips the front faces away: the ray then
-//!   starts on the near plane.
+//!   [`BoxOnScreen`]) marches each pixel from entry to exit. The eye inside
+//!   the box clips the front faces away: the ray then starts on the near
+//!   plane.
 //! - `raycast-compute` ([`compute`]): one compute pass; each invocation
 //!   clips its pixel's ray (near to far plane) to the box analytically and
 //!   runs the same march, writing the runner's target as a storage image;
@@ -385,7 +386,7 @@ pub fn set0_desc(loads: bool) -> DescriptorSetDesc {
         .with(DescriptorKind::CombinedImageSampler, st)
 }
 
-/// Push constants: mat4 + eye + light.
+/// Push constants: mat4 + tiles (uvec4) + light.
 pub const PUSH_BYTES: u32 = 96;
 
 /// Where the volume's box lies in a frame's view ([`VolumeResources::on_screen`]).
