@@ -326,17 +326,23 @@ struct CompareArgs {
     out: Option<PathBuf>,
     /// Benchmark tracking instead: `compare BASELINE NEW`, two suite
     /// `summary.json` files. Counts must match exactly, errors must not grow
-    /// beyond tolerance, frame-time ratios between methods must stay inside
-    /// their noise bands; exits non-zero on a regression.
+    /// beyond tolerance; exits non-zero on a regression. Frame-time ratios
+    /// between methods that left their noise bands are notes, failures only
+    /// when both summaries come from the same machine and sitting or with
+    /// `--times`.
     #[arg(
         value_name = "SUMMARY",
         num_args = 2,
         conflicts_with_all = ["data", "methods", "out", "size", "frames", "warmup", "projection", "orbit_step", "zoom", "no_overlap", "fixed_frames", "tf", "integrator", "table_size", "sort", "interpolation"]
     )]
     summaries: Vec<PathBuf>,
-    /// Tracking: compare counts and errors only, not times (shared CI runners).
+    /// Tracking: compare counts and errors only, not times at all.
     #[arg(long, requires = "summaries")]
     no_times: bool,
+    /// Tracking: a moved time fails the comparison even when the summaries
+    /// are not from the same machine and sitting (speed decisions: `ab`).
+    #[arg(long, requires = "summaries", conflicts_with = "no_times")]
+    times: bool,
     /// Tracking: also compare absolute frame times (same device, driver and
     /// CPU model only; off by default: the same model is not the same machine).
     #[arg(long, requires = "summaries", conflicts_with = "no_times")]
@@ -606,7 +612,7 @@ fn compare(cli: &Cli, registry: &Registry, args: &CompareArgs) -> Result<()> {
     }
     // The tracking options mean nothing to a comparison run: refuse them
     // rather than run for minutes and not write what was asked.
-    for (option, given) in [("--no-times", args.no_times), ("--bmf", args.bmf.is_some()), ("--gha", args.gha.is_some())] {
+    for (option, given) in [("--no-times", args.no_times), ("--times", args.times), ("--bmf", args.bmf.is_some()), ("--gha", args.gha.is_some())] {
         if given {
             bail!("{option} applies only to benchmark tracking (`compare BASELINE NEW`, two summary.json files), not to a comparison run");
         }
@@ -650,9 +656,21 @@ fn track(baseline: &Path, new: &Path, args: &CompareArgs) -> Result<()> {
             outputs.add(option, p)?;
         }
     }
-    let tol = track::Tolerances { times: !args.no_times, absolute_times: args.absolute_times, ..track::Tolerances::default() };
+    let times = match (args.no_times, args.times) {
+        (true, _) => track::Times::Off,
+        (false, true) => track::Times::Always,
+        (false, false) => track::Times::Auto,
+    };
+    let tol = track::Tolerances { times, absolute_times: args.absolute_times, ..track::Tolerances::default() };
     let c = track::compare(&b, &n, &tol)?;
-    outln!("baseline {} ({}), new {} ({})", baseline.display(), b.environment.git_sha, new.display(), n.environment.git_sha);
+    // (The revisions are the summaries' text: printed escaped.)
+    outln!(
+        "baseline {} ({}), new {} ({})",
+        baseline.display(),
+        b.environment.git_sha.escape_debug(),
+        new.display(),
+        n.environment.git_sha.escape_debug()
+    );
     out!("{}", c.table());
     let mut files: Vec<(&Path, Vec<u8>)> = Vec::new();
     if let Some(p) = &args.bmf {
