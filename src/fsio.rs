@@ -301,6 +301,32 @@ fn temp_path(target: &Path) -> PathBuf {
     parent_dir(target).join(format!(".{name}.{}.{n}.{nanos}.tmp", std::process::id()))
 }
 
+/// Remove the temporary files that process `pid` left in `dir` while
+/// staging outputs (`temp_path`'s names; a process stopped by a signal runs
+/// no destructor): what a command that stops itself, or a child it stopped,
+/// would otherwise leave behind. Other files, and other processes'
+/// temporaries, are left alone. Returns how many were removed.
+pub fn remove_staged_by(dir: &Path, pid: u32) -> usize {
+    let Ok(entries) = fs::read_dir(dir) else { return 0 };
+    let pid = pid.to_string();
+    let mut removed = 0;
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let name = name.to_string_lossy();
+        // `.{name}.{pid}.{n}.{nanos}.tmp`
+        let Some(stem) = name.strip_prefix('.').and_then(|n| n.strip_suffix(".tmp")) else { continue };
+        let parts: Vec<&str> = stem.rsplitn(4, '.').collect();
+        let numeric = |p: &str| !p.is_empty() && p.bytes().all(|b| b.is_ascii_digit());
+        if parts.len() == 4 && numeric(parts[0]) && numeric(parts[1]) && parts[2] == pid {
+            let is_file = entry.file_type().is_ok_and(|t| t.is_file());
+            if is_file && fs::remove_file(entry.path()).is_ok() {
+                removed += 1;
+            }
+        }
+    }
+    removed
+}
+
 /// A regular-file output being written: a temporary file beside the real
 /// target (a symlink's target is replaced, not the link) with the replaced
 /// file's permission bits; removed unless committed (any early return or
@@ -491,6 +517,24 @@ mod tests {
         assert_eq!(fs::read(&p).unwrap(), b"two", "a failed write keeps the old file");
         let names: Vec<_> = fs::read_dir(d.path()).unwrap().map(|e| e.unwrap().file_name()).collect();
         assert_eq!(names.len(), 1, "{names:?}");
+    }
+
+    #[test]
+    fn a_stopped_process_s_temporaries_are_found_by_its_id() {
+        let d = tempfile::tempdir().unwrap();
+        let mine = temp_path(&d.path().join("scale.json"));
+        let other = temp_path(&d.path().join("a.b.json")).to_string_lossy().replace(&format!(".{}.", std::process::id()), ".4242.");
+        for p in [mine.as_path(), Path::new(&other), &d.path().join("scale.json"), &d.path().join(".x.tmp")] {
+            fs::write(p, b"x").unwrap();
+        }
+        assert_eq!(remove_staged_by(d.path(), 4242), 1);
+        assert!(!Path::new(&other).exists() && mine.exists());
+        assert_eq!(remove_staged_by(d.path(), std::process::id()), 1);
+        assert!(!mine.exists());
+        let mut left: Vec<_> = fs::read_dir(d.path()).unwrap().map(|e| e.unwrap().file_name().into_string().unwrap()).collect();
+        left.sort();
+        assert_eq!(left, [".x.tmp", "scale.json"]);
+        assert_eq!(remove_staged_by(&d.path().join("missing"), 1), 0);
     }
 
     #[test]

@@ -893,15 +893,10 @@ fn scale(registry: &Registry, args: &ScaleArgs) -> Result<()> {
         peers: args.peers.clone(),
     };
     let exe = std::env::current_exe().context("locating this volbench binary")?;
-    std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+    // The study checks its estimate first, creates `out` and writes the
+    // results after every level.
     let report = scale::study(&exe, &settings, &out, |what| volbench::progress!("volbench: scale: {what}"))?;
-    let md = scale::markdown(&report);
-    out!("{md}");
-    let json = report::json_bytes(&report)?;
-    let csv = scale::csv(&report);
-    let (pj, pc, pm) = (out.join("scale.json"), out.join("scale.csv"), out.join("scale.md"));
-    fsio::write_all(&[(pj.as_path(), json.as_slice()), (pc.as_path(), csv.as_bytes()), (pm.as_path(), md.as_bytes())])?;
-    scale::plots(&out, &report)?;
+    out!("{}", scale::markdown(&report));
     outln!("written: {}/scale.{{json,csv,md}}, scale_time.{{png,svg}}, scale_memory.{{png,svg}}, meshes/", out.display());
     let failed = report.rows.iter().filter(|r| r.error.is_some()).count();
     if failed > 0 {
