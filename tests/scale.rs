@@ -69,7 +69,7 @@ fn a_later_level_that_cannot_be_written_keeps_the_finished_levels() {
     // A file-size limit of 1 MB (SIGXFSZ ignored, so a write past it fails
     // with EFBIG as on a full disk): level 0's mesh (283 KB) fits, level
     // 1's (2.1 MB) does not.
-    let script = format!("trap '' XFSZ; ulimit -f 1000; exec \"$0\" \"$@\"");
+    let script = "trap '' XFSZ; ulimit -f 1000; exec \"$0\" \"$@\"";
     let o = Command::new("bash").arg("-c").arg(script).arg(EXE).args(scale_args(&out, 1)).env("VOLBENCH_VALIDATION", "1").output().unwrap();
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{err}");

@@ -493,61 +493,59 @@ fn run_level(
     let meshes = out.join("meshes");
     let file = meshes.join(format!("{name}-L{level}.vtk"));
     staging().files = vec![file.clone(), json.to_path_buf()];
-    {
-        let refine_ms = if level > 0 {
-            progress(&format!("level {level}: refining {} tets", mesh.tets.len()));
-            let (refined, ms) = timed(|| refine_checked(mesh, level, available_memory()));
-            *mesh = refined?;
-            ms
-        } else {
-            0.0
-        };
-        super::peers::write_tet_mesh(mesh, &mesh_title(name, level), &file)?;
-        let cells = mesh.tets.len() as u64;
-        let run_args: Vec<String> = vec![
-            "--size".into(),
-            format!("{}x{}", s.width, s.height),
-            "--frames".into(),
-            s.frames.to_string(),
-            "--warmup".into(),
-            s.warmup.to_string(),
-        ];
-        for (spec, label) in &s.specs {
+    let refine_ms = if level > 0 {
+        progress(&format!("level {level}: refining {} tets", mesh.tets.len()));
+        let (refined, ms) = timed(|| refine_checked(mesh, level, available_memory()));
+        *mesh = refined?;
+        ms
+    } else {
+        0.0
+    };
+    super::peers::write_tet_mesh(mesh, &mesh_title(name, level), &file)?;
+    let cells = mesh.tets.len() as u64;
+    let run_args: Vec<String> = vec![
+        "--size".into(),
+        format!("{}x{}", s.width, s.height),
+        "--frames".into(),
+        s.frames.to_string(),
+        "--warmup".into(),
+        s.warmup.to_string(),
+    ];
+    for (spec, label) in &s.specs {
+        progress(&format!("level {level} ({cells} tets): {label}"));
+        let row = run_method(exe, &file, spec, level, label, &run_args, json).unwrap_or_else(|e| failed_row(level, mesh, label, format!("{e:#}")));
+        report.rows.push(row);
+    }
+    let needs_dataset = cells <= s.reference_max_cells || !peers.is_empty();
+    let dataset = needs_dataset.then(|| Dataset::from_mesh(mesh.clone(), false, file.to_string_lossy().into_owned()));
+    let mut reference_ms = None;
+    if let Some(ds) = dataset.as_ref().filter(|_| cells <= s.reference_max_cells) {
+        progress(&format!("level {level}: f64 reference"));
+        let tf = ds.default_transfer_function()?;
+        let camera = ds.orbit_camera(0.0, crate::scene::Projection::Perspective { fovy_deg: 30.0 });
+        let (image, ms) = timed(|| ds.reference_image(&tf, &camera, s.width, s.height));
+        image?;
+        reference_ms = Some(ms);
+    }
+    for peer in peers {
+        let Some(ds) = &dataset else { break };
+        // VTK's projected tetrahedra: the cell-projection peer (its
+        // unstructured ray caster is not what the study sets beside).
+        for renderer in peer.renderers_for(ds.kind()).filter(|r| r.name == "projected-tetrahedra") {
+            let label = format!("peer {}/{}", peer.peer.name, renderer.name);
             progress(&format!("level {level} ({cells} tets): {label}"));
-            let row = run_method(exe, &file, spec, level, label, &run_args, json).unwrap_or_else(|e| failed_row(level, mesh, label, format!("{e:#}")));
+            let row = run_peer_level(peer, renderer, ds, s, level, &file, out).unwrap_or_else(|e| failed_row(level, mesh, &label, format!("{e:#}")));
             report.rows.push(row);
         }
-        let needs_dataset = cells <= s.reference_max_cells || !peers.is_empty();
-        let dataset = needs_dataset.then(|| Dataset::from_mesh(mesh.clone(), false, file.to_string_lossy().into_owned()));
-        let mut reference_ms = None;
-        if let Some(ds) = dataset.as_ref().filter(|_| cells <= s.reference_max_cells) {
-            progress(&format!("level {level}: f64 reference"));
-            let tf = ds.default_transfer_function()?;
-            let camera = ds.orbit_camera(0.0, crate::scene::Projection::Perspective { fovy_deg: 30.0 });
-            let (image, ms) = timed(|| ds.reference_image(&tf, &camera, s.width, s.height));
-            image?;
-            reference_ms = Some(ms);
-        }
-        for peer in peers {
-            let Some(ds) = &dataset else { break };
-            // VTK's projected tetrahedra: the cell-projection peer (its
-            // unstructured ray caster is not what the study sets beside).
-            for renderer in peer.renderers_for(ds.kind()).filter(|r| r.name == "projected-tetrahedra") {
-                let label = format!("peer {}/{}", peer.peer.name, renderer.name);
-                progress(&format!("level {level} ({cells} tets): {label}"));
-                let row = run_peer_level(peer, renderer, ds, s, level, &file, out).unwrap_or_else(|e| failed_row(level, mesh, &label, format!("{e:#}")));
-                report.rows.push(row);
-            }
-        }
-        report.levels.push(ScaleLevel {
-            level,
-            cells,
-            points: mesh.points.len() as u64,
-            file: file.to_string_lossy().into_owned(),
-            refine_ms,
-            reference_ms,
-        });
     }
+    report.levels.push(ScaleLevel {
+        level,
+        cells,
+        points: mesh.points.len() as u64,
+        file: file.to_string_lossy().into_owned(),
+        refine_ms,
+        reference_ms,
+    });
     // The results written while no stop signal can interrupt them (the
     // handler waits for the lock); then the level's files are results.
     let mut staged = staging();
