@@ -57,6 +57,7 @@ pub enum Times {
     /// Compared, and a moved time fails wherever the summaries come from (`--times`).
     Always,
 }
+
 /// The thresholds `compare` applies.
 #[derive(Debug, Clone, Copy)]
 pub struct Tolerances {
