@@ -157,8 +157,14 @@ mod tests {
         let t = Instant::now();
         let e = run(&mut sh("sleep 300 & sleep 300"), "hang", Duration::from_millis(300), "--timeout", None).unwrap_err().to_string();
         assert!(e.contains("hang: still running after 0.3 s (--timeout); killed its process group"), "{e}");
-        let e = run(&mut sh("yes"), "spew", Duration::from_secs(60), "--timeout", Some(100_000)).unwrap_err().to_string();
-        assert!(e.contains("spew: printed more than 100000 bytes"), "{e}");
+        // The output limit at two sizes: exactly the limit passes, beyond it
+        // (or without end) is killed.
+        for max in [1_000u64, 100_000] {
+            let exact = run(&mut sh(&format!("head -c {max} /dev/zero")), "t", Duration::from_secs(20), "--timeout", Some(max)).unwrap();
+            assert_eq!(exact.stdout.total(), max);
+            let e = run(&mut sh("yes"), "spew", Duration::from_secs(60), "--timeout", Some(max)).unwrap_err().to_string();
+            assert!(e.contains(&format!("spew: printed more than {max} bytes")), "{e}");
+        }
         assert!(t.elapsed() < Duration::from_secs(30), "{:?}", t.elapsed());
         // A grandchild that holds the output open is killed with the group
         // when the child exits: the run ends at once.
