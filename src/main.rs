@@ -150,8 +150,9 @@ struct AbArgs {
     /// over; the interval is over the rounds (a process's own bias counts).
     #[arg(long, default_value_t = 10)]
     processes: usize,
-    /// Per frame: seconds a serve process may take to answer (its start,
-    /// loading and warm-up included) before its process group is killed.
+    /// Seconds any child may take before its process group is killed: a
+    /// serve process's answer (its start, loading and warm-up included), a
+    /// per-run run, a binary's `--version`.
     #[arg(long, default_value_t = 600.0)]
     timeout: f64,
     /// Slowdown threshold in percent: fail where the interval lies wholly above 1 + this.
@@ -840,8 +841,9 @@ fn ab(registry: &Registry, args: &AbArgs) -> Result<()> {
         Ok(env)
     };
     let (base_env, new_env) = (env("--base-env", &args.base_env)?, env("--new-env", &args.new_env)?);
-    let mut base = ab::resolve(&args.base, "BASE", &target)?;
-    let mut new = ab::resolve(&args.new, "NEW", &target)?;
+    let limit = std::time::Duration::from_secs_f64(settings.timeout_s);
+    let mut base = ab::resolve(&args.base, "BASE", &target, limit)?;
+    let mut new = ab::resolve(&args.new, "NEW", &target, limit)?;
     base.env = base_env;
     new.env = new_env;
     let report = ab::run(&base, &new, &benches, &settings, |b, p| {
@@ -953,11 +955,18 @@ fn main() -> ExitCode {
         volbench::progress!("volbench: error: --count with --validation: the layer's work would be counted as the method's; validate an uncounted run");
         return ExitCode::FAILURE;
     }
-    if count::needs_reexec(count) {
-        return count::reexec().unwrap_or_else(|e| {
+    match count::needs_reexec(count) {
+        Ok(false) => {}
+        Ok(true) => {
+            return count::reexec().unwrap_or_else(|e| {
+                volbench::progress!("volbench: error: {e:#}");
+                ExitCode::FAILURE
+            })
+        }
+        Err(e) => {
             volbench::progress!("volbench: error: {e:#}");
-            ExitCode::FAILURE
-        });
+            return ExitCode::FAILURE;
+        }
     }
     let registry = registry::builtin();
     let result = match &cli.command {
