@@ -2,20 +2,21 @@
 //!
 //! One `Piece` covering the `WholeExtent`; `Origin`, `Spacing` and an
 //! axis-aligned `Direction`; `byte_order` little or big; `header_type`
-//! UInt32 or UInt64; `compressor` none or `vtkZLibDataCompressor`. The point
+//! UInt32 or UInt64; `compressor` none, `vtkZLibDataCompressor`,
+//! `vtkLZ4DataCompressor` or `vtkLZMADataCompressor`. The point
 //! data array read is the one named by the caller, else the `PointData`'s
 //! active `Scalars`, else the first one-component array. Its data may be
 //! `ascii`, inline `binary` (base64) or `appended` (raw or base64), of type
 //! UInt8, Int16, UInt16, Float32 (Int8 and Int32 convert, see `decode`).
 //!
-//! The file layer (appended data, binary headers, zlib blocks) is
+//! The file layer (appended data, binary headers, compressed blocks) is
 //! `crate::vtk_xml`, shared with the `.vtu` mesh reader.
 
 use anyhow::{anyhow, bail, Result};
 use std::path::Path;
 
 use super::decode::{byte_len, decode_binary, parse_ascii, RawType, Tokens};
-use crate::vtk_xml::{array_payload, numbers, root_layout, split_appended};
+use crate::vtk_xml::{array_payload, numbers, root_layout, split_appended, Appended};
 use super::{check_dims, from_steps, stem_of, Volume};
 
 /// Reads a `.vti` file's point array `array` (`None`: see the module note).
@@ -43,10 +44,10 @@ fn raw_type(name: &str, t: &str) -> Result<RawType> {
 /// malformed input.
 pub fn parse_vti_bytes(name: &str, bytes: &[u8], array: Option<&str>) -> Result<Volume> {
     let parts = split_appended(name, bytes)?;
-    let appended = parts.appended;
     let doc = roxmltree::Document::parse(&parts.xml).map_err(|e| anyhow!("{name}: bad XML: {e}"))?;
     let root = doc.root_element();
     let layout = root_layout(name, root, "ImageData")?;
+    let appended = Appended::new(&doc, parts.appended.as_ref());
 
     // ---- grid
     let image = root
@@ -116,8 +117,8 @@ pub fn parse_vti_bytes(name: &str, bytes: &[u8], array: Option<&str>) -> Result<
     let expected = byte_len(name, count, ty)?;
 
     // ---- the data
-    let samples = match array_payload(name, &what, *chosen, &doc, appended.as_ref(), layout, expected)? {
-        Some(bytes) => decode_binary(name, bytes.into(), ty, layout.endian, count)?,
+    let samples = match array_payload(name, &what, *chosen, appended.as_ref(), layout, expected)? {
+        Some(payload) => decode_binary(name, payload.into_vec(name, &what)?.into(), ty, layout.endian, count)?,
         None => {
             let text = chosen.text().unwrap_or("");
             let mut tokens = Tokens::new(text.as_bytes());
