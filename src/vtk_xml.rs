@@ -2,14 +2,20 @@
 //! UnstructuredGrid (`mesh::vtu`) readers: raw appended data cut off before
 //! the XML is parsed, the root's `byte_order` / `header_type` /
 //! `compressor`, and one `DataArray`'s binary payload (inline base64 or
-//! appended raw/base64; uncompressed or zlib blocks).
+//! appended raw/base64; uncompressed, or zlib, LZ4 or LZMA blocks).
 //!
 //! Binary data is a header then the bytes: uncompressed, one word with the
-//! byte count; zlib-compressed, VTK's block header `[blocks, block size, last
-//! block size (0: full), compressed size of each block]`, then each block as
-//! its own zlib stream. Every count is checked against the size the caller
-//! expects and the bytes present before any block is inflated, and each
-//! block inflates to exactly its promised size.
+//! byte count; compressed, VTK's block header `[blocks, block size, last
+//! block size (0: full), compressed size of each block]`, then each block
+//! compressed on its own (a zlib stream, an LZ4 block or an `.xz` stream:
+//! [`Compressor`]). Every count is checked against the size the caller
+//! expects and the bytes present, and each block's promise against what its
+//! compressed bytes can hold, before any block is inflated
+//! ([`Payload::open`]); each block inflates to exactly its promised size.
+//! The data is then handed on a block (or 64 KiB) at a time
+//! ([`Payload::for_each_chunk`]), base64 text decoded as it is read
+//! ([`Stream`]), so a reader can decode straight into its final arrays
+//! without holding the whole inflated array.
 //!
 //! XML nesting: roxmltree overflows the stack on deeply nested input (200,000
 //! levels abort the process), so the text is scanned first and more than
@@ -655,7 +661,7 @@ mod tests {
     /// compressed from `chunk` bytes of `data` but declared as `declared`.
     fn blocks(c: Compressor, data: &[u8], chunk: usize, declared: usize) -> Vec<u8> {
         let comp: Vec<Vec<u8>> = data.chunks(chunk).map(|b| compress(c, b)).collect();
-        let last = if data.len() % chunk == 0 { 0 } else { declared - (chunk - data.len() % chunk) };
+        let last = if data.len().is_multiple_of(chunk) { 0 } else { declared - (chunk - data.len() % chunk) };
         let mut out: Vec<u8> = [comp.len() as u32, declared as u32, last as u32].iter().flat_map(|w| w.to_le_bytes()).collect();
         for b in &comp {
             out.extend((b.len() as u32).to_le_bytes());

@@ -3,18 +3,35 @@
 //! `.vtu`: every `<Piece>` of the `<UnstructuredGrid>` (concatenated),
 //! `Points` and `Cells` (`connectivity`, `offsets`, `types`) and one point
 //! array. Arrays may be `ascii`, inline `binary` (base64) or `appended`
-//! (raw or base64), uncompressed or `vtkZLibDataCompressor`, with UInt32 or
+//! (raw or base64), uncompressed or compressed by `vtkZLibDataCompressor`,
+//! `vtkLZ4DataCompressor` or `vtkLZMADataCompressor`, with UInt32 or
 //! UInt64 headers and either byte order (the file layer is
 //! `crate::vtk_xml`); any of Int8 to Int64, UInt8 to UInt64, Float32 and
 //! Float64.
+//!
+//! Memory: each array is opened first (its header, block sizes and bytes
+//! present checked, and its data bytes charged to [`MAX_DECODED_BYTES`]),
+//! then decoded value by value straight into its final vector (f64 points
+//! and scalars, u32 connectivity, u8 types; a vector's magnitude summed as
+//! it is read), a block or 64 KiB at a time, ASCII token by token: no
+//! intermediate array of values, never the whole inflated array, and
+//! nothing reserved beyond what the data present can hold.
 //!
 //! `.pvtu`: the `<Piece Source="...">` files (paths relative to the
 //! `.pvtu`) are read as above and concatenated; then points with
 //! bit-identical coordinates are merged (`RawCells::weld`), so the cells of
 //! neighbouring pieces share vertex indices, the quad-diagonal rule of
 //! `cells` cuts their common faces alike and the face adjacency closes
-//! across pieces. Ghost cells (a `vtkGhostType` cell array, non-zero
-//! entries) are dropped from every piece: their owner piece holds them.
+//! across pieces (`MeshStats::seam_points_merged`; copies whose scalars
+//! differ keep the first piece's value, are counted in
+//! `seam_scalar_mismatches` and noted). Before any piece is read, each must
+//! be a distinct file (canonical paths compared: a piece listed twice is
+//! refused) and all together within `fsio::MAX_INPUT_BYTES`.
+//!
+//! Ghosts (`vtkGhostType`, `RawCells::drop_ghosts`): cells marked
+//! `DUPLICATECELL`, `REFINEDCELL` or `HIDDENCELL`, and cells using a point
+//! marked `HIDDENPOINT`, are skipped as VTK's geometry filter does, and
+//! counted (`ghost_cells`, `hidden_cells`, `ghost_points`).
 //!
 //! The scalar: the point array named by the caller (`--scalar NAME`), else
 //! the `PointData`'s active `Scalars`, else the first point array; arrays of

@@ -131,3 +131,32 @@ pub fn parse_vti_bytes(name: &str, bytes: &[u8], array: Option<&str>) -> Result<
     };
     from_steps(name, stem_of(name), dims, steps, first, samples)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::volume::Samples;
+
+    /// A ramp VTK 9.7.2 wrote with each compressor (UInt64 headers,
+    /// appended raw, 64-byte blocks: `tests/fixtures/vtk_xml/make.py`).
+    #[test]
+    fn vtk_written_compressed_images() {
+        let files: [(&str, &[u8]); 3] = [
+            ("zlib", include_bytes!("../../tests/fixtures/vtk_xml/ramp_zlib.vti")),
+            ("lz4", include_bytes!("../../tests/fixtures/vtk_xml/ramp_lz4.vti")),
+            ("lzma", include_bytes!("../../tests/fixtures/vtk_xml/ramp_lzma.vti")),
+        ];
+        let want: Vec<f32> = (0..3).flat_map(|k| (0..4).flat_map(move |j| (0..5).map(move |i| (i + 10 * j + 100 * k) as f32 + 0.25))).collect();
+        for (what, bytes) in files {
+            let v = parse_vti_bytes("ramp.vti", bytes, None).unwrap_or_else(|e| panic!("{what}: {e:#}"));
+            assert_eq!(v.dims(), [5, 4, 3], "{what}");
+            assert_eq!(v.spacing(), [1.0, 0.5, 2.0], "{what}");
+            assert_eq!(v.samples(), &Samples::F32(want.clone()), "{what}");
+            for cut in (0..bytes.len()).step_by(31) {
+                if let Err(e) = parse_vti_bytes("cut.vti", &bytes[..cut], None) {
+                    assert!(format!("{e:#}").starts_with("cut.vti"), "{what}: {e:#}");
+                }
+            }
+        }
+    }
+}
