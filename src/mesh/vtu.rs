@@ -1098,5 +1098,17 @@ mod tests {
             let e = format!("{:#}", read_vtu(&p, None).unwrap_err());
             assert!(e.contains("all.pvtu") && e.contains(&format!("is the same file as piece '{first}'")), "{e}");
         }
+        // Pieces over the input cap together (sparse files: sizes from the metadata,
+        // nothing read): 2 x 0.6 GiB and 3 x 0.4 GiB, refused at the last piece.
+        for (n, size) in [(2usize, 0.6f64), (3, 0.4)] {
+            let names: Vec<String> = (0..n).map(|i| format!("big_{n}_{i}.vtu")).collect();
+            for f in &names {
+                std::fs::File::create(tmp.path().join(f)).unwrap().set_len((size * (1u64 << 30) as f64) as u64).unwrap();
+            }
+            std::fs::write(&p, pvtu(&names.iter().map(|s| s.as_str()).collect::<Vec<_>>())).unwrap();
+            let e = format!("{:#}", read_vtu(&p, None).unwrap_err());
+            let last = &names[n - 1];
+            assert!(e.contains(&format!("its pieces up to '{last}' hold")) && e.contains("more than the 1073741824 bytes"), "{e}");
+        }
     }
 }
