@@ -2,14 +2,20 @@
 //! UnstructuredGrid (`mesh::vtu`) readers: raw appended data cut off before
 //! the XML is parsed, the root's `byte_order` / `header_type` /
 //! `compressor`, and one `DataArray`'s binary payload (inline base64 or
-//! appended raw/base64; uncompressed or zlib blocks).
+//! appended raw/base64; uncompressed, or zlib, LZ4 or LZMA blocks).
 //!
 //! Binary data is a header then the bytes: uncompressed, one word with the
-//! byte count; zlib-compressed, VTK's block header `[blocks, block size, last
-//! block size (0: full), compressed size of each block]`, then each block as
-//! its own zlib stream. Every count is checked against the size the caller
-//! expects and the bytes present before any block is inflated, and each
-//! block inflates to exactly its promised size.
+//! byte count; compressed, VTK's block header `[blocks, block size, last
+//! block size (0: full), compressed size of each block]`, then each block
+//! compressed on its own (a zlib stream, an LZ4 block or an `.xz` stream:
+//! [`Compressor`]). Every count is checked against the size the caller
+//! expects and the bytes present, and each block's promise against what its
+//! compressed bytes can hold, before any block is inflated
+//! ([`Payload::open`]); each block inflates to exactly its promised size.
+//! The data is then handed on a block (or 64 KiB) at a time
+//! ([`Payload::for_each_chunk`]), base64 text decoded as it is read
+//! ([`Stream`]), so a reader can decode straight into its final arrays
+//! without holding the whole inflated array.
 //!
 //! XML nesting: roxmltree overflows the stack on deeply nested input (200,000
 //! levels abort the process), so the text is scanned first and more than
@@ -17,7 +23,7 @@
 
 use anyhow::{anyhow, bail, Result};
 
-use crate::volume::decode::{base64_concat, inflate_exact, Endian, Wrapper};
+use crate::volume::decode::{inflate_exact, Endian, Wrapper};
 
 fn find(hay: &[u8], needle: &[u8]) -> Option<usize> {
     hay.windows(needle.len()).position(|w| w == needle)
@@ -31,7 +37,8 @@ fn rfind(hay: &[u8], needle: &[u8]) -> Option<usize> {
 /// appended data was cut off) and the appended data's encoding and bytes
 /// (after the `_` marker).
 pub(crate) struct XmlParts<'a> {
-    pub xml: String,
+    /// Borrowed from the file when nothing was cut off.
+    pub xml: std::borrow::Cow<'a, str>,
     pub appended: Option<(String, &'a [u8])>,
 }
 
@@ -69,12 +76,12 @@ pub(crate) fn split_appended<'a>(name: &str, bytes: &'a [u8]) -> Result<XmlParts
             (&body[..at], Some((encoding, data)))
         }
     };
-    let mut xml = std::str::from_utf8(xml_bytes)
-        .map_err(|e| anyhow!("{name}: the XML is not UTF-8 text (invalid byte at offset {})", e.valid_up_to()))?
-        .to_string();
-    if appended.is_some() {
-        xml.push_str("</VTKFile>");
-    }
+    let text = std::str::from_utf8(xml_bytes)
+        .map_err(|e| anyhow!("{name}: the XML is not UTF-8 text (invalid byte at offset {})", e.valid_up_to()))?;
+    let xml = match appended {
+        Some(_) => std::borrow::Cow::Owned(format!("{text}</VTKFile>")),
+        None => std::borrow::Cow::Borrowed(text),
+    };
     check_depth(name, &xml)?;
     Ok(XmlParts { xml, appended })
 }
@@ -132,13 +139,53 @@ fn find_from(hay: &[u8], from: usize, needle: &[u8]) -> Option<usize> {
     hay.get(from..)?.windows(needle.len()).position(|w| w == needle).map(|p| p + from)
 }
 
+/// A `compressor` of the `<VTKFile>` root. VTK writes the same block
+/// header for each (`[blocks, block size, last block size, compressed size
+/// of each block]`); the blocks differ: a zlib stream each
+/// (`vtkZLibDataCompressor`), an LZ4 *block* (`vtkLZ4DataCompressor`:
+/// `LZ4_compress_fast`, no frame) or an `.xz` stream
+/// (`vtkLZMADataCompressor`: `lzma_easy_buffer_encode`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Compressor {
+    None,
+    Zlib,
+    Lz4,
+    Lzma,
+}
+
+impl Compressor {
+    fn kind(self) -> &'static str {
+        match self {
+            Compressor::None => "uncompressed",
+            Compressor::Zlib => "zlib",
+            Compressor::Lz4 => "LZ4",
+            Compressor::Lzma => "LZMA",
+        }
+    }
+
+    /// The most bytes `c` compressed bytes of one block can hold: deflate
+    /// expands at most ~1032:1, an LZ4 block 255:1 (a match length byte
+    /// per 255 bytes); an `.xz` stream has no such bound, so 65536:1 (VTK's
+    /// 32 KiB blocks of zeros are ~100 bytes of xz: 330:1). A header
+    /// promising more is refused before anything is inflated.
+    fn max_inflated(self, c: usize) -> usize {
+        let ratio = match self {
+            Compressor::None => 1,
+            Compressor::Zlib => 1032,
+            Compressor::Lz4 => 256,
+            Compressor::Lzma => 65536,
+        };
+        c.saturating_mul(ratio).saturating_add(64)
+    }
+}
+
 /// How binary arrays are laid out, from the `<VTKFile>` root.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Layout {
     pub endian: Endian,
     /// Bytes per header word (UInt32: 4, UInt64: 8).
     pub word: usize,
-    pub zlib: bool,
+    pub compressor: Compressor,
 }
 
 /// Checks the root is `<VTKFile type="{kind}">` and reads its layout.
@@ -160,12 +207,17 @@ pub(crate) fn root_layout(name: &str, root: roxmltree::Node, kind: &str) -> Resu
         "UInt64" => 8,
         o => bail!("{name}: bad header_type '{o}': expected UInt32 or UInt64"),
     };
-    let zlib = match root.attribute("compressor") {
-        None | Some("") => false,
-        Some("vtkZLibDataCompressor") => true,
-        Some(o) => bail!("{name}: unsupported compressor '{o}'; supported: none, vtkZLibDataCompressor"),
+    let compressor = match root.attribute("compressor") {
+        None | Some("") => Compressor::None,
+        Some("vtkZLibDataCompressor") => Compressor::Zlib,
+        Some("vtkLZ4DataCompressor") => Compressor::Lz4,
+        Some("vtkLZMADataCompressor") => Compressor::Lzma,
+        Some(o) => bail!(
+            "{name}: unsupported compressor '{o}'; supported: none, vtkZLibDataCompressor, vtkLZ4DataCompressor, \
+             vtkLZMADataCompressor"
+        ),
     };
-    Ok(Layout { endian, word, zlib })
+    Ok(Layout { endian, word, compressor })
 }
 
 /// The numbers of an attribute, exactly `n` of them.
@@ -181,22 +233,118 @@ pub(crate) fn numbers<T: std::str::FromStr>(name: &str, node: roxmltree::Node, a
     Ok(Some(v))
 }
 
-/// Reads header words of `word` bytes from a byte stream.
-struct Words<'a> {
-    b: &'a [u8],
+/// Bytes handed to a sink at a time when an uncompressed array is streamed.
+const CHUNK: usize = 1 << 16;
+
+/// An array's binary stream read front to back without holding it whole:
+/// raw bytes (borrowed), or base64 text decoded a chunk at a time. Padding
+/// may end any 4-character group, not only the last: VTK encodes a data
+/// array's header and its data as two base64 streams written back to back.
+pub(crate) struct Stream<'a> {
+    text: &'a [u8],
     pos: usize,
-    word: usize,
-    endian: Endian,
+    base64: bool,
+    /// Decoded bytes not yet read (exact: counted before reading).
+    left: usize,
+    /// Base64 only: decoded bytes not yet handed out, and where they start.
+    pending: Vec<u8>,
+    at: usize,
 }
 
-impl Words<'_> {
-    fn next(&mut self, name: &str, what: &str) -> Result<usize> {
-        let c = self
-            .b
-            .get(self.pos..self.pos + self.word)
-            .ok_or_else(|| anyhow!("{name}: truncated {what}: its header ends after {} bytes", self.b.len()))?;
-        self.pos += self.word;
-        let v = match (self.word, self.endian) {
+impl<'a> Stream<'a> {
+    pub(crate) fn raw(bytes: &'a [u8]) -> Stream<'a> {
+        Stream { text: bytes, pos: 0, base64: false, left: bytes.len(), pending: Vec::new(), at: 0 }
+    }
+
+    /// Base64 text (ASCII whitespace ignored); its length is checked and its
+    /// decoded size counted here, its characters as they are decoded.
+    pub(crate) fn base64(name: &str, what: &str, text: &'a [u8]) -> Result<Stream<'a>> {
+        let (mut chars, mut pads) = (0usize, 0usize);
+        for &c in text {
+            if !c.is_ascii_whitespace() {
+                chars += 1;
+                pads += usize::from(c == b'=');
+            }
+        }
+        if !chars.is_multiple_of(4) {
+            bail!("{name}: base64 data in {what} has {chars} characters, not a multiple of 4");
+        }
+        let left = (chars / 4 * 3).saturating_sub(pads);
+        Ok(Stream { text, pos: 0, base64: true, left, pending: Vec::new(), at: 0 })
+    }
+
+    /// Decoded bytes not yet read.
+    pub(crate) fn left(&self) -> usize {
+        self.left
+    }
+
+    /// Decodes the next base64 groups (up to 64 KiB of text, or up to a
+    /// group ending in padding) into `pending`.
+    fn refill(&mut self, name: &str, what: &str) -> Result<()> {
+        use base64::Engine as _;
+        let mut clean: Vec<u8> = Vec::with_capacity(CHUNK.min(self.text.len() - self.pos));
+        let start = self.pos;
+        while self.pos < self.text.len() && clean.len() < CHUNK {
+            let c = self.text[self.pos];
+            self.pos += 1;
+            if c.is_ascii_whitespace() {
+                continue;
+            }
+            clean.push(c);
+            if clean.len().is_multiple_of(4) && c == b'=' {
+                break;
+            }
+        }
+        // Only whole groups: hand a partial one back (the length was checked).
+        while !clean.len().is_multiple_of(4) {
+            self.pos -= 1;
+            if !self.text[self.pos].is_ascii_whitespace() {
+                clean.pop();
+            }
+        }
+        self.pending.clear();
+        self.at = 0;
+        base64::engine::general_purpose::STANDARD
+            .decode_vec(&clean, &mut self.pending)
+            .map_err(|e| anyhow!("{name}: bad base64 data in {what} (from character {start}): {e}"))?;
+        Ok(())
+    }
+
+    /// The next `n` bytes: borrowed from raw data; decoded into `buf` from base64.
+    pub(crate) fn take<'s>(&'s mut self, name: &str, what: &str, n: usize, buf: &'s mut Vec<u8>) -> Result<&'s [u8]> {
+        if n > self.left {
+            bail!("{name}: truncated {what}: {n} more bytes needed, {} present", self.left);
+        }
+        self.left -= n;
+        if !self.base64 {
+            let s = &self.text[self.pos..self.pos + n];
+            self.pos += n;
+            return Ok(s);
+        }
+        buf.clear();
+        buf.reserve(n);
+        while buf.len() < n {
+            if self.at == self.pending.len() {
+                self.refill(name, what)?;
+                if self.pending.is_empty() {
+                    bail!("{name}: truncated {what}: its base64 text ends early");
+                }
+            }
+            let k = (n - buf.len()).min(self.pending.len() - self.at);
+            buf.extend_from_slice(&self.pending[self.at..self.at + k]);
+            self.at += k;
+        }
+        Ok(&buf[..])
+    }
+
+    /// One header word of `layout.word` bytes.
+    fn word(&mut self, name: &str, what: &str, layout: Layout) -> Result<usize> {
+        if self.left < layout.word {
+            bail!("{name}: truncated {what}: its header ends after {} bytes", self.left);
+        }
+        let mut buf = Vec::new();
+        let c = self.take(name, what, layout.word, &mut buf)?;
+        let v = match (layout.word, layout.endian) {
             (4, Endian::Little) => u32::from_le_bytes([c[0], c[1], c[2], c[3]]) as u64,
             (4, Endian::Big) => u32::from_be_bytes([c[0], c[1], c[2], c[3]]) as u64,
             (_, e) => {
@@ -212,100 +360,255 @@ impl Words<'_> {
     }
 }
 
-/// The `expected` data bytes of one array from its binary stream (header +
-/// data), compressed or not.
-pub(crate) fn binary_payload(name: &str, what: &str, stream: &[u8], layout: Layout, expected: usize) -> Result<Vec<u8>> {
-    let Layout { endian, word, zlib } = layout;
-    let mut w = Words { b: stream, pos: 0, word, endian };
-    if !zlib {
-        let n = w.next(name, what)?;
-        if n != expected {
-            bail!("{name}: header/size mismatch: {what} declares {n} bytes, its size needs {expected}");
-        }
-        let body = stream
-            .get(w.pos..)
-            .filter(|b| b.len() >= n)
-            .ok_or_else(|| anyhow!("{name}: truncated {what}: {n} bytes declared, {} present", stream.len() - w.pos))?;
-        return Ok(body[..n].to_vec());
-    }
-    let blocks = w.next(name, what)?;
-    let block = w.next(name, what)?;
-    let last = w.next(name, what)?;
-    // The per-block sizes must fit in what remains: bounds the vector.
-    if blocks > (stream.len() - w.pos) / word {
-        bail!("{name}: truncated {what}: {blocks} compressed blocks declared, the header ends first");
-    }
-    if last > block {
-        bail!("{name}: {what}: last block size {last} is larger than the block size {block}");
-    }
-    let total = match (blocks, last) {
-        (0, _) => Some(0),
-        (b, 0) => b.checked_mul(block),
-        (b, l) => (b - 1).checked_mul(block).and_then(|t| t.checked_add(l)),
-    };
-    if total != Some(expected) {
-        bail!(
-            "{name}: header/size mismatch: the block header of {what} ({blocks} blocks of {block} bytes, last \
-             {last}) does not make the {expected} bytes its size needs"
-        );
-    }
-    let sizes = (0..blocks).map(|_| w.next(name, what)).collect::<Result<Vec<usize>>>()?;
-    let mut at = w.pos;
-    let mut out = Vec::with_capacity(expected.min(stream.len().saturating_mul(1032)));
-    for (i, &c) in sizes.iter().enumerate() {
-        let end = at.checked_add(c).filter(|&e| e <= stream.len()).ok_or_else(|| {
-            anyhow!("{name}: truncated {what}: compressed block {i} of {blocks} ({c} bytes) runs past the data")
-        })?;
-        let size = if i + 1 == blocks && last != 0 { last } else { block };
-        out.extend(inflate_exact(name, &format!("{what}, block {i}"), Wrapper::Zlib, &stream[at..end], size)?);
-        at = end;
-    }
-    Ok(out)
+/// One array's binary data, its header read and checked: the data bytes
+/// (`expected`, what its count and type need) and, compressed, each
+/// block's compressed and inflated size. Nothing is inflated yet, and
+/// nothing the size of the data is allocated.
+pub(crate) struct Payload<'a> {
+    stream: Stream<'a>,
+    compressor: Compressor,
+    /// Compressed: (compressed bytes, inflated bytes) per block.
+    blocks: Vec<(usize, usize)>,
+    expected: usize,
 }
 
-/// The `expected` bytes of a `binary` or `appended` `DataArray` (`None` for
-/// an `ascii` one: its text is the caller's). `doc` is searched for the
-/// next appended offset, where this array's bytes end.
-pub(crate) fn array_payload(
+impl<'a> Payload<'a> {
+    /// Reads and checks the header: uncompressed, one word equal to
+    /// `expected` and that many bytes present; compressed, VTK's block
+    /// header whose sizes make exactly `expected` bytes, whose blocks are
+    /// all present, and none of which promises more than its compressed
+    /// bytes can hold.
+    pub(crate) fn open(name: &str, what: &str, mut stream: Stream<'a>, layout: Layout, expected: usize) -> Result<Payload<'a>> {
+        let compressor = layout.compressor;
+        if compressor == Compressor::None {
+            let n = stream.word(name, what, layout)?;
+            if n != expected {
+                bail!("{name}: header/size mismatch: {what} declares {n} bytes, its size needs {expected}");
+            }
+            if stream.left() < n {
+                bail!("{name}: truncated {what}: {n} bytes declared, {} present", stream.left());
+            }
+            return Ok(Payload { stream, compressor, blocks: Vec::new(), expected });
+        }
+        let blocks = stream.word(name, what, layout)?;
+        let block = stream.word(name, what, layout)?;
+        let last = stream.word(name, what, layout)?;
+        // The per-block sizes must fit in what remains: bounds the vector.
+        if blocks > stream.left() / layout.word {
+            bail!("{name}: truncated {what}: {blocks} compressed blocks declared, the header ends first");
+        }
+        if last > block {
+            bail!("{name}: {what}: last block size {last} is larger than the block size {block}");
+        }
+        let total = match (blocks, last) {
+            (0, _) => Some(0),
+            (b, 0) => b.checked_mul(block),
+            (b, l) => (b - 1).checked_mul(block).and_then(|t| t.checked_add(l)),
+        };
+        if total != Some(expected) {
+            bail!(
+                "{name}: header/size mismatch: the block header of {what} ({blocks} blocks of {block} bytes, last \
+                 {last}) does not make the {expected} bytes its size needs"
+            );
+        }
+        let kind = compressor.kind();
+        let mut sizes = Vec::with_capacity(blocks);
+        let mut present = 0usize;
+        for i in 0..blocks {
+            let c = stream.word(name, what, layout)?;
+            let size = if i + 1 == blocks && last != 0 { last } else { block };
+            if size > compressor.max_inflated(c) {
+                bail!(
+                    "{name}: {kind} data in {what}: block {i} of {blocks} has {c} compressed bytes, which cannot hold \
+                     the {size} bytes the header promises"
+                );
+            }
+            present = present.saturating_add(c);
+            sizes.push((c, size));
+        }
+        if present > stream.left() {
+            bail!(
+                "{name}: truncated {what}: its {blocks} compressed blocks need {present} bytes, {} present",
+                stream.left()
+            );
+        }
+        Ok(Payload { stream, compressor, blocks: sizes, expected })
+    }
+
+    /// The data's byte count (what the header promised and `open` checked).
+    pub(crate) fn len(&self) -> usize {
+        self.expected
+    }
+
+    /// Hands the data to `sink` in order, in pieces (a block, or 64 KiB of
+    /// uncompressed data), each block inflated to exactly its promised size.
+    pub(crate) fn for_each_chunk(mut self, name: &str, what: &str, sink: &mut dyn FnMut(&[u8]) -> Result<()>) -> Result<()> {
+        let mut buf = Vec::new();
+        if self.compressor == Compressor::None {
+            let mut left = self.expected;
+            while left > 0 {
+                let n = left.min(CHUNK);
+                sink(self.stream.take(name, what, n, &mut buf)?)?;
+                left -= n;
+            }
+            return Ok(());
+        }
+        let mut out = Vec::new();
+        let count = self.blocks.len();
+        for (i, &(c, size)) in self.blocks.iter().enumerate() {
+            let input = self.stream.take(name, what, c, &mut buf)?;
+            inflate_block(name, &format!("{what}, block {i} of {count}"), self.compressor, input, size, &mut out)?;
+            sink(&out)?;
+        }
+        Ok(())
+    }
+
+    /// The whole data in one vector (`expected` bytes).
+    pub(crate) fn into_vec(self, name: &str, what: &str) -> Result<Vec<u8>> {
+        let mut v = Vec::with_capacity(self.expected);
+        self.for_each_chunk(name, what, &mut |c| {
+            v.extend_from_slice(c);
+            Ok(())
+        })?;
+        Ok(v)
+    }
+}
+
+/// A writer that refuses bytes past `limit` (an `.xz` block inflating past
+/// its promised size stops there).
+struct Capped<'v> {
+    out: &'v mut Vec<u8>,
+    limit: usize,
+}
+
+impl std::io::Write for Capped<'_> {
+    fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
+        if self.out.len() + b.len() > self.limit {
+            return Err(std::io::Error::other("inflates past its promised size"));
+        }
+        self.out.extend_from_slice(b);
+        Ok(b.len())
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+/// Inflates one compressed block into `out` (cleared first): exactly
+/// `size` bytes, or an error; never more than `size` (+1 for zlib) bytes
+/// are produced.
+fn inflate_block(name: &str, what: &str, compressor: Compressor, input: &[u8], size: usize, out: &mut Vec<u8>) -> Result<()> {
+    out.clear();
+    match compressor {
+        Compressor::None => out.extend_from_slice(input),
+        Compressor::Zlib => *out = inflate_exact(name, what, Wrapper::Zlib, input, size)?,
+        Compressor::Lz4 => {
+            out.resize(size, 0);
+            let n = lz4_flex::block::decompress_into(input, out).map_err(|e| match e {
+                lz4_flex::block::DecompressError::OutputTooSmall { .. } => {
+                    anyhow!("{name}: LZ4 data in {what} decompresses to more than the {size} bytes the header promises")
+                }
+                e => anyhow!("{name}: corrupt LZ4 data in {what}: {e}"),
+            })?;
+            if n != size {
+                bail!("{name}: LZ4 data in {what} decompresses to {n} bytes, {size} expected (truncated or corrupt block)");
+            }
+        }
+        Compressor::Lzma => {
+            let mut w = Capped { out, limit: size };
+            if let Err(e) = lzma_rs::xz_decompress(&mut &input[..], &mut w) {
+                let over = matches!(&e, lzma_rs::error::Error::IoError(io) if io.kind() == std::io::ErrorKind::Other);
+                if over {
+                    bail!("{name}: LZMA data in {what} decompresses to more than the {size} bytes the header promises");
+                }
+                bail!("{name}: corrupt LZMA data in {what}: {e}");
+            }
+            if out.len() != size {
+                bail!(
+                    "{name}: LZMA data in {what} decompresses to {} bytes, {size} expected (truncated or corrupt block)",
+                    out.len()
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+thread_local! {
+    /// XML nodes the readers have stepped over (this thread): a count that
+    /// shows how reading grows with the file (`visit`).
+    pub(crate) static NODE_VISITS: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
+}
+
+/// Counts one XML node stepped over (tests only: `NODE_VISITS`).
+#[inline]
+pub(crate) fn visit() {
+    #[cfg(test)]
+    NODE_VISITS.with(|c| c.set(c.get() + 1));
+}
+
+/// The `<AppendedData>` of a file: its encoding, its bytes, and the sorted
+/// offsets of every appended `DataArray` (one array's bytes run to the next
+/// offset), gathered once per document.
+pub(crate) struct Appended<'a> {
+    encoding: String,
+    data: &'a [u8],
+    offsets: Vec<usize>,
+}
+
+impl<'a> Appended<'a> {
+    pub(crate) fn new(doc: &roxmltree::Document, parts: Option<&(String, &'a [u8])>) -> Option<Appended<'a>> {
+        let (encoding, data) = parts?;
+        let mut offsets: Vec<usize> = doc
+            .descendants()
+            .inspect(|_| visit())
+            .filter(|n| n.has_tag_name("DataArray") && n.attribute("format") == Some("appended"))
+            .filter_map(|n| n.attribute("offset")?.trim().parse::<usize>().ok())
+            .filter(|&o| o <= data.len())
+            .collect();
+        offsets.sort_unstable();
+        offsets.dedup();
+        Some(Appended { encoding: encoding.clone(), data, offsets })
+    }
+}
+
+/// A `binary` or `appended` `DataArray`'s payload, header checked
+/// ([`Payload::open`]), for `expected` data bytes; `None` for an `ascii`
+/// one (its text is the caller's).
+pub(crate) fn array_payload<'a>(
     name: &str,
     what: &str,
-    array: roxmltree::Node,
-    doc: &roxmltree::Document,
-    appended: Option<&(String, &[u8])>,
+    array: roxmltree::Node<'a, '_>,
+    appended: Option<&Appended<'a>>,
     layout: Layout,
     expected: usize,
-) -> Result<Option<Vec<u8>>> {
-    match array.attribute("format").unwrap_or("ascii") {
-        "ascii" => Ok(None),
-        "binary" => {
-            let text = array.text().unwrap_or("");
-            let stream = base64_concat(name, what, text.as_bytes())?;
-            binary_payload(name, what, &stream, layout, expected).map(Some)
-        }
+) -> Result<Option<Payload<'a>>> {
+    let stream = match array.attribute("format").unwrap_or("ascii") {
+        "ascii" => return Ok(None),
+        "binary" => Stream::base64(name, what, array.text().unwrap_or("").as_bytes())?,
         "appended" => {
-            let (encoding, data) = appended.ok_or_else(|| anyhow!("{name}: {what} is appended but there is no <AppendedData>"))?;
+            let app = appended.ok_or_else(|| anyhow!("{name}: {what} is appended but there is no <AppendedData>"))?;
             let off_text = array.attribute("offset").ok_or_else(|| anyhow!("{name}: appended {what} has no offset"))?;
             let offset: usize = off_text.trim().parse().map_err(|_| anyhow!("{name}: bad offset '{off_text}' of {what}"))?;
             // This array's bytes run to the next appended array's offset.
-            let next = doc
-                .descendants()
-                .filter(|n| n.has_tag_name("DataArray") && n.attribute("format") == Some("appended"))
-                .filter_map(|n| n.attribute("offset")?.trim().parse::<usize>().ok())
-                .filter(|&o| o > offset && o <= data.len())
-                .min()
-                .unwrap_or(data.len());
-            let tail = data.get(offset..next).ok_or_else(|| {
-                anyhow!("{name}: offset {offset} of {what} is past the end of the {} bytes of appended data", data.len())
-            })?;
-            let stream = match encoding.as_str() {
-                "raw" => std::borrow::Cow::Borrowed(tail),
-                "base64" => std::borrow::Cow::Owned(base64_concat(name, what, tail)?),
-                o => bail!("{name}: unsupported AppendedData encoding '{o}'; supported: raw, base64"),
+            let next = match app.offsets.binary_search(&offset) {
+                Ok(i) => i + 1,
+                Err(i) => i,
             };
-            binary_payload(name, what, &stream, layout, expected).map(Some)
+            let end = app.offsets.get(next).copied().unwrap_or(app.data.len());
+            let tail = app.data.get(offset..end).ok_or_else(|| {
+                anyhow!("{name}: offset {offset} of {what} is past the end of the {} bytes of appended data", app.data.len())
+            })?;
+            match app.encoding.as_str() {
+                "raw" => Stream::raw(tail),
+                "base64" => Stream::base64(name, what, tail)?,
+                o => bail!("{name}: unsupported AppendedData encoding '{o}'; supported: raw, base64"),
+            }
         }
         o => bail!("{name}: {what} has format '{o}'; supported: ascii, binary, appended"),
-    }
+    };
+    Payload::open(name, what, stream, layout, expected).map(Some)
 }
 
 #[cfg(test)]
@@ -334,5 +637,111 @@ mod tests {
         }
         let flat = "<a></a>".repeat(100_000);
         check_depth("f", &flat).unwrap();
+    }
+
+    fn compress(c: Compressor, data: &[u8]) -> Vec<u8> {
+        use std::io::Write as _;
+        match c {
+            Compressor::None => data.to_vec(),
+            Compressor::Zlib => {
+                let mut e = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::default());
+                e.write_all(data).unwrap();
+                e.finish().unwrap()
+            }
+            Compressor::Lz4 => lz4_flex::block::compress(data),
+            Compressor::Lzma => {
+                let mut out = Vec::new();
+                lzma_rs::xz_compress(&mut &data[..], &mut out).unwrap();
+                out
+            }
+        }
+    }
+
+    /// VTK's layout: `[blocks, block, last, sizes...]` then the blocks, each
+    /// compressed from `chunk` bytes of `data` but declared as `declared`.
+    fn blocks(c: Compressor, data: &[u8], chunk: usize, declared: usize) -> Vec<u8> {
+        let comp: Vec<Vec<u8>> = data.chunks(chunk).map(|b| compress(c, b)).collect();
+        let last = if data.len().is_multiple_of(chunk) { 0 } else { declared - (chunk - data.len() % chunk) };
+        let mut out: Vec<u8> = [comp.len() as u32, declared as u32, last as u32].iter().flat_map(|w| w.to_le_bytes()).collect();
+        for b in &comp {
+            out.extend((b.len() as u32).to_le_bytes());
+        }
+        for b in comp {
+            out.extend(b);
+        }
+        out
+    }
+
+    fn read(c: Compressor, stream: &[u8], expected: usize) -> Result<Vec<u8>> {
+        let layout = Layout { endian: Endian::Little, word: 4, compressor: c };
+        Payload::open("f.vtu", "the array", Stream::raw(stream), layout, expected)?.into_vec("f.vtu", "the array")
+    }
+
+    /// Every compressor: honest blocks read back; blocks that inflate past
+    /// or short of their declared size, truncated blocks, corrupt bytes and
+    /// impossible ratios are errors naming the file, at two block sizes.
+    #[test]
+    fn compressed_blocks_are_exact_and_bounded() {
+        let data: Vec<u8> = (0..5000u32).map(|i| (i * 7 % 251) as u8).collect();
+        for c in [Compressor::Zlib, Compressor::Lz4, Compressor::Lzma] {
+            for chunk in [100, 1024] {
+                let what = format!("{c:?} blocks of {chunk}");
+                assert_eq!(read(c, &blocks(c, &data, chunk, chunk), data.len()).unwrap(), data, "{what}");
+                // Declared 10 bytes smaller: each block inflates past it.
+                let n = data.len().div_ceil(chunk);
+                let lying = blocks(c, &data, chunk, chunk - 10);
+                let e = format!("{:#}", read(c, &lying, data.len() - 10 * n).unwrap_err());
+                assert!(e.starts_with("f.vtu: ") && e.contains("more than the"), "{what}: {e}");
+                // Declared 10 bytes larger: each block ends early.
+                let e = format!("{:#}", read(c, &blocks(c, &data, chunk, chunk + 10), data.len() + 10 * n).unwrap_err());
+                assert!(e.contains("expected"), "{what}: {e}");
+                // Truncated: the blocks' declared sizes run past the data, refused before inflating.
+                let honest = blocks(c, &data, chunk, chunk);
+                for cut in [honest.len() - 1, honest.len() / 2, 13] {
+                    let e = format!("{:#}", read(c, &honest[..cut], data.len()).unwrap_err());
+                    assert!(e.starts_with("f.vtu: ") && e.contains("truncated"), "{what} cut at {cut}: {e}");
+                }
+                // Corrupt bytes in the last block: never a panic; an error where the
+                // format has a checksum (zlib's Adler-32, xz's CRC), while an LZ4 block
+                // has none (VTK's reader cannot tell either).
+                let mut bad = honest.clone();
+                let k = bad.len() - 3;
+                bad[k] ^= 0x5a;
+                bad[k - 1] ^= 0xa5;
+                let r = read(c, &bad, data.len());
+                assert!(c == Compressor::Lz4 || r.is_err(), "{what}: corrupt block accepted");
+            }
+            // A block of a few bytes promising a gigabyte: refused from the header.
+            let mut bomb: Vec<u8> = [1u32, 1 << 30, 0, 8].iter().flat_map(|w| w.to_le_bytes()).collect();
+            bomb.extend([0u8; 8]);
+            let e = format!("{:#}", read(c, &bomb, 1 << 30).unwrap_err());
+            assert!(e.contains("cannot hold the 1073741824 bytes"), "{c:?}: {e}");
+        }
+    }
+
+    /// Base64 streams back to back (VTK writes the header and the data as
+    /// two), read in pieces across the 64 KiB refills.
+    #[test]
+    fn base64_streams_back_to_back() {
+        use base64::Engine as _;
+        let mut buf = Vec::new();
+        let mut s = Stream::base64("f", "a", b" AQI=\n AwQF ").unwrap();
+        assert_eq!(s.left(), 5);
+        assert_eq!(s.take("f", "a", 5, &mut buf).unwrap(), [1, 2, 3, 4, 5]);
+        assert!(Stream::base64("f", "a", b"AQI").err().unwrap().to_string().contains("multiple of 4"));
+        let mut s = Stream::base64("f", "a", b"A*I=").unwrap();
+        assert!(s.take("f", "a", 2, &mut buf).unwrap_err().to_string().contains("bad base64"));
+        let data: Vec<u8> = (0..200_001u32).map(|i| (i % 253) as u8).collect();
+        let b64 = base64::engine::general_purpose::STANDARD;
+        let text = format!("{}\n  {}", b64.encode([9u8]), b64.encode(&data));
+        let mut s = Stream::base64("f", "a", text.as_bytes()).unwrap();
+        assert_eq!(s.left(), data.len() + 1);
+        assert_eq!(s.take("f", "a", 1, &mut buf).unwrap(), [9]);
+        let mut got = Vec::new();
+        for n in [7, 70_000, 65_536, 64_458 - 1, 1] {
+            got.extend_from_slice(s.take("f", "a", n, &mut buf).unwrap());
+        }
+        assert_eq!(got, data);
+        assert!(s.take("f", "a", 1, &mut buf).unwrap_err().to_string().contains("truncated"));
     }
 }

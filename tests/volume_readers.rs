@@ -698,7 +698,7 @@ fn vti_malformed_files_name_the_file_and_the_problem() {
         (nan_text, "sample 0 (i=0, j=0, k=0) is -inf"),
         (replace(b, "</PointData>", "</PointDat>"), "bad XML"),
         (b"BM junk".to_vec(), "not a VTK XML file"),
-        (replace(b, "vtkZLibDataCompressor", "vtkLZ4DataCompressor"), "unsupported compressor 'vtkLZ4DataCompressor'"),
+        (replace(b, "vtkZLibDataCompressor", "vtkZstdDataCompressor"), "unsupported compressor 'vtkZstdDataCompressor'"),
         (replace(b, "type=\"ImageData\"", "type=\"UnstructuredGrid\""), "is not ImageData"),
         (replace(b, "<Piece Extent=\"2 4 0 3 -1 3\">", "<Piece Extent=\"2 4 0 3 -1 2\">"), "is not the WholeExtent"),
         (replace(b, "offset=\"", "offset=\"9"), "past the end"),

@@ -362,17 +362,21 @@ impl RawCells {
 
     /// Merges points with bit-identical coordinates (pieces of a parallel
     /// file repeat their shared boundary points) and renumbers the cells;
-    /// returns how many points were merged away. A merged point keeps the
-    /// scalar of its first copy.
-    pub fn weld(&mut self) -> usize {
+    /// returns how many points were merged away and how many of those had
+    /// a scalar different from their first copy's (which is kept).
+    pub fn weld(&mut self) -> (usize, usize) {
         let map = super::adjacency::weld_coincident(&self.points);
         let mut new_index = vec![u32::MAX; self.points.len()];
         let (mut points, mut scalars) = (Vec::new(), Vec::new());
+        let mut mismatches = 0;
         for (i, &rep) in map.iter().enumerate() {
-            if rep as usize == i {
+            let rep = rep as usize;
+            if rep == i {
                 new_index[i] = points.len() as u32;
                 points.push(self.points[i]);
                 scalars.push(self.scalars[i]);
+            } else if self.scalars.get(i).map(|s| s.to_bits()) != self.scalars.get(rep).map(|s| s.to_bits()) {
+                mismatches += 1;
             }
         }
         let merged = self.points.len() - points.len();
@@ -383,7 +387,74 @@ impl RawCells {
         }
         self.points = points;
         self.scalars = scalars;
-        merged
+        (merged, mismatches)
+    }
+
+    /// Keeps the cells `keep` says yes to (by index), in order; the points
+    /// stay as they are.
+    pub fn retain_cells(&mut self, mut keep: impl FnMut(usize) -> bool) {
+        let n = self.types.len();
+        let (mut t, mut c) = (0usize, 0usize);
+        for i in 0..n {
+            if !keep(i) {
+                continue;
+            }
+            let (a, b) = (self.offsets[i], self.offsets[i + 1]);
+            self.types[t] = self.types[i];
+            self.conn.copy_within(a..b, c);
+            c += b - a;
+            t += 1;
+            self.offsets[t] = c;
+        }
+        self.types.truncate(t);
+        self.offsets.truncate(t + 1);
+        self.conn.truncate(c);
+    }
+
+    /// Skips the cells VTK does not draw, by the `vtkGhostType` arrays
+    /// (`cell_ghost`: one per cell, `point_ghost`: one per point; both
+    /// checked for length by the caller, indices against the points when
+    /// split): a cell marked `DUPLICATECELL` (1, owned by a neighbouring
+    /// piece), `REFINEDCELL` (8, covered by finer cells) or `HIDDENCELL`
+    /// (32), or using a point marked `HIDDENPOINT` (2), as
+    /// `vtkGeometryFilter` and `vtkRemoveGhosts` do. The other bits
+    /// (`HIGHCONNECTIVITYCELL` 2, `LOWCONNECTIVITYCELL` 4, `EXTERIORCELL`
+    /// 16) mark cells that are drawn. `DUPLICATEPOINT` (1) points stay.
+    /// The counts go to `stats` (`ghost_cells`, `hidden_cells`,
+    /// `ghost_points`).
+    pub fn drop_ghosts(&mut self, cell_ghost: Option<&[u8]>, point_ghost: Option<&[u8]>, stats: &mut super::MeshStats) {
+        const DUPLICATECELL: u8 = 1;
+        const REFINEDCELL: u8 = 8;
+        const HIDDENCELL: u8 = 32;
+        const HIDDENPOINT: u8 = 2;
+        if let Some(pg) = point_ghost {
+            stats.ghost_points += pg.iter().filter(|&&g| g & 3 != 0).count();
+        }
+        let hidden_point = |v: u32| point_ghost.and_then(|pg| pg.get(v as usize)).is_some_and(|&g| g & HIDDENPOINT != 0);
+        let (mut dup, mut hidden) = (0, 0);
+        let kept: Vec<bool> = (0..self.types.len())
+            .map(|c| {
+                let g = cell_ghost.and_then(|cg| cg.get(c)).copied().unwrap_or(0);
+                let uses_hidden = || {
+                    point_ghost.is_some()
+                        && self.offsets.get(c..c + 2).and_then(|o| self.conn.get(o[0]..o[1])).is_some_and(|v| v.iter().any(|&p| hidden_point(p)))
+                };
+                if g & DUPLICATECELL != 0 {
+                    dup += 1;
+                    false
+                } else if g & (HIDDENCELL | REFINEDCELL) != 0 || uses_hidden() {
+                    hidden += 1;
+                    false
+                } else {
+                    true
+                }
+            })
+            .collect();
+        if dup + hidden > 0 {
+            self.retain_cells(|c| kept[c]);
+        }
+        stats.ghost_cells += dup;
+        stats.hidden_cells += hidden;
     }
 
     /// Splits every cell into tets ([`CellSplitter`]): 3-D linear cells are

@@ -43,6 +43,34 @@ pub struct MeshStats {
     /// 0-, 1- and 2-D cells (vertices, lines, triangles, quads ...) in an
     /// unstructured file: no volume, skipped (see `cells`).
     pub skipped_lower_dim: usize,
+    /// Cells marked `DUPLICATECELL` in a `vtkGhostType` cell array (a
+    /// neighbouring piece owns them): skipped, as VTK does.
+    pub ghost_cells: usize,
+    /// Cells skipped as VTK does not draw them: marked `HIDDENCELL` or
+    /// `REFINEDCELL` (not `DUPLICATECELL`), or using a point marked
+    /// `HIDDENPOINT` in a `vtkGhostType` point array.
+    pub hidden_cells: usize,
+    /// Points marked `DUPLICATEPOINT` or `HIDDENPOINT` in a `vtkGhostType`
+    /// point array (kept; a `.pvtu`'s seam weld merges duplicates).
+    pub ghost_points: usize,
+    /// `.pvtu`: points repeated on the pieces' seams (equal coordinates)
+    /// merged into one.
+    pub seam_points_merged: usize,
+    /// Of those, points whose copies carried different scalars (the first
+    /// copy's value is kept, and a note printed).
+    pub seam_scalar_mismatches: usize,
+}
+
+impl MeshStats {
+    /// Adds the counts a reader gathers before the cells are split
+    /// (ghosts and seams) to these.
+    pub fn add_read_counts(&mut self, read: &MeshStats) {
+        self.ghost_cells += read.ghost_cells;
+        self.hidden_cells += read.hidden_cells;
+        self.ghost_points += read.ghost_points;
+        self.seam_points_merged += read.seam_points_merged;
+        self.seam_scalar_mismatches += read.seam_scalar_mismatches;
+    }
 }
 
 /// A tetrahedral mesh with one scalar per vertex.

@@ -3,18 +3,35 @@
 //! `.vtu`: every `<Piece>` of the `<UnstructuredGrid>` (concatenated),
 //! `Points` and `Cells` (`connectivity`, `offsets`, `types`) and one point
 //! array. Arrays may be `ascii`, inline `binary` (base64) or `appended`
-//! (raw or base64), uncompressed or `vtkZLibDataCompressor`, with UInt32 or
+//! (raw or base64), uncompressed or compressed by `vtkZLibDataCompressor`,
+//! `vtkLZ4DataCompressor` or `vtkLZMADataCompressor`, with UInt32 or
 //! UInt64 headers and either byte order (the file layer is
 //! `crate::vtk_xml`); any of Int8 to Int64, UInt8 to UInt64, Float32 and
 //! Float64.
+//!
+//! Memory: each array is opened first (its header, block sizes and bytes
+//! present checked, and its data bytes charged to [`MAX_DECODED_BYTES`]),
+//! then decoded value by value straight into its final vector (f64 points
+//! and scalars, u32 connectivity, u8 types; a vector's magnitude summed as
+//! it is read), a block or 64 KiB at a time, ASCII token by token: no
+//! intermediate array of values, never the whole inflated array, and
+//! nothing reserved beyond what the data present can hold.
 //!
 //! `.pvtu`: the `<Piece Source="...">` files (paths relative to the
 //! `.pvtu`) are read as above and concatenated; then points with
 //! bit-identical coordinates are merged (`RawCells::weld`), so the cells of
 //! neighbouring pieces share vertex indices, the quad-diagonal rule of
 //! `cells` cuts their common faces alike and the face adjacency closes
-//! across pieces. Ghost cells (a `vtkGhostType` cell array, non-zero
-//! entries) are dropped from every piece: their owner piece holds them.
+//! across pieces (`MeshStats::seam_points_merged`; copies whose scalars
+//! differ keep the first piece's value, are counted in
+//! `seam_scalar_mismatches` and noted). Before any piece is read, each must
+//! be a distinct file (canonical paths compared: a piece listed twice is
+//! refused) and all together within `fsio::MAX_INPUT_BYTES`.
+//!
+//! Ghosts (`vtkGhostType`, `RawCells::drop_ghosts`): cells marked
+//! `DUPLICATECELL`, `REFINEDCELL` or `HIDDENCELL`, and cells using a point
+//! marked `HIDDENPOINT`, are skipped as VTK's geometry filter does, and
+//! counted (`ghost_cells`, `hidden_cells`, `ghost_points`).
 //!
 //! The scalar: the point array named by the caller (`--scalar NAME`), else
 //! the `PointData`'s active `Scalars`, else the first point array; arrays of
@@ -27,39 +44,80 @@ use std::path::Path;
 use anyhow::{anyhow, bail, Context, Result};
 
 use super::cells::RawCells;
-use super::TetMesh;
+use super::{MeshStats, TetMesh};
 use crate::volume::decode::Endian;
-use crate::vtk_xml::{array_payload, root_layout, split_appended, Layout};
+use crate::vtk_xml::{array_payload, root_layout, split_appended, visit, Appended, Layout, Payload};
 
 /// Reads a `.vtu` or `.pvtu` file (by extension) into a tet mesh, with the
 /// point array `array` as the scalar (`None`: see the module docs).
 pub fn read_vtu(path: impl AsRef<Path>, array: Option<&str>) -> Result<TetMesh> {
+    use crate::fsio::{check_input, read_input, MAX_INPUT_BYTES};
     let path = path.as_ref();
     let name = path.display().to_string();
     let stem = stem_of(&name);
     let parallel = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("pvtu"));
+    let budget = Budget::new(MAX_DECODED_BYTES);
+    let mut counts = MeshStats::default();
     let raw = if parallel {
-        let bytes = crate::fsio::read_input(path, "VTK XML parallel unstructured grid", crate::fsio::MAX_INPUT_BYTES)?;
-        let mut raw = RawCells::default();
-        for piece in pvtu_sources(&name, &bytes)? {
-            let p = path.parent().unwrap_or(Path::new(".")).join(&piece);
-            let pname = p.display().to_string();
-            let bytes = crate::fsio::read_input(&p, "VTK XML unstructured grid (a piece of a .pvtu)", crate::fsio::MAX_INPUT_BYTES)
-                .with_context(|| format!("{name}: piece '{piece}'"))?;
-            raw.append(parse_vtu_raw(&pname, &bytes, array)?).map_err(|e| anyhow!("{name}: {e}"))?;
+        let bytes = read_input(path, "VTK XML parallel unstructured grid", MAX_INPUT_BYTES)?;
+        let sources = pvtu_sources(&name, &bytes)?;
+        drop(bytes);
+        // Every piece once, and all of them together within the input cap,
+        // checked from their metadata before any is read.
+        let dir = path.parent().unwrap_or(Path::new("."));
+        let what = "VTK XML unstructured grid (a piece of a .pvtu)";
+        let mut seen: std::collections::HashMap<std::path::PathBuf, &str> = Default::default();
+        let mut total = 0u64;
+        for piece in &sources {
+            let p = dir.join(piece);
+            let len = check_input(&p, what, MAX_INPUT_BYTES).with_context(|| format!("{name}: piece '{piece}'"))?;
+            let canonical = std::fs::canonicalize(&p).with_context(|| format!("{name}: piece '{piece}'"))?;
+            if let Some(first) = seen.get(&canonical) {
+                bail!(
+                    "{name}: piece '{piece}' is the same file as piece '{first}' ({}); a .pvtu lists each piece once",
+                    canonical.display()
+                );
+            }
+            seen.insert(canonical, piece);
+            total += len;
+            if total > MAX_INPUT_BYTES {
+                bail!("{name}: its pieces up to '{piece}' hold {total} bytes, more than the {MAX_INPUT_BYTES} bytes volbench reads for one mesh");
+            }
         }
-        raw.weld();
+        let mut raw = RawCells::default();
+        for piece in &sources {
+            let p = dir.join(piece);
+            let bytes = read_input(&p, what, MAX_INPUT_BYTES).with_context(|| format!("{name}: piece '{piece}'"))?;
+            let part = parse_vtu_raw(&p.display().to_string(), &bytes, array, &budget, &mut counts)?;
+            drop(bytes);
+            raw.append(part).map_err(|e| anyhow!("{name}: {e}"))?;
+        }
+        let (merged, mismatches) = raw.weld();
+        counts.seam_points_merged = merged;
+        counts.seam_scalar_mismatches = mismatches;
+        if mismatches > 0 {
+            crate::progress!(
+                "{name}: note: {mismatches} of the {merged} points repeated on the pieces' seams have different scalars in \
+                 different pieces; each keeps its first piece's value"
+            );
+        }
         raw
     } else {
-        let bytes = crate::fsio::read_input(path, "VTK XML unstructured grid", crate::fsio::MAX_INPUT_BYTES)?;
-        parse_vtu_raw(&name, &bytes, array)?
+        let bytes = read_input(path, "VTK XML unstructured grid", MAX_INPUT_BYTES)?;
+        parse_vtu_raw(&name, &bytes, array, &budget, &mut counts)?
     };
-    raw.into_tet_mesh(&name, stem)
+    let mut mesh = raw.into_tet_mesh(&name, stem)?;
+    mesh.stats.add_read_counts(&counts);
+    Ok(mesh)
 }
 
 /// [`read_vtu`] of a `.vtu` already in memory (`name` starts every error).
 pub fn parse_vtu_bytes(name: &str, bytes: &[u8], array: Option<&str>) -> Result<TetMesh> {
-    parse_vtu_raw(name, bytes, array)?.into_tet_mesh(name, stem_of(name))
+    let mut counts = MeshStats::default();
+    let raw = parse_vtu_raw(name, bytes, array, &Budget::new(MAX_DECODED_BYTES), &mut counts)?;
+    let mut mesh = raw.into_tet_mesh(name, stem_of(name))?;
+    mesh.stats.add_read_counts(&counts);
+    Ok(mesh)
 }
 
 fn stem_of(name: &str) -> String {
@@ -131,7 +189,8 @@ impl XType {
     }
 }
 
-/// A value as read: integers exactly, floats as f64.
+/// A value as decoded: integers exactly, floats as f64. Values are handed
+/// on one at a time as they are decoded, never stored in this form.
 #[derive(Clone, Copy)]
 enum Value {
     Int(i128),
@@ -162,84 +221,201 @@ fn decode(c: &[u8], t: XType, e: Endian) -> Value {
     }
 }
 
+impl Value {
+    fn float(self) -> f64 {
+        match self {
+            Value::Int(i) => i as f64,
+            Value::Float(f) => f,
+        }
+    }
+
+    /// This integer value, in `0..=max`.
+    fn int_in(self, name: &str, what: &str, i: usize, max: u64) -> Result<u64> {
+        match self {
+            Value::Int(x) if x >= 0 && x as u128 <= max as u128 => Ok(x as u64),
+            Value::Int(x) => bail!("{name}: {what} value {i} is {x}, outside 0..={max}"),
+            Value::Float(_) => bail!("{name}: {what} must have an integer type"),
+        }
+    }
+}
+
+/// Data bytes (count × the type's size, as the file stores them) one mesh
+/// read may decode, over all its arrays and pieces: the input cap again,
+/// so a compressed file cannot promise more than an uncompressed one may
+/// hold. Charged from the declared counts before an array is allocated or
+/// inflated.
+pub const MAX_DECODED_BYTES: u64 = crate::fsio::MAX_INPUT_BYTES;
+
+/// What is left of [`MAX_DECODED_BYTES`] for one read (shared by a
+/// `.pvtu`'s pieces).
+struct Budget(std::cell::Cell<u64>);
+
+impl Budget {
+    fn new(bytes: u64) -> Budget {
+        Budget(std::cell::Cell::new(bytes))
+    }
+}
+
 /// One piece's file-level context.
 struct Ctx<'d, 'a> {
     name: &'d str,
-    doc: &'d roxmltree::Document<'d>,
-    appended: Option<&'d (String, &'a [u8])>,
+    appended: Option<&'d Appended<'a>>,
     layout: Layout,
+    budget: &'d Budget,
 }
 
-impl Ctx<'_, '_> {
-    /// Exactly `count` values of a DataArray, checked against its type.
-    fn values(&self, what: &str, node: roxmltree::Node, count: usize) -> Result<Vec<Value>> {
+/// A `DataArray` opened for decoding: its header checked and its bytes
+/// charged to the budget; nothing of its size allocated yet.
+struct Array<'x> {
+    name: &'x str,
+    what: &'x str,
+    ty: XType,
+    ty_name: &'x str,
+    endian: Endian,
+    count: usize,
+    body: Body<'x>,
+}
+
+enum Body<'x> {
+    Ascii(&'x str),
+    Binary(Payload<'x>),
+}
+
+impl<'d, 'a: 'd> Ctx<'d, 'a> {
+    /// Opens a DataArray of exactly `count` values: its type, its header
+    /// (binary: sizes and blocks checked, see `vtk_xml::Payload::open`) and
+    /// its bytes against the budget, before anything is allocated.
+    fn open<'x>(&'x self, what: &'x str, node: roxmltree::Node<'x, '_>, count: usize) -> Result<Array<'x>>
+    where
+        'd: 'x,
+    {
         let name = self.name;
         let ty_name = node.attribute("type").ok_or_else(|| anyhow!("{name}: {what} has no type"))?;
         let ty = XType::parse(name, what, ty_name)?;
         let expected = count.checked_mul(ty.size()).ok_or_else(|| anyhow!("{name}: {what}: {count} values overflow the byte count"))?;
-        if let Some(bytes) = array_payload(name, what, node, self.doc, self.appended, self.layout, expected)? {
-            return Ok(bytes.chunks_exact(ty.size()).map(|c| decode(c, ty, self.layout.endian)).collect());
+        let left = self.budget.0.get();
+        if expected as u64 > left {
+            bail!(
+                "{name}: {what} declares {count} values ({expected} bytes); with the arrays before it that is more than the \
+                 {MAX_DECODED_BYTES} bytes of data one mesh may hold"
+            );
         }
-        let text = node.text().unwrap_or("");
-        // Each ASCII value takes at least two bytes with its separator.
-        if count > text.len() / 2 + 1 {
-            bail!("{name}: {what} needs {count} values, its text has only {} bytes", text.len());
-        }
-        let mut out = Vec::with_capacity(count);
-        for (i, t) in text.split_ascii_whitespace().enumerate() {
-            if i == count {
-                bail!("{name}: {what} holds more than the {count} values it should");
+        let body = match array_payload(name, what, node, self.appended, self.layout, expected)? {
+            Some(p) => Body::Binary(p),
+            None => {
+                let text = node.text().unwrap_or("");
+                // Each ASCII value takes at least two bytes with its separator.
+                if count > text.len() / 2 + 1 {
+                    bail!("{name}: {what} needs {count} values, its text has only {} bytes", text.len());
+                }
+                Body::Ascii(text)
             }
-            let v = if ty.is_float() {
-                let v: f64 = t.parse().map_err(|_| anyhow!("{name}: value '{t}' in {what} (value {i} of {count}) is not a number"))?;
-                if ty == XType::F32 && v.is_finite() && v.abs() > f32::MAX as f64 {
-                    bail!("{name}: value '{t}' in {what} is beyond the range of Float32");
+        };
+        self.budget.0.set(left - expected as u64);
+        Ok(Array { name, what, ty, ty_name, endian: self.layout.endian, count, body })
+    }
+}
+
+impl Array<'_> {
+    /// Hands every value, in order, to `f` (index, value): binary data a
+    /// block or 64 KiB at a time, ASCII token by token (each checked
+    /// against the declared type). Exactly `count` values, or an error.
+    fn each(self, mut f: impl FnMut(usize, Value) -> Result<()>) -> Result<()> {
+        let Array { name, what, ty, ty_name, endian, count, body } = self;
+        match body {
+            Body::Binary(payload) => {
+                let size = ty.size();
+                let (mut carry, mut have, mut i) = ([0u8; 8], 0usize, 0usize);
+                payload.for_each_chunk(name, what, &mut |mut c: &[u8]| {
+                    if have > 0 {
+                        let k = (size - have).min(c.len());
+                        carry[have..have + k].copy_from_slice(&c[..k]);
+                        have += k;
+                        c = &c[k..];
+                        if have < size {
+                            return Ok(());
+                        }
+                        f(i, decode(&carry[..size], ty, endian))?;
+                        i += 1;
+                        have = 0;
+                    }
+                    let mut it = c.chunks_exact(size);
+                    for v in &mut it {
+                        f(i, decode(v, ty, endian))?;
+                        i += 1;
+                    }
+                    let r = it.remainder();
+                    carry[..r.len()].copy_from_slice(r);
+                    have = r.len();
+                    Ok(())
+                })?;
+                if i != count {
+                    bail!("{name}: {what} decodes to {i} values, {count} expected");
                 }
-                Value::Float(v)
-            } else {
-                let v: i128 = t.parse().map_err(|_| anyhow!("{name}: value '{t}' in {what} (value {i} of {count}) is not an integer ({ty_name})"))?;
-                let fits = match ty {
-                    XType::I8 => i8::try_from(v).is_ok(),
-                    XType::U8 => u8::try_from(v).is_ok(),
-                    XType::I16 => i16::try_from(v).is_ok(),
-                    XType::U16 => u16::try_from(v).is_ok(),
-                    XType::I32 => i32::try_from(v).is_ok(),
-                    XType::U32 => u32::try_from(v).is_ok(),
-                    XType::I64 => i64::try_from(v).is_ok(),
-                    _ => u64::try_from(v).is_ok(),
-                };
-                if !fits {
-                    bail!("{name}: value {v} in {what} does not fit its type {ty_name}");
+            }
+            Body::Ascii(text) => {
+                let mut n = 0;
+                for (i, t) in text.split_ascii_whitespace().enumerate() {
+                    if i == count {
+                        bail!("{name}: {what} holds more than the {count} values it should");
+                    }
+                    let v = if ty.is_float() {
+                        let v: f64 = t.parse().map_err(|_| anyhow!("{name}: value '{t}' in {what} (value {i} of {count}) is not a number"))?;
+                        if ty == XType::F32 && v.is_finite() && v.abs() > f32::MAX as f64 {
+                            bail!("{name}: value '{t}' in {what} is beyond the range of Float32");
+                        }
+                        Value::Float(v)
+                    } else {
+                        let v: i128 = t
+                            .parse()
+                            .map_err(|_| anyhow!("{name}: value '{t}' in {what} (value {i} of {count}) is not an integer ({ty_name})"))?;
+                        let fits = match ty {
+                            XType::I8 => i8::try_from(v).is_ok(),
+                            XType::U8 => u8::try_from(v).is_ok(),
+                            XType::I16 => i16::try_from(v).is_ok(),
+                            XType::U16 => u16::try_from(v).is_ok(),
+                            XType::I32 => i32::try_from(v).is_ok(),
+                            XType::U32 => u32::try_from(v).is_ok(),
+                            XType::I64 => i64::try_from(v).is_ok(),
+                            _ => u64::try_from(v).is_ok(),
+                        };
+                        if !fits {
+                            bail!("{name}: value {v} in {what} does not fit its type {ty_name}");
+                        }
+                        Value::Int(v)
+                    };
+                    f(i, v)?;
+                    n += 1;
                 }
-                Value::Int(v)
-            };
-            out.push(v);
+                if n != count {
+                    bail!("{name}: {what} needs {count} values, found {n}");
+                }
+            }
         }
-        if out.len() != count {
-            bail!("{name}: {what} needs {count} values, found {}", out.len());
+        Ok(())
+    }
+
+    /// Values `f` may be handed, at most, as far as the data present can
+    /// tell: reserve this many, not the declared count, for ASCII (bounded
+    /// by its text); binary data's count was checked against its header
+    /// and the bytes present (see `open`).
+    fn capacity(&self) -> usize {
+        match &self.body {
+            Body::Ascii(text) => self.count.min(text.len() / 2 + 1),
+            Body::Binary(p) => p.len() / self.ty.size(),
         }
+    }
+
+    /// Integer values in `0..=max`, into a vector of `T`.
+    fn ints<T: TryFrom<u64>>(self, max: u64) -> Result<Vec<T>> {
+        let (name, what) = (self.name, self.what);
+        let mut out = Vec::with_capacity(self.capacity());
+        self.each(|i, v| {
+            let x = v.int_in(name, what, i, max)?;
+            out.push(T::try_from(x).map_err(|_| anyhow!("{name}: {what} value {i} is {x}, too large"))?);
+            Ok(())
+        })?;
         Ok(out)
-    }
-
-    fn floats(&self, what: &str, node: roxmltree::Node, count: usize) -> Result<Vec<f64>> {
-        Ok(self.values(what, node, count)?.into_iter().map(|v| match v {
-            Value::Int(i) => i as f64,
-            Value::Float(f) => f,
-        }).collect())
-    }
-
-    /// Integer values in `0..=max`.
-    fn ints(&self, what: &str, node: roxmltree::Node, count: usize, max: u64) -> Result<Vec<u64>> {
-        let name = self.name;
-        self.values(what, node, count)?
-            .into_iter()
-            .enumerate()
-            .map(|(i, v)| match v {
-                Value::Int(x) if x >= 0 && x as u128 <= max as u128 => Ok(x as u64),
-                Value::Int(x) => bail!("{name}: {what} value {i} is {x}, outside 0..={max}"),
-                Value::Float(_) => bail!("{name}: {what} must have an integer type"),
-            })
-            .collect()
     }
 }
 
@@ -259,40 +435,43 @@ fn count_attr(name: &str, node: roxmltree::Node, attr: &str) -> Result<usize> {
         .ok_or_else(|| anyhow!("{name}: bad {attr} '{s}' (a count below 2^32 is needed)"))
 }
 
-/// Parses one `.vtu`'s pieces into raw cells (not yet split).
-fn parse_vtu_raw(name: &str, bytes: &[u8], array: Option<&str>) -> Result<RawCells> {
+/// Parses one `.vtu`'s pieces into raw cells (not yet split); ghost
+/// counts are added to `counts`.
+fn parse_vtu_raw(name: &str, bytes: &[u8], array: Option<&str>, budget: &Budget, counts: &mut MeshStats) -> Result<RawCells> {
     let parts = split_appended(name, bytes)?;
     let doc = roxmltree::Document::parse(&parts.xml).map_err(|e| anyhow!("{name}: bad XML: {e}"))?;
     let layout = root_layout(name, doc.root_element(), "UnstructuredGrid")?;
-    let ctx = Ctx { name, doc: &doc, appended: parts.appended.as_ref(), layout };
+    let appended = Appended::new(&doc, parts.appended.as_ref());
+    let ctx = Ctx { name, appended: appended.as_ref(), layout, budget };
     let grid = doc
         .root_element()
         .children()
         .find(|n| n.has_tag_name("UnstructuredGrid"))
         .ok_or_else(|| anyhow!("{name}: no <UnstructuredGrid> element"))?;
-    let pieces: Vec<_> = grid.children().filter(|n| n.has_tag_name("Piece")).collect();
+    let pieces: Vec<_> = grid.children().inspect(|_| visit()).filter(|n| n.has_tag_name("Piece")).collect();
     if pieces.is_empty() {
         bail!("{name}: <UnstructuredGrid> has no <Piece>");
     }
     let mut raw = RawCells::default();
     for (k, piece) in pieces.iter().enumerate() {
         let pname = if pieces.len() > 1 { format!("{name} (piece {k})") } else { name.to_string() };
-        raw.append(parse_piece(&ctx, &pname, *piece, array)?).map_err(|e| anyhow!("{name}: {e}"))?;
+        raw.append(parse_piece(&ctx, &pname, *piece, array, counts)?).map_err(|e| anyhow!("{name}: {e}"))?;
     }
     Ok(raw)
 }
 
 fn child<'a, 'i>(name: &str, node: roxmltree::Node<'a, 'i>, tag: &str) -> Result<roxmltree::Node<'a, 'i>> {
-    node.children().find(|n| n.has_tag_name(tag)).ok_or_else(|| anyhow!("{name}: the piece has no <{tag}>"))
+    node.children().inspect(|_| visit()).find(|n| n.has_tag_name(tag)).ok_or_else(|| anyhow!("{name}: the piece has no <{tag}>"))
 }
 
 fn arrays<'a, 'i>(node: Option<roxmltree::Node<'a, 'i>>) -> Vec<roxmltree::Node<'a, 'i>> {
-    node.map_or_else(Vec::new, |n| n.children().filter(|c| c.has_tag_name("DataArray")).collect())
+    node.map_or_else(Vec::new, |n| n.children().inspect(|_| visit()).filter(|c| c.has_tag_name("DataArray")).collect())
 }
 
-fn parse_piece(ctx: &Ctx, name: &str, piece: roxmltree::Node, array: Option<&str>) -> Result<RawCells> {
+fn parse_piece(ctx: &Ctx, name: &str, piece: roxmltree::Node, array: Option<&str>, counts: &mut MeshStats) -> Result<RawCells> {
     let np = count_attr(name, piece, "NumberOfPoints")?;
     let nc = count_attr(name, piece, "NumberOfCells")?;
+    let ctx = Ctx { name, ..*ctx };
 
     let points_node = child(name, piece, "Points")?;
     let pa = arrays(Some(points_node));
@@ -300,8 +479,16 @@ fn parse_piece(ctx: &Ctx, name: &str, piece: roxmltree::Node, array: Option<&str
     if components(name, *pa)? != 3 {
         bail!("{name}: the Points array has {} components, not 3", components(name, *pa)?);
     }
-    let xyz = ctx.floats("the Points array", *pa, np.checked_mul(3).ok_or_else(|| anyhow!("{name}: too many points"))?)?;
-    let points: Vec<[f64; 3]> = xyz.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+    let xyz = ctx.open("the Points array", *pa, np.checked_mul(3).ok_or_else(|| anyhow!("{name}: too many points"))?)?;
+    let mut points: Vec<[f64; 3]> = Vec::with_capacity(xyz.capacity() / 3);
+    let mut p = [0.0; 3];
+    xyz.each(|i, v| {
+        p[i % 3] = v.float();
+        if i % 3 == 2 {
+            points.push(p);
+        }
+        Ok(())
+    })?;
 
     // ---- the scalar
     let pd = piece.children().find(|n| n.has_tag_name("PointData"));
@@ -328,8 +515,23 @@ fn parse_piece(ctx: &Ctx, name: &str, piece: roxmltree::Node, array: Option<&str
     let aname = chosen.attribute("Name").unwrap_or("(unnamed)");
     let k = components(name, chosen)?;
     let what = format!("point array '{aname}'");
-    let vals = ctx.floats(&what, chosen, np.checked_mul(k).ok_or_else(|| anyhow!("{name}: {what} is too large"))?)?;
-    let scalars: Vec<f64> = if k == 1 { vals } else { vals.chunks_exact(k).map(|c| c.iter().map(|x| x * x).sum::<f64>().sqrt()).collect() };
+    let vals = ctx.open(&what, chosen, np.checked_mul(k).ok_or_else(|| anyhow!("{name}: {what} is too large"))?)?;
+    // Several components: their magnitude, summed as it is decoded.
+    let mut scalars: Vec<f64> = Vec::with_capacity(vals.capacity() / k);
+    let mut sum = 0.0;
+    vals.each(|i, v| {
+        let x = v.float();
+        if k == 1 {
+            scalars.push(x);
+        } else {
+            sum += x * x;
+            if i % k == k - 1 {
+                scalars.push(sum.sqrt());
+                sum = 0.0;
+            }
+        }
+        Ok(())
+    })?;
 
     // ---- cells
     let cells = child(name, piece, "Cells")?;
@@ -337,31 +539,34 @@ fn parse_piece(ctx: &Ctx, name: &str, piece: roxmltree::Node, array: Option<&str
     let find = |n: &str| {
         ca.iter().find(|a| a.attribute("Name") == Some(n)).copied().ok_or_else(|| anyhow!("{name}: <Cells> has no '{n}' array"))
     };
-    let types = ctx.ints("the cell types", find("types")?, nc, 255)?;
-    let offsets = ctx.ints("the cell offsets", find("offsets")?, nc, u32::MAX as u64)?;
-    let conn_len = offsets.last().copied().unwrap_or(0) as usize;
-    if offsets.windows(2).any(|w| w[1] < w[0]) {
-        bail!("{name}: the cell offsets do not rise");
-    }
-    let conn = ctx.ints("the cell connectivity", find("connectivity")?, conn_len, u32::MAX as u64 - 1)?;
-    let mut types: Vec<u8> = types.into_iter().map(|t| t as u8).collect();
-    let mut offsets: Vec<usize> = std::iter::once(0).chain(offsets.into_iter().map(|o| o as usize)).collect();
-    let mut conn: Vec<u32> = conn.into_iter().map(|v| v as u32).collect();
-
-    // Ghost cells belong to a neighbouring piece: drop them.
-    if let Some(g) = cd_arrays.iter().find(|a| a.attribute("Name") == Some("vtkGhostType")) {
-        let ghost = ctx.ints("the vtkGhostType cell array", *g, nc, 255)?;
-        if ghost.iter().any(|&v| v != 0) {
-            let (mut t2, mut o2, mut c2) = (Vec::new(), vec![0], Vec::new());
-            for c in (0..nc).filter(|&c| ghost[c] == 0) {
-                t2.push(types[c]);
-                c2.extend_from_slice(&conn[offsets[c]..offsets[c + 1]]);
-                o2.push(c2.len());
-            }
-            (types, offsets, conn) = (t2, o2, c2);
+    let types: Vec<u8> = ctx.open("the cell types", find("types")?, nc)?.ints(255)?;
+    let what = "the cell offsets";
+    let offs = ctx.open(what, find("offsets")?, nc)?;
+    let mut offsets: Vec<usize> = Vec::with_capacity(offs.capacity() + 1);
+    offsets.push(0);
+    offs.each(|i, v| {
+        let o = v.int_in(name, what, i, u32::MAX as u64)? as usize;
+        if offsets.last().is_some_and(|&last| o < last) {
+            bail!("{name}: the cell offsets do not rise (offset {i} is {o})");
         }
-    }
-    Ok(RawCells { points, scalars, types, offsets, conn })
+        offsets.push(o);
+        Ok(())
+    })?;
+    let conn_len = offsets.last().copied().unwrap_or(0);
+    let conn: Vec<u32> = ctx.open("the cell connectivity", find("connectivity")?, conn_len)?.ints(u32::MAX as u64 - 1)?;
+
+    // Ghosts (`vtkGhostType`): cells VTK does not draw are dropped.
+    let ghosts = |list: &[roxmltree::Node], what: &str, n: usize| -> Result<Option<Vec<u8>>> {
+        match list.iter().find(|a| a.attribute("Name") == Some("vtkGhostType")) {
+            Some(g) => Ok(Some(ctx.open(what, *g, n)?.ints(255)?)),
+            None => Ok(None),
+        }
+    };
+    let cell_ghost = ghosts(&cd_arrays, "the vtkGhostType cell array", nc)?;
+    let point_ghost = ghosts(&pd_arrays, "the vtkGhostType point array", np)?;
+    let mut raw = RawCells { points, scalars, types, offsets, conn };
+    raw.drop_ghosts(cell_ghost.as_deref(), point_ghost.as_deref(), counts);
+    Ok(raw)
 }
 
 #[cfg(test)]
@@ -678,6 +883,232 @@ mod tests {
             assert!((vol - 7.0 / 3.0).abs() < 1e-12, "{what}: {vol}");
             let adj = FaceAdjacency::build(&m.tets, None, |_| true);
             assert_eq!(adj.boundary.len(), 22, "{what}: cracks");
+        }
+    }
+
+    /// The mixed mesh VTK 9.7.2 wrote with each compressor, header type and
+    /// data mode (`tests/fixtures/vtk_xml/make.py`) reads as the ASCII seed.
+    #[test]
+    fn vtk_written_compressed_files() {
+        macro_rules! fixtures {
+            ($($c:literal),*) => {
+                [$(
+                    ($c, &include_bytes!(concat!("../../tests/fixtures/vtk_xml/mixed_", $c, ".vtu"))[..]),
+                )*]
+            };
+        }
+        let files = fixtures!(
+            "zlib_u32_raw", "zlib_u32_base64", "zlib_u32_binary", "zlib_u64_raw", "zlib_u64_base64", "zlib_u64_binary",
+            "lz4_u32_raw", "lz4_u32_base64", "lz4_u32_binary", "lz4_u64_raw", "lz4_u64_base64", "lz4_u64_binary",
+            "lzma_u32_raw", "lzma_u32_base64", "lzma_u32_binary", "lzma_u64_raw", "lzma_u64_base64", "lzma_u64_binary"
+        );
+        let first = parse_vtu_bytes("a.vtu", include_bytes!("../../fuzz/seeds/vtu/mixed_ascii.vtu"), None).unwrap();
+        for (what, bytes) in files {
+            let m = parse_vtu_bytes("m.vtu", bytes, None).unwrap_or_else(|e| panic!("{what}: {e:#}"));
+            assert_eq!(m.tets, first.tets, "{what}");
+            assert_eq!(m.points, first.points, "{what}");
+            assert_eq!(m.scalars, first.scalars, "{what}");
+            // Truncated anywhere: an error naming the file, never a panic.
+            for cut in (0..bytes.len()).step_by(53) {
+                if let Err(e) = parse_vtu_bytes("cut.vtu", &bytes[..cut], None) {
+                    assert!(format!("{e:#}").starts_with("cut.vtu"), "{what}: {e:#}");
+                }
+            }
+        }
+    }
+
+    /// A strip of 7 hexahedra with cell ghosts 0, 1, 2, 4, 8, 16, 32 and a
+    /// hidden and a duplicate point: VTK's vtkGeometryFilter keeps the cells
+    /// marked 0, 2, 4 and 16 and drops those using the hidden point.
+    fn ghost_strip(point_ghost: bool) -> (String, String) {
+        let mut pts = Vec::new();
+        for k in 0..2 {
+            for j in 0..2 {
+                for i in 0..8 {
+                    pts.push(format!("{i} {j} {k}"));
+                }
+            }
+        }
+        let p = |i: usize, j: usize, k: usize| i + 8 * j + 16 * k;
+        let cells: Vec<String> = (0..7)
+            .map(|i| {
+                let h = [p(i, 0, 0), p(i + 1, 0, 0), p(i + 1, 1, 0), p(i, 1, 0), p(i, 0, 1), p(i + 1, 0, 1), p(i + 1, 1, 1), p(i, 1, 1)];
+                h.map(|v| v.to_string()).join(" ")
+            })
+            .collect();
+        let scalar: Vec<String> = (0..32).map(|i| i.to_string()).collect();
+        // Point 7 (x = 7, the last cell's) hidden, point 3 duplicate.
+        let pg: Vec<&str> = (0..32).map(|i| if !point_ghost { "0" } else if i == 7 { "2" } else if i == 3 { "1" } else { "0" }).collect();
+        let pg_xml = format!("<DataArray type=\"UInt8\" Name=\"vtkGhostType\" format=\"ascii\">{}</DataArray>", pg.join(" "));
+        let xml = format!(
+            "<VTKFile type=\"UnstructuredGrid\"><UnstructuredGrid><Piece NumberOfPoints=\"32\" NumberOfCells=\"7\">\
+             <PointData Scalars=\"s\"><DataArray type=\"Float64\" Name=\"s\" format=\"ascii\">{}</DataArray>{}</PointData>\
+             <CellData><DataArray type=\"UInt8\" Name=\"vtkGhostType\" format=\"ascii\">0 1 2 4 8 16 32</DataArray></CellData>\
+             <Points><DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">{}</DataArray></Points>\
+             <Cells><DataArray type=\"Int32\" Name=\"connectivity\" format=\"ascii\">{}</DataArray>\
+             <DataArray type=\"Int32\" Name=\"offsets\" format=\"ascii\">{}</DataArray>\
+             <DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\">{}</DataArray></Cells></Piece></UnstructuredGrid></VTKFile>",
+            scalar.join(" "),
+            if point_ghost { pg_xml.as_str() } else { "" },
+            pts.join(" "),
+            cells.join(" "),
+            (1..=7).map(|c| (8 * c).to_string()).collect::<Vec<_>>().join(" "),
+            ["12"; 7].join(" ")
+        );
+        let mut legacy = format!("# vtk DataFile Version 3.0\nghosts\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 32 double\n{}\n", pts.join("\n"));
+        legacy += &format!("CELLS 7 63\n{}\nCELL_TYPES 7\n{}\n", cells.iter().map(|c| format!("8 {c}")).collect::<Vec<_>>().join("\n"), ["12"; 7].join("\n"));
+        legacy += "CELL_DATA 7\nFIELD FieldData 1\nvtkGhostType 1 7 unsigned_char\n0 1 2 4 8 16 32\n";
+        legacy += &format!("POINT_DATA 32\nSCALARS s double 1\nLOOKUP_TABLE default\n{}\n", scalar.join(" "));
+        if point_ghost {
+            legacy += &format!("SCALARS vtkGhostType unsigned_char 1\nLOOKUP_TABLE default\n{}\n", pg.join(" "));
+        }
+        (xml, legacy)
+    }
+
+    #[test]
+    fn ghost_cells_and_points_are_skipped_as_vtk_does() {
+        for point_ghost in [false, true] {
+            let (xml, legacy) = ghost_strip(point_ghost);
+            for (what, m) in [
+                ("vtu", parse_vtu_bytes("g.vtu", xml.as_bytes(), None).unwrap()),
+                ("legacy", crate::mesh::vtk::parse_vtk_bytes("g.vtk", legacy.as_bytes()).unwrap()),
+            ] {
+                let what = format!("{what}, point ghosts {point_ghost}");
+                // Kept: cells 0, 2, 4, 5 (ghost 0, 2, 4, 16); with point ghosts the last
+                // kept cell (5, x 5..6) stays, cell 6 (x 6..7, hidden point 7) was hidden anyway.
+                assert_eq!(m.stats.ghost_cells, 1, "{what}");
+                assert_eq!(m.stats.hidden_cells, 2, "{what}");
+                assert_eq!(m.stats.ghost_points, if point_ghost { 2 } else { 0 }, "{what}");
+                assert_eq!(m.scalars, (0..32).map(f64::from).collect::<Vec<_>>(), "{what}");
+                let vol = TetGeometry::compute(&m).total_volume();
+                assert!((vol - 4.0).abs() < 1e-12, "{what}: volume {vol}");
+            }
+        }
+        // A hidden point used by a drawn cell hides it: point 0 belongs to cell 0 only.
+        let (xml, _) = ghost_strip(true);
+        let xml = xml.replacen(">0 0 0 1 0 0 0 2 ", ">2 0 0 1 0 0 0 2 ", 1);
+        let m = parse_vtu_bytes("g.vtu", xml.as_bytes(), None).unwrap();
+        assert_eq!((m.stats.ghost_cells, m.stats.hidden_cells, m.stats.ghost_points), (1, 3, 3));
+        // A ghost array of the wrong length is an error naming it.
+        let bad = ghost_strip(false).0.replace(">0 1 2 4 8 16 32<", ">0 1 2<");
+        let e = format!("{:#}", parse_vtu_bytes("g.vtu", bad.as_bytes(), None).unwrap_err());
+        assert!(e.contains("the vtkGhostType cell array needs 7 values"), "{e}");
+    }
+
+    /// VTK's own partition (vtkExtractUnstructuredGridPiece, 3 pieces, ghost
+    /// level 1, LZ4, `tests/fixtures/vtk_xml/make.py`): each piece holds all
+    /// 24 hexahedra, 16 of them ghosts, and all 60 points.
+    #[test]
+    fn vtk_partitioned_pvtu_reads_as_one_mesh() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/vtk_xml");
+        let m = read_vtu(dir.join("seam.pvtu"), None).unwrap();
+        assert_eq!(m.points.len(), 60);
+        assert_eq!(m.stats.ghost_cells, 48);
+        assert_eq!(m.stats.seam_points_merged, 120);
+        assert_eq!(m.stats.seam_scalar_mismatches, 0);
+        assert_eq!(m.stats.ghost_points, 120);
+        assert!(m.tets.len() >= 5 * 24, "{}", m.tets.len());
+        let vol = TetGeometry::compute(&m).total_volume();
+        assert!((vol - 24.0).abs() < 1e-9, "volume {vol}");
+        // The faces between pieces close: only the block's surface is boundary.
+        let adj = FaceAdjacency::build(&m.tets, None, |_| true);
+        assert_eq!(adj.boundary.len(), 2 * 2 * (4 * 3 + 4 * 2 + 3 * 2));
+        for (p, s) in m.points.iter().zip(&m.scalars) {
+            assert_eq!(*s, p[0] + 10.0 * p[1] + 100.0 * p[2]);
+        }
+    }
+
+    /// Many one-tet pieces in one `.vtu`: the nodes stepped over grow
+    /// linearly with the pieces (each array's end was found by a scan of
+    /// the whole document: quadratic).
+    #[test]
+    fn many_pieces_read_in_linear_steps() {
+        let file = |n: usize| {
+            let mut s = String::from("<VTKFile type=\"UnstructuredGrid\" header_type=\"UInt32\"><UnstructuredGrid>");
+            let mut data: Vec<u8> = Vec::new();
+            let mut arr = |ty: &str, name: &str, comps: usize, bytes: Vec<u8>| {
+                let off = data.len();
+                data.extend((bytes.len() as u32).to_le_bytes());
+                data.extend(bytes);
+                format!("<DataArray type=\"{ty}\" Name=\"{name}\" NumberOfComponents=\"{comps}\" format=\"appended\" offset=\"{off}\"/>")
+            };
+            for i in 0..n {
+                let x = i as f64 * 2.0;
+                let pts: Vec<u8> = [x, 0., 0., x + 1., 0., 0., x, 1., 0., x, 0., 1.].iter().flat_map(|v: &f64| v.to_le_bytes()).collect();
+                let sc: Vec<u8> = [1.0f64, 2., 3., 4.].iter().flat_map(|v| v.to_le_bytes()).collect();
+                s += "<Piece NumberOfPoints=\"4\" NumberOfCells=\"1\"><PointData>";
+                s += &arr("Float64", "s", 1, sc);
+                s += "</PointData><Points>";
+                s += &arr("Float64", "Points", 3, pts);
+                s += "</Points><Cells>";
+                s += &arr("Int32", "connectivity", 1, [0i32, 1, 2, 3].iter().flat_map(|v| v.to_le_bytes()).collect());
+                s += &arr("Int32", "offsets", 1, 4i32.to_le_bytes().to_vec());
+                s += &arr("UInt8", "types", 1, vec![10]);
+                s += "</Cells></Piece>";
+            }
+            s += "</UnstructuredGrid><AppendedData encoding=\"raw\">_";
+            let mut out = s.into_bytes();
+            out.extend(data);
+            out.extend(b"</AppendedData></VTKFile>");
+            out
+        };
+        let steps = |n: usize| {
+            let bytes = file(n);
+            crate::vtk_xml::NODE_VISITS.with(|c| c.set(0));
+            let m = parse_vtu_bytes("many.vtu", &bytes, None).unwrap();
+            assert_eq!(m.tets.len(), n);
+            crate::vtk_xml::NODE_VISITS.with(|c| c.get())
+        };
+        let (small, large) = (steps(500), steps(2000));
+        assert!(large <= 4 * small + 100 && large >= 4 * small - 100, "500 pieces: {small} steps, 2000: {large}");
+    }
+
+    /// A `.pvtu` listing a piece twice (by the same name or another path to
+    /// the same file) is refused before any piece is read; seam points with
+    /// different scalars are counted, the first piece's value kept.
+    #[test]
+    fn pvtu_repeats_and_seam_scalar_mismatches() {
+        let g = grid();
+        let tmp = tempfile::tempdir().unwrap();
+        let (a, b) = g.cells.split_at(3);
+        for (i, cells) in [a, b].iter().enumerate() {
+            // Piece 1's scalar differs at point 4 (on the seam).
+            let mut scalar = g.scalar.clone();
+            if i == 1 {
+                scalar[4] += 1.0;
+            }
+            let piece = Grid { points: g.points.clone(), scalar, velocity: g.velocity.clone(), cells: cells.to_vec() };
+            std::fs::write(tmp.path().join(format!("p_{i}.vtu")), write_vtu(&piece, Format::Binary, false, 8, false)).unwrap();
+        }
+        let pvtu = |sources: &[&str]| {
+            let pieces: String = sources.iter().map(|s| format!("<Piece Source=\"{s}\"/>\n")).collect();
+            format!("<VTKFile type=\"PUnstructuredGrid\"><PUnstructuredGrid GhostLevel=\"0\">{pieces}</PUnstructuredGrid></VTKFile>\n")
+        };
+        let p = tmp.path().join("all.pvtu");
+        std::fs::write(&p, pvtu(&["p_0.vtu", "p_1.vtu"])).unwrap();
+        let m = read_vtu(&p, None).unwrap();
+        assert_eq!(m.points.len(), g.points.len());
+        assert_eq!(m.stats.seam_points_merged, g.points.len());
+        assert_eq!(m.stats.seam_scalar_mismatches, 1);
+        assert_eq!(m.scalars, g.scalar);
+        std::fs::create_dir(tmp.path().join("sub")).unwrap();
+        std::os::unix::fs::symlink(tmp.path().join("p_1.vtu"), tmp.path().join("sub/link.vtu")).unwrap();
+        for (sources, first) in [(vec!["p_0.vtu", "p_1.vtu", "p_0.vtu"], "p_0.vtu"), (vec!["p_1.vtu", "./sub/../sub/link.vtu"], "p_1.vtu")] {
+            std::fs::write(&p, pvtu(&sources)).unwrap();
+            let e = format!("{:#}", read_vtu(&p, None).unwrap_err());
+            assert!(e.contains("all.pvtu") && e.contains(&format!("is the same file as piece '{first}'")), "{e}");
+        }
+        // Pieces over the input cap together (sparse files: sizes from the metadata,
+        // nothing read): 2 x 0.6 GiB and 3 x 0.4 GiB, refused at the last piece.
+        for (n, size) in [(2usize, 0.6f64), (3, 0.4)] {
+            let names: Vec<String> = (0..n).map(|i| format!("big_{n}_{i}.vtu")).collect();
+            for f in &names {
+                std::fs::File::create(tmp.path().join(f)).unwrap().set_len((size * (1u64 << 30) as f64) as u64).unwrap();
+            }
+            std::fs::write(&p, pvtu(&names.iter().map(|s| s.as_str()).collect::<Vec<_>>())).unwrap();
+            let e = format!("{:#}", read_vtu(&p, None).unwrap_err());
+            let last = &names[n - 1];
+            assert!(e.contains(&format!("its pieces up to '{last}' hold")) && e.contains("more than the 1073741824 bytes"), "{e}");
         }
     }
 }

@@ -1,6 +1,6 @@
 //! Decoding shared by the volume readers: the sample types files may hold,
 //! byte order, ASCII values (range-checked against the declared type),
-//! base64 and bounded gzip/zlib decompression.
+//! and bounded gzip/zlib decompression.
 //!
 //! Files may hold `int8` and `int32` too; they become a [`Samples`] type
 //! without loss (`int8` widens to `i16`; `int32` narrows to `i16` or `u16`
@@ -284,29 +284,6 @@ pub(crate) fn gunzip_prefix(source: &str, what: &str, input: &[u8], n: usize) ->
     Ok(out)
 }
 
-/// Base64 text (ASCII whitespace ignored) as bytes. Padding may end any
-/// 4-character group, not only the last: VTK encodes a data array's header
-/// and its data as two base64 streams written back to back.
-pub(crate) fn base64_concat(source: &str, what: &str, text: &[u8]) -> Result<Vec<u8>> {
-    use base64::Engine as _;
-    let clean: Vec<u8> = text.iter().copied().filter(|c| !c.is_ascii_whitespace()).collect();
-    if !clean.len().is_multiple_of(4) {
-        bail!("{source}: base64 data in {what} has {} characters, not a multiple of 4", clean.len());
-    }
-    let mut out = Vec::with_capacity(clean.len() / 4 * 3);
-    let mut start = 0;
-    for (g, group) in clean.chunks_exact(4).enumerate() {
-        let end = 4 * (g + 1);
-        if group[3] == b'=' || end == clean.len() {
-            base64::engine::general_purpose::STANDARD
-                .decode_vec(&clean[start..end], &mut out)
-                .map_err(|e| anyhow!("{source}: bad base64 data in {what} (characters {start}..{end}): {e}"))?;
-            start = end;
-        }
-    }
-    Ok(out)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -366,13 +343,5 @@ mod tests {
         assert!(inflate_exact("f", "b", Wrapper::Zlib, &bad, data.len()).unwrap_err().to_string().contains("corrupt zlib"));
         let e = inflate_exact("f", "b", Wrapper::Gzip, &z, data.len()).unwrap_err().to_string();
         assert!(e.contains("corrupt gzip"), "{e}");
-    }
-
-    #[test]
-    fn base64_back_to_back_streams() {
-        // "AQI=" is [1, 2]; "AwQF" is [3, 4, 5].
-        assert_eq!(base64_concat("f", "a", b" AQI=\n AwQF ").unwrap(), vec![1, 2, 3, 4, 5]);
-        assert!(base64_concat("f", "a", b"AQI").unwrap_err().to_string().contains("multiple of 4"));
-        assert!(base64_concat("f", "a", b"A*I=").unwrap_err().to_string().contains("bad base64"));
     }
 }

@@ -196,6 +196,9 @@ struct Sections<'a> {
     scalars: Option<Vec<f64>>,
     field_scalars: Option<Vec<f64>>,
     seen_point_arrays: Vec<String>,
+    /// `vtkGhostType` arrays (cell data, point data), see `RawCells::drop_ghosts`.
+    cell_ghost: Option<Vec<u8>>,
+    point_ghost: Option<Vec<u8>>,
 }
 
 impl Sections<'_> {
@@ -212,6 +215,26 @@ impl Sections<'_> {
         }
     }
 
+    /// A `vtkGhostType` array of the current POINT_DATA / CELL_DATA (`n`
+    /// one-component values of `dt`, each 0..=255), kept for
+    /// `RawCells::drop_ghosts`.
+    fn ghost(&mut self, r: &mut Reader, n: usize, ncomp: usize, dt: DType, what: &str) -> Result<()> {
+        if ncomp != 1 {
+            bail!(r.err(format!("{what} has {ncomp} components, not 1")));
+        }
+        let v = r.values_i64(n, dt, what)?;
+        if let Some(i) = v.iter().position(|g| !(0..=255).contains(g)) {
+            bail!(r.err(format!("{what} value {i} is {}, outside 0..=255", v[i])));
+        }
+        let v = Some(v.into_iter().map(|g| g as u8).collect());
+        if self.owner == Owner::Cells {
+            self.cell_ghost = v;
+        } else {
+            self.point_ghost = v;
+        }
+        Ok(())
+    }
+
     fn field(&mut self, r: &mut Reader, line: &[&str]) -> Result<()> {
         let n_arrays = r.count(line.get(2), "FIELD array count")?;
         for _ in 0..n_arrays {
@@ -224,6 +247,17 @@ impl Sections<'_> {
             let dt = r.dtype(h.get(3), &format!("FIELD array '{}'", h[0]))?;
             let n = ncomp.checked_mul(ntup).ok_or_else(|| r.err(format!("FIELD array '{}' size overflows", h[0])))?;
             let what = format!("FIELD array '{}'", h[0]);
+            if h[0] == "vtkGhostType" && self.owner != Owner::None && self.want != Some("vtkGhostType") {
+                if ntup != self.owner_count {
+                    bail!(r.err(format!("{what} has {ntup} tuples, not the {} of its data", self.owner_count)));
+                }
+                self.ghost(r, ntup, ncomp, dt, &what)?;
+                if r.peek_word().eq_ignore_ascii_case("METADATA") {
+                    r.keyword_line("METADATA")?;
+                    r.skip_metadata()?;
+                }
+                continue;
+            }
             let named = self.want.is_some_and(|w| w == h[0]);
             if named && self.owner == Owner::Cells {
                 bail!(r.err(cell_data_refusal(h[0])));
@@ -332,6 +366,9 @@ impl Sections<'_> {
             r.keyword_line("LOOKUP_TABLE")?;
         }
         let what = format!("SCALARS '{name}'");
+        if name == "vtkGhostType" && self.want != Some(name) {
+            return self.ghost(r, n, ncomp, dt, &what);
+        }
         if self.owner == Owner::Points {
             self.seen_point_arrays.push(format!("SCALARS {name} ({ncomp} components)"));
         }
@@ -389,7 +426,17 @@ impl Sections<'_> {
             r.err(format!("no point scalars: need POINT_DATA with a one-component SCALARS (or FIELD) array; found {seen}"))
         })?;
         let stem = Path::new(name).file_stem().map_or_else(|| "vtk".to_string(), |s| s.to_string_lossy().into_owned());
-        RawCells { points, scalars, types, offsets, conn }.into_tet_mesh(name, stem)
+        let mut raw = RawCells { points, scalars, types, offsets, conn };
+        let mut counts = super::MeshStats::default();
+        for (g, n, what) in [(&self.cell_ghost, raw.types.len(), "CELL_DATA"), (&self.point_ghost, raw.points.len(), "POINT_DATA")] {
+            if g.as_ref().is_some_and(|g| g.len() != n) {
+                bail!(r.err(format!("the {what} vtkGhostType array does not have one value per entry")));
+            }
+        }
+        raw.drop_ghosts(self.cell_ghost.as_deref(), self.point_ghost.as_deref(), &mut counts);
+        let mut mesh = raw.into_tet_mesh(name, stem)?;
+        mesh.stats.add_read_counts(&counts);
+        Ok(mesh)
     }
 }
 
