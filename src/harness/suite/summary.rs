@@ -22,6 +22,9 @@ pub struct Environment {
     pub git_sha: &'static str,
     pub volbench_version: &'static str,
     pub started_utc: String,
+    /// The environment switches set that change what is measured
+    /// (`crate::switches::recorded`); empty in an ordinary suite.
+    pub env_switches: std::collections::BTreeMap<String, String>,
 }
 
 impl Environment {
@@ -38,6 +41,7 @@ impl Environment {
             git_sha: env!("VOLBENCH_GIT_SHA"),
             volbench_version: env!("CARGO_PKG_VERSION"),
             started_utc: utc_now(),
+            env_switches: crate::switches::recorded(),
         }
     }
 }
