@@ -61,6 +61,29 @@ fn a_missing_volume_preset_is_an_error_naming_it() {
 }
 
 #[test]
+fn an_output_directory_in_use_is_refused() {
+    // This process holds the directory, as a running suite would.
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("res");
+    let held = volbench::fsio::lock_out_dir("--out", &out).unwrap();
+    let run = |out: &std::path::Path| {
+        volbench()
+            .args(["pareto", "--data", "hydrogen", "--method", "raycast-compute", "--size", "16x16", "--frames", "1", "--warmup", "0"])
+            .arg("--out")
+            .arg(out)
+            .output()
+            .unwrap()
+    };
+    let o = run(&out);
+    assert_eq!(o.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&o.stderr);
+    let me = format!("pid {}", std::process::id());
+    assert!(err.contains("another volbench is writing its results there") && err.contains(&me), "{err}");
+    assert!(!out.join("pareto.json").exists());
+    drop(held);
+}
+
+#[test]
 fn invalid_arguments_name_the_argument() {
     for (args, needle) in [
         (vec!["run", "--mesh", "post-small", "--method", "balanced", "--size", "0x5"], "--size"),
