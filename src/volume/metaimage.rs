@@ -20,7 +20,8 @@
 //! refused). `ElementDataFile` is `LOCAL`, one file name (relative to the
 //! header), `LIST` followed by one file name per line, or a printf-style
 //! pattern `name%03d.raw first last step`; a list or pattern must name one
-//! file per z slice, each holding one uncompressed slice. MetaIO's
+//! file per z slice (none twice), each holding one uncompressed slice, and
+//! together at most [`crate::fsio::MAX_INPUT_BYTES`]. MetaIO's
 //! descriptive fields (`Comment`, `CenterOfRotation`,
 //! `AnatomicalOrientation`, `ElementMin`, ...) and ITK's own `ITK_*` keys are
 //! accepted and ignored; any other field is an error (a misspelt
@@ -299,8 +300,17 @@ pub fn parse_metaimage_bytes(
             if compressed || !binary {
                 bail!("{name}: a list of slice files needs uncompressed binary data");
             }
+            // Bounded as one input file is: a header cannot make a few
+            // small files stand for more.
+            if needed as u64 > crate::fsio::MAX_INPUT_BYTES {
+                bail!(
+                    "{name}: {shape} make {needed} bytes of slice files, more than the {} bytes an input may hold",
+                    crate::fsio::MAX_INPUT_BYTES
+                );
+            }
             let slice = needed / dims[2];
-            let mut all = Vec::with_capacity(needed);
+            // Grown by what the files really hold, not reserved from the header.
+            let mut all = Vec::new();
             for f in list {
                 let b = load_data(f).map_err(|e| anyhow!("{name}: data file '{f}': {e:#}"))?;
                 all.extend_from_slice(raw_body(name, &b, header_size, skip, slice, &format!("data file '{f}'"), "one slice")?);
@@ -390,6 +400,9 @@ fn data_files(name: &str, value: &str, rest: &[u8], nz: usize) -> Result<DataFil
             }
             if list.len() == nz {
                 bail!("{name}: the LIST names more than the {nz} files of DimSize's z (one per slice)");
+            }
+            if list.iter().any(|l| l == f.trim()) {
+                bail!("{name}: the LIST names '{}' twice; each slice has its own file", crate::fsio::clip_message(f.trim()));
             }
             list.push(f.trim().to_string());
         }
@@ -534,6 +547,16 @@ mod tests {
         let t = format!("{hdr}ElementDataFile = LIST\na\nb\nc\n");
         let e = parse_metaimage_bytes("l.mhd", t.as_bytes(), &mut load).unwrap_err().to_string();
         assert!(e.contains("more than the 2 files"), "{e}");
+        let t = format!("{hdr}ElementDataFile = LIST\na\na\n");
+        let e = parse_metaimage_bytes("l.mhd", t.as_bytes(), &mut load).unwrap_err().to_string();
+        assert!(e.contains("names 'a' twice"), "{e}");
+        // The slice files' total is bounded as one input is (two sizes: 1 GiB of
+        // uint8 reads its files, one byte more is refused before any).
+        let big = |y: usize| BASE.replace("DimSize = 2 2 2", &format!("DimSize = 65536 {y} 2")).replace("LOCAL", "s%d.raw 0 1 1");
+        let e = parse_metaimage_bytes("l.mhd", big(8192).as_bytes(), &mut no_file).unwrap_err().to_string();
+        assert!(e.contains("data file 's0.raw'"), "{e}");
+        let e = parse_metaimage_bytes("l.mhd", big(8193).as_bytes(), &mut no_file).unwrap_err().to_string();
+        assert!(e.contains("more than the 1073741824 bytes an input may hold"), "{e}");
         let ascii = hdr.replace("BinaryData = True", "BinaryData = False") + "ElementDataFile = LOCAL\n1 2 3\n4 5 6 7 8\n";
         assert_eq!(parse_metaimage_bytes("t.mha", ascii.as_bytes(), &mut no_file).unwrap().samples(), &want);
         let e = parse_metaimage_bytes("t.mha", (ascii + "9").as_bytes(), &mut no_file).unwrap_err().to_string();
