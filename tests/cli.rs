@@ -84,6 +84,20 @@ fn an_output_directory_in_use_is_refused() {
 }
 
 #[test]
+fn an_unknown_file_lists_every_format_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let junk = dir.path().join("scan.xyz9");
+    std::fs::write(&junk, b"not a dataset\n").unwrap();
+    let out = volbench().args(["run", "--method", "raycast-compute", "--data"]).arg(&junk).output().unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("neither its content nor its extension is a format volbench reads"), "{err}");
+    for format in [".vtu and .pvtu", "PLOT3D", "NRRD", ".vti", "STRUCTURED_POINTS", "NIfTI-1", "MetaImage (.mha, .mhd", ".npz", "GeoTIFF"] {
+        assert!(err.contains(format), "{format} missing: {err}");
+    }
+}
+
+#[test]
 fn invalid_arguments_name_the_argument() {
     for (args, needle) in [
         (vec!["run", "--mesh", "post-small", "--method", "balanced", "--size", "0x5"], "--size"),
