@@ -553,6 +553,59 @@ pub fn write_all(outputs: &[(&Path, &[u8])]) -> Result<()> {
     Ok(())
 }
 
+/// The file in an output directory that [`lock_out_dir`] locks.
+pub const OUT_LOCK_FILE: &str = ".volbench-lock";
+
+/// An output directory held by this process until dropped (see
+/// [`lock_out_dir`]).
+#[derive(Debug)]
+pub struct OutDirLock {
+    _file: fs::File,
+}
+
+/// Creates `dir` (and its parents) if need be and takes an exclusive lock
+/// on it for this process's command (`option` names it in messages): an
+/// advisory lock (`flock`) on `dir/.volbench-lock`, which then holds this
+/// process's id and command line. Another volbench writing the same
+/// directory holds it already: that is an error naming that process, not
+/// two runs' files interleaved. The lock goes with the returned guard or
+/// the process (a killed run leaves no stale lock); the file stays.
+pub fn lock_out_dir(option: &str, dir: &Path) -> Result<OutDirLock> {
+    fs::create_dir_all(dir).with_context(|| format!("{option} {}: creating it", dir.display()))?;
+    let path = dir.join(OUT_LOCK_FILE);
+    let meta = fs::symlink_metadata(&path);
+    if meta.as_ref().is_ok_and(|m| !m.is_file()) {
+        bail!("{option} {}: {} exists and is not a regular file", dir.display(), path.display());
+    }
+    let mut file = fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .create(true)
+        .truncate(false)
+        .open(&path)
+        .with_context(|| format!("{option} {}: cannot open its lock file {}", dir.display(), path.display()))?;
+    match file.try_lock() {
+        Ok(()) => {}
+        Err(fs::TryLockError::WouldBlock) => {
+            let mut holder = String::new();
+            let _ = (&file).take(4096).read_to_string(&mut holder);
+            let holder = clip_message(holder.trim());
+            bail!(
+                "{option} {}: another volbench is writing its results there ({}); wait for it to finish or choose \
+                 another directory",
+                dir.display(),
+                if holder.is_empty() { "its process did not say who it is".to_string() } else { holder }
+            );
+        }
+        Err(fs::TryLockError::Error(e)) => {
+            bail!("{option} {}: cannot lock {}: {e}", dir.display(), path.display())
+        }
+    }
+    let me = format!("pid {}: {}", std::process::id(), std::env::args().collect::<Vec<_>>().join(" "));
+    file.set_len(0).and_then(|()| file.write_all(me.as_bytes())).with_context(|| format!("{option} {}: writing {}", dir.display(), path.display()))?;
+    Ok(OutDirLock { _file: file })
+}
+
 /// The outputs one command will write, checked together before any work:
 /// each is writable as `OutputTarget::of` says, and no two are the same file.
 #[derive(Default)]
@@ -609,6 +662,22 @@ fn canonical_for_compare(p: &Path) -> PathBuf {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_output_directory_is_locked_while_held() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().join("a/b");
+        let held = lock_out_dir("--out", &dir).unwrap();
+        // A second lock (another open file, as another process has) is refused, naming the holder.
+        let e = format!("{:#}", lock_out_dir("--out", &dir).unwrap_err());
+        assert!(e.contains("another volbench is writing") && e.contains(&format!("pid {}", std::process::id())), "{e}");
+        drop(held);
+        let again = lock_out_dir("--out", &dir).unwrap();
+        drop(again);
+        std::fs::remove_file(dir.join(OUT_LOCK_FILE)).unwrap();
+        std::fs::create_dir(dir.join(OUT_LOCK_FILE)).unwrap();
+        assert!(lock_out_dir("--out", &dir).unwrap_err().to_string().contains("not a regular file"));
+    }
 
     #[test]
     fn a_child_output_keeps_both_ends() {

@@ -22,6 +22,7 @@ pub mod mesh;
 pub mod reference;
 pub mod scene;
 pub mod shaders;
+pub mod switches;
 pub mod terrain;
 pub mod vk;
 pub mod volume;

@@ -634,9 +634,7 @@ fn compare(cli: &Cli, registry: &Registry, args: &CompareArgs) -> Result<()> {
     }
     let ctx = context(cli)?;
     cfg.check_device(&ctx.info)?;
-    if let Some(dir) = &args.out {
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    }
+    let _lock = args.out.as_deref().map(|dir| fsio::lock_out_dir("--out", dir)).transpose()?;
     let rows = sweep::compare(&ctx, registry, &mut jobs, &cfg, args.out.as_deref())?;
     outln!("device: {} ({}, {})", ctx.info.name, ctx.info.driver_name, ctx.info.driver_info);
     out!("{}", sweep::comparison_markdown(&rows, registry)?);
@@ -697,7 +695,7 @@ fn pareto(cli: &Cli, registry: &Registry, args: &ParetoArgs) -> Result<()> {
     check_out_dir(&out_dir, &["pareto.csv", "pareto.md", "pareto.json", "pareto.png"], &[])?;
     let ctx = context(cli)?;
     cfg.check_device(&ctx.info)?;
-    std::fs::create_dir_all(&out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
+    let _lock = fsio::lock_out_dir("--out", &out_dir)?;
     let points = sweep::pareto(&ctx, &mut dataset, &tf, &specs, &cfg, &out_dir)?;
     out!("{}", volbench::harness::pareto::markdown(&dataset.name, &points));
     outln!("written: {}/pareto.{{csv,md,json,png}}", out_dir.display());
@@ -735,8 +733,8 @@ fn stress(cli: &Cli, registry: &Registry, args: &StressArgs) -> Result<()> {
         }
         cases.retain(|k| args.cases.contains(&k.name));
     }
+    let _images_lock = args.images.as_deref().map(|dir| fsio::lock_out_dir("--images", dir)).transpose()?;
     if let Some(dir) = &args.images {
-        std::fs::create_dir_all(dir).with_context(|| format!("--images: creating {}", dir.display()))?;
         cfg.images = Some(dir.clone());
     }
     let ctx = context(cli)?;
@@ -771,7 +769,7 @@ fn suite(cli: &Cli, registry: &Registry, args: &SuiteArgs) -> Result<()> {
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from(format!("results/{}", utc_now())));
     check_out_dir(&out, &["summary.json", "summary.csv", "report.md"], &["runs", "plots", "peers"])?;
     let ctx = context(cli)?;
-    std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+    let _lock = fsio::lock_out_dir("--out", &out)?;
     // A progress bar with ETA on a terminal, plain lines otherwise.
     let bar = indicatif::ProgressBar::new(plan.len() as u64);
     let terminal = std::io::IsTerminal::is_terminal(&std::io::stderr());
@@ -846,13 +844,13 @@ fn ab(registry: &Registry, args: &AbArgs) -> Result<()> {
     let mut new = ab::resolve(&args.new, "NEW", &target, limit)?;
     base.env = base_env;
     new.env = new_env;
+    let _lock = args.out.as_deref().map(|dir| fsio::lock_out_dir("--out", dir)).transpose()?;
     let report = ab::run(&base, &new, &benches, &settings, |b, p| {
         volbench::progress!("volbench: ab: [{}/{}] {} on {}, pair {}/{}", b + 1, benches.len(), benches[b].label, benches[b].dataset, p + 1, settings.pairs);
     }, |note| volbench::progress!("volbench: ab: {note}"))?;
     let table = ab::markdown(&report);
     out!("{table}");
     if let Some(dir) = &args.out {
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
         let (json, md) = (dir.join("ab.json"), dir.join("ab.md"));
         let json_bytes = report::json_bytes(&report)?;
         fsio::write_all(&[(json.as_path(), json_bytes.as_slice()), (md.as_path(), table.as_bytes())])?;
@@ -896,7 +894,7 @@ fn scale(registry: &Registry, args: &ScaleArgs) -> Result<()> {
     };
     let exe = std::env::current_exe().context("locating this volbench binary")?;
     // The study checks its estimate first, creates `out` and writes the
-    // results after every level.
+    // results after every level (it takes the --out lock once the estimate fits).
     let report = scale::study(&exe, &settings, &out, |what| volbench::progress!("volbench: scale: {what}"))?;
     out!("{}", scale::markdown(&report));
     outln!("written: {}/scale.{{json,csv,md}}, scale_time.{{png,svg}}, scale_memory.{{png,svg}}, meshes/", out.display());
@@ -945,6 +943,18 @@ fn main() -> ExitCode {
         Ok(cli) => cli,
         Err(e) => return parse_failure(&e),
     };
+    // Every VOLBENCH_* switch is checked before any work (a bad value is
+    // refused now, not after a suite has run), and the ones that change
+    // what is measured are said (they are recorded in the results too).
+    if let Err(e) = volbench::switches::check_environment() {
+        volbench::progress!("volbench: error: {e}");
+        return ExitCode::FAILURE;
+    }
+    let set = volbench::switches::recorded();
+    if !set.is_empty() && !matches!(cli.command, Command::Info | Command::List) {
+        let set: Vec<String> = set.iter().map(|(k, v)| format!("{k}={v}")).collect();
+        volbench::progress!("volbench: note: set, and recorded in the results: {}", set.join(" "));
+    }
     // `--count`: the same command again, under valgrind.
     let count = match &cli.command {
         Command::Run(a) => a.count,

@@ -202,7 +202,8 @@ fn a_serve_process_answers_refuses_bad_commands_and_exits_on_eof() {
 
 /// `--new-env` reaches NEW's processes and not BASE's: pointing NEW's
 /// VOLBENCH_DATA at an empty directory fails NEW alone, in both modes, and
-/// the report records each side's environment.
+/// the report records each side's environment (BASE's a test switch that
+/// balanced does not use: an unknown `VOLBENCH_TEST_*` name is refused).
 #[test]
 fn a_per_side_environment_reaches_that_side_only() {
     let exe = env!("CARGO_BIN_EXE_volbench");
@@ -212,7 +213,7 @@ fn a_per_side_environment_reaches_that_side_only() {
         let dir = tempfile::tempdir().unwrap();
         let out = volbench()
             .args(["ab", exe, exe, "--spec", "balanced", "--filter", "post-small", "--pairs", "2", "--processes", "2", "--size", "32x32", "--warmup", "0"])
-            .args(["--base-env", "VOLBENCH_TEST_UNUSED=1", "--new-env", &data])
+            .args(["--base-env", "VOLBENCH_TEST_RESIDENT_BATCH=4096", "--new-env", &data])
             .args(mode)
             .arg("--out")
             .arg(dir.path())
@@ -222,13 +223,13 @@ fn a_per_side_environment_reaches_that_side_only() {
         assert_eq!(out.status.code(), Some(1), "{mode:?}: {stderr}");
         assert!(stderr.contains("benchmarks failed"), "{mode:?}: {stderr}");
         let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.path().join("ab.json")).unwrap()).unwrap();
-        assert_eq!(v["base"]["env"]["VOLBENCH_TEST_UNUSED"], "1", "{v}");
+        assert_eq!(v["base"]["env"]["VOLBENCH_TEST_RESIDENT_BATCH"], "4096", "{v}");
         assert_eq!(v["new"]["env"]["VOLBENCH_DATA"], empty.path().display().to_string(), "{v}");
         let error = v["rows"][0]["error"].as_str().unwrap_or_default();
         // The data directory named in the failure is NEW's alone.
         assert!(error.contains("post-small") && error.contains(&empty.path().display().to_string()), "{mode:?}: {error}");
         let md = std::fs::read_to_string(dir.path().join("ab.md")).unwrap();
-        assert!(md.contains("VOLBENCH_TEST_UNUSED=1") && md.contains(&data), "{md}");
+        assert!(md.contains("VOLBENCH_TEST_RESIDENT_BATCH=4096") && md.contains(&data), "{md}");
     }
 }
 

@@ -27,6 +27,77 @@ fn unknown_device_lists_the_available_ones() {
 }
 
 #[test]
+fn environment_switches_are_checked_before_any_work() {
+    for (var, value, needle) in [
+        ("VOLBENCH_PEER_TIMEOUT_S", "garbage", "VOLBENCH_PEER_TIMEOUT_S=garbage: expected a whole number of at least 1"),
+        ("VOLBENCH_PEER_TIMEOUT_S", "0", "VOLBENCH_PEER_TIMEOUT_S=0"),
+        ("VOLBENCH_TEST_RENUMBER", "hilbert", "expected one of: morton"),
+        ("VOLBENCH_TEST_BRICK_MAP_HOST", "sometimes", "VOLBENCH_TEST_BRICK_MAP_HOST=sometimes"),
+        ("VOLBENCH_TEST_STAGING_CHUNK_BYTES", "4k", "VOLBENCH_TEST_STAGING_CHUNK_BYTES=4k"),
+        ("VOLBENCH_TEST_RESIDENT_BATHC", "8", "VOLBENCH_TEST_RESIDENT_BATHC=8"),
+    ] {
+        // `list` needs no device: the check comes first, for every command.
+        let out = volbench().arg("list").env(var, value).output().unwrap();
+        assert_eq!(out.status.code(), Some(1), "{var}={value}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(needle), "{var}={value}: {err}");
+    }
+}
+
+#[test]
+fn a_missing_volume_preset_is_an_error_naming_it() {
+    // A data folder with the volumes but without tf/.
+    let dir = tempfile::tempdir().unwrap();
+    let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data");
+    std::os::unix::fs::symlink(data.join("volumes"), dir.path().join("volumes")).unwrap();
+    let out = volbench()
+        .args(["run", "--data", "headsq", "--method", "raycast-compute", "--size", "16x16", "--frames", "1"])
+        .env("VOLBENCH_DATA", dir.path())
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("the preset transfer function of 'headsq'") && err.contains("headsq.json") && err.contains("is missing"), "{err}");
+}
+
+#[test]
+fn an_output_directory_in_use_is_refused() {
+    // This process holds the directory, as a running suite would.
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("res");
+    let held = volbench::fsio::lock_out_dir("--out", &out).unwrap();
+    let run = |out: &std::path::Path| {
+        volbench()
+            .args(["pareto", "--data", "hydrogen", "--method", "raycast-compute", "--size", "16x16", "--frames", "1", "--warmup", "0"])
+            .arg("--out")
+            .arg(out)
+            .output()
+            .unwrap()
+    };
+    let o = run(&out);
+    assert_eq!(o.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&o.stderr);
+    let me = format!("pid {}", std::process::id());
+    assert!(err.contains("another volbench is writing its results there") && err.contains(&me), "{err}");
+    assert!(!out.join("pareto.json").exists());
+    drop(held);
+}
+
+#[test]
+fn an_unknown_file_lists_every_format_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let junk = dir.path().join("scan.xyz9");
+    std::fs::write(&junk, b"not a dataset\n").unwrap();
+    let out = volbench().args(["run", "--method", "raycast-compute", "--data"]).arg(&junk).output().unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("neither its content nor its extension is a format volbench reads"), "{err}");
+    for format in [".vtu and .pvtu", "PLOT3D", "NRRD", ".vti", "STRUCTURED_POINTS", "NIfTI-1", "MetaImage (.mha, .mhd", ".npz", "GeoTIFF"] {
+        assert!(err.contains(format), "{format} missing: {err}");
+    }
+}
+
+#[test]
 fn invalid_arguments_name_the_argument() {
     for (args, needle) in [
         (vec!["run", "--mesh", "post-small", "--method", "balanced", "--size", "0x5"], "--size"),
@@ -71,6 +142,8 @@ fn run_writes_the_documented_json() {
     common::assert_matches_schema("run.schema.json", &v, "volbench run --json");
     assert_eq!(v["method"], "balanced");
     assert_eq!(v["mesh"], "post-small");
+    // The validation layer changes what is measured: recorded.
+    assert_eq!(v["env_switches"], serde_json::json!({ "VOLBENCH_VALIDATION": "1" }));
     assert_eq!(v["upload"]["floats_per_cell"], 28.0);
     assert_eq!((v["width"].as_u64(), v["height"].as_u64()), (Some(64), Some(48)));
     assert!(png.exists());

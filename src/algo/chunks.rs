@@ -22,7 +22,7 @@ use crate::vk::{upload_static_streamed, Buffer, BufferDesc, Context, TexelBuffer
 use crate::vk::{BufferUsage, Format};
 
 /// The test knob (see the module documentation).
-pub const DEVICE_LIMIT_VAR: &str = "VOLBENCH_TEST_DEVICE_LIMIT_BYTES";
+pub const DEVICE_LIMIT_VAR: &str = crate::switches::TEST_DEVICE_LIMIT_BYTES;
 
 /// Bindings a shader declares for one chunked array.
 pub const MAX_CHUNKS: usize = 8;
@@ -53,13 +53,10 @@ impl ChunkLimits {
             storage_range: u64::from(info.max_storage_buffer_range),
             texel_elements: u64::from(info.max_texel_buffer_elements),
         };
-        match std::env::var(DEVICE_LIMIT_VAR) {
-            Err(_) => Ok(device),
-            Ok(v) => match v.trim().parse::<u64>() {
-                Ok(n) if n >= 16 => Ok(device.lowered_to(n)),
-                _ => Err(VkError::Env { var: DEVICE_LIMIT_VAR, value: v, expected: "a byte count of at least 16 (a test knob; unset it for real runs)" }),
-            },
-        }
+        Ok(match crate::switches::int(DEVICE_LIMIT_VAR)? {
+            None => device,
+            Some(n) => device.lowered_to(n),
+        })
     }
 
     /// These limits with none above `bytes` (texels: `bytes / 16`).

@@ -122,7 +122,8 @@ impl Dataset {
     /// the same.
     pub fn from_loaded_mesh(mesh: TetMesh, named: bool, source: String) -> Self {
         let mut dataset = Self::from_mesh(mesh, named, source);
-        let renumber = std::env::var(RENUMBER_VAR).is_ok_and(|v| v == "morton");
+        // A bad value was refused when the command started (`switches::check_environment`).
+        let renumber = crate::switches::choice(RENUMBER_VAR).ok().flatten() == Some("morton");
         if let (DatasetData::TetMesh { mesh }, true) = (&mut dataset.data, renumber) {
             mesh::reorder::spatial_order(mesh);
         }
@@ -400,7 +401,7 @@ fn kind_by_content(head: &[u8]) -> Option<DataKind> {
     use crate::volume::Format;
     let text = String::from_utf8_lossy(head).to_ascii_uppercase();
     match crate::volume::sniff(head) {
-        Some(Format::Nrrd | Format::Nifti) => return Some(DataKind::Volume),
+        Some(Format::Nrrd | Format::Nifti | Format::MetaImage) => return Some(DataKind::Volume),
         Some(Format::VtkLegacy) => {
             return Some(if text.contains("STRUCTURED_POINTS") { DataKind::Volume } else { DataKind::TetMesh });
         }
@@ -429,15 +430,15 @@ fn kind_by_extension(p: &Path) -> Option<DataKind> {
 /// Every format a path may hold, by kind (for the error when none fits).
 pub fn supported_formats() -> String {
     format!(
-        "tet meshes: .vtk (VTK legacy UNSTRUCTURED_GRID of tetrahedra), PLOT3D grid/solution pairs (.bin, .xyz, .x, .q); \
-         volumes: {}; terrain: .npy, .npz (NumPy), .tif/.tiff (GeoTIFF)",
+        "meshes: {}; volumes: {}; terrain: .npy, .npz (NumPy), .tif/.tiff (GeoTIFF)",
+        mesh::datasets::SUPPORTED_FORMATS,
         crate::volume::SUPPORTED_FORMATS
     )
 }
 
 /// Measurement knob: `morton` renumbers a loaded mesh for locality
 /// (`Dataset::from_loaded_mesh`).
-pub const RENUMBER_VAR: &str = "VOLBENCH_TEST_RENUMBER";
+pub const RENUMBER_VAR: &str = crate::switches::TEST_RENUMBER;
 
 /// Load a dataset by shipped name or path.
 pub fn load(spec: &str) -> Result<Dataset> {
@@ -541,15 +542,25 @@ pub fn load_mesh(spec: &str) -> Result<TetMesh> {
     }
 }
 
-/// The transfer function a volume is shown with: the named volume's preset
-/// file (`data/tf/<name>.json`) when there is one, else a generic ramp
-/// over its range (attenuation per diagonal, as for meshes). A preset that
-/// exists but cannot be used is an error naming it, not a silent ramp.
+/// The transfer function a volume is shown with: a shipped volume's preset
+/// file (`data/tf/<name>.json`; every shipped volume has one), else (a
+/// volume from a file) a generic ramp over its range (attenuation per
+/// diagonal, as for meshes). A preset that is missing or cannot be used is
+/// an error naming it, never a silent ramp.
 pub fn volume_transfer_function(v: &Volume, named: Option<&str>) -> Result<TransferFunction> {
     let diag = v.bounds().diagonal().max(f64::MIN_POSITIVE);
-    if let Some(path) = named.and_then(crate::scene::tf_file::preset_path) {
+    if let Some(name) = named {
+        let path = crate::data_dir::data_dir().join("tf").join(format!("{name}.json"));
+        let Some(path) = crate::scene::tf_file::preset_path(name) else {
+            anyhow::bail!(
+                "the preset transfer function of '{name}' ({}) is missing: a shipped volume is shown with its preset, \
+                 not a generic ramp; restore the file, or give --tf FILE ({})",
+                path.display(),
+                crate::data_dir::search_note()
+            );
+        };
         return crate::scene::tf_file::load_tf(&path, v.range(), diag)
-            .with_context(|| format!("the preset transfer function of '{}' ({})", named.unwrap_or_default(), path.display()));
+            .with_context(|| format!("the preset transfer function of '{name}' ({})", path.display()));
     }
     let (lo, hi) = crate::scene::effective_scalar_range(v.range().0, v.range().1);
     let stops = [(0.0, [0.2, 0.3, 1.0], 0.0), (0.3, [0.3, 1.0, 0.3], 2.0), (1.0, [1.0, 0.3, 0.1], 8.0)];

@@ -516,17 +516,7 @@ pub fn read_image(path: &Path, width: u32, height: u32) -> Result<RgbaImage> {
 pub const DEFAULT_TIMEOUT_S: u64 = 900;
 
 fn timeout() -> Result<Duration> {
-    match std::env::var("VOLBENCH_PEER_TIMEOUT_S") {
-        Err(std::env::VarError::NotUnicode(v)) => {
-            bail!("VOLBENCH_PEER_TIMEOUT_S={}: not UTF-8; expected a positive number of seconds", v.to_string_lossy())
-        }
-        Ok(v) if !v.is_empty() => {
-            let s: u64 =
-                v.parse().ok().filter(|&s| s > 0).with_context(|| format!("VOLBENCH_PEER_TIMEOUT_S={v}: expected a positive number of seconds"))?;
-            Ok(Duration::from_secs(s))
-        }
-        _ => Ok(Duration::from_secs(DEFAULT_TIMEOUT_S)),
-    }
+    Ok(Duration::from_secs(crate::switches::int(crate::switches::PEER_TIMEOUT_S)?.unwrap_or(DEFAULT_TIMEOUT_S)))
 }
 
 /// Send SIGKILL to process group `group` (the peer and all it started).

@@ -375,6 +375,10 @@ pub struct RunResult {
     pub volbench_version: &'static str,
     /// The commit the binary was built from (`-dirty` with local changes).
     pub git_sha: &'static str,
+    /// The environment switches set that change what is measured
+    /// (`crate::switches::recorded`: every `VOLBENCH_TEST_*` knob, the
+    /// validation layer, the device choice); empty in an ordinary run.
+    pub env_switches: BTreeMap<String, String>,
 }
 
 /// Error of a run: its image against the f64 reference (RGBA, values in
@@ -855,6 +859,7 @@ pub fn run(ctx: &Arc<Context>, spec: &MethodSpec, dataset: &Dataset, tf: &Transf
         device: ctx.info.clone(),
         volbench_version: env!("CARGO_PKG_VERSION"),
         git_sha: env!("VOLBENCH_GIT_SHA"),
+        env_switches: crate::switches::recorded(),
     };
     Ok(RunOutput { result, image })
 }

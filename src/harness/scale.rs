@@ -444,6 +444,7 @@ pub fn study(exe: &Path, s: &ScaleSettings, out: &Path, mut progress: impl FnMut
     let peers = s.peers.iter().map(|p| super::peers::locate(p)).collect::<Result<Vec<_>>>()?;
     estimate(&mesh, &name, s).check(available_memory(), available_disk(out), out)?;
     stop_cleanly_on_signals()?;
+    let _lock = crate::fsio::lock_out_dir("--out", out)?;
     let meshes = out.join("meshes");
     std::fs::create_dir_all(&meshes).with_context(|| format!("creating {}", meshes.display()))?;
     staging().dirs = vec![out.to_path_buf(), meshes.clone(), out.join("peers")];

@@ -100,6 +100,11 @@ pub const PLOT3D_EXTENSIONS: [&str; 4] = ["bin", "xyz", "x", "q"];
 /// Extensions [`load_path`] reads as VTK unstructured grids.
 pub const VTK_EXTENSIONS: [&str; 3] = ["vtk", "vtu", "pvtu"];
 
+/// The mesh formats [`load_path`] reads, for messages.
+pub const SUPPORTED_FORMATS: &str = ".vtk (VTK legacy UNSTRUCTURED_GRID), .vtu and .pvtu (VTK XML unstructured grids), \
+     each with tetra, voxel, hexahedron, wedge and pyramid cells, and PLOT3D grid/solution pairs (NAMExyz.bin + \
+     NAMEq.bin, or NAME.xyz / NAME.x + NAME.q: give either file)";
+
 /// A mesh file chosen by its extension:
 /// - `.vtk`: VTK legacy UNSTRUCTURED_GRID, ASCII or BINARY;
 /// - `.vtu` / `.pvtu`: VTK XML unstructured grid, or a parallel one's pieces
@@ -131,11 +136,7 @@ pub fn load_path_array(path: impl AsRef<Path>, array: Option<&str>) -> Result<Te
             ),
         },
         _ => bail!(
-            "{}: unsupported mesh format (extension {}); supported: .vtk (VTK legacy \
-             UNSTRUCTURED_GRID), .vtu and .pvtu (VTK XML unstructured grids), each with \
-             tetra, voxel, hexahedron, wedge and pyramid cells, and \
-             PLOT3D grid/solution pairs (NAMExyz.bin + NAMEq.bin, or NAME.xyz / NAME.x + \
-             NAME.q: give either file); built-in meshes: {}",
+            "{}: unsupported mesh format (extension {}); supported: {SUPPORTED_FORMATS}; built-in meshes: {}",
             path.display(),
             ext.map_or("none".to_string(), |e| format!(".{e}")),
             BUILTIN.join(", ")

@@ -350,8 +350,8 @@ pub const STAGING_CHUNK_BYTES: u64 = 64 << 20;
 /// lowers the staging chunk to N bytes (rounded to the producer's element
 /// size, at least one element), so that a small mesh crosses in many
 /// chunks, as a large one does against the device's allocation limit.
-/// Unset in real runs; a value that is not a byte count is ignored.
-pub const STAGING_CHUNK_VAR: &str = "VOLBENCH_TEST_STAGING_CHUNK_BYTES";
+/// Unset in real runs; a value that is not a byte count is an error (`crate::switches`).
+pub const STAGING_CHUNK_VAR: &str = crate::switches::TEST_STAGING_CHUNK_BYTES;
 
 /// Upload `size` bytes into a new device-local buffer, produced chunk by
 /// chunk by `fill(offset, chunk)` (write bytes `offset .. offset +
@@ -376,7 +376,7 @@ pub fn upload_static_streamed(
         m => m,
     };
     let granule = granule.max(4);
-    let limit = std::env::var(STAGING_CHUNK_VAR).ok().and_then(|v| v.parse::<u64>().ok()).unwrap_or(STAGING_CHUNK_BYTES);
+    let limit = crate::switches::int(STAGING_CHUNK_VAR)?.unwrap_or(STAGING_CHUNK_BYTES);
     let chunk = (limit.min(STAGING_CHUNK_BYTES).min(max_alloc) / granule).max(1) * granule;
     let chunk = chunk.min(size.max(4));
     let mut staging = Buffer::new(ctx, BufferDesc::upload(&format!("{name} (staging)"), chunk, BufferUsage::TRANSFER_SRC))?;

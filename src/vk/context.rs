@@ -50,7 +50,7 @@ impl ContextDesc {
         // A value that is not UTF-8 is an error, never "unset".
         for var in [DEVICE_VAR, VALIDATION_VAR] {
             if let Err(std::env::VarError::NotUnicode(v)) = std::env::var(var) {
-                return Err(VkError::Env { var, value: v.to_string_lossy().into_owned(), expected: "a UTF-8 value" });
+                return Err(VkError::Env { var, value: v.to_string_lossy().into_owned(), expected: "a UTF-8 value".into() });
             }
         }
         Self::from_vars(&|name| std::env::var(name).ok())
@@ -70,64 +70,38 @@ impl ContextDesc {
 }
 
 /// The variable that picks the device.
-pub const DEVICE_VAR: &str = "VOLBENCH_DEVICE";
+pub const DEVICE_VAR: &str = crate::switches::DEVICE;
 /// The variable that turns the validation layer on.
-pub const VALIDATION_VAR: &str = "VOLBENCH_VALIDATION";
+pub const VALIDATION_VAR: &str = crate::switches::VALIDATION;
 /// The variable that bounds every fence wait, in seconds.
-pub const FENCE_TIMEOUT_VAR: &str = "VOLBENCH_FENCE_TIMEOUT_S";
+pub const FENCE_TIMEOUT_VAR: &str = crate::switches::FENCE_TIMEOUT_S;
 /// Fence waits give up after this long unless `VOLBENCH_FENCE_TIMEOUT_S` says
 /// otherwise: far above any frame we draw, far below "forever".
 pub const DEFAULT_FENCE_TIMEOUT: Duration = Duration::from_secs(60);
 
 /// Whether `VOLBENCH_VALIDATION` asks for the validation layer (unset: no).
 pub fn validation_requested() -> VkResult<bool> {
-    match std::env::var(VALIDATION_VAR) {
-        Ok(v) => parse_env_flag(VALIDATION_VAR, &v),
-        Err(std::env::VarError::NotPresent) => Ok(false),
-        Err(std::env::VarError::NotUnicode(v)) => Err(VkError::Env {
-            var: VALIDATION_VAR,
-            value: v.to_string_lossy().into_owned(),
-            expected: FLAG_VALUES,
-        }),
-    }
+    Ok(crate::switches::flag(VALIDATION_VAR)?)
 }
-
-const FLAG_VALUES: &str = "one of 1/0, true/false, yes/no, on/off (any case)";
 
 /// A boolean switch from the environment: 1/0, true/false, yes/no, on/off in
 /// any case (surrounding blanks ignored); an empty value means off. Anything
-/// else is an error naming `var` and the value.
+/// else is an error naming `var` and the value (`crate::switches::parse`).
 pub fn parse_env_flag(var: &'static str, value: &str) -> VkResult<bool> {
-    match value.trim().to_ascii_lowercase().as_str() {
-        "1" | "true" | "yes" | "on" => Ok(true),
-        "0" | "false" | "no" | "off" | "" => Ok(false),
-        _ => Err(VkError::Env { var, value: value.to_string(), expected: FLAG_VALUES }),
-    }
+    Ok(crate::switches::parse(var, crate::switches::Kind::Flag, value)? == crate::switches::Value::Flag(true))
 }
 
 /// The fence time-out from `VOLBENCH_FENCE_TIMEOUT_S` (unset: 60 s).
 pub fn fence_timeout_from_env() -> VkResult<Duration> {
-    match std::env::var(FENCE_TIMEOUT_VAR) {
-        Ok(v) => parse_fence_timeout(&v),
-        Err(std::env::VarError::NotPresent) => Ok(DEFAULT_FENCE_TIMEOUT),
-        Err(std::env::VarError::NotUnicode(v)) => Err(VkError::Env {
-            var: FENCE_TIMEOUT_VAR,
-            value: v.to_string_lossy().into_owned(),
-            expected: TIMEOUT_VALUES,
-        }),
-    }
+    Ok(crate::switches::seconds(FENCE_TIMEOUT_VAR)?.map_or(DEFAULT_FENCE_TIMEOUT, Duration::from_secs_f64))
 }
-
-const TIMEOUT_VALUES: &str = "a number of seconds > 0 and <= 86400";
 
 /// Seconds (fractions allowed) in (0, 86400]; anything else is an error.
 pub fn parse_fence_timeout(value: &str) -> VkResult<Duration> {
-    let err = || VkError::Env { var: FENCE_TIMEOUT_VAR, value: value.to_string(), expected: TIMEOUT_VALUES };
-    let s: f64 = value.trim().parse().map_err(|_| err())?;
-    if !(s > 0.0 && s <= 86_400.0) {
-        return Err(err());
+    match crate::switches::parse_named(FENCE_TIMEOUT_VAR, value)? {
+        crate::switches::Value::Seconds(s) => Ok(Duration::from_secs_f64(s)),
+        _ => Err(VkError::Env { var: FENCE_TIMEOUT_VAR, value: value.to_string(), expected: "seconds".into() }),
     }
-    Ok(Duration::from_secs_f64(s))
 }
 
 /// Optional device features: what the device offers and we enable, recorded

@@ -29,7 +29,7 @@ pub enum VkError {
     Validation { count: usize, first: String },
     /// An environment variable holds a value we cannot use.
     #[error("environment variable {var}={value:?} is not valid: expected {expected}")]
-    Env { var: &'static str, value: String, expected: &'static str },
+    Env { var: &'static str, value: String, expected: String },
     /// A bounded fence wait ran out: the device may be hung.
     #[error("waiting for command recorder '{recorder}' timed out after {seconds} s (VOLBENCH_FENCE_TIMEOUT_S); the device may be hung")]
     Timeout { recorder: String, seconds: f64 },
@@ -54,3 +54,11 @@ impl<T> Check<T> for Result<T, vk::Result> {
         self.map_err(|result| VkError::Call { what, result })
     }
 }
+
+/// A switch's bad value (`crate::switches`) as the environment error.
+impl From<crate::switches::BadValue> for VkError {
+    fn from(e: crate::switches::BadValue) -> Self {
+        VkError::Env { var: e.var, value: e.value, expected: e.expected }
+    }
+}
+

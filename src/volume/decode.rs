@@ -2,10 +2,12 @@
 //! byte order, ASCII values (range-checked against the declared type),
 //! and bounded gzip/zlib decompression.
 //!
-//! Files may hold `int8` and `int32` too; they become a [`Samples`] type
-//! without loss (`int8` widens to `i16`; `int32` narrows to `i16` or `u16`
-//! when every value fits, else becomes `f32` when every value is exactly
-//! representable, else is an error).
+//! Files may hold `int8`, `int32` and `uint32` too; they become a
+//! [`Samples`] type without loss (`int8` widens to `i16`; `int32` and
+//! `uint32` narrow to `i16` or `u16` when every value fits, else become
+//! `f32` when every value is exactly representable, else are an error).
+//! `float64` (MetaImage's `MET_DOUBLE`) is rounded to `f32`, the precision
+//! every method renders in; a finite value beyond `f32`'s range is an error.
 
 use std::borrow::Cow;
 use std::io::Read;
@@ -22,7 +24,9 @@ pub(crate) enum RawType {
     I16,
     U16,
     I32,
+    U32,
     F32,
+    F64,
 }
 
 impl RawType {
@@ -30,7 +34,8 @@ impl RawType {
         match self {
             RawType::I8 | RawType::U8 => 1,
             RawType::I16 | RawType::U16 => 2,
-            RawType::I32 | RawType::F32 => 4,
+            RawType::I32 | RawType::U32 | RawType::F32 => 4,
+            RawType::F64 => 8,
         }
     }
 
@@ -41,7 +46,9 @@ impl RawType {
             RawType::I16 => "int16",
             RawType::U16 => "uint16",
             RawType::I32 => "int32",
+            RawType::U32 => "uint32",
             RawType::F32 => "float32",
+            RawType::F64 => "float64",
         }
     }
 }
@@ -87,26 +94,43 @@ pub(crate) fn decode_binary(source: &str, bytes: Cow<'_, [u8]>, ty: RawType, end
         RawType::I16 => Samples::I16(words!(i16, 2)),
         RawType::U16 => Samples::U16(words!(u16, 2)),
         RawType::I32 => narrow_i32(source, words!(i32, 4))?,
+        RawType::U32 => narrow_ints(source, "uint32", words!(u32, 4))?,
         RawType::F32 => Samples::F32(words!(f32, 4)),
+        RawType::F64 => narrow_f64(source, words!(f64, 8))?,
     })
 }
 
 /// `int32` samples as the narrowest [`Samples`] type that holds them exactly.
 pub(crate) fn narrow_i32(source: &str, v: Vec<i32>) -> Result<Samples> {
-    let (lo, hi) = v.iter().fold((i32::MAX, i32::MIN), |(lo, hi), &x| (lo.min(x), hi.max(x)));
-    if lo >= i16::MIN as i32 && hi <= i16::MAX as i32 {
-        return Ok(Samples::I16(v.into_iter().map(|x| x as i16).collect()));
+    narrow_ints(source, "int32", v)
+}
+
+/// 32-bit integer samples (`type_name` in errors) as the narrowest
+/// [`Samples`] type that holds them exactly.
+pub(crate) fn narrow_ints<T: Copy + Into<i64>>(source: &str, type_name: &str, v: Vec<T>) -> Result<Samples> {
+    let (lo, hi) = v.iter().fold((i64::MAX, i64::MIN), |(lo, hi), &x| (lo.min(x.into()), hi.max(x.into())));
+    if lo >= i16::MIN as i64 && hi <= i16::MAX as i64 {
+        return Ok(Samples::I16(v.into_iter().map(|x| x.into() as i16).collect()));
     }
-    if lo >= 0 && hi <= u16::MAX as i32 {
-        return Ok(Samples::U16(v.into_iter().map(|x| x as u16).collect()));
+    if lo >= 0 && hi <= u16::MAX as i64 {
+        return Ok(Samples::U16(v.into_iter().map(|x| x.into() as u16).collect()));
     }
-    const EXACT: i32 = 1 << 24;
-    if let Some(i) = v.iter().position(|&x| !(-EXACT..=EXACT).contains(&x)) {
+    const EXACT: i64 = 1 << 24;
+    if let Some(i) = v.iter().position(|&x| !(-EXACT..=EXACT).contains(&x.into())) {
         bail!(
-            "{source}: int32 sample {i} is {}: int32 data is kept only when it fits int16, uint16 or \
+            "{source}: {type_name} sample {i} is {}: {type_name} data is kept only when it fits int16, uint16 or \
              (exactly) float32, and this volume's range [{lo}, {hi}] fits none",
-            v[i]
+            v[i].into()
         );
+    }
+    Ok(Samples::F32(v.into_iter().map(|x| x.into() as f32).collect()))
+}
+
+/// `float64` samples rounded to `f32`; a finite value beyond `f32`'s range
+/// is an error (NaN and infinities are left for [`super::Volume::new`]).
+pub(crate) fn narrow_f64(source: &str, v: Vec<f64>) -> Result<Samples> {
+    if let Some(i) = v.iter().position(|x| x.is_finite() && !(x.abs() <= f32::MAX as f64)) {
+        bail!("{source}: float64 sample {i} is {}, beyond float32's range (samples are kept as float32)", v[i]);
     }
     Ok(Samples::F32(v.into_iter().map(|x| x as f32).collect()))
 }
@@ -192,6 +216,18 @@ pub(crate) fn parse_ascii<'a>(
         RawType::I16 => Samples::I16(ints(source, what, type_name, count, cap, &mut next)?),
         RawType::U16 => Samples::U16(ints(source, what, type_name, count, cap, &mut next)?),
         RawType::I32 => narrow_i32(source, ints(source, what, type_name, count, cap, &mut next)?)?,
+        RawType::U32 => narrow_ints::<u32>(source, type_name, ints(source, what, type_name, count, cap, &mut next)?)?,
+        RawType::F64 => {
+            let mut out = Vec::with_capacity(cap);
+            for i in 0..count {
+                let (t, at) = next(i)?;
+                let v: f64 = t
+                    .parse()
+                    .map_err(|_| anyhow!("{source}: bad {type_name} value '{t}' in {what} (value {i}, byte {at})"))?;
+                out.push(v);
+            }
+            narrow_f64(source, out)?
+        }
         RawType::F32 => {
             let mut out = Vec::with_capacity(cap);
             for i in 0..count {
@@ -312,6 +348,15 @@ mod tests {
         assert_eq!(narrow_i32("f", vec![-1, 70000]).unwrap(), Samples::F32(vec![-1.0, 70000.0]));
         let e = narrow_i32("f", vec![0, 1 << 25]).unwrap_err().to_string();
         assert!(e.contains("sample 1 is 33554432"), "{e}");
+        // uint32 and float64: the same bound at two sizes, and f32's range.
+        assert_eq!(narrow_ints("f", "uint32", vec![0u32, 1 << 24]).unwrap(), Samples::F32(vec![0.0, 16777216.0]));
+        let e = narrow_ints("f", "uint32", vec![0u32, (1 << 24) + 1]).unwrap_err().to_string();
+        assert!(e.contains("uint32 sample 1 is 16777217"), "{e}");
+        let s = decode_binary("f", b(&0.1f64.to_be_bytes()), RawType::F64, Endian::Big, 1).unwrap();
+        assert_eq!(s, Samples::F32(vec![0.1f32]));
+        assert_eq!(narrow_f64("f", vec![f32::MAX as f64]).unwrap(), Samples::F32(vec![f32::MAX]));
+        let e = narrow_f64("f", vec![0.0, 1e39]).unwrap_err().to_string();
+        assert!(e.contains("float64 sample 1 is 1000000000000000000000000000000000000000"), "{e}");
     }
 
     #[test]

@@ -12,7 +12,8 @@
 //! Readers, one module per format, each with a path loader that reads through
 //! [`crate::fsio::read_input`] and a byte-level parser (fuzzed, see
 //! `fuzz/README.md`): [`nrrd`], [`vti`] (VTK XML ImageData), [`vtk_sp`] (VTK
-//! legacy `STRUCTURED_POINTS`) and [`nifti`] (NIfTI-1). [`load_volume`] picks
+//! legacy `STRUCTURED_POINTS`), [`nifti`] (NIfTI-1) and [`metaimage`]
+//! (ITK's MetaImage, `.mhd`/`.mha`). [`load_volume`] picks
 //! one by extension and magic. Shared decoding (sample types, byte order,
 //! ASCII values, bounded decompression) lives in `decode`. Every error starts
 //! with the file name; sizes from headers are checked, with checked
@@ -23,6 +24,7 @@
 
 pub(crate) mod decode;
 pub mod datasets;
+pub mod metaimage;
 pub mod nifti;
 pub mod nrrd;
 pub mod vti;
@@ -444,6 +446,19 @@ fn flip(samples: &mut Samples, dims: [usize; 3], axis: usize) {
     }
 }
 
+/// What a reader calls to read a data file named by the header at
+/// `header` (a NRRD's `data file`, a MetaImage's `ElementDataFile`): the
+/// name as written, relative to the header's directory, read through
+/// [`crate::fsio::read_input`] (a regular file within its cap; `what` names
+/// it in errors).
+pub fn data_file_loader(header: &Path, what: &'static str) -> impl FnMut(&str) -> Result<Vec<u8>> {
+    let dir = match header.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => Path::new(".").to_path_buf(),
+    };
+    move |file: &str| crate::fsio::read_input(&dir.join(file), what, crate::fsio::MAX_INPUT_BYTES)
+}
+
 /// The file name without its extension (both of `.nii.gz`), naming a volume.
 fn stem_of(name: &str) -> String {
     let file = Path::new(name).file_name().map_or_else(|| name.to_string(), |f| f.to_string_lossy().into_owned());
@@ -459,7 +474,9 @@ fn stem_of(name: &str) -> String {
 /// The formats [`load_volume`] reads, for messages.
 pub const SUPPORTED_FORMATS: &str = "NRRD (.nrrd, .nhdr: raw, gzip or ascii; uint8, int16, uint16, float32, int8, int32), \
      VTK XML ImageData (.vti: ascii, binary or appended data, zlib or uncompressed), \
-     VTK legacy STRUCTURED_POINTS (.vtk: ASCII or BINARY) and NIfTI-1 (.nii, .nii.gz)";
+     VTK legacy STRUCTURED_POINTS (.vtk: ASCII or BINARY), NIfTI-1 (.nii, .nii.gz) and \
+     MetaImage (.mha, .mhd with a data file, list or pattern: raw, zlib or ascii; MET_UCHAR, MET_CHAR, MET_USHORT, \
+     MET_SHORT, MET_UINT, MET_INT, MET_FLOAT, MET_DOUBLE)";
 
 /// The file formats a volume can come in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -468,6 +485,7 @@ pub enum Format {
     Vti,
     VtkLegacy,
     Nifti,
+    MetaImage,
 }
 
 /// The format `bytes` start like, if any.
@@ -482,6 +500,8 @@ pub fn sniff(bytes: &[u8]) -> Option<Format> {
         Some(Format::Vti)
     } else if nifti::is_nifti(bytes) || (bytes.starts_with(&[0x1f, 0x8b]) && gzip_holds_nifti(bytes)) {
         Some(Format::Nifti)
+    } else if metaimage::is_metaimage(bytes) {
+        Some(Format::MetaImage)
     } else {
         None
     }
@@ -504,6 +524,7 @@ pub fn format_of_extension(path: &Path) -> Option<Format> {
         "nrrd" | "nhdr" => Some(Format::Nrrd),
         "vti" => Some(Format::Vti),
         "vtk" => Some(Format::VtkLegacy),
+        "mha" | "mhd" => Some(Format::MetaImage),
         _ => None,
     }
 }
@@ -532,6 +553,9 @@ pub fn load_volume(path: impl AsRef<Path>) -> Result<Volume> {
         Some(Format::Vti) => vti::parse_vti_bytes(&name, &bytes, None),
         Some(Format::VtkLegacy) => vtk_sp::parse_structured_points_bytes(&name, &bytes),
         Some(Format::Nifti) => nifti::parse_nifti_bytes(&name, &bytes),
+        Some(Format::MetaImage) => {
+            metaimage::parse_metaimage_bytes(&name, &bytes, &mut data_file_loader(path, "MetaImage data file"))
+        }
         None => Err(unsupported()),
     }
 }
@@ -598,7 +622,10 @@ mod tests {
         assert_eq!(stem_of(".hidden"), ".hidden");
         assert_eq!(format_of_extension(Path::new("a.NII.GZ")), Some(Format::Nifti));
         assert_eq!(format_of_extension(Path::new("a.slc")), None);
+        assert_eq!(format_of_extension(Path::new("a.MHD")), Some(Format::MetaImage));
+        assert_eq!(sniff(b"ObjectType = Image\nNDims = 3\n"), Some(Format::MetaImage));
         let e = load_volume("/nonexistent/brain.slc").unwrap_err().to_string();
         assert!(e.contains("brain.slc") && e.contains(".slc") && e.contains("NRRD") && e.contains(".nii.gz"), "{e}");
+        assert!(e.contains("MetaImage (.mha, .mhd"), "{e}");
     }
 }

@@ -34,14 +34,9 @@ pub fn read_nrrd(path: impl AsRef<Path>) -> Result<Volume> {
 }
 
 /// What [`parse_nrrd_bytes`] calls to read a detached `data file` of the
-/// header at `header`: the name as written, relative to the header's
-/// directory, read through [`crate::fsio::read_input`].
+/// header at `header`: see [`super::data_file_loader`].
 pub fn data_file_loader(header: &Path) -> impl FnMut(&str) -> Result<Vec<u8>> {
-    let dir = match header.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => Path::new(".").to_path_buf(),
-    };
-    move |file: &str| crate::fsio::read_input(&dir.join(file), "NRRD data file", crate::fsio::MAX_INPUT_BYTES)
+    super::data_file_loader(header, "NRRD data file")
 }
 
 /// Fields accepted and ignored (after alias folding).

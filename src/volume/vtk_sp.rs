@@ -249,8 +249,9 @@ pub fn parse_structured_points_bytes(name: &str, bytes: &[u8]) -> Result<Volume>
                         use crate::mesh::byte_order::{looks_little_endian, looks_little_endian_int};
                         let evidence = match ty {
                             RawType::F32 => looks_little_endian(data, 4),
+                            RawType::F64 => looks_little_endian(data, 8),
                             RawType::I16 | RawType::I32 => looks_little_endian_int(data, ty.size(), true),
-                            RawType::U16 => looks_little_endian_int(data, 2, false),
+                            RawType::U16 | RawType::U32 => looks_little_endian_int(data, ty.size(), false),
                             RawType::I8 | RawType::U8 => None,
                         };
                         if let Some(e) = evidence {

@@ -83,15 +83,13 @@ pub const PACK_AHEAD_BYTES: usize = 64 << 20;
 /// Test knob (tests only, docs/scaling.md): `VOLBENCH_TEST_PACK_AHEAD_BYTES=N`
 /// packs at most N bytes of records ahead, so a small mesh takes the path a
 /// large one does.
-pub const PACK_AHEAD_VAR: &str = "VOLBENCH_TEST_PACK_AHEAD_BYTES";
+pub const PACK_AHEAD_VAR: &str = crate::switches::TEST_PACK_AHEAD_BYTES;
 
 /// Cells packed ahead: `PACK_AHEAD_BYTES` or the knob's bytes, in records.
 fn pack_ahead_cells() -> VkResult<usize> {
-    let bytes = match std::env::var(PACK_AHEAD_VAR) {
-        Err(_) => PACK_AHEAD_BYTES,
-        Ok(v) => v
-            .parse::<usize>()
-            .map_err(|_| crate::vk::VkError::Invalid(format!("{PACK_AHEAD_VAR}={v}: not a byte count")))?,
+    let bytes = match crate::switches::int(PACK_AHEAD_VAR)? {
+        None => PACK_AHEAD_BYTES,
+        Some(n) => usize::try_from(n).unwrap_or(usize::MAX),
     };
     Ok(bytes / (FLOATS_PER_CELL * 4))
 }

@@ -511,18 +511,14 @@ pub trait CellProjector {
 /// variant, resident and resident-gpusort), the deliberate slowdown the
 /// counted compare must catch. Unset in real runs; when set, every run says
 /// so on stderr and a counted run records it in `count.pinned`.
-pub const EXTRA_WORK_VAR: &str = "VOLBENCH_TEST_EXTRA_FRAGMENT_WORK";
+pub const EXTRA_WORK_VAR: &str = crate::switches::TEST_EXTRA_FRAGMENT_WORK;
 
 fn extra_fragment_work() -> VkResult<Option<String>> {
     static WARNED: std::sync::Once = std::sync::Once::new();
-    match std::env::var(EXTRA_WORK_VAR) {
-        Err(_) => Ok(None),
-        Ok(v) if v.parse::<u16>().is_ok() => {
-            WARNED.call_once(|| eprintln!("volbench: {EXTRA_WORK_VAR}={v} is set: balanced.frag carries a deliberate test-only slowdown"));
-            Ok(Some(v))
-        }
-        Ok(v) => Err(crate::vk::VkError::Invalid(format!("{EXTRA_WORK_VAR}={v}: not a count of multiply-adds (0..=65535)"))),
-    }
+    Ok(crate::switches::int(EXTRA_WORK_VAR)?.map(|n| {
+        WARNED.call_once(|| eprintln!("volbench: {EXTRA_WORK_VAR}={n} is set: balanced.frag carries a deliberate test-only slowdown"));
+        n.to_string()
+    }))
 }
 
 /// The defines of cell projection's build-time choices

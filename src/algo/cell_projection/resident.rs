@@ -23,7 +23,7 @@ use crate::algo::method::{MethodInfo, MethodInputs, RenderMethod};
 use crate::mesh::TetMesh;
 use crate::vk::{
     Buffer, BufferDesc, CommandRecorder, ComputePipelineKey, Context, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc,
-    Pipeline, PipelineKey, ShaderKey, ShaderStage, UploadClass, UploadCounter, VkError, VkResult,
+    Pipeline, PipelineKey, ShaderKey, ShaderStage, UploadClass, UploadCounter, VkResult,
 };
 use crate::vk::{BufferUsage, ColorAttachment, Format, Image, Stages};
 
@@ -43,17 +43,11 @@ pub const RECORDS_BATCH: usize = 1 << 20;
 /// Test knob (tests and measurements only, docs/scaling.md):
 /// `VOLBENCH_TEST_RESIDENT_BATCH=N` expands and draws N cells per batch, so
 /// a small mesh takes the many-batch path a large one does.
-pub const RESIDENT_BATCH_VAR: &str = "VOLBENCH_TEST_RESIDENT_BATCH";
+pub const RESIDENT_BATCH_VAR: &str = crate::switches::TEST_RESIDENT_BATCH;
 
 /// Cells per batch: `RECORDS_BATCH` or the knob's count.
 fn records_batch() -> VkResult<usize> {
-    match std::env::var(RESIDENT_BATCH_VAR) {
-        Err(_) => Ok(RECORDS_BATCH),
-        Ok(v) => match v.parse::<usize>() {
-            Ok(n) if n > 0 => Ok(n),
-            _ => Err(VkError::Invalid(format!("{RESIDENT_BATCH_VAR}={v}: not a positive cell count"))),
-        },
-    }
+    Ok(crate::switches::int(RESIDENT_BATCH_VAR)?.map_or(RECORDS_BATCH, |n| usize::try_from(n).unwrap_or(usize::MAX)))
 }
 
 /// The registry entry.

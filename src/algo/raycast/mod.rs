@@ -318,11 +318,11 @@ enum BrickMap {
 /// Test knob: `VOLBENCH_TEST_BRICK_MAP_HOST=1` takes the other devices' way
 /// (host memory, then an upload) on a CPU device too, so that path is
 /// tested on lavapipe.
-pub const BRICK_MAP_HOST_VAR: &str = "VOLBENCH_TEST_BRICK_MAP_HOST";
+pub const BRICK_MAP_HOST_VAR: &str = crate::switches::TEST_BRICK_MAP_HOST;
 
 impl BrickMap {
     fn new(ctx: &Arc<Context>, bytes: usize) -> Result<Self> {
-        Ok(if ctx.info.is_cpu() && std::env::var_os(BRICK_MAP_HOST_VAR).is_none() {
+        Ok(if ctx.info.is_cpu() && !crate::switches::flag(BRICK_MAP_HOST_VAR).map_err(crate::vk::VkError::from)? {
             BrickMap::InPlace(Buffer::new(ctx, BufferDesc::upload("brick distances", bytes as u64, BufferUsage::UNIFORM_TEXEL))?)
         } else {
             BrickMap::Host(vec![0; bytes])

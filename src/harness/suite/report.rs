@@ -38,6 +38,12 @@ pub fn report(s: &Summary, registry: &Registry) -> String {
         s.settings.orbit_step_deg,
         if s.settings.quick { " (--quick)" } else { "" },
     );
+    if !e.env_switches.is_empty() {
+        t += &format!(
+            "**Environment switches set** (they change what is measured): {}.\n\n",
+            e.env_switches.iter().map(|(k, v)| format!("`{k}={}`", v.escape_debug())).collect::<Vec<_>>().join(", ")
+        );
+    }
     t += "| dataset | method | status | frame ms median [min, max] | GPU ms | MB/frame | bytes/cell | static KB | M cells/s | error RMSE | max err |\n";
     t += "|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|\n";
     for r in &s.runs {

@@ -28,6 +28,9 @@ pub struct Environment {
     /// and sitting" from it, `track::same_sitting`). Absent when either
     /// cannot be read.
     pub machine_boot_id: Option<String>,
+    /// The environment switches set that change what is measured
+    /// (`crate::switches::recorded`); empty in an ordinary suite.
+    pub env_switches: std::collections::BTreeMap<String, String>,
 }
 
 impl Environment {
@@ -45,6 +48,7 @@ impl Environment {
             volbench_version: env!("CARGO_PKG_VERSION"),
             started_utc: utc_now(),
             machine_boot_id: machine_boot_id(),
+            env_switches: crate::switches::recorded(),
         }
     }
 }

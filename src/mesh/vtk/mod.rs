@@ -171,7 +171,7 @@ fn read_header<'a>(r: &mut Reader<'a>, name: &str, bytes: &[u8]) -> Result<(u32,
     match ds.get(1).map(|s| s.to_ascii_uppercase()).as_deref() {
         Some("UNSTRUCTURED_GRID") => {}
         other => bail!(r.err(format!(
-            "unsupported DATASET {}: only UNSTRUCTURED_GRID (of tetrahedra) is supported",
+            "unsupported DATASET {}: a mesh is an UNSTRUCTURED_GRID (a volume a STRUCTURED_POINTS)",
             other.unwrap_or("(missing)")
         ))),
     }
