@@ -16,6 +16,7 @@
 
 pub mod adjacency;
 pub mod byte_order;
+pub mod cell_data;
 pub mod cells;
 pub mod datasets;
 pub mod geometry;
@@ -43,6 +44,17 @@ pub struct MeshStats {
     /// 0-, 1- and 2-D cells (vertices, lines, triangles, quads ...) in an
     /// unstructured file: no volume, skipped (see `cells`).
     pub skipped_lower_dim: usize,
+    /// Which array is the scalar, point or cell data, and how cell data is
+    /// shown (`scalar_array`, `scalar_association`, `scalar_components`,
+    /// `cell_data` in the JSON; see `cell_data`). `None` where the source
+    /// has no named arrays (PLOT3D) or the mesh was made in memory.
+    #[serde(flatten)]
+    pub scalar: Option<cell_data::ScalarInfo>,
+    /// A mesh whose cells carry constant values (`cell_data`): for each
+    /// vertex, the vertex it copies (every tet has its own four), by which
+    /// the walks' face adjacency matches faces. Empty otherwise.
+    #[serde(skip)]
+    pub vertex_origin: Vec<u32>,
 }
 
 /// A tetrahedral mesh with one scalar per vertex.
