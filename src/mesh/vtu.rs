@@ -19,8 +19,9 @@
 //! The scalar, chosen once per file: the array named by the caller
 //! (`--scalar NAME`: a point array of that name, else a cell array), else
 //! the `PointData`'s active `Scalars`, else the first point array, else (no
-//! point data: noted by the caller) the `CellData`'s active `Scalars` or its
-//! first numeric array that is not `vtkGhostType`. Arrays of several
+//! point data: noted by the caller) the `CellData`'s active `Scalars`, else
+//! its first numeric one-component array that is not `vtkGhostType`, else
+//! its first numeric array. Arrays of several
 //! components become their magnitude; cell data is shown as `--cell-data`
 //! says (`mesh::cell_data`). A `.pvtu` chooses among the arrays its
 //! `PPointData` / `PCellData` declare (by the same rules), and every piece
@@ -151,7 +152,8 @@ fn choose(
                 a.attribute("Name") != Some("vtkGhostType") && a.attribute("type").is_some_and(|t| XType::parse(name, "", t).is_ok())
             };
             let active = cd.and_then(|c| c.attribute("Scalars")).and_then(|w| named(cd_arrays, w));
-            match active.or_else(|| cd_arrays.iter().find(numeric).copied()) {
+            let one = |a: &&roxmltree::Node| numeric(a) && components(name, **a).is_ok_and(|k| k == 1);
+            match active.or_else(|| cd_arrays.iter().find(one).or_else(|| cd_arrays.iter().find(numeric)).copied()) {
                 Some(a) => info(&a, Association::Cell, true),
                 None => bail!("{name}: {what} no point or numeric cell array to use as the scalar; {}", listing(pd_arrays, cd_arrays)),
             }

@@ -508,6 +508,17 @@ impl TetRaycast {
             counter,
         )
         .context("building the integration tables")?;
+        // Constant cells (`mesh::cell_data`): each tet has its own vertices,
+        // and the walk carries the entry face's vertex indices and its scalar
+        // from cell to cell, which holds only where cells share vertices.
+        if !mesh.stats.vertex_origin.is_empty() {
+            bail!(
+                "mesh '{}': its scalar is a cell array shown constant per cell (--cell-data constant); tet-raycast walks \
+                 fields that are continuous across faces and does not render that yet: use --cell-data average, or a \
+                 cell-projection method (balanced, vicp, resident, pt-compute)",
+                mesh.name
+            );
+        }
         let mut topo = Topology::build(mesh);
 
         // Points relative to the render origin and scalars mapped, in f64
