@@ -375,3 +375,45 @@ fn averaged_cells_render_as_a_point_field() {
         assert!(e.rmse < 4e-3, "{spec}: RMSE {:e}", e.rmse);
     }
 }
+
+/// The command line: `--cell-data` is refused beyond its two values, in
+/// every command that has it; a run on a file with only cell data notes the
+/// choice on stderr and records it in the result.
+#[test]
+fn the_command_line_takes_and_records_the_choice() {
+    let volbench = || std::process::Command::new(env!("CARGO_BIN_EXE_volbench"));
+    for args in [
+        &["run", "--data", "post-small", "--method", "balanced", "--cell-data", "mean"][..],
+        &["suite", "--quick", "--cell-data", "mean"],
+        &["scale", "--data", "post-small", "--cell-data", "mean"],
+        &["compare", "--data", "post-small", "--cell-data", "mean"],
+    ] {
+        let out = volbench().args(args).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?}");
+        assert!(err.contains("--cell-data") && err.contains("'constant'") && err.contains("'average'"), "{args:?}: {err}");
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let p = tmp.path().join("cells.vtk");
+    std::fs::write(&p, block(2).legacy(false)).unwrap();
+    for (treatment, points) in [("constant", None), ("average", Some(27))] {
+        let out = volbench()
+            .args(["run", "--data", p.to_str().unwrap(), "--method", "balanced", "--size", "16x16", "--frames", "1", "--warmup", "0"])
+            .args(["--fixed-frames", "0", "--cell-data", treatment, "--json", "-"])
+            .env("VOLBENCH_VALIDATION", "1")
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{err}");
+        assert!(err.contains("note:") && err.contains("cell array 'density'"), "{err}");
+        let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        let d = &json["dataset"];
+        assert_eq!(d["stats"]["scalar_association"], "cell");
+        assert_eq!(d["stats"]["cell_data"], treatment);
+        if let Some(n) = points {
+            assert_eq!(d["counts"]["points"], n);
+        } else {
+            assert_eq!(d["counts"]["points"], 4 * d["counts"]["cells"].as_u64().unwrap());
+        }
+    }
+}

@@ -424,7 +424,8 @@ impl Sections<'_> {
             bail!(r.err(format!("no point or cell array named '{w}'; {seen}")));
         } else {
             bail!(r.err(format!(
-                "no scalar: need a one-component SCALARS (or FIELD) array in POINT_DATA or CELL_DATA; found {seen}"
+                "no point scalars and no cell scalar: need a one-component SCALARS (or FIELD) array in POINT_DATA \
+                 or CELL_DATA; found {seen}"
             )));
         }
         raw.into_tet_mesh(name, stem)
@@ -567,7 +568,7 @@ LOOKUP_TABLE default
                 .replace("0.5 1.5 2.5 3.5 4.5", &"0 ".repeat(15))
                 .replace("SCALARS other float", "NORMALS other float")
                 .replace("LOOKUP_TABLE default\n9 9 9 9 9", &"0 ".repeat(15))
-                .replace("CELL_DATA 2\nSCALARS cellid int 1\nLOOKUP_TABLE default\n0 1\n", ""), "no scalar: need a one-component"),
+                .replace("CELL_DATA 2\nSCALARS cellid int 1\nLOOKUP_TABLE default\n0 1\n", ""), "no point scalars and no cell scalar"),
             (ASCII.replace("1 1 1", "1 nan 1"), "non-finite"),
             (ASCII.replace("0 0 1  1 1 1", "0 0 1  1 x 1"), "value 'x' in POINTS (value 13 of 15) is not a number"),
             (ASCII[..ASCII.len() - 10].to_string(), "truncated"),
