@@ -508,17 +508,6 @@ impl TetRaycast {
             counter,
         )
         .context("building the integration tables")?;
-        // Constant cells (`mesh::cell_data`): each tet has its own vertices,
-        // and the walk carries the entry face's vertex indices and its scalar
-        // from cell to cell, which holds only where cells share vertices.
-        if !mesh.stats.vertex_origin.is_empty() {
-            bail!(
-                "mesh '{}': its scalar is a cell array shown constant per cell (--cell-data constant); tet-raycast walks \
-                 fields that are continuous across faces and does not render that yet: use --cell-data average, or a \
-                 cell-projection method (balanced, vicp, resident, pt-compute)",
-                mesh.name
-            );
-        }
         let mut topo = Topology::build(mesh);
 
         // Points relative to the render origin and scalars mapped, in f64
@@ -650,6 +639,12 @@ impl TetRaycast {
         let mut defines: Vec<(&str, &str)> = settings.defines();
         defines.push(("WG_X", &wg[0]));
         defines.push(("WG_Y", &wg[1]));
+        // Constant cells (`mesh::cell_data`): each tet has its own copies of
+        // the points; the walk renames the carried face to the next cell's
+        // copies and takes that cell's value (walk.comp, CELL_CONSTANT).
+        if !mesh.stats.vertex_origin.is_empty() {
+            defines.push(("CELL_CONSTANT", "1"));
+        }
         defines.extend(chunk_defines.iter().map(|(k, v)| (k.as_str(), v.as_str())));
         let key = PipelineKey::Compute(ComputePipelineKey {
             shader: ShaderKey::new("tet_raycast/walk.comp", ShaderStage::Compute, &defines),
