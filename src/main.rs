@@ -19,6 +19,7 @@ use volbench::harness::reference_cache::reference_image;
 use volbench::harness::report::{self, ComparisonRow};
 use volbench::harness::run::{run as run_method, RunConfig};
 use volbench::harness::sweep;
+use volbench::mesh::cell_data::CellData;
 use volbench::scene::{Projection, TransferFunction};
 use volbench::vk::{Context, ContextDesc};
 
@@ -113,6 +114,10 @@ struct ScaleArgs {
     /// Output directory (default results/scale-<dataset>).
     #[arg(long)]
     out: Option<PathBuf>,
+    /// How a mesh file's cell array is shown (as for `run`); scale refines
+    /// and writes point fields, so only `average` applies to cell data.
+    #[arg(long, default_value = "constant", value_name = "constant|average", value_parser = parse_cell_data)]
+    cell_data: CellData,
 }
 
 #[derive(Args)]
@@ -198,6 +203,10 @@ struct SuiteArgs {
     /// docs/tracking.md). No peers, no CPU reference.
     #[arg(long, conflicts_with = "peers")]
     count: bool,
+    /// How a mesh file's cell array is shown (as for `run`; the shipped
+    /// meshes have point data).
+    #[arg(long, default_value = "constant", value_name = "constant|average", value_parser = parse_cell_data)]
+    cell_data: CellData,
 }
 
 /// Options of a method given as flags: shorthands for `method:key=value`.
@@ -270,6 +279,11 @@ struct FrameArgs {
     /// dataset's preset.
     #[arg(long)]
     tf: Option<PathBuf>,
+    /// How a mesh file's cell array (one value per cell) is shown: `constant`
+    /// (each cell its own value) or `average` (averaged to the points as
+    /// VTK's vtkCellDataToPointData does). Point arrays are not affected.
+    #[arg(long, default_value = "constant", value_name = "constant|average", value_parser = parse_cell_data)]
+    cell_data: CellData,
     #[command(flatten)]
     method: MethodFlags,
 }
@@ -279,8 +293,9 @@ struct RunArgs {
     /// A shipped dataset (`volbench list`) or a file path.
     #[arg(long, alias = "mesh", value_name = "NAME|PATH")]
     data: String,
-    /// The point array of a VTK unstructured grid (.vtk, .vtu, .pvtu) to
-    /// render (vector arrays by magnitude); the same as `--data FILE#NAME`.
+    /// The point or cell array of a VTK unstructured grid (.vtk, .vtu, .pvtu)
+    /// to render (vector arrays by magnitude; a point array of that name
+    /// first; cell data as --cell-data says); the same as `--data FILE#NAME`.
     #[arg(long, value_name = "NAME")]
     scalar: Option<String>,
     /// The method: `name` or `name:key=value,...` (`volbench list`).
@@ -334,7 +349,7 @@ struct CompareArgs {
     #[arg(
         value_name = "SUMMARY",
         num_args = 2,
-        conflicts_with_all = ["data", "methods", "out", "size", "frames", "warmup", "projection", "orbit_step", "zoom", "no_overlap", "fixed_frames", "tf", "integrator", "table_size", "sort", "interpolation"]
+        conflicts_with_all = ["data", "methods", "out", "size", "frames", "warmup", "projection", "orbit_step", "zoom", "no_overlap", "fixed_frames", "tf", "cell_data", "integrator", "table_size", "sort", "interpolation"]
     )]
     summaries: Vec<PathBuf>,
     /// Tracking: compare counts and errors only, not times at all.
@@ -393,6 +408,10 @@ struct StressArgs {
     /// Print what each case is and its error allowances, and exit.
     #[arg(long)]
     describe: bool,
+}
+
+fn parse_cell_data(s: &str) -> Result<CellData, String> {
+    s.parse::<CellData>().map_err(|e| e.to_string().trim_start_matches(&format!("--cell-data '{s}': ")).to_string())
 }
 
 fn parse_size(s: &str) -> Result<(u32, u32), String> {
@@ -533,12 +552,12 @@ fn run(cli: &Cli, registry: &Registry, args: &RunArgs) -> Result<()> {
         Some(name) => {
             let ext = std::path::Path::new(&args.data).extension().map(|e| e.to_string_lossy().to_ascii_lowercase());
             if !ext.is_some_and(|e| volbench::mesh::datasets::VTK_EXTENSIONS.contains(&e.as_str())) {
-                anyhow::bail!("--scalar {name}: only VTK unstructured grids (.vtk, .vtu, .pvtu) have named point arrays, not '{}'", args.data);
+                anyhow::bail!("--scalar {name}: only VTK unstructured grids (.vtk, .vtu, .pvtu) have named arrays, not '{}'", args.data);
             }
             format!("{}#{name}", args.data)
         }
     };
-    let dataset = datasets::load(&data)
+    let dataset = datasets::load_with(&data, args.frame.cell_data)
         .with_context(|| format!("--method {} renders {} datasets", spec.info.name, spec.info.data.name()))?;
     spec.check_renders(dataset.kind(), &args.data)?;
     let tf = args.frame.transfer_function(&dataset)?;
@@ -623,7 +642,7 @@ fn compare(cli: &Cli, registry: &Registry, args: &CompareArgs) -> Result<()> {
     // before any output is written or Vulkan starts.
     let mut jobs = Vec::new();
     for name in &args.data {
-        let dataset = datasets::load(name)?;
+        let dataset = datasets::load_with(name, args.frame.cell_data)?;
         let tf = args.frame.transfer_function(&dataset)?;
         let specs = sweep::specs_for(registry, &args.methods, dataset.kind(), &args.frame.method.pairs(), |m| m.compare)?;
         jobs.push(sweep::CompareJob { dataset, tf, specs });
@@ -688,7 +707,7 @@ fn track(baseline: &Path, new: &Path, args: &CompareArgs) -> Result<()> {
 
 fn pareto(cli: &Cli, registry: &Registry, args: &ParetoArgs) -> Result<()> {
     let cfg = args.frame.config()?;
-    let mut dataset = datasets::load(&args.data)?;
+    let mut dataset = datasets::load_with(&args.data, args.frame.cell_data)?;
     let tf = args.frame.transfer_function(&dataset)?;
     let specs = sweep::pareto_specs(registry, &args.methods, dataset.kind(), &args.frame.method.pairs())?;
     let out_dir = args.out.clone().unwrap_or_else(|| PathBuf::from(format!("results/runs/pareto-{}", dataset.name)));
@@ -763,7 +782,7 @@ fn stress(cli: &Cli, registry: &Registry, args: &StressArgs) -> Result<()> {
 
 fn suite(cli: &Cli, registry: &Registry, args: &SuiteArgs) -> Result<()> {
     use volbench::harness::suite::{plan, run_suite, utc_now, SuiteSettings};
-    let settings = SuiteSettings { peers: args.peers.clone(), ..SuiteSettings::standard(args.quick, args.filter.clone()) }
+    let settings = SuiteSettings { peers: args.peers.clone(), cell_data: args.cell_data, ..SuiteSettings::standard(args.quick, args.filter.clone()) }
         .counted(count::child_dir(args.count)?);
     let plan = plan(registry, &settings)?;
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from(format!("results/{}", utc_now())));
@@ -891,6 +910,7 @@ fn scale(registry: &Registry, args: &ScaleArgs) -> Result<()> {
         warmup: args.warmup,
         reference_max_cells: args.reference_max_cells,
         peers: args.peers.clone(),
+        cell_data: args.cell_data,
     };
     let exe = std::env::current_exe().context("locating this volbench binary")?;
     // The study checks its estimate first, creates `out` and writes the

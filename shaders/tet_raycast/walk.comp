@@ -318,7 +318,14 @@ vec2 edge_lo_hi(vec3 q_lo, vec3 p_lo, vec3 p_hi) {
 // disagree on a < b about half the time, and a branch would run
 // edge_lo_hi twice for all of them.
 vec2 oriented(uint a, uint b, vec3 qa, vec3 qb, vec3 pa, vec3 pb) {
+#ifdef CELL_CONSTANT
+    // Constant cells: the cells sharing an edge hold different copies of
+    // its points (different indices), so the edge is oriented by position,
+    // which the copies share bit for bit.
+    bool fwd = pa.x < pb.x || (pa.x == pb.x && (pa.y < pb.y || (pa.y == pb.y && pa.z < pb.z)));
+#else
     bool fwd = a < b;
+#endif
     vec2 e = edge_lo_hi(fwd ? qa : qb, fwd ? pa : pb, fwd ? pb : pa);
     return fwd ? e : -e;
 }
@@ -673,6 +680,30 @@ int walk(uint face, float t_in, float s_in, float t_min, float t_max, out float 
         v = tet_at(tet);
         solid = v.w >= SOLID_BIT;
         v.w &= ~SOLID_BIT;
+#ifdef CELL_CONSTANT
+        // Constant cells (src/mesh/cell_data.rs): every tet has its own
+        // copies of the points, holding its value. The carried face is
+        // renamed to this cell's copies, found by position (copies are bit
+        // for bit the same points), and takes this cell's value, so the
+        // segment is constant and the vertex tests below see this cell's
+        // indices. (Edges are oriented by position: `oriented`.)
+        {
+            uvec3 fn_ = FACE_VERTS[f_in];
+            uint c0 = v[fn_.x];
+            uint c1 = v[fn_.y];
+            uint c2 = v[fn_.z];
+            vec3 x0 = point_at(c0).xyz;
+            vec3 x1 = point_at(c1).xyz;
+            a0 = all(equal(x0, p0.xyz)) ? c0 : (all(equal(x1, p0.xyz)) ? c1 : c2);
+            a1 = all(equal(x0, p1.xyz)) ? c0 : (all(equal(x1, p1.xyz)) ? c1 : c2);
+            a2 = all(equal(x0, p2.xyz)) ? c0 : (all(equal(x1, p2.xyz)) ? c1 : c2);
+            float value = point_at(v.x).w;
+            p0.w = value;
+            p1.w = value;
+            p2.w = value;
+            s_in = value;
+        }
+#endif
     }
     return WALK_DONE;
 }

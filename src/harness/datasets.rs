@@ -12,6 +12,7 @@ use serde::Serialize;
 use sha2::{Digest as _, Sha256};
 
 use crate::algo::method::{DataKind, SceneData};
+use crate::mesh::cell_data::CellData;
 use crate::mesh::{self, Bounds, TetMesh};
 use crate::terrain::Heightmap;
 use crate::volume::Volume;
@@ -332,6 +333,14 @@ pub fn mesh_digest(mesh: &TetMesh) -> String {
             h.update(i.to_le_bytes());
         }
     }
+    // Constant cells: which faces join (the walks' adjacency) follows the
+    // copied points; nothing is added for other meshes (their digests stay).
+    if !mesh.stats.vertex_origin.is_empty() {
+        h.update(b"vertex origin\0");
+        for v in &mesh.stats.vertex_origin {
+            h.update(v.to_le_bytes());
+        }
+    }
     hex(&h.finalize())
 }
 
@@ -442,15 +451,28 @@ pub const RENUMBER_VAR: &str = crate::switches::TEST_RENUMBER;
 
 /// Load a dataset by shipped name or path.
 pub fn load(spec: &str) -> Result<Dataset> {
-    let mut dataset = load_once(spec)?;
+    load_with(spec, CellData::default())
+}
+
+/// [`load`], a mesh file's cell array shown as `cell_data` says
+/// (`--cell-data`; `mesh::cell_data`). When a cell array is used because
+/// the file has no point scalar, a note says so on stderr.
+pub fn load_with(spec: &str, cell_data: CellData) -> Result<Dataset> {
+    let mut dataset = load_once(spec, cell_data)?;
     if let DatasetData::Volume(_) = dataset.data {
         dataset.loaded_from = Some(spec.to_string());
+    }
+    if let DatasetData::TetMesh { mesh } = &dataset.data {
+        if let Some(note) = mesh.stats.scalar.as_ref().and_then(|s| s.fallback_note(spec)) {
+            crate::progress!("volbench: {note}");
+        }
     }
     Ok(dataset)
 }
 
 /// [`load`]'s reading.
-fn load_once(spec: &str) -> Result<Dataset> {
+fn load_once(spec: &str, cell_data: CellData) -> Result<Dataset> {
+    use mesh::cell_data::ScalarChoice;
     let dir = data_dir();
     let named = |name: &str, mesh: Result<TetMesh>, source: String| -> Result<Dataset> {
         let mut mesh = mesh.with_context(|| format!("loading dataset '{name}' ({})", crate::data_dir::search_note()))?;
@@ -484,7 +506,8 @@ fn load_once(spec: &str) -> Result<Dataset> {
                     && std::fs::symlink_metadata(path).is_err()
                     && kind_by_content(&head_of(p)) != Some(DataKind::Volume)
                 {
-                    let mesh = mesh::datasets::load_path_array(p, Some(array)).with_context(|| format!("loading dataset '{path}'"))?;
+                    let choice = ScalarChoice { array: Some(array), cell_data };
+                    let mesh = mesh::datasets::load_path_with(p, choice).with_context(|| format!("loading dataset '{path}'"))?;
                     return Ok(Dataset::from_loaded_mesh(mesh, false, path.to_string()));
                 }
                 if crate::terrain::format_of_extension(p).is_some() && std::fs::symlink_metadata(path).is_err() {
@@ -514,12 +537,13 @@ fn load_once(spec: &str) -> Result<Dataset> {
                 }
                 Some(DataKind::TetMesh) => {
                     // A known mesh extension picks its reader; otherwise the content does.
+                    let choice = ScalarChoice { array: None, cell_data };
                     let mesh = if kind_by_extension(p) == Some(DataKind::TetMesh) {
-                        mesh::datasets::load_path(p)
+                        mesh::datasets::load_path_with(p, choice)
                     } else if crate::volume::sniff(&head) == Some(crate::volume::Format::Vti) {
-                        mesh::vtu::read_vtu(p, None)
+                        mesh::vtu::read_vtu_with(p, choice)
                     } else {
-                        mesh::vtk::read_vtk_legacy(p)
+                        mesh::vtk::read_vtk_legacy_with(p, choice)
                     };
                     let mesh = mesh.with_context(|| format!("loading dataset '{path}'"))?;
                     Ok(Dataset::from_loaded_mesh(mesh, false, path.to_string()))

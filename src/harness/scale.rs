@@ -222,6 +222,9 @@ pub struct ScaleSettings {
     /// The f64 reference is timed on levels with at most this many tets.
     pub reference_max_cells: u64,
     pub peers: Vec<String>,
+    /// How a mesh file's cell array is shown (`--cell-data`): the levels are
+    /// written and read back as point fields, so constant cells are refused.
+    pub cell_data: crate::mesh::cell_data::CellData,
 }
 
 /// What the level being measured has made so far: removed when the level
@@ -436,11 +439,19 @@ pub fn write_results(out: &Path, r: &ScaleReport) -> Result<()> {
 /// the peers; the results written after each level (`write_results`).
 pub fn study(exe: &Path, s: &ScaleSettings, out: &Path, mut progress: impl FnMut(&str)) -> Result<ScaleReport> {
     use super::datasets::{self, DatasetData};
-    let loaded = datasets::load(&s.dataset)?;
+    let loaded = datasets::load_with(&s.dataset, s.cell_data)?;
     let name = loaded.name.clone();
     let DatasetData::TetMesh { mesh, .. } = loaded.data else {
         bail!("--data {}: a {} dataset; scale refines tetrahedral meshes", s.dataset, loaded.kind().name());
     };
+    if let Some(info) = mesh.stats.scalar.as_ref().filter(|_| !mesh.stats.vertex_origin.is_empty()) {
+        bail!(
+            "--data {}: its scalar is the cell array '{}', shown constant per cell; scale writes each level as a mesh \
+             with point data and reads it back, which cannot keep cells constant: use --cell-data average",
+            s.dataset,
+            info.array
+        );
+    }
     let peers = s.peers.iter().map(|p| super::peers::locate(p)).collect::<Result<Vec<_>>>()?;
     estimate(&mesh, &name, s).check(available_memory(), available_disk(out), out)?;
     stop_cleanly_on_signals()?;
@@ -783,6 +794,7 @@ mod tests {
             warmup: 0,
             reference_max_cells: 0,
             peers: Vec::new(),
+            cell_data: Default::default(),
         }
     }
 

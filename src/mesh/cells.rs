@@ -335,11 +335,22 @@ impl CellSplitter {
 #[derive(Debug, Clone, Default)]
 pub struct RawCells {
     pub points: Vec<[f64; 3]>,
+    /// One per point when the scalar is point data; empty when it is cell
+    /// data (`cell_values`), until [`RawCells::into_tet_mesh`] applies the
+    /// treatment.
     pub scalars: Vec<f64>,
     pub types: Vec<u8>,
     /// `types.len() + 1` rising offsets into `conn`, from 0.
     pub offsets: Vec<usize>,
     pub conn: Vec<u32>,
+    /// The scalar as cell data: `scalar.components` values per cell (a
+    /// vector's components, kept until the treatment: `average` averages
+    /// them one by one as VTK does, then takes the magnitude). Empty for
+    /// point data.
+    pub cell_values: Vec<f64>,
+    /// What the scalar is (`cell_data`); its `cell_data` field is the
+    /// treatment [`RawCells::into_tet_mesh`] applies to cell data.
+    pub scalar: Option<super::cell_data::ScalarInfo>,
 }
 
 impl RawCells {
@@ -351,9 +362,25 @@ impl RawCells {
         let base = u32::try_from(self.points.len()).map_err(|_| anyhow::anyhow!("too many points for 32-bit indices"))?;
         base.checked_add(u32::try_from(other.points.len()).unwrap_or(u32::MAX))
             .ok_or_else(|| anyhow::anyhow!("too many points for 32-bit indices"))?;
+        match (&self.scalar, &other.scalar) {
+            (Some(a), Some(b)) if (&a.array, a.association, a.components) != (&b.array, b.association, b.components) => {
+                anyhow::bail!(
+                    "pieces with different scalars: {} array '{}' ({} components) and {} array '{}' ({} components)",
+                    a.association.name(),
+                    a.array,
+                    a.components,
+                    b.association.name(),
+                    b.array,
+                    b.components
+                );
+            }
+            (None, Some(_)) if self.types.is_empty() => self.scalar = other.scalar.clone(),
+            _ => {}
+        }
         let at = self.conn.len();
         self.points.extend(other.points);
         self.scalars.extend(other.scalars);
+        self.cell_values.extend(other.cell_values);
         self.types.extend(other.types);
         self.offsets.extend(other.offsets.iter().skip(1).map(|o| o + at));
         self.conn.extend(other.conn.iter().map(|v| v + base));
@@ -374,7 +401,9 @@ impl RawCells {
             if rep == i {
                 new_index[i] = points.len() as u32;
                 points.push(self.points[i]);
-                scalars.push(self.scalars[i]);
+                if let Some(&s) = self.scalars.get(i) {
+                    scalars.push(s);
+                }
             } else if self.scalars.get(i).map(|s| s.to_bits()) != self.scalars.get(rep).map(|s| s.to_bits()) {
                 mismatches += 1;
             }
@@ -394,12 +423,15 @@ impl RawCells {
     /// stay as they are.
     pub fn retain_cells(&mut self, mut keep: impl FnMut(usize) -> bool) {
         let n = self.types.len();
+        // Cell data goes with its cell: `k` values per cell (none for point data).
+        let k = if self.cell_values.is_empty() || n == 0 { 0 } else { self.cell_values.len() / n };
         let (mut t, mut c) = (0usize, 0usize);
         for i in 0..n {
             if !keep(i) {
                 continue;
             }
             let (a, b) = (self.offsets[i], self.offsets[i + 1]);
+            self.cell_values.copy_within(i * k..(i + 1) * k, t * k);
             self.types[t] = self.types[i];
             self.conn.copy_within(a..b, c);
             c += b - a;
@@ -409,6 +441,7 @@ impl RawCells {
         self.types.truncate(t);
         self.offsets.truncate(t + 1);
         self.conn.truncate(c);
+        self.cell_values.truncate(t * k);
     }
 
     /// Skips the cells VTK does not draw, by the `vtkGhostType` arrays
@@ -460,8 +493,13 @@ impl RawCells {
     /// Splits every cell into tets ([`CellSplitter`]): 3-D linear cells are
     /// split, lower-dimensional cells skipped and counted, anything else
     /// refused with an error naming each unsupported type and its count.
-    /// `source` starts every error; the mesh is validated.
-    pub fn into_tet_mesh(self, source: &str, name: String) -> anyhow::Result<super::TetMesh> {
+    /// `source` starts every error; the mesh is validated. A cell scalar
+    /// (`cell_values`) is first averaged to the points (`average`, on the
+    /// file's cells), or after the split given to each tet from its file
+    /// cell (`constant`: each tet then has its own vertices); see
+    /// `cell_data`.
+    pub fn into_tet_mesh(mut self, source: &str, name: String) -> anyhow::Result<super::TetMesh> {
+        use super::cell_data::{self, CellData};
         let n = self.types.len();
         if self.offsets.len() != n + 1 {
             anyhow::bail!("{source}: {} cell offsets for {n} cells", self.offsets.len());
@@ -482,7 +520,42 @@ impl RawCells {
             );
         }
         let np = self.points.len();
+        // Cell data: averaged to the points here, on the file's cells; kept
+        // per cell (its magnitude) for the constant treatment after the split.
+        let info = self.scalar.clone();
+        let mut cell_value: Option<Vec<f64>> = None;
+        if let Some(info) = info.as_ref().filter(|i| i.association == cell_data::Association::Cell) {
+            let k = info.components.max(1);
+            if self.cell_values.len() != n * k {
+                anyhow::bail!("{source}: cell array '{}' has {} values for {n} cells of {k} components", info.array, self.cell_values.len());
+            }
+            let what = format!("{source}: cell array '{}'", info.array);
+            match info.cell_data.unwrap_or_default() {
+                CellData::Average => {
+                    let v = cell_data::average_to_points(np, &self.offsets, &self.conn, &self.cell_values, k, source)?;
+                    self.scalars = cell_data::magnitudes(v, k, &format!("{what} averaged to the points"), "point")?;
+                }
+                CellData::Constant => {
+                    let v = cell_data::magnitudes(std::mem::take(&mut self.cell_values), k, &what, "cell")?;
+                    if let Some(c) = v.iter().position(|x| !x.is_finite()) {
+                        anyhow::bail!("{what}: cell {c} has a non-finite value {}", v[c]);
+                    }
+                    if let Some(c) = v.iter().position(|x| x.abs() > super::geometry::MAX_ABS_VALUE) {
+                        anyhow::bail!(
+                            "{what}: cell {c} has a value beyond the f32 range (|s| > {:e}): {}; the renderers compute in f32",
+                            super::geometry::MAX_ABS_VALUE,
+                            v[c]
+                        );
+                    }
+                    // Placeholder point scalars while splitting and validating.
+                    self.scalars = vec![0.0; np];
+                    cell_value = Some(v);
+                }
+            }
+        }
         let mut s = CellSplitter::default();
+        // The file cell each tet comes from.
+        let mut source_cell: Vec<u32> = Vec::new();
         let mut skipped = 0;
         for c in 0..n {
             let (a, b) = (self.offsets[c], self.offsets[c + 1]);
@@ -497,16 +570,22 @@ impl RawCells {
                         anyhow::bail!("{source}: cell {c} has vertex index {bad} out of range (the file has {np} points)");
                     }
                     s.add(t, v).map_err(|e| anyhow::anyhow!("{source}: cell {c}: {e}"))?;
+                    source_cell.resize(s.tets.len(), c as u32);
                 }
                 _ => skipped += 1,
             }
         }
         let mut mesh = super::TetMesh { name, points: self.points, scalars: self.scalars, tets: s.tets, stats: Default::default() };
         mesh.stats.skipped_lower_dim = skipped;
+        mesh.stats.scalar = info;
         if mesh.tets.is_empty() && skipped > 0 {
             anyhow::bail!("{source}: no 3-D cells: all {skipped} cells are vertices, lines or surface cells");
         }
         mesh.validate(source)?;
+        if let Some(v) = cell_value {
+            let per_tet: Vec<f64> = source_cell.iter().map(|&c| v[c as usize]).collect();
+            cell_data::constant_per_cell(&mut mesh, &per_tet, source)?;
+        }
         Ok(mesh)
     }
 }

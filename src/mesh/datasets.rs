@@ -16,8 +16,9 @@
 
 use super::plot3d::{read_q, read_xyz};
 use super::split::hex_grid_to_tets;
-use super::vtk::{read_vtk_legacy, read_vtk_legacy_array};
-use super::vtu::read_vtu;
+use super::cell_data::ScalarChoice;
+use super::vtk::{read_vtk_legacy, read_vtk_legacy_with};
+use super::vtu::read_vtu_with;
 use super::TetMesh;
 use anyhow::{bail, Result};
 use std::path::{Path, PathBuf};
@@ -119,14 +120,22 @@ pub fn load_path(path: impl AsRef<Path>) -> Result<TetMesh> {
     load_path_array(path, None)
 }
 
-/// [`load_path`] with the point array `array` (a VTK file's array by name;
-/// vectors by magnitude) as the scalar. PLOT3D pairs have no named arrays.
+/// [`load_path`] with the array `array` (a VTK file's point or cell array
+/// by name; vectors by magnitude) as the scalar. PLOT3D pairs have no named
+/// arrays.
 pub fn load_path_array(path: impl AsRef<Path>, array: Option<&str>) -> Result<TetMesh> {
+    load_path_with(path, ScalarChoice { array, ..Default::default() })
+}
+
+/// [`load_path`] with the scalar chosen, and cell data treated, as `choice`
+/// says (`cell_data`).
+pub fn load_path_with(path: impl AsRef<Path>, choice: ScalarChoice) -> Result<TetMesh> {
     let path = path.as_ref();
+    let array = choice.array;
     let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase());
     match ext.as_deref() {
-        Some("vtk") => read_vtk_legacy_array(path, array),
-        Some("vtu" | "pvtu") => read_vtu(path, array),
+        Some("vtk") => read_vtk_legacy_with(path, choice),
+        Some("vtu" | "pvtu") => read_vtu_with(path, choice),
         Some(e) if PLOT3D_EXTENSIONS.contains(&e) => match array {
             None => load_plot3d_path(path),
             Some(a) => bail!(

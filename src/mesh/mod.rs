@@ -16,6 +16,7 @@
 
 pub mod adjacency;
 pub mod byte_order;
+pub mod cell_data;
 pub mod cells;
 pub mod datasets;
 pub mod geometry;
@@ -59,6 +60,17 @@ pub struct MeshStats {
     /// Of those, points whose copies carried different scalars (the first
     /// copy's value is kept, and a note printed).
     pub seam_scalar_mismatches: usize,
+    /// Which array is the scalar, point or cell data, and how cell data is
+    /// shown (`scalar_array`, `scalar_association`, `scalar_components`,
+    /// `cell_data` in the JSON; see `cell_data`). `None` where the source
+    /// has no named arrays (PLOT3D) or the mesh was made in memory.
+    #[serde(flatten)]
+    pub scalar: Option<cell_data::ScalarInfo>,
+    /// A mesh whose cells carry constant values (`cell_data`): for each
+    /// vertex, the vertex it copies (every tet has its own four), by which
+    /// the walks' face adjacency matches faces. Empty otherwise.
+    #[serde(skip)]
+    pub vertex_origin: Vec<u32>,
 }
 
 impl MeshStats {

@@ -76,6 +76,13 @@ pub fn spatial_order(mesh: &mut TetMesh) {
         points[new as usize] = mesh.points[old];
         scalars[new as usize] = mesh.scalars[old];
     }
+    if mesh.stats.vertex_origin.len() == new_id.len() {
+        let mut origin = vec![0u32; new_id.len()];
+        for (old, &new) in new_id.iter().enumerate() {
+            origin[new as usize] = mesh.stats.vertex_origin[old];
+        }
+        mesh.stats.vertex_origin = origin;
+    }
     mesh.tets = tets;
     mesh.points = points;
     mesh.scalars = scalars;

@@ -6,7 +6,9 @@
 //!
 //! Adjacency comes from the shared builder ([`FaceAdjacency`], matching by
 //! vertex *index* triple: no welding, so an unmerged seam stays two
-//! boundaries, see `reference`'s module docs). The policies on top:
+//! boundaries, see `reference`'s module docs; a mesh of constant cells,
+//! whose tets have their own vertices, is matched through
+//! `MeshStats::vertex_origin`, the file's points). The policies on top:
 //! - Cells with a repeated vertex index carry no volume and no usable faces:
 //!   they are left out entirely (their would-be neighbours pair with each
 //!   other or become boundary) and counted.
@@ -44,7 +46,11 @@ impl Topology {
     /// reference's input validation).
     pub fn build(mesh: &TetMesh) -> Topology {
         let repeats = |t: &[u32; 4]| (0..4).any(|a| (a + 1..4).any(|b| t[a] == t[b]));
-        let adj = FaceAdjacency::build(&mesh.tets, None, |t| !repeats(t));
+        // A mesh of constant cells (`cell_data`) gives each tet its own
+        // vertices: faces are matched through the points they copy.
+        let origin = &mesh.stats.vertex_origin;
+        let map = (!origin.is_empty() && origin.len() == mesh.points.len()).then_some(origin.as_slice());
+        let adj = FaceAdjacency::build(&mesh.tets, map, |t| !repeats(t));
         let non_manifold_faces = adj.shared.iter().map(Vec::len).sum();
         let mut boundary = adj.boundary;
         if !adj.shared.is_empty() {

@@ -33,16 +33,25 @@
 //! marked `HIDDENPOINT`, are skipped as VTK's geometry filter does, and
 //! counted (`ghost_cells`, `hidden_cells`, `ghost_points`).
 //!
-//! The scalar: the point array named by the caller (`--scalar NAME`), else
-//! the `PointData`'s active `Scalars`, else the first point array; arrays of
-//! several components become their magnitude. Cell data is not converted: a
-//! named array that exists only as cell data is refused with a message
-//! saying so. Cells are split into tets by `cells`.
+//! The scalar, chosen once per file: the array named by the caller
+//! (`--scalar NAME`: a point array of that name, else a cell array), else
+//! the `PointData`'s active `Scalars`, else the first point array, else (no
+//! point data: noted by the caller) the `CellData`'s active `Scalars`, else
+//! its first numeric one-component array that is not `vtkGhostType`, else
+//! its first numeric array. Arrays of several
+//! components become their magnitude; cell data is shown as `--cell-data`
+//! says (`mesh::cell_data`). A `.pvtu` chooses among the arrays its
+//! `PPointData` / `PCellData` declare (by the same rules), and every piece
+//! must hold that array, with the same association and component count:
+//! pieces are never mixed. A `.pvtu` that declares no arrays, and a `.vtu`
+//! of several pieces, take the first piece's choice for all. Cells are split
+//! into tets by `cells`.
 
 use std::path::Path;
 
 use anyhow::{anyhow, bail, Context, Result};
 
+use super::cell_data::{Association, ScalarChoice, ScalarInfo};
 use super::cells::RawCells;
 use super::{MeshStats, TetMesh};
 use crate::volume::decode::Endian;
@@ -51,6 +60,12 @@ use crate::vtk_xml::{array_payload, root_layout, split_appended, visit, Appended
 /// Reads a `.vtu` or `.pvtu` file (by extension) into a tet mesh, with the
 /// point array `array` as the scalar (`None`: see the module docs).
 pub fn read_vtu(path: impl AsRef<Path>, array: Option<&str>) -> Result<TetMesh> {
+    read_vtu_with(path, ScalarChoice { array, ..Default::default() })
+}
+
+/// [`read_vtu`] with the scalar chosen and cell data treated as `choice`
+/// says (`mesh::cell_data`).
+pub fn read_vtu_with(path: impl AsRef<Path>, choice: ScalarChoice) -> Result<TetMesh> {
     use crate::fsio::{check_input, read_input, MAX_INPUT_BYTES};
     let path = path.as_ref();
     let name = path.display().to_string();
@@ -60,7 +75,7 @@ pub fn read_vtu(path: impl AsRef<Path>, array: Option<&str>) -> Result<TetMesh> 
     let mut counts = MeshStats::default();
     let raw = if parallel {
         let bytes = read_input(path, "VTK XML parallel unstructured grid", MAX_INPUT_BYTES)?;
-        let sources = pvtu_sources(&name, &bytes)?;
+        let (sources, mut pick) = pvtu_sources(&name, &bytes, choice)?;
         drop(bytes);
         // Every piece once, and all of them together within the input cap,
         // checked from their metadata before any is read.
@@ -88,8 +103,9 @@ pub fn read_vtu(path: impl AsRef<Path>, array: Option<&str>) -> Result<TetMesh> 
         for piece in &sources {
             let p = dir.join(piece);
             let bytes = read_input(&p, what, MAX_INPUT_BYTES).with_context(|| format!("{name}: piece '{piece}'"))?;
-            let part = parse_vtu_raw(&p.display().to_string(), &bytes, array, &budget, &mut counts)?;
+            let part = parse_vtu_raw(&p.display().to_string(), &bytes, choice, pick.as_ref(), &budget, &mut counts)?;
             drop(bytes);
+            pick = pick.or_else(|| part.scalar.clone());
             raw.append(part).map_err(|e| anyhow!("{name}: {e}"))?;
         }
         let (merged, mismatches) = raw.weld();
@@ -104,7 +120,7 @@ pub fn read_vtu(path: impl AsRef<Path>, array: Option<&str>) -> Result<TetMesh> 
         raw
     } else {
         let bytes = read_input(path, "VTK XML unstructured grid", MAX_INPUT_BYTES)?;
-        parse_vtu_raw(&name, &bytes, array, &budget, &mut counts)?
+        parse_vtu_raw(&name, &bytes, choice, None, &budget, &mut counts)?
     };
     let mut mesh = raw.into_tet_mesh(&name, stem)?;
     mesh.stats.add_read_counts(&counts);
@@ -113,8 +129,13 @@ pub fn read_vtu(path: impl AsRef<Path>, array: Option<&str>) -> Result<TetMesh> 
 
 /// [`read_vtu`] of a `.vtu` already in memory (`name` starts every error).
 pub fn parse_vtu_bytes(name: &str, bytes: &[u8], array: Option<&str>) -> Result<TetMesh> {
+    parse_vtu_bytes_with(name, bytes, ScalarChoice { array, ..Default::default() })
+}
+
+/// [`parse_vtu_bytes`] with the scalar chosen as `choice` says.
+pub fn parse_vtu_bytes_with(name: &str, bytes: &[u8], choice: ScalarChoice) -> Result<TetMesh> {
     let mut counts = MeshStats::default();
-    let raw = parse_vtu_raw(name, bytes, array, &Budget::new(MAX_DECODED_BYTES), &mut counts)?;
+    let raw = parse_vtu_raw(name, bytes, choice, None, &Budget::new(MAX_DECODED_BYTES), &mut counts)?;
     let mut mesh = raw.into_tet_mesh(name, stem_of(name))?;
     mesh.stats.add_read_counts(&counts);
     Ok(mesh)
@@ -124,8 +145,10 @@ fn stem_of(name: &str) -> String {
     Path::new(name).file_stem().map_or_else(|| "vtu".to_string(), |s| s.to_string_lossy().into_owned())
 }
 
-/// The piece file names of a `.pvtu`.
-fn pvtu_sources(name: &str, bytes: &[u8]) -> Result<Vec<String>> {
+/// The piece file names of a `.pvtu`, and the scalar chosen among the
+/// arrays it declares (`None` when it declares none: the first piece
+/// decides).
+fn pvtu_sources(name: &str, bytes: &[u8], choice: ScalarChoice) -> Result<(Vec<String>, Option<ScalarInfo>)> {
     let parts = split_appended(name, bytes)?;
     let doc = roxmltree::Document::parse(&parts.xml).map_err(|e| anyhow!("{name}: bad XML: {e}"))?;
     root_layout(name, doc.root_element(), "PUnstructuredGrid")?;
@@ -142,7 +165,73 @@ fn pvtu_sources(name: &str, bytes: &[u8]) -> Result<Vec<String>> {
     if sources.is_empty() {
         bail!("{name}: no <Piece Source=...> elements");
     }
-    Ok(sources)
+    let ppd = grid.children().find(|n| n.has_tag_name("PPointData"));
+    let pcd = grid.children().find(|n| n.has_tag_name("PCellData"));
+    let (pd, cd) = (tagged(ppd, "PDataArray"), tagged(pcd, "PDataArray"));
+    if pd.is_empty() && cd.is_empty() {
+        return Ok((sources, None));
+    }
+    let pick = choose(name, (ppd, &pd), (pcd, &cd), choice, "the .pvtu declares")?;
+    Ok((sources, Some(pick)))
+}
+
+/// The scalar among a piece's (or a `.pvtu`'s declared) point and cell
+/// arrays, by the rules of the module docs. `what` says whose arrays they
+/// are, in the error.
+fn choose(
+    name: &str,
+    (pd, pd_arrays): (Option<roxmltree::Node>, &[roxmltree::Node]),
+    (cd, cd_arrays): (Option<roxmltree::Node>, &[roxmltree::Node]),
+    choice: ScalarChoice,
+    what: &str,
+) -> Result<ScalarInfo> {
+    let info = |a: &roxmltree::Node, association, fallback| -> Result<ScalarInfo> {
+        Ok(ScalarInfo {
+            array: a.attribute("Name").unwrap_or("(unnamed)").to_string(),
+            association,
+            components: components(name, *a)?,
+            cell_data: (association == Association::Cell).then_some(choice.cell_data),
+            fallback,
+        })
+    };
+    match choice.array.or(pd.and_then(|p| p.attribute("Scalars"))) {
+        Some(want) => match (named(pd_arrays, want), named(cd_arrays, want)) {
+            (Some(a), _) => info(&a, Association::Point, false),
+            (None, Some(a)) => info(&a, Association::Cell, false),
+            (None, None) => bail!("{name}: {what} no point or cell array named '{want}'; {}", listing(pd_arrays, cd_arrays)),
+        },
+        None => {
+            if let Some(a) = pd_arrays.first() {
+                return info(a, Association::Point, false);
+            }
+            let numeric = |a: &&roxmltree::Node| {
+                a.attribute("Name") != Some("vtkGhostType") && a.attribute("type").is_some_and(|t| XType::parse(name, "", t).is_ok())
+            };
+            let active = cd.and_then(|c| c.attribute("Scalars")).and_then(|w| named(cd_arrays, w));
+            let one = |a: &&roxmltree::Node| numeric(a) && components(name, **a).is_ok_and(|k| k == 1);
+            match active.or_else(|| cd_arrays.iter().find(one).or_else(|| cd_arrays.iter().find(numeric)).copied()) {
+                Some(a) => info(&a, Association::Cell, true),
+                None => bail!("{name}: {what} no point or numeric cell array to use as the scalar; {}", listing(pd_arrays, cd_arrays)),
+            }
+        }
+    }
+}
+
+/// The array named `want` among `v`.
+fn named<'a, 'i>(v: &[roxmltree::Node<'a, 'i>], want: &str) -> Option<roxmltree::Node<'a, 'i>> {
+    v.iter().find(|a| a.attribute("Name") == Some(want)).copied()
+}
+
+/// "point arrays: 'a' (1 components), ...; cell arrays: ...".
+fn listing(pd: &[roxmltree::Node], cd: &[roxmltree::Node]) -> String {
+    let list = |v: &[roxmltree::Node]| {
+        let s: Vec<String> = v
+            .iter()
+            .map(|a| format!("'{}' ({} components)", a.attribute("Name").unwrap_or("?"), a.attribute("NumberOfComponents").unwrap_or("1")))
+            .collect();
+        if s.is_empty() { "none".to_string() } else { s.join(", ") }
+    };
+    format!("point arrays: {}; cell arrays: {}", list(pd), list(cd))
 }
 
 /// A DataArray's value type.
@@ -435,9 +524,17 @@ fn count_attr(name: &str, node: roxmltree::Node, attr: &str) -> Result<usize> {
         .ok_or_else(|| anyhow!("{name}: bad {attr} '{s}' (a count below 2^32 is needed)"))
 }
 
-/// Parses one `.vtu`'s pieces into raw cells (not yet split); ghost
-/// counts are added to `counts`.
-fn parse_vtu_raw(name: &str, bytes: &[u8], array: Option<&str>, budget: &Budget, counts: &mut MeshStats) -> Result<RawCells> {
+/// Parses one `.vtu`'s pieces into raw cells (not yet split), with the
+/// scalar `pick` when it is decided (by a `.pvtu`), else chosen by the
+/// first piece for all; ghost counts are added to `counts`.
+fn parse_vtu_raw(
+    name: &str,
+    bytes: &[u8],
+    choice: ScalarChoice,
+    pick: Option<&ScalarInfo>,
+    budget: &Budget,
+    counts: &mut MeshStats,
+) -> Result<RawCells> {
     let parts = split_appended(name, bytes)?;
     let doc = roxmltree::Document::parse(&parts.xml).map_err(|e| anyhow!("{name}: bad XML: {e}"))?;
     let layout = root_layout(name, doc.root_element(), "UnstructuredGrid")?;
@@ -453,9 +550,12 @@ fn parse_vtu_raw(name: &str, bytes: &[u8], array: Option<&str>, budget: &Budget,
         bail!("{name}: <UnstructuredGrid> has no <Piece>");
     }
     let mut raw = RawCells::default();
+    let mut pick = pick.cloned();
     for (k, piece) in pieces.iter().enumerate() {
         let pname = if pieces.len() > 1 { format!("{name} (piece {k})") } else { name.to_string() };
-        raw.append(parse_piece(&ctx, &pname, *piece, array, counts)?).map_err(|e| anyhow!("{name}: {e}"))?;
+        let part = parse_piece(&ctx, &pname, *piece, choice, pick.as_ref(), counts)?;
+        pick = pick.or_else(|| part.scalar.clone());
+        raw.append(part).map_err(|e| anyhow!("{name}: {e}"))?;
     }
     Ok(raw)
 }
@@ -465,10 +565,22 @@ fn child<'a, 'i>(name: &str, node: roxmltree::Node<'a, 'i>, tag: &str) -> Result
 }
 
 fn arrays<'a, 'i>(node: Option<roxmltree::Node<'a, 'i>>) -> Vec<roxmltree::Node<'a, 'i>> {
-    node.map_or_else(Vec::new, |n| n.children().inspect(|_| visit()).filter(|c| c.has_tag_name("DataArray")).collect())
+    tagged(node, "DataArray")
 }
 
-fn parse_piece(ctx: &Ctx, name: &str, piece: roxmltree::Node, array: Option<&str>, counts: &mut MeshStats) -> Result<RawCells> {
+/// The children of `node` with the tag `tag`.
+fn tagged<'a, 'i>(node: Option<roxmltree::Node<'a, 'i>>, tag: &str) -> Vec<roxmltree::Node<'a, 'i>> {
+    node.map_or_else(Vec::new, |n| n.children().inspect(|_| visit()).filter(|c| c.has_tag_name(tag)).collect())
+}
+
+fn parse_piece(
+    ctx: &Ctx,
+    name: &str,
+    piece: roxmltree::Node,
+    choice: ScalarChoice,
+    pick: Option<&ScalarInfo>,
+    counts: &mut MeshStats,
+) -> Result<RawCells> {
     let np = count_attr(name, piece, "NumberOfPoints")?;
     let nc = count_attr(name, piece, "NumberOfCells")?;
     let ctx = Ctx { name, ..*ctx };
@@ -494,44 +606,58 @@ fn parse_piece(ctx: &Ctx, name: &str, piece: roxmltree::Node, array: Option<&str
     let pd = piece.children().find(|n| n.has_tag_name("PointData"));
     let cd = piece.children().find(|n| n.has_tag_name("CellData"));
     let (pd_arrays, cd_arrays) = (arrays(pd), arrays(cd));
-    let list = |v: &[roxmltree::Node]| {
-        let s: Vec<String> = v
-            .iter()
-            .map(|a| format!("'{}' ({} components)", a.attribute("Name").unwrap_or("?"), a.attribute("NumberOfComponents").unwrap_or("1")))
-            .collect();
-        if s.is_empty() { "none".to_string() } else { s.join(", ") }
-    };
-    let listing = || format!("point arrays: {}; cell arrays: {}", list(&pd_arrays), list(&cd_arrays));
-    let chosen = match array.or(pd.and_then(|p| p.attribute("Scalars"))) {
-        Some(want) => match pd_arrays.iter().find(|a| a.attribute("Name") == Some(want)) {
-            Some(a) => *a,
-            None if cd_arrays.iter().any(|a| a.attribute("Name") == Some(want)) => {
-                bail!("{name}: {}; {}", super::vtk::cell_data_refusal(want), listing())
+    let info = match pick {
+        None => choose(name, (pd, &pd_arrays), (cd, &cd_arrays), choice, "the piece has")?,
+        Some(p) => {
+            let (list, whose) = match p.association {
+                Association::Point => (&pd_arrays, "point"),
+                Association::Cell => (&cd_arrays, "cell"),
+            };
+            let Some(a) = list.iter().find(|a| a.attribute("Name") == Some(p.array.as_str())) else {
+                bail!(
+                    "{name}: the piece has no {whose} array '{}', the scalar chosen for the whole file; {}",
+                    p.array,
+                    listing(&pd_arrays, &cd_arrays)
+                );
+            };
+            let k = components(name, *a)?;
+            if k != p.components {
+                bail!("{name}: the piece's {whose} array '{}' has {k} components, the file's scalar {}", p.array, p.components);
             }
-            None => bail!("{name}: no point array named '{want}'; {}", listing()),
-        },
-        None => *pd_arrays.first().ok_or_else(|| anyhow!("{name}: no point data array to use as the scalar; {}", listing()))?,
+            ScalarInfo { fallback: p.fallback, ..p.clone() }
+        }
     };
-    let aname = chosen.attribute("Name").unwrap_or("(unnamed)");
-    let k = components(name, chosen)?;
-    let what = format!("point array '{aname}'");
-    let vals = ctx.open(&what, chosen, np.checked_mul(k).ok_or_else(|| anyhow!("{name}: {what} is too large"))?)?;
-    // Several components: their magnitude, summed as it is decoded.
-    let mut scalars: Vec<f64> = Vec::with_capacity(vals.capacity() / k);
-    let mut sum = 0.0;
+    let chosen = match info.association {
+        Association::Point => pd_arrays.iter(),
+        Association::Cell => cd_arrays.iter(),
+    }
+    .find(|a| a.attribute("Name").unwrap_or("(unnamed)") == info.array)
+    .copied()
+    .ok_or_else(|| anyhow!("{name}: {} array '{}' not found", info.association.name(), info.array))?;
+    let k = info.components;
+    let what = format!("{} array '{}'", info.association.name(), info.array);
+    let tuples = if info.association == Association::Point { np } else { nc };
+    let vals = ctx.open(&what, chosen, tuples.checked_mul(k).ok_or_else(|| anyhow!("{name}: {what} is too large"))?)?;
+    // Point data: one value per point (a vector's magnitude, taken tuple by
+    // tuple as it is decoded); cell data: every component, kept for the
+    // treatment (`--cell-data`).
+    let point = info.association == Association::Point;
+    let mut values: Vec<f64> = Vec::with_capacity(if point { vals.capacity() / k } else { vals.capacity() });
+    let mut tuple: Vec<f64> = Vec::with_capacity(k);
+    let whose = format!("{name}: {what}");
     vals.each(|i, v| {
-        let x = v.float();
-        if k == 1 {
-            scalars.push(x);
-        } else {
-            sum += x * x;
-            if i % k == k - 1 {
-                scalars.push(sum.sqrt());
-                sum = 0.0;
-            }
+        if !point || k == 1 {
+            values.push(v.float());
+            return Ok(());
+        }
+        tuple.push(v.float());
+        if i % k == k - 1 {
+            values.push(super::cell_data::tuple_magnitude(&tuple, i / k, &whose, "point")?);
+            tuple.clear();
         }
         Ok(())
     })?;
+    let (scalars, cell_values) = if point { (values, Vec::new()) } else { (Vec::new(), values) };
 
     // ---- cells
     let cells = child(name, piece, "Cells")?;
@@ -564,7 +690,7 @@ fn parse_piece(ctx: &Ctx, name: &str, piece: roxmltree::Node, array: Option<&str
     };
     let cell_ghost = ghosts(&cd_arrays, "the vtkGhostType cell array", nc)?;
     let point_ghost = ghosts(&pd_arrays, "the vtkGhostType point array", np)?;
-    let mut raw = RawCells { points, scalars, types, offsets, conn };
+    let mut raw = RawCells { points, scalars, types, offsets, conn, cell_values, scalar: Some(info) };
     raw.drop_ghosts(cell_ghost.as_deref(), point_ghost.as_deref(), counts);
     Ok(raw)
 }
@@ -779,10 +905,12 @@ mod tests {
         let m = parse_vtu_bytes("g.vtu", &bytes, Some("velocity")).unwrap();
         let want: Vec<f64> = g.velocity.iter().map(|v| (v[0] * v[0] + v[2] * v[2]).sqrt()).collect();
         assert_eq!(m.scalars, want);
-        let e = format!("{:#}", parse_vtu_bytes("g.vtu", &bytes, Some("cellid")).unwrap_err());
-        assert!(e.contains("'cellid' is cell data") && e.contains("Cell Data to Point Data"), "{e}");
+        let c = parse_vtu_bytes("g.vtu", &bytes, Some("cellid")).unwrap();
+        let s = c.stats.scalar.as_ref().unwrap();
+        assert_eq!((s.array.as_str(), s.association, s.fallback), ("cellid", Association::Cell, false));
+        assert_eq!(c.points.len(), 4 * c.tets.len());
         let e = format!("{:#}", parse_vtu_bytes("g.vtu", &bytes, Some("nope")).unwrap_err());
-        assert!(e.contains("no point array named 'nope'") && e.contains("'temp' (1 components)"), "{e}");
+        assert!(e.contains("no point or cell array named 'nope'") && e.contains("'temp' (1 components)") && e.contains("'cellid'"), "{e}");
         // Unsupported cells are named with their counts.
         let mut q = grid();
         q.cells.push((24, (0..10).collect()));
@@ -826,6 +954,71 @@ mod tests {
         assert!(e.contains("all.pvtu") && e.contains("p_1.vtu"), "{e}");
     }
 
+    /// Issue 35 item 12: the scalar is chosen once per file, from the
+    /// arrays a `.pvtu` declares (else by its first piece), and a piece
+    /// without it (or with another component count) is refused: pieces'
+    /// fields are never mixed.
+    #[test]
+    fn pvtu_scalars_are_declared_and_never_mixed() {
+        let g = grid();
+        let tmp = tempfile::tempdir().unwrap();
+        let (a, b) = g.cells.split_at(3);
+        let piece = |cells: &[(u8, Vec<u32>)]| {
+            let p = Grid { points: g.points.clone(), scalar: g.scalar.clone(), velocity: g.velocity.clone(), cells: cells.to_vec() };
+            String::from_utf8(write_vtu(&p, Format::Ascii, false, 4, false)).unwrap()
+        };
+        let (p0, p1) = (piece(a), piece(b));
+        let pressure = p1.replace("Scalars=\"temp\"", "Scalars=\"pressure\"").replace("Name=\"temp\"", "Name=\"pressure\"");
+        let flat = p1.replace("Name=\"velocity\" NumberOfComponents=\"3\"", "Name=\"velocity\" NumberOfComponents=\"1\"");
+        let write = |second: &str, declared: &str| {
+            std::fs::write(tmp.path().join("p_0.vtu"), &p0).unwrap();
+            std::fs::write(tmp.path().join("p_1.vtu"), second).unwrap();
+            let pvtu = format!(
+                "<?xml version=\"1.0\"?>\n<VTKFile type=\"PUnstructuredGrid\" version=\"1.0\">\n<PUnstructuredGrid GhostLevel=\"0\">\n{declared}\n\
+                 <PPoints><PDataArray type=\"Float64\" NumberOfComponents=\"3\"/></PPoints>\n\
+                 <Piece Source=\"p_0.vtu\"/>\n<Piece Source=\"p_1.vtu\"/>\n</PUnstructuredGrid>\n</VTKFile>\n"
+            );
+            let p = tmp.path().join("all.pvtu");
+            std::fs::write(&p, pvtu).unwrap();
+            p
+        };
+        let temp = "<PPointData Scalars=\"temp\"><PDataArray type=\"Float64\" Name=\"temp\"/>\
+                    <PDataArray type=\"Float64\" Name=\"velocity\" NumberOfComponents=\"3\"/></PPointData>\
+                    <PCellData><PDataArray type=\"Int64\" Name=\"cellid\"/></PCellData>";
+        let err = |p: &std::path::Path, array: Option<&str>| format!("{:#}", read_vtu(p, array).unwrap_err());
+        // Declared 'temp', or nothing declared (the first piece's 'temp'):
+        // the piece calling its field 'pressure' is refused, naming both.
+        for declared in [temp, ""] {
+            let p = write(&pressure, declared);
+            let e = err(&p, None);
+            assert!(e.contains("p_1.vtu") && e.contains("no point array 'temp'") && e.contains("'pressure'"), "{declared}: {e}");
+        }
+        let p = write(&pressure, temp);
+        let e = err(&p, Some("pressure"));
+        assert!(e.contains("all.pvtu: the .pvtu declares no point or cell array named 'pressure'") && e.contains("'cellid'"), "{e}");
+        // Another component count.
+        let p = write(&flat, temp);
+        let e = err(&p, Some("velocity"));
+        assert!(e.contains("p_1.vtu") && e.contains("'velocity' has 1 components, the file's scalar 3"), "{e}");
+        // Alike pieces: the declared active scalar, a declared vector, a declared cell array.
+        let p = write(&p1, temp);
+        let m = read_vtu(&p, None).unwrap();
+        assert_eq!(m.stats.scalar.as_ref().map(|s| (s.array.as_str(), s.association)), Some(("temp", Association::Point)));
+        check_mesh(&m, "declared temp");
+        let v = read_vtu(&p, Some("velocity")).unwrap();
+        assert_eq!(v.points, m.points);
+        assert_eq!(v.scalars[4], 1.0);
+        let c = read_vtu(&p, Some("cellid")).unwrap();
+        let s = c.stats.scalar.as_ref().unwrap();
+        assert_eq!((s.array.as_str(), s.association, s.cell_data), ("cellid", Association::Cell, Some(super::super::cell_data::CellData::Constant)));
+        assert_eq!(c.points.len(), 4 * c.tets.len());
+        assert_eq!(c.tets.len(), m.tets.len());
+        // Only cell data declared: the cell array, as the fallback.
+        let p = write(&p1, "<PCellData><PDataArray type=\"Int64\" Name=\"cellid\"/></PCellData>");
+        let c = read_vtu(&p, None).unwrap();
+        assert!(c.stats.scalar.as_ref().is_some_and(|s| s.fallback && s.association == Association::Cell));
+    }
+
     /// The legacy reader splits the same cells the same way.
     #[test]
     fn legacy_file_with_mixed_cells() {
@@ -858,7 +1051,7 @@ mod tests {
         let v = crate::mesh::vtk::parse_vtk_bytes_array("m.vtk", s.as_bytes(), Some("velocity")).unwrap();
         assert_eq!(v.scalars[4], 1.0);
         let e = format!("{:#}", crate::mesh::vtk::parse_vtk_bytes_array("m.vtk", s.as_bytes(), Some("nope")).unwrap_err());
-        assert!(e.contains("no point array named 'nope'"), "{e}");
+        assert!(e.contains("no point or cell array named 'nope'"), "{e}");
     }
 
     /// Files VTK 9.7's vtkXMLUnstructuredGridWriter wrote (the fuzz seeds): a

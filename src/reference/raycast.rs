@@ -50,6 +50,11 @@ pub(crate) struct Ray<'a> {
     n1: [f64; 3],
     n2: [f64; 3],
     pts: &'a [[f64; 3]],
+    /// The ids edges are oriented by: the point a vertex copies
+    /// (`MeshStats::vertex_origin`, constant cells), so that two cells
+    /// sharing a face through copies see the same numbers; empty: the
+    /// indices themselves.
+    ids: &'a [u32],
 }
 
 impl<'a> Ray<'a> {
@@ -69,7 +74,18 @@ impl<'a> Ray<'a> {
         let l = dot(n1, n1).sqrt();
         let n1 = [n1[0] / l, n1[1] / l, n1[2] / l];
         let n2 = cross(d, n1);
-        Ray { eye, o, d, n1, n2, pts }
+        Ray { eye, o, d, n1, n2, pts, ids: &[] }
+    }
+
+    /// Orients edges by `ids` (a vertex map covering every index) instead
+    /// of the vertex indices.
+    pub fn with_ids(self, ids: &'a [u32]) -> Self {
+        Ray { ids, ..self }
+    }
+
+    #[inline]
+    fn id(&self, v: u32) -> u32 {
+        self.ids.get(v as usize).copied().unwrap_or(v)
     }
 
     #[inline]
@@ -102,7 +118,7 @@ impl<'a> Ray<'a> {
     /// Oriented edge a → b (any order of global indices).
     #[inline]
     fn oriented(&self, a: u32, b: u32, qa: [f64; 3], qb: [f64; 3]) -> (f64, i8) {
-        if a < b {
+        if self.id(a) < self.id(b) {
             self.edge(a, b, qa, qb)
         } else {
             let (w, s) = self.edge(b, a, qb, qa);
@@ -338,6 +354,15 @@ pub(crate) struct Tracer<'a> {
     pub papers: Option<PapersModel>,
 }
 
+impl Tracer<'_> {
+    /// The ids edges are oriented by (`Ray::with_ids`): the copied points of
+    /// a mesh of constant cells, else none (the indices).
+    fn vertex_ids(&self) -> &[u32] {
+        let origin = &self.mesh.stats.vertex_origin;
+        if origin.len() == self.mesh.points.len() { origin } else { &[] }
+    }
+}
+
 /// Front-to-back accumulation along one ray.
 struct Acc {
     color: [f64; 3],
@@ -378,7 +403,7 @@ impl Tracer<'_> {
         entries: &mut Vec<Entry>,
         stats: &mut ReferenceStats,
     ) -> [f64; 4] {
-        let ray = Ray::new(self.eye, o, d, &self.mesh.points);
+        let ray = Ray::new(self.eye, o, d, &self.mesh.points).with_ids(self.vertex_ids());
         let scalars = &self.mesh.scalars;
         entries.clear();
         let tile = ((py / TILE) * self.bins.tiles_x + px / TILE) as usize;
@@ -461,6 +486,10 @@ impl Tracer<'_> {
         let mut f_in = (entry.face & 3) as usize;
         let (mut t_in, mut s_in) = (entry.t, entry.s);
         let mut stall = 0u32;
+        // Constant cells (`cell_data`): the field jumps across faces, so a
+        // cell's entry value is its own, not the last cell's exit value.
+        let own_entry = !self.vertex_ids().is_empty();
+        let mut first = true;
         loop {
             *steps += 1;
             if *steps > self.max_steps_per_ray {
@@ -470,6 +499,14 @@ impl Tracer<'_> {
             let v = &mesh.tets[tet as usize];
             let te = TetEdges::new(ray, v);
             let faces = [te.face(0), te.face(1), te.face(2), te.face(3)];
+            if own_entry && !first {
+                let fv = FACE_VERTS[f_in];
+                let (_, s) = ray.crossing([te.q[fv[0]], te.q[fv[1]], te.q[fv[2]]], faces[f_in].1, [v[fv[0]], v[fv[1]], v[fv[2]]], scalars);
+                if s.is_finite() {
+                    s_in = s;
+                }
+            }
+            first = false;
             // The line crosses exactly two faces of a cell (exact arithmetic,
             // perturbed ray): we came in through one, we leave through the
             // other. In a positively oriented cell the entry face reads −1 and

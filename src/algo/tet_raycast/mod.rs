@@ -639,6 +639,12 @@ impl TetRaycast {
         let mut defines: Vec<(&str, &str)> = settings.defines();
         defines.push(("WG_X", &wg[0]));
         defines.push(("WG_Y", &wg[1]));
+        // Constant cells (`mesh::cell_data`): each tet has its own copies of
+        // the points; the walk renames the carried face to the next cell's
+        // copies and takes that cell's value (walk.comp, CELL_CONSTANT).
+        if !mesh.stats.vertex_origin.is_empty() {
+            defines.push(("CELL_CONSTANT", "1"));
+        }
         defines.extend(chunk_defines.iter().map(|(k, v)| (k.as_str(), v.as_str())));
         let key = PipelineKey::Compute(ComputePipelineKey {
             shader: ShaderKey::new("tet_raycast/walk.comp", ShaderStage::Compute, &defines),

@@ -30,14 +30,18 @@ pub struct SuiteSettings {
     /// The counted child's dump directory.
     #[serde(skip)]
     pub count_dir: Option<std::path::PathBuf>,
+    /// How a mesh file's cell array is shown (`--cell-data`; each run's
+    /// `dataset.stats` records it).
+    #[serde(skip)]
+    pub cell_data: crate::mesh::cell_data::CellData,
 }
 
 impl SuiteSettings {
     pub fn standard(quick: bool, filter: Vec<String>) -> Self {
         if quick {
-            SuiteSettings { width: 256, height: 256, frames: 3, warmup: 1, orbit_step_deg: 5.0, quick, filter, peers: Vec::new(), counted: false, count_dir: None }
+            SuiteSettings { width: 256, height: 256, frames: 3, warmup: 1, orbit_step_deg: 5.0, quick, filter, peers: Vec::new(), counted: false, count_dir: None, cell_data: Default::default() }
         } else {
-            SuiteSettings { width: 512, height: 512, frames: 20, warmup: 3, orbit_step_deg: 5.0, quick, filter, peers: Vec::new(), counted: false, count_dir: None }
+            SuiteSettings { width: 512, height: 512, frames: 20, warmup: 3, orbit_step_deg: 5.0, quick, filter, peers: Vec::new(), counted: false, count_dir: None, cell_data: Default::default() }
         }
     }
 

@@ -70,7 +70,7 @@ pub fn run_suite(
         let first_of_dataset = i == 0 || plan[i - 1].dataset != p.dataset;
         let last_of_dataset = plan.get(i + 1).is_none_or(|n| n.dataset != p.dataset);
         if loaded.as_ref().is_none_or(|(n, _)| *n != p.dataset) {
-            loaded = Some((p.dataset, datasets::load(p.dataset).map_err(|e| format!("{e:#}"))));
+            loaded = Some((p.dataset, datasets::load_with(p.dataset, settings.cell_data).map_err(|e| format!("{e:#}"))));
         }
         let Some((_, loaded_dataset)) = &mut loaded else { continue };
         // A dataset that cannot be loaded fails its rows; the suite goes on.

@@ -7,14 +7,17 @@
 //! skipped correctly). Cells: every linear 3-D type (tetra, voxel,
 //! hexahedron, wedge, pyramid) is split into tets conformingly by `cells`;
 //! vertex, line and surface cells are skipped and counted; other types are
-//! refused, named with their counts. The scalar is the point array the
-//! caller names (a `SCALARS`, `VECTORS` or `FIELD` array; several
-//! components by magnitude; a cell array of that name is refused as cell
-//! data), else the first one-component `SCALARS` array of `POINT_DATA`;
-//! files that store their point data only as a `FIELD` (such as VTK's own
-//! `post.vtk`, whose point data is `FIELD FieldData 1` / `Pressure 1 2288
-//! float`) fall back to the first one-component field array of the right
-//! length.
+//! refused, named with their counts. The scalar is the array the caller
+//! names (a `SCALARS`, `VECTORS` or `FIELD` array, ...; several components
+//! by magnitude): a point array of that name, else a cell array of that
+//! name (shown as `--cell-data` says: `mesh::cell_data`). Without a name,
+//! the first one-component `SCALARS` array of `POINT_DATA`; files that
+//! store their point data only as a `FIELD` (such as VTK's own `post.vtk`,
+//! whose point data is `FIELD FieldData 1` / `Pressure 1 2288 float`) fall
+//! back to the first one-component field array of the right length; a file
+//! with no point scalar at all uses the first one-component `SCALARS` or
+//! `FIELD` array of `CELL_DATA` (not `vtkGhostType`), marked as a fallback
+//! so the caller notes it.
 //!
 //! Every value must fit the type the file declares for its array (or, for
 //! `CELLS` and `CELL_TYPES` in files before 5.x, the `int` the format
@@ -31,6 +34,7 @@ mod connectivity;
 mod values;
 
 use crate::vtk_legacy::Lines as Reader;
+use super::cell_data::{magnitudes, Association, ScalarChoice, ScalarInfo};
 use super::cells::RawCells;
 use super::TetMesh;
 use anyhow::{anyhow, bail, Result};
@@ -82,9 +86,15 @@ pub fn read_vtk_legacy(path: impl AsRef<Path>) -> Result<TetMesh> {
 /// [`read_vtk_legacy`] with the point array `array` (a `SCALARS`, `VECTORS`
 /// or `FIELD` array; vectors by magnitude) as the scalar.
 pub fn read_vtk_legacy_array(path: impl AsRef<Path>, array: Option<&str>) -> Result<TetMesh> {
+    read_vtk_legacy_with(path, ScalarChoice { array, ..Default::default() })
+}
+
+/// [`read_vtk_legacy`] with the scalar chosen and cell data treated as
+/// `choice` says (`mesh::cell_data`).
+pub fn read_vtk_legacy_with(path: impl AsRef<Path>, choice: ScalarChoice) -> Result<TetMesh> {
     let path = path.as_ref();
     let bytes = crate::fsio::read_input(path, "VTK file", crate::fsio::MAX_INPUT_BYTES)?;
-    parse_vtk_bytes_array(&path.display().to_string(), &bytes, array)
+    parse_vtk_bytes_with(&path.display().to_string(), &bytes, choice)
 }
 
 /// [`read_vtk_legacy`] on the bytes of a file already in memory. `name` (the
@@ -95,11 +105,17 @@ pub fn parse_vtk_bytes(name: &str, bytes: &[u8]) -> Result<TetMesh> {
     parse_vtk_bytes_array(name, bytes, None)
 }
 
-/// [`parse_vtk_bytes`] with the point array `want` as the scalar.
+/// [`parse_vtk_bytes`] with the array `want` (point data first, then cell
+/// data) as the scalar.
 pub fn parse_vtk_bytes_array(name: &str, bytes: &[u8], want: Option<&str>) -> Result<TetMesh> {
+    parse_vtk_bytes_with(name, bytes, ScalarChoice { array: want, ..Default::default() })
+}
+
+/// [`parse_vtk_bytes`] with the scalar chosen as `choice` says.
+pub fn parse_vtk_bytes_with(name: &str, bytes: &[u8], choice: ScalarChoice) -> Result<TetMesh> {
     let mut r = Reader { name, b: bytes, pos: 0, binary: false };
     let (major, version) = read_header(&mut r, name, bytes)?;
-    let mut s = Sections { want, major, version, ..Sections::default() };
+    let mut s = Sections { want: choice.array, choice, major, version, ..Sections::default() };
     while !r.at_end() {
         let line = r.keyword_line("a section keyword")?;
         let kw = line[0].to_ascii_uppercase();
@@ -181,8 +197,9 @@ fn read_header<'a>(r: &mut Reader<'a>, name: &str, bytes: &[u8]) -> Result<(u32,
 /// What the sections read so far hold, and the state they are read in.
 #[derive(Default)]
 struct Sections<'a> {
-    /// The point array asked for, if any.
+    /// The array asked for, if any.
     want: Option<&'a str>,
+    choice: ScalarChoice<'a>,
     major: u32,
     version: &'a str,
     points: Option<Vec<[f64; 3]>>,
@@ -193,12 +210,17 @@ struct Sections<'a> {
     /// Whose attributes follow (POINT_DATA / CELL_DATA), and how many tuples.
     owner: Owner,
     owner_count: usize,
-    scalars: Option<Vec<f64>>,
-    field_scalars: Option<Vec<f64>>,
+    /// Point scalars read: (array name, components, one value per point).
+    scalars: Option<(String, usize, Vec<f64>)>,
+    field_scalars: Option<(String, usize, Vec<f64>)>,
+    /// The cell array asked for, or the first one-component one (the
+    /// fallback): (name, components, `components` values per cell).
+    cell_array: Option<(String, usize, Vec<f64>)>,
     seen_point_arrays: Vec<String>,
     /// `vtkGhostType` arrays (cell data, point data), see `RawCells::drop_ghosts`.
     cell_ghost: Option<Vec<u8>>,
     point_ghost: Option<Vec<u8>>,
+    seen_cell_arrays: Vec<String>,
 }
 
 impl Sections<'_> {
@@ -259,22 +281,24 @@ impl Sections<'_> {
                 continue;
             }
             let named = self.want.is_some_and(|w| w == h[0]);
-            if named && self.owner == Owner::Cells {
-                bail!(r.err(cell_data_refusal(h[0])));
-            }
             if self.owner == Owner::Points
                 && ntup == self.n_points()
                 && (named || (self.want.is_none() && ncomp == 1 && self.field_scalars.is_none()))
             {
-                self.field_scalars = Some(magnitudes(r.values_f64(n, dt, &what)?, ncomp));
+                let v = magnitudes(r.values_f64(n, dt, &what)?, ncomp, &r.err(&what).to_string(), "point")?;
+                self.field_scalars = Some((h[0].to_string(), ncomp, v));
                 if named {
                     self.scalars = self.field_scalars.clone();
                 }
+            } else if self.owner == Owner::Cells && ntup == self.owner_count && self.wants_cell_array(h[0], ncomp) {
+                self.cell_array = Some((h[0].to_string(), ncomp, r.values_f64(n, dt, &what)?));
             } else {
                 r.skip_values(n, dt, &what)?;
             }
-            if self.owner == Owner::Points {
-                self.seen_point_arrays.push(format!("FIELD {} ({ncomp} components)", h[0]));
+            match self.owner {
+                Owner::Points => self.seen_point_arrays.push(format!("FIELD {} ({ncomp} components)", h[0])),
+                Owner::Cells => self.seen_cell_arrays.push(format!("FIELD {} ({ncomp} components)", h[0])),
+                Owner::None => {}
             }
             if r.peek_word().eq_ignore_ascii_case("METADATA") {
                 r.keyword_line("METADATA")?;
@@ -369,15 +393,17 @@ impl Sections<'_> {
         if name == "vtkGhostType" && self.want != Some(name) {
             return self.ghost(r, n, ncomp, dt, &what);
         }
-        if self.owner == Owner::Points {
-            self.seen_point_arrays.push(format!("SCALARS {name} ({ncomp} components)"));
+        match self.owner {
+            Owner::Points => self.seen_point_arrays.push(format!("SCALARS {name} ({ncomp} components)")),
+            Owner::Cells => self.seen_cell_arrays.push(format!("SCALARS {name} ({ncomp} components)")),
+            Owner::None => {}
         }
         let named = self.want == Some(name);
-        if named && self.owner == Owner::Cells {
-            bail!(r.err(cell_data_refusal(name)));
-        }
         if self.owner == Owner::Points && (named || (self.want.is_none() && ncomp == 1 && self.scalars.is_none())) {
-            self.scalars = Some(magnitudes(r.values_f64(r.product(n, ncomp, &what)?, dt, &what)?, ncomp));
+            let v = r.values_f64(r.product(n, ncomp, &what)?, dt, &what)?;
+            self.scalars = Some((name.to_string(), ncomp, magnitudes(v, ncomp, &r.err(&what).to_string(), "point")?));
+        } else if self.owner == Owner::Cells && self.wants_cell_array(name, ncomp) {
+            self.cell_array = Some((name.to_string(), ncomp, r.values_f64(r.product(n, ncomp, &what)?, dt, &what)?));
         } else {
             r.skip_values(r.product(n, ncomp, &what)?, dt, &what)?;
         }
@@ -396,14 +422,17 @@ impl Sections<'_> {
         };
         let dt = r.dtype(line.get(2), kw)?;
         let aname = line.get(1).copied().unwrap_or("?");
-        if self.owner == Owner::Points {
-            self.seen_point_arrays.push(format!("{kw} {aname} ({k} components)"));
+        match self.owner {
+            Owner::Points => self.seen_point_arrays.push(format!("{kw} {aname} ({k} components)")),
+            Owner::Cells => self.seen_cell_arrays.push(format!("{kw} {aname} ({k} components)")),
+            Owner::None => {}
         }
-        if self.want == Some(aname) && self.owner == Owner::Cells {
-            bail!(r.err(cell_data_refusal(aname)));
-        }
+        let what = format!("{kw} '{aname}'");
         if self.want == Some(aname) && self.owner == Owner::Points {
-            self.scalars = Some(magnitudes(r.values_f64(r.product(n, k, kw)?, dt, kw)?, k));
+            let v = r.values_f64(r.product(n, k, kw)?, dt, kw)?;
+            self.scalars = Some((aname.to_string(), k, magnitudes(v, k, &r.err(&what).to_string(), "point")?));
+        } else if self.want == Some(aname) && self.owner == Owner::Cells {
+            self.cell_array = Some((aname.to_string(), k, r.values_f64(r.product(n, k, kw)?, dt, kw)?));
         } else {
             r.skip_values(r.product(n, k, kw)?, dt, kw)?;
         }
@@ -416,17 +445,26 @@ impl Sections<'_> {
         let points = self.points.ok_or_else(|| r.err("no POINTS section"))?;
         let (offsets, conn) = self.cells.ok_or_else(|| r.err("no CELLS section"))?;
         let types = self.types.ok_or_else(|| r.err("no CELL_TYPES section"))?;
-        let seen = if self.seen_point_arrays.is_empty() { "none".to_string() } else { self.seen_point_arrays.join(", ") };
-        if let Some(w) = self.want {
-            if self.scalars.is_none() {
-                bail!(r.err(format!("no point array named '{w}'; point arrays: {seen}")));
-            }
-        }
-        let scalars = self.scalars.or(self.field_scalars).ok_or_else(|| {
-            r.err(format!("no point scalars: need POINT_DATA with a one-component SCALARS (or FIELD) array; found {seen}"))
-        })?;
+        let list = |v: &[String]| if v.is_empty() { "none".to_string() } else { v.join(", ") };
+        let seen = format!("point arrays: {}; cell arrays: {}", list(&self.seen_point_arrays), list(&self.seen_cell_arrays));
         let stem = Path::new(name).file_stem().map_or_else(|| "vtk".to_string(), |s| s.to_string_lossy().into_owned());
-        let mut raw = RawCells { points, scalars, types, offsets, conn };
+        let mut raw = RawCells { points, types, offsets, conn, ..Default::default() };
+        let fallback = self.want.is_none();
+        if let Some((array, components, scalars)) = self.scalars.or(self.field_scalars) {
+            raw.scalars = scalars;
+            raw.scalar = Some(ScalarInfo { array, association: Association::Point, components, cell_data: None, fallback: false });
+        } else if let Some((array, components, values)) = self.cell_array {
+            raw.cell_values = values;
+            let cell_data = Some(self.choice.cell_data);
+            raw.scalar = Some(ScalarInfo { array, association: Association::Cell, components, cell_data, fallback });
+        } else if let Some(w) = self.want {
+            bail!(r.err(format!("no point or cell array named '{w}'; {seen}")));
+        } else {
+            bail!(r.err(format!(
+                "no point scalars and no cell scalar: need a one-component SCALARS (or FIELD) array in POINT_DATA \
+                 or CELL_DATA; found {seen}"
+            )));
+        }
         let mut counts = super::MeshStats::default();
         for (g, n, what) in [(&self.cell_ghost, raw.types.len(), "CELL_DATA"), (&self.point_ghost, raw.points.len(), "POINT_DATA")] {
             if g.as_ref().is_some_and(|g| g.len() != n) {
@@ -438,22 +476,16 @@ impl Sections<'_> {
         mesh.stats.add_read_counts(&counts);
         Ok(mesh)
     }
-}
 
-/// The error for a `--scalar` that names a cell array.
-pub(crate) fn cell_data_refusal(array: &str) -> String {
-    format!(
-        "'{array}' is cell data (one value per cell); volbench needs a point array (one value per point: \
-         convert with VTK's vtkCellDataToPointData, ParaView's 'Cell Data to Point Data')"
-    )
-}
-
-/// One value per tuple: the value itself, or the magnitude of a vector.
-fn magnitudes(v: Vec<f64>, ncomp: usize) -> Vec<f64> {
-    if ncomp <= 1 {
-        return v;
+    /// Whether the cell array `name` (`ncomp` components) of the current
+    /// CELL_DATA is read: the one asked for, or without a name the first
+    /// one-component one (not the ghost marker).
+    fn wants_cell_array(&self, name: &str, ncomp: usize) -> bool {
+        match self.want {
+            Some(w) => w == name,
+            None => ncomp == 1 && self.cell_array.is_none() && name != "vtkGhostType",
+        }
     }
-    v.chunks_exact(ncomp).map(|c| c.iter().map(|x| x * x).sum::<f64>().sqrt()).collect()
 }
 
 #[cfg(test)]
@@ -505,6 +537,13 @@ LOOKUP_TABLE default
         assert_eq!(m.scalars, vec![0.5, 1.5, 2.5, 3.5, 4.5]);
         // Second tet (1,2,3,4) is inverted in the file.
         assert_eq!(m.stats.reoriented, 1);
+        let s = m.stats.scalar.as_ref().unwrap();
+        assert_eq!((s.array.as_str(), s.association, s.cell_data), ("temp", super::super::cell_data::Association::Point, None));
+        // The cell array by name, constant per cell: each tet its own vertices.
+        let c = parse_vtk_bytes_array("two.vtk", ASCII.as_bytes(), Some("cellid")).unwrap();
+        assert_eq!(c.points.len(), 8);
+        assert_eq!(c.scalars, vec![0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0]);
+        assert_eq!(c.stats.vertex_origin, vec![0, 1, 2, 3, 1, 3, 4, 2]);
     }
 
     #[test]
@@ -574,7 +613,8 @@ LOOKUP_TABLE default
             (ASCII.replace("SCALARS temp double", "SCALARS temp double 3")
                 .replace("0.5 1.5 2.5 3.5 4.5", &"0 ".repeat(15))
                 .replace("SCALARS other float", "NORMALS other float")
-                .replace("LOOKUP_TABLE default\n9 9 9 9 9", &"0 ".repeat(15)), "no point scalars"),
+                .replace("LOOKUP_TABLE default\n9 9 9 9 9", &"0 ".repeat(15))
+                .replace("CELL_DATA 2\nSCALARS cellid int 1\nLOOKUP_TABLE default\n0 1\n", ""), "no point scalars and no cell scalar"),
             (ASCII.replace("1 1 1", "1 nan 1"), "non-finite"),
             (ASCII.replace("0 0 1  1 1 1", "0 0 1  1 x 1"), "value 'x' in POINTS (value 13 of 15) is not a number"),
             (ASCII[..ASCII.len() - 10].to_string(), "truncated"),
