@@ -347,11 +347,17 @@ fn parse_piece(ctx: &Ctx, name: &str, piece: roxmltree::Node, array: Option<&str
     let mut types: Vec<u8> = types.into_iter().map(|t| t as u8).collect();
     let mut offsets: Vec<usize> = std::iter::once(0).chain(offsets.into_iter().map(|o| o as usize)).collect();
     let mut conn: Vec<u32> = conn.into_iter().map(|v| v as u32).collect();
+    let mut faces = if types.contains(&super::polyhedron::VTK_POLYHEDRON) {
+        poly_faces(ctx, name, &ca, &types, np)?
+    } else {
+        Default::default()
+    };
 
     // Ghost cells belong to a neighbouring piece: drop them.
     if let Some(g) = cd_arrays.iter().find(|a| a.attribute("Name") == Some("vtkGhostType")) {
         let ghost = ctx.ints("the vtkGhostType cell array", *g, nc, 255)?;
         if ghost.iter().any(|&v| v != 0) {
+            faces.retain_cells(&ghost.iter().map(|&g| g == 0).collect::<Vec<bool>>());
             let (mut t2, mut o2, mut c2) = (Vec::new(), vec![0], Vec::new());
             for c in (0..nc).filter(|&c| ghost[c] == 0) {
                 t2.push(types[c]);
@@ -361,7 +367,96 @@ fn parse_piece(ctx: &Ctx, name: &str, piece: roxmltree::Node, array: Option<&str
             (types, offsets, conn) = (t2, o2, c2);
         }
     }
-    Ok(RawCells { points, scalars, types, offsets, conn })
+    Ok(RawCells { points, scalars, types, offsets, conn, faces })
+}
+
+/// The faces of a piece's polyhedra (type 42), from VTK 9.4+'s
+/// `face_connectivity` / `face_offsets` / `polyhedron_to_faces` /
+/// `polyhedron_offsets` arrays or the older `faces` / `faceoffsets` (each
+/// polyhedron's face stream, `faceoffsets` its end, -1 for other cells).
+fn poly_faces(ctx: &Ctx, name: &str, ca: &[roxmltree::Node], types: &[u8], np: usize) -> Result<super::polyhedron::PolyFaces> {
+    use super::polyhedron::{parse_face_stream, PolyFaces, VTK_POLYHEDRON};
+    let nc = types.len();
+    let find = |n: &str| ca.iter().find(|a| a.attribute("Name") == Some(n)).copied();
+    let signed = |what: &str, node: roxmltree::Node, count: usize| -> Result<Vec<i64>> {
+        ctx.values(what, node, count)?
+            .into_iter()
+            .enumerate()
+            .map(|(i, v)| match v {
+                Value::Int(x) if (-1..=u32::MAX as i128).contains(&x) => Ok(x as i64),
+                Value::Int(x) => bail!("{name}: {what} value {i} is {x}, outside -1..={}", u32::MAX),
+                Value::Float(_) => bail!("{name}: {what} must have an integer type"),
+            })
+            .collect()
+    };
+    let rising = |what: &str, v: &[i64], from: i64| -> Result<()> {
+        let mut last = from;
+        for (i, &x) in v.iter().enumerate() {
+            if x < last {
+                bail!("{name}: {what} value {i} is {x}, below the previous offset {last}: offsets must rise");
+            }
+            last = x;
+        }
+        Ok(())
+    };
+    let mut out = PolyFaces::default();
+    if let (Some(fc), Some(fo), Some(pf), Some(po)) =
+        (find("face_connectivity"), find("face_offsets"), find("polyhedron_to_faces"), find("polyhedron_offsets"))
+    {
+        let poff = ctx.ints("the polyhedron_offsets array", po, nc, u32::MAX as u64)?;
+        let poff: Vec<i64> = poff.into_iter().map(|x| x as i64).collect();
+        rising("the polyhedron_offsets array", &poff, 0)?;
+        let n_refs = poff.last().copied().unwrap_or(0) as usize;
+        let p2f = ctx.ints("the polyhedron_to_faces array", pf, n_refs, u32::MAX as u64 - 1)?;
+        // The faces are those the polyhedra name.
+        let n_faces = p2f.iter().max().map_or(0, |&m| m as usize + 1);
+        let foff = ctx.ints("the face_offsets array", fo, n_faces, u32::MAX as u64)?;
+        let foff: Vec<i64> = foff.into_iter().map(|x| x as i64).collect();
+        rising("the face_offsets array", &foff, 0)?;
+        let fconn = ctx.ints("the face_connectivity array", fc, foff.last().copied().unwrap_or(0) as usize, np.saturating_sub(1) as u64)
+            .map_err(|e| anyhow!("{e:#} (a face names a point the piece does not have)"))?;
+        let face = |f: usize| -> Vec<u32> {
+            let a = if f == 0 { 0 } else { foff[f - 1] as usize };
+            fconn[a..foff[f] as usize].iter().map(|&v| v as u32).collect()
+        };
+        for c in 0..nc {
+            let a = if c == 0 { 0 } else { poff[c - 1] as usize };
+            let b = poff[c] as usize;
+            if types[c] == VTK_POLYHEDRON {
+                let fs: Vec<Vec<u32>> = p2f[a..b].iter().map(|&f| face(f as usize)).collect();
+                out.push_cell(c, &fs);
+            } else if b > a {
+                bail!("{name}: cell {c} is not a polyhedron but polyhedron_offsets gives it {} faces", b - a);
+            }
+        }
+    } else if let (Some(f), Some(fo)) = (find("faces"), find("faceoffsets")) {
+        let foff = signed("the faceoffsets array", fo, nc)?;
+        let n = foff.iter().copied().max().unwrap_or(0).max(0) as usize;
+        let stream = signed("the faces array", f, n)?;
+        let mut start = 0usize;
+        for c in 0..nc {
+            let end = foff[c];
+            if types[c] != VTK_POLYHEDRON {
+                if end != -1 {
+                    bail!("{name}: cell {c} is not a polyhedron but its faceoffsets entry is {end}, not -1");
+                }
+                continue;
+            }
+            if end < start as i64 {
+                bail!("{name}: cell {c}: its faceoffsets entry {end} is before the end of the previous face stream ({start})");
+            }
+            let fs = parse_face_stream(&stream[start..end as usize], np)
+                .map_err(|e| anyhow!("{name}: cell {c} (polyhedron, type 42): {e}"))?;
+            out.push_cell(c, &fs);
+            start = end as usize;
+        }
+    } else {
+        bail!(
+            "{name}: the piece has polyhedron cells (type 42) but <Cells> has neither the face_connectivity, \
+             face_offsets, polyhedron_to_faces and polyhedron_offsets arrays nor the older faces and faceoffsets"
+        );
+    }
+    Ok(out)
 }
 
 #[cfg(test)]
@@ -580,11 +675,17 @@ mod tests {
         assert!(e.contains("no point array named 'nope'") && e.contains("'temp' (1 components)"), "{e}");
         // Unsupported cells are named with their counts.
         let mut q = grid();
-        q.cells.push((24, (0..10).collect()));
-        q.cells.push((24, (0..10).collect()));
+        q.cells.push((41, (0..10).collect()));
+        q.cells.push((41, (0..10).collect()));
+        q.cells.push((55, (0..4).collect()));
+        let e = format!("{:#}", parse_vtu_bytes("q.vtu", &write_vtu(&q, Format::Ascii, false, 4, false), None).unwrap_err());
+        assert!(e.contains("2 cells of type 41 (convex point set)") && e.contains("1 cells of type 55 (parametric tetra region)"), "{e}");
+        assert!(e.contains("polyhedra (42)") && e.contains("Lagrange tetra, hexahedron and wedge (71-73)"), "{e}");
+        // A polyhedron without the face arrays.
+        let mut q = grid();
         q.cells.push((42, (0..4).collect()));
         let e = format!("{:#}", parse_vtu_bytes("q.vtu", &write_vtu(&q, Format::Ascii, false, 4, false), None).unwrap_err());
-        assert!(e.contains("2 cells of type 24 (quadratic tetra)") && e.contains("1 cells of type 42 (polyhedron)"), "{e}");
+        assert!(e.contains("polyhedron cells (type 42) but <Cells> has neither"), "{e}");
         // A hexahedron with 7 vertices.
         let mut h = grid();
         h.cells[0].1.pop();

@@ -186,8 +186,8 @@ struct Sections<'a> {
     major: u32,
     version: &'a str,
     points: Option<Vec<[f64; 3]>>,
-    /// Offsets and connectivity.
-    cells: Option<(Vec<usize>, Vec<u32>)>,
+    /// Offsets and connectivity (indices not yet checked).
+    cells: Option<(Vec<usize>, Vec<i64>)>,
     n_cells: Option<usize>,
     types: Option<Vec<u8>>,
     /// Whose attributes follow (POINT_DATA / CELL_DATA), and how many tuples.
@@ -266,9 +266,9 @@ impl Sections<'_> {
         if self.cells.is_some() {
             bail!(r.err("second CELLS section"));
         }
-        let Some(np) = self.points.as_ref().map(|p| p.len()) else {
+        if self.points.is_none() {
             bail!(r.err("CELLS before POINTS"));
-        };
+        }
         let a = r.count(line.get(1), "CELLS count")?;
         let b = r.count(line.get(2), "CELLS size")?;
         let (offsets, conn) = if self.major >= 5 {
@@ -276,9 +276,10 @@ impl Sections<'_> {
         } else {
             connectivity::counted_cells(r, a, b, self.version)?
         };
-        let conn32 = connectivity::checked_indices(r, &offsets, &conn, np)?;
+        // Indices are checked once the types are known (a polyhedron's
+        // entries are its face stream, counts among the indices).
         self.n_cells = Some(offsets.len().saturating_sub(1));
-        self.cells = Some((offsets.iter().map(|&o| o as usize).collect(), conn32));
+        self.cells = Some((offsets.iter().map(|&o| o as usize).collect(), conn));
         Ok(())
     }
 
@@ -389,7 +390,8 @@ impl Sections<'_> {
             r.err(format!("no point scalars: need POINT_DATA with a one-component SCALARS (or FIELD) array; found {seen}"))
         })?;
         let stem = Path::new(name).file_stem().map_or_else(|| "vtk".to_string(), |s| s.to_string_lossy().into_owned());
-        RawCells { points, scalars, types, offsets, conn }.into_tet_mesh(name, stem)
+        let (offsets, conn, faces) = connectivity::cells_and_faces(r, &types, &offsets, &conn, points.len())?;
+        RawCells { points, scalars, types, offsets, conn, faces }.into_tet_mesh(name, stem)
     }
 }
 
