@@ -51,8 +51,8 @@ impl Builder {
             perm.swap(i, (r % (i as u64 + 1)) as usize);
         }
         let mut points = vec![[0.0; 3]; n];
-        for i in 0..n {
-            points[perm[i] as usize] = self.points[i];
+        for (&q, p) in perm.iter().zip(&self.points) {
+            points[q as usize] = *p;
         }
         let scalars = points.iter().map(|&p| field(p)).collect();
         let mut raw = RawCells { points, scalars, offsets: vec![0], ..Default::default() };

@@ -429,7 +429,8 @@ fn kind_by_extension(p: &Path) -> Option<DataKind> {
 /// Every format a path may hold, by kind (for the error when none fits).
 pub fn supported_formats() -> String {
     format!(
-        "tet meshes: .vtk (VTK legacy UNSTRUCTURED_GRID of tetrahedra), PLOT3D grid/solution pairs (.bin, .xyz, .x, .q); \
+        "tet meshes: .vtk (VTK legacy UNSTRUCTURED_GRID), .vtu and .pvtu (VTK XML unstructured grids), each of linear, \
+         quadratic, Lagrange and polyhedral cells (docs/formats.md), PLOT3D grid/solution pairs (.bin, .xyz, .x, .q); \
          volumes: {}; terrain: .npy, .npz (NumPy), .tif/.tiff (GeoTIFF)",
         crate::volume::SUPPORTED_FORMATS
     )

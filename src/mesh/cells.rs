@@ -33,6 +33,12 @@
 //! Tets are emitted positively oriented when the cell itself is (its
 //! reference triangulation is oriented on the reference cell), so a
 //! well-formed cell adds nothing to `MeshStats::reoriented`.
+//!
+//! The other cells (higher-order, polyhedra, and linear cells that fold
+//! over or are collapsed) are split by `higher_order`, `polyhedron` and
+//! `repair`, driven per file cell by `tetrahedralize`, all on top of this
+//! rule ([`conforming_triangulations`] gives `repair` every triangulation
+//! that keeps a cell's face diagonals).
 
 use std::collections::HashMap;
 use std::sync::OnceLock;

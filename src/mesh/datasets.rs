@@ -103,8 +103,8 @@ pub const VTK_EXTENSIONS: [&str; 3] = ["vtk", "vtu", "pvtu"];
 /// A mesh file chosen by its extension:
 /// - `.vtk`: VTK legacy UNSTRUCTURED_GRID, ASCII or BINARY;
 /// - `.vtu` / `.pvtu`: VTK XML unstructured grid, or a parallel one's pieces
-///   (see `vtu`); in all three every linear 3-D cell type is split into
-///   tets conformingly (`cells`);
+///   (see `vtu`); in all three every volumetric cell type is split into
+///   tets conformingly (`tetrahedralize`);
 /// - a PLOT3D grid or solution file (`.bin`, `.xyz`, `.x`, `.q`): the other
 ///   file of the pair is found next to it by name (see [`plot3d_pair`]); the
 ///   hexahedra are split into 5 tets each and the scalar is the density, or the
@@ -133,7 +133,7 @@ pub fn load_path_array(path: impl AsRef<Path>, array: Option<&str>) -> Result<Te
         _ => bail!(
             "{}: unsupported mesh format (extension {}); supported: .vtk (VTK legacy \
              UNSTRUCTURED_GRID), .vtu and .pvtu (VTK XML unstructured grids), each with \
-             tetra, voxel, hexahedron, wedge and pyramid cells, and \
+             linear, quadratic, Lagrange and polyhedral cells (docs/formats.md), and \
              PLOT3D grid/solution pairs (NAMExyz.bin + NAMEq.bin, or NAME.xyz / NAME.x + \
              NAME.q: give either file); built-in meshes: {}",
             path.display(),

@@ -29,7 +29,8 @@
 //! edge a pyramid; a pyramid with a collapsed base edge a tetra), and a
 //! quad face with a collapsed edge becomes the triangle its neighbour sees.
 //! Counted in `Repairs::degenerate_cells`; a cell collapsed to no volume at
-//! all adds no tets.
+//! all adds no tets. A tetra with a repeated point is refused (it is no
+//! degenerate form of anything with volume).
 
 use anyhow::{bail, Result};
 
@@ -64,8 +65,9 @@ pub(crate) fn split_linear(t: &mut Tetrahedralizer, cell_type: u8, v: &[u32]) ->
     let degenerate = repeats(v);
     if cell_type == VTK_TETRA {
         if degenerate {
-            t.stats.repairs.degenerate_cells += 1;
-            return Ok(());
+            // VTK's degenerate forms are of hexahedra, wedges and pyramids;
+            // a tetra with a repeated point is a triangle or less.
+            bail!("repeats a vertex index {v:?}: a tetra with a repeated point has no volume");
         }
         let tet = [v[0], v[1], v[2], v[3]];
         if tet_det(tet.map(|i| t.points[i as usize])).0 < 0.0 {

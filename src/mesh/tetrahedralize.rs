@@ -46,8 +46,8 @@ impl Tetrahedralizer {
         let mut s = 0.0;
         for &(v, w) in terms {
             let q = self.points[v as usize];
-            for a in 0..3 {
-                p[a] += w * q[a];
+            for (pa, qa) in p.iter_mut().zip(q) {
+                *pa += w * qa;
             }
             s += w * self.scalars[v as usize];
         }
@@ -149,7 +149,7 @@ pub(crate) fn tetrahedralize(raw: RawCells, source: &str, name: String, mode: Hi
                 }
             }
             CellKind::LowerDim => skipped += 1,
-            CellKind::Unsupported => unreachable!("refused above"),
+            CellKind::Unsupported => return Err(named(anyhow!("is not a cell type volbench reads"))),
         }
         // Count each file cell once per kind of repair (a higher-order
         // cell's sub-cells are repaired one by one).

@@ -20,7 +20,9 @@
 //! the `PointData`'s active `Scalars`, else the first point array; arrays of
 //! several components become their magnitude. Cell data is not converted: a
 //! named array that exists only as cell data is refused with a message
-//! saying so. Cells are split into tets by `cells`.
+//! saying so. Cells are split into tets by `tetrahedralize` (polyhedra:
+//! VTK 9.4+'s `face_connectivity` / `face_offsets` / `polyhedron_to_faces` /
+//! `polyhedron_offsets` arrays or the older `faces` / `faceoffsets`).
 
 use std::path::Path;
 

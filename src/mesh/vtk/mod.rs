@@ -4,10 +4,11 @@
 //! (`CELLS n size` with a count before each cell) and 5.x (`OFFSETS` /
 //! `CONNECTIVITY`). Every section of the format is parsed (so unfamiliar but
 //! legal content such as `FIELD` blocks, `METADATA`, vectors or cell data is
-//! skipped correctly). Cells: every linear 3-D type (tetra, voxel,
-//! hexahedron, wedge, pyramid) is split into tets conformingly by `cells`;
-//! vertex, line and surface cells are skipped and counted; other types are
-//! refused, named with their counts. The scalar is the point array the
+//! skipped correctly). Cells: every volumetric type (linear, quadratic,
+//! Lagrange, polyhedra, whose `CELLS` entry is their face stream) is split
+//! into tets conformingly by `tetrahedralize`; vertex, line and surface
+//! cells are skipped and counted; other types are refused, named with their
+//! counts. The scalar is the point array the
 //! caller names (a `SCALARS`, `VECTORS` or `FIELD` array; several
 //! components by magnitude; a cell array of that name is refused as cell
 //! data), else the first one-component `SCALARS` array of `POINT_DATA`;
