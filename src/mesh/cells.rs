@@ -357,9 +357,12 @@ pub(crate) fn as_hex_order(cell_type: u8, v: &[u32]) -> (u8, Vec<u32>) {
     }
 }
 
-/// The reference cell of a pyramid, wedge or hexahedron: its integer
-/// vertex coordinates and faces (`repair`'s centroid split cones them).
-pub(crate) fn reference_of(cell_type: u8) -> Option<(&'static [[i64; 3]], &'static [&'static [usize]])> {
+/// A reference cell: its integer vertex coordinates and faces.
+pub(crate) type ReferenceCell = (&'static [[i64; 3]], &'static [&'static [usize]]);
+
+/// The reference cell of a pyramid, wedge or hexahedron (`repair`'s
+/// centroid split cones its faces).
+pub(crate) fn reference_of(cell_type: u8) -> Option<ReferenceCell> {
     let r = match cell_type {
         VTK_PYRAMID => &PYRAMID_REF,
         VTK_WEDGE => &WEDGE_REF,

@@ -98,8 +98,7 @@ pub(crate) fn tetrahedralize(raw: RawCells, source: &str, name: String, mode: Hi
     };
     let mut tz = Tetrahedralizer::new(points, scalars, mode);
     // Face-centre nodes of the cells that have them, for their serendipity neighbours.
-    for c in 0..n {
-        let t = types[c];
+    for (c, &t) in types.iter().enumerate() {
         if higher_order::is_higher_order(t) {
             let v = cell(c)?;
             if higher_order::check_node_count(t, v.len()).is_ok() && v.iter().all(|&i| (i as usize) < np) {
@@ -110,9 +109,8 @@ pub(crate) fn tetrahedralize(raw: RawCells, source: &str, name: String, mode: Hi
     let mut cell_of: Vec<u32> = Vec::new();
     let mut poly = 0usize;
     let mut skipped = 0;
-    for c in 0..n {
+    for (c, &t) in types.iter().enumerate() {
         let v = cell(c)?;
-        let t = types[c];
         let named = |e: anyhow::Error| anyhow!("{source}: cell {c} ({}, type {t}) {e}", cell_type_name(t as i64));
         if let Some(&bad) = v.iter().find(|&&i| i as usize >= np) {
             return Err(named(anyhow!("has point index {bad} out of range (the file has {np} points)")));
