@@ -49,6 +49,10 @@ struct Cli {
     /// Enable the Khronos validation layer; any message fails the run. Also VOLBENCH_VALIDATION=1.
     #[arg(long, global = true)]
     validation: bool,
+    /// How quadratic and Lagrange cells of an unstructured mesh are read: `subdivide` (into linear
+    /// tets through every node, the default) or `corners` (corner nodes only). See docs/formats.md.
+    #[arg(long, global = true, value_name = "MODE", default_value = "subdivide", value_parser = ["subdivide", "corners"])]
+    higher_order: String,
     #[command(subcommand)]
     command: Command,
 }
@@ -974,6 +978,13 @@ fn main() -> ExitCode {
     if !set.is_empty() && !matches!(cli.command, Command::Info | Command::List) {
         let set: Vec<String> = set.iter().map(|(k, v)| format!("{k}={v}")).collect();
         volbench::progress!("volbench: note: set, and recorded in the results: {}", set.join(" "));
+    }
+    match volbench::mesh::HigherOrder::parse(&cli.higher_order) {
+        Ok(m) => volbench::mesh::higher_order::set_mode(m),
+        Err(e) => {
+            volbench::progress!("volbench: error: {e:#}");
+            return ExitCode::FAILURE;
+        }
     }
     // `--count`: the same command again, under valgrind.
     let count = match &cli.command {

@@ -260,7 +260,8 @@ fn vtk_corrupt_headers_counts_and_values() {
         // Cell types and sizes.
         (ASCII.replace("10\n10\n", "10\n12\n"), "cell 1 is a hexahedron (type 12) but has 4 vertices, not 8"),
         (ASCII.replace("10\n10\n", "10\n-3\n"), "unknown cell type -3 at cell 1"),
-        (ASCII.replace("10\n10\n", "10\n24\n"), "unsupported cells: 1 cells of type 24 (quadratic tetra)"),
+        (ASCII.replace("10\n10\n", "10\n24\n"), "cell 1 (quadratic tetra, type 24) has 4 nodes, not 10"),
+        (ASCII.replace("10\n10\n", "10\n41\n"), "unsupported cells: 1 cells of type 41 (convex point set)"),
         (ASCII.replace("CELLS 2 10", "CELLS 2 9").replace("4 1 3 2 4", "3 1 3 2"), "has 3 vertices"),
         // Missing or out-of-order sections, empty meshes.
         (ASCII.replace("CELL_TYPES 2\n10\n10\n", ""), "no CELL_TYPES"),

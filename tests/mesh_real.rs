@@ -252,9 +252,13 @@ fn non_tet_cell_type_vtk() {
     let e = err_text(read_vtk_legacy(&p));
     // A tetra's 4 vertices cannot make a hexahedron.
     assert!(e.contains(&p.display().to_string()) && e.contains("cell 7 is a hexahedron (type 12) but has 4 vertices"), "{e}");
-    // A quadratic tetra is refused with its count.
+    // A quadratic tetra needs 10 nodes; a convex point set is refused with its count.
     b[data + 4 * 7..data + 4 * 8].copy_from_slice(&24i32.to_be_bytes());
     let p = write(tmp.path(), "post.vtk", &b);
     let e = err_text(read_vtk_legacy(&p));
-    assert!(e.contains("unsupported cells: 1 cells of type 24 (quadratic tetra)"), "{e}");
+    assert!(e.contains("cell 7 (quadratic tetra, type 24) has 4 nodes, not 10"), "{e}");
+    b[data + 4 * 7..data + 4 * 8].copy_from_slice(&41i32.to_be_bytes());
+    let p = write(tmp.path(), "post.vtk", &b);
+    let e = err_text(read_vtk_legacy(&p));
+    assert!(e.contains("unsupported cells: 1 cells of type 41 (convex point set)"), "{e}");
 }

@@ -33,6 +33,12 @@
 //! Tets are emitted positively oriented when the cell itself is (its
 //! reference triangulation is oriented on the reference cell), so a
 //! well-formed cell adds nothing to `MeshStats::reoriented`.
+//!
+//! The other cells (higher-order, polyhedra, and linear cells that fold
+//! over or are collapsed) are split by `higher_order`, `polyhedron` and
+//! `repair`, driven per file cell by `tetrahedralize`, all on top of this
+//! rule ([`conforming_triangulations`] gives `repair` every triangulation
+//! that keeps a cell's face diagonals).
 
 use std::collections::HashMap;
 use std::sync::OnceLock;
@@ -72,7 +78,45 @@ pub fn cell_type_name(t: i64) -> &'static str {
         27 => "quadratic pyramid",
         28 => "biquadratic quad",
         29 => "triquadratic hexahedron",
+        30 => "quadratic-linear quad",
+        31 => "quadratic-linear wedge",
+        32 => "biquadratic-quadratic wedge",
+        33 => "biquadratic-quadratic hexahedron",
+        34 => "biquadratic triangle",
+        35 => "cubic line",
+        36 => "quadratic polygon",
+        37 => "triquadratic pyramid",
+        41 => "convex point set",
         42 => "polyhedron",
+        51 => "parametric curve",
+        52 => "parametric surface",
+        53 => "parametric tri surface",
+        54 => "parametric quad surface",
+        55 => "parametric tetra region",
+        56 => "parametric hex region",
+        60 => "higher-order edge",
+        61 => "higher-order triangle",
+        62 => "higher-order quad",
+        63 => "higher-order polygon",
+        64 => "higher-order tetrahedron",
+        65 => "higher-order wedge",
+        66 => "higher-order pyramid",
+        67 => "higher-order hexahedron",
+        68 => "Lagrange curve",
+        69 => "Lagrange triangle",
+        70 => "Lagrange quadrilateral",
+        71 => "Lagrange tetrahedron",
+        72 => "Lagrange hexahedron",
+        73 => "Lagrange wedge",
+        74 => "Lagrange pyramid",
+        75 => "Bezier curve",
+        76 => "Bezier triangle",
+        77 => "Bezier quadrilateral",
+        78 => "Bezier tetrahedron",
+        79 => "Bezier hexahedron",
+        80 => "Bezier wedge",
+        81 => "Bezier pyramid",
+        0 => "empty cell",
         _ => "unknown",
     }
 }
@@ -82,11 +126,17 @@ pub fn cell_type_name(t: i64) -> &'static str {
 pub enum CellKind {
     /// A linear 3-D cell with this many vertices: split into tets.
     Solid(usize),
-    /// A 0-, 1- or 2-D cell (vertex, line, triangle, quad, ...): it has no
+    /// A 0-, 1- or 2-D cell (vertex, line, triangle, quad, their
+    /// quadratic, Lagrange and Bezier forms, an empty cell): it has no
     /// volume, so it contributes nothing to a volume rendering; skipped and
     /// counted (`MeshStats::skipped_lower_dim`).
     LowerDim,
-    /// Anything else (quadratic, polyhedron, unknown): refused.
+    /// A quadratic, Lagrange or Bezier 3-D cell (`higher_order`).
+    HigherOrder,
+    /// A polyhedron (42) or a pentagonal / hexagonal prism (`polyhedron`).
+    Polyhedron,
+    /// Anything else (convex point set, parametric and generic higher-order
+    /// cells, unknown numbers): refused.
     Unsupported,
 }
 
@@ -96,7 +146,9 @@ pub fn cell_kind(t: i64) -> CellKind {
         11 | 12 => CellKind::Solid(8),
         13 => CellKind::Solid(6),
         14 => CellKind::Solid(5),
-        1..=9 => CellKind::LowerDim,
+        15 | 16 | 42 => CellKind::Polyhedron,
+        0..=9 | 21..=23 | 28 | 30 | 34..=36 | 51..=54 | 68..=70 | 75..=77 => CellKind::LowerDim,
+        t if (0..=255).contains(&t) && super::higher_order::is_higher_order(t as u8) => CellKind::HigherOrder,
         _ => CellKind::Unsupported,
     }
 }
@@ -269,22 +321,98 @@ fn required_signature(r: &Reference, global: &[u32]) -> u32 {
     sig
 }
 
-/// Per cell type: signature -> the triangulation with fewest tets.
+/// Per cell type: signature -> the triangulation with fewest tets, and every
+/// triangulation with that signature (fewest tets first; `repair` tries the
+/// others when the first folds over).
 struct Table {
     by_signature: HashMap<u32, Vec<[usize; 4]>>,
+    all_by_signature: HashMap<u32, Vec<Vec<[usize; 4]>>>,
 }
 
 fn table(r: &Reference) -> Table {
     let all = triangulations(r);
     let mut by_signature: HashMap<u32, Vec<[usize; 4]>> = HashMap::new();
+    let mut all_by_signature: HashMap<u32, Vec<Vec<[usize; 4]>>> = HashMap::new();
     for t in &all {
         let s = signature(r, t);
         let e = by_signature.entry(s).or_insert_with(|| t.clone());
         if t.len() < e.len() {
             *e = t.clone();
         }
+        all_by_signature.entry(s).or_default().push(t.clone());
     }
-    Table { by_signature }
+    for v in all_by_signature.values_mut() {
+        v.sort_by_key(|t| t.len());
+    }
+    Table { by_signature, all_by_signature }
+}
+
+/// A linear cell in hexahedron order (a voxel's corners reordered), for
+/// the per-cell code outside this module.
+pub(crate) fn as_hex_order(cell_type: u8, v: &[u32]) -> (u8, Vec<u32>) {
+    if cell_type == VTK_VOXEL {
+        (VTK_HEXAHEDRON, vec![v[0], v[1], v[3], v[2], v[4], v[5], v[7], v[6]])
+    } else {
+        (cell_type, v.to_vec())
+    }
+}
+
+/// A reference cell: its integer vertex coordinates and faces.
+pub(crate) type ReferenceCell = (&'static [[i64; 3]], &'static [&'static [usize]]);
+
+/// The reference cell of a pyramid, wedge or hexahedron (`repair`'s
+/// centroid split cones its faces).
+pub(crate) fn reference_of(cell_type: u8) -> Option<ReferenceCell> {
+    let r = match cell_type {
+        VTK_PYRAMID => &PYRAMID_REF,
+        VTK_WEDGE => &WEDGE_REF,
+        VTK_HEXAHEDRON => &HEX_REF,
+        _ => return None,
+    };
+    Some((r.coords, r.faces))
+}
+
+/// Every triangulation of a pyramid, wedge or hexahedron (hexahedron
+/// order) on its own vertices that cuts its quad faces as the min-index
+/// rule requires for the global indices `v`, fewest tets first. The first
+/// is the one [`CellSplitter::add`] uses; all keep the neighbours conforming.
+///
+/// A quad face with a repeated id (a collapsed cell) has no diagonal to
+/// agree on: either cut leaves the same non-degenerate triangle, so its
+/// bit is free and every triangulation matching the other quads is a
+/// candidate.
+pub(crate) fn conforming_triangulations(cell_type: u8, v: &[u32]) -> Vec<&'static Vec<[usize; 4]>> {
+    let (r, t) = match cell_type {
+        VTK_PYRAMID => (&PYRAMID_REF, &tables()[0]),
+        VTK_WEDGE => (&WEDGE_REF, &tables()[1]),
+        VTK_HEXAHEDRON => (&HEX_REF, &tables()[2]),
+        _ => return Vec::new(),
+    };
+    let want = required_signature(r, v);
+    let mut free = 0u32;
+    for (q, f) in r.faces.iter().filter(|f| f.len() == 4).enumerate() {
+        if (0..4).any(|a| (a + 1..4).any(|b| v[f[a]] == v[f[b]])) {
+            free |= 1 << q;
+        }
+    }
+    if free == 0 {
+        return t.all_by_signature.get(&want).map_or_else(Vec::new, |list| list.iter().collect());
+    }
+    let mut out: Vec<&'static Vec<[usize; 4]>> = t
+        .all_by_signature
+        .iter()
+        .filter(|(sig, _)| (**sig & !free) == (want & !free))
+        .flat_map(|(_, list)| list.iter())
+        .collect();
+    // Deterministic: the rule's own signature first, then fewest tets.
+    out.sort_by_key(|x| (signature(r, x) != want, x.len(), (*x).clone()));
+    out
+}
+
+/// The local vertex pair of the diagonal the min-index rule cuts a quad
+/// face (local vertices `f`, global indices `v`) along.
+pub(crate) fn quad_diagonal(f: &[usize], v: &[u32]) -> usize {
+    (0..4).min_by_key(|&k| v[f[k]]).unwrap_or(0) % 2
 }
 
 fn tables() -> &'static [Table; 3] {
@@ -342,6 +470,8 @@ pub struct RawCells {
     pub types: Vec<u8>,
     /// `types.len() + 1` rising offsets into `conn`, from 0.
     pub offsets: Vec<usize>,
+    /// For polyhedra (type 42), whose `conn` holds their points, their faces.
+    pub faces: super::polyhedron::PolyFaces,
     pub conn: Vec<u32>,
     /// The scalar as cell data: `scalar.components` values per cell (a
     /// vector's components, kept until the treatment: `average` averages
@@ -378,6 +508,7 @@ impl RawCells {
             _ => {}
         }
         let at = self.conn.len();
+        self.faces.append(other.faces, self.types.len(), base);
         self.points.extend(other.points);
         self.scalars.extend(other.scalars);
         self.cell_values.extend(other.cell_values);
@@ -409,7 +540,7 @@ impl RawCells {
             }
         }
         let merged = self.points.len() - points.len();
-        for v in &mut self.conn {
+        for v in self.conn.iter_mut().chain(self.faces.conn.iter_mut()) {
             if let Some(&rep) = map.get(*v as usize) {
                 *v = new_index[rep as usize];
             }
@@ -423,11 +554,13 @@ impl RawCells {
     /// stay as they are.
     pub fn retain_cells(&mut self, mut keep: impl FnMut(usize) -> bool) {
         let n = self.types.len();
+        let kept: Vec<bool> = (0..n).map(&mut keep).collect();
+        self.faces.retain_cells(&kept);
         // Cell data goes with its cell: `k` values per cell (none for point data).
         let k = if self.cell_values.is_empty() || n == 0 { 0 } else { self.cell_values.len() / n };
         let (mut t, mut c) = (0usize, 0usize);
         for i in 0..n {
-            if !keep(i) {
+            if !kept[i] {
                 continue;
             }
             let (a, b) = (self.offsets[i], self.offsets[i + 1]);
@@ -490,34 +623,26 @@ impl RawCells {
         stats.hidden_cells += hidden;
     }
 
-    /// Splits every cell into tets ([`CellSplitter`]): 3-D linear cells are
-    /// split, lower-dimensional cells skipped and counted, anything else
-    /// refused with an error naming each unsupported type and its count.
-    /// `source` starts every error; the mesh is validated. A cell scalar
-    /// (`cell_values`) is first averaged to the points (`average`, on the
-    /// file's cells), or after the split given to each tet from its file
-    /// cell (`constant`: each tet then has its own vertices); see
-    /// `cell_data`.
-    pub fn into_tet_mesh(mut self, source: &str, name: String) -> anyhow::Result<super::TetMesh> {
+    /// Splits every cell into tets (`tetrahedralize`): linear 3-D cells by
+    /// [`CellSplitter`]'s rule with `repair`'s fallbacks, higher-order cells
+    /// as `higher_order`'s mode (process-wide, `--higher-order`) says,
+    /// polyhedra and prisms by `polyhedron`; lower-dimensional cells skipped
+    /// and counted, anything else refused with an error naming each
+    /// unsupported type and its count. `source` starts every error; the
+    /// mesh is validated. A cell scalar (`cell_values`) is first averaged to
+    /// the points (`average`, on the file's cells), or after the split given
+    /// to each tet from its file cell (`constant`: each tet then has its own
+    /// vertices); see `cell_data`.
+    pub fn into_tet_mesh(self, source: &str, name: String) -> anyhow::Result<super::TetMesh> {
+        self.into_tet_mesh_with(source, name, super::higher_order::mode())
+    }
+
+    /// [`RawCells::into_tet_mesh`] with higher-order cells read as `mode` says.
+    pub fn into_tet_mesh_with(mut self, source: &str, name: String, mode: super::HigherOrder) -> anyhow::Result<super::TetMesh> {
         use super::cell_data::{self, CellData};
         let n = self.types.len();
         if self.offsets.len() != n + 1 {
             anyhow::bail!("{source}: {} cell offsets for {n} cells", self.offsets.len());
-        }
-        let mut unsupported: std::collections::BTreeMap<u8, usize> = Default::default();
-        for &t in &self.types {
-            if cell_kind(t as i64) == CellKind::Unsupported {
-                *unsupported.entry(t).or_default() += 1;
-            }
-        }
-        if !unsupported.is_empty() {
-            let list: Vec<String> =
-                unsupported.iter().map(|(t, c)| format!("{c} cells of type {t} ({})", cell_type_name(*t as i64))).collect();
-            anyhow::bail!(
-                "{source}: unsupported cells: {}; volbench reads the linear cells tetra (10), voxel (11), hexahedron (12), \
-                 wedge (13) and pyramid (14), and skips 0- to 2-D cells",
-                list.join(", ")
-            );
         }
         let np = self.points.len();
         // Cell data: averaged to the points here, on the file's cells; kept
@@ -553,37 +678,10 @@ impl RawCells {
                 }
             }
         }
-        let mut s = CellSplitter::default();
-        // The file cell each tet comes from.
-        let mut source_cell: Vec<u32> = Vec::new();
-        let mut skipped = 0;
-        for c in 0..n {
-            let (a, b) = (self.offsets[c], self.offsets[c + 1]);
-            let v = self.conn.get(a..b).ok_or_else(|| anyhow::anyhow!("{source}: cell {c}: offsets {a}..{b} outside the connectivity"))?;
-            let t = self.types[c];
-            match cell_kind(t as i64) {
-                CellKind::Solid(k) => {
-                    if v.len() != k {
-                        anyhow::bail!("{source}: cell {c} is a {} (type {t}) but has {} vertices, not {k}", cell_type_name(t as i64), v.len());
-                    }
-                    if let Some(&bad) = v.iter().find(|&&i| i as usize >= np) {
-                        anyhow::bail!("{source}: cell {c} has vertex index {bad} out of range (the file has {np} points)");
-                    }
-                    s.add(t, v).map_err(|e| anyhow::anyhow!("{source}: cell {c}: {e}"))?;
-                    source_cell.resize(s.tets.len(), c as u32);
-                }
-                _ => skipped += 1,
-            }
-        }
-        let mut mesh = super::TetMesh { name, points: self.points, scalars: self.scalars, tets: s.tets, stats: Default::default() };
-        mesh.stats.skipped_lower_dim = skipped;
+        let (mut mesh, cell_of) = super::tetrahedralize::tetrahedralize(self, source, name, mode)?;
         mesh.stats.scalar = info;
-        if mesh.tets.is_empty() && skipped > 0 {
-            anyhow::bail!("{source}: no 3-D cells: all {skipped} cells are vertices, lines or surface cells");
-        }
-        mesh.validate(source)?;
         if let Some(v) = cell_value {
-            let per_tet: Vec<f64> = source_cell.iter().map(|&c| v[c as usize]).collect();
+            let per_tet: Vec<f64> = cell_of.iter().map(|&c| v[c as usize]).collect();
             cell_data::constant_per_cell(&mut mesh, &per_tet, source)?;
         }
         Ok(mesh)
@@ -779,8 +877,10 @@ mod tests {
     fn kinds_and_names() {
         assert_eq!(cell_kind(12), CellKind::Solid(8));
         assert_eq!(cell_kind(5), CellKind::LowerDim);
-        assert_eq!(cell_kind(24), CellKind::Unsupported);
-        assert_eq!(cell_kind(42), CellKind::Unsupported);
+        assert_eq!(cell_kind(24), CellKind::HigherOrder);
+        assert_eq!(cell_kind(42), CellKind::Polyhedron);
+        assert_eq!(cell_kind(41), CellKind::Unsupported);
+        assert_eq!(cell_kind(22), CellKind::LowerDim);
         assert_eq!(cell_type_name(25), "quadratic hexahedron");
     }
 }

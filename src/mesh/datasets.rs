@@ -103,14 +103,14 @@ pub const VTK_EXTENSIONS: [&str; 3] = ["vtk", "vtu", "pvtu"];
 
 /// The mesh formats [`load_path`] reads, for messages.
 pub const SUPPORTED_FORMATS: &str = ".vtk (VTK legacy UNSTRUCTURED_GRID), .vtu and .pvtu (VTK XML unstructured grids), \
-     each with tetra, voxel, hexahedron, wedge and pyramid cells, and PLOT3D grid/solution pairs (NAMExyz.bin + \
+     each with linear, quadratic, Lagrange and polyhedral cells (docs/formats.md), and PLOT3D grid/solution pairs (NAMExyz.bin + \
      NAMEq.bin, or NAME.xyz / NAME.x + NAME.q: give either file)";
 
 /// A mesh file chosen by its extension:
 /// - `.vtk`: VTK legacy UNSTRUCTURED_GRID, ASCII or BINARY;
 /// - `.vtu` / `.pvtu`: VTK XML unstructured grid, or a parallel one's pieces
-///   (see `vtu`); in all three every linear 3-D cell type is split into
-///   tets conformingly (`cells`);
+///   (see `vtu`); in all three every volumetric cell type is split into
+///   tets conformingly (`tetrahedralize`);
 /// - a PLOT3D grid or solution file (`.bin`, `.xyz`, `.x`, `.q`): the other
 ///   file of the pair is found next to it by name (see [`plot3d_pair`]); the
 ///   hexahedra are split into 5 tets each and the scalar is the density, or the

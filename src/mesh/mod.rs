@@ -20,10 +20,14 @@ pub mod cell_data;
 pub mod cells;
 pub mod datasets;
 pub mod geometry;
+pub mod higher_order;
 pub mod plot3d;
+pub mod polyhedron;
 pub mod refine;
 pub mod reorder;
+pub mod repair;
 pub mod split;
+pub mod tetrahedralize;
 pub mod topology;
 pub mod vtk;
 pub mod vtu;
@@ -71,6 +75,64 @@ pub struct MeshStats {
     /// the walks' face adjacency matches faces. Empty otherwise.
     #[serde(skip)]
     pub vertex_origin: Vec<u32>,
+    /// File cells split other than by the plain rule, per reason (`repair`).
+    pub repairs: Repairs,
+    /// Higher-order cells (quadratic, Lagrange) in an unstructured file, and
+    /// how they were read (`higher_order`); 0 / `None` when there are none.
+    pub higher_order_cells: usize,
+    pub higher_order: Option<HigherOrder>,
+    /// Polyhedron cells (and pentagonal / hexagonal prisms) split around
+    /// face and cell centroids (`polyhedron`).
+    pub polyhedra: usize,
+    /// Points added by splitting (face, body and cell centroids, mid-face
+    /// nodes of serendipity cells), each with its interpolated scalar.
+    pub added_points: usize,
+}
+
+/// What was repaired while splitting a file's cells (counts of file cells;
+/// see `repair`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+pub struct Repairs {
+    /// Cells given inside out (every sub-tet of negative volume): kept,
+    /// their tets reoriented.
+    pub reoriented_cells: usize,
+    /// Non-convex or twisted cells whose first triangulation folded over,
+    /// split by another one with the same face diagonals.
+    pub resplit_cells: usize,
+    /// Cells no triangulation on their own vertices unfolds, split around an
+    /// added centroid point (face diagonals kept).
+    pub centroid_split_cells: usize,
+    /// Collapsed cells (repeated point ids): read as their degenerate form
+    /// (a hexahedron with a collapsed edge or face as a wedge or pyramid...);
+    /// those collapsed to no volume at all add no tets.
+    pub degenerate_cells: usize,
+}
+
+/// How higher-order cells are read (`--higher-order`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum HigherOrder {
+    /// Subdivided into linear tets through every node (default).
+    #[default]
+    Subdivide,
+    /// Only the corner nodes, as the linear cell of the same shape.
+    Corners,
+}
+
+impl HigherOrder {
+    pub fn parse(s: &str) -> anyhow::Result<HigherOrder> {
+        match s {
+            "subdivide" => Ok(HigherOrder::Subdivide),
+            "corners" => Ok(HigherOrder::Corners),
+            _ => anyhow::bail!("--higher-order '{s}': expected 'subdivide' (every node kept) or 'corners' (corner nodes only)"),
+        }
+    }
+    pub fn name(self) -> &'static str {
+        match self {
+            HigherOrder::Subdivide => "subdivide",
+            HigherOrder::Corners => "corners",
+        }
+    }
 }
 
 impl MeshStats {

@@ -45,7 +45,9 @@
 //! must hold that array, with the same association and component count:
 //! pieces are never mixed. A `.pvtu` that declares no arrays, and a `.vtu`
 //! of several pieces, take the first piece's choice for all. Cells are split
-//! into tets by `cells`.
+//! into tets by `tetrahedralize` (polyhedra: VTK 9.4+'s `face_connectivity` /
+//! `face_offsets` / `polyhedron_to_faces` / `polyhedron_offsets` arrays or
+//! the older `faces` / `faceoffsets`).
 
 use std::path::Path;
 
@@ -680,6 +682,11 @@ fn parse_piece(
     })?;
     let conn_len = offsets.last().copied().unwrap_or(0);
     let conn: Vec<u32> = ctx.open("the cell connectivity", find("connectivity")?, conn_len)?.ints(u32::MAX as u64 - 1)?;
+    let faces = if types.contains(&super::polyhedron::VTK_POLYHEDRON) {
+        poly_faces(&ctx, name, &ca, &types, np)?
+    } else {
+        Default::default()
+    };
 
     // Ghosts (`vtkGhostType`): cells VTK does not draw are dropped.
     let ghosts = |list: &[roxmltree::Node], what: &str, n: usize| -> Result<Option<Vec<u8>>> {
@@ -690,9 +697,102 @@ fn parse_piece(
     };
     let cell_ghost = ghosts(&cd_arrays, "the vtkGhostType cell array", nc)?;
     let point_ghost = ghosts(&pd_arrays, "the vtkGhostType point array", np)?;
-    let mut raw = RawCells { points, scalars, types, offsets, conn, cell_values, scalar: Some(info) };
+    let mut raw = RawCells { points, scalars, types, offsets, conn, faces, cell_values, scalar: Some(info) };
     raw.drop_ghosts(cell_ghost.as_deref(), point_ghost.as_deref(), counts);
     Ok(raw)
+}
+
+/// The faces of a piece's polyhedra (type 42), from VTK 9.4+'s
+/// `face_connectivity` / `face_offsets` / `polyhedron_to_faces` /
+/// `polyhedron_offsets` arrays or the older `faces` / `faceoffsets` (each
+/// polyhedron's face stream, `faceoffsets` its end, -1 for other cells).
+fn poly_faces(ctx: &Ctx, name: &str, ca: &[roxmltree::Node], types: &[u8], np: usize) -> Result<super::polyhedron::PolyFaces> {
+    use super::polyhedron::{parse_face_stream, PolyFaces, VTK_POLYHEDRON};
+    let nc = types.len();
+    let find = |n: &str| ca.iter().find(|a| a.attribute("Name") == Some(n)).copied();
+    let signed = |what: &str, node: roxmltree::Node, count: usize| -> Result<Vec<i64>> {
+        let values = ctx.open(what, node, count)?;
+        let mut out = Vec::with_capacity(values.capacity());
+        values.each(|i, v| {
+            out.push(match v {
+                Value::Int(x) if (-1..=u32::MAX as i128).contains(&x) => x as i64,
+                Value::Int(x) => bail!("{name}: {what} value {i} is {x}, outside -1..={}", u32::MAX),
+                Value::Float(_) => bail!("{name}: {what} must have an integer type"),
+            });
+            Ok(())
+        })?;
+        Ok(out)
+    };
+    let rising = |what: &str, v: &[i64], from: i64| -> Result<()> {
+        let mut last = from;
+        for (i, &x) in v.iter().enumerate() {
+            if x < last {
+                bail!("{name}: {what} value {i} is {x}, below the previous offset {last}: offsets must rise");
+            }
+            last = x;
+        }
+        Ok(())
+    };
+    let mut out = PolyFaces::default();
+    if let (Some(fc), Some(fo), Some(pf), Some(po)) =
+        (find("face_connectivity"), find("face_offsets"), find("polyhedron_to_faces"), find("polyhedron_offsets"))
+    {
+        let poff = ctx.open("the polyhedron_offsets array", po, nc)?.ints::<u64>(u32::MAX as u64)?;
+        let poff: Vec<i64> = poff.into_iter().map(|x| x as i64).collect();
+        rising("the polyhedron_offsets array", &poff, 0)?;
+        let n_refs = poff.last().copied().unwrap_or(0) as usize;
+        let p2f = ctx.open("the polyhedron_to_faces array", pf, n_refs)?.ints::<u64>(u32::MAX as u64 - 1)?;
+        // The faces are those the polyhedra name.
+        let n_faces = p2f.iter().max().map_or(0, |&m| m as usize + 1);
+        let foff = ctx.open("the face_offsets array", fo, n_faces)?.ints::<u64>(u32::MAX as u64)?;
+        let foff: Vec<i64> = foff.into_iter().map(|x| x as i64).collect();
+        rising("the face_offsets array", &foff, 0)?;
+        let fconn = ctx
+            .open("the face_connectivity array", fc, foff.last().copied().unwrap_or(0) as usize)?
+            .ints::<u64>(np.saturating_sub(1) as u64)
+            .map_err(|e| anyhow!("{e:#} (a face names a point the piece does not have)"))?;
+        let face = |f: usize| -> Vec<u32> {
+            let a = if f == 0 { 0 } else { foff[f - 1] as usize };
+            fconn[a..foff[f] as usize].iter().map(|&v| v as u32).collect()
+        };
+        for c in 0..nc {
+            let a = if c == 0 { 0 } else { poff[c - 1] as usize };
+            let b = poff[c] as usize;
+            if types[c] == VTK_POLYHEDRON {
+                let fs: Vec<Vec<u32>> = p2f[a..b].iter().map(|&f| face(f as usize)).collect();
+                out.push_cell(c, &fs);
+            } else if b > a {
+                bail!("{name}: cell {c} is not a polyhedron but polyhedron_offsets gives it {} faces", b - a);
+            }
+        }
+    } else if let (Some(f), Some(fo)) = (find("faces"), find("faceoffsets")) {
+        let foff = signed("the faceoffsets array", fo, nc)?;
+        let n = foff.iter().copied().max().unwrap_or(0).max(0) as usize;
+        let stream = signed("the faces array", f, n)?;
+        let mut start = 0usize;
+        for c in 0..nc {
+            let end = foff[c];
+            if types[c] != VTK_POLYHEDRON {
+                if end != -1 {
+                    bail!("{name}: cell {c} is not a polyhedron but its faceoffsets entry is {end}, not -1");
+                }
+                continue;
+            }
+            if end < start as i64 {
+                bail!("{name}: cell {c}: its faceoffsets entry {end} is before the end of the previous face stream ({start})");
+            }
+            let fs = parse_face_stream(&stream[start..end as usize], np)
+                .map_err(|e| anyhow!("{name}: cell {c} (polyhedron, type 42): {e}"))?;
+            out.push_cell(c, &fs);
+            start = end as usize;
+        }
+    } else {
+        bail!(
+            "{name}: the piece has polyhedron cells (type 42) but <Cells> has neither the face_connectivity, \
+             face_offsets, polyhedron_to_faces and polyhedron_offsets arrays nor the older faces and faceoffsets"
+        );
+    }
+    Ok(out)
 }
 
 #[cfg(test)]
@@ -913,11 +1013,17 @@ mod tests {
         assert!(e.contains("no point or cell array named 'nope'") && e.contains("'temp' (1 components)") && e.contains("'cellid'"), "{e}");
         // Unsupported cells are named with their counts.
         let mut q = grid();
-        q.cells.push((24, (0..10).collect()));
-        q.cells.push((24, (0..10).collect()));
+        q.cells.push((41, (0..10).collect()));
+        q.cells.push((41, (0..10).collect()));
+        q.cells.push((55, (0..4).collect()));
+        let e = format!("{:#}", parse_vtu_bytes("q.vtu", &write_vtu(&q, Format::Ascii, false, 4, false), None).unwrap_err());
+        assert!(e.contains("2 cells of type 41 (convex point set)") && e.contains("1 cells of type 55 (parametric tetra region)"), "{e}");
+        assert!(e.contains("polyhedra (42)") && e.contains("Lagrange tetra, hexahedron and wedge (71-73)"), "{e}");
+        // A polyhedron without the face arrays.
+        let mut q = grid();
         q.cells.push((42, (0..4).collect()));
         let e = format!("{:#}", parse_vtu_bytes("q.vtu", &write_vtu(&q, Format::Ascii, false, 4, false), None).unwrap_err());
-        assert!(e.contains("2 cells of type 24 (quadratic tetra)") && e.contains("1 cells of type 42 (polyhedron)"), "{e}");
+        assert!(e.contains("polyhedron cells (type 42) but <Cells> has neither"), "{e}");
         // A hexahedron with 7 vertices.
         let mut h = grid();
         h.cells[0].1.pop();

@@ -1,11 +1,13 @@
 //! A legacy VTK `CELLS` section in either layout, as offsets and
 //! connectivity: version 5.x's `OFFSETS` / `CONNECTIVITY` arrays, or the
 //! earlier flat list with a vertex count before each cell; and the check
-//! that every vertex index names a point.
+//! that every vertex index names a point (a polyhedron's face stream read
+//! as its faces).
 
 use anyhow::{bail, Result};
 
 use super::values::{swapped_hint, DType};
+use crate::mesh::polyhedron::{parse_face_stream, PolyFaces, VTK_POLYHEDRON};
 use crate::vtk_legacy::Lines as Reader;
 
 /// Version 5.x: `a` offsets, then `b` connectivity entries; the offsets
@@ -73,18 +75,40 @@ pub(super) fn counted_cells(r: &mut Reader, a: usize, b: usize, version: &str) -
     Ok((offsets, conn))
 }
 
-/// The connectivity as u32, every index checked against the `np` points.
-pub(super) fn checked_indices(r: &Reader, offsets: &[i64], conn: &[i64], np: usize) -> Result<Vec<u32>> {
+/// The cells as offsets and u32 connectivity, every index checked against
+/// the `np` points; a polyhedron's (type 42) entries are its face stream
+/// (`nfaces, n0, ids..., ...`), which becomes its faces, its points listed
+/// in the connectivity.
+pub(super) fn cells_and_faces(
+    r: &Reader,
+    types: &[u8],
+    offsets: &[usize],
+    conn: &[i64],
+    np: usize,
+) -> Result<(Vec<usize>, Vec<u32>, PolyFaces)> {
     let nc = offsets.len().saturating_sub(1);
     let mut conn32 = Vec::with_capacity(conn.len());
+    let mut out_offsets = Vec::with_capacity(nc + 1);
+    out_offsets.push(0);
+    let mut faces = PolyFaces::default();
     for c in 0..nc {
-        let (s, e) = (offsets[c] as usize, offsets[c + 1] as usize);
-        for &v in &conn[s..e] {
-            if v < 0 || v as usize >= np {
-                bail!(r.err(format!("cell {c} has vertex index {v} out of range (file has {np} points)")));
+        let cell = &conn[offsets[c]..offsets[c + 1]];
+        if types.get(c) == Some(&VTK_POLYHEDRON) {
+            let fs = parse_face_stream(cell, np).map_err(|e| r.err(format!("cell {c} (polyhedron, type 42): {e}")))?;
+            let mut pts: Vec<u32> = fs.iter().flatten().copied().collect();
+            pts.sort_unstable();
+            pts.dedup();
+            conn32.extend_from_slice(&pts);
+            faces.push_cell(c, &fs);
+        } else {
+            for &v in cell {
+                if v < 0 || v as usize >= np {
+                    bail!(r.err(format!("cell {c} has vertex index {v} out of range (file has {np} points)")));
+                }
+                conn32.push(v as u32);
             }
-            conn32.push(v as u32);
         }
+        out_offsets.push(conn32.len());
     }
-    Ok(conn32)
+    Ok((out_offsets, conn32, faces))
 }

@@ -4,10 +4,11 @@
 //! (`CELLS n size` with a count before each cell) and 5.x (`OFFSETS` /
 //! `CONNECTIVITY`). Every section of the format is parsed (so unfamiliar but
 //! legal content such as `FIELD` blocks, `METADATA`, vectors or cell data is
-//! skipped correctly). Cells: every linear 3-D type (tetra, voxel,
-//! hexahedron, wedge, pyramid) is split into tets conformingly by `cells`;
-//! vertex, line and surface cells are skipped and counted; other types are
-//! refused, named with their counts. The scalar is the array the caller
+//! skipped correctly). Cells: every volumetric type (linear, quadratic,
+//! Lagrange, polyhedra, whose `CELLS` entry is their face stream) is split
+//! into tets conformingly by `tetrahedralize`; vertex, line and surface
+//! cells are skipped and counted; other types are refused, named with their
+//! counts. The scalar is the array the caller
 //! names (a `SCALARS`, `VECTORS` or `FIELD` array, ...; several components
 //! by magnitude): a point array of that name, else a cell array of that
 //! name (shown as `--cell-data` says: `mesh::cell_data`). Without a name,
@@ -203,8 +204,8 @@ struct Sections<'a> {
     major: u32,
     version: &'a str,
     points: Option<Vec<[f64; 3]>>,
-    /// Offsets and connectivity.
-    cells: Option<(Vec<usize>, Vec<u32>)>,
+    /// Offsets and connectivity (indices not yet checked).
+    cells: Option<(Vec<usize>, Vec<i64>)>,
     n_cells: Option<usize>,
     types: Option<Vec<u8>>,
     /// Whose attributes follow (POINT_DATA / CELL_DATA), and how many tuples.
@@ -324,9 +325,9 @@ impl Sections<'_> {
         if self.cells.is_some() {
             bail!(r.err("second CELLS section"));
         }
-        let Some(np) = self.points.as_ref().map(|p| p.len()) else {
+        if self.points.is_none() {
             bail!(r.err("CELLS before POINTS"));
-        };
+        }
         let a = r.count(line.get(1), "CELLS count")?;
         let b = r.count(line.get(2), "CELLS size")?;
         let (offsets, conn) = if self.major >= 5 {
@@ -334,9 +335,10 @@ impl Sections<'_> {
         } else {
             connectivity::counted_cells(r, a, b, self.version)?
         };
-        let conn32 = connectivity::checked_indices(r, &offsets, &conn, np)?;
+        // Indices are checked once the types are known (a polyhedron's
+        // entries are its face stream, counts among the indices).
         self.n_cells = Some(offsets.len().saturating_sub(1));
-        self.cells = Some((offsets.iter().map(|&o| o as usize).collect(), conn32));
+        self.cells = Some((offsets.iter().map(|&o| o as usize).collect(), conn));
         Ok(())
     }
 
@@ -448,7 +450,8 @@ impl Sections<'_> {
         let list = |v: &[String]| if v.is_empty() { "none".to_string() } else { v.join(", ") };
         let seen = format!("point arrays: {}; cell arrays: {}", list(&self.seen_point_arrays), list(&self.seen_cell_arrays));
         let stem = Path::new(name).file_stem().map_or_else(|| "vtk".to_string(), |s| s.to_string_lossy().into_owned());
-        let mut raw = RawCells { points, types, offsets, conn, ..Default::default() };
+        let (offsets, conn, faces) = connectivity::cells_and_faces(r, &types, &offsets, &conn, points.len())?;
+        let mut raw = RawCells { points, types, offsets, conn, faces, ..Default::default() };
         let fallback = self.want.is_none();
         if let Some((array, components, scalars)) = self.scalars.or(self.field_scalars) {
             raw.scalars = scalars;
