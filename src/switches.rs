@@ -260,7 +260,15 @@ pub fn recorded_of(vars: impl IntoIterator<Item = (String, String)>) -> BTreeMap
 /// The set switches of this process that change what a run measures
 /// (recorded as `env_switches` in results).
 pub fn recorded() -> BTreeMap<String, String> {
-    recorded_of(std::env::vars())
+    recorded_of(utf8_vars())
+}
+
+/// This process's environment variables whose name and value are UTF-8
+/// (`std::env::vars` panics on the others; path variables may hold any
+/// bytes, and the switches that must be UTF-8 are refused otherwise by
+/// `check_environment`).
+pub fn utf8_vars() -> impl Iterator<Item = (String, String)> {
+    std::env::vars_os().filter_map(|(k, v)| Some((k.into_string().ok()?, v.into_string().ok()?)))
 }
 
 #[cfg(test)]

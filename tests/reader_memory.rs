@@ -81,7 +81,7 @@ fn vtu_reading_holds_the_file_and_twice_its_data() {
         ];
         for (what, file) in shapes {
             let (held, e) = peak(&file);
-            assert!(e.contains("no point data array to use as the scalar"), "{what}: {e}");
+            assert!(e.contains("no point or numeric cell array to use as the scalar"), "{what}: {e}");
             let bar = file.len() as u64 + 2 * data as u64 + FIXED;
             report.push(format!("{what} {np} points: {held} bytes held at most, file {}, data {data}, bar {bar}", file.len()));
             assert!(held <= bar, "{}", report.join("\n"));

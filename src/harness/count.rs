@@ -439,7 +439,7 @@ pub fn report(dumps: &[Dump], frames: usize) -> Result<CountReport> {
     pinned.insert("valgrind".into(), VALGRIND_ARGS.join(" "));
     // A test-only switch (`VOLBENCH_TEST_*`, e.g. the deliberate slowdown of
     // docs/tracking.md) is recorded, so that a count made with one shows it.
-    pinned.extend(std::env::vars().filter(|(k, _)| k.starts_with(TEST_SWITCH_PREFIX)));
+    pinned.extend(crate::switches::utf8_vars().filter(|(k, _)| k.starts_with(TEST_SWITCH_PREFIX)));
     Ok(CountReport {
         tool: "callgrind".into(),
         event: "Ir".into(),
