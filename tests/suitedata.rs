@@ -47,8 +47,7 @@ fn a_users_mesh_and_volume_run_every_method_of_their_kind_with_the_report() {
     let tmp = tempfile::tempdir().unwrap();
     let (vtu, vti) = fixtures(tmp.path());
     let out_dir = tmp.path().join("out");
-    let vector = format!("{}#velocity", vtu.display());
-    let out = volbench().args(["suite", "--quick", "--data"]).arg(&vtu).arg("--data").arg(&vector).arg("--data").arg(&vti).arg("--out").arg(&out_dir).output().unwrap();
+    let out = volbench().args(["suite", "--quick", "--data"]).arg(&vtu).arg("--data").arg(&vti).arg("--out").arg(&out_dir).output().unwrap();
     assert!(out.status.success(), "{}", text(&out));
     let s = summary(&out_dir);
     let registry = volbench::algo::registry::builtin();
@@ -56,9 +55,9 @@ fn a_users_mesh_and_volume_run_every_method_of_their_kind_with_the_report() {
     let names = |k: DataKind| registry.for_kind(k).map(|m| m.name.to_string()).collect::<Vec<_>>();
     // Only the files: no shipped dataset ran.
     let datasets: Vec<&str> = s["datasets"].as_array().unwrap().iter().map(|d| d["name"].as_str().unwrap()).collect();
-    assert_eq!(datasets, ["my_mesh", "my_mesh-velocity", "blob"]);
+    assert_eq!(datasets, ["my_mesh", "blob"]);
     assert!(s["runs"].as_array().unwrap().iter().all(|r| datasets.contains(&r["dataset"].as_str().unwrap())));
-    for (d, kind) in [("my_mesh", DataKind::TetMesh), ("my_mesh-velocity", DataKind::TetMesh), ("blob", DataKind::Volume)] {
+    for (d, kind) in [("my_mesh", DataKind::TetMesh), ("blob", DataKind::Volume)] {
         assert_eq!(methods_on(&s, d), names(kind), "{d}: every method of its kind");
         for r in s["runs"].as_array().unwrap().iter().filter(|r| r["dataset"] == d) {
             assert!(r["status"] == "ok" || r["status"] == "skipped", "{d} {}: {}", r["label"], r["message"]);
@@ -70,17 +69,14 @@ fn a_users_mesh_and_volume_run_every_method_of_their_kind_with_the_report() {
         assert!(out_dir.join(format!("montage-{d}.png")).is_file(), "{d}");
         assert!(out_dir.join(format!("plots/time_error-{d}.png")).is_file(), "{d}");
     }
-    // The vector array by magnitude: another field than the active `temp`.
-    let digests: Vec<&Value> = s["runs"].as_array().unwrap().iter().filter(|r| r["status"] == "ok").map(|r| &r["result"]["dataset"]["digest"]).collect();
-    assert!(digests.iter().any(|d| *d != digests[0]));
-    let d = &s["datasets"][1];
-    assert_eq!((d["user"].as_bool(), d["source"].as_str(), d["scalar_array"].as_str()), (Some(true), Some(vector.as_str()), Some("velocity")));
-    assert_eq!(d["transfer_function"], "generic-ramp");
-    assert_eq!(s["settings"]["data"].as_array().unwrap().len(), 3);
+    for d in s["datasets"].as_array().unwrap() {
+        assert_eq!((d["user"].as_bool(), d["transfer_function"].as_str()), (Some(true), Some("generic-ramp")), "{d}");
+    }
+    assert_eq!(s["settings"]["data"].as_array().unwrap().len(), 2);
     let report = std::fs::read_to_string(out_dir.join("report.md")).unwrap();
     assert!(report.contains("## Datasets"), "{report}");
     assert!(report.contains(&format!("| my_mesh | {} (your file) | tet-mesh | the reader's default | generic-ramp |", vtu.display())), "{report}");
-    assert!(report.contains("| blob |") && report.contains("| my_mesh-velocity |"), "{report}");
+    assert!(report.contains(&format!("| blob | {} (your file) | volume |", vti.display())), "{report}");
     let csv = std::fs::read_to_string(out_dir.join("summary.csv")).unwrap();
     assert!(csv.lines().any(|l| l.starts_with("volbench,blob,raycast-compute,")), "{csv}");
     // The user's files are inputs, left as they were.
@@ -88,9 +84,10 @@ fn a_users_mesh_and_volume_run_every_method_of_their_kind_with_the_report() {
 }
 
 #[test]
-fn data_with_filter_and_tf_runs_only_the_named_method_with_that_transfer_function() {
+fn data_with_scalar_filter_and_tf_runs_only_the_named_method_on_that_array_with_that_transfer_function() {
     let tmp = tempfile::tempdir().unwrap();
     let (vtu, _) = fixtures(tmp.path());
+    let vector = format!("{}#velocity", vtu.display());
     let tf = tmp.path().join("glow.json");
     std::fs::write(
         &tf,
@@ -103,19 +100,26 @@ fn data_with_filter_and_tf_runs_only_the_named_method_with_that_transfer_functio
         .args(["suite", "--quick", "--filter", "tet-raycast", "--tf"])
         .arg(&tf)
         .arg("--data")
-        .arg(&vtu)
+        .arg(&vector)
+        .arg("--data")
+        .arg("post-small")
         .arg("--out")
         .arg(&out_dir)
         .output()
         .unwrap();
     assert!(out.status.success(), "{}", text(&out));
     let s = summary(&out_dir);
-    assert_eq!(methods_on(&s, "my_mesh"), ["tet-raycast"]);
-    assert!(s["runs"].as_array().unwrap().iter().all(|r| r["dataset"] == "my_mesh"));
-    assert_eq!(s["datasets"][0]["transfer_function"], "glow");
-    assert_eq!(s["runs"][0]["result"]["transfer_function"], "glow");
+    // A shipped dataset named by --data goes with the file; the filter keeps one method on both.
+    assert_eq!(methods_on(&s, "my_mesh-velocity"), ["tet-raycast"]);
+    assert_eq!(methods_on(&s, "post-small"), ["tet-raycast"]);
+    assert!(s["runs"].as_array().unwrap().iter().all(|r| r["result"]["transfer_function"] == "glow"), "--tf on every dataset");
+    let d = &s["datasets"][0];
+    assert_eq!((d["user"].as_bool(), d["source"].as_str(), d["scalar_array"].as_str()), (Some(true), Some(vector.as_str()), Some("velocity")));
+    assert_eq!(s["datasets"][1]["user"], false);
+    assert_eq!(d["transfer_function"], "glow");
     let report = std::fs::read_to_string(out_dir.join("report.md")).unwrap();
-    assert!(report.contains(&format!("| glow | --tf {} |", tf.display())), "{report}");
+    assert!(report.contains(&format!("| my_mesh-velocity | {vector} (your file) | tet-mesh | velocity | glow | --tf {} |", tf.display())), "{report}");
+    assert!(report.contains(&format!("| post-small | post-small | tet-mesh | the reader's default | glow | --tf {} |", tf.display())), "{report}");
 }
 
 #[test]

@@ -126,7 +126,7 @@ fn user_dataset_name(source: &str, taken: &[String]) -> String {
     }
     let mut name = base.clone();
     let mut k = 2;
-    while taken.iter().any(|t| *t == name) || datasets::NAMED.iter().any(|d| d.name == name) {
+    while taken.contains(&name) || datasets::NAMED.iter().any(|d| d.name == name) {
         name = format!("{base}-{k}");
         k += 1;
     }
