@@ -42,10 +42,20 @@ pub struct SuiteSettings {
 
 impl SuiteSettings {
     pub fn standard(quick: bool, filter: Vec<String>) -> Self {
-        if quick {
-            SuiteSettings { width: 256, height: 256, frames: 3, warmup: 1, orbit_step_deg: 5.0, quick, filter, peers: Vec::new(), counted: false, count_dir: None, data: Vec::new(), tf: None }
-        } else {
-            SuiteSettings { width: 512, height: 512, frames: 20, warmup: 3, orbit_step_deg: 5.0, quick, filter, peers: Vec::new(), counted: false, count_dir: None, data: Vec::new(), tf: None }
+        let (width, height, frames, warmup) = if quick { (256, 256, 3, 1) } else { (512, 512, 20, 3) };
+        SuiteSettings {
+            width,
+            height,
+            frames,
+            warmup,
+            orbit_step_deg: 5.0,
+            quick,
+            filter,
+            peers: Vec::new(),
+            counted: false,
+            count_dir: None,
+            data: Vec::new(),
+            tf: None,
         }
     }
 

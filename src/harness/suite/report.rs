@@ -413,8 +413,8 @@ pub fn peer_report(s: &Summary) -> String {
 /// `peers[].vs_volbench`; here the closest and the farthest), beside the
 /// peer's and that run's own RMSE against the f64 reference. On a user's
 /// file the peer read the original with its own reader, so a reading
-/// mistake on either side shows here as a disagreement well above the
-/// peer's own error.
+/// mistake on either side shows here as images far apart (and a peer
+/// error far above its level on data it reads from volbench's export).
 fn agreement_report(s: &Summary) -> String {
     let mut rows = String::new();
     for p in &s.peers {
@@ -454,9 +454,9 @@ fn agreement_report(s: &Summary) -> String {
     format!(
         "\nThe peer's image against volbench's of the same view (the reference view): RMSE between the two images, for the \
          volbench run closest to the peer's image and the farthest (every run in `summary.json`, `peers[].vs_volbench`), \
-         beside each one's RMSE against the f64 reference. On a user's file the peer read the original file with its own \
-         reader; two readings that agree give an RMSE between the images no larger than the two errors against the \
-         reference together, and a reading mistake on either side shows as an RMSE well above them.\n\n\
+         beside each one's RMSE against the f64 reference (of volbench's reading). On a user's file the peer read the \
+         original file with its own reader, so a reading mistake on either side shows here as images far apart and a \
+         peer error far above its level on the shipped datasets (which it reads from volbench's export).\n\n\
          | dataset | peer | peer read | peer RMSE vs f64 | closest volbench run | RMSE peer vs it | its RMSE vs f64 | farthest volbench run | RMSE peer vs it | its RMSE vs f64 |\n\
          |---|---|---|---:|---|---:|---:|---|---:|---:|\n{rows}"
     )
