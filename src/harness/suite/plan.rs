@@ -295,6 +295,11 @@ pub fn plan(registry: &Registry, settings: &SuiteSettings) -> Result<Vec<Planned
     for d in suite_datasets.iter_mut().filter(|d| d.user) {
         let loaded = datasets::load(&d.source).with_context(|| format!("--data {}", d.source))?;
         d.kind = loaded.kind();
+        // The peers read the original: a format they have no reader for
+        // (or a PLOT3D pair's missing half) is known now.
+        if !settings.peers.is_empty() && d.kind != DataKind::Terrain {
+            crate::harness::peers::original_dataset(&loaded, &d.name, &d.source).with_context(|| format!("--data {} for --peers", d.source))?;
+        }
         if let Some(path) = &settings.tf {
             loaded.load_transfer_function(path).with_context(|| format!("--tf {} on --data {}", path.display(), d.source))?;
         }
