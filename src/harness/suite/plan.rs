@@ -108,6 +108,14 @@ impl SuiteDataset {
     fn shipped(d: &datasets::NamedDataset) -> Self {
         SuiteDataset { name: d.name.to_string(), source: d.name.to_string(), kind: d.kind, user: false }
     }
+
+    /// Read it (the one place the suite loads a dataset: the plan's check of
+    /// a user's file and each dataset's runs), named as the suite names it.
+    pub(super) fn load(&self) -> Result<Dataset> {
+        let mut d = datasets::load(&self.source)?;
+        d.name = self.name.clone();
+        Ok(d)
+    }
 }
 
 /// The name a user's file goes by in the suite (see [`SuiteDataset::name`]),
@@ -293,7 +301,7 @@ pub fn plan(registry: &Registry, settings: &SuiteSettings) -> Result<Vec<Planned
     // A user's file is read once here, so that a bad one stops the suite
     // before it starts; the runs read it again (one dataset in memory at a time).
     for d in suite_datasets.iter_mut().filter(|d| d.user) {
-        let loaded = datasets::load(&d.source).with_context(|| format!("--data {}", d.source))?;
+        let loaded = d.load().with_context(|| format!("--data {}", d.source))?;
         d.kind = loaded.kind();
         // The peers read the original: a format they have no reader for
         // (or a PLOT3D pair's missing half) is known now.

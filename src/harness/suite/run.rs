@@ -13,7 +13,7 @@ use super::report::{figures, report};
 use super::summary::{csv, CullCheck, Environment, SuiteDatasetRow, SuiteRow, Summary};
 use crate::algo::registry::{MethodSpec, Registry};
 use crate::fsio;
-use crate::harness::datasets::{self, Dataset};
+use crate::harness::datasets::Dataset;
 use crate::harness::image::RgbaImage;
 use crate::harness::peers::{ImageAgreement, LocatedPeer, PeerRenderer, PeerRow};
 use crate::harness::plots::Tile;
@@ -72,12 +72,8 @@ pub fn run_suite(
         let first_of_dataset = i == 0 || plan[i - 1].dataset != p.dataset;
         let last_of_dataset = plan.get(i + 1).is_none_or(|n| n.dataset != p.dataset);
         if loaded.as_ref().is_none_or(|(n, _)| *n != p.dataset.name) {
-            let d = datasets::load(&p.dataset.source).map(|mut d| {
-                // Rows, results and files name it as the suite does.
-                d.name = p.dataset.name.clone();
-                d
-            });
-            loaded = Some((&p.dataset.name, d.map_err(|e| format!("{e:#}"))));
+            // Rows, results and files name it as the suite does.
+            loaded = Some((&p.dataset.name, p.dataset.load().map_err(|e| format!("{e:#}"))));
             standard_tf = None;
         }
         let Some((_, loaded_dataset)) = &mut loaded else { continue };
