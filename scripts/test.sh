@@ -4,7 +4,9 @@
 # validation message, including synchronization validation), then the quick
 # suite and `volbench compare` against the committed baseline
 # (results/baseline/quick/): counts must match exactly and errors must not
-# grow; times are not compared (shared runners are noisy). Then the counted
+# grow; times are not compared (`--no-times`: shared runners are noisy, and
+# without it moved times are only notes against a baseline from another
+# machine or sitting, docs/tracking.md). Then the counted
 # suite (`suite --quick --count` on the cheapest tet mesh and volume, under
 # callgrind) against results/baseline/count/: instructions per phase within
 # 1 % (docs/tracking.md): this is where CI tracks speed.

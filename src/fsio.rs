@@ -96,6 +96,16 @@ pub fn read_input(path: &Path, what: &str, max_bytes: u64) -> Result<Vec<u8>> {
     Ok(bytes)
 }
 
+/// The first (at most) `max_bytes` of an input file, after the checks of
+/// `check_input` (any size): for a header.
+pub fn read_input_head(path: &Path, what: &str, max_bytes: u64) -> Result<Vec<u8>> {
+    check_input(path, what, u64::MAX)?;
+    let file = fs::File::open(path).with_context(|| format!("{}: cannot open {what}", path.display()))?;
+    let mut bytes = Vec::new();
+    file.take(max_bytes).read_to_end(&mut bytes).with_context(|| format!("{}: cannot read {what}", path.display()))?;
+    Ok(bytes)
+}
+
 /// The inputs this process has read: (device, inode) and the path given.
 static INPUTS: Mutex<Vec<(u64, u64, PathBuf)>> = Mutex::new(Vec::new());
 
@@ -156,6 +166,111 @@ pub fn clip_child_output(text: &str) -> String {
         tail += 1;
     }
     format!("{} … ({} bytes) … {}", &text[..head], tail - head, &text[tail..])
+}
+
+/// A fresh scratch directory under the temporary directory (`TMPDIR`),
+/// named `prefix` and random characters, created exclusively (mode 0700),
+/// so no name can be guessed and planted beforehand (a symlink there is
+/// never followed); removed with everything in it when dropped.
+pub fn scratch_dir(prefix: &str) -> Result<tempfile::TempDir> {
+    let base = std::env::temp_dir();
+    use std::os::unix::fs::PermissionsExt as _;
+    tempfile::Builder::new()
+        .prefix(prefix)
+        .permissions(fs::Permissions::from_mode(0o700))
+        .tempdir_in(&base)
+        .with_context(|| format!("creating a scratch directory in {} (TMPDIR)", base.display()))
+}
+
+/// The head and tail of another process's output stream, of any length,
+/// in bounded memory: the first `keep` bytes and the last `keep` bytes,
+/// and how many there were in all. Its text cuts the middle as
+/// `clip_child_output` does (a stream that prints forever costs `2 * keep`
+/// bytes, not gigabytes).
+#[derive(Debug, Clone, Default)]
+pub struct HeadTail {
+    head: Vec<u8>,
+    tail: std::collections::VecDeque<u8>,
+    keep: usize,
+    total: u64,
+}
+
+impl HeadTail {
+    pub fn new(keep: usize) -> Self {
+        HeadTail { head: Vec::new(), tail: std::collections::VecDeque::new(), keep, total: 0 }
+    }
+
+    /// Add the next bytes of the stream.
+    pub fn push(&mut self, mut bytes: &[u8]) {
+        self.total += bytes.len() as u64;
+        let room = self.keep - self.head.len();
+        let into_head = room.min(bytes.len());
+        self.head.extend_from_slice(&bytes[..into_head]);
+        bytes = &bytes[into_head..];
+        if bytes.len() >= self.keep {
+            self.tail.clear();
+            bytes = &bytes[bytes.len() - self.keep..];
+        }
+        self.tail.extend(bytes);
+        let over = self.tail.len().saturating_sub(self.keep);
+        self.tail.drain(..over);
+    }
+
+    /// Bytes seen in all.
+    pub fn total(&self) -> u64 {
+        self.total
+    }
+
+    /// Whether bytes were dropped from the middle.
+    pub fn clipped(&self) -> bool {
+        self.total > (self.head.len() + self.tail.len()) as u64
+    }
+
+    /// The stream as (lossy UTF-8) text: whole if it fitted, else head and
+    /// tail around the number of bytes left out.
+    pub fn text(&self) -> String {
+        let tail: Vec<u8> = self.tail.iter().copied().collect();
+        if !self.clipped() {
+            let mut all = self.head.clone();
+            all.extend_from_slice(&tail);
+            return String::from_utf8_lossy(&all).into_owned();
+        }
+        let gap = self.total - (self.head.len() + tail.len()) as u64;
+        format!("{} … ({gap} bytes) … {}", String::from_utf8_lossy(&self.head), String::from_utf8_lossy(&tail))
+    }
+}
+
+/// One line (without its end) of at most `max` bytes from `input`, `None`
+/// at the end of input: a line that runs on past `max` bytes is an error
+/// after reading `max + 1` of them (another process's endless line costs
+/// `max` bytes, not gigabytes).
+pub fn read_line_capped(input: &mut impl std::io::BufRead, max: usize) -> std::io::Result<Option<String>> {
+    let mut line = Vec::new();
+    loop {
+        let buf = match input.fill_buf() {
+            Ok(b) => b,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(e) => return Err(e),
+        };
+        if buf.is_empty() {
+            return Ok((!line.is_empty()).then(|| String::from_utf8_lossy(&line).into_owned()));
+        }
+        let (part, used, done) = match buf.iter().position(|&b| b == b'\n') {
+            Some(i) => (&buf[..i], i + 1, true),
+            None => (buf, buf.len(), false),
+        };
+        if line.len() + part.len() > max {
+            return Err(std::io::Error::new(std::io::ErrorKind::InvalidData, format!("a line longer than {max} bytes")));
+        }
+        line.extend_from_slice(part);
+        input.consume(used);
+        if done {
+            if line.last() == Some(&b'\r') {
+                line.pop();
+            }
+            return Ok(Some(String::from_utf8_lossy(&line).into_owned()));
+        }
+    }
 }
 
 /// Where an output goes.
@@ -299,6 +414,32 @@ fn temp_path(target: &Path) -> PathBuf {
     let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.subsec_nanos()).unwrap_or(0);
     let name = target.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
     parent_dir(target).join(format!(".{name}.{}.{n}.{nanos}.tmp", std::process::id()))
+}
+
+/// Remove the temporary files that process `pid` left in `dir` while
+/// staging outputs (`temp_path`'s names; a process stopped by a signal runs
+/// no destructor): what a command that stops itself, or a child it stopped,
+/// would otherwise leave behind. Other files, and other processes'
+/// temporaries, are left alone. Returns how many were removed.
+pub fn remove_staged_by(dir: &Path, pid: u32) -> usize {
+    let Ok(entries) = fs::read_dir(dir) else { return 0 };
+    let pid = pid.to_string();
+    let mut removed = 0;
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let name = name.to_string_lossy();
+        // `.{name}.{pid}.{n}.{nanos}.tmp`
+        let Some(stem) = name.strip_prefix('.').and_then(|n| n.strip_suffix(".tmp")) else { continue };
+        let parts: Vec<&str> = stem.rsplitn(4, '.').collect();
+        let numeric = |p: &str| !p.is_empty() && p.bytes().all(|b| b.is_ascii_digit());
+        if parts.len() == 4 && numeric(parts[0]) && numeric(parts[1]) && parts[2] == pid {
+            let is_file = entry.file_type().is_ok_and(|t| t.is_file());
+            if is_file && fs::remove_file(entry.path()).is_ok() {
+                removed += 1;
+            }
+        }
+    }
+    removed
 }
 
 /// A regular-file output being written: a temporary file beside the real
@@ -480,6 +621,58 @@ mod tests {
     }
 
     #[test]
+    fn scratch_directories_are_fresh_private_and_unguessable() {
+        use std::os::unix::fs::PermissionsExt as _;
+        let (a, b) = (scratch_dir("volbench-t-").unwrap(), scratch_dir("volbench-t-").unwrap());
+        assert_ne!(a.path(), b.path());
+        let m = fs::symlink_metadata(a.path()).unwrap();
+        assert!(m.is_dir() && m.permissions().mode() & 0o777 == 0o700);
+        assert!(a.path().file_name().unwrap().to_str().unwrap().len() > "volbench-t-".len() + 5);
+        let p = a.path().to_path_buf();
+        drop(a);
+        assert!(!p.exists());
+    }
+
+    #[test]
+    fn a_stream_keeps_head_and_tail_in_bounded_memory() {
+        let mut h = HeadTail::new(4);
+        h.push(b"ab");
+        h.push(b"cdef");
+        assert_eq!((h.text(), h.clipped()), ("abcdef".to_string(), false));
+        h.push(b"gh");
+        h.push(b"0123456789");
+        assert_eq!(h.total(), 18);
+        assert_eq!(h.text(), "abcd … (10 bytes) … 6789");
+        // A stream far past the cap keeps 2 * keep bytes.
+        let mut big = HeadTail::new(1000);
+        for _ in 0..10_000 {
+            big.push(&[b'x'; 997]);
+        }
+        assert!(big.head.len() + big.tail.len() == 2000 && big.text().len() < 2100);
+        assert!(big.text().contains("(9968000 bytes)"), "{}", &big.text()[990..1030]);
+    }
+
+    #[test]
+    fn lines_are_capped() {
+        let mut r = std::io::BufReader::with_capacity(3, &b"one\r\ntwo\nlast"[..]);
+        assert_eq!(read_line_capped(&mut r, 4).unwrap().as_deref(), Some("one"));
+        assert_eq!(read_line_capped(&mut r, 4).unwrap().as_deref(), Some("two"));
+        assert_eq!(read_line_capped(&mut r, 4).unwrap().as_deref(), Some("last"));
+        assert_eq!(read_line_capped(&mut r, 4).unwrap(), None);
+        // Exactly the cap passes; one byte more is an error, at both sizes.
+        for max in [8, 64 * 1024] {
+            let ok = vec![b'y'; max];
+            assert_eq!(read_line_capped(&mut &ok[..], max).unwrap().unwrap().len(), max);
+            let long = vec![b'y'; max + 1];
+            let e = read_line_capped(&mut &long[..], max).unwrap_err().to_string();
+            assert!(e.contains(&format!("longer than {max} bytes")), "{e}");
+        }
+        // An endless line: stops after max + 1 bytes.
+        let mut endless = std::io::BufReader::new(std::io::repeat(b'z'));
+        assert!(read_line_capped(&mut endless, 1 << 20).is_err());
+    }
+
+    #[test]
     fn replaces_regular_files_atomically_and_leaves_no_temp() {
         let d = tempfile::tempdir().unwrap();
         let p = d.path().join("a.json");
@@ -491,6 +684,24 @@ mod tests {
         assert_eq!(fs::read(&p).unwrap(), b"two", "a failed write keeps the old file");
         let names: Vec<_> = fs::read_dir(d.path()).unwrap().map(|e| e.unwrap().file_name()).collect();
         assert_eq!(names.len(), 1, "{names:?}");
+    }
+
+    #[test]
+    fn a_stopped_process_s_temporaries_are_found_by_its_id() {
+        let d = tempfile::tempdir().unwrap();
+        let mine = temp_path(&d.path().join("scale.json"));
+        let other = temp_path(&d.path().join("a.b.json")).to_string_lossy().replace(&format!(".{}.", std::process::id()), ".4242.");
+        for p in [mine.as_path(), Path::new(&other), &d.path().join("scale.json"), &d.path().join(".x.tmp")] {
+            fs::write(p, b"x").unwrap();
+        }
+        assert_eq!(remove_staged_by(d.path(), 4242), 1);
+        assert!(!Path::new(&other).exists() && mine.exists());
+        assert_eq!(remove_staged_by(d.path(), std::process::id()), 1);
+        assert!(!mine.exists());
+        let mut left: Vec<_> = fs::read_dir(d.path()).unwrap().map(|e| e.unwrap().file_name().into_string().unwrap()).collect();
+        left.sort();
+        assert_eq!(left, [".x.tmp", "scale.json"]);
+        assert_eq!(remove_staged_by(&d.path().join("missing"), 1), 0);
     }
 
     #[test]

@@ -151,8 +151,9 @@ struct AbArgs {
     /// over; the interval is over the rounds (a process's own bias counts).
     #[arg(long, default_value_t = 10)]
     processes: usize,
-    /// Per frame: seconds a serve process may take to answer (its start,
-    /// loading and warm-up included) before its process group is killed.
+    /// Seconds any child may take before its process group is killed: a
+    /// serve process's answer (its start, loading and warm-up included), a
+    /// per-run run, a binary's `--version`.
     #[arg(long, default_value_t = 600.0)]
     timeout: f64,
     /// Slowdown threshold in percent: fail where the interval lies wholly above 1 + this.
@@ -338,17 +339,23 @@ struct CompareArgs {
     out: Option<PathBuf>,
     /// Benchmark tracking instead: `compare BASELINE NEW`, two suite
     /// `summary.json` files. Counts must match exactly, errors must not grow
-    /// beyond tolerance, frame-time ratios between methods must stay inside
-    /// their noise bands; exits non-zero on a regression.
+    /// beyond tolerance; exits non-zero on a regression. Frame-time ratios
+    /// between methods that left their noise bands are notes, failures only
+    /// when both summaries come from the same machine and sitting or with
+    /// `--times`.
     #[arg(
         value_name = "SUMMARY",
         num_args = 2,
         conflicts_with_all = ["data", "methods", "out", "size", "frames", "warmup", "projection", "orbit_step", "zoom", "no_overlap", "fixed_frames", "tf", "integrator", "table_size", "sort", "interpolation"]
     )]
     summaries: Vec<PathBuf>,
-    /// Tracking: compare counts and errors only, not times (shared CI runners).
+    /// Tracking: compare counts and errors only, not times at all.
     #[arg(long, requires = "summaries")]
     no_times: bool,
+    /// Tracking: a moved time fails the comparison even when the summaries
+    /// are not from the same machine and sitting (speed decisions: `ab`).
+    #[arg(long, requires = "summaries", conflicts_with = "no_times")]
+    times: bool,
     /// Tracking: also compare absolute frame times (same device, driver and
     /// CPU model only; off by default: the same model is not the same machine).
     #[arg(long, requires = "summaries", conflicts_with = "no_times")]
@@ -618,7 +625,7 @@ fn compare(cli: &Cli, registry: &Registry, args: &CompareArgs) -> Result<()> {
     }
     // The tracking options mean nothing to a comparison run: refuse them
     // rather than run for minutes and not write what was asked.
-    for (option, given) in [("--no-times", args.no_times), ("--bmf", args.bmf.is_some()), ("--gha", args.gha.is_some())] {
+    for (option, given) in [("--no-times", args.no_times), ("--times", args.times), ("--bmf", args.bmf.is_some()), ("--gha", args.gha.is_some())] {
         if given {
             bail!("{option} applies only to benchmark tracking (`compare BASELINE NEW`, two summary.json files), not to a comparison run");
         }
@@ -662,9 +669,21 @@ fn track(baseline: &Path, new: &Path, args: &CompareArgs) -> Result<()> {
             outputs.add(option, p)?;
         }
     }
-    let tol = track::Tolerances { times: !args.no_times, absolute_times: args.absolute_times, ..track::Tolerances::default() };
+    let times = match (args.no_times, args.times) {
+        (true, _) => track::Times::Off,
+        (false, true) => track::Times::Always,
+        (false, false) => track::Times::Auto,
+    };
+    let tol = track::Tolerances { times, absolute_times: args.absolute_times, ..track::Tolerances::default() };
     let c = track::compare(&b, &n, &tol)?;
-    outln!("baseline {} ({}), new {} ({})", baseline.display(), b.environment.git_sha, new.display(), n.environment.git_sha);
+    // (The revisions are the summaries' text: printed escaped.)
+    outln!(
+        "baseline {} ({}), new {} ({})",
+        baseline.display(),
+        b.environment.git_sha.escape_debug(),
+        new.display(),
+        n.environment.git_sha.escape_debug()
+    );
     out!("{}", c.table());
     let mut files: Vec<(&Path, Vec<u8>)> = Vec::new();
     if let Some(p) = &args.bmf {
@@ -839,8 +858,9 @@ fn ab(registry: &Registry, args: &AbArgs) -> Result<()> {
         Ok(env)
     };
     let (base_env, new_env) = (env("--base-env", &args.base_env)?, env("--new-env", &args.new_env)?);
-    let mut base = ab::resolve(&args.base, "BASE", &target)?;
-    let mut new = ab::resolve(&args.new, "NEW", &target)?;
+    let limit = std::time::Duration::from_secs_f64(settings.timeout_s);
+    let mut base = ab::resolve(&args.base, "BASE", &target, limit)?;
+    let mut new = ab::resolve(&args.new, "NEW", &target, limit)?;
     base.env = base_env;
     new.env = new_env;
     let report = ab::run(&base, &new, &benches, &settings, |b, p| {
@@ -892,15 +912,10 @@ fn scale(registry: &Registry, args: &ScaleArgs) -> Result<()> {
         peers: args.peers.clone(),
     };
     let exe = std::env::current_exe().context("locating this volbench binary")?;
-    std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+    // The study checks its estimate first, creates `out` and writes the
+    // results after every level.
     let report = scale::study(&exe, &settings, &out, |what| volbench::progress!("volbench: scale: {what}"))?;
-    let md = scale::markdown(&report);
-    out!("{md}");
-    let json = report::json_bytes(&report)?;
-    let csv = scale::csv(&report);
-    let (pj, pc, pm) = (out.join("scale.json"), out.join("scale.csv"), out.join("scale.md"));
-    fsio::write_all(&[(pj.as_path(), json.as_slice()), (pc.as_path(), csv.as_bytes()), (pm.as_path(), md.as_bytes())])?;
-    scale::plots(&out, &report)?;
+    out!("{}", scale::markdown(&report));
     outln!("written: {}/scale.{{json,csv,md}}, scale_time.{{png,svg}}, scale_memory.{{png,svg}}, meshes/", out.display());
     let failed = report.rows.iter().filter(|r| r.error.is_some()).count();
     if failed > 0 {
@@ -957,11 +972,18 @@ fn main() -> ExitCode {
         volbench::progress!("volbench: error: --count with --validation: the layer's work would be counted as the method's; validate an uncounted run");
         return ExitCode::FAILURE;
     }
-    if count::needs_reexec(count) {
-        return count::reexec().unwrap_or_else(|e| {
+    match count::needs_reexec(count) {
+        Ok(false) => {}
+        Ok(true) => {
+            return count::reexec().unwrap_or_else(|e| {
+                volbench::progress!("volbench: error: {e:#}");
+                ExitCode::FAILURE
+            })
+        }
+        Err(e) => {
             volbench::progress!("volbench: error: {e:#}");
-            ExitCode::FAILURE
-        });
+            return ExitCode::FAILURE;
+        }
     }
     let registry = registry::builtin();
     let result = match &cli.command {

@@ -231,3 +231,163 @@ fn a_per_side_environment_reaches_that_side_only() {
         assert!(md.contains("VOLBENCH_TEST_UNUSED=1") && md.contains(&data), "{md}");
     }
 }
+
+/// A fake volbench in sh, fast and GPU-free: `--version`; `run … --serve`
+/// speaks the serve protocol (every frame 1 ms; with `AB_TEST_PIDS` set it
+/// first starts a `sleep` that outlives it and appends its pid there);
+/// `run … --json F` writes a run JSON of two 1 ms frames to F.
+const FAKE: &str = r#"case "$1" in --version) echo 'volbench 0.1.0'; exit 0;; esac
+case "$*" in *--serve*)
+  if [ -n "$AB_TEST_PIDS" ]; then sleep 300 >/dev/null 2>&1 </dev/null & echo $! >> "$AB_TEST_PIDS"; fi
+  echo '{"protocol":"volbench-serve/1","version":"volbench 0.1.0","git_sha":"x","spec":"balanced","dataset":"post-small"}'
+  while read cmd n; do case "$cmd" in frame) echo '{"frame_ms":[1.0],"gpu_ms":[1.0]}';; quit) exit 0;; esac; done
+  exit 0;;
+esac
+json=
+while [ $# -gt 0 ]; do [ "$1" = --json ] && json=$2; shift; done
+echo '{"time_ms":{"samples":{"frame":[1.0,1.0]}}}' > "$json""#;
+
+/// `volbench ab BASE NEW` with 2 pairs over 2 rounds at 32x32 and `extra`,
+/// in `cwd` with `env` added, its address space limited to 256 MiB (it
+/// needs far less; a child's output held whole would exhaust it): exit code, stdout,
+/// stderr, wall time.
+fn small_ab(base: &str, new: &str, extra: &[&str], cwd: &Path, env: &[(&str, &str)]) -> (Option<i32>, String, String, std::time::Duration) {
+    let start = std::time::Instant::now();
+    let out = Command::new("sh")
+        .args(["-c", "ulimit -v 262144 && exec \"$0\" \"$@\"", env!("CARGO_BIN_EXE_volbench"), "ab", base, new])
+        .args(["--filter", "balanced", "--pairs", "2", "--processes", "2", "--size", "32x32", "--warmup", "0", "--seed", "3"])
+        .args(extra)
+        .current_dir(cwd)
+        .envs(env.iter().copied())
+        .output()
+        .unwrap();
+    let (stdout, stderr) = (String::from_utf8_lossy(&out.stdout).into_owned(), String::from_utf8_lossy(&out.stderr).into_owned());
+    assert!(!stderr.contains("panicked") && !stderr.contains("memory allocation"), "{stderr}");
+    (out.status.code(), stdout, stderr, start.elapsed())
+}
+
+#[test]
+fn children_that_hang_are_killed_at_the_deadline() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let fake = script(d, "fake", FAKE);
+    // `--version` never returns (nor does the child it waits for).
+    let hang = script(d, "hang", "sleep 300 & wait");
+    let (code, _, stderr, took) = small_ab(&hang, &fake, &["--timeout", "1"], d, &[]);
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(stderr.contains("BASE") && stderr.contains("`--version`: still running after 1 s (--timeout); killed its process group"), "{stderr}");
+    assert!(took.as_secs() < 30, "{took:?}");
+    // A per-run run that never ends: the benchmark fails, ab goes on.
+    let hang_run = script(d, "hang-run", "[ \"$1\" = --version ] && { echo 'volbench 0.1.0'; exit 0; }\nsleep 300 & wait");
+    let (code, stdout, stderr, took) = small_ab(&fake, &hang_run, &["--per-run", "--timeout", "1"], d, &[]);
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(stdout.contains("hang-run run: still running after 1 s (--timeout); killed its process group"), "{stdout}");
+    assert!(stderr.contains("1 of 1 benchmarks failed"), "{stderr}");
+    assert!(took.as_secs() < 30, "{took:?}");
+}
+
+#[test]
+fn children_that_print_without_end_are_bounded() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let fake = script(d, "fake", FAKE);
+    // A `--version` that prints forever: killed past 64 KiB.
+    let spew = script(d, "spew", "exec yes 'volbench 0.1.0'");
+    let (code, _, stderr, _) = small_ab(&fake, &spew, &[], d, &[]);
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(stderr.contains("NEW") && stderr.contains("`--version`: printed more than 65536 bytes; killed its process group"), "{stderr}");
+    // A per-run run that prints forever: stopped at the deadline, in
+    // bounded memory.
+    let spew_run = script(d, "spew-run", "[ \"$1\" = --version ] && { echo 'volbench 0.1.0'; exit 0; }\nexec yes");
+    let (code, stdout, stderr, _) = small_ab(&fake, &spew_run, &["--per-run", "--timeout", "2"], d, &[]);
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(stdout.contains("spew-run run: still running after 2 s (--timeout)"), "{stdout}");
+    // 300 MB of output from a run that succeeds: kept head and tail only.
+    let chatty = script(d, "chatty", &format!("[ \"$1\" = run ] && head -c 300000000 /dev/zero\n{FAKE}"));
+    let (code, stdout, stderr, _) = small_ab(&fake, &chatty, &["--per-run"], d, &[]);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(stdout.contains("| post-small | balanced | per run | 2 |"), "{stdout}");
+    // A server whose handshake is one endless line: refused past 1 MiB.
+    let endless = script(d, "endless", &format!("case \"$*\" in *--serve*) exec cat /dev/zero;; esac\n{FAKE}"));
+    let (code, stdout, stderr, _) = small_ab(&fake, &endless, &[], d, &[]);
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(stdout.contains("a line longer than 1048576 bytes"), "{stdout}");
+}
+
+/// Whether process `pid` is gone (a zombie nobody reaped counts as gone).
+fn gone(pid: u32) -> bool {
+    std::fs::read_to_string(format!("/proc/{pid}/stat")).map_or(true, |s| s.rsplit(')').next().is_some_and(|r| r.trim_start().starts_with('Z')))
+}
+
+#[test]
+fn serve_grandchildren_do_not_outlive_quit() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let fake = script(d, "fake", FAKE);
+    let pids = d.join("pids");
+    let (code, stdout, stderr, _) = small_ab(&fake, &fake, &[], d, &[("AB_TEST_PIDS", pids.to_str().unwrap())]);
+    assert_eq!(code, Some(0), "{stdout}\n{stderr}");
+    assert!(stdout.contains("| post-small | balanced | per frame | 2 |"), "{stdout}");
+    let pids: Vec<u32> = std::fs::read_to_string(&pids).unwrap().lines().map(|l| l.trim().parse().unwrap()).collect();
+    // Two rounds of a server per binary, each leaving a sleep behind.
+    assert_eq!(pids.len(), 4, "{pids:?}");
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(5);
+    while !pids.iter().all(|&p| gone(p)) && std::time::Instant::now() < deadline {
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    let left: Vec<u32> = pids.iter().copied().filter(|&p| !gone(p)).collect();
+    for &p in &left {
+        let _ = Command::new("kill").arg(p.to_string()).status();
+    }
+    assert!(left.is_empty(), "serve grandchildren still running after ab: {left:?}");
+}
+
+#[test]
+fn an_existing_relative_path_is_that_file_and_must_be_executable() {
+    use std::os::unix::fs::PermissionsExt as _;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    script(d, "vb", FAKE);
+    // Another `vb` first in PATH: `ab vb vb` must not run it.
+    let bin = d.join("bin");
+    std::fs::create_dir(&bin).unwrap();
+    script(&bin, "vb", "echo 'volbench 9.9.9 from PATH'");
+    let path = format!("{}:{}", bin.display(), std::env::var("PATH").unwrap_or_default());
+    let (code, stdout, stderr, _) = small_ab("vb", "vb", &["--out", "out"], d, &[("PATH", &path)]);
+    assert_eq!(code, Some(0), "{stdout}\n{stderr}");
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(d.join("out/ab.json")).unwrap()).unwrap();
+    assert_eq!(v["base"]["version"], "volbench 0.1.0", "{v}");
+    assert_eq!(v["base"]["path"].as_str().unwrap(), d.canonicalize().unwrap().join("vb").to_str().unwrap());
+    // A file without execute permission says so.
+    std::fs::write(d.join("nx"), FAKE).unwrap();
+    std::fs::set_permissions(d.join("nx"), std::fs::Permissions::from_mode(0o644)).unwrap();
+    let (code, _, stderr, _) = small_ab("nx", "vb", &[], d, &[("PATH", &path)]);
+    assert_eq!(code, Some(1));
+    assert!(stderr.contains("BASE nx: not executable"), "{stderr}");
+}
+
+/// Symlinks at every name a scratch directory of the next `n` processes
+/// could have had when it was named `prefix<pid>`, all to `victim`.
+fn plant_links(tmp: &Path, prefix: &str, victim: &Path, n: u32) {
+    let last: u32 = std::fs::read_to_string("/proc/sys/kernel/ns_last_pid").ok().and_then(|s| s.trim().parse().ok()).unwrap_or(1);
+    for pid in last + 1..=last + n {
+        std::os::unix::fs::symlink(victim, tmp.join(format!("{prefix}{pid}"))).unwrap();
+    }
+}
+
+#[test]
+fn scratch_directories_ignore_links_planted_in_tmpdir() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let fake = script(d, "fake", FAKE);
+    let (tmp, victim) = (d.join("tmp"), d.join("victim"));
+    std::fs::create_dir(&tmp).unwrap();
+    std::fs::create_dir(&victim).unwrap();
+    plant_links(&tmp, "volbench-ab-", &victim, 400);
+    let before = std::fs::read_dir(&tmp).unwrap().count();
+    let (code, stdout, stderr, _) = small_ab(&fake, &fake, &["--per-run"], d, &[("TMPDIR", tmp.to_str().unwrap())]);
+    assert_eq!(code, Some(0), "{stdout}\n{stderr}");
+    assert_eq!(std::fs::read_dir(&victim).unwrap().count(), 0, "written through a planted link");
+    // Nothing left behind either: only the planted links.
+    assert_eq!(std::fs::read_dir(&tmp).unwrap().count(), before);
+}

@@ -127,3 +127,65 @@ fn count_needs_a_warm_up_and_refuses_validation() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("--count with --validation"), "{err}");
 }
+
+/// `volbench run … --count` with a fake `valgrind` (`body`, an sh script)
+/// first in PATH and a private TMPDIR in which links to a victim directory
+/// are planted at every name a `volbench-count-<pid>` of the next 300
+/// processes could have had: exit code, stderr, the fake's log (one line
+/// per call: its arguments), and what was left in TMPDIR and the victim.
+fn fake_valgrind(body: &str) -> (Option<i32>, String, Vec<String>, usize, usize) {
+    use std::os::unix::fs::PermissionsExt as _;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (bin, tmp, victim, log) = (d.join("bin"), d.join("tmp"), d.join("victim"), d.join("log"));
+    for p in [&bin, &tmp, &victim] {
+        std::fs::create_dir(p).unwrap();
+    }
+    let valgrind = bin.join("valgrind");
+    std::fs::write(&valgrind, format!("#!/bin/sh\necho \"$*\" >> '{}'\n[ \"$1\" = --version ] && {{ echo valgrind-3.19.0; exit 0; }}\n{body}\n", log.display())).unwrap();
+    std::fs::set_permissions(&valgrind, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let last: u32 = std::fs::read_to_string("/proc/sys/kernel/ns_last_pid").ok().and_then(|s| s.trim().parse().ok()).unwrap_or(1);
+    for pid in last + 1..=last + 300 {
+        std::os::unix::fs::symlink(&victim, tmp.join(format!("volbench-count-{pid}"))).unwrap();
+    }
+    let path = format!("{}:{}", bin.display(), std::env::var("PATH").unwrap_or_default());
+    let start = std::time::Instant::now();
+    let out = Command::new(env!("CARGO_BIN_EXE_volbench"))
+        .args(["run", "--data", "post-small", "--method", "balanced", "--size", "32x32", "--frames", "1", "--warmup", "1", "--count"])
+        .env("PATH", path)
+        .env("TMPDIR", &tmp)
+        .output()
+        .unwrap();
+    assert!(start.elapsed().as_secs() < 60, "{:?}", start.elapsed());
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    let calls = std::fs::read_to_string(&log).unwrap_or_default().lines().map(str::to_string).collect();
+    let left = std::fs::read_dir(&tmp).unwrap().count() - 300;
+    (out.status.code(), stderr, calls, left, std::fs::read_dir(&victim).unwrap().count())
+}
+
+#[test]
+fn a_valgrind_that_does_not_instrument_stops_at_depth_one() {
+    // Drops its options and runs the program: volbench is not under valgrind.
+    let (code, stderr, calls, left, victim) = fake_valgrind("while [ $# -gt 0 ]; do case \"$1\" in -*) shift;; *) break;; esac; done\nexec \"$@\"");
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(stderr.contains("is not running under valgrind") && stderr.contains("refusing to start itself again"), "{stderr}");
+    assert!(stderr.contains("did not run volbench under callgrind"), "{stderr}");
+    // `--version`, then one counted run: no second level.
+    assert_eq!(calls.len(), 2, "{calls:?}");
+    assert_eq!((left, victim), (0, 0), "scratch left in TMPDIR or written through a planted link");
+}
+
+#[test]
+fn a_valgrind_that_runs_nothing_is_an_error() {
+    let (code, stderr, calls, left, victim) = fake_valgrind("exit 0");
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(stderr.contains("without callgrind's output") && stderr.contains("did not run volbench under callgrind"), "{stderr}");
+    assert_eq!((calls.len(), left, victim), (2, 0, 0));
+    // One that writes an output file of its own and claims success.
+    let (code, stderr, _, left, victim) = fake_valgrind(
+        "for a; do case \"$a\" in --callgrind-out-file=*) printf 'creator: fake\\n' > \"${a#--callgrind-out-file=}\";; esac; done\nexit 0",
+    );
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(stderr.contains("not callgrind's output of the counted run"), "{stderr}");
+    assert_eq!((left, victim), (0, 0), "scratch left in TMPDIR or written through a planted link");
+}

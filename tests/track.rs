@@ -105,10 +105,24 @@ fn a_missing_or_failed_run_fails() {
 }
 
 #[test]
-fn a_moved_time_ratio_fails_only_when_times_are_compared() {
+fn a_moved_time_ratio_fails_only_in_one_sitting_or_when_asked() {
     let mut v = baseline().1.clone();
+    assert!(v["environment"]["machine_boot_id"].as_str().is_some_and(|m| m.len() == 32), "the suite records its machine and boot");
     let samples = &mut row(&mut v, "balanced")["result"]["time_ms"]["samples"]["frame"];
     *samples = samples.as_array().unwrap().iter().map(|t| Value::from(t.as_f64().unwrap() * 5.0)).collect();
+    // Another machine (or the same one another day): a note, exit 0;
+    // `--times` makes it a failure.
+    for (field, other) in [("machine_boot_id", "0123456789abcdef0123456789abcdef"), ("started_utc", "20200101T000000Z")] {
+        let mut elsewhere = v.clone();
+        elsewhere["environment"][field] = other.into();
+        let (out, text) = track(&elsewhere, &[]);
+        assert!(out.status.success(), "{text}");
+        assert!(text.lines().any(|l| l.starts_with("| note | post-small/balanced ÷ post-small/") && l.contains("a note: not the same machine and sitting")), "{text}");
+        assert!(text.contains("| note | environment | times |") && text.contains(" 0 regressions"), "{text}");
+        let (out, text) = track(&elsewhere, &["--times"]);
+        assert_eq!(out.status.code(), Some(1), "{text}");
+    }
+    // The same machine and sitting (the same suite's environment): a failure.
     let (out, text) = track(&v, &[]);
     assert_eq!(out.status.code(), Some(1), "{text}");
     // Each run's ratio is to the dataset's first run by name.

@@ -24,6 +24,7 @@
 //! pairs.
 
 use std::collections::BTreeMap;
+use std::os::unix::fs::PermissionsExt as _;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Duration;
@@ -31,6 +32,7 @@ use std::time::Duration;
 use anyhow::{bail, ensure, Context as _, Result};
 use serde::{Deserialize, Serialize};
 
+use super::child;
 use super::datasets::NAMED;
 use super::serve::{Server, StartError};
 use crate::algo::registry::Registry;
@@ -94,44 +96,57 @@ pub struct Binary {
     pub env: BTreeMap<String, String>,
 }
 
-/// `arg` (BASE or NEW, named `role` in errors) as a binary: an executable
-/// file, or else a git revision of the repository around the working
-/// directory, built with `cargo build --release` in a temporary worktree
-/// with `target_dir` as the target directory (so the second build reuses
-/// the first's dependencies). Built binaries are kept as
-/// `target_dir/ab/volbench-<commit>` and reused.
-pub fn resolve(arg: &str, role: &str, target_dir: &Path) -> Result<Binary> {
+/// `arg` (BASE or NEW, named `role` in errors) as a binary: an existing
+/// path is a file to run (relative to the working directory, never looked
+/// up in `PATH`), which must be executable; anything else a git revision
+/// of the repository around the working directory, built with
+/// `cargo build --release` in a temporary worktree with `target_dir` as
+/// the target directory (so the second build reuses the first's
+/// dependencies). Built binaries are kept as
+/// `target_dir/ab/volbench-<commit>` and reused. Every child (the binary's
+/// `--version`, git) must finish within `timeout` (`--timeout`).
+pub fn resolve(arg: &str, role: &str, target_dir: &Path, timeout: Duration) -> Result<Binary> {
     let path = Path::new(arg);
     if path.exists() {
         ensure!(path.is_file(), "{role} {arg}: is not a file (give a volbench binary or a git revision)");
-        let version = version_of(path).with_context(|| format!("{role} {arg}"))?;
+        let mode = std::fs::metadata(path).with_context(|| format!("{role} {arg}"))?.permissions().mode();
+        ensure!(mode & 0o111 != 0, "{role} {arg}: not executable (a file without execute permission, mode {:o})", mode & 0o7777);
+        // Absolute, so that `vb` is this file and not a `vb` in PATH.
         let path = path.canonicalize().with_context(|| format!("{role} {arg}"))?;
+        let version = version_of(&path, timeout).with_context(|| format!("{role} {arg}"))?;
         return Ok(Binary { path, version, revision: None, env: BTreeMap::new() });
     }
-    let commit = git(&["rev-parse", "--verify", "--quiet", &format!("{arg}^{{commit}}")])
+    let commit = git(&["rev-parse", "--verify", "--quiet", &format!("{arg}^{{commit}}")], timeout)
         .ok()
         .filter(|s| !s.is_empty())
         .with_context(|| format!("{role} {arg}: neither an existing file nor a git revision of this repository"))?;
-    let binary = build_revision(&commit, target_dir).with_context(|| format!("{role} {arg}: building revision {commit}"))?;
-    let version = version_of(&binary).with_context(|| format!("{role} {arg}: the binary built from {commit}"))?;
+    let binary = build_revision(&commit, target_dir, timeout).with_context(|| format!("{role} {arg}: building revision {commit}"))?;
+    let version = version_of(&binary, timeout).with_context(|| format!("{role} {arg}: the binary built from {commit}"))?;
     Ok(Binary { path: binary, version, revision: Some(commit), env: BTreeMap::new() })
 }
 
-/// `volbench --version` of `path`, or an error if it is not volbench.
-fn version_of(path: &Path) -> Result<String> {
-    let out = Command::new(path).arg("--version").output().context("cannot be executed")?;
-    let text = String::from_utf8_lossy(&out.stdout).lines().next().unwrap_or("").trim().to_string();
+/// The most a `--version` may print: volbench prints one short line.
+const MAX_VERSION_BYTES: u64 = 64 * 1024;
+
+/// `volbench --version` of `path`, or an error if it is not volbench (or
+/// does not finish within `timeout`, or prints more than a version).
+fn version_of(path: &Path, timeout: Duration) -> Result<String> {
+    let out = child::run(Command::new(path).arg("--version"), "`--version`", timeout, "--timeout", Some(MAX_VERSION_BYTES))?;
+    let stdout = out.stdout.text();
+    let text = crate::fsio::clip_message(stdout.lines().next().unwrap_or("").trim());
     ensure!(out.status.success() && text.starts_with("volbench "), "is not a volbench binary (`--version` printed {text:?})");
     Ok(text)
 }
 
-fn git(args: &[&str]) -> Result<String> {
-    let out = Command::new("git").args(args).output().context("running git")?;
-    ensure!(out.status.success(), "git {}: {}", args.join(" "), String::from_utf8_lossy(&out.stderr).trim());
-    Ok(String::from_utf8_lossy(&out.stdout).trim().to_string())
+fn git(args: &[&str], timeout: Duration) -> Result<String> {
+    let what = format!("git {}", args.join(" "));
+    let out = child::run(Command::new("git").args(args), &what, timeout, "--timeout", None)?;
+    ensure!(out.status.success(), "{what}: {}", out.stderr_text());
+    ensure!(!out.stdout.clipped(), "{what}: printed {} bytes, more than expected", out.stdout.total());
+    Ok(out.stdout.text().trim().to_string())
 }
 
-fn build_revision(commit: &str, target_dir: &Path) -> Result<PathBuf> {
+fn build_revision(commit: &str, target_dir: &Path, timeout: Duration) -> Result<PathBuf> {
     let dir = target_dir.join("ab");
     let binary = dir.join(format!("volbench-{commit}"));
     if binary.is_file() {
@@ -146,9 +161,9 @@ fn build_revision(commit: &str, target_dir: &Path) -> Result<PathBuf> {
     let tree_s = tree.to_string_lossy().to_string();
     if tree.exists() {
         // A worktree an interrupted build left behind.
-        let _ = git(&["worktree", "remove", "--force", &tree_s]);
+        let _ = git(&["worktree", "remove", "--force", &tree_s], timeout);
     }
-    git(&["worktree", "add", "--detach", &tree_s, commit])?;
+    git(&["worktree", "add", "--detach", &tree_s, commit], timeout)?;
     crate::progress!("volbench: ab: building {commit} (cargo build --release, target dir {})", target_dir.display());
     let status = Command::new(std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into()))
         .args(["build", "--release", "--locked", "--bin", "volbench"])
@@ -163,7 +178,7 @@ fn build_revision(commit: &str, target_dir: &Path) -> Result<PathBuf> {
         Err(e) => Err(e),
     };
     // The worktree goes either way; the binary reads data from VOLBENCH_DATA.
-    let removed = git(&["worktree", "remove", "--force", &tree_s]);
+    let removed = git(&["worktree", "remove", "--force", &tree_s], timeout);
     copied?;
     removed?;
     Ok(binary)
@@ -456,24 +471,28 @@ pub fn parse_env(option: &str, text: &str) -> Result<(String, String)> {
     Ok((var.to_string(), value.to_string()))
 }
 
-/// The median frame time (ms) of one `volbench run` of `bench` by `binary`.
+/// The largest run JSON `ab` reads back (a run of 10,000 frames writes
+/// about 2 MB).
+const MAX_RUN_JSON_BYTES: u64 = 64 << 20;
+
+/// The median frame time (ms) of one `volbench run` of `bench` by `binary`,
+/// which must finish within `--timeout`; its output is kept head and tail.
 fn sample(binary: &Binary, bench: &Benchmark, s: &AbSettings, scratch: &Path) -> Result<f64> {
     let json = scratch.join("run.json");
     let _ = std::fs::remove_file(&json);
-    let out = Command::new(&binary.path)
-        .args(["run", "--data", &bench.dataset, "--method", &bench.spec])
+    let what = format!("{} run", binary.path.display());
+    let mut cmd = Command::new(&binary.path);
+    cmd.args(["run", "--data", &bench.dataset, "--method", &bench.spec])
         .args(["--size", &format!("{}x{}", s.width, s.height)])
         .args(["--frames", &s.frames.to_string(), "--warmup", &s.warmup.to_string(), "--json"])
         .arg(&json)
         .env("VOLBENCH_DATA", super::datasets::data_dir())
-        .envs(&binary.env)
-        .output()
-        .with_context(|| format!("running {}", binary.path.display()))?;
+        .envs(&binary.env);
+    let out = child::run(&mut cmd, &what, Duration::from_secs_f64(s.timeout_s), "--timeout", None)?;
     if !out.status.success() {
-        let err = String::from_utf8_lossy(&out.stderr);
-        bail!("{} run failed ({}): {}", binary.path.display(), out.status, crate::fsio::clip_child_output(err.trim()));
+        bail!("{what} failed ({}): {}", out.status, out.stderr_text());
     }
-    let text = std::fs::read_to_string(&json).with_context(|| format!("reading {}", json.display()))?;
+    let text = crate::fsio::read_input_text(&json, "run JSON", MAX_RUN_JSON_BYTES)?;
     let v: serde_json::Value = serde_json::from_str(&text).with_context(|| format!("{}: not JSON", json.display()))?;
     let frames: Vec<f64> = v
         .pointer("/time_ms/samples/frame")
@@ -589,8 +608,10 @@ pub fn run(
     mut note: impl FnMut(&str),
 ) -> Result<AbReport> {
     settings.validate()?;
-    let scratch = std::env::temp_dir().join(format!("volbench-ab-{}", std::process::id()));
-    std::fs::create_dir_all(&scratch).with_context(|| format!("creating {}", scratch.display()))?;
+    // Per run's JSON goes here: a fresh directory of ours (created
+    // exclusively under a random name, mode 0700), removed when dropped.
+    let scratch_dir = crate::fsio::scratch_dir("volbench-ab-")?;
+    let scratch = scratch_dir.path();
     let mut order = Order::new(settings.seed);
     let every = (settings.pairs / 10).max(1);
     let mut rows = Vec::new();
@@ -614,7 +635,7 @@ pub fn run(
             },
         };
         if sampled.is_none() {
-            sampled = Some(run_pairs(base, new, bench, settings, &mut order, &scratch, &mut tick));
+            sampled = Some(run_pairs(base, new, bench, settings, &mut order, scratch, &mut tick));
         }
         // Per frame the batches are the rounds (`frame_pairs` shares the
         // pairs out over them as `estimate` splits them).
@@ -634,7 +655,7 @@ pub fn run(
         let verdict = estimate.as_ref().map(|e| decide(e, settings.threshold));
         rows.push(AbRow { benchmark: bench.clone(), mode, fallback, samples, estimate, verdict, error });
     }
-    let _ = std::fs::remove_dir_all(&scratch);
+    drop(scratch_dir);
     Ok(AbReport {
         schema: "volbench-ab/2",
         base: base.clone(),

@@ -52,8 +52,17 @@ use serde::Serialize;
 
 use crate::vk::valgrind;
 
-/// Set by the parent for the counted child: the directory callgrind dumps into.
+/// Set by the parent for the counted child: the directory callgrind dumps
+/// into. It also marks the child: a process that has it set but does not
+/// run under valgrind refuses to re-execute itself (a `valgrind` that does
+/// not instrument would otherwise start volbench again without end).
 pub const DIR_VAR: &str = "VOLBENCH_COUNT_DIR";
+/// The child's receipt in the count directory: its process id and how many
+/// callgrind dumps it has read, so the parent can check that callgrind's
+/// final output covers the run (`verify`).
+const RECEIPT: &str = "volbench-count-receipt";
+/// How long `valgrind --version` may take.
+const VERSION_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(60);
 /// What the counted child runs with (also recorded in `count.pinned`).
 pub const PINNED_ENV: &[(&str, &str)] = &[
     ("LP_NUM_THREADS", "0"),
@@ -105,6 +114,7 @@ pub fn child_dir(count: bool) -> Result<Option<PathBuf>> {
     }
     ensure!(valgrind::running_on_valgrind(), "--count: internal error: not running under valgrind");
     let dir = std::env::var_os(DIR_VAR).with_context(|| format!("--count under valgrind needs {DIR_VAR} (set by volbench itself)"))?;
+    write_receipt(Path::new(&dir))?;
     // rayon's pool is this thread alone: no idle worker spins.
     rayon::ThreadPoolBuilder::new()
         .num_threads(1)
@@ -114,30 +124,104 @@ pub fn child_dir(count: bool) -> Result<Option<PathBuf>> {
     Ok(Some(PathBuf::from(dir)))
 }
 
-/// Whether `--count` must re-execute this process under valgrind.
-pub fn needs_reexec(count: bool) -> bool {
-    count && !valgrind::running_on_valgrind()
+/// Whether `--count` must re-execute this process under valgrind: not
+/// when it already runs under valgrind, and never a second time: a process
+/// volbench started under `valgrind` to be counted ({DIR_VAR} set) that
+/// finds itself not under valgrind is an error, so a `valgrind` that just
+/// runs its program stops at depth one.
+pub fn needs_reexec(count: bool) -> Result<bool> {
+    if !count || valgrind::running_on_valgrind() {
+        return Ok(false);
+    }
+    ensure!(
+        std::env::var_os(DIR_VAR).is_none(),
+        "--count: volbench was started under `valgrind` to be counted, but is not running under valgrind \
+         (valgrind's client request says so): the `valgrind` on PATH ({}) does not instrument; refusing to start itself again",
+        which("valgrind").map_or("not found".into(), |p| p.display().to_string())
+    );
+    Ok(true)
+}
+
+/// Where `PATH` finds `program`.
+fn which(program: &str) -> Option<PathBuf> {
+    std::env::split_paths(&std::env::var_os("PATH")?).map(|d| d.join(program)).find(|p| p.is_file())
+}
+
+/// Dumps the counted child has read (and removed) so far.
+static DUMPS_READ: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+
+/// The child's receipt: its process id and the dumps read so far.
+fn write_receipt(dir: &Path) -> Result<()> {
+    let text = format!("{} {}\n", std::process::id(), DUMPS_READ.load(std::sync::atomic::Ordering::SeqCst));
+    crate::fsio::write_output(&dir.join(RECEIPT), text.as_bytes()).context("--count: writing the count receipt")
+}
+
+/// Check, after valgrind exited (`status`), that callgrind really ran the
+/// counted child over the whole run in `dir`: its final output (written at
+/// the program's end) exists, is callgrind's, is of the process that wrote
+/// the receipt, and its part number is one past every dump, read by the
+/// child or left over (none lost, none foreign).
+pub fn verify(dir: &Path, status: std::process::ExitStatus) -> Result<()> {
+    let final_out = dir.join(DUMP_PREFIX);
+    let valgrind = which("valgrind").map_or("valgrind".into(), |p| p.display().to_string());
+    if !final_out.exists() {
+        bail!(
+            "--count: {valgrind} exited ({status}) without callgrind's output ({} missing): it did not run volbench under callgrind",
+            final_out.display()
+        );
+    }
+    let head = crate::fsio::read_input_head(&final_out, "callgrind output", 64 * 1024)?;
+    let head = String::from_utf8_lossy(&head);
+    let field = |name: &str| head.lines().find_map(|l| l.strip_prefix(name)).map(str::trim);
+    let bad = |why: &str| anyhow::anyhow!("--count: {}: {why}: not callgrind's output of the counted run", final_out.display());
+    ensure!(field("creator:").is_some_and(|c| c.starts_with("callgrind")), bad("no `creator: callgrind` line"));
+    ensure!(field("desc: Trigger:") == Some("Program termination"), bad("not the dump at the program's end"));
+    let pid: u64 = field("pid:").and_then(|p| p.parse().ok()).ok_or_else(|| bad("no process id"))?;
+    let part: u64 = field("part:").and_then(|p| p.parse().ok()).ok_or_else(|| bad("no part number"))?;
+    let receipt = dir.join(RECEIPT);
+    if !receipt.exists() {
+        bail!("--count: {valgrind} exited ({status}) and callgrind wrote output, but the counted volbench never started (no {RECEIPT})");
+    }
+    let text = crate::fsio::read_input_text(&receipt, "count receipt", 1024)?;
+    let mut words = text.split_whitespace().map(str::parse::<u64>);
+    let (Some(Ok(child)), Some(Ok(read))) = (words.next(), words.next()) else {
+        bail!("--count: {}: not a count receipt ({:?})", receipt.display(), crate::fsio::clip_message(&text));
+    };
+    ensure!(pid == child, bad(&format!("of process {pid}, the counted volbench was {child}")));
+    let left = std::fs::read_dir(dir)
+        .with_context(|| format!("reading the count directory {}", dir.display()))?
+        .filter_map(|e| e.ok())
+        .filter(|e| dump_number(&e.path()).is_some())
+        .count() as u64;
+    ensure!(
+        part == read + left + 1,
+        bad(&format!("its part {part} is not one past the {} dumps of the run ({read} read, {left} left over)", read + left))
+    );
+    Ok(())
 }
 
 /// Run this command again under callgrind, with what changes code paths
 /// pinned; its exit status is ours.
 pub fn reexec() -> Result<ExitCode> {
     ensure!(valgrind::SUPPORTED, "--count needs x86_64 (valgrind client requests)");
-    let version = Command::new("valgrind")
-        .arg("--version")
-        .output()
-        .map_err(|e| anyhow::anyhow!("--count runs volbench under valgrind, which was not found ({e}); scripts/setup.sh installs it"))?;
-    ensure!(version.status.success(), "--count: `valgrind --version` failed");
+    ensure!(
+        which("valgrind").is_some(),
+        "--count runs volbench under valgrind, which was not found in PATH; scripts/setup.sh installs it"
+    );
+    let version = super::child::run(Command::new("valgrind").arg("--version"), "--count: `valgrind --version`", VERSION_TIMEOUT, "60 s", Some(64 * 1024))?;
+    ensure!(version.status.success(), "--count: `valgrind --version` failed ({}): {}", version.status, version.stderr_text());
     let exe = std::env::current_exe().context("--count: locating the volbench binary to run under valgrind")?;
-    let dir = std::env::temp_dir().join(format!("volbench-count-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).with_context(|| format!("--count: creating {}", dir.display()))?;
+    // Callgrind's dumps go here: a fresh directory of ours (random name,
+    // mode 0700), removed when dropped.
+    let scratch = crate::fsio::scratch_dir("volbench-count-").context("--count")?;
+    let dir = scratch.path();
     let args: Vec<OsString> = std::env::args_os().skip(1).collect();
     let mut cmd = Command::new("valgrind");
     cmd.args(VALGRIND_ARGS)
     .arg(format!("--callgrind-out-file={}", dir.join(DUMP_PREFIX).display()))
     .arg(&exe)
     .args(&args)
-    .env(DIR_VAR, &dir)
+    .env(DIR_VAR, dir)
     .envs(PINNED_ENV.iter().copied())
     // The validation layer's own work would be counted as the method's
     // (the same frames are validated in the uncounted runs).
@@ -150,12 +234,18 @@ pub fn reexec() -> Result<ExitCode> {
         cmd.env(crate::vk::FENCE_TIMEOUT_VAR, COUNTED_FENCE_TIMEOUT_S);
     }
     let status = cmd.status().context("--count: starting valgrind")?;
-    let _ = std::fs::remove_dir_all(&dir);
-    Ok(match status.code() {
-        Some(0) => ExitCode::SUCCESS,
-        Some(c) => ExitCode::from(u8::try_from(c).unwrap_or(1)),
+    // A valgrind that failed with its output written: the counted process
+    // said why (its exit status is ours); one that wrote nothing, or
+    // claimed success without the output of the whole run, is an error here.
+    let wrote_nothing = !dir.join(DUMP_PREFIX).exists();
+    let checked = verify(dir, status);
+    drop(scratch);
+    match status.code() {
+        Some(0) => checked.map(|()| ExitCode::SUCCESS),
+        Some(c) if wrote_nothing => checked.map(|()| ExitCode::from(u8::try_from(c).unwrap_or(1))),
+        Some(c) => Ok(ExitCode::from(u8::try_from(c).unwrap_or(1))),
         None => bail!("--count: volbench under valgrind was killed by a signal ({status})"),
-    })
+    }
 }
 
 /// Instructions of one phase: the timed frames' total and each frame's.
@@ -280,8 +370,7 @@ pub fn take_dumps(dir: &Path) -> Result<Vec<Dump>> {
     let mut files = Vec::new();
     for e in std::fs::read_dir(dir).with_context(|| format!("reading the count directory {}", dir.display()))? {
         let path = e?.path();
-        let n = path.file_name().and_then(|n| n.to_str()).and_then(|n| n.strip_prefix(DUMP_PREFIX)?.strip_prefix('.')?.parse::<u64>().ok());
-        if let Some(n) = n {
+        if let Some(n) = dump_number(&path) {
             files.push((n, path));
         }
     }
@@ -296,8 +385,15 @@ pub fn take_dumps(dir: &Path) -> Result<Vec<Dump>> {
         }
         out.push(parse_dump(&text, &path.display().to_string())?);
         std::fs::remove_file(&path).with_context(|| format!("removing {}", path.display()))?;
+        DUMPS_READ.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
     }
+    write_receipt(dir)?;
     Ok(out)
+}
+
+/// The part number of a dump file (`callgrind.out.N`), `None` for any other.
+fn dump_number(path: &Path) -> Option<u64> {
+    path.file_name()?.to_str()?.strip_prefix(DUMP_PREFIX)?.strip_prefix('.')?.parse().ok()
 }
 
 /// The boundary at the start of each counted frame.
@@ -380,6 +476,37 @@ mod tests {
         assert_eq!(r.frame.per_frame, vec![110, 113]);
         assert_eq!(r.allocator.per_frame, vec![2, 3]);
         assert!(report(&dumps, 3).is_err());
+    }
+
+    #[test]
+    fn the_final_output_must_cover_the_counted_run() {
+        use std::os::unix::process::ExitStatusExt as _;
+        let ok = std::process::ExitStatus::from_raw(0);
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let check = || verify(d, ok).map_err(|e| format!("{e:#}"));
+        // Nothing written: valgrind did not run volbench under callgrind.
+        assert!(check().unwrap_err().contains("without callgrind's output"));
+        let final_dump = |pid: u64, part: u64, creator: &str| {
+            let text = format!("# callgrind format\nversion: 1\ncreator: {creator}\npid: {pid}\ncmd:  volbench\npart: {part}\n\ndesc: Trigger: Program termination\n\ntotals: 0\n");
+            std::fs::write(d.join(DUMP_PREFIX), text).unwrap();
+        };
+        final_dump(7, 3, "fake");
+        assert!(check().unwrap_err().contains("no `creator: callgrind` line"));
+        final_dump(7, 3, "callgrind-3.19.0");
+        assert!(check().unwrap_err().contains("never started"));
+        std::fs::write(d.join(RECEIPT), "8 2\n").unwrap();
+        assert!(check().unwrap_err().contains("of process 7, the counted volbench was 8"));
+        std::fs::write(d.join(RECEIPT), "7 1\n").unwrap();
+        assert!(check().unwrap_err().contains("part 3 is not one past the 1 dumps"), "{:?}", check());
+        // Two dumps read, or one read and one left over: covered.
+        std::fs::write(d.join(RECEIPT), "7 2\n").unwrap();
+        check().unwrap();
+        std::fs::write(d.join(RECEIPT), "7 1\n").unwrap();
+        std::fs::write(d.join(format!("{DUMP_PREFIX}.2")), "").unwrap();
+        check().unwrap();
+        std::fs::write(d.join(RECEIPT), "seven").unwrap();
+        assert!(check().unwrap_err().contains("not a count receipt"));
     }
 
     #[test]

@@ -4,6 +4,7 @@
 //! method) and never calls Vulkan directly beyond creating the context.
 
 pub mod ab;
+pub mod child;
 pub mod count;
 pub mod datasets;
 pub mod image;

@@ -485,6 +485,19 @@ pub fn write_dataset(dataset: &Dataset, path: &Path) -> Result<PeerDataset> {
     })
 }
 
+/// The bytes [`write_tet_mesh`] writes for `points` points and `tets`
+/// tets under `title` (the file's size, known before writing it).
+pub fn tet_mesh_file_bytes(points: u128, tets: u128, title: &str) -> u128 {
+    let digits = |n: u128| n.to_string().len() as u128;
+    let text = "# vtk DataFile Version 3.0\n\nBINARY\nDATASET UNSTRUCTURED_GRID\nPOINTS  double\n".len()
+        + "\nCELLS  \n".len()
+        + "\nCELL_TYPES \n".len()
+        + "\nPOINT_DATA \nSCALARS scalars double 1\nLOOKUP_TABLE default\n".len()
+        + "\n".len()
+        + title.len();
+    text as u128 + 2 * digits(points) + 2 * digits(tets) + digits(5 * tets) + points * (24 + 8) + tets * (20 + 4)
+}
+
 /// `mesh` as a binary legacy VTK unstructured grid of tetrahedra with f64
 /// point scalars, titled `title` (what every VTK reader and volbench read).
 pub fn write_tet_mesh(mesh: &crate::mesh::TetMesh, title: &str, path: &Path) -> Result<()> {

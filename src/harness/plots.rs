@@ -409,7 +409,8 @@ mod tests {
 
     #[test]
     fn figures_are_written() {
-        let dir = std::env::temp_dir().join(format!("volbench-plots-{}", std::process::id()));
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().to_path_buf();
         let bars = [
             Bar { label: "a long label for one method:integrator=average".into(), median: 3.0, spread: Some((2.0, 4.0)), peer: false },
             Bar { label: "peer vtk/gpu".into(), median: 5.0, spread: None, peer: true },
@@ -426,7 +427,6 @@ mod tests {
         assert!(pts[0].on_front && !pts[1].on_front);
         time_error_scatter(&dir.join("s.png"), "t", "RMSE", "", &pts).unwrap();
         assert!(dir.join("s.png").exists());
-        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]

@@ -22,6 +22,29 @@ pub fn json_bytes<T: Serialize>(value: &T) -> Result<Vec<u8>> {
     Ok((text + "\n").into_bytes())
 }
 
+/// `text` as one Markdown table cell: `|` and `\` escaped, `<` as
+/// `&lt;` (no HTML), line breaks and every other control character shown
+/// as escapes (`\n`, `\u{1b}`; a tab as a space), so a name read from a file can neither end
+/// its cell nor start a row of its own.
+pub fn md_cell(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    for c in text.chars() {
+        match c {
+            '|' => out.push_str("\\|"),
+            '\\' => out.push_str("\\\\"),
+            '<' => out.push_str("&lt;"),
+            '\n' => out.push_str("\\n"),
+            '\r' => out.push_str("\\r"),
+            '\t' => out.push(' '),
+            c if c.is_control() || c == '\u{2028}' || c == '\u{2029}' => {
+                let _ = write!(out, "\\u{{{:x}}}", c as u32);
+            }
+            c => out.push(c),
+        }
+    }
+    out
+}
+
 /// One row of the comparison: a run (or its failure) and its image
 /// difference from the first run on the same dataset.
 pub struct ComparisonRow<'a> {

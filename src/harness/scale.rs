@@ -5,17 +5,29 @@
 //! projected tetrahedra (`--peers vtk`) on the same file; frame time and
 //! every phase, tets/s, bytes per frame, static device bytes and peak RSS
 //! per level, as JSON, CSV, Markdown and a log-log plot.
+//!
+//! What it measured is kept: the results files are rewritten, all or
+//! nothing, after every finished level, so a level that fails (a full disk,
+//! memory) or a stop signal leaves the complete results of the levels
+//! before it; the interrupted level's own files (its mesh, the run's JSON,
+//! staged temporaries) are removed, on an error and on SIGTERM, SIGINT or
+//! SIGHUP alike. Before anything is made, the memory and disk the levels
+//! asked for need are estimated from their sizes (known in advance,
+//! `refine::RefineCounts`) and a study that would not fit is refused with
+//! the figures.
 
 use std::collections::BTreeMap;
+use std::os::unix::process::CommandExt as _;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
+use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, ensure, Context as _, Result};
 use serde::Serialize;
 
 use crate::algo::host_memory::vm_hwm_kb;
-use crate::mesh::refine::{red_refine, refined_bytes};
+use crate::mesh::refine::{red_refine, refined_bytes, refined_bytes_of, RefineCounts};
 use crate::mesh::TetMesh;
 
 /// One row: a method (or peer) on one level.
@@ -88,8 +100,14 @@ pub fn refine_checked(mesh: &TetMesh, level: usize, available: Option<u64>) -> R
 
 /// Runs `cmd` to completion, polling its peak RSS (VmHWM) from /proc while
 /// it runs; returns its output status, stderr and the last VmHWM read.
+/// The child runs in a process group of its own, registered with the
+/// study's clean-up (a stop signal stops it and removes what it staged).
 pub fn run_measured(mut cmd: Command) -> Result<(std::process::ExitStatus, String, Option<u64>)> {
-    let mut child = cmd.stdout(Stdio::null()).stderr(Stdio::piped()).spawn().context("starting the run")?;
+    let mut staged = staging();
+    let mut child = cmd.stdout(Stdio::null()).stderr(Stdio::piped()).process_group(0).spawn().context("starting the run")?;
+    staged.child = Some(child.id());
+    staged.children.push(child.id());
+    drop(staged);
     let status_path = PathBuf::from(format!("/proc/{}/status", child.id()));
     let stderr = child.stderr.take();
     // stderr is drained on a thread so a chatty child never blocks.
@@ -110,6 +128,7 @@ pub fn run_measured(mut cmd: Command) -> Result<(std::process::ExitStatus, Strin
         }
         std::thread::sleep(Duration::from_millis(20));
     };
+    staging().child = None;
     let err = reader.join().unwrap_or_default();
     Ok((status, err, peak))
 }
@@ -205,26 +224,229 @@ pub struct ScaleSettings {
     pub peers: Vec<String>,
 }
 
-/// The study: every level refined, written to `out/meshes/`, run by each
-/// method in a fresh process of `exe`, and by the peers.
+/// What the level being measured has made so far: removed when the level
+/// fails or the process is told to stop (`stop_cleanly_on_signals`).
+struct Staging {
+    /// The level's files (its mesh, the run's JSON, a peer's scene).
+    files: Vec<PathBuf>,
+    /// Where this process's and its children's staged temporaries lie.
+    dirs: Vec<PathBuf>,
+    /// The running child's process group.
+    child: Option<u32>,
+    /// Every child of the level (their temporaries, if stopped).
+    children: Vec<u32>,
+}
+
+static STAGING: Mutex<Staging> = Mutex::new(Staging { files: Vec::new(), dirs: Vec::new(), child: None, children: Vec::new() });
+
+fn staging() -> std::sync::MutexGuard<'static, Staging> {
+    STAGING.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+impl Staging {
+    /// Stop the running child, remove the level's files and every
+    /// temporary this process or the level's children staged.
+    fn clean(&mut self) {
+        if let Some(group) = self.child.take() {
+            super::peers::kill_group(group);
+            wait_gone(group);
+        }
+        for f in self.files.drain(..) {
+            let _ = std::fs::remove_file(f);
+        }
+        for d in &self.dirs {
+            crate::fsio::remove_staged_by(d, std::process::id());
+            for &c in &self.children {
+                crate::fsio::remove_staged_by(d, c);
+            }
+        }
+        self.children.clear();
+    }
+
+    /// The level is complete and its results written: its files are results now.
+    fn keep(&mut self) {
+        self.files.clear();
+        self.children.clear();
+    }
+}
+
+/// Wait (at most 2 s) until process `pid` has ended (gone, or a zombie):
+/// a process killed during a write must not create a file after the sweep.
+fn wait_gone(pid: u32) {
+    let stat = PathBuf::from(format!("/proc/{pid}/stat"));
+    let start = Instant::now();
+    while start.elapsed() < Duration::from_secs(2) {
+        match std::fs::read_to_string(&stat) {
+            // The state follows the parenthesised command name.
+            Ok(t) if t.rsplit_once(") ").is_some_and(|(_, rest)| !rest.starts_with('Z')) => std::thread::sleep(Duration::from_millis(5)),
+            _ => return,
+        }
+    }
+}
+
+/// On SIGTERM, SIGINT or SIGHUP: stop the running child, remove the
+/// interrupted level's files (the results of the finished levels are
+/// complete on disk already), and exit with 128 + the signal's number.
+fn stop_cleanly_on_signals() -> Result<()> {
+    use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
+    static INSTALLED: std::sync::OnceLock<()> = std::sync::OnceLock::new();
+    if INSTALLED.get().is_some() {
+        return Ok(());
+    }
+    let mut signals = signal_hook::iterator::Signals::new([SIGTERM, SIGINT, SIGHUP]).context("installing the stop-signal handler")?;
+    let _ = INSTALLED.set(());
+    std::thread::spawn(move || {
+        if let Some(signal) = signals.forever().next() {
+            // Taken while no results file is being written (the writer holds it).
+            let mut s = staging();
+            s.clean();
+            crate::progress!(
+                "volbench: scale: stopped by signal {signal}: the finished levels' results are kept, the interrupted level's files removed"
+            );
+            std::process::exit(128 + signal);
+        }
+    });
+    Ok(())
+}
+
+/// One level's sizes and what making and measuring it needs.
+#[derive(Debug, Clone, Copy)]
+pub struct LevelEstimate {
+    pub level: usize,
+    pub counts: RefineCounts,
+    /// Host memory at the level's peak: the refinement that makes it
+    /// (`refine::refined_bytes`), or the mesh held by this process and by
+    /// the run's (and a second copy here for the reference and the peers).
+    pub memory_bytes: u128,
+    /// Its mesh file (`peers::tet_mesh_file_bytes`).
+    pub file_bytes: u128,
+}
+
+/// What a study needs, before any of it is made.
+#[derive(Debug, Clone)]
+pub struct Estimate {
+    pub levels: Vec<LevelEstimate>,
+    /// The largest level's memory.
+    pub memory_bytes: u128,
+    /// Every level's mesh file, the peers' images and the results files
+    /// (with their staged copies).
+    pub disk_bytes: u128,
+}
+
+/// Disk the results files take besides the meshes: JSON, CSV, Markdown
+/// and the plots, each staged beside the old copy while replaced (their
+/// size grows with the rows; a few hundred kilobytes in practice).
+pub const RESULTS_DISK_BYTES: u128 = 16 << 20;
+
+/// A mesh held in memory: f64 points and scalars, u32 tets.
+fn mesh_bytes(c: &RefineCounts) -> u128 {
+    c.points * 32 + c.tets * 16
+}
+
+fn mesh_title(name: &str, level: usize) -> String {
+    format!("volbench scale: {name} red-refined {level} times")
+}
+
+/// The study's needs, level by level, from `mesh` (level 0).
+pub fn estimate(mesh: &TetMesh, name: &str, s: &ScaleSettings) -> Estimate {
+    let mut counts = RefineCounts::of(mesh);
+    let mut levels = Vec::new();
+    for level in 0..=s.levels {
+        let refine = if level > 0 {
+            let before = counts;
+            counts = counts.refined();
+            refined_bytes_of(before.points, before.tets)
+        } else {
+            0
+        };
+        let copies = if counts.tets <= u128::from(s.reference_max_cells) || !s.peers.is_empty() { 3 } else { 2 };
+        let file = super::peers::tet_mesh_file_bytes(counts.points, counts.tets, &mesh_title(name, level));
+        levels.push(LevelEstimate { level, counts, memory_bytes: refine.max(copies * mesh_bytes(&counts)), file_bytes: file });
+    }
+    let images = s.peers.len() as u128 * (u128::from(s.width) * u128::from(s.height) * 4 + (64 << 10)) * levels.len() as u128;
+    Estimate {
+        memory_bytes: levels.iter().map(|l| l.memory_bytes).max().unwrap_or(0),
+        disk_bytes: levels.iter().map(|l| l.file_bytes).sum::<u128>() + images + RESULTS_DISK_BYTES,
+        levels,
+    }
+}
+
+fn gib(b: u128) -> String {
+    format!("{:.2} GiB", b as f64 / (1u64 << 30) as f64)
+}
+
+impl Estimate {
+    /// Refuse, with the figures, a study that needs more host memory than
+    /// `memory` or more disk than `disk` (bytes available; `None`: unknown,
+    /// not checked).
+    pub fn check(&self, memory: Option<u64>, disk: Option<u64>, out: &Path) -> Result<()> {
+        let last = self.levels.last().map_or(0, |l| l.level);
+        let mut problems = Vec::new();
+        if let Some(avail) = memory.filter(|&a| self.memory_bytes > u128::from(a)) {
+            let worst = self.levels.iter().max_by_key(|l| l.memory_bytes).expect("level 0 at least");
+            problems.push(format!(
+                "host memory: about {} at level {} ({} tets), {} available (MemAvailable)",
+                gib(self.memory_bytes),
+                worst.level,
+                worst.counts.tets,
+                gib(u128::from(avail))
+            ));
+        }
+        if let Some(free) = disk.filter(|&f| self.disk_bytes > u128::from(f)) {
+            let files: Vec<String> = self.levels.iter().map(|l| format!("L{} {}", l.level, gib(l.file_bytes))).collect();
+            problems.push(format!(
+                "disk: about {} in {} (meshes {}; results {}), {} free there",
+                gib(self.disk_bytes),
+                out.display(),
+                files.join(", "),
+                gib(RESULTS_DISK_BYTES),
+                gib(u128::from(free))
+            ));
+        }
+        ensure!(
+            problems.is_empty(),
+            "--levels {last}: the study would not fit: {}; use fewer --levels or a smaller mesh",
+            problems.join("; ")
+        );
+        Ok(())
+    }
+}
+
+/// Bytes free for an unprivileged writer on the file system that holds
+/// `dir` (or its nearest existing ancestor, when it does not exist yet).
+pub fn available_disk(dir: &Path) -> Option<u64> {
+    let existing = dir.ancestors().map(|a| if a.as_os_str().is_empty() { Path::new(".") } else { a }).find(|a| a.exists())?;
+    let v = rustix::fs::statvfs(existing).ok()?;
+    Some(v.f_bavail.saturating_mul(v.f_frsize))
+}
+
+/// Write the results so far, all or nothing: `scale.json`, `.csv` and
+/// `.md` together (a failure leaves the previous ones), then the plots.
+pub fn write_results(out: &Path, r: &ScaleReport) -> Result<()> {
+    let json = super::report::json_bytes(r)?;
+    let csv = csv(r);
+    let md = markdown(r);
+    let (pj, pc, pm) = (out.join("scale.json"), out.join("scale.csv"), out.join("scale.md"));
+    crate::fsio::write_all(&[(pj.as_path(), json.as_slice()), (pc.as_path(), csv.as_bytes()), (pm.as_path(), md.as_bytes())])?;
+    plots(out, r)
+}
+
+/// The study: the estimate checked, then every level refined, written to
+/// `out/meshes/`, run by each method in a fresh process of `exe`, and by
+/// the peers; the results written after each level (`write_results`).
 pub fn study(exe: &Path, s: &ScaleSettings, out: &Path, mut progress: impl FnMut(&str)) -> Result<ScaleReport> {
-    use super::datasets::{self, Dataset, DatasetData};
+    use super::datasets::{self, DatasetData};
     let loaded = datasets::load(&s.dataset)?;
     let name = loaded.name.clone();
     let DatasetData::TetMesh { mesh, .. } = loaded.data else {
         bail!("--data {}: a {} dataset; scale refines tetrahedral meshes", s.dataset, loaded.kind().name());
     };
     let peers = s.peers.iter().map(|p| super::peers::locate(p)).collect::<Result<Vec<_>>>()?;
+    estimate(&mesh, &name, s).check(available_memory(), available_disk(out), out)?;
+    stop_cleanly_on_signals()?;
     let meshes = out.join("meshes");
     std::fs::create_dir_all(&meshes).with_context(|| format!("creating {}", meshes.display()))?;
-    let run_args: Vec<String> = vec![
-        "--size".into(),
-        format!("{}x{}", s.width, s.height),
-        "--frames".into(),
-        s.frames.to_string(),
-        "--warmup".into(),
-        s.warmup.to_string(),
-    ];
+    staging().dirs = vec![out.to_path_buf(), meshes.clone(), out.join("peers")];
     let json = out.join(".run.json");
     let mut report = ScaleReport {
         schema: "volbench-scale/1",
@@ -238,55 +460,99 @@ pub fn study(exe: &Path, s: &ScaleSettings, out: &Path, mut progress: impl FnMut
     };
     let mut mesh = mesh;
     for level in 0..=s.levels {
-        let refine_ms = if level > 0 {
-            progress(&format!("level {level}: refining {} tets", mesh.tets.len()));
-            let (refined, ms) = timed(|| refine_checked(&mesh, level, available_memory()));
-            mesh = refined?;
-            ms
+        let kept = if level == 0 {
+            "no level finished: no results written".to_string()
         } else {
-            0.0
+            format!("scale.json, .csv and .md in {} hold levels 0 to {}", out.display(), level - 1)
         };
-        let file = meshes.join(format!("{name}-L{level}.vtk"));
-        super::peers::write_tet_mesh(&mesh, &format!("volbench scale: {name} red-refined {level} times"), &file)?;
-        let cells = mesh.tets.len() as u64;
-        for (spec, label) in &s.specs {
-            progress(&format!("level {level} ({cells} tets): {label}"));
-            let row = run_method(exe, &file, spec, level, label, &run_args, &json).unwrap_or_else(|e| failed_row(level, &mesh, label, format!("{e:#}")));
-            report.rows.push(row);
+        let done = run_level(exe, s, out, &name, level, &mut mesh, &peers, &json, &mut report, &mut progress);
+        if let Err(e) = done {
+            staging().clean();
+            return Err(e.context(format!("level {level} ({kept}; its own files removed)")));
         }
-        let needs_dataset = cells <= s.reference_max_cells || !peers.is_empty();
-        let dataset = needs_dataset.then(|| Dataset::from_mesh(mesh.clone(), false, file.to_string_lossy().into_owned()));
-        let mut reference_ms = None;
-        if let Some(ds) = dataset.as_ref().filter(|_| cells <= s.reference_max_cells) {
-            progress(&format!("level {level}: f64 reference"));
-            let tf = ds.default_transfer_function()?;
-            let camera = ds.orbit_camera(0.0, crate::scene::Projection::Perspective { fovy_deg: 30.0 });
-            let (image, ms) = timed(|| ds.reference_image(&tf, &camera, s.width, s.height));
-            image?;
-            reference_ms = Some(ms);
-        }
-        for peer in &peers {
-            let Some(ds) = &dataset else { break };
-            // VTK's projected tetrahedra: the cell-projection peer (its
-            // unstructured ray caster is not what the study sets beside).
-            for renderer in peer.renderers_for(ds.kind()).filter(|r| r.name == "projected-tetrahedra") {
-                let label = format!("peer {}/{}", peer.peer.name, renderer.name);
-                progress(&format!("level {level} ({cells} tets): {label}"));
-                let row = run_peer_level(peer, renderer, ds, s, level, &file, out).unwrap_or_else(|e| failed_row(level, &mesh, &label, format!("{e:#}")));
-                report.rows.push(row);
-            }
-        }
-        report.levels.push(ScaleLevel {
-            level,
-            cells,
-            points: mesh.points.len() as u64,
-            file: file.to_string_lossy().into_owned(),
-            refine_ms,
-            reference_ms,
-        });
     }
     let _ = std::fs::remove_file(&json);
     Ok(report)
+}
+
+/// One level: refined, written, run, and the results rewritten.
+#[allow(clippy::too_many_arguments)]
+fn run_level(
+    exe: &Path,
+    s: &ScaleSettings,
+    out: &Path,
+    name: &str,
+    level: usize,
+    mesh: &mut TetMesh,
+    peers: &[super::peers::LocatedPeer],
+    json: &Path,
+    report: &mut ScaleReport,
+    progress: &mut impl FnMut(&str),
+) -> Result<()> {
+    use super::datasets::Dataset;
+    let meshes = out.join("meshes");
+    let file = meshes.join(format!("{name}-L{level}.vtk"));
+    staging().files = vec![file.clone(), json.to_path_buf()];
+    let refine_ms = if level > 0 {
+        progress(&format!("level {level}: refining {} tets", mesh.tets.len()));
+        let (refined, ms) = timed(|| refine_checked(mesh, level, available_memory()));
+        *mesh = refined?;
+        ms
+    } else {
+        0.0
+    };
+    super::peers::write_tet_mesh(mesh, &mesh_title(name, level), &file)?;
+    let cells = mesh.tets.len() as u64;
+    let run_args: Vec<String> = vec![
+        "--size".into(),
+        format!("{}x{}", s.width, s.height),
+        "--frames".into(),
+        s.frames.to_string(),
+        "--warmup".into(),
+        s.warmup.to_string(),
+    ];
+    for (spec, label) in &s.specs {
+        progress(&format!("level {level} ({cells} tets): {label}"));
+        let row = run_method(exe, &file, spec, level, label, &run_args, json).unwrap_or_else(|e| failed_row(level, mesh, label, format!("{e:#}")));
+        report.rows.push(row);
+    }
+    let needs_dataset = cells <= s.reference_max_cells || !peers.is_empty();
+    let dataset = needs_dataset.then(|| Dataset::from_mesh(mesh.clone(), false, file.to_string_lossy().into_owned()));
+    let mut reference_ms = None;
+    if let Some(ds) = dataset.as_ref().filter(|_| cells <= s.reference_max_cells) {
+        progress(&format!("level {level}: f64 reference"));
+        let tf = ds.default_transfer_function()?;
+        let camera = ds.orbit_camera(0.0, crate::scene::Projection::Perspective { fovy_deg: 30.0 });
+        let (image, ms) = timed(|| ds.reference_image(&tf, &camera, s.width, s.height));
+        image?;
+        reference_ms = Some(ms);
+    }
+    for peer in peers {
+        let Some(ds) = &dataset else { break };
+        // VTK's projected tetrahedra: the cell-projection peer (its
+        // unstructured ray caster is not what the study sets beside).
+        for renderer in peer.renderers_for(ds.kind()).filter(|r| r.name == "projected-tetrahedra") {
+            let label = format!("peer {}/{}", peer.peer.name, renderer.name);
+            progress(&format!("level {level} ({cells} tets): {label}"));
+            let row = run_peer_level(peer, renderer, ds, s, level, &file, out).unwrap_or_else(|e| failed_row(level, mesh, &label, format!("{e:#}")));
+            report.rows.push(row);
+        }
+    }
+    report.levels.push(ScaleLevel {
+        level,
+        cells,
+        points: mesh.points.len() as u64,
+        file: file.to_string_lossy().into_owned(),
+        refine_ms,
+        reference_ms,
+    });
+    // The results written while no stop signal can interrupt them (the
+    // handler waits for the lock); then the level's files are results.
+    let mut staged = staging();
+    let _ = std::fs::remove_file(json);
+    write_results(out, report).context("writing the results")?;
+    staged.keep();
+    Ok(())
 }
 
 fn run_peer_level(
@@ -315,6 +581,7 @@ fn run_peer_level(
     let tf = ds.default_transfer_function()?;
     let scene = peers::scene(peer.peer, renderer, ds, &tf, &cfg, &exported, &dir)?;
     let scene_path = dir.join(format!("{}-L{level}.json", scene.stem()));
+    staging().files.push(scene_path.clone());
     let (result, _image) = peers::run_peer(peer, &scene, &scene_path)?;
     let frame = super::stats::Summary::of(&result.frame_ms).median;
     let v = serde_json::json!({
@@ -365,7 +632,7 @@ pub fn csv(r: &ScaleReport) -> String {
 pub fn markdown(r: &ScaleReport) -> String {
     let mut out = format!(
         "# Scaling: {} red-refined, {}x{}, {} timed frames (+{} warm-up)\n\n| level | tets | points | refine ms | f64 reference ms |\n|---:|---:|---:|---:|---:|\n",
-        r.dataset, r.width, r.height, r.frames, r.warmup
+        super::report::md_cell(&r.dataset), r.width, r.height, r.frames, r.warmup
     );
     for l in &r.levels {
         let reference = l.reference_ms.map_or("-".into(), |v| format!("{v:.0}"));
@@ -374,15 +641,16 @@ pub fn markdown(r: &ScaleReport) -> String {
     out += "\n| method | level | tets | frame ms | ms per M tets | M tets/s | bytes/frame | static device bytes | peak RSS MB | RSS bytes/tet | phases (median ms) |\n";
     out += "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n";
     let f = |v: Option<f64>, d: usize| v.map_or("-".into(), |v| format!("{v:.d$}"));
+    let cell = super::report::md_cell;
     for row in &r.rows {
         if let Some(e) = &row.error {
-            out += &format!("| {} | {} | {} | failed: {} | | | | | | | |\n", row.method, row.level, row.cells, e.replace('|', "/").replace('\n', " "));
+            out += &format!("| {} | {} | {} | failed: {} | | | | | | | |\n", cell(&row.method), row.level, row.cells, cell(e));
             continue;
         }
         let phases: Vec<String> = row.phases_ms.iter().filter(|(k, _)| k.as_str() != "frame").map(|(k, v)| format!("{k} {v:.1}")).collect();
         out += &format!(
             "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
-            row.method,
+            cell(&row.method),
             row.level,
             row.cells,
             f(row.frame_ms, 1),
@@ -392,7 +660,7 @@ pub fn markdown(r: &ScaleReport) -> String {
             row.static_device_bytes.map_or("-".into(), |b| b.to_string()),
             f(row.peak_rss_bytes.map(|b| b as f64 / 1e6), 0),
             f(row.peak_rss_bytes_per_tet, 0),
-            phases.join(", ")
+            cell(&phases.join(", "))
         );
     }
     out
@@ -492,6 +760,96 @@ mod tests {
     fn vm_hwm_is_read_in_kb() {
         assert_eq!(vm_hwm_kb("Name:\tx\nVmPeak:\t  10 kB\nVmHWM:\t  1234 kB\n"), Some(1234));
         assert_eq!(vm_hwm_kb("Name:\tx\n"), None);
+    }
+
+    fn one_tet() -> TetMesh {
+        let mut m = TetMesh {
+            name: "t".into(),
+            points: vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+            scalars: vec![0.0; 4],
+            tets: vec![[0, 1, 2, 3]],
+            stats: Default::default(),
+        };
+        m.validate("t").unwrap();
+        m
+    }
+
+    fn settings(levels: usize) -> ScaleSettings {
+        ScaleSettings {
+            dataset: "t".into(),
+            levels,
+            specs: Vec::new(),
+            width: 64,
+            height: 64,
+            frames: 1,
+            warmup: 0,
+            reference_max_cells: 0,
+            peers: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn the_estimate_knows_every_level_and_refuses_with_the_figures() {
+        let m = one_tet();
+        let d = tempfile::tempdir().unwrap();
+        // The sizes of every level, before any is made; level 0's file is
+        // the size the writer writes.
+        let two = estimate(&m, "t", &settings(2));
+        let real = red_refine(&red_refine(&m).unwrap()).unwrap();
+        assert_eq!((two.levels[2].counts.tets, two.levels[2].counts.points), (64, real.points.len() as u128));
+        let file = d.path().join("t.vtk");
+        super::super::peers::write_tet_mesh(&real, &mesh_title("t", 2), &file).unwrap();
+        assert_eq!(two.levels[2].file_bytes, u128::from(std::fs::metadata(&file).unwrap().len()));
+        // Two sizes against one budget: 2 levels fit, 8 do not (memory and
+        // disk both named, with the level, the figures and the way out).
+        let eight = estimate(&m, "t", &settings(8));
+        assert_eq!(eight.levels[8].counts.tets, 1 << 24);
+        let (mem, disk) = (512u64 << 20, 256u64 << 20);
+        two.check(Some(mem), Some(disk), d.path()).unwrap();
+        assert!(eight.memory_bytes > u128::from(mem) && two.memory_bytes < u128::from(mem));
+        let e = eight.check(Some(mem), Some(disk), d.path()).unwrap_err().to_string();
+        assert!(e.contains("--levels 8") && e.contains("host memory") && e.contains("at level 8 (16777216 tets)"), "{e}");
+        assert!(e.contains("0.50 GiB available") && e.contains("use fewer --levels"), "{e}");
+        assert!(e.contains("disk: about") && e.contains("L8 "), "{e}");
+        // Disk alone, and unknown figures are not checked.
+        let e = two.check(Some(mem), Some(1000), d.path()).unwrap_err().to_string();
+        assert!(e.contains("disk") && !e.contains("host memory"), "{e}");
+        eight.check(None, None, d.path()).unwrap();
+        assert!(available_disk(&d.path().join("not/yet")).is_some_and(|b| b > 0));
+    }
+
+    #[test]
+    fn a_failed_results_write_keeps_the_previous_complete_files() {
+        let d = tempfile::tempdir().unwrap();
+        let m = one_tet();
+        let mut r = ScaleReport { schema: "volbench-scale/1", dataset: "t".into(), width: 8, height: 8, frames: 1, warmup: 0, levels: Vec::new(), rows: Vec::new() };
+        let level = |l: usize| ScaleLevel { level: l, cells: 8u64.pow(l as u32), points: 4, file: String::new(), refine_ms: 1.0, reference_ms: None };
+        r.levels.push(level(0));
+        r.rows.push(failed_row(0, &m, "balanced", "x".into()));
+        write_results(d.path(), &r).unwrap();
+        let json = std::fs::read(d.path().join("scale.json")).unwrap();
+        // Level 1: scale.md is now a directory, so nothing of the set is
+        // replaced and no temporary is left.
+        std::fs::remove_file(d.path().join("scale.md")).unwrap();
+        std::fs::create_dir(d.path().join("scale.md")).unwrap();
+        r.levels.push(level(1));
+        r.rows.push(failed_row(1, &m, "balanced", "y".into()));
+        let e = format!("{:#}", write_results(d.path(), &r).unwrap_err());
+        assert!(e.contains("scale.md") && e.contains("directory"), "{e}");
+        assert_eq!(std::fs::read(d.path().join("scale.json")).unwrap(), json);
+        assert!(std::fs::read_to_string(d.path().join("scale.csv")).unwrap().lines().count() == 2);
+        let temps = std::fs::read_dir(d.path()).unwrap().filter(|e| e.as_ref().unwrap().file_name().to_string_lossy().ends_with(".tmp")).count();
+        assert_eq!(temps, 0);
+    }
+
+    #[test]
+    fn a_label_or_error_cannot_forge_a_row() {
+        let m = one_tet();
+        let mut r = ScaleReport { schema: "volbench-scale/1", dataset: "t\n| x |".into(), width: 8, height: 8, frames: 1, warmup: 0, levels: Vec::new(), rows: Vec::new() };
+        r.rows.push(failed_row(0, &m, "a|b", "line\n| forged | 0 | 1 |".into()));
+        let md = markdown(&r);
+        assert!(!md.lines().any(|l| l.starts_with("| forged")), "{md}");
+        assert!(md.contains("| a\\|b | 0 | 1 | failed: line\\n\\| forged"), "{md}");
     }
 
     #[test]

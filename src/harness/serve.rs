@@ -18,7 +18,6 @@
 use std::collections::BTreeMap;
 use std::io::{BufRead, BufReader, Write};
 use std::path::Path;
-use std::os::unix::process::CommandExt as _;
 use std::process::{Child, ChildStdin, Command, Stdio};
 use std::sync::mpsc::{Receiver, RecvTimeoutError};
 use std::time::Duration;
@@ -31,6 +30,11 @@ pub const PROTOCOL: &str = "volbench-serve/1";
 
 /// The most frames one `frame N` command renders.
 pub const MAX_BATCH: usize = 10_000;
+
+/// The longest line `ab` reads from a server: an answer to `frame
+/// MAX_BATCH` is some 400 KB. A longer line is an error (and a server that
+/// prints one endless line costs this much, not gigabytes).
+pub const MAX_LINE_BYTES: usize = 1 << 20;
 
 /// The server's first line: it is ready.
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
@@ -157,12 +161,16 @@ pub enum StartError {
     Failed(anyhow::Error),
 }
 
-/// A running server, seen from `ab`. Dropping it ends the process group.
+/// A running server, seen from `ab`. Dropping it (and `quit`) ends the
+/// process group: nothing it started outlives it.
 pub struct Server {
     child: Child,
     stdin: Option<ChildStdin>,
     lines: Receiver<std::io::Result<String>>,
-    errors: Receiver<String>,
+    /// Its standard error, head and tail.
+    errors: super::child::Drain,
+    /// Its process group has been killed.
+    ended: bool,
     timeout: Duration,
     name: String,
     pub hello: Hello,
@@ -174,25 +182,29 @@ impl Server {
     /// its own, and wait up to `timeout` for its handshake.
     pub fn start(binary: &Path, env: &BTreeMap<String, String>, args: &[String], timeout: Duration) -> std::result::Result<Server, StartError> {
         let name = binary.display().to_string();
-        let mut child = Command::new(binary)
-            .arg("run")
+        let mut cmd = Command::new(binary);
+        cmd.arg("run")
             .args(args)
             .arg("--serve")
             .env("VOLBENCH_DATA", super::datasets::data_dir())
             .envs(env)
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .process_group(0)
-            .spawn()
-            .with_context(|| format!("starting {name} run --serve"))
-            .map_err(StartError::Failed)?;
-        // Readers on threads, so every wait is bounded by the time-out.
+            .stderr(Stdio::piped());
+        let mut child = super::child::spawn_in_group(&mut cmd, &format!("{name} run --serve")).map_err(StartError::Failed)?;
+        // Readers on threads, so every wait is bounded by the time-out; each
+        // line is bounded by MAX_LINE_BYTES, standard error kept head and tail.
         let (stdout, stderr) = (child.stdout.take(), child.stderr.take());
-        let (line_tx, lines) = std::sync::mpsc::channel();
+        let (line_tx, lines) = std::sync::mpsc::sync_channel(16);
         std::thread::spawn(move || {
             if let Some(out) = stdout {
-                for line in BufReader::new(out).lines() {
+                let mut out = BufReader::new(out);
+                loop {
+                    let line = match crate::fsio::read_line_capped(&mut out, MAX_LINE_BYTES) {
+                        Ok(Some(line)) => Ok(line),
+                        Ok(None) => break,
+                        Err(e) => Err(e),
+                    };
                     let stop = line.is_err();
                     if line_tx.send(line).is_err() || stop {
                         break;
@@ -200,18 +212,9 @@ impl Server {
                 }
             }
         });
-        let (err_tx, errors) = std::sync::mpsc::channel();
-        std::thread::spawn(move || {
-            if let Some(err) = stderr {
-                for line in BufReader::new(err).lines().map_while(Result::ok) {
-                    if err_tx.send(line).is_err() {
-                        break;
-                    }
-                }
-            }
-        });
+        let errors = super::child::Drain::start(stderr, super::child::KEEP);
         let stdin = child.stdin.take();
-        let mut server = Server { child, stdin, lines, errors, timeout, name, hello: Hello::default() };
+        let mut server = Server { child, stdin, lines, errors, ended: false, timeout, name, hello: Hello::default() };
         let first = match server.next_line("its handshake") {
             Ok(line) => line,
             Err(e) => {
@@ -295,11 +298,11 @@ impl Server {
         }
     }
 
-    /// The non-empty lines the server wrote to stderr so far.
+    /// The non-empty lines the server wrote to stderr so far (its head and
+    /// tail, when it wrote much).
     fn stderr_lines(&self) -> Vec<String> {
         // The stderr thread may still be draining: a short grace period.
-        std::thread::sleep(Duration::from_millis(100));
-        self.errors.try_iter().filter(|l| !l.trim().is_empty()).collect()
+        self.errors.finish(Duration::from_millis(200)).text().lines().filter(|l| !l.trim().is_empty()).map(str::to_string).collect()
     }
 
     /// The last lines the server wrote to stderr (why it failed).
@@ -308,11 +311,15 @@ impl Server {
     }
 
     fn kill(&mut self) {
-        super::peers::kill_group(self.child.id());
-        let _ = self.child.wait();
+        if !self.ended {
+            super::child::kill_group(&mut self.child);
+            self.ended = true;
+        }
     }
 
     /// `quit`, then wait (bounded) for a clean exit; an error if it was not.
+    /// Either way its process group is killed: whatever it started and
+    /// left running goes with it.
     pub fn quit(mut self) -> Result<()> {
         if let Some(mut stdin) = self.stdin.take() {
             let _ = writeln!(stdin, "quit");
@@ -320,6 +327,7 @@ impl Server {
         let start = std::time::Instant::now();
         loop {
             if let Some(status) = self.child.try_wait().context("waiting for the server")? {
+                self.kill();
                 ensure!(status.success(), "{}: exited with {status} after quit: {}", self.name, self.stderr_tail());
                 return Ok(());
             }
@@ -339,9 +347,7 @@ fn tail(lines: &[String]) -> String {
 
 impl Drop for Server {
     fn drop(&mut self) {
-        if matches!(self.child.try_wait(), Ok(None)) {
-            self.kill();
-        }
+        self.kill();
     }
 }
 

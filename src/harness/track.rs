@@ -17,12 +17,20 @@
 //!   to a few parts in a million; each phase and the frame total is its own
 //!   figure, and regresses when it grows by more than `count_rel` (1 %).
 //! - **times** are compared as ratios between methods on one dataset inside
-//!   each run (machines differ by 30 % and more; ratios inside a run do not),
-//!   each with a distribution-free 95 % confidence band of its medians;
-//!   absolute frame times only when asked (`--absolute-times`: the same
-//!   CPU model string is not the same machine, nor the same load) and the
-//!   device, driver and CPU match. A time regresses when the bands do not
-//!   overlap and the change exceeds `time_margin`.
+//!   each run, each with a distribution-free 95 % confidence band of its
+//!   medians; absolute frame times only when asked (`--absolute-times`)
+//!   and the device, driver and CPU match. A time moves when the bands do
+//!   not overlap and the change exceeds `time_margin`. Times are not
+//!   deterministic, and ratios between methods are not machine-independent
+//!   either (fragment and compute paths use the CPU differently, and the
+//!   runs of a suite are not alternated): a moved time **fails the compare
+//!   only when both summaries come from the same machine and sitting**
+//!   ([`same_sitting`]) **or the user asks** (`--times`, [`Times::Always`]);
+//!   otherwise it is a note. Speed decisions belong to `volbench ab`.
+//!
+//! The summaries' text (run labels, phase names, messages) is escaped in
+//! the table ([`report::md_cell`]); summaries whose count phases collide
+//! as export names are refused ([`validate`]).
 //!
 //! It also exports the new summary in Bencher Metric Format and as
 //! github-action-benchmark's `customSmallerIsBetter` JSON.
@@ -36,6 +44,19 @@ use serde::Deserialize;
 use serde_json::{json, Value};
 
 use crate::fsio;
+use crate::harness::report;
+
+/// Whether moved times fail a comparison.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Times {
+    /// Not compared at all (`--no-times`).
+    Off,
+    /// Compared; a moved time fails only when both summaries come from the
+    /// same machine and sitting ([`same_sitting`]), else it is a note (the default).
+    Auto,
+    /// Compared, and a moved time fails wherever the summaries come from (`--times`).
+    Always,
+}
 
 /// The thresholds `compare` applies.
 #[derive(Debug, Clone, Copy)]
@@ -55,15 +76,15 @@ pub struct Tolerances {
     /// ...or by this many instructions (a phase of a few thousand, such as
     /// reading the query results, jitters by a few hundred).
     pub count_abs: f64,
-    /// Compare times at all (CI on shared runners compares counts and errors only).
-    pub times: bool,
+    /// Whether times are compared, and whether a moved one fails.
+    pub times: Times,
     /// Compare absolute frame times too (same device, driver and CPU only).
     pub absolute_times: bool,
 }
 
 impl Default for Tolerances {
     fn default() -> Self {
-        Tolerances { rmse_abs: 1e-4, rmse_rel: 0.05, count_rel_other_device: 1e-3, time_margin: 0.10, count_rel: 0.01, count_abs: 10_000.0, times: true, absolute_times: false }
+        Tolerances { rmse_abs: 1e-4, rmse_rel: 0.05, count_rel_other_device: 1e-3, time_margin: 0.10, count_rel: 0.01, count_abs: 10_000.0, times: Times::Auto, absolute_times: false }
     }
 }
 
@@ -87,6 +108,13 @@ pub struct EnvironmentFile {
     pub cpu_model: String,
     #[serde(default)]
     pub git_sha: String,
+    /// `YYYYMMDDTHHMMSSZ` (absent or empty: unknown).
+    #[serde(default)]
+    pub started_utc: String,
+    /// A hash of the machine's id and its boot's (absent in summaries
+    /// written before it was recorded: then no sitting is known).
+    #[serde(default)]
+    pub machine_boot_id: Option<String>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -223,6 +251,22 @@ fn validate(s: &SummaryFile) -> Result<()> {
         if let Some(b) = x.upload.bytes_per_cell {
             ensure!(b.is_finite() && b >= 0.0, "{k}: upload.bytes_per_cell {b} is not a finite non-negative number");
         }
+        if let Some(cf) = &x.count {
+            // Each phase is its own exported measure (`instructions-<phase>`,
+            // lower case, punctuation as `-`): two phases that differ only in
+            // case or punctuation would be one measure and two equal names.
+            let mut measures: BTreeMap<String, String> = BTreeMap::new();
+            measures.insert(measure_name("instructions.frame"), "the frame total".into());
+            for phase in cf.phases.keys() {
+                let m = measure_name(&format!("instructions.{phase}"));
+                if let Some(other) = measures.insert(m.clone(), format!("phase {phase:?}")) {
+                    bail!(
+                        "{k:?}: count {other} and phase {phase:?} are both exported as the measure {m:?} \
+                         (names must differ in more than case and punctuation)"
+                    );
+                }
+            }
+        }
         for (phase, samples) in &x.time_ms.samples {
             for t in samples {
                 ensure!(
@@ -233,6 +277,12 @@ fn validate(s: &SummaryFile) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// A figure's name as an exported measure: lower case, every character but
+/// ASCII letters and digits as `-` (BMF measure names are kebab-case).
+fn measure_name(figure: &str) -> String {
+    figure.chars().map(|c| if c.is_ascii_alphanumeric() { c.to_ascii_lowercase() } else { '-' }).collect()
 }
 
 /// A row's name: `dataset/method` or `dataset/method:options`.
@@ -279,24 +329,38 @@ pub struct Comparison {
 
 impl Comparison {
     pub fn regressions(&self) -> usize {
-        self.lines.iter().filter(|l| l.verdict == Verdict::Regression).count()
+        self.count(Verdict::Regression)
+    }
+
+    /// The lines with verdict `v`.
+    pub fn count(&self, v: Verdict) -> usize {
+        self.lines.iter().filter(|l| l.verdict == v).count()
     }
 
     fn push(&mut self, verdict: Verdict, benchmark: &str, figure: &str, baseline: String, new: String, why: impl Into<String>) {
         self.lines.push(Line { verdict, benchmark: benchmark.into(), figure: figure.into(), baseline, new, why: why.into() });
     }
 
-    /// The printed table: regressions first, one clear line each; then a
-    /// count of the figures that matched.
+    /// The printed table: regressions first, one clear line each (every
+    /// cell escaped: the text comes from the summaries); then a count of
+    /// the figures that matched.
     pub fn table(&self) -> String {
         let mut lines: Vec<&Line> = self.lines.iter().filter(|l| l.verdict != Verdict::Ok).collect();
         lines.sort_by_key(|l| l.verdict);
         let ok = self.lines.len() - lines.len();
         let mut t = String::from("| verdict | benchmark | figure | baseline | new | why |\n|---|---|---|---:|---:|---|\n");
         for l in lines {
-            let _ = writeln!(t, "| {} | {} | {} | {} | {} | {} |", l.verdict.word(), l.benchmark, l.figure, l.baseline, l.new, l.why.replace('|', "/"));
+            let cells = [l.verdict.word(), &l.benchmark, &l.figure, &l.baseline, &l.new, &l.why].map(report::md_cell);
+            let _ = writeln!(t, "| {} |", cells.join(" | "));
         }
-        let _ = writeln!(t, "\n{} figures compared: {} regressions, {ok} unchanged within tolerance.", self.lines.len(), self.regressions());
+        let _ = writeln!(
+            t,
+            "\n{} figures compared: {} regressions, {} improved, {} notes, {ok} unchanged within tolerance.",
+            self.lines.len(),
+            self.regressions(),
+            self.count(Verdict::Improved),
+            self.count(Verdict::Info)
+        );
         t
     }
 }
@@ -305,6 +369,37 @@ impl Comparison {
 fn same_device(a: &SummaryFile, b: &SummaryFile) -> bool {
     let (x, y) = (&a.environment, &b.environment);
     x.device.name == y.device.name && x.device.driver_info == y.device.driver_info && x.cpu_model == y.cpu_model
+}
+
+/// How far apart two suites may have started and still be one sitting.
+pub const SITTING_WINDOW_S: i64 = 3600;
+
+/// Whether two summaries come from the same machine and sitting: both
+/// record the same `machine_boot_id` (a hash of the machine's
+/// `/etc/machine-id` and of this boot's id, so another machine, a clone of
+/// the same image or a reboot differ), the same device, driver and CPU
+/// model, and started at most [`SITTING_WINDOW_S`] apart. `Ok` says so,
+/// `Err` says what differs.
+pub fn same_sitting(a: &SummaryFile, b: &SummaryFile) -> std::result::Result<String, String> {
+    use crate::harness::suite::parse_utc;
+    let (x, y) = (&a.environment, &b.environment);
+    let (Some(mx), Some(my)) = (&x.machine_boot_id, &y.machine_boot_id) else {
+        return Err("a summary does not record its machine and boot".into());
+    };
+    if mx != my {
+        return Err("another machine, or the same one rebooted".into());
+    }
+    if !same_device(a, b) {
+        return Err("another device, driver or CPU".into());
+    }
+    let (Some(tx), Some(ty)) = (parse_utc(&x.started_utc), parse_utc(&y.started_utc)) else {
+        return Err("a summary does not record when it started".into());
+    };
+    let apart = (tx - ty).abs();
+    if apart > SITTING_WINDOW_S {
+        return Err(format!("started {:.1} h apart, more than {} h", apart as f64 / 3600.0, SITTING_WINDOW_S / 3600));
+    }
+    Ok(format!("one machine and boot, started {apart} s apart"))
 }
 
 /// Compare `new` against `base`.
@@ -332,6 +427,24 @@ pub fn compare(base: &SummaryFile, new: &SummaryFile, tol: &Tolerances) -> Resul
             ),
         );
     }
+    // Whether a moved time fails (else it is a note), and why.
+    let sitting = same_sitting(base, new);
+    let enforce = match tol.times {
+        Times::Off => false,
+        Times::Always => true,
+        Times::Auto => sitting.is_ok(),
+    };
+    if tol.times != Times::Off {
+        let why = match (&sitting, tol.times) {
+            (_, Times::Always) => "--times: moved times fail the comparison".to_string(),
+            (Ok(how), _) => format!("same machine and sitting ({how}): moved times fail the comparison"),
+            (Err(what), _) => format!(
+                "not the same machine and sitting ({what}): moved times are notes, not failures \
+                 (--times to fail on them; speed decisions: volbench ab)"
+            ),
+        };
+        c.push(Verdict::Info, "environment", "times", base.environment.started_utc.clone(), new.environment.started_utc.clone(), why);
+    }
     let new_rows: BTreeMap<String, &RowFile> = new.runs.iter().map(|r| (key(r), r)).collect();
     for b in &base.runs {
         let k = key(b);
@@ -340,7 +453,7 @@ pub fn compare(base: &SummaryFile, new: &SummaryFile, tol: &Tolerances) -> Resul
             continue;
         };
         match (&b.result, &n.result) {
-            (Some(br), Some(nr)) => compare_row(&mut c, &k, br, nr, same, tol),
+            (Some(br), Some(nr)) => compare_row(&mut c, &k, br, nr, same, enforce, tol),
             (Some(_), None) => c.push(
                 Verdict::Regression,
                 &k,
@@ -359,8 +472,8 @@ pub fn compare(base: &SummaryFile, new: &SummaryFile, tol: &Tolerances) -> Resul
             c.push(Verdict::Info, &key(n), "row", "absent".into(), n.status.clone(), "new run, not in the baseline");
         }
     }
-    if tol.times {
-        compare_ratios(&mut c, base, new, tol);
+    if tol.times != Times::Off {
+        compare_ratios(&mut c, base, new, enforce, tol);
     }
     Ok(c)
 }
@@ -380,7 +493,7 @@ fn order_dependent(figure: &str) -> bool {
     figure == "stats.vertex_invocations"
 }
 
-fn compare_row(c: &mut Comparison, k: &str, b: &ResultFile, n: &ResultFile, same_device: bool, tol: &Tolerances) {
+fn compare_row(c: &mut Comparison, k: &str, b: &ResultFile, n: &ResultFile, same_device: bool, enforce_times: bool, tol: &Tolerances) {
     let verdict = |ok: bool| if ok { Verdict::Ok } else { Verdict::Regression };
     c.push(verdict(b.spec == n.spec), k, "spec", b.spec.clone(), n.spec.clone(), if b.spec == n.spec { "" } else { "the method's default options changed" });
     for (figure, bv, nv) in counts(b, n) {
@@ -425,11 +538,12 @@ fn compare_row(c: &mut Comparison, k: &str, b: &ResultFile, n: &ResultFile, same
     let nf = (b.image.non_finite_pixels, n.image.non_finite_pixels);
     c.push(verdict(nf.1 <= nf.0), k, "image.non_finite_pixels", nf.0.to_string(), nf.1.to_string(), if nf.1 > nf.0 { "NaN/Inf pixels appeared" } else { "" });
     compare_instructions(c, k, b, n, tol);
-    if tol.times && tol.absolute_times && same_device {
+    if tol.times != Times::Off && tol.absolute_times && same_device {
         if let (Some(bs), Some(ns)) = (b.time_ms.samples.get("frame"), n.time_ms.samples.get("frame")) {
             if let (Some(bb), Some(nb)) = (median_band(bs), median_band(ns)) {
                 let v = time_verdict(bb, nb, tol.time_margin);
-                c.push(v, k, "time_ms.frame (same device)", bb.show(), nb.show(), time_why(v, tol.time_margin));
+                let (v, why) = time_note(v, time_why(v, tol.time_margin), enforce_times);
+                c.push(v, k, "time_ms.frame (same device)", bb.show(), nb.show(), why);
             }
         }
     }
@@ -560,6 +674,15 @@ fn time_verdict(base: Band, new: Band, margin: f64) -> Verdict {
     }
 }
 
+/// A time regression as a note when times do not fail the comparison.
+fn time_note(v: Verdict, why: String, enforce: bool) -> (Verdict, String) {
+    if v == Verdict::Regression && !enforce {
+        (Verdict::Info, format!("{why} (a note: not the same machine and sitting)"))
+    } else {
+        (v, why)
+    }
+}
+
 fn time_why(v: Verdict, margin: f64) -> String {
     match v {
         Verdict::Regression => format!("slower by more than {:.0} %, outside both noise bands", margin * 100.0),
@@ -572,7 +695,7 @@ fn time_why(v: Verdict, margin: f64) -> String {
 /// the two: every run against the dataset's reference run (the first by
 /// name that both summaries time), so the lines grow linearly with the runs
 /// (every pair made 4.5 million lines of 3,000 runs).
-fn compare_ratios(c: &mut Comparison, base: &SummaryFile, new: &SummaryFile, tol: &Tolerances) {
+fn compare_ratios(c: &mut Comparison, base: &SummaryFile, new: &SummaryFile, enforce: bool, tol: &Tolerances) {
     let bands = |s: &SummaryFile| -> BTreeMap<(String, String), Band> {
         s.runs
             .iter()
@@ -603,6 +726,7 @@ fn compare_ratios(c: &mut Comparison, base: &SummaryFile, new: &SummaryFile, tol
             } else {
                 String::new()
             };
+            let (v, why) = time_note(v, why, enforce);
             c.push(v, &format!("{d}/{m} ÷ {d}/{m0}"), "frame-time ratio", rb.show(), rn.show(), why);
         }
     }
@@ -632,9 +756,9 @@ fn metrics(s: &SummaryFile) -> Vec<(String, Vec<Measure>)> {
         }
         // Instructions per frame, each phase its own measure
         // (`instructions-<phase>`: BMF measure names are kebab-case).
+        // (`validate` refused phases that would share a measure name.)
         if let Some(cf) = &x.count {
-            let kebab = |n: &str| n.chars().map(|c| if c.is_ascii_alphanumeric() { c.to_ascii_lowercase() } else { '-' }).collect::<String>();
-            m.extend(cf.per_frame().into_iter().map(|(name, v)| (kebab(&name), v, None)));
+            m.extend(cf.per_frame().into_iter().map(|(name, v)| (measure_name(&name), v, None)));
         }
         out.push((key(r), m));
     }
@@ -769,6 +893,115 @@ mod tests {
             assert_eq!(ratios, runs - 1);
             assert_eq!(c.regressions(), 0);
         }
+    }
+
+    /// `summary(2, ..)` with the second run's frames `slower` times slower,
+    /// its covered pixels `+pixels`, started at `started` on `machine`.
+    fn sitting(slower: f64, pixels: u64, machine: Option<&str>, started: &str) -> SummaryFile {
+        let mut s = summary(2, &[10.0, 10.5, 11.0, 10.2, 10.8, 10.4, 10.6], 2, 0.1);
+        let x = s.runs[1].result.as_mut().unwrap();
+        for t in x.time_ms.samples.get_mut("frame").unwrap() {
+            *t *= slower;
+        }
+        x.image.covered_pixels += pixels;
+        s.environment.machine_boot_id = machine.map(String::from);
+        s.environment.started_utc = started.into();
+        s
+    }
+
+    #[test]
+    fn moved_times_fail_only_in_one_sitting_or_when_asked() {
+        let base = sitting(1.0, 0, Some("m1"), "20261206T010000Z");
+        let auto = Tolerances::default();
+        let always = Tolerances { times: Times::Always, ..auto };
+        let off = Tolerances { times: Times::Off, ..auto };
+        let ratio = |c: &Comparison| c.lines.iter().find(|l| l.figure == "frame-time ratio").map(|l| l.verdict);
+        // Only times moved, another machine, or the same one hours later, or
+        // one that records no machine: notes, no failure.
+        for new in [
+            sitting(2.0, 0, Some("m2"), "20261206T010500Z"),
+            sitting(2.0, 0, Some("m1"), "20261206T030000Z"),
+            sitting(2.0, 0, None, "20261206T010500Z"),
+        ] {
+            let c = compare(&base, &new, &auto).unwrap();
+            assert_eq!(c.regressions(), 0, "{}", c.table());
+            assert_eq!(ratio(&c), Some(Verdict::Info), "{}", c.table());
+            assert!(c.table().contains("moved times are notes"), "{}", c.table());
+            // --times: a failure; --no-times: not compared.
+            assert_eq!(compare(&base, &new, &always).unwrap().regressions(), 1);
+            assert_eq!(ratio(&compare(&base, &new, &off).unwrap()), None);
+        }
+        // A count that moved fails however the times are treated.
+        let c = compare(&base, &sitting(1.0, 1, Some("m2"), "20261206T010500Z"), &auto).unwrap();
+        assert_eq!(c.regressions(), 1, "{}", c.table());
+        assert!(c.lines.iter().any(|l| l.verdict == Verdict::Regression && l.figure == "image.covered_pixels"));
+        // The same machine and boot, 50 minutes apart: one sitting, the moved ratio fails.
+        let c = compare(&base, &sitting(2.0, 0, Some("m1"), "20261206T015000Z"), &auto).unwrap();
+        assert_eq!(c.regressions(), 1, "{}", c.table());
+        assert_eq!(ratio(&c), Some(Verdict::Regression));
+        assert!(c.table().contains("same machine and sitting (one machine and boot, started 3000 s apart)"), "{}", c.table());
+        // Unchanged times in one sitting pass.
+        assert_eq!(compare(&base, &sitting(1.0, 0, Some("m1"), "20261206T015000Z"), &auto).unwrap().regressions(), 0);
+    }
+
+    #[test]
+    fn suite_start_times_parse_back() {
+        use crate::harness::suite::{parse_utc, utc_now};
+        let now = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap().as_secs() as i64;
+        assert!((parse_utc(&utc_now()).unwrap() - now).abs() <= 2);
+        assert_eq!(parse_utc("19700101T000000Z"), Some(0));
+        assert_eq!(parse_utc("20000301T000001Z"), Some(951_868_801));
+        for bad in ["", "2026-12-06T01:00:00Z", "20261306T010000Z", "20261206T250000Z", "20261206T010000", "2026120６T01000Z"] {
+            assert_eq!(parse_utc(bad), None, "{bad}");
+        }
+    }
+
+    #[test]
+    fn summary_text_cannot_forge_table_rows() {
+        let mut s = summary(2, &[1.0], 2, 0.1);
+        s.runs[1].label = Some("m | ok\n| REGRESSION | forged | row | 1 | 2 | x |\r\u{1b}[31m<b>".into());
+        s.runs[1].status = "failed".into();
+        s.runs[1].message = Some("oom\n| REGRESSION | forged |".into());
+        s.runs[1].result = None;
+        let base = summary(2, &[1.0], 2, 0.1);
+        let mut new = summary(2, &[1.0], 2, 0.1);
+        new.runs[1].label = s.runs[1].label.clone();
+        let c = compare(&base, &s, &Tolerances::default()).unwrap();
+        let c2 = compare(&base, &new, &Tolerances::default()).unwrap();
+        for t in [c.table(), c2.table()] {
+            // Every table line is one row of six cells: `|` only as separators.
+            for line in t.lines().filter(|l| l.starts_with('|')) {
+                let separators = line.replace("\\|", "").matches('|').count();
+                assert_eq!(separators, 7, "{line}");
+            }
+            assert!(!t.contains('\u{1b}') && !t.contains('\r') && !t.contains("<b>"), "{t}");
+            assert!(!t.lines().any(|l| l.starts_with("| REGRESSION | forged")), "{t}");
+        }
+        assert!(c.table().contains("m \\| ok\\n\\| REGRESSION \\| forged"), "{}", c.table());
+        assert_eq!(report::md_cell("a|b\\c\nd\te\u{7f}"), "a\\|b\\\\c\\nd e\\u{7f}");
+    }
+
+    #[test]
+    fn phases_that_collide_as_measures_are_refused_naming_both() {
+        let with_phases = |names: &[&str]| {
+            let mut s = summary(1, &[1.0], 2, 0.1);
+            let phases: BTreeMap<String, Value> = names.iter().map(|n| (n.to_string(), json!({"total": 10}))).collect();
+            s.runs[0].result.as_mut().unwrap().count =
+                Some(serde_json::from_value(json!({"frames": 1, "phases": phases, "frame": {"total": 10}})).unwrap());
+            s
+        };
+        validate(&with_phases(&["device", "sort", "cull_gpu"])).unwrap();
+        for (a, b) in [("Device", "device"), ("sort.gpu", "sort_gpu"), ("frame", "sort")] {
+            let e = format!("{:#}", validate(&with_phases(&[a, b])).unwrap_err());
+            let first = if a == "frame" { "the frame total".to_string() } else { format!("{a:?}") };
+            assert!(e.contains(&first) && e.contains(&format!("{:?}", if a == "frame" { a } else { b })), "{e}");
+            assert!(e.contains("instructions-"), "{e}");
+        }
+        // What is accepted exports unique names.
+        let s = with_phases(&["device", "sort"]);
+        let names: Vec<String> = gha(&s).as_array().unwrap().iter().map(|e| e["name"].as_str().unwrap().to_string()).collect();
+        let unique: std::collections::BTreeSet<&String> = names.iter().collect();
+        assert_eq!(unique.len(), names.len(), "{names:?}");
     }
 
     #[test]

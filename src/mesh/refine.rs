@@ -14,7 +14,11 @@ use super::TetMesh;
 /// output (8x the tets, points plus one per edge, at most 6 per tet) and
 /// the edge table. An estimate from above, checked before allocating.
 pub fn refined_bytes(mesh: &TetMesh) -> u128 {
-    let (p, t) = (mesh.points.len() as u128, mesh.tets.len() as u128);
+    refined_bytes_of(mesh.points.len() as u128, mesh.tets.len() as u128)
+}
+
+/// [`refined_bytes`] of a mesh of `p` points and `t` tets.
+pub fn refined_bytes_of(p: u128, t: u128) -> u128 {
     let edges = 6 * t;
     let point = 24 + 8;
     let input = p * point + t * 16;
@@ -23,6 +27,61 @@ pub fn refined_bytes(mesh: &TetMesh) -> u128 {
     // load factor hashbrown keeps (7/8), doubled for the resize peak.
     let table = edges * 13 * 8 / 7 * 2;
     input + output + table
+}
+
+/// A mesh's sizes as red refinement changes them, so the sizes of every
+/// level are known before any is made: each edge gets a point and becomes
+/// 2, each face gets 3 new edges and becomes 4, each tet gets 1 new edge
+/// (its inner octahedron's diagonal) and 8 inner faces, and becomes 8.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RefineCounts {
+    pub points: u128,
+    /// Distinct edges.
+    pub edges: u128,
+    /// Distinct faces.
+    pub faces: u128,
+    pub tets: u128,
+}
+
+impl RefineCounts {
+    /// Counted from `mesh` (its distinct edges and faces, sorted).
+    pub fn of(mesh: &TetMesh) -> Self {
+        let mut edges: Vec<u64> = Vec::with_capacity(mesh.tets.len() * 6);
+        for t in &mesh.tets {
+            for (a, b) in [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)] {
+                let (x, y) = (t[a].min(t[b]), t[a].max(t[b]));
+                edges.push(u64::from(x) << 32 | u64::from(y));
+            }
+        }
+        edges.sort_unstable();
+        edges.dedup();
+        let edge_count = edges.len() as u128;
+        drop(edges);
+        let mut faces: Vec<[u32; 3]> = Vec::with_capacity(mesh.tets.len() * 4);
+        for t in &mesh.tets {
+            for skip in 0..4 {
+                let mut f = [0u32; 3];
+                let mut k = 0;
+                for (i, &v) in t.iter().enumerate() {
+                    if i != skip {
+                        f[k] = v;
+                        k += 1;
+                    }
+                }
+                f.sort_unstable();
+                faces.push(f);
+            }
+        }
+        faces.sort_unstable();
+        faces.dedup();
+        RefineCounts { points: mesh.points.len() as u128, edges: edge_count, faces: faces.len() as u128, tets: mesh.tets.len() as u128 }
+    }
+
+    /// The counts after one red refinement.
+    pub fn refined(self) -> Self {
+        let RefineCounts { points, edges, faces, tets } = self;
+        RefineCounts { points: points + edges, edges: 2 * edges + 3 * faces + tets, faces: 4 * faces + 8 * tets, tets: 8 * tets }
+    }
 }
 
 /// `mesh` red-refined once: 8 times the tets; its name gets `-r1` (`-r2`
@@ -134,6 +193,21 @@ pub(super) mod tests {
         // One midpoint per edge: 8 corners + 12 box edges + 6 face
         // diagonals + 1 body diagonal = 27 points.
         assert_eq!(red_refine(&cube()).unwrap().points.len(), 27);
+    }
+
+    #[test]
+    fn counts_of_every_level_are_known_before_refining() {
+        let mut m = cube();
+        let mut counts = RefineCounts::of(&m);
+        // 8 corners; 12 box edges + 6 face diagonals + 1 body diagonal; 6 tets' 24 faces, 12 on the boundary.
+        assert_eq!(counts, RefineCounts { points: 8, edges: 19, faces: 18, tets: 6 });
+        for _ in 1..=2 {
+            m = red_refine(&m).unwrap();
+            counts = counts.refined();
+            assert_eq!(RefineCounts::of(&m), counts);
+        }
+        assert_eq!(counts.tets, 6 * 64);
+        assert_eq!(refined_bytes(&m), refined_bytes_of(counts.points, counts.tets));
     }
 
     #[test]

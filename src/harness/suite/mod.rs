@@ -20,4 +20,4 @@ mod summary;
 pub use plan::{plan, PlannedRun, Scene, SuiteDataset, SuiteSettings, CULL_SCENE_DATASETS, ZOOM};
 pub use report::{cull_report, peer_report, report};
 pub use run::run_suite;
-pub use summary::{csv, utc_now, CullCheck, Environment, SuiteDatasetRow, SuiteRow, Summary};
+pub use summary::{csv, machine_boot_id, parse_utc, utc_now, CullCheck, Environment, SuiteDatasetRow, SuiteRow, Summary};

@@ -22,6 +22,12 @@ pub struct Environment {
     pub git_sha: &'static str,
     pub volbench_version: &'static str,
     pub started_utc: String,
+    /// Which machine and boot ran the suite, without naming either: the
+    /// first 16 bytes of SHA-256 over `/etc/machine-id` and
+    /// `/proc/sys/kernel/random/boot_id` (`compare` decides "same machine
+    /// and sitting" from it, `track::same_sitting`). Absent when either
+    /// cannot be read.
+    pub machine_boot_id: Option<String>,
 }
 
 impl Environment {
@@ -38,8 +44,43 @@ impl Environment {
             git_sha: env!("VOLBENCH_GIT_SHA"),
             volbench_version: env!("CARGO_PKG_VERSION"),
             started_utc: utc_now(),
+            machine_boot_id: machine_boot_id(),
         }
     }
+}
+
+/// See [`Environment::machine_boot_id`].
+pub fn machine_boot_id() -> Option<String> {
+    use sha2::{Digest as _, Sha256};
+    let read = |p: &str| std::fs::read_to_string(p).ok().map(|t| t.trim().to_string()).filter(|t| !t.is_empty());
+    let machine = read("/etc/machine-id").or_else(|| read("/var/lib/dbus/machine-id"))?;
+    let boot = read("/proc/sys/kernel/random/boot_id")?;
+    let digest = Sha256::digest(format!("volbench machine {machine} boot {boot}").as_bytes());
+    Some(crate::harness::datasets::hex(&digest[..16]))
+}
+
+/// Seconds since 1970 of a `YYYYMMDDTHHMMSSZ` time ([`utc_now`]'s form);
+/// `None` for anything else.
+pub fn parse_utc(text: &str) -> Option<i64> {
+    let b = text.as_bytes();
+    if b.len() != 16 || b[8] != b'T' || b[15] != b'Z' || !b[..8].iter().chain(&b[9..15]).all(u8::is_ascii_digit) {
+        return None;
+    }
+    let num = |r: std::ops::Range<usize>| text[r].parse::<i64>().ok();
+    let (y, m, d) = (num(0..4)?, num(4..6)?, num(6..8)?);
+    let (hh, mm, ss) = (num(9..11)?, num(11..13)?, num(13..15)?);
+    if !(1..=12).contains(&m) || !(1..=31).contains(&d) || hh > 23 || mm > 59 || ss > 60 {
+        return None;
+    }
+    // Days from civil (Howard Hinnant's algorithm, the inverse of utc_now's).
+    let y = if m <= 2 { y - 1 } else { y };
+    let era = y.div_euclid(400);
+    let yoe = y - era * 400;
+    let mp = if m > 2 { m - 3 } else { m + 9 };
+    let doy = (153 * mp + 2) / 5 + d - 1;
+    let doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
+    let days = era * 146_097 + doe - 719_468;
+    Some(days * 86_400 + hh * 3600 + mm * 60 + ss)
 }
 
 /// The current UTC time as `YYYYMMDDTHHMMSSZ` (for run ids).

@@ -1,0 +1,187 @@
+//! Other programs `ab` and `--count` start and read, with every wait and
+//! every byte bounded: a binary's `--version`, a per-run `volbench run`,
+//! git, `valgrind --version`. Each child runs in a process group of its
+//! own with a deadline; at the deadline (or when it prints more than its
+//! caller allows) the whole group is killed, and when it exits, whatever it
+//! left running in its group is killed too. Its output is read on threads
+//! into `fsio::HeadTail`s (head and tail kept, the middle counted), so a
+//! child that prints forever costs a few kilobytes, not gigabytes.
+
+use std::os::unix::process::CommandExt as _;
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::sync::mpsc::Receiver;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, Context as _, Result};
+
+use crate::fsio::HeadTail;
+
+/// Bytes kept of each end of a child's output stream.
+pub const KEEP: usize = 16 * 1024;
+
+/// How long the readers may take to see the end of a stream once the
+/// child and its group are gone (a grandchild that left the group may hold
+/// the stream open: its output is then taken as it stands).
+const DRAIN_GRACE: Duration = Duration::from_secs(2);
+
+/// A stream being read on a thread into a `HeadTail`.
+pub struct Drain {
+    pub seen: Arc<Mutex<HeadTail>>,
+    done: Receiver<()>,
+}
+
+impl Drain {
+    /// Read `stream` to its end on a thread, keeping `keep` bytes of each end.
+    pub fn start(stream: Option<impl std::io::Read + Send + 'static>, keep: usize) -> Drain {
+        let seen = Arc::new(Mutex::new(HeadTail::new(keep)));
+        let (tx, done) = std::sync::mpsc::channel();
+        let shared = Arc::clone(&seen);
+        std::thread::spawn(move || {
+            if let Some(mut stream) = stream {
+                let mut buf = vec![0u8; 64 * 1024];
+                loop {
+                    match stream.read(&mut buf) {
+                        Ok(0) => break,
+                        Ok(n) => match shared.lock() {
+                            Ok(mut s) => s.push(&buf[..n]),
+                            Err(_) => break,
+                        },
+                        Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                        Err(_) => break,
+                    }
+                }
+            }
+            let _ = tx.send(());
+        });
+        Drain { seen, done }
+    }
+
+    /// Bytes read so far.
+    pub fn total(&self) -> u64 {
+        self.seen.lock().map_or(0, |s| s.total())
+    }
+
+    /// What was read, after waiting up to `grace` for the end of the stream.
+    pub fn finish(&self, grace: Duration) -> HeadTail {
+        let _ = self.done.recv_timeout(grace);
+        self.seen.lock().map(|s| s.clone()).unwrap_or_default()
+    }
+}
+
+/// A finished child: its exit status and its output streams.
+#[derive(Debug)]
+pub struct Finished {
+    pub status: ExitStatus,
+    pub stdout: HeadTail,
+    pub stderr: HeadTail,
+}
+
+impl Finished {
+    /// Its standard error, trimmed and clipped for a message.
+    pub fn stderr_text(&self) -> String {
+        crate::fsio::clip_child_output(self.stderr.text().trim())
+    }
+}
+
+/// Start `cmd` in a process group of its own (stdin from /dev/null).
+/// `what` names it in errors; a file that is not executable says so.
+pub fn spawn_in_group(cmd: &mut Command, what: &str) -> Result<Child> {
+    cmd.process_group(0).spawn().map_err(|e| match e.kind() {
+        std::io::ErrorKind::PermissionDenied => anyhow::anyhow!("{what}: not executable ({e})"),
+        _ => anyhow::anyhow!("{what}: cannot be started ({e})"),
+    })
+}
+
+/// Kill the process group `child` leads (its leader, when still running,
+/// and whatever it started and left in the group), then reap the leader.
+pub fn kill_group(child: &mut Child) {
+    super::peers::kill_group(child.id());
+    let _ = child.wait();
+}
+
+/// Run `cmd` to its end within `deadline`, its output kept head and tail
+/// (`KEEP` bytes of each end of each stream). `max_stdout`: more standard
+/// output than this is an error too (a `--version` that prints megabytes is
+/// not one). Either way the child's process group is killed and the error
+/// says which limit (`limit_name`, the option that sets the deadline) it hit.
+pub fn run(cmd: &mut Command, what: &str, deadline: Duration, limit_name: &str, max_stdout: Option<u64>) -> Result<Finished> {
+    let mut child = spawn_in_group(cmd.stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped()), what)?;
+    let out = Drain::start(child.stdout.take(), KEEP);
+    let err = Drain::start(child.stderr.take(), KEEP);
+    let start = Instant::now();
+    let status = loop {
+        if let Some(status) = child.try_wait().with_context(|| format!("{what}: waiting for it"))? {
+            break status;
+        }
+        if start.elapsed() > deadline {
+            kill_group(&mut child);
+            bail!("{what}: still running after {} s ({limit_name}); killed its process group", deadline.as_secs_f64());
+        }
+        if let Some(max) = max_stdout {
+            if out.total() > max {
+                kill_group(&mut child);
+                bail!("{what}: printed more than {max} bytes; killed its process group");
+            }
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    };
+    // What it left running (holding its output open, or just running).
+    super::peers::kill_group(child.id());
+    Ok(Finished { status, stdout: out.finish(DRAIN_GRACE), stderr: err.finish(DRAIN_GRACE) })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sh(script: &str) -> Command {
+        let mut c = Command::new("sh");
+        c.args(["-c", script]);
+        c
+    }
+
+    #[test]
+    fn output_is_kept_whole_when_small_and_clipped_when_large() {
+        let f = run(&mut sh("echo out; echo err >&2; exit 3"), "t", Duration::from_secs(20), "--timeout", None).unwrap();
+        assert_eq!((f.status.code(), f.stdout.text().as_str(), f.stderr.text().as_str()), (Some(3), "out\n", "err\n"));
+        // 4 MB of output: the head and tail, the middle counted.
+        let f = run(&mut sh("head -c 4000000 /dev/zero | tr '\\0' x; echo END"), "t", Duration::from_secs(20), "--timeout", None).unwrap();
+        assert_eq!(f.stdout.total(), 4_000_004);
+        let text = f.stdout.text();
+        assert!(text.len() < 2 * KEEP + 100 && text.ends_with("END\n") && text.contains("bytes) …"), "{}", text.len());
+    }
+
+    #[test]
+    fn deadlines_and_output_limits_kill_the_group() {
+        let t = Instant::now();
+        let e = run(&mut sh("sleep 300 & sleep 300"), "hang", Duration::from_millis(300), "--timeout", None).unwrap_err().to_string();
+        assert!(e.contains("hang: still running after 0.3 s (--timeout); killed its process group"), "{e}");
+        // The output limit at two sizes: exactly the limit passes, beyond it
+        // (or without end) is killed.
+        for max in [1_000u64, 100_000] {
+            let exact = run(&mut sh(&format!("head -c {max} /dev/zero")), "t", Duration::from_secs(20), "--timeout", Some(max)).unwrap();
+            assert_eq!(exact.stdout.total(), max);
+            let e = run(&mut sh("yes"), "spew", Duration::from_secs(60), "--timeout", Some(max)).unwrap_err().to_string();
+            assert!(e.contains(&format!("spew: printed more than {max} bytes")), "{e}");
+        }
+        assert!(t.elapsed() < Duration::from_secs(30), "{:?}", t.elapsed());
+        // A grandchild that holds the output open is killed with the group
+        // when the child exits: the run ends at once.
+        let t = Instant::now();
+        let f = run(&mut sh("sleep 300 & echo started"), "leave", Duration::from_secs(60), "--timeout", None).unwrap();
+        assert!(f.status.success() && f.stdout.text() == "started\n");
+        assert!(t.elapsed() < Duration::from_secs(30), "{:?}", t.elapsed());
+    }
+
+    #[test]
+    fn a_file_without_execute_permission_is_named_not_executable() {
+        use std::os::unix::fs::PermissionsExt as _;
+        let d = tempfile::tempdir().unwrap();
+        let p = d.path().join("x");
+        std::fs::write(&p, "#!/bin/sh\n").unwrap();
+        std::fs::set_permissions(&p, std::fs::Permissions::from_mode(0o644)).unwrap();
+        let e = run(&mut Command::new(&p), "x", Duration::from_secs(5), "--timeout", None).err().unwrap().to_string();
+        assert!(e.contains("x: not executable"), "{e}");
+    }
+}
