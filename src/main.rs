@@ -75,9 +75,10 @@ enum Command {
     /// thin, huge, constant and extreme-valued volumes) with every method on
     /// the cases of its kind, each stress option set, against the f64 reference.
     Stress(StressArgs),
-    /// Every registered method on every shipped dataset of its kind at
-    /// standard settings: results/<run-id>/ with summary.json, summary.csv,
-    /// report.md, plots and a montage.
+    /// Every registered method on every shipped dataset of its kind (or on
+    /// the datasets and files `--data` names) at standard settings:
+    /// results/<run-id>/ with summary.json, summary.csv, report.md, plots
+    /// and a montage.
     Suite(SuiteArgs),
     /// Paired A/B timing of two volbench binaries (or git revisions, built
     /// here): the same benchmarks alternately in one sitting, each one's
@@ -211,6 +212,17 @@ struct SuiteArgs {
     /// meshes have point data).
     #[arg(long, default_value = "constant", value_name = "constant|average", value_parser = parse_cell_data)]
     cell_data: CellData,
+    /// Run these datasets instead of every shipped one (repeat): shipped
+    /// names (`volbench list`) or your own files, `FILE#SCALAR` as for
+    /// `run`; every method of the file's kind runs, and with `--peers` the
+    /// peers read the original file with their own readers.
+    #[arg(long, value_name = "NAME|FILE")]
+    data: Vec<String>,
+    /// A transfer-function file (JSON, see data/tf/README.md) for every
+    /// dataset's standard scene; default: a shipped dataset's preset, a
+    /// file's generic ramp over its scalar range.
+    #[arg(long, value_name = "FILE")]
+    tf: Option<PathBuf>,
 }
 
 /// Options of a method given as flags: shorthands for `method:key=value`.
@@ -786,7 +798,13 @@ fn stress(cli: &Cli, registry: &Registry, args: &StressArgs) -> Result<()> {
 
 fn suite(cli: &Cli, registry: &Registry, args: &SuiteArgs) -> Result<()> {
     use volbench::harness::suite::{plan, run_suite, utc_now, SuiteSettings};
-    let settings = SuiteSettings { peers: args.peers.clone(), cell_data: args.cell_data, ..SuiteSettings::standard(args.quick, args.filter.clone()) }
+    let settings = SuiteSettings {
+        peers: args.peers.clone(),
+        data: args.data.clone(),
+        tf: args.tf.clone(),
+        cell_data: args.cell_data,
+        ..SuiteSettings::standard(args.quick, args.filter.clone())
+    }
         .counted(count::child_dir(args.count)?);
     let plan = plan(registry, &settings)?;
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from(format!("results/{}", utc_now())));

@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
 """VTK as a peer of volbench (`volbench suite --peers vtk`).
 
-volbench writes a scene file (JSON: the dataset as a legacy VTK file, the
-renderer to use, image size, one camera per warm-up and timed frame plus the
+volbench writes a scene file (JSON: the dataset -- volbench's export as a
+legacy VTK file, or a user's original file for VTK's own reader, with the
+scalar array, its association and cell-data treatment --, the renderer to use, image size, one camera per warm-up and timed frame plus the
 reference view, and the transfer function already encoded for the renderer's
 opacity model); this script renders it with VTK offscreen (EGL on Mesa's
 llvmpipe when there is no GPU), times every frame as Render() plus
@@ -25,7 +26,7 @@ import time
 
 SCENE_FORMAT = "volbench-peer-scene"
 RESULT_FORMAT = "volbench-peer-result"
-VERSION = 1
+VERSION = 2
 
 # VTK renderer names (volbench's peer keys) and how each is built.
 RENDERERS = {
@@ -145,26 +146,211 @@ def build_property(vtk, tf):
     return prop
 
 
-def read_data(vtk, dataset):
-    path = need(dataset, "file", str, "dataset")
-    fmt = need(dataset, "format", str, "dataset")
-    if not os.path.isfile(path):
-        raise PeerError("scene: dataset file %s does not exist" % path)
+# A user's original file: the format key volbench sends, and VTK's reader.
+ORIGINAL_READERS = {
+    "vtk-legacy": "vtkDataSetReader",
+    "vtu": "vtkXMLUnstructuredGridReader",
+    "pvtu": "vtkXMLPUnstructuredGridReader",
+    "vti": "vtkXMLImageDataReader",
+    "nrrd": "vtkNrrdReader",
+    "nifti": "vtkNIFTIImageReader",
+    "metaimage": "vtkMetaImageReader",
+    "plot3d": "vtkMultiBlockPLOT3DReader",
+}
+
+
+def read_file(vtk, dataset, path, fmt):
+    """The data as VTK's own reader gives it (a user's original file), or
+    volbench's export."""
     if fmt == "vtk-legacy-unstructured-grid":
         reader = vtk.vtkUnstructuredGridReader()
     elif fmt == "vtk-legacy-structured-points":
         reader = vtk.vtkStructuredPointsReader()
+    elif fmt in ORIGINAL_READERS:
+        reader = getattr(vtk, ORIGINAL_READERS[fmt])()
     else:
         raise PeerError("scene: unknown dataset format '%s'" % fmt)
-    reader.SetFileName(path)
+    if fmt == "plot3d":
+        reader.SetXYZFileName(path)
+        reader.SetQFileName(need(dataset, "solution_file", str, "dataset"))
+        reader.AutoDetectFormatOn()
+    else:
+        reader.SetFileName(path)
+    if fmt == "vtk-legacy":
+        # Every array, not only the first of each attribute kind.
+        reader.ReadAllScalarsOn()
+        reader.ReadAllVectorsOn()
+        reader.ReadAllFieldsOn()
     reader.Update()
     data = reader.GetOutput()
-    if data is None or data.GetNumberOfPoints() == 0 or data.GetPointData().GetScalars() is None:
-        raise PeerError("%s: VTK read no points or no point scalars" % path)
+    if fmt == "plot3d":
+        data = data.GetBlock(0) if data is not None and data.GetNumberOfBlocks() > 0 else None
+        if data is not None:
+            plot3d_scalar(vtk, data)
+    if fmt == "nifti":
+        data = nifti_as_volbench_places_it(vtk, reader, data)
     return data
 
 
-def build_mapper(vtk, renderer, data, scene):
+def plot3d_scalar(vtk, data):
+    """volbench's PLOT3D scalar: the density, or the velocity magnitude
+    (|momentum| / density) when the density is constant over the grid."""
+    from vtkmodules.util import numpy_support
+    import numpy
+    pd = data.GetPointData()
+    rho = pd.GetArray("Density")
+    mom = pd.GetArray("Momentum")
+    if rho is None or mom is None:
+        raise PeerError("PLOT3D: VTK's reader gave no Density or Momentum")
+    r = numpy_support.vtk_to_numpy(rho).astype(numpy.float64)
+    if numpy.all(r == r[0]):
+        m = numpy_support.vtk_to_numpy(mom).astype(numpy.float64)
+        s = numpy.sqrt((m * m).sum(axis=1)) / r
+    else:
+        s = r
+    a = numpy_support.numpy_to_vtk(numpy.ascontiguousarray(s), deep=1)
+    a.SetName("volbench-plot3d-scalar")
+    pd.AddArray(a)
+
+
+def nifti_as_volbench_places_it(vtk, reader, data):
+    """NIfTI as volbench reads it: scl_slope / scl_inter applied, the grid
+    placed axis-aligned at the transform's translation (sform, else qform),
+    voxel size the sform's column lengths (else pixdim). VTK's reader keeps
+    the transform apart and leaves the scaling to the caller."""
+    slope, inter = reader.GetRescaleSlope(), reader.GetRescaleIntercept()
+    out = vtk.vtkImageData()
+    out.DeepCopy(data)
+    if slope != 0.0 and (slope != 1.0 or inter != 0.0):
+        from vtkmodules.util import numpy_support
+        import numpy
+        arr = out.GetPointData().GetScalars()
+        v = numpy_support.vtk_to_numpy(arr).astype(numpy.float64) * slope + inter
+        a = numpy_support.numpy_to_vtk(numpy.ascontiguousarray(v.astype(numpy.float32)), deep=1)
+        a.SetName(arr.GetName() or "scalars")
+        out.GetPointData().SetScalars(a)
+    m = None
+    if reader.GetSFormMatrix() is not None and reader.GetNIFTIHeader().GetSFormCode() > 0:
+        m = reader.GetSFormMatrix()
+        out.SetSpacing(*[math.sqrt(sum(m.GetElement(r, c) ** 2 for r in range(3))) for c in range(3)])
+    elif reader.GetQFormMatrix() is not None and reader.GetNIFTIHeader().GetQFormCode() > 0:
+        m = reader.GetQFormMatrix()
+    # VTK's reader may flip the rows (its own convention); volbench keeps the file's order.
+    if m is not None:
+        out.SetOrigin(m.GetElement(0, 3), m.GetElement(1, 3), m.GetElement(2, 3))
+    else:
+        out.SetOrigin(0.0, 0.0, 0.0)
+    return out
+
+
+def pick_array(arrays, want, one_component_default, where):
+    """The array named `want`, else the active scalars, else the first array
+    (of one component when `one_component_default`): volbench's rule."""
+    if want is not None:
+        a = arrays.GetArray(want)
+        if a is None:
+            raise PeerError("%s: VTK read no %s array named '%s'" % (where, arrays_kind(arrays), want))
+        return a
+    if arrays.GetScalars() is not None:
+        return arrays.GetScalars()
+    for i in range(arrays.GetNumberOfArrays()):
+        a = arrays.GetArray(i)
+        if a is not None and (not one_component_default or a.GetNumberOfComponents() == 1):
+            return a
+    raise PeerError("%s: VTK read no %s array to use as the scalar" % (where, arrays_kind(arrays)))
+
+
+def arrays_kind(arrays):
+    return "cell" if arrays.IsA("vtkCellData") else "point"
+
+
+def as_scalar(vtk, array):
+    """One component as it is; several by magnitude (volbench's rule), as a
+    new double array."""
+    if array.GetNumberOfComponents() == 1:
+        return array
+    from vtkmodules.util import numpy_support
+    import numpy
+    v = numpy_support.vtk_to_numpy(array).astype(numpy.float64)
+    m = numpy.sqrt((v * v).sum(axis=1))
+    a = numpy_support.numpy_to_vtk(numpy.ascontiguousarray(m), deep=1)
+    a.SetName((array.GetName() or "array") + "-magnitude")
+    return a
+
+
+def read_data(vtk, dataset):
+    path = need(dataset, "file", str, "dataset")
+    fmt = need(dataset, "format", str, "dataset")
+    kind = need(dataset, "kind", str, "dataset")
+    if not os.path.isfile(path):
+        raise PeerError("scene: dataset file %s does not exist" % path)
+    scalar = dataset.get("scalar") or {}
+    if not isinstance(scalar, dict):
+        raise PeerError("scene: 'scalar' in dataset must be an object")
+    want = scalar.get("array")
+    if want is not None and not isinstance(want, str):
+        raise PeerError("scene: dataset.scalar.array must be a string or null")
+    association = scalar.get("association", "point")
+    cell_data = scalar.get("cell_data")
+    if association not in ("point", "cell") or (association == "cell" and cell_data not in ("constant", "average")):
+        raise PeerError("scene: dataset.scalar: association '%s' with cell_data '%s' (point, or cell with constant or average)" % (association, cell_data))
+    data = read_file(vtk, dataset, path, fmt)
+    if data is None or data.GetNumberOfPoints() == 0:
+        raise PeerError("%s: VTK's reader read no points" % path)
+    is_mesh = kind == "tet-mesh"
+    if is_mesh and not (data.IsA("vtkUnstructuredGrid") or data.IsA("vtkStructuredGrid")):
+        raise PeerError("%s: VTK read a %s, not an unstructured grid" % (path, data.GetClassName()))
+    if not is_mesh and not data.IsA("vtkImageData"):
+        raise PeerError("%s: VTK read a %s, not image data" % (path, data.GetClassName()))
+    if fmt == "plot3d" and want is None:
+        want = "volbench-plot3d-scalar"
+    # volbench's default in .vtu / .pvtu: the first point array of any width;
+    # in legacy files and .vti: the first one-component one.
+    one = fmt not in ("vtu", "pvtu")
+    if association == "point":
+        chosen = as_scalar(vtk, pick_array(data.GetPointData(), want, one, path))
+        if chosen.GetName() is None:
+            chosen.SetName("volbench-scalar")
+        if chosen is not data.GetPointData().GetArray(chosen.GetName()):
+            data.GetPointData().AddArray(chosen)
+        data.GetPointData().SetActiveScalars(chosen.GetName())
+    else:
+        chosen = as_scalar(vtk, pick_array(data.GetCellData(), want, one, path))
+        if chosen.GetName() is None:
+            chosen.SetName("volbench-scalar")
+        if chosen is not data.GetCellData().GetArray(chosen.GetName()):
+            data.GetCellData().AddArray(chosen)
+        data.GetCellData().SetActiveScalars(chosen.GetName())
+        if cell_data == "average":
+            c2p = vtk.vtkCellDataToPointData()
+            c2p.SetInputData(data)
+            c2p.PassCellDataOff()
+            c2p.Update()
+            data = c2p.GetOutput()
+            data.GetPointData().SetActiveScalars(chosen.GetName())
+            association = "point"
+    if is_mesh and not all_tetrahedra(vtk, data):
+        # VTK's own filter: every 3-D cell into tetrahedra (lower-dimensional
+        # cells dropped, as volbench skips them).
+        tri = vtk.vtkDataSetTriangleFilter()
+        tri.SetInputData(data)
+        tri.TetrahedraOnlyOn()
+        tri.Update()
+        data = tri.GetOutput()
+    if is_mesh and data.GetNumberOfCells() == 0:
+        raise PeerError("%s: no tetrahedra after VTK's vtkDataSetTriangleFilter" % path)
+    return data, association
+
+
+def all_tetrahedra(vtk, data):
+    if not data.IsA("vtkUnstructuredGrid"):
+        return False
+    types = vtk.vtkCellTypes()
+    data.GetCellTypes(types)
+    return types.GetNumberOfTypes() == 1 and types.GetCellType(0) == vtk.VTK_TETRA
+
+
+def build_mapper(vtk, renderer, data, scene, association="point"):
     if renderer == "projected-tetrahedra":
         m = vtk.vtkProjectedTetrahedraMapper()
     elif renderer == "unstructured-raycast":
@@ -191,6 +377,10 @@ def build_mapper(vtk, renderer, data, scene):
         m.SetImageSampleDistance(1.0)
     else:
         raise PeerError("scene: unknown renderer '%s' (known: %s)" % (renderer, ", ".join(sorted(RENDERERS))))
+    if association == "cell":
+        m.SetScalarModeToUseCellData()
+    else:
+        m.SetScalarModeToUsePointData()
     m.SetInputData(data)
     return m
 
@@ -217,12 +407,12 @@ def render(scene):
 
     vtk, numpy_support, numpy = import_vtk()
     t0 = time.perf_counter()
-    data = read_data(vtk, dataset)
+    data, association = read_data(vtk, dataset)
     load_ms = (time.perf_counter() - t0) * 1e3
     t0 = time.perf_counter()
     rw, ren = open_window(vtk, width, height)
     volume = vtk.vtkVolume()
-    volume.SetMapper(build_mapper(vtk, renderer, data, scene))
+    volume.SetMapper(build_mapper(vtk, renderer, data, scene, association))
     volume.SetProperty(build_property(vtk, need(scene, "transfer_function", dict, "scene")))
     ren.AddVolume(volume)
     cam = ren.GetActiveCamera()

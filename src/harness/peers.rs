@@ -5,11 +5,14 @@
 //!
 //! A peer is an external program (VTK's Python wheel in a private virtual
 //! environment, installed by `scripts/install-vtk.sh`) driven through files:
-//! volbench writes the dataset as a legacy VTK file and a scene file (JSON,
-//! [`PeerScene`]), runs the peer's script once per renderer, and reads back a
-//! result file ([`PeerResult`], checked before use) and the reference view's
-//! image (raw RGBA8), which is compared with volbench's f64 reference like
-//! any run. Peers are keyed by the kind of data they render, never by
+//! volbench writes the dataset as a legacy VTK file ([`write_dataset`]) — or,
+//! for a user's own file (`suite --data FILE`), names the original file for
+//! the peer to read with its own reader ([`original_dataset`]), so that a
+//! reading mistake on either side shows as a disagreement — and a scene
+//! file (JSON, [`PeerScene`]), runs the peer's script once per renderer, and
+//! reads back a result file ([`PeerResult`], checked before use) and the
+//! reference view's image (raw RGBA8), which is compared with volbench's f64
+//! reference like any run, and with volbench's own images of the same view. Peers are keyed by the kind of data they render, never by
 //! volbench method names. Without `--peers` nothing here runs and nothing
 //! Python is needed.
 //!
@@ -53,7 +56,9 @@ use crate::scene::{Camera, TransferFunction};
 /// The scene and result file formats (`format` and `version` fields).
 pub const SCENE_FORMAT: &str = "volbench-peer-scene";
 pub const RESULT_FORMAT: &str = "volbench-peer-result";
-pub const FORMAT_VERSION: u32 = 1;
+/// 2: the dataset may be a user's original file, with the scalar array,
+/// its association and cell-data treatment named ([`PeerScalar`]).
+pub const FORMAT_VERSION: u32 = 2;
 
 /// Evenly spaced scalars the transfer function is resampled at for
 /// [`OpacityModel::Correction`] (plus its control points).
@@ -234,8 +239,118 @@ pub struct PeerDataset {
     pub name: String,
     pub kind: String,
     pub file: String,
+    /// How to read `file`: volbench's export (`vtk-legacy-unstructured-grid`,
+    /// `vtk-legacy-structured-points`), or a user's original file, one of
+    /// [`ORIGINAL_FORMATS`].
     pub format: String,
     pub digest: String,
+    /// `file` is the user's original file (not volbench's export).
+    #[serde(default)]
+    pub original: bool,
+    /// A PLOT3D pair's solution (Q) file; `file` is its grid.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub solution_file: Option<String>,
+    #[serde(default)]
+    pub scalar: PeerScalar,
+}
+
+/// Which of the file's arrays is the scalar, and how it is rendered.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PeerScalar {
+    /// The array by name (vectors by magnitude); `None`: the file's default
+    /// as volbench's reader picks it (the active scalars, else the first
+    /// point array: of any width in `.vtu`/`.pvtu`, one component in legacy
+    /// `.vtk` and `.vti`).
+    pub array: Option<String>,
+    /// `point` or `cell`.
+    pub association: String,
+    /// Cell scalars: `constant` (one value per cell) or `average` (to the
+    /// points, as `vtkCellDataToPointData`); `None` for point scalars.
+    pub cell_data: Option<String>,
+}
+
+impl Default for PeerScalar {
+    fn default() -> Self {
+        PeerScalar { array: None, association: "point".into(), cell_data: None }
+    }
+}
+
+/// The formats of users' files the peer reads with its own readers
+/// (`scripts/peers/vtk_peer.py`): legacy `.vtk` (`vtkDataSetReader`), `.vtu`,
+/// `.pvtu`, `.vti`, NRRD (`.nrrd`, `.nhdr`), NIfTI-1 (`.nii`, `.nii.gz`),
+/// MetaImage (`.mhd`, `.mha`) and PLOT3D pairs.
+pub const ORIGINAL_FORMATS: [&str; 8] = ["vtk-legacy", "vtu", "pvtu", "vti", "nrrd", "nifti", "metaimage", "plot3d"];
+
+/// The peer's format key of a user's file: by extension, else by content.
+fn original_format(path: &Path, kind: DataKind) -> Option<&'static str> {
+    let file = path.file_name().map(|f| f.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+    let ext = file.rsplit_once('.').map(|(_, e)| e.to_string()).unwrap_or_default();
+    let by_ext = match ext.as_str() {
+        "vtk" => Some("vtk-legacy"),
+        "vtu" => Some("vtu"),
+        "pvtu" => Some("pvtu"),
+        "vti" => Some("vti"),
+        "nrrd" | "nhdr" => Some("nrrd"),
+        "nii" => Some("nifti"),
+        "gz" if file.ends_with(".nii.gz") => Some("nifti"),
+        "mhd" | "mha" => Some("metaimage"),
+        e if kind == DataKind::TetMesh && crate::mesh::datasets::PLOT3D_EXTENSIONS.contains(&e) => Some("plot3d"),
+        _ => None,
+    };
+    by_ext.or_else(|| {
+        use std::io::Read as _;
+        let mut head = Vec::new();
+        std::fs::File::open(path).ok()?.take(1 << 16).read_to_end(&mut head).ok()?;
+        match crate::volume::sniff(&head)? {
+            crate::volume::Format::Nrrd => Some("nrrd"),
+            crate::volume::Format::Nifti => Some("nifti"),
+            crate::volume::Format::VtkLegacy => Some("vtk-legacy"),
+            crate::volume::Format::Vti if kind == DataKind::TetMesh => Some("vtu"),
+            crate::volume::Format::Vti => Some("vti"),
+            #[allow(unreachable_patterns)]
+            _ => None,
+        }
+    })
+}
+
+/// A user's file (`source`: as `--data` gave it, `FILE` or `FILE#SCALAR`)
+/// as the peer reads it: the original file and its format, and the scalar
+/// volbench renders — the array named after `#`, else the one the dataset's
+/// summary records (`scalar_array`), else the reader's default; its
+/// association (`scalar_association`, default `point`) and cell-data
+/// treatment (`cell_data`). `name` names it in the peer's files.
+pub fn original_dataset(dataset: &Dataset, name: &str, source: &str) -> Result<PeerDataset> {
+    let (file, array) = match source.rsplit_once('#') {
+        Some((f, a)) if std::fs::symlink_metadata(source).is_err() => (f, Some(a.to_string())),
+        _ => (source, None),
+    };
+    let path = Path::new(file);
+    let kind = dataset.kind();
+    anyhow::ensure!(kind != DataKind::Terrain, "'{file}': no peer renders terrains");
+    let format = original_format(path, kind)
+        .with_context(|| format!("'{file}': the peers have no reader for this file (they read {})", ORIGINAL_FORMATS.join(", ")))?;
+    let absolute = |p: &Path| std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf()).to_string_lossy().into_owned();
+    let (file, solution_file) = if format == "plot3d" {
+        let (xyz, q) = crate::mesh::datasets::plot3d_pair(path)?;
+        (absolute(&xyz), Some(absolute(&q)))
+    } else {
+        (absolute(path), None)
+    };
+    let stats = dataset.summary().stats;
+    let text = |k: &str| stats.get(k).and_then(|v| v.as_str()).map(str::to_string);
+    let association = text("scalar_association").unwrap_or_else(|| "point".into());
+    anyhow::ensure!(association == "point" || association == "cell", "'{file}': scalar association '{association}' is neither point nor cell");
+    let cell_data = if association == "cell" { Some(text("cell_data").unwrap_or_else(|| "constant".into())) } else { None };
+    Ok(PeerDataset {
+        name: name.to_string(),
+        kind: kind.name().to_string(),
+        file,
+        format: format.to_string(),
+        digest: dataset.digest.clone(),
+        original: true,
+        solution_file,
+        scalar: PeerScalar { array: array.or_else(|| text("scalar_array")), association, cell_data },
+    })
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -363,6 +478,10 @@ pub fn write_dataset(dataset: &Dataset, path: &Path) -> Result<PeerDataset> {
         file: path.to_string_lossy().into_owned(),
         format: format.into(),
         digest: dataset.digest.clone(),
+        original: false,
+        solution_file: None,
+        // The export's one array: `scalars`, point data.
+        scalar: PeerScalar { array: Some("scalars".into()), ..PeerScalar::default() },
     })
 }
 
@@ -622,6 +741,21 @@ pub struct PeerRow {
     pub setup_ms: Option<f64>,
     pub error: Option<super::image::ImageError>,
     pub covered_pixels: Option<usize>,
+    /// What the peer read: `export` (volbench's copy) or the original
+    /// file's format ([`ORIGINAL_FORMATS`]).
+    pub input: Option<String>,
+    /// The peer's reference-view image against each volbench run's of the
+    /// same view on the same dataset (standard scene).
+    pub vs_volbench: Vec<ImageAgreement>,
+}
+
+/// A peer's image against one volbench run's image of the same view.
+#[derive(Debug, Clone, Serialize)]
+pub struct ImageAgreement {
+    /// The volbench run (`PlannedRun::label`).
+    pub label: String,
+    pub rmse: f64,
+    pub max_abs: f64,
 }
 
 #[cfg(test)]

@@ -584,6 +584,9 @@ fn run_peer_level(
         file: file.to_string_lossy().into_owned(),
         format: "vtk-legacy-unstructured-grid".into(),
         digest: ds.digest.clone(),
+        original: false,
+        solution_file: None,
+        scalar: peers::PeerScalar { array: Some("scalars".into()), ..Default::default() },
     };
     let dir = out.join("peers");
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;

@@ -4,6 +4,8 @@
 
 #![allow(dead_code)]
 
+pub mod user_files;
+
 /// Fail with every schema violation of `value` against `results/schema/<schema>`.
 pub fn assert_matches_schema(schema: &str, value: &serde_json::Value, what: &str) {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("results/schema").join(schema);

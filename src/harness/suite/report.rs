@@ -72,6 +72,7 @@ pub fn report(s: &Summary, registry: &Registry) -> String {
             }
         }
     }
+    t += &datasets_report(s);
     t += &error_legend(s);
     t += &published_ratios(s, registry);
     t += &placement_report(s);
@@ -80,6 +81,35 @@ pub fn report(s: &Summary, registry: &Registry) -> String {
     t += "\nPictures, per dataset: `plots/time_error-<dataset>.png` (frame time against error, the Pareto front joined, peers included), \
           `plots/frame_time-<dataset>.{png,svg}` (median with the min–max spread), `plots/bytes_per_frame-<dataset>.{png,svg}`; \
           `montage-<dataset>.png`: the f64 reference, then each run beside its ×10 difference from it; every image in `runs/`.\n";
+    t
+}
+
+/// Where each dataset came from and the transfer function it was shown
+/// with, when that is not the shipped datasets' presets: users' files
+/// (`--data FILE`) or a `--tf` file.
+fn datasets_report(s: &Summary) -> String {
+    if !s.datasets.iter().any(|d| d.user) && s.settings.tf.is_none() {
+        return String::new();
+    }
+    let mut t = String::from(
+        "\n## Datasets\n\nA user's file is read by volbench's reader; its peers read the original file with their own readers. \
+         Transfer function: the standard scene's (`--tf FILE`, the shipped preset, or for a file without `--tf` \
+         volbench's generic ramp over the scalar range).\n\n\
+         | dataset | source | kind | scalar | transfer function | from |\n|---|---|---|---|---|---|\n",
+    );
+    for d in &s.datasets {
+        let _ = writeln!(
+            t,
+            "| {} | {}{} | {} | {} | {} | {} |",
+            d.name,
+            d.source.replace('|', "/"),
+            if d.user { " (your file)" } else { "" },
+            d.kind.name(),
+            d.scalar_array.as_deref().unwrap_or("the reader's default").replace('|', "/"),
+            d.transfer_function.as_deref().unwrap_or("-").replace('|', "/"),
+            d.transfer_function_from.replace('|', "/"),
+        );
+    }
     t
 }
 
@@ -380,7 +410,62 @@ pub fn peer_report(s: &Summary) -> String {
         t += &ratios;
     }
     t += &matched_error(s);
+    t += &agreement_report(s);
     t
+}
+
+/// Each peer's image against volbench's of the same view: the RMSE to each
+/// volbench run's reference-view image (all of them in `summary.json`
+/// `peers[].vs_volbench`; here the closest and the farthest), beside the
+/// peer's and that run's own RMSE against the f64 reference. On a user's
+/// file the peer read the original with its own reader, so a reading
+/// mistake on either side shows here as images far apart (and a peer
+/// error far above its level on data it reads from volbench's export).
+fn agreement_report(s: &Summary) -> String {
+    let mut rows = String::new();
+    for p in &s.peers {
+        let Some(pe) = &p.error else { continue };
+        let own = |label: &str| {
+            s.runs
+                .iter()
+                .find(|r| r.dataset == p.dataset && r.scene == Scene::Standard && r.label == label)
+                .and_then(|r| r.result.as_ref()?.error.as_ref().map(|e| format!("{:.2e}", e.rmse)))
+                .unwrap_or_else(|| "-".into())
+        };
+        let closest = p.vs_volbench.iter().min_by(|a, b| a.rmse.total_cmp(&b.rmse));
+        let farthest = p.vs_volbench.iter().max_by(|a, b| a.rmse.total_cmp(&b.rmse));
+        let (Some(c), Some(f)) = (closest, farthest) else { continue };
+        let input = match p.input.as_deref() {
+            Some("export") | None => "volbench's export".to_string(),
+            Some(format) => format!("original file ({format})"),
+        };
+        let _ = writeln!(
+            rows,
+            "| {} | {}/{} | {input} | {:.2e} | {} | {:.2e} | {} | {} | {:.2e} | {} |",
+            p.dataset,
+            p.peer,
+            p.renderer,
+            pe.rmse,
+            c.label,
+            c.rmse,
+            own(&c.label),
+            f.label,
+            f.rmse,
+            own(&f.label),
+        );
+    }
+    if rows.is_empty() {
+        return rows;
+    }
+    format!(
+        "\nThe peer's image against volbench's of the same view (the reference view): RMSE between the two images, for the \
+         volbench run closest to the peer's image and the farthest (every run in `summary.json`, `peers[].vs_volbench`), \
+         beside each one's RMSE against the f64 reference (of volbench's reading). On a user's file the peer read the \
+         original file with its own reader, so a reading mistake on either side shows here as images far apart and a \
+         peer error far above its level on the shipped datasets (which it reads from volbench's export).\n\n\
+         | dataset | peer | peer read | peer RMSE vs f64 | closest volbench run | RMSE peer vs it | its RMSE vs f64 | farthest volbench run | RMSE peer vs it | its RMSE vs f64 |\n\
+         |---|---|---|---:|---|---:|---:|---|---:|---:|\n{rows}"
+    )
 }
 
 /// Speed at matched error: per peer renderer, the fastest volbench run on

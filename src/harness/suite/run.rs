@@ -8,14 +8,14 @@ use std::sync::Arc;
 
 use anyhow::{Context as _, Result};
 
-use super::plan::{PlannedRun, Scene, SuiteSettings};
+use super::plan::{PlannedRun, Scene, SuiteDataset, SuiteSettings};
 use super::report::{figures, report};
-use super::summary::{csv, CullCheck, Environment, SuiteRow, Summary};
+use super::summary::{csv, CullCheck, Environment, SuiteDatasetRow, SuiteRow, Summary};
 use crate::algo::registry::{MethodSpec, Registry};
 use crate::fsio;
-use crate::harness::datasets::{self, Dataset};
+use crate::harness::datasets::Dataset;
 use crate::harness::image::RgbaImage;
-use crate::harness::peers::{LocatedPeer, PeerRenderer, PeerRow};
+use crate::harness::peers::{ImageAgreement, LocatedPeer, PeerRenderer, PeerRow};
 use crate::harness::plots::Tile;
 use crate::harness::reference_cache::reference_image;
 use crate::harness::run::{run, RunConfig, RunOutput};
@@ -49,7 +49,7 @@ pub fn run_suite(
     let runs_dir = out.join("runs");
     std::fs::create_dir_all(&runs_dir).with_context(|| format!("creating {}", runs_dir.display()))?;
     let mut summary =
-        Summary { environment: Environment::of(ctx), settings: settings.clone(), runs: Vec::new(), peers: Vec::new(), cull_checks: Vec::new() };
+        Summary { environment: Environment::of(ctx), settings: settings.clone(), datasets: Vec::new(), runs: Vec::new(), peers: Vec::new(), cull_checks: Vec::new() };
     // Every image shown, by montage group, with the run's label; and the
     // reference image of each group.
     let mut images: Vec<(String, String, Tile)> = Vec::new();
@@ -60,17 +60,21 @@ pub fn run_suite(
         std::fs::create_dir_all(&peers_dir).with_context(|| format!("creating {}", peers_dir.display()))?;
     }
     let mut loaded: Option<(&str, std::result::Result<Dataset, String>)> = None;
+    // The current dataset's standard transfer function (`--tf`, or its own).
+    let mut standard_tf: Option<crate::scene::TransferFunction> = None;
     // Peer renderers still to run on the current dataset, and its exported copy.
     let mut pending: Vec<(&LocatedPeer, &'static PeerRenderer)> = Vec::new();
     let mut export: Option<(std::path::PathBuf, crate::harness::peers::PeerDataset)> = None;
     let mut sequence = 0usize;
     for (i, p) in plan.iter().enumerate() {
-        let label = format!("{} on {}", p.label(), p.dataset);
+        let label = format!("{} on {}", p.label(), p.dataset.name);
         progress(i, &label);
         let first_of_dataset = i == 0 || plan[i - 1].dataset != p.dataset;
         let last_of_dataset = plan.get(i + 1).is_none_or(|n| n.dataset != p.dataset);
-        if loaded.as_ref().is_none_or(|(n, _)| *n != p.dataset) {
-            loaded = Some((p.dataset, datasets::load_with(p.dataset, settings.cell_data).map_err(|e| format!("{e:#}"))));
+        if loaded.as_ref().is_none_or(|(n, _)| *n != p.dataset.name) {
+            // Rows, results and files name it as the suite does.
+            loaded = Some((&p.dataset.name, p.dataset.load(settings.cell_data).map_err(|e| format!("{e:#}"))));
+            standard_tf = None;
         }
         let Some((_, loaded_dataset)) = &mut loaded else { continue };
         // A dataset that cannot be loaded fails its rows; the suite goes on.
@@ -79,12 +83,12 @@ pub fn run_suite(
             Err(why) => {
                 pending.clear();
                 summary.runs.push(SuiteRow {
-                    dataset: p.dataset.into(),
+                    dataset: p.dataset.name.clone(),
                     method: p.spec.info.name.into(),
                     label: p.label(),
                     scene: p.scene,
                     status: "failed",
-                    message: Some(format!("loading {}: {why}", p.dataset)),
+                    message: Some(format!("loading {}: {why}", p.dataset.source)),
                     sequence,
                     result: None,
                     placement: p.spec.info.family.placement,
@@ -98,9 +102,12 @@ pub fn run_suite(
             // Popped from the end: reversed so they run in their listed order.
             pending = located.iter().flat_map(|l| l.renderers_for(dataset.kind()).map(move |r| (l, r))).collect();
             pending.reverse();
+            let tf = Scene::Standard.transfer_function(dataset, settings.tf.as_deref());
+            summary.datasets.push(SuiteDatasetRow::of(&p.dataset, dataset, tf.as_ref().ok(), settings.tf.as_deref()));
+            standard_tf = tf.ok();
         }
         let mut row = SuiteRow {
-            dataset: p.dataset.into(),
+            dataset: p.dataset.name.clone(),
             method: p.spec.info.name.into(),
             label: p.label(),
             scene: p.scene,
@@ -116,10 +123,10 @@ pub fn run_suite(
         } else {
             let group = p.montage_group();
             let outcome = (|| -> Result<(RunOutput, Option<RgbaImage>)> {
-                let tf = p.scene.transfer_function(dataset)?;
+                let tf = p.scene.transfer_function(dataset, settings.tf.as_deref())?;
                 let cfg = p.scene.config(&cfg);
                 let mut r = dataset.run_handing_over(|d| run(ctx, &p.spec, d, &tf, &cfg))??;
-                let stem = format!("{}-{}", p.dataset, p.file_stem());
+                let stem = format!("{}-{}", p.dataset.name, p.file_stem());
                 let (json, png, dpng) = (runs_dir.join(format!("{stem}.json")), runs_dir.join(format!("{stem}.png")), runs_dir.join(format!("{stem}-diff.png")));
                 // A method with its own error (terrain) has no image reference.
                 let diff = if r.result.error.is_none() && settings.count_dir.is_none() {
@@ -143,12 +150,12 @@ pub fn run_suite(
                     // A culling scene's pair: the culled image against the
                     // unculled one (the unchanged-image check).
                     if p.scene != Scene::Standard && culling(&p.spec.info, &p.spec.options) == Some(false) {
-                        let on = PlannedRun { dataset: p.dataset, spec: cull_on(registry, &p.spec)?, scene: p.scene };
-                        let on_label = format!("{} on {}", on.label(), p.dataset);
+                        let on = PlannedRun { dataset: p.dataset.clone(), spec: cull_on(registry, &p.spec)?, scene: p.scene };
+                        let on_label = format!("{} on {}", on.label(), p.dataset.name);
                         if let Some((_, _, on)) = images.iter().find(|(_, l, _)| *l == on_label) {
                             let e = on.image.compare(&r.image)?;
                             summary.cull_checks.push(CullCheck {
-                                dataset: p.dataset.into(),
+                                dataset: p.dataset.name.clone(),
                                 scene: p.scene,
                                 method: p.spec.info.name.into(),
                                 option: p.spec.info.culling_option().unwrap_or_default(),
@@ -170,24 +177,29 @@ pub fn run_suite(
         let take = if last_of_dataset { pending.len() } else { pending.len().min(1) };
         for _ in 0..take {
             let Some((peer, renderer)) = pending.pop() else { break };
-            let label = format!("peer {}/{} on {}", peer.peer.name, renderer.name, p.dataset);
+            let label = format!("peer {}/{} on {}", peer.peer.name, renderer.name, p.dataset.name);
             progress(i, &label);
-            let (row, shown) = run_peer_row(peer, renderer, dataset, &cfg, &peers_dir, &runs_dir, &mut export, sequence);
+            let job = PeerJob { peer, renderer, dataset, suite_dataset: &p.dataset, tf: standard_tf.as_ref(), cfg: &cfg, peers_dir: &peers_dir, runs_dir: &runs_dir };
+            let (row, shown) = run_peer_row(&job, &mut export, sequence);
             sequence += 1;
             if let Some((image, diff)) = shown {
                 let tile = Tile { label: format!("peer {}/{}", peer.peer.name, renderer.name), image, diff: Some(diff) };
-                images.push((p.dataset.to_string(), label, tile));
+                images.push((p.dataset.name.clone(), label, tile));
             }
             summary.peers.push(row);
         }
         if last_of_dataset {
-            // The exported copy is only the peers' input: not a result.
-            if let Some((path, _)) = export.take() {
-                let _ = std::fs::remove_file(path);
+            // The exported copy is only the peers' input: not a result (a
+            // user's original file is never removed).
+            if let Some((path, d)) = export.take() {
+                if !d.original {
+                    let _ = std::fs::remove_file(path);
+                }
             }
         }
         fsio::write_output(&out.join("summary.json"), &crate::harness::report::json_bytes(&summary)?)?;
     }
+    agreement(&mut summary, &images);
     fsio::write_output(&out.join("summary.json"), &crate::harness::report::json_bytes(&summary)?)?;
     fsio::write_output(&out.join("summary.csv"), csv(&summary).as_bytes())?;
     fsio::write_output(&out.join("report.md"), report(&summary, registry).as_bytes())?;
@@ -195,26 +207,51 @@ pub fn run_suite(
     Ok(summary)
 }
 
-/// One peer renderer on one dataset: the dataset exported once per dataset
-/// (`export`), the scene written, the peer run, its image compared with the
-/// same f64 reference as volbench's runs. A failure is the row's status.
-#[allow(clippy::too_many_arguments)]
-fn run_peer_row(
-    peer: &LocatedPeer,
+/// Each peer image against every volbench image of the same view on the
+/// same dataset (the standard scene's montage group; peers render only
+/// that scene): `PeerRow::vs_volbench`.
+fn agreement(summary: &mut Summary, images: &[(String, String, Tile)]) {
+    for row in summary.peers.iter_mut().filter(|r| r.status == "ok") {
+        let peer_label = format!("peer {}/{} on {}", row.peer, row.renderer, row.dataset);
+        let Some((_, _, peer)) = images.iter().find(|(g, l, _)| *g == row.dataset && *l == peer_label) else { continue };
+        row.vs_volbench = images
+            .iter()
+            .filter(|(g, l, _)| *g == row.dataset && !l.starts_with("peer "))
+            .filter_map(|(_, _, t)| {
+                let e = peer.image.compare(&t.image).ok()?;
+                Some(ImageAgreement { label: t.label.clone(), rmse: e.rmse, max_abs: e.max_abs })
+            })
+            .collect();
+    }
+}
+
+/// What one peer row needs: the renderer, the loaded dataset and how the
+/// suite knows it, the standard scene's transfer function, where files go.
+struct PeerJob<'a> {
+    peer: &'a LocatedPeer,
     renderer: &'static PeerRenderer,
-    dataset: &Dataset,
-    cfg: &RunConfig,
-    peers_dir: &Path,
-    runs_dir: &Path,
-    export: &mut Option<(std::path::PathBuf, crate::harness::peers::PeerDataset)>,
-    sequence: usize,
-) -> (PeerRow, Option<(RgbaImage, RgbaImage)>) {
+    dataset: &'a Dataset,
+    suite_dataset: &'a SuiteDataset,
+    /// `None`: it could not be made (the volbench rows say why).
+    tf: Option<&'a crate::scene::TransferFunction>,
+    cfg: &'a RunConfig,
+    peers_dir: &'a Path,
+    runs_dir: &'a Path,
+}
+
+/// One peer renderer on one dataset: a shipped dataset exported once per
+/// dataset (`export`), a user's file named as it is (the peer reads the
+/// original with its own reader); the scene written, the peer run, its
+/// image compared with the same f64 reference as volbench's runs. A failure
+/// is the row's status.
+fn run_peer_row(job: &PeerJob, export: &mut Option<(std::path::PathBuf, crate::harness::peers::PeerDataset)>, sequence: usize) -> (PeerRow, Option<(RgbaImage, RgbaImage)>) {
     use crate::harness::peers as pe;
+    let PeerJob { peer, renderer, dataset, suite_dataset, tf, cfg, peers_dir, runs_dir } = *job;
     let mut row = PeerRow {
         peer: peer.peer.name.into(),
         renderer: renderer.name.into(),
         class: renderer.class.into(),
-        dataset: dataset.name.clone(),
+        dataset: suite_dataset.name.clone(),
         status: "ok",
         message: None,
         sequence,
@@ -226,20 +263,28 @@ fn run_peer_row(
         setup_ms: None,
         error: None,
         covered_pixels: None,
+        input: None,
+        vs_volbench: Vec::new(),
     };
     let outcome = (|| -> Result<(pe::PeerResult, RgbaImage, RgbaImage, crate::harness::image::ImageError, String)> {
         if export.is_none() {
-            let path = peers_dir.join(format!("{}.vtk", dataset.name));
-            let d = pe::write_dataset(dataset, &path).with_context(|| format!("exporting '{}' for the peers", dataset.name))?;
-            *export = Some((path, d));
+            *export = Some(if suite_dataset.user {
+                let d = pe::original_dataset(dataset, &suite_dataset.name, &suite_dataset.source)?;
+                (std::path::PathBuf::from(&d.file), d)
+            } else {
+                let path = peers_dir.join(format!("{}.vtk", dataset.name));
+                let d = pe::write_dataset(dataset, &path).with_context(|| format!("exporting '{}' for the peers", dataset.name))?;
+                (path, d)
+            });
         }
         let Some((_, exported)) = export.as_ref() else { anyhow::bail!("internal: dataset not exported") };
-        let tf = dataset.default_transfer_function()?;
-        let scene = pe::scene(peer.peer, renderer, dataset, &tf, cfg, exported, peers_dir)?;
+        row.input = Some(if exported.original { exported.format.clone() } else { "export".into() });
+        let tf = tf.context("the dataset's transfer function could not be made (see its runs)")?;
+        let scene = pe::scene(peer.peer, renderer, dataset, tf, cfg, exported, peers_dir)?;
         let stem = scene.stem();
         let reference_camera = scene.reference_camera;
         let (result, image) = pe::run_peer(peer, &scene, &peers_dir.join(format!("{stem}.scene.json")))?;
-        let reference = reference_image(dataset, &tf, &reference_camera, cfg.width, cfg.height)?;
+        let reference = reference_image(dataset, tf, &reference_camera, cfg.width, cfg.height)?;
         // A blank picture is a failure, not a result (docs/bad-input.md).
         let expected = reference.image.covered_pixels();
         anyhow::ensure!(

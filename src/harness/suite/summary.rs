@@ -124,11 +124,55 @@ pub struct SuiteRow {
     pub placement: Option<&'static str>,
 }
 
+/// A dataset as the suite ran it: where it came from, the transfer
+/// function its standard scene was shown with, and what its peers read.
+#[derive(Debug, Clone, Serialize)]
+pub struct SuiteDatasetRow {
+    pub name: String,
+    /// The shipped name, or the user's file as `--data` gave it.
+    pub source: String,
+    pub kind: crate::algo::method::DataKind,
+    /// A user's file (`--data FILE`), not a shipped dataset.
+    pub user: bool,
+    /// The transfer function's name (`None`: it could not be made; the
+    /// dataset's rows say why).
+    pub transfer_function: Option<String>,
+    /// Where it came from: the `--tf` file, the shipped preset, or volbench's
+    /// generic ramp over the scalar range (a user's file without `--tf`).
+    pub transfer_function_from: String,
+    /// The scalar array named by `FILE#SCALAR` or recorded by the reader
+    /// (`scalar_array` in the dataset's statistics), when known.
+    pub scalar_array: Option<String>,
+}
+
+impl SuiteDatasetRow {
+    pub(super) fn of(d: &super::plan::SuiteDataset, loaded: &crate::harness::datasets::Dataset, tf: Option<&crate::scene::TransferFunction>, tf_file: Option<&std::path::Path>) -> Self {
+        let from = match tf_file {
+            Some(p) => format!("--tf {}", p.display()),
+            None if d.user => "volbench's generic ramp over the scalar range".into(),
+            None => "the dataset's preset".into(),
+        };
+        let named = d.source.rsplit_once('#').filter(|_| d.user && std::fs::symlink_metadata(&d.source).is_err()).map(|(_, a)| a.to_string());
+        let recorded = loaded.summary().stats.get("scalar_array").and_then(|v| v.as_str()).map(str::to_string);
+        SuiteDatasetRow {
+            name: d.name.clone(),
+            source: d.source.clone(),
+            kind: d.kind,
+            user: d.user,
+            transfer_function: tf.map(|t| t.name.clone()),
+            transfer_function_from: from,
+            scalar_array: named.or(recorded),
+        }
+    }
+}
+
 /// What `summary.json` holds.
 #[derive(Debug, Clone, Serialize)]
 pub struct Summary {
     pub environment: Environment,
     pub settings: SuiteSettings,
+    /// Each dataset run, in order: source, transfer function, scalar.
+    pub datasets: Vec<SuiteDatasetRow>,
     pub runs: Vec<SuiteRow>,
     /// Peers' runs (`--peers`), apart from volbench's: other programs'
     /// renderers on the same data, view and transfer function.
