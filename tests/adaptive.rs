@@ -48,7 +48,7 @@ fn post_small_refined_within_tol_at_two_sizes_with_fewer_rays() {
     let mesh = datasets::load_mesh("post-small").unwrap();
     let tf = datasets::mesh_transfer_function(&mesh, Some("post-small"));
     let camera = orbit(&mesh, 40.0);
-    for size in [96u32, 200] {
+    for size in [160u32, 320] {
         let want = reference(&mesh, &tf, &camera, size);
         let full = run(&mesh, &tf, "tet-raycast", camera, size);
         let ef = full.image.compare(&want).unwrap();

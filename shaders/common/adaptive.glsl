@@ -80,11 +80,11 @@ bool adaptive_in_rect(uvec4 rect, uvec2 lat) {
 
 // Records point `lat`'s sample and structural key (below A_CLAIM); `cast`:
 // a ray was cast (else padding).
-void adaptive_store(uint pass_step, uvec4 rect, uvec2 lat, vec4 c, uint key, bool cast) {
+void adaptive_store(uint pass_step, uvec4 rect, uvec2 lat, vec4 c, uint key, bool was_cast) {
     uint i = adaptive_index(rect, lat);
     a_samples.v[i] = c;
     a_keys.v[i] = A_CAST | min(key, A_KEY_MASK);
-    if (cast) {
+    if (was_cast) {
         atomicAdd(a_counters.v[A_RAYS4 + (pass_step == 4u ? 0u : (pass_step == 2u ? 1u : 2u))], 1u);
         if (c.a > 0.0) atomicAdd(a_counters.v[A_COVERED_CAST], 1u);
     } else {

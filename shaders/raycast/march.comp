@@ -18,8 +18,9 @@ layout(set = 1, binding = 0, rgba32f) uniform writeonly image2D target;
 #ifdef ADAPTIVE
 // Adaptive refinement (algo/adaptive.rs): this pass casts the lattice
 // points of step frame.adaptive.x, storing each ray's colour and its
-// structural key (whether it met the box, and the runs of occupied bricks
-// it entered) for the decide passes.
+// structural key (the runs of occupied bricks it entered; 0 for a ray that
+// missed the box or met only empty bricks, and always 0 without SKIP) for
+// the decide passes.
 #define ADAPTIVE_SET 2
 #include "common/adaptive.glsl"
 #endif
@@ -54,7 +55,7 @@ void main() {
         uint samples;
         color = march(a, b, samples);
 #ifdef ADAPTIVE
-        key = 1u + march_runs;
+        key = march_runs;
 #endif
     }
 #ifdef ADAPTIVE
