@@ -295,6 +295,34 @@ fn volume_cases_with_both_ray_casters() {
     check_grazing(&rows, SIZE);
 }
 
+/// The cases built against adaptive refinement (issue 37) with both
+/// adaptive ray casters and every stress option set of theirs, at two
+/// sizes: all within their bounds, and the adaptive rows of the shell seen
+/// edge-on and the single bright voxel caught (their error that of the same
+/// method without refinement); the sliver between coarse rays is within
+/// the adaptive bound (docs/stress.md, "Adaptive refinement").
+#[test]
+fn adaptive_refinement_cases_at_two_sizes() {
+    for size in [SIZE, 128] {
+        let selected: Vec<StressCase> = stress::stress_cases(size).into_iter().filter(|c| c.name.starts_with("adaptive-")).collect();
+        assert_eq!(selected.len(), 3);
+        let mut cfg = StressConfig::full(&registry::builtin(), size).unwrap();
+        cfg.specs.retain(|s| s.info.name == "tet-raycast" || s.info.name == "raycast-compute");
+        let rows = run(&selected, &cfg);
+        assert_all_pass(&rows);
+        let err = |case: &str, adaptive: bool| {
+            rows.iter()
+                .filter(|r| r.case == case && r.options.contains("adaptive=0.008") == adaptive && (r.options.contains("integrator=ppi") || r.options.contains("integrator=point")))
+                .map(|r| r.max_abs_error)
+                .fold(0.0f64, f64::max)
+        };
+        for case in ["adaptive-shell", "adaptive-speck"] {
+            assert!((err(case, true) - err(case, false)).abs() <= 1e-4, "{size} {case}: {} with, {} without", err(case, true), err(case, false));
+        }
+        assert!(err("adaptive-sliver", true) <= 2e-2, "{size}: {}", err("adaptive-sliver", true));
+    }
+}
+
 /// vol-grazing at `size`: the rays in the box's faces are its silhouette
 /// (the outline's pixel rows and columns: the box spans 8k pixels, k the
 /// largest power of two with 16k <= 3/4 of the image, as the camera places

@@ -246,7 +246,6 @@ pub fn stress_cases(size: u32) -> Vec<StressCase> {
         optics::opaque(3e38),
         refinement::sliver(),
         refinement::shell_edge_on(),
-        refinement::stripes(),
     ];
     for c in cases.iter_mut().filter(|c| c.camera.is_perspective()) {
         c.allowances.push(Allowance::papers_interpolation());

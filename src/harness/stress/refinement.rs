@@ -1,13 +1,15 @@
 //! Cases built to defeat adaptive image-space refinement (`adaptive=TOL`,
 //! issue 37, `algo::adaptive`): features narrower than the coarse rays'
-//! spacing, a shell seen edge-on, a single bright voxel, a transfer
-//! function of narrow bands. Every method renders them (they are ordinary
+//! spacing, a shell seen edge-on, a single bright voxel (a transfer
+//! function of narrow bands is tests/adaptive.rs's, held against the image
+//! of every pixel cast: its integration error alone exceeds every
+//! integrator's stress bound). Every method renders them (they are ordinary
 //! scenes); the rows with `adaptive` set show whether the structural and
 //! colour tests caught the feature (error as without it) or not (the row
 //! fails its bound and is reported). Which is which: docs/stress.md.
 
-use super::blocks::{field, grid_mesh, levels, look, oblique_camera, unit_grid, validated};
-use super::{CaseData, StressCase};
+use super::blocks::{field, grid_mesh, levels, look, oblique_camera, validated};
+use super::{Allowance, CaseData, Extra, StressCase};
 use crate::mesh::split::hex_grid_to_tets;
 use crate::scene::{ControlPoint, Projection, TransferFunction};
 use crate::volume::{Samples, Volume};
@@ -57,53 +59,34 @@ pub(super) fn sliver() -> StressCase {
     }
 }
 
-/// A plate 1 x 1 x 0.01 seen edge-on from in its mid-plane: its top and
+/// A plate 1 x 1 x 0.04 seen edge-on from in its mid-plane: its top and
 /// bottom faces' rims are silhouettes, projected along the line it makes.
 pub(super) fn shell_edge_on() -> StressCase {
     let l = levels(8);
-    let mesh = validated(grid_mesh("adaptive-shell", &l, &l, &[0.0, 0.01]));
+    let mesh = validated(grid_mesh("adaptive-shell", &l, &l, &[0.0, 0.04]));
     let (lo, hi) = mesh.scalar_range();
-    let camera = look([0.55, -2.0, 0.005], [0.5, 0.5, 0.005], [0.0, 0.0, 1.0], Projection::Perspective { fovy_deg: 30.0 }, 0.75);
+    let camera = look([0.55, -2.0, 0.02], [0.5, 0.5, 0.02], [0.0, 0.0, 1.0], Projection::Perspective { fovy_deg: 30.0 }, 0.75);
     let mut tf = super::blocks::ramp_tf("adaptive-shell-ramp", lo, hi);
     for p in &mut tf.points {
-        p.attenuation *= 40.0;
+        p.attenuation *= 8.0;
     }
     StressCase {
         name: "adaptive-shell".into(),
-        description: "a plate 1 x 1 x 0.01 (320 tets) seen edge-on from its mid-plane, attenuation x40: a line \
-                      a fraction of a pixel thick whose silhouette edges lie along it"
+        description: "a plate 1 x 1 x 0.04 (320 tets) seen edge-on from its mid-plane, attenuation x8: a line \
+                      about a pixel thick at 64x64 whose silhouette edges lie along it"
             .into(),
         data: CaseData::TetMesh(mesh),
         camera,
         tf,
-        allowances: Vec::new(),
-    }
-}
-
-/// The control grid with a transfer function of 16 narrow alternating
-/// bands (blue faint, yellow dense): colour changes every few pixels.
-pub(super) fn stripes() -> StressCase {
-    let mesh = unit_grid("adaptive-stripes");
-    let (lo, hi) = mesh.scalar_range();
-    let points = (0..=32)
-        .map(|i| {
-            let on = i % 2 == 0;
-            ControlPoint {
-                scalar: lo + (hi - lo) * i as f64 / 32.0,
-                color: if on { [1.0, 0.9, 0.2] } else { [0.1, 0.2, 1.0] },
-                attenuation: if on { 6.0 } else { 0.3 },
-            }
-        })
-        .collect();
-    StressCase {
-        name: "adaptive-stripes".into(),
-        description: "8^3 grid, transfer function of 32 alternating bands (attenuation 0.3 and 6): high frequency in \
-                      the image"
-            .into(),
-        data: CaseData::TetMesh(mesh),
-        camera: oblique_camera(),
-        tf: TransferFunction { name: "stripes".into(), points },
-        allowances: Vec::new(),
+        allowances: vec![Allowance {
+            when: &[("integrator", &["average", "preint"])],
+            extra: Extra::Fixed(1e-2),
+            reason: "the integrators' model error, not the refinement: rays at a grazing angle through the plate \
+                     cross long cells at attenuation x8, where the average and the pre-integration table's \
+                     linear model are furthest off. Measured 7.5e-3 (average) and 3.3e-3 (preint) at 128x128 \
+                     with every method, with or without adaptive refinement; allowance rounded up"
+                .into(),
+        }],
     }
 }
 
@@ -119,17 +102,23 @@ pub(super) fn speck() -> StressCase {
         name: "speck".into(),
         points: vec![
             ControlPoint { scalar: 0.0, color: [0.1, 0.3, 1.0], attenuation: 0.0 },
-            ControlPoint { scalar: 1.0, color: [1.0, 0.9, 0.3], attenuation: 60.0 },
+            ControlPoint { scalar: 1.0, color: [1.0, 0.9, 0.3], attenuation: 12.0 },
         ],
     };
     StressCase {
         name: "adaptive-speck".into(),
-        description: "15^3 samples of 0 (transparent) and one of 1 (attenuation 60): a single bright voxel in empty \
+        description: "15^3 samples of 0 (transparent) and one of 1 (attenuation 12): a single bright voxel in empty \
                       space"
             .into(),
         data: CaseData::Volume(volume),
         camera: oblique_camera(),
         tf,
-        allowances: Vec::new(),
+        allowances: vec![Allowance::all(
+            5e-2,
+            "model error, not the refinement: a one-voxel spike of attenuation 12 under a trilinear field is a tent \
+             two voxels wide that half-voxel point samples (and segments taken linear between samples) resolve \
+             coarsely. Measured without adaptive refinement 7.7e-3 (64x64) and 2.3e-2 (128x128) with point \
+             samples, 1.6e-2 and 3.2e-2 pre-integrated; allowance rounded up",
+        )],
     }
 }
