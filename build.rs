@@ -39,7 +39,10 @@ fn main() {
 /// path order, written to `$OUT_DIR/shaders.rs` for `src/shaders.rs`: a new
 /// shader is found without a table to keep by hand.
 fn shader_table() {
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders");
+    // The manifest directory of this build, read when the script runs (not
+    // baked in when it was compiled: a target directory copied from another
+    // checkout would embed that checkout's shaders).
+    let root = std::path::PathBuf::from(std::env::var("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR")).join("shaders");
     // A directory: cargo re-runs this when any file under it changes.
     println!("cargo:rerun-if-changed={}", root.display());
     let mut files = Vec::new();

@@ -49,7 +49,18 @@ layout(push_constant) uniform Frame {
     mat4 m;          // box pass: voxel -> clip; march: NDC -> voxel (homogeneous)
     uvec4 tiles;     // compute march: first workgroup (x, y), rows of workgroups, runs (common/dispatch.glsl)
     vec4 light;      // xyz: unit direction towards the light, world axes
+#ifdef ADAPTIVE
+    uvec4 rect;      // adaptive refinement (compute): the frame's rectangle, inclusive pixel bounds
+    uvec4 adaptive;  // x: the cast pass's step (4, 2, 1; common/adaptive.glsl)
+#endif
 } frame;
+
+#ifdef ADAPTIVE
+// The last march's runs of occupied bricks entered (with SKIP: each entry
+// into a brick with visible samples after the box's face or after a leap
+// over empty ones): adaptive refinement's structural key.
+uint march_runs = 0u;
+#endif
 
 // Samples are taken with an explicit level (single-level textures): the
 // march loop is non-uniform control flow, where implicit derivatives are
@@ -148,6 +159,10 @@ vec4 march(vec3 a, vec3 b, out uint samples) {
     uint skipped = 0u;
     uint leaps = 0u;
     int check_at = 0;   // the next step whose brick must be looked up
+#ifdef ADAPTIVE
+    bool in_run = false;
+    march_runs = 0u;
+#endif
 #endif
 #ifdef PREINT
     float t_prev = table_coord(a);
@@ -185,6 +200,9 @@ vec4 march(vec3 a, vec3 b, out uint samples) {
                 ivec3 crossed = abs(b_last - ivec3(floor(um / bsize)));
                 skipped += uint(1 + crossed.x + crossed.y + crossed.z);
                 leaps += 1u;
+#ifdef ADAPTIVE
+                in_run = false;
+#endif
 #ifdef PREINT
                 t_prev = -1.0;
                 t_prev2 = -1.0;
@@ -193,6 +211,10 @@ vec4 march(vec3 a, vec3 b, out uint samples) {
                 continue;
             }
             check_at = max(next, k + 1);
+#ifdef ADAPTIVE
+            if (!in_run) march_runs += 1u;
+            in_run = true;
+#endif
         }
 #endif
         float seg_world = world_h * float(m);

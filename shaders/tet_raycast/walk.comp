@@ -31,11 +31,19 @@ layout(push_constant) uniform Frame {
                     // z: stall limit (uint bits); w: pre-integration length scale
     uvec4 rect;     // the pixels whose rays may meet the mesh: x0, y0, x1, y1 inclusive
                     // (tet_raycast.rs, pixel_rect); the dispatch starts at x0, y0
-    uvec4 order;    // x: rows of workgroups, y: runs (common/dispatch.glsl, interleaved_row)
+    uvec4 order;    // x: rows of workgroups, y: runs (common/dispatch.glsl, interleaved_row);
+                    // z: adaptive refinement's cast step (ADAPTIVE: 4, 2 or 1)
 } frame;
 
 #include "common/integrate.glsl"
 #include "common/dispatch.glsl"
+#ifdef ADAPTIVE
+// Adaptive refinement (algo/adaptive.rs): this pass casts the lattice
+// points of step order.z (4: the lattice of 4 over the rectangle; 2, 1: the
+// listed blocks' centres and edge mid-points), storing each ray's colour and
+// its structural key (the boundary entries it took) for the decide passes.
+#include "common/adaptive.glsl"
+#endif
 
 // set 1: the mesh, uploaded once. What the walk reads per cell is in
 // storage texel buffers, read with imageLoad (one load per lookup, inlined;
@@ -716,9 +724,21 @@ void main() {
     // Workgroup rows interleaved over the device's runs of workgroups
     // (common/dispatch.glsl).
     // Padding rows (row >= rows) lie below the rectangle: the test below.
+#ifdef ADAPTIVE
+    uint pass_step = frame.order.z;
+    uvec2 at;
+    if (!adaptive_point(pass_step, frame.rect, frame.order.x, frame.order.y, at)) return;
+    ivec2 px = ivec2(at + frame.rect.xy);
+    if (!adaptive_in_rect(frame.rect, at)) {
+        // Lattice padding past the rectangle: no ray meets the mesh there.
+        adaptive_store(pass_step, frame.rect, at, vec4(0.0), 0u, false);
+        return;
+    }
+#else
     uvec2 at = uvec2(gl_WorkGroupID.x, interleaved_row(frame.order.x, frame.order.y)) * uvec2(WG_X, WG_Y) + gl_LocalInvocationID.xy;
     ivec2 px = ivec2(at + frame.rect.xy);
     if (px.x >= size.x || px.y >= size.y || uint(px.x) > frame.rect.z || uint(px.y) > frame.rect.w) return;
+#endif
 #ifdef TILE_LISTS
     uint tiles_x = (frame.rect.z - frame.rect.x + uint(TILE_W)) / uint(TILE_W);
     ray_tile = at.y / uint(TILE_H) * tiles_x + at.x / uint(TILE_W);
@@ -785,7 +805,11 @@ void main() {
         if (end == WALK_DONE) break;
         t_done = t_exit;
     }
-    imageStore(target, px, vec4(acc_c, 1.0 - acc_t));
+    vec4 colour = vec4(acc_c, 1.0 - acc_t);
+#ifdef ADAPTIVE
+    adaptive_store(pass_step, frame.rect, at, colour, walks, true);
+#endif
+    imageStore(target, px, colour);
 
     if (n_cells > 0u) {
         uint old = atomicAdd(counters.cells_lo, n_cells);

@@ -2,6 +2,7 @@
 //! and never writes files or decides what to measure: that is the harness.
 
 pub mod cell_projection;
+pub mod adaptive;
 pub mod chunks;
 pub mod host_memory;
 pub mod integrate;

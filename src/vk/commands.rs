@@ -724,6 +724,29 @@ impl CommandRecorder {
         Ok(())
     }
 
+    /// Dispatch the bound compute pipeline with the group counts
+    /// (`VkDispatchIndirectCommand`, 12 bytes) the device reads from `args`
+    /// at `offset` (written by an earlier compute pass: `compute_to_indirect`
+    /// between them). The counts must be within maxComputeWorkGroupCount; the
+    /// writer bounds them.
+    pub fn dispatch_indirect(&self, args: &Buffer, offset: u64) -> VkResult<()> {
+        if !offset.is_multiple_of(4) || offset.checked_add(12).is_none_or(|end| end > args.size()) || !args.desc.usage.contains(BufferUsage::INDIRECT) {
+            return Err(VkError::Invalid(format!(
+                "indirect dispatch arguments at byte {offset} of buffer '{}' ({} bytes, indirect use {})",
+                args.desc.name,
+                args.size(),
+                args.desc.usage.contains(BufferUsage::INDIRECT)
+            )));
+        }
+        // SAFETY: the command buffer is a recorder's own, recording between its
+        // `begin` and submit (the recorder's state machine); every handle recorded
+        // is live, borrowed for the call and kept alive by its owner until the
+        // submission is waited for.
+        // The indirect record fits `args`, made for indirect use (checked above).
+        unsafe { self.ctx.device.cmd_dispatch_indirect(self.raw, args.raw, offset) };
+        Ok(())
+    }
+
     /// Dispatch a `[x, y, z]` grid of workgroups of the bound compute
     /// pipeline; each dimension must be within maxComputeWorkGroupCount.
     pub fn dispatch(&self, groups: [u32; 3]) -> VkResult<()> {
@@ -852,6 +875,16 @@ impl CommandRecorder {
         self.memory_barrier(
             (vk::PipelineStageFlags2::COMPUTE_SHADER, vk::AccessFlags2::SHADER_STORAGE_WRITE),
             (vk::PipelineStageFlags2::COMPUTE_SHADER, vk::AccessFlags2::SHADER_READ | vk::AccessFlags2::SHADER_STORAGE_WRITE),
+        );
+    }
+
+    /// One compute pass's writes before the next one reads or writes them
+    /// and before an indirect dispatch reads its group counts from them.
+    pub fn compute_to_indirect(&self) {
+        use vk::{AccessFlags2 as A, PipelineStageFlags2 as S};
+        self.memory_barrier(
+            (S::COMPUTE_SHADER, A::SHADER_STORAGE_WRITE),
+            (S::COMPUTE_SHADER | S::DRAW_INDIRECT, A::SHADER_READ | A::SHADER_STORAGE_WRITE | A::INDIRECT_COMMAND_READ),
         );
     }
 

@@ -9,7 +9,8 @@ use serde_json::json;
 
 use crate::algo::screen;
 use crate::algo::settings::MethodSettings;
-use super::{BoxOnScreen, Settings, VolumeResources, COMPARE, OPTIONS, PUSH_BYTES, STRESS, SUITE, SWEEP};
+use super::{BoxOnScreen, Settings, VolumeResources, COMPARE, OPTIONS, PUSH_BYTES, PUSH_BYTES_ADAPTIVE, STRESS_COMPUTE, SUITE_COMPUTE, SWEEP_COMPUTE};
+use crate::algo::adaptive::Adaptive;
 use crate::algo::method::{DataKind, MethodInfo, MethodInputs, Phases, RenderMethod, SceneData, View, Work};
 use crate::vk::{
     CommandRecorder, ComputePipelineKey, Image, Pipeline, PipelineKey, ShaderKey, ShaderStage, TargetImageSet,
@@ -26,10 +27,10 @@ pub const METHOD: MethodInfo = MethodInfo {
     summary: "GPU ray casting in one compute pass: analytic ray-box clipping, trilinear samples, 1D TF, front to back",
     options: OPTIONS,
     features: &[],
-    sweep: SWEEP,
+    sweep: SWEEP_COMPUTE,
     compare: COMPARE,
-    stress: STRESS,
-    suite: SUITE,
+    stress: STRESS_COMPUTE,
+    suite: SUITE_COMPUTE,
     published: &[super::kruger_westermann("raycast-compute")],
     family: super::FAMILY,
     create,
@@ -56,7 +57,25 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
         sets: vec![res.set0_desc(), target_set.desc.clone()],
     });
     let pipeline = crate::algo::pipelines::get(inputs.ctx, &key)?;
+    // Adaptive refinement: the march compiled with ADAPTIVE (set 2: the
+    // refinement's state), no silhouettes (the box's outline is where the
+    // key's "met the box" changes).
+    let adaptive = if settings.adaptive > 0.0 {
+        let state = Adaptive::new(inputs.ctx, "raycast-compute", settings.adaptive, inputs.width, inputs.height, false)?;
+        let mut d = all.clone();
+        d.push(("ADAPTIVE", "1"));
+        let key = PipelineKey::Compute(ComputePipelineKey {
+            shader: ShaderKey::new("raycast/march.comp", ShaderStage::Compute, &d),
+            push_constant_bytes: PUSH_BYTES_ADAPTIVE,
+            sets: vec![res.set0_desc(), target_set.desc.clone(), state.desc.clone()],
+        });
+        Some((state, crate::algo::pipelines::get(inputs.ctx, &key)?))
+    } else {
+        None
+    };
     Ok(Box::new(RaycastCompute {
+        adaptive,
+        rect: screen::NO_PIXELS,
         res,
         settings,
         pipeline,
@@ -83,6 +102,10 @@ pub struct RaycastCompute {
     groups: [u32; 3],
     whole_image: bool,
     pixels: u64,
+    /// `adaptive=TOL`: the refinement's state and the march casting its
+    /// lattice points; the frame's rectangle (the box's pixels).
+    adaptive: Option<(Adaptive, Arc<Pipeline>)>,
+    rect: [u32; 4],
     ctx: Arc<crate::vk::Context>,
 }
 
@@ -101,6 +124,19 @@ impl RenderMethod for RaycastCompute {
         self.groups = [groups[0], screen::interleaved_rows(groups[1], runs), 1];
         self.whole_image = groups[..2] == all;
         self.push = self.res.push_constants(view, true, [base[0], base[1], groups[1], runs]);
+        if let Some((state, _)) = &mut self.adaptive {
+            let (w, h) = (view.width, view.height);
+            self.rect = match self.res.on_screen(view) {
+                BoxOnScreen::Hidden => screen::NO_PIXELS,
+                BoxOnScreen::Whole { rect } => rect,
+                BoxOnScreen::Cut => [0, 0, w.saturating_sub(1), h.saturating_sub(1)],
+            };
+            state.frame(self.rect, [w, h])?;
+            let rows = Adaptive::lattice_groups(self.rect)[1];
+            self.push = self.res.push_constants(view, true, [0, 0, rows, runs]);
+            // rect, then the step (set per pass in record).
+            self.push.extend(self.rect.iter().chain(&[0u32; 4]).flat_map(|v| v.to_ne_bytes()));
+        }
         Ok(())
     }
 
@@ -114,6 +150,28 @@ impl RenderMethod for RaycastCompute {
         // Only the tiles over the box's pixels run the march (on llvmpipe an
         // invocation whose ray misses still runs the whole shader masked:
         // crate::algo::screen); the rest of the target is cleared.
+        if let Some((state, pipeline)) = &mut self.adaptive {
+            let r = self.rect;
+            let whole = r[0] == 0 && r[1] == 0 && u64::from(r[2] + 1) * u64::from(r[3] + 1) == self.pixels && r[0] <= r[2];
+            rec.storage_target(target, whole);
+            let lattice = Adaptive::lattice_groups(r);
+            let runs = self.ctx.info.compute_runs();
+            let (set0, push, pipeline) = (&self.res.set, &self.push, &*pipeline);
+            state.record(rec, target, counter, |rec, state_set, step, indirect, counter| {
+                rec.bind_compute(pipeline, &[set0, set, state_set])?;
+                let mut p = push.clone();
+                let at = PUSH_BYTES as usize + 16;
+                p[at..at + 4].copy_from_slice(&step.to_ne_bytes());
+                rec.push_constants(pipeline, &p, counter);
+                match indirect {
+                    None => rec.dispatch([lattice[0], screen::interleaved_rows(lattice[1], runs), 1])?,
+                    Some((args, offset)) => rec.dispatch_indirect(args, offset)?,
+                }
+                Ok(())
+            })?;
+            self.res.record_counters_to_host(rec);
+            return Ok(());
+        }
         rec.storage_target(target, self.whole_image);
         if self.groups[0] > 0 && self.groups[1] > 0 {
             rec.bind_compute(&self.pipeline, &[&self.res.set, set])?;
@@ -125,11 +183,19 @@ impl RenderMethod for RaycastCompute {
     }
 
     fn work(&self) -> Work {
-        self.res.work(self.pixels)
+        let w = self.res.work(self.pixels);
+        match &self.adaptive {
+            Some((state, _)) => {
+                let [x0, y0, x1, y1] = self.rect;
+                let rect_pixels = if x0 > x1 || y0 > y1 { 0 } else { u64::from(x1 - x0 + 1) * u64::from(y1 - y0 + 1) };
+                state.work(w.with("pixels_in_rect", rect_pixels))
+            }
+            None => w,
+        }
     }
 
     fn details(&self) -> serde_json::Value {
-        self.res.details(
+        let mut d = self.res.details(
             &self.settings,
             json!({
                 "name": "compute",
@@ -137,7 +203,13 @@ impl RenderMethod for RaycastCompute {
                 "counter_atomics": if self.ctx.info.compute_subgroup_arithmetic { "per subgroup" } else { "per ray" },
                 "pipeline": { "key": self.key.id(), "name": self.key.name() },
             }),
-        )
+        );
+        if let Some((state, _)) = &self.adaptive {
+            let [x0, y0, x1, y1] = self.rect;
+            let rect_pixels = if x0 > x1 || y0 > y1 { 0 } else { u64::from(x1 - x0 + 1) * u64::from(y1 - y0 + 1) };
+            d["adaptive"] = state.details(rect_pixels);
+        }
+        d
     }
 
     fn table_build_ms(&self) -> f64 {

@@ -66,6 +66,17 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
     let SceneData::Volume(vol) = inputs.data else { bail!("raycast-fragment renders volumes only") };
     let ctx = inputs.ctx;
     let settings = Settings::from_options(inputs.options)?;
+    if settings.adaptive > 0.0 {
+        // The refinement's levels cast rays at lattice points chosen on the
+        // device and fill blocks between them: compute passes, not a draw
+        // whose fragments are the pixels (docs/methods.md).
+        bail!(
+            "raycast-fragment: adaptive={} is not supported: adaptive refinement runs as compute passes; \
+             raycast-compute:adaptive={} marches the same rays",
+            settings.adaptive,
+            settings.adaptive
+        );
+    }
     let res = VolumeResources::new(ctx, vol, inputs.samples, inputs.tf, &settings, inputs.counter)?;
     let entry = Image::render_target(ctx, "ray entry points", inputs.width, inputs.height)?;
     let exit = Image::render_target(ctx, "ray exit points", inputs.width, inputs.height)?;

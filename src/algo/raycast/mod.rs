@@ -151,6 +151,7 @@ crate::settings! {
             "how a sample reads the volume: texture (the sampler's trilinear filter), loads (eight texel loads \
              blended in f32 in the shader: on lavapipe the sampler is an out-of-line call with 8-bit weights), \
              auto (loads on a CPU device, texture elsewhere); the same field either way";
+        adaptive: f64 = "0", float(0.0, 0.25), build, "TOL", crate::algo::adaptive::HELP;
     }
     impl {
         /// The build-time options as shader defines.
@@ -205,6 +206,34 @@ pub const SUITE: &[&str] = &["step=1", "step=1.25"];
 /// Stress: the defaults, pre-integration, and skipping and termination off
 /// (lighting is not compared: the reference does not shade).
 pub const STRESS: &[&str] = &["", "integrator=preint", "skip=off,ert=1"];
+/// raycast-compute's suite: the shared one, and adaptive refinement at two
+/// tolerances (about 2/255 and 4/255), the same on every volume.
+pub const SUITE_COMPUTE: &[&str] = &["step=1", "step=1.25", "adaptive=0.008", "adaptive=0.016"];
+/// raycast-compute's stress sets: the shared ones and adaptive refinement.
+pub const STRESS_COMPUTE: &[&str] = &["", "integrator=preint", "skip=off,ert=1", "adaptive=0.008"];
+/// raycast-compute's sweep: the shared one and adaptive refinement's
+/// tolerances (`pareto`).
+pub const SWEEP_COMPUTE: &[&str] = &[
+    "step=0.25",
+    "step=0.5",
+    "step=1",
+    "step=2",
+    "step=0.25,integrator=preint",
+    "step=0.5,integrator=preint",
+    "step=1,integrator=preint",
+    "step=2,integrator=preint",
+    "step=0.5,skip=off",
+    "step=0.5,ert=1",
+    "step=0.5,skip=off,ert=1",
+    "step=1,integrator=preint,skip=off",
+    "step=1,integrator=preint,ert=1",
+    "step=1,integrator=preint,skip=off,ert=1",
+    "step=0.5,brick=8",
+    "adaptive=0.004",
+    "adaptive=0.008",
+    "adaptive=0.016",
+    "adaptive=0.032",
+];
 
 /// What both variants register once.
 pub const FAMILY: Family = Family {
@@ -220,8 +249,10 @@ pub const FAMILY: Family = Family {
 /// view, both integrators) where a case documents no limitation, at the
 /// default step (0.5 voxel): measured on the "vol-baseline" case at 64x64,
 /// 3.2e-4 (point) and 1.6e-4 (preint); 1e-3 is 3x the larger.
-pub fn accuracy_bound(_options: &Options, _perspective: bool) -> Option<f64> {
-    Some(1e-3)
+/// With `adaptive=TOL`, plus twice the tolerance ([`crate::algo::adaptive::bound`]).
+pub fn accuracy_bound(options: &Options, _perspective: bool) -> Option<f64> {
+    let adaptive = Settings::from_options(options).map_or(0.0, |s| s.adaptive);
+    Some(1e-3 + crate::algo::adaptive::bound(adaptive))
 }
 
 /// Krüger & Westermann (Vis 2003): early ray termination and empty-space
@@ -388,6 +419,9 @@ pub fn set0_desc(loads: bool) -> DescriptorSetDesc {
 
 /// Push constants: mat4 + tiles (uvec4) + light.
 pub const PUSH_BYTES: u32 = 96;
+/// With adaptive refinement (raycast-compute): + rect (uvec4) + the cast
+/// step (uvec4).
+pub const PUSH_BYTES_ADAPTIVE: u32 = 128;
 
 /// Where the volume's box lies in a frame's view ([`VolumeResources::on_screen`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -65,6 +65,7 @@
 //! fallback exits, reversed walks, entry searches, BVH nodes visited and
 //! boundary faces tested by them; per frame the tile lists' entries.
 
+mod silhouette;
 mod tiles;
 
 use std::sync::Arc;
@@ -79,6 +80,8 @@ use super::chunks::{ensure_frame_texels, frame_texels, ChunkLimits, TexelChunks}
 use tiles::{Projected, TileLists, TILE};
 use super::host_memory::HostMemory;
 use super::screen;
+use super::adaptive::{Adaptive, Silhouettes};
+use silhouette::BoundaryEdges;
 use super::integrate::{check_table_size, IntegrationTables, Integrator};
 use super::method::{DataKind, Family, MethodInfo, MethodInputs, OptionSpec, Options, Phases, RenderMethod, SceneData, View, Work};
 use crate::mesh::adjacency::FACE_VERTS;
@@ -114,6 +117,9 @@ const SOLID_BIT: u32 = 1 << 31;
 /// ([`tiles`]): the shader's f32 rays and the f64 projection differ by
 /// far less (~1e-4 pixel at 512x512).
 const TILE_PAD: f64 = 0.25;
+/// Pixels a silhouette edge is padded by when adaptive refinement marks the
+/// blocks it reaches (`algo::adaptive::Silhouettes`).
+const SILHOUETTE_PAD: f64 = 0.5;
 
 /// The neighbour of a boundary face the ray may meet the mesh again after
 /// (`REENTER` in walk.comp); a boundary face on the convex hull keeps
@@ -156,6 +162,7 @@ crate::settings! {
             "how a ray finds the boundary face it enters: auto (the faces binned per frame into its 8x1-pixel tile \
              when every boundary vertex is in front of the eye or the view is orthographic, else the BVH) or bvh \
              (always the BVH over the boundary faces); both find the same entries";
+        adaptive: f64 = "0", float(0.0, 0.25), build, "TOL", crate::algo::adaptive::HELP;
     }
     impl {
         fn check(&self) -> Result<()> {
@@ -186,10 +193,16 @@ pub const METHOD: MethodInfo = MethodInfo {
         "integrator=linear-exact",
         "integrator=ppi,ert=0.99",
         "integrator=ppi,ert=1",
+        "adaptive=0.004",
+        "adaptive=0.008",
+        "adaptive=0.016",
+        "adaptive=0.032",
     ],
     compare: &["", "ert=1"],
-    stress: &["integrator=average", "integrator=preint", "integrator=ppi", "integrator=linear-exact"],
-    suite: &[],
+    stress: &["integrator=average", "integrator=preint", "integrator=ppi", "integrator=linear-exact", "integrator=ppi,adaptive=0.008"],
+    // Adaptive refinement at two tolerances (about 2/255 and 4/255), the
+    // same on every mesh: a front against time, not one point.
+    suite: &["adaptive=0.008", "adaptive=0.016"],
     published: &[],
     family: Family {
         name: "tet-raycast",
@@ -204,10 +217,11 @@ pub const METHOD: MethodInfo = MethodInfo {
 
 /// The cell-projection bound of the integrator with exact interpolation
 /// (the segments are exact along each ray, as that interpolation's are),
-/// plus what early termination may drop (1 - ert).
+/// plus what early termination may drop (1 - ert), plus twice the adaptive
+/// tolerance ([`crate::algo::adaptive::bound`]).
 pub fn accuracy_bound(options: &Options, _perspective: bool) -> Option<f64> {
     let s = Settings::from_options(options).ok()?;
-    Some(render::integrator_bound(s.integrator) + (1.0 - s.ert).max(0.0))
+    Some(render::integrator_bound(s.integrator) + (1.0 - s.ert).max(0.0) + crate::algo::adaptive::bound(s.adaptive))
 }
 
 /// The pixels whose rays may meet the mesh: the box of the boundary
@@ -463,6 +477,9 @@ pub struct TetRaycast {
     /// Texel buffers per array (`algo::chunks`): points, then each per-cell array.
     device_chunks: serde_json::Value,
     step_budget: u64,
+    /// Adaptive refinement (`adaptive=TOL`): its state and the walk's
+    /// pipelines casting its lattice points (plain, tile lists).
+    adaptive: Option<AdaptiveWalk>,
     /// The mesh the run holds for this method (`details.host_memory`;
     /// everything else per cell lives on the device).
     scene_memory: HostMemory,
@@ -651,7 +668,8 @@ impl TetRaycast {
             push_constant_bytes: PUSH_BYTES,
             sets: vec![tables.set.desc.clone(), mesh_desc.clone(), target_set.desc.clone()],
         });
-        let mesh_desc_lists = mesh_desc;
+        let mesh_desc_lists = mesh_desc.clone();
+        let mesh_desc_adaptive = mesh_desc;
         let pipeline = crate::algo::pipelines::get(ctx, &key)?;
         // The same shader searching per-tile face lists (set 3).
         let tile_w = TILE[0].to_string();
@@ -677,9 +695,34 @@ impl TetRaycast {
             tile_faces.corners.push([boundary_index(a)?, boundary_index(b)?, boundary_index(d)?]);
             tile_faces.solid.push(topo.solid[(slot >> 2) as usize]);
         }
+        let adaptive = if settings.adaptive > 0.0 {
+            let state = Adaptive::new(ctx, "tet-raycast", settings.adaptive, width, height, true)?;
+            let mut pipes = Vec::with_capacity(2);
+            for (defs, mut sets) in [
+                (&defines, vec![tables.set.desc.clone(), mesh_desc_adaptive.clone(), target_set.desc.clone()]),
+                (&list_defines, vec![tables.set.desc.clone(), mesh_desc_adaptive.clone(), target_set.desc.clone(), lists_desc.clone()]),
+            ] {
+                let set_index = sets.len().to_string();
+                sets.push(state.desc.clone());
+                let mut d = defs.clone();
+                d.extend([("ADAPTIVE", "1"), ("ADAPTIVE_SET", set_index.as_str())]);
+                let key = PipelineKey::Compute(ComputePipelineKey {
+                    shader: ShaderKey::new("tet_raycast/walk.comp", ShaderStage::Compute, &d),
+                    push_constant_bytes: PUSH_BYTES,
+                    sets,
+                });
+                pipes.push(crate::algo::pipelines::get(ctx, &key)?);
+            }
+            let pipeline_lists = pipes.pop().expect("two pipelines");
+            let pipeline = pipes.pop().expect("two pipelines");
+            Some(AdaptiveWalk { state, pipeline, pipeline_lists, edges: BoundaryEdges::new(&tile_faces), active: false })
+        } else {
+            None
+        };
         let mut scene_memory = HostMemory::default();
         scene_memory.scene_mesh(mesh);
         Ok(TetRaycast {
+            adaptive,
             scene_memory,
             tables,
             scale: MeshScale::of(mesh),
@@ -748,6 +791,19 @@ impl TetRaycast {
     fn counters(&self) -> [u64; COUNTER_WORDS] {
         self.counters.read_counters()
     }
+}
+
+/// `adaptive=TOL`: the shared refinement state ([`Adaptive`]), the walk
+/// compiled with ADAPTIVE (its set after the others), the boundary's edges
+/// for the silhouettes, and whether this frame refines (the boundary
+/// projected: every point in front of the eye; else the frame casts every
+/// pixel).
+struct AdaptiveWalk {
+    state: Adaptive,
+    pipeline: Arc<Pipeline>,
+    pipeline_lists: Arc<Pipeline>,
+    edges: BoundaryEdges,
+    active: bool,
 }
 
 /// The counters by name.
@@ -819,11 +875,36 @@ impl RenderMethod for TetRaycast {
                 TILE_PAD,
                 u64::from(self.ctx.info.max_texel_buffer_elements),
             );
+        if let Some(a) = &mut self.adaptive {
+            // Refine only when the boundary projects (every point in front
+            // of the eye) and lies within the clip depths: the silhouettes
+            // are then where rays start or stop meeting the mesh.
+            a.active = false;
+            if let (true, Projected::Pixels(px)) = (self.rect_pixels > 0, &projected) {
+                let fwd = glam::DVec3::from(camera.forward);
+                let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+                for p in &self.boundary_points {
+                    let d = (glam::DVec3::from(*p) - glam::DVec3::from(c.eye)).dot(fwd);
+                    lo = lo.min(d);
+                    hi = hi.max(d);
+                }
+                if lo >= c.near && hi <= c.far {
+                    a.state.frame(self.rect, [w, h])?;
+                    let eye: [f64; 3] = std::array::from_fn(|k| f64::from((c.eye[k] - self.scale.origin[k]) as f32));
+                    let segments = a.edges.silhouettes(&self.tile_faces, px, &self.boundary_points_shader, eye, &camera);
+                    a.state.set_silhouettes(Silhouettes::mark(self.rect, segments, SILHOUETTE_PAD));
+                    a.active = true;
+                }
+            }
+        }
         phases.ended("bin", start.elapsed().as_secs_f64() * 1e3);
         Ok(())
     }
 
     fn upload(&mut self, counter: &mut UploadCounter) -> Result<()> {
+        if let Some(a) = self.adaptive.as_mut().filter(|a| a.active) {
+            a.state.upload(counter)?;
+        }
         if !self.lists_active {
             return Ok(());
         }
@@ -849,6 +930,35 @@ impl RenderMethod for TetRaycast {
         let [gx, gy, _] = rect_groups(self.rect);
         let groups = [gx, screen::interleaved_rows(gy, self.ctx.info.compute_runs()), 1];
         rec.storage_target(target, self.rect_pixels == u64::from(view.width) * u64::from(view.height));
+        if let Some(a) = self.adaptive.as_mut().filter(|a| a.active) {
+            // Adaptive refinement: the lattice of 4, then the listed blocks
+            // (algo::adaptive), each cast pass this walk with its step.
+            let lattice = Adaptive::lattice_groups(self.rect);
+            let runs = self.ctx.info.compute_runs();
+            let lists_active = self.lists_active;
+            let (tables, mesh, lists) = (&self.tables.set, &self.mesh_set, &self.lists_set);
+            let (pipeline, pipeline_lists) = (&a.pipeline, &a.pipeline_lists);
+            let base_push = &self.push;
+            a.state.record(rec, target, counter, |rec, state, step, indirect, counter| {
+                let pipeline = if lists_active { pipeline_lists } else { pipeline };
+                if lists_active {
+                    rec.bind_compute(pipeline, &[tables, mesh, set, lists, state])?;
+                } else {
+                    rec.bind_compute(pipeline, &[tables, mesh, set, state])?;
+                }
+                let mut push = base_push.clone();
+                // order.x: the lattice's rows of workgroups; order.z: the step.
+                push[28 * 4..29 * 4].copy_from_slice(&lattice[1].to_le_bytes());
+                push[30 * 4..31 * 4].copy_from_slice(&step.to_le_bytes());
+                rec.push_constants(pipeline, &push, counter);
+                match indirect {
+                    None => rec.dispatch([lattice[0], screen::interleaved_rows(lattice[1], runs), 1])?,
+                    Some((args, offset)) => rec.dispatch_indirect(args, offset)?,
+                }
+                Ok(())
+            })?;
+            return Ok(());
+        }
         if self.lists_active {
             rec.bind_compute(&self.pipeline_lists, &[&self.tables.set, &self.mesh_set, set, &self.lists_set])?;
             rec.push_constants(&self.pipeline_lists, &self.push, counter);
@@ -863,7 +973,7 @@ impl RenderMethod for TetRaycast {
 
     fn work(&self) -> Work {
         let c = Counts::from(self.counters());
-        Work::default()
+        let w = Work::default()
             .with("cells", self.cells as u64)
             .with("pixels", self.pixels)
             .with("rays_hit", c.rays_hit)
@@ -879,13 +989,17 @@ impl RenderMethod for TetRaycast {
             .with("tile_list_entries", if self.lists_active { self.lists.faces.len() as u64 } else { 0 })
             .with("entry_searches", c.searches)
             .with("bvh_nodes_visited", c.nodes_visited)
-            .with("boundary_faces_tested", c.faces_tested)
+            .with("boundary_faces_tested", c.faces_tested);
+        match self.adaptive.as_ref().filter(|a| a.active) {
+            Some(a) => a.state.work(w),
+            None => w,
+        }
     }
 
     fn details(&self) -> serde_json::Value {
         let c = Counts::from(self.counters());
         let mean = |total: u64, of: u64| if of > 0 { total as f64 / of as f64 } else { 0.0 };
-        json!({
+        let mut d = json!({
             "host_memory": self.scene_memory.to_json(self.cells),
             "family": "tet-raycast",
             "workgroup": WORKGROUP,
@@ -918,7 +1032,16 @@ impl RenderMethod for TetRaycast {
             "bvh_nodes_visited": c.nodes_visited,
             "boundary_faces_tested": c.faces_tested,
             "bvh_nodes_per_search_mean": mean(c.nodes_visited, c.searches),
-        })
+        });
+        if let Some(a) = &self.adaptive {
+            d["adaptive"] = if a.active {
+                a.state.details(self.rect_pixels)
+            } else {
+                json!({ "tolerance": a.state.tol, "refined": false,
+                    "why": "a boundary point behind the eye or outside the clip depths: every pixel cast" })
+            };
+        }
+        d
     }
 
     fn table_build_ms(&self) -> f64 {

@@ -45,6 +45,31 @@ pub struct Faces {
     pub solid: Vec<bool>,
 }
 
+impl Faces {
+    /// Which way boundary face `i` faces the eye (orthographic: the view
+    /// direction), from the points as the shader holds them: -1 towards it,
+    /// 1 away, 0 nearly edge-on (within [`EDGE_ON`]) or a flat cell's face
+    /// (crossed either way). The tile lists leave out the faces at 1; the
+    /// silhouettes are the edges between faces of different sides.
+    pub fn side(&self, i: usize, shader_points: &[[f32; 3]], shader_eye: [f64; 3], view: &View) -> i8 {
+        if !self.solid[i] {
+            return 0;
+        }
+        let [a, b, d] = self.corners[i].map(|k| DVec3::from(shader_points[k as usize].map(f64::from)));
+        let n = (b - a).cross(d - a);
+        let to = if view.perspective { a - DVec3::from(shader_eye) } else { DVec3::from(view.forward) };
+        let dot = n.dot(to);
+        let limit = EDGE_ON * n.length() * to.length();
+        if dot > limit {
+            1
+        } else if dot < -limit {
+            -1
+        } else {
+            0
+        }
+    }
+}
+
 /// One frame's lists: tile `t`'s faces are `faces[first[t]..first[t + 1]]`
 /// (indices into the shader's face list), tiles row-major over the frame's
 /// pixel rectangle from its corner.
@@ -187,17 +212,7 @@ impl TileLists {
             return false;
         }
         let n_tiles = n_tiles as usize;
-        let eye = DVec3::from(shader_eye);
-        let forward = DVec3::from(view.forward);
-        let listed = |i: usize| {
-            if !faces.solid[i] {
-                return true;
-            }
-            let [a, b, d] = faces.corners[i].map(|k| DVec3::from(shader_points[k as usize].map(f64::from)));
-            let n = (b - a).cross(d - a);
-            let to = if view.perspective { a - eye } else { forward };
-            n.dot(to) <= EDGE_ON * n.length() * to.length()
-        };
+        let listed = |i: usize| faces.side(i, shader_points, shader_eye, view) <= 0;
         // Per row of tiles a face reaches, the columns of tiles its
         // triangle's part within the row's band (padded) reaches.
         let rows = |p: &[[f64; 2]; 3]| -> Option<[u32; 2]> {

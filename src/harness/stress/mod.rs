@@ -21,7 +21,8 @@
 //! grid and badly shaped cells), `alignment` (rays along edges and in face
 //! planes), `views` (the eye in the mesh, near and far planes through it),
 //! `scale` (extreme coordinates and scalars), `optics` (transfer-function
-//! steps, opaque media) and `volumes` (the ray casters' cases), from the
+//! steps, opaque media), `volumes` (the ray casters' cases) and
+//! `refinement` (cases built to defeat adaptive refinement), from the
 //! `blocks` they share; `run` renders them and compares.
 
 use serde::Serialize;
@@ -37,6 +38,7 @@ mod alignment;
 mod blocks;
 mod cells;
 mod optics;
+mod refinement;
 mod run;
 mod scale;
 mod views;
@@ -242,11 +244,14 @@ pub fn stress_cases(size: u32) -> Vec<StressCase> {
         scale::scalar_range("scalars-1e37", 1e37, 0.0, "in [0, 1e37]"),
         optics::opaque(1e6),
         optics::opaque(3e38),
+        refinement::sliver(),
+        refinement::shell_edge_on(),
     ];
     for c in cases.iter_mut().filter(|c| c.camera.is_perspective()) {
         c.allowances.push(Allowance::papers_interpolation());
     }
     cases.extend(volumes::volume_cases(size));
+    cases.push(refinement::speck());
     cases
 }
 

@@ -1,0 +1,144 @@
+#version 450
+// Adaptive image-space refinement, the decide pass over blocks of `size`
+// (8: every block of the rectangle, a 2D dispatch with rows interleaved;
+// 4: the listed blocks, an indirect dispatch). A block whose four corners,
+// centre and edge mid-points were cast (common/adaptive.glsl) is filled by
+// bilinear interpolation of its corners when
+//   - no boundary silhouette projects into it (the silhouette bits, when
+//     the method has them),
+//   - the nine rays have the same structural key (tet-raycast: boundary
+//     entries taken; raycast: the occupied bricks met), and
+//   - each test ray agrees with the interpolation at its point within the
+//     tolerance, per premultiplied RGBA channel;
+// otherwise its four sub-blocks are listed for the next cast pass.
+// A block owns its pixels [0, size)^2 from its corner; the ones on the
+// lattice of size / 2 were cast and are not overwritten.
+#define WG_X 8
+#define WG_Y 8
+layout(local_size_x = WG_X, local_size_y = WG_Y) in;
+
+layout(push_constant) uniform Decide {
+    uvec4 rect;    // the frame's rectangle, inclusive pixel bounds
+    uvec4 params;  // x: block size (8 or 4); y, z: rows and runs (size 8, interleaved_row);
+                   // w: first word of this size's silhouette bits (0xFFFFFFFF: none)
+    vec4 tol;      // x: tolerance per premultiplied channel
+} pc;
+
+#include "common/dispatch.glsl"
+#define ADAPTIVE_SET 0
+#include "common/adaptive.glsl"
+layout(std430, set = 0, binding = 4) readonly buffer Silhouettes { uint v[]; } a_sil;
+layout(set = 1, binding = 0, rgba32f) uniform writeonly image2D target;
+
+bool agrees(vec4 ray, vec4 interpolated, float tol) {
+    vec4 d = abs(ray - interpolated);
+    return max(max(d.x, d.y), max(d.z, d.w)) <= tol;
+}
+
+void main() {
+    uint size = pc.params.x;
+    uvec2 nb = adaptive_blocks(pc.rect);
+    uvec2 b;
+    if (size == 8u) {
+        if (gl_WorkGroupID.x == 0u && gl_WorkGroupID.y == 0u && gl_LocalInvocationIndex == 0u) {
+            // The indirect arguments' y and z (x grows with the lists).
+            a_counters.v[A_ARGS_CAST2 + 1u] = 1u;
+            a_counters.v[A_ARGS_CAST2 + 2u] = 1u;
+            a_counters.v[A_ARGS_DECIDE4 + 1u] = 1u;
+            a_counters.v[A_ARGS_DECIDE4 + 2u] = 1u;
+            a_counters.v[A_ARGS_CAST1 + 1u] = 1u;
+            a_counters.v[A_ARGS_CAST1 + 2u] = 1u;
+        }
+        b = uvec2(gl_WorkGroupID.x, interleaved_row(pc.params.y, pc.params.z)) * uvec2(WG_X, WG_Y) + gl_LocalInvocationID.xy;
+        if (b.x >= nb.x || b.y >= nb.y) return;
+    } else {
+        uint idx = gl_WorkGroupID.x * A_GROUP + gl_LocalInvocationIndex;
+        if (idx >= a_counters.v[A_COUNT4]) return;
+        uint e = a_lists.v[idx];
+        b = uvec2(e & 0xFFFFu, e >> 16);
+    }
+    uint level = size == 8u ? 0u : 1u;
+    uint h = size / 2u;
+    uvec2 o = b * size;
+    uint lw = 8u * nb.x + 1u;
+    uint i00 = o.y * lw + o.x;
+    // The nine points: corners, edge mid-points, centre.
+    uint i10 = i00 + size;
+    uint i01 = i00 + size * lw;
+    uint i11 = i01 + size;
+    uint it = i00 + h;
+    uint il = i00 + h * lw;
+    uint ic = il + h;
+    uint ir = il + size;
+    uint ib = i01 + h;
+    uint k = a_keys.v[i00];
+    bool same = a_keys.v[i10] == k && a_keys.v[i01] == k && a_keys.v[i11] == k && a_keys.v[it] == k
+        && a_keys.v[il] == k && a_keys.v[ic] == k && a_keys.v[ir] == k && a_keys.v[ib] == k;
+    bool silhouette = false;
+    if (pc.params.w != 0xFFFFFFFFu) {
+        uint bit = b.y * (nb.x << level) + b.x;
+        silhouette = ((a_sil.v[pc.params.w + bit / 32u] >> (bit % 32u)) & 1u) != 0u;
+    }
+    uint reason;
+    vec4 c00 = a_samples.v[i00];
+    vec4 c10 = a_samples.v[i10];
+    vec4 c01 = a_samples.v[i01];
+    vec4 c11 = a_samples.v[i11];
+    float tol = pc.tol.x;
+    if (silhouette) {
+        reason = A_SIL8;
+    } else if (!same) {
+        reason = A_STRUCT8;
+    } else if (agrees(a_samples.v[ic], 0.25 * (c00 + c10 + c01 + c11), tol)
+               && agrees(a_samples.v[it], 0.5 * (c00 + c10), tol)
+               && agrees(a_samples.v[ib], 0.5 * (c01 + c11), tol)
+               && agrees(a_samples.v[il], 0.5 * (c00 + c01), tol)
+               && agrees(a_samples.v[ir], 0.5 * (c10 + c11), tol)) {
+        reason = A_FILLED8;
+    } else {
+        reason = A_COLOUR8;
+    }
+    atomicAdd(a_counters.v[reason + level], 1u);
+    if (reason == A_FILLED8) {
+        uint covered = 0u;
+        float inv = 1.0 / float(size);
+        for (uint v = 0u; v < size; ++v) {
+            for (uint u = 0u; u < size; ++u) {
+                uvec2 px = pc.rect.xy + o + uvec2(u, v);
+                if ((u % h == 0u && v % h == 0u) || px.x > pc.rect.z || px.y > pc.rect.w) continue;
+                vec2 f = vec2(u, v) * inv;
+                vec4 c = mix(mix(c00, c10, f.x), mix(c01, c11, f.x), f.y);
+                imageStore(target, ivec2(px), c);
+                covered += c.a > 0.0 ? 1u : 0u;
+            }
+        }
+        if (covered > 0u) atomicAdd(a_counters.v[A_COVERED_FILLED], covered);
+        return;
+    }
+    // Refine: the sub-blocks with a pixel in the rectangle, listed for the
+    // next cast pass (and, from size 8, the next decide pass).
+    uvec2 s0 = b * 2u;
+    uint n = 0u;
+    uint subs[4];
+    for (uint j = 0u; j < 2u; ++j) {
+        for (uint i = 0u; i < 2u; ++i) {
+            uvec2 sb = s0 + uvec2(i, j);
+            uvec2 px = pc.rect.xy + sb * h;
+            if (px.x <= pc.rect.z && px.y <= pc.rect.w) {
+                subs[n] = sb.x | (sb.y << 16);
+                n += 1u;
+            }
+        }
+    }
+    uint count_word = size == 8u ? A_COUNT4 : A_COUNT2;
+    uint base = size == 8u ? 0u : 4u * nb.x * nb.y;
+    uint first = atomicAdd(a_counters.v[count_word], n);
+    for (uint j = 0u; j < n; ++j) {
+        a_lists.v[base + first + j] = subs[j];
+    }
+    uint total = first + n;
+    // The next passes' workgroups: five cast invocations per block, one
+    // decide invocation per block.
+    atomicMax(a_counters.v[size == 8u ? A_ARGS_CAST2 : A_ARGS_CAST1], (5u * total + A_GROUP - 1u) / A_GROUP);
+    if (size == 8u) atomicMax(a_counters.v[A_ARGS_DECIDE4], (total + A_GROUP - 1u) / A_GROUP);
+}

@@ -1,0 +1,537 @@
+//! Adaptive image-space refinement (issue 37; Levoy, "Volume rendering by
+//! adaptive refinement", 1990), shared by the ray casters' `adaptive=TOL`
+//! option: fewer rays than pixels where the image is smooth, every pixel
+//! where it is not. All on the device, in five compute passes
+//! (shaders/common/adaptive.glsl, adaptive_decide.comp):
+//!
+//! 1. **cast, step 4**: a ray at every point of the 4-pixel lattice over
+//!    the frame's rectangle (blocks of [`BLOCK`] = 8 pixels: their corners,
+//!    centres and edge mid-points), rows of workgroups interleaved over the
+//!    device's threads (`screen::interleaved_rows`);
+//! 2. **decide, blocks of 8**: a block is filled by bilinear interpolation
+//!    of its corners when its centre and four edge mid-points agree with
+//!    that interpolation within TOL per premultiplied RGBA channel *and* the
+//!    conservative structural test passes: the nine rays carry the same
+//!    structural key (tet-raycast: boundary entries taken; the volume
+//!    casters: the occupied bricks met) and, where the method projects one,
+//!    no boundary silhouette edge reaches the block ([`Silhouettes`]);
+//!    otherwise its four blocks of 4 are listed;
+//! 3. **cast, step 2**: the listed blocks' centres and edge mid-points
+//!    (an indirect dispatch; a point two blocks share is cast once, by
+//!    whichever claims it);
+//! 4. **decide, blocks of 4**: the same rule; failing blocks list their
+//!    blocks of 2;
+//! 5. **cast, step 1**: every remaining pixel of the listed blocks of 2.
+//!
+//! Rays already cast are reused as the next level's corners; a pixel is
+//! either cast or filled, and a ray cast later overwrites an interpolated
+//! value (never the other way). The full-resolution image is what the run
+//! measures against the f64 reference, as for every method.
+//!
+//! **Counts** (device counters, deterministic): rays cast per pass, lattice
+//! points past the rectangle (no ray), blocks filled per level, blocks
+//! refined per level and why (silhouette, structure, colour), and the
+//! covered pixels (alpha > 0) for rays per covered pixel.
+
+use std::sync::Arc;
+
+use anyhow::{bail, Result};
+use serde_json::json;
+
+use super::method::Work;
+use super::screen;
+use crate::vk::{
+    Buffer, BufferDesc, BufferUsage, CommandRecorder, ComputePipelineKey, Context, DescriptorResource,
+    DescriptorSet, DescriptorSetDesc, Image, MemoryKind, Pipeline, PipelineKey, ShaderKey, ShaderStage, Stages,
+    TargetImageSet, UploadClass, UploadCounter,
+};
+
+/// Coarsest block side (pixels).
+pub const BLOCK: u32 = 8;
+/// Workgroup shape of every adaptive pass (the list passes run it as 64
+/// invocations in a row).
+pub const WORKGROUP: [u32; 2] = [8, 8];
+/// Invocations per workgroup of the list passes.
+const GROUP: u64 = (WORKGROUP[0] * WORKGROUP[1]) as u64;
+/// Counter words (`A_*` in shaders/common/adaptive.glsl).
+const COUNTER_WORDS: usize = 26;
+/// Decide-pass push constants: rect, params, tolerance (3 x 16 bytes).
+const DECIDE_PUSH_BYTES: u32 = 48;
+/// Lattice points in list entries are 16-bit block coordinates.
+const MAX_BLOCKS_PER_SIDE: u64 = 1 << 16;
+
+/// The help text of every ray caster's `adaptive` option.
+pub const HELP: &str = "adaptive image-space refinement: 0 = off (a ray per pixel); TOL > 0 = rays at the corners, \
+    centres and edge mid-points of 8x8 blocks, a block filled by bilinear interpolation of its corners when those rays \
+    agree with it within TOL per premultiplied RGBA channel and a structural test passes, else refined to 4x4, 2x2 and \
+    single pixels (docs/methods.md, adaptive refinement)";
+
+/// What adaptive refinement at `tol` (0: off) adds to a method's bound on
+/// max |error| (the stress suite's): twice the tolerance. The test rays
+/// agree with the interpolation within `tol` at the centre and edge
+/// mid-points, where a block's bilinear error from smooth (quadratic)
+/// variation is largest; twice leaves room for the rest. A feature that
+/// lies between the test rays of a block the structural test passes is not
+/// bounded by this: such a case fails the stress suite (docs/stress.md).
+pub fn bound(tol: f64) -> f64 {
+    2.0 * tol.max(0.0)
+}
+
+/// Blocks of 8 across and down the inclusive pixel bounds `rect` (zero for
+/// an empty one).
+pub fn blocks(rect: [u32; 4]) -> [u32; 2] {
+    if rect[0] > rect[2] || rect[1] > rect[3] {
+        return [0, 0];
+    }
+    [(rect[2] - rect[0] + 1).div_ceil(BLOCK), (rect[3] - rect[1] + 1).div_ceil(BLOCK)]
+}
+
+/// Lattice points (samples) over an image of `size` at most.
+fn lattice_points(size: [u32; 2]) -> u64 {
+    let b = [u64::from(size[0].div_ceil(BLOCK)), u64::from(size[1].div_ceil(BLOCK))];
+    (8 * b[0] + 1) * (8 * b[1] + 1)
+}
+
+/// Where boundary silhouettes project, per block of 8 and of 4 of the
+/// frame's rectangle: bit rows over the blocks, the blocks of 8 from word
+/// 0, those of 4 from [`Silhouettes::offset4`]. A block is marked when a
+/// silhouette segment, padded by `pad` pixels, reaches its closed square
+/// (its corner rays included).
+#[derive(Debug, Default, Clone, PartialEq)]
+pub struct Silhouettes {
+    pub words: Vec<u32>,
+    pub offset4: u32,
+    /// Blocks of 8 marked.
+    pub marked8: u64,
+}
+
+impl Silhouettes {
+    /// Marks `segments` (pixel coordinates, pixel x's centre at x) over the
+    /// blocks of `rect`; a segment's part outside the rectangle's padded box
+    /// is clipped away first, so the work is bounded by the rectangle.
+    pub fn mark(rect: [u32; 4], segments: impl IntoIterator<Item = ([f64; 2], [f64; 2])>, pad: f64) -> Self {
+        let nb = blocks(rect);
+        let n8 = nb[0] as usize * nb[1] as usize;
+        let offset4 = n8.div_ceil(32);
+        let (w4, h4) = (2 * nb[0] as usize, 2 * nb[1] as usize);
+        let mut s = Silhouettes { words: vec![0; offset4 + (w4 * h4).div_ceil(32)], offset4: offset4 as u32, marked8: 0 };
+        if n8 == 0 {
+            return s;
+        }
+        let o = [f64::from(rect[0]), f64::from(rect[1])];
+        // The lattice box (blocks of 4 units), padded.
+        let hi = [w4 as f64 * 4.0, h4 as f64 * 4.0];
+        let mut marked4 = vec![false; w4 * h4];
+        for (a, b) in segments {
+            let a = [a[0] - o[0], a[1] - o[1]];
+            let b = [b[0] - o[0], b[1] - o[1]];
+            let Some((a, b)) = clip(a, b, [-pad, -pad], [hi[0] + pad, hi[1] + pad]) else { continue };
+            // Steps of at most one pixel; each step marks the blocks of 4
+            // its point's box (padding plus half a step) reaches.
+            let len = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt();
+            let steps = len.ceil().max(1.0) as usize;
+            let r = pad + 0.5 * len / steps as f64;
+            for k in 0..=steps {
+                let t = k as f64 / steps as f64;
+                let p = [a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t];
+                // Block i's closed square is [4 i, 4 i + 4].
+                let range = |c: f64, n: usize| {
+                    let lo = ((c - r) / 4.0).ceil() - 1.0;
+                    let hi = ((c + r) / 4.0).floor();
+                    let lo = lo.max(0.0);
+                    let hi = hi.min(n as f64 - 1.0);
+                    (lo <= hi).then_some((lo as usize, hi as usize))
+                };
+                let (Some((x0, x1)), Some((y0, y1))) = (range(p[0], w4), range(p[1], h4)) else { continue };
+                for y in y0..=y1 {
+                    for x in x0..=x1 {
+                        marked4[y * w4 + x] = true;
+                    }
+                }
+            }
+        }
+        for y in 0..h4 {
+            for x in 0..w4 {
+                if marked4[y * w4 + x] {
+                    let bit = y * w4 + x;
+                    s.words[offset4 + bit / 32] |= 1 << (bit % 32);
+                    // A block of 8 holds its four blocks of 4 (and their
+                    // shared edges: a mark reaching an edge marks both sides).
+                    let bit8 = (y / 2) * nb[0] as usize + x / 2;
+                    s.words[bit8 / 32] |= 1 << (bit8 % 32);
+                }
+            }
+        }
+        s.marked8 = (0..n8).filter(|&i| s.words[i / 32] >> (i % 32) & 1 == 1).count() as u64;
+        s
+    }
+
+    /// Whether block `(x, y)` of `size` (8 or 4) is marked, for tests.
+    pub fn is_marked(&self, rect: [u32; 4], size: u32, x: u32, y: u32) -> bool {
+        let nb = blocks(rect);
+        let (w, off) = if size == 8 { (nb[0], 0) } else { (2 * nb[0], self.offset4) };
+        let bit = (y * w + x) as usize;
+        self.words[off as usize + bit / 32] >> (bit % 32) & 1 == 1
+    }
+}
+
+/// Segment a-b clipped to the box [lo, hi] (Liang-Barsky), None when it
+/// misses it.
+fn clip(a: [f64; 2], b: [f64; 2], lo: [f64; 2], hi: [f64; 2]) -> Option<([f64; 2], [f64; 2])> {
+    if !(a.iter().chain(&b).all(|v| v.is_finite())) {
+        return None;
+    }
+    let d = [b[0] - a[0], b[1] - a[1]];
+    let (mut t0, mut t1) = (0.0f64, 1.0f64);
+    for k in 0..2 {
+        for (p, q) in [(-d[k], a[k] - lo[k]), (d[k], hi[k] - a[k])] {
+            if p == 0.0 {
+                if q < 0.0 {
+                    return None;
+                }
+            } else {
+                let r = q / p;
+                if p < 0.0 {
+                    t0 = t0.max(r);
+                } else {
+                    t1 = t1.min(r);
+                }
+            }
+        }
+    }
+    (t0 <= t1).then(|| ([a[0] + d[0] * t0, a[1] + d[1] * t0], [a[0] + d[0] * t1, a[1] + d[1] * t1]))
+}
+
+/// The adaptive passes' state: samples and keys per lattice point, the
+/// block lists, the counters (with the indirect arguments), the silhouette
+/// bits, and the decide pipeline.
+pub struct Adaptive {
+    pub tol: f64,
+    /// Set of the cast passes (bindings 0-3 of shaders/common/adaptive.glsl;
+    /// the decide pass's binding 4 too).
+    pub desc: DescriptorSetDesc,
+    set: DescriptorSet,
+    keys: Buffer,
+    counters: Buffer,
+    silhouettes: Buffer,
+    _samples: Buffer,
+    _lists: Buffer,
+    decide: Arc<Pipeline>,
+    target_set: TargetImageSet,
+    size: [u32; 2],
+    /// The frame's rectangle and silhouettes (None: the method projects none).
+    rect: [u32; 4],
+    sil: Option<Silhouettes>,
+    uses_silhouettes: bool,
+    ctx: Arc<Context>,
+}
+
+impl Adaptive {
+    /// State for images up to `width` x `height`; `silhouettes`: the method
+    /// marks silhouettes per frame ([`Adaptive::set_silhouettes`]).
+    pub fn new(ctx: &Arc<Context>, method: &str, tol: f64, width: u32, height: u32, silhouettes: bool) -> Result<Self> {
+        if !(tol > 0.0 && tol.is_finite()) {
+            bail!("{method}: adaptive tolerance {tol} must be above 0");
+        }
+        let size = [width, height];
+        let nb = [u64::from(width.div_ceil(BLOCK)), u64::from(height.div_ceil(BLOCK))];
+        // Blocks of 2 are listed by 16-bit coordinates: 4 per block of 8.
+        if nb[0] * 4 > MAX_BLOCKS_PER_SIDE || nb[1] * 4 > MAX_BLOCKS_PER_SIDE {
+            bail!("{method}: adaptive refinement takes images up to {} pixels a side, not {width}x{height}", MAX_BLOCKS_PER_SIDE * 2);
+        }
+        let points = lattice_points(size);
+        let n8 = nb[0] * nb[1];
+        // Most blocks of 2 listed: 16 per block of 8; the cast pass over
+        // them runs 5 invocations each in one row of workgroups.
+        let most_groups = (5 * 16 * n8).div_ceil(GROUP);
+        let max_x = u64::from(ctx.info.max_compute_work_group_count[0]);
+        let range = u64::from(ctx.info.max_storage_buffer_range);
+        if most_groups > max_x || points * 16 > range || 20 * n8 * 4 > range {
+            bail!(
+                "{method}: adaptive refinement of a {width}x{height} image needs {most_groups} workgroups in a row and {} bytes of samples; \
+                 {} allows {max_x} and {range}",
+                points * 16,
+                ctx.info.name
+            );
+        }
+        let storage = BufferUsage::STORAGE;
+        let samples = Buffer::new(ctx, BufferDesc::device_local(&format!("{method} adaptive samples"), points * 16, storage))?;
+        let keys = Buffer::new(ctx, BufferDesc::device_local(&format!("{method} adaptive keys"), points * 4, storage))?;
+        let lists = Buffer::new(ctx, BufferDesc::device_local(&format!("{method} adaptive lists"), 20 * n8.max(1) * 4, storage))?;
+        let counters = Buffer::new(
+            ctx,
+            BufferDesc {
+                name: format!("{method} adaptive counters"),
+                size: (COUNTER_WORDS * 4) as u64,
+                usage: BufferUsage::STORAGE | BufferUsage::TRANSFER_DST | BufferUsage::INDIRECT,
+                memory: MemoryKind::Readback,
+            },
+        )?;
+        let sil_words = if silhouettes { (n8.div_ceil(32) + (4 * n8).div_ceil(32)).max(1) } else { 1 };
+        let sil_buffer = Buffer::new(ctx, BufferDesc::upload(&format!("{method} adaptive silhouettes"), sil_words * 4, storage))?;
+        let compute = Stages::COMPUTE;
+        let desc = DescriptorSetDesc::storage_buffers(5, compute);
+        let set = DescriptorSet::new(
+            ctx,
+            &format!("{method} adaptive"),
+            &desc,
+            &[
+                DescriptorResource::StorageBuffer(&samples),
+                DescriptorResource::StorageBuffer(&keys),
+                DescriptorResource::StorageBuffer(&lists),
+                DescriptorResource::StorageBuffer(&counters),
+                DescriptorResource::StorageBuffer(&sil_buffer),
+            ],
+        )?;
+        let target_set = TargetImageSet::new(&format!("{method} adaptive target"), compute);
+        let key = PipelineKey::Compute(ComputePipelineKey {
+            shader: ShaderKey::new("common/adaptive_decide.comp", ShaderStage::Compute, &[]),
+            push_constant_bytes: DECIDE_PUSH_BYTES,
+            sets: vec![desc.clone(), target_set.desc.clone()],
+        });
+        let decide = super::pipelines::get(ctx, &key)?;
+        Ok(Adaptive {
+            tol,
+            desc,
+            set,
+            keys,
+            counters,
+            silhouettes: sil_buffer,
+            _samples: samples,
+            _lists: lists,
+            decide,
+            target_set,
+            size,
+            rect: screen::NO_PIXELS,
+            sil: None,
+            uses_silhouettes: silhouettes,
+            ctx: ctx.clone(),
+        })
+    }
+
+    /// The set the cast passes bind (at their `ADAPTIVE_SET`).
+    pub fn set(&self) -> &DescriptorSet {
+        &self.set
+    }
+
+    /// This frame's rectangle (inclusive pixel bounds within the image the
+    /// state was made for).
+    pub fn frame(&mut self, rect: [u32; 4], view_size: [u32; 2]) -> Result<()> {
+        if view_size[0] > self.size[0] || view_size[1] > self.size[1] {
+            bail!("adaptive refinement was set up for {}x{} pixels, not {}x{}", self.size[0], self.size[1], view_size[0], view_size[1]);
+        }
+        self.rect = rect;
+        self.sil = None;
+        Ok(())
+    }
+
+    /// This frame's silhouette marks ([`Silhouettes::mark`] over the
+    /// frame's rectangle).
+    pub fn set_silhouettes(&mut self, sil: Silhouettes) {
+        self.sil = Some(sil);
+    }
+
+    pub fn upload(&mut self, counter: &mut UploadCounter) -> Result<()> {
+        if let Some(s) = &self.sil {
+            if !s.words.is_empty() {
+                self.silhouettes.write(0, bytemuck::cast_slice(&s.words), counter, UploadClass::FrameCells)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Records the five passes. `cast(rec, set, step, indirect, counter)`
+    /// records one cast pass: its pipeline bound with `set` (this state's) at
+    /// its `ADAPTIVE_SET`, its push constants
+    /// naming `step` (4, 2 or 1), then `dispatch` of the step-4 grid
+    /// ([`Adaptive::lattice_groups`] rows interleaved) when `indirect` is
+    /// None, else `dispatch_indirect(buffer, offset)`.
+    pub fn record(
+        &mut self,
+        rec: &CommandRecorder,
+        target: &Image,
+        counter: &mut UploadCounter,
+        mut cast: impl FnMut(&CommandRecorder, &DescriptorSet, u32, Option<(&Buffer, u64)>, &mut UploadCounter) -> Result<()>,
+    ) -> Result<()> {
+        rec.fill_buffer(&self.keys, 0);
+        rec.fill_buffer(&self.counters, 0);
+        rec.transfer_to_storage(Stages::COMPUTE);
+        let nb = blocks(self.rect);
+        if nb[0] == 0 || nb[1] == 0 {
+            rec.compute_to_host();
+            return Ok(());
+        }
+        let runs = self.ctx.info.compute_runs();
+        cast(rec, &self.set, 4, None, counter)?;
+        rec.compute_to_indirect();
+        let sil_offset = |size: u32| match (&self.sil, self.uses_silhouettes) {
+            (Some(s), true) => if size == 8 { 0 } else { s.offset4 },
+            _ => u32::MAX,
+        };
+        let push = |size: u32, rows: u32| -> Vec<u8> {
+            let r = self.rect;
+            let words: [u32; 12] = [r[0], r[1], r[2], r[3], size, rows, runs, sil_offset(size), (self.tol as f32).to_bits(), 0, 0, 0];
+            bytemuck::cast_slice(&words).to_vec()
+        };
+        let set = self.target_set.for_target(&self.ctx, target)?;
+        rec.bind_compute(&self.decide, &[&self.set, set])?;
+        let rows = nb[1].div_ceil(WORKGROUP[1]);
+        rec.push_constants(&self.decide, &push(8, rows), counter);
+        rec.dispatch([nb[0].div_ceil(WORKGROUP[0]), screen::interleaved_rows(rows, runs), 1])?;
+        rec.compute_to_indirect();
+        cast(rec, &self.set, 2, Some((&self.counters, 0)), counter)?;
+        rec.compute_to_indirect();
+        let set = self.target_set.for_target(&self.ctx, target)?;
+        rec.bind_compute(&self.decide, &[&self.set, set])?;
+        rec.push_constants(&self.decide, &push(4, 0), counter);
+        rec.dispatch_indirect(&self.counters, 16)?;
+        rec.compute_to_indirect();
+        cast(rec, &self.set, 1, Some((&self.counters, 32)), counter)?;
+        rec.compute_to_host();
+        Ok(())
+    }
+
+    /// The step-4 cast pass's grid: workgroups across, rows of workgroups
+    /// (before interleaving) over the 4-lattice of `rect`.
+    pub fn lattice_groups(rect: [u32; 4]) -> [u32; 2] {
+        let nb = blocks(rect);
+        if nb[0] == 0 || nb[1] == 0 {
+            return [0, 0];
+        }
+        [(2 * nb[0] + 1).div_ceil(WORKGROUP[0]), (2 * nb[1] + 1).div_ceil(WORKGROUP[1])]
+    }
+
+    fn counts(&self) -> Counts {
+        let c: [u64; COUNTER_WORDS] = self.counters.read_counters();
+        Counts {
+            rays: [c[12], c[13], c[14]],
+            filled: [c[15], c[16]],
+            silhouette: [c[17], c[18]],
+            structure: [c[19], c[20]],
+            colour: [c[21], c[22]],
+            covered: c[23] + c[24],
+            padding: c[25],
+            listed: [c[3], c[11]],
+        }
+    }
+
+    /// Rays cast this frame (all passes).
+    pub fn rays_cast(&self) -> u64 {
+        self.counts().rays.iter().sum()
+    }
+
+    /// The frame's counts added to a method's.
+    pub fn work(&self, w: Work) -> Work {
+        let c = self.counts();
+        let sil = self.sil.as_ref().map_or(0, |s| s.marked8);
+        w.with("adaptive_rays_cast", c.rays.iter().sum())
+            .with("adaptive_rays_step4", c.rays[0])
+            .with("adaptive_rays_step2", c.rays[1])
+            .with("adaptive_rays_step1", c.rays[2])
+            .with("adaptive_covered_pixels", c.covered)
+            .with("adaptive_blocks8_filled", c.filled[0])
+            .with("adaptive_blocks4_filled", c.filled[1])
+            .with("adaptive_blocks8_refined_silhouette", c.silhouette[0])
+            .with("adaptive_blocks4_refined_silhouette", c.silhouette[1])
+            .with("adaptive_blocks8_refined_structure", c.structure[0])
+            .with("adaptive_blocks4_refined_structure", c.structure[1])
+            .with("adaptive_blocks8_refined_colour", c.colour[0])
+            .with("adaptive_blocks4_refined_colour", c.colour[1])
+            .with("adaptive_blocks2_cast", c.listed[1])
+            .with("adaptive_blocks8_silhouette_marked", sil)
+    }
+
+    /// The frame's figures for a method's details.
+    pub fn details(&self, rect_pixels: u64) -> serde_json::Value {
+        let c = self.counts();
+        let rays: u64 = c.rays.iter().sum();
+        let per = |n: u64, of: u64| if of > 0 { n as f64 / of as f64 } else { 0.0 };
+        json!({
+            "tolerance": self.tol,
+            "block": BLOCK,
+            "silhouettes": self.uses_silhouettes,
+            "rays_cast": rays,
+            "rays_per_pass": { "step4": c.rays[0], "step2": c.rays[1], "step1": c.rays[2] },
+            "rays_per_rect_pixel": per(rays, rect_pixels),
+            "covered_pixels": c.covered,
+            "rays_per_covered_pixel": per(rays, c.covered),
+            "lattice_padding_points": c.padding,
+            "blocks_filled": { "8": c.filled[0], "4": c.filled[1] },
+            "blocks_refined": {
+                "8": { "silhouette": c.silhouette[0], "structure": c.structure[0], "colour": c.colour[0] },
+                "4": { "silhouette": c.silhouette[1], "structure": c.structure[1], "colour": c.colour[1] },
+            },
+            "blocks_listed": { "4": c.listed[0], "2": c.listed[1] },
+        })
+    }
+}
+
+struct Counts {
+    rays: [u64; 3],
+    filled: [u64; 2],
+    silhouette: [u64; 2],
+    structure: [u64; 2],
+    colour: [u64; 2],
+    covered: u64,
+    padding: u64,
+    listed: [u64; 2],
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn blocks_cover_the_rectangle() {
+        assert_eq!(blocks([0, 0, 63, 31]), [8, 4]);
+        assert_eq!(blocks([3, 5, 3, 5]), [1, 1]);
+        assert_eq!(blocks([10, 0, 27, 8]), [3, 2]);
+        assert_eq!(blocks(screen::NO_PIXELS), [0, 0]);
+        assert_eq!(Adaptive::lattice_groups([0, 0, 63, 31]), [3, 2]);
+        assert_eq!(Adaptive::lattice_groups([0, 0, 511, 511]), [17, 17]);
+        assert_eq!(Adaptive::lattice_groups(screen::NO_PIXELS), [0, 0]);
+    }
+
+    #[test]
+    fn silhouettes_mark_the_blocks_a_segment_reaches() {
+        // At two rectangle sizes: a horizontal segment at y = 10.5 (pixel
+        // coordinates) from x = 2 to x = 18.5 in a rectangle from (1, 1).
+        for rect in [[1u32, 1, 40, 30], [1, 1, 200, 100]] {
+            let s = Silhouettes::mark(rect, [([2.0, 10.5], [18.5, 10.5])], 0.5);
+            // Relative y = 9.5 (+- 1): the blocks of 4 in row 2 (8..12); x 1..17.5: columns 0..4.
+            for y in 0..2 * blocks(rect)[1] {
+                for x in 0..2 * blocks(rect)[0] {
+                    let expect = y == 2 && x <= 4;
+                    assert_eq!(s.is_marked(rect, 4, x, y), expect, "{rect:?} block4 ({x}, {y})");
+                }
+            }
+            for y in 0..blocks(rect)[1] {
+                for x in 0..blocks(rect)[0] {
+                    assert_eq!(s.is_marked(rect, 8, x, y), y == 1 && x <= 2, "{rect:?} block8 ({x}, {y})");
+                }
+            }
+            assert_eq!(s.marked8, 3);
+            // On a block edge (relative y = 8): both rows of blocks.
+            let s = Silhouettes::mark(rect, [([2.0, 9.0], [3.0, 9.0])], 0.0);
+            assert!(s.is_marked(rect, 4, 0, 1) && s.is_marked(rect, 4, 0, 2));
+            // Far outside: nothing; not finite: nothing.
+            let s = Silhouettes::mark(rect, [([-500.0, -500.0], [-400.0, -450.0]), ([f64::NAN, 0.0], [3.0, 3.0])], 0.5);
+            assert_eq!(s.marked8, 0);
+            assert!(s.words.iter().all(|&w| w == 0));
+            // A long segment across the whole rectangle and beyond: every
+            // block of 8 along the diagonal, work bounded by the clip.
+            let s = Silhouettes::mark(rect, [([-1e9, -1e9], [1e9, 1e9])], 0.5);
+            let nb = blocks(rect);
+            for k in 0..nb[0].min(nb[1]) {
+                assert!(s.is_marked(rect, 8, k, k));
+            }
+        }
+    }
+
+    #[test]
+    fn clip_keeps_the_inside_part() {
+        assert_eq!(clip([-1.0, 0.5], [2.0, 0.5], [0.0, 0.0], [1.0, 1.0]), Some(([0.0, 0.5], [1.0, 0.5])));
+        assert_eq!(clip([-1.0, 2.0], [2.0, 2.0], [0.0, 0.0], [1.0, 1.0]), None);
+        assert_eq!(clip([0.5, 0.5], [0.5, 0.5], [0.0, 0.0], [1.0, 1.0]), Some(([0.5, 0.5], [0.5, 0.5])));
+    }
+}
