@@ -992,7 +992,11 @@ fn main() -> ExitCode {
         volbench::progress!("volbench: error: {e}");
         return ExitCode::FAILURE;
     }
-    let set = volbench::switches::recorded();
+    // Said only for the test knobs (every switch is recorded in the results):
+    // CI runs everything with VOLBENCH_VALIDATION=1, and serve mode's
+    // standard error must stay quiet.
+    let set: std::collections::BTreeMap<String, String> =
+        volbench::switches::recorded().into_iter().filter(|(k, _)| k.starts_with(volbench::switches::TEST_PREFIX)).collect();
     if !set.is_empty() && !matches!(cli.command, Command::Info | Command::List) {
         let set: Vec<String> = set.iter().map(|(k, v)| format!("{k}={v}")).collect();
         volbench::progress!("volbench: note: set, and recorded in the results: {}", set.join(" "));

@@ -559,10 +559,7 @@ impl RawCells {
         // Cell data goes with its cell: `k` values per cell (none for point data).
         let k = if self.cell_values.is_empty() || n == 0 { 0 } else { self.cell_values.len() / n };
         let (mut t, mut c) = (0usize, 0usize);
-        for i in 0..n {
-            if !kept[i] {
-                continue;
-            }
+        for (i, _) in kept.iter().enumerate().filter(|(_, &keep_it)| keep_it) {
             let (a, b) = (self.offsets[i], self.offsets[i + 1]);
             self.cell_values.copy_within(i * k..(i + 1) * k, t * k);
             self.types[t] = self.types[i];
