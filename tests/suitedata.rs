@@ -75,7 +75,7 @@ fn a_users_mesh_and_volume_run_every_method_of_their_kind_with_the_report() {
     assert_eq!(s["settings"]["data"].as_array().unwrap().len(), 2);
     let report = std::fs::read_to_string(out_dir.join("report.md")).unwrap();
     assert!(report.contains("## Datasets"), "{report}");
-    assert!(report.contains(&format!("| my_mesh | {} (your file) | tet-mesh | the reader's default | generic-ramp |", vtu.display())), "{report}");
+    assert!(report.contains(&format!("| my_mesh | {} (your file) | tet-mesh | temp | generic-ramp |", vtu.display())), "{report}");
     assert!(report.contains(&format!("| blob | {} (your file) | volume |", vti.display())), "{report}");
     let csv = std::fs::read_to_string(out_dir.join("summary.csv")).unwrap();
     assert!(csv.lines().any(|l| l.starts_with("volbench,blob,raycast-compute,")), "{csv}");
@@ -119,7 +119,7 @@ fn data_with_scalar_filter_and_tf_runs_only_the_named_method_on_that_array_with_
     assert_eq!(d["transfer_function"], "glow");
     let report = std::fs::read_to_string(out_dir.join("report.md")).unwrap();
     assert!(report.contains(&format!("| my_mesh-velocity | {vector} (your file) | tet-mesh | velocity | glow | --tf {} |", tf.display())), "{report}");
-    assert!(report.contains(&format!("| post-small | post-small | tet-mesh | the reader's default | glow | --tf {} |", tf.display())), "{report}");
+    assert!(report.contains(&format!("| post-small | post-small | tet-mesh | Pressure | glow | --tf {} |", tf.display())), "{report}");
 }
 
 #[test]
