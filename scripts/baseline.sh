@@ -16,6 +16,8 @@ if [ "${1:-}" != "--count-only" ]; then
     rm -rf results/baseline/quick
     mkdir -p results/baseline
     cp -r "$tmp" results/baseline/quick
+    # The suite's --out lock (fsio::lock_out_dir) is no result.
+    rm -f results/baseline/quick/.volbench-lock
     echo "baseline: results/baseline/quick"
 fi
 # Counted: only the summary and the run records are kept (no images worth keeping at 64x64).

@@ -56,7 +56,7 @@ fn assert_only_finished_levels(out: &Path) -> usize {
     let md = std::fs::read_to_string(out.join("scale.md")).unwrap();
     assert_eq!(md.lines().filter(|l| l.starts_with("| tet-raycast |")).count(), levels, "{md}");
     let mut expected: Vec<String> = (0..levels).map(|l| format!("meshes/post-small-L{l}.vtk")).collect();
-    // `.volbench-lock`: the --out lock (fsio::lock_out_dir) stays, empty of holders once released.
+    // `.volbench-lock`: the --out lock (fsio::lock_out_dir) stays, naming its last holder.
     expected.extend([".volbench-lock", "scale.csv", "scale.json", "scale.md", "scale_memory.png", "scale_memory.svg", "scale_time.png", "scale_time.svg"].map(String::from));
     expected.sort();
     assert_eq!(files(out), expected);
