@@ -867,14 +867,7 @@ mod tests {
 
     #[test]
     fn refinement_beyond_memory_is_a_clear_error() {
-        let mut m = TetMesh {
-            name: "t".into(),
-            points: vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
-            scalars: vec![0.0; 4],
-            tets: vec![[0, 1, 2, 3]],
-            stats: Default::default(),
-        };
-        m.validate("t").unwrap();
+        let m = one_tet();
         let e = refine_checked(&m, 3, Some(100)).unwrap_err().to_string();
         assert!(e.contains("level 3") && e.contains("host memory") && e.contains("--levels"), "{e}");
         assert_eq!(refine_checked(&m, 1, None).unwrap().tets.len(), 8);

@@ -206,34 +206,36 @@ pub const SUITE: &[&str] = &["step=1", "step=1.25"];
 /// Stress: the defaults, pre-integration, and skipping and termination off
 /// (lighting is not compared: the reference does not shade).
 pub const STRESS: &[&str] = &["", "integrator=preint", "skip=off,ert=1"];
-/// raycast-compute's suite: the shared one, and adaptive refinement at two
-/// tolerances (about 2/255 and 4/255), the same on every volume.
-pub const SUITE_COMPUTE: &[&str] = &["step=1", "step=1.25", "adaptive=0.008", "adaptive=0.016"];
+/// `a` then `b`, as one array (the compute variant's lists extend the shared ones).
+const fn joined<const N: usize>(a: &[&'static str], b: &[&'static str]) -> [&'static str; N] {
+    assert!(a.len() + b.len() == N, "joined: N must be the two lengths' sum");
+    let mut out = [""; N];
+    let mut i = 0;
+    while i < a.len() {
+        out[i] = a[i];
+        i += 1;
+    }
+    let mut j = 0;
+    while j < b.len() {
+        out[a.len() + j] = b[j];
+        j += 1;
+    }
+    out
+}
+
+/// Adaptive refinement's tolerances in the suite (about 2/255 and 4/255,
+/// the same on every volume) and in the sweep (`pareto`).
+const ADAPTIVE_SUITE: &[&str] = &["adaptive=0.008", "adaptive=0.016"];
+const ADAPTIVE_SWEEP: &[&str] = &["adaptive=0.004", "adaptive=0.008", "adaptive=0.016", "adaptive=0.032"];
+const SUITE_COMPUTE_LIST: [&str; SUITE.len() + ADAPTIVE_SUITE.len()] = joined(SUITE, ADAPTIVE_SUITE);
+const STRESS_COMPUTE_LIST: [&str; STRESS.len() + 1] = joined(STRESS, &["adaptive=0.008"]);
+const SWEEP_COMPUTE_LIST: [&str; SWEEP.len() + ADAPTIVE_SWEEP.len()] = joined(SWEEP, ADAPTIVE_SWEEP);
+/// raycast-compute's suite: the shared one, and adaptive refinement at two tolerances.
+pub const SUITE_COMPUTE: &[&str] = &SUITE_COMPUTE_LIST;
 /// raycast-compute's stress sets: the shared ones and adaptive refinement.
-pub const STRESS_COMPUTE: &[&str] = &["", "integrator=preint", "skip=off,ert=1", "adaptive=0.008"];
-/// raycast-compute's sweep: the shared one and adaptive refinement's
-/// tolerances (`pareto`).
-pub const SWEEP_COMPUTE: &[&str] = &[
-    "step=0.25",
-    "step=0.5",
-    "step=1",
-    "step=2",
-    "step=0.25,integrator=preint",
-    "step=0.5,integrator=preint",
-    "step=1,integrator=preint",
-    "step=2,integrator=preint",
-    "step=0.5,skip=off",
-    "step=0.5,ert=1",
-    "step=0.5,skip=off,ert=1",
-    "step=1,integrator=preint,skip=off",
-    "step=1,integrator=preint,ert=1",
-    "step=1,integrator=preint,skip=off,ert=1",
-    "step=0.5,brick=8",
-    "adaptive=0.004",
-    "adaptive=0.008",
-    "adaptive=0.016",
-    "adaptive=0.032",
-];
+pub const STRESS_COMPUTE: &[&str] = &STRESS_COMPUTE_LIST;
+/// raycast-compute's sweep: the shared one and adaptive refinement's tolerances.
+pub const SWEEP_COMPUTE: &[&str] = &SWEEP_COMPUTE_LIST;
 
 /// What both variants register once.
 pub const FAMILY: Family = Family {
