@@ -17,11 +17,14 @@
 #define WG_Y 8
 layout(local_size_x = WG_X, local_size_y = WG_Y) in;
 
+// Rust: algo::adaptive::DecidePush (the reflection test checks the two).
 layout(push_constant) uniform Decide {
-    uvec4 rect;    // the frame's rectangle, inclusive pixel bounds
-    uvec4 params;  // x: block size (8 or 4); y, z: rows and runs (size 8, interleaved_row);
-                   // w: first word of this size's silhouette bits (0xFFFFFFFF: none)
-    vec4 tol;      // x: tolerance per premultiplied channel
+    uvec4 rect;          // the frame's rectangle, inclusive pixel bounds
+    uint block_size;     // 8 or 4
+    uint rows;           // size 8: rows of workgroups and the device's runs (interleaved_row)
+    uint runs;
+    uint silhouettes;    // first word of this size's silhouette bits (0xFFFFFFFF: none)
+    float tol;           // tolerance per premultiplied channel
 } pc;
 
 #include "common/dispatch.glsl"
@@ -36,7 +39,7 @@ bool agrees(vec4 ray, vec4 interpolated, float tol) {
 }
 
 void main() {
-    uint size = pc.params.x;
+    uint size = pc.block_size;
     uvec2 nb = adaptive_blocks(pc.rect);
     uvec2 b;
     if (size == 8u) {
@@ -49,7 +52,7 @@ void main() {
             a_counters.v[A_ARGS_CAST1 + 1u] = 1u;
             a_counters.v[A_ARGS_CAST1 + 2u] = 1u;
         }
-        b = uvec2(gl_WorkGroupID.x, interleaved_row(pc.params.y, pc.params.z)) * uvec2(WG_X, WG_Y) + gl_LocalInvocationID.xy;
+        b = uvec2(gl_WorkGroupID.x, interleaved_row(pc.rows, pc.runs)) * uvec2(WG_X, WG_Y) + gl_LocalInvocationID.xy;
         if (b.x >= nb.x || b.y >= nb.y) return;
     } else {
         uint idx = gl_WorkGroupID.x * A_GROUP + gl_LocalInvocationIndex;
@@ -75,16 +78,16 @@ void main() {
     bool same = a_keys.v[i10] == k && a_keys.v[i01] == k && a_keys.v[i11] == k && a_keys.v[it] == k
         && a_keys.v[il] == k && a_keys.v[ic] == k && a_keys.v[ir] == k && a_keys.v[ib] == k;
     bool silhouette = false;
-    if (pc.params.w != 0xFFFFFFFFu) {
+    if (pc.silhouettes != 0xFFFFFFFFu) {
         uint bit = b.y * (nb.x << level) + b.x;
-        silhouette = ((a_sil.v[pc.params.w + bit / 32u] >> (bit % 32u)) & 1u) != 0u;
+        silhouette = ((a_sil.v[pc.silhouettes + bit / 32u] >> (bit % 32u)) & 1u) != 0u;
     }
     uint reason;
     vec4 c00 = a_samples.v[i00];
     vec4 c10 = a_samples.v[i10];
     vec4 c01 = a_samples.v[i01];
     vec4 c11 = a_samples.v[i11];
-    float tol = pc.tol.x;
+    float tol = pc.tol;
     if (silhouette) {
         reason = A_SIL8;
     } else if (!same) {

@@ -294,7 +294,7 @@ impl Atfs {
             draw.primitives.topology(),
             draw.primitives.primitive_restart(),
             tables,
-            draw.interpolation,
+            &draw,
             &[DescriptorSetDesc::storage_buffers(1, Stages::VERTEX)],
             &[],
         )?;

@@ -120,7 +120,7 @@ pub(super) fn records_pipeline(ctx: &Arc<Context>, tables: &IntegrationTables, d
         draw.primitives.topology(),
         draw.primitives.primitive_restart(),
         tables,
-        draw.interpolation,
+        &draw,
         &[],
         &[],
     )

@@ -25,7 +25,8 @@ use std::sync::Arc;
 use serde::Serialize;
 
 use crate::algo::host_memory::HostMemory;
-use crate::algo::integrate::IntegrationTables;
+use crate::algo::integrate::{IntegrationTables, Integrator, TableMap};
+use glam::Vec3;
 use crate::mesh::{TetGeometry, TetMesh, TetPrecomputed};
 use crate::scene::Camera;
 use crate::vk::{
@@ -172,12 +173,30 @@ impl StaticIndices {
     }
 }
 
-/// The build-time drawing choices a projector is made with.
+/// The build-time choices a projector is made with: what its shaders are
+/// compiled with ([`DrawSettings::defines`], the one place they are
+/// derived) and how the balanced family's indices are laid out.
+/// `render::Settings::draw` makes it from the family's options.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DrawSettings {
     pub interpolation: Interpolation,
+    pub integrator: Integrator,
     /// The balanced family's index layout (VICP draws its own face lists).
     pub primitives: Primitives,
+}
+
+impl DrawSettings {
+    /// The defines of the family's build-time options, for every shader
+    /// that integrates (`primitives` changes pipeline state only).
+    pub fn defines(&self) -> Vec<(&'static str, &'static str)> {
+        self.exit_defines().into_iter().chain(self.integrator.define()).collect()
+    }
+
+    /// The defines of a shader that writes exit data but integrates
+    /// nothing (resident's expansion pass): the interpolation's.
+    pub fn exit_defines(&self) -> Vec<(&'static str, &'static str)> {
+        self.interpolation.defines().to_vec()
+    }
 }
 
 /// Run-time tolerances of the exit-plane choice (push constants), named and
@@ -284,15 +303,30 @@ impl Default for ExitTolerances {
     }
 }
 
-/// Push constants shared by every cell-projection shader (`common/frame.glsl`).
+/// Push constants shared by every cell-projection shader
+/// (`shaders/common/frame.glsl`, `Frame`; `tests/shader_interfaces.rs`
+/// checks the two agree).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct FrameConstants {
+    /// World (relative to the render origin) -> Vulkan clip space.
     pub view_proj: [[f32; 4]; 4],
-    pub eye: [f32; 4],
-    pub view_dir: [f32; 4],
-    pub tf_range: [f32; 4],
-    pub limits: [f32; 4],
+    /// The eye, relative to the render origin.
+    pub eye: Vec3,
+    /// 1 perspective, 0 orthographic.
+    pub perspective: f32,
+    /// Unit viewing direction (orthographic rays).
+    pub view_dir: Vec3,
+    /// The longest cell edge (+1% for f32 rounding): no segment through a
+    /// cell is longer (`shaders/common/exit.glsl`).
+    pub max_segment: f32,
+    pub table: TableMap,
+    /// Clamp of vertex ray-plane distances (`ExitTolerances`).
+    pub distance_clamp: f32,
+    /// Clamp of |u| (`ExitTolerances`).
+    pub plane_ratio_max: f32,
+    /// Edge epsilon (`ExitTolerances`).
+    pub edge_eps: f32,
 }
 
 /// What every method needs to know about the frame being drawn.
@@ -333,20 +367,20 @@ impl FrameSetup {
         setup.origin = o;
         setup.eye = std::array::from_fn(|k| (camera.eye[k] - o[k]) as f32);
         let vp = camera.view_proj_relative(o, width, height).to_cols_array_2d();
-        // Scalars arrive mapped by `scalar_map`: map the table's range alike.
-        let (lo, hi) = tables.tf_range;
-        let lo_rel = (lo - scale.scalar_origin) / scale.scalar_scale;
-        let inv_width = scale.scalar_scale / (hi - lo);
         setup.size = [width, height];
-        let (e, v) = (setup.eye, setup.view_dir);
         setup.constants = FrameConstants {
             view_proj: vp.map(|c| c.map(|x| x as f32)),
-            eye: [e[0], e[1], e[2], if setup.perspective { 1.0 } else { 0.0 }],
-            // w: no segment through a cell is longer than its longest edge
-            // (1% margin for f32 rounding); see shaders/common/exit.glsl.
-            view_dir: [v[0], v[1], v[2], (1.01 * scale.max_cell_extent) as f32],
-            tf_range: [lo_rel as f32, inv_width as f32, tables.tf_size as f32, tables.table_size as f32],
-            limits: [setup.max_distance, setup.plane_ratio_max, tolerances.edge_eps, tables.length_scale as f32],
+            eye: setup.eye.into(),
+            perspective: if setup.perspective { 1.0 } else { 0.0 },
+            view_dir: setup.view_dir.into(),
+            // No segment through a cell is longer than its longest edge (1%
+            // margin for f32 rounding); see shaders/common/exit.glsl.
+            max_segment: (1.01 * scale.max_cell_extent) as f32,
+            // Scalars arrive mapped by `scalar_map`: the table's range alike.
+            table: tables.map(scale.scalar_origin, scale.scalar_scale),
+            distance_clamp: setup.max_distance,
+            plane_ratio_max: setup.plane_ratio_max,
+            edge_eps: tolerances.edge_eps,
         };
         setup
     }
@@ -521,12 +555,6 @@ fn extra_fragment_work() -> VkResult<Option<String>> {
     }))
 }
 
-/// The defines of cell projection's build-time choices
-/// (`render::Settings::defines`); `primitives` changes pipeline state only.
-pub fn shader_defines(interpolation: Interpolation, integrator: crate::algo::integrate::Integrator) -> Vec<(&'static str, &'static str)> {
-    interpolation.defines().iter().copied().chain(integrator.define()).collect()
-}
-
 /// The pipeline every cell-projection method uses: premultiplied "over"
 /// into RGBA32F, entry faces only, the integration tables bound at set 0
 /// and `extra_sets` at sets 1, 2, ...
@@ -540,12 +568,12 @@ pub(crate) fn build_pipeline(
     topology: Topology,
     primitive_restart: bool,
     tables: &IntegrationTables,
-    interpolation: Interpolation,
+    draw: &DrawSettings,
     extra_sets: &[DescriptorSetDesc],
     // More shader defines (e.g. the chunking of the stored cells, `algo::chunks`).
     more_defines: &[(&str, &str)],
 ) -> VkResult<(Arc<Pipeline>, PipelineKey)> {
-    let mut defines = shader_defines(interpolation, tables.integrator);
+    let mut defines = draw.defines();
     defines.extend_from_slice(more_defines);
     let extra = extra_fragment_work()?;
     if let Some(n) = &extra {

@@ -558,11 +558,8 @@ impl PtCompute {
         let chunked = cells.defines("CELL");
         let chunk_binding = (!chunked.is_empty()).then(|| CELL_CHUNK_BINDING.to_string());
         let defines: Vec<(&str, &str)> = draw
-            .interpolation
             .defines()
-            .iter()
-            .copied()
-            .chain(tables.integrator.define())
+            .into_iter()
             .chain([("TILE_W", tile[0].as_str()), ("TILE_H", tile[1].as_str()), ("ERT_TRANSMITTANCE", ert.as_str())])
             .chain(chunked.iter().map(|(k, v)| (k.as_str(), v.as_str())))
             .chain(chunk_binding.iter().map(|b| ("CELL_CHUNK_BINDING", b.as_str())))

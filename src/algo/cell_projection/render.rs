@@ -60,7 +60,7 @@ crate::settings! {
         }
 
         fn defines(&self) -> Vec<(&'static str, &'static str)> {
-            super::shader_defines(self.interpolation, self.integrator)
+            self.draw().defines()
         }
     }
 }
@@ -70,6 +70,12 @@ pub const INTEGRATOR_HELP: &str = "how the fragment stage integrates a cell's se
 pub const TABLE_SIZE_HELP: &str = "side of the integrator's table; 0 = its default (ppi 512, preint 128 with 32 lengths)";
 
 impl Settings {
+    /// The build-time choices every projector and the near caps are made
+    /// with: their shaders' defines and pipeline keys come from it.
+    pub fn draw(&self) -> DrawSettings {
+        DrawSettings { interpolation: self.interpolation, integrator: self.integrator, primitives: self.primitives }
+    }
+
     pub fn tolerances(&self) -> ExitTolerances {
         ExitTolerances {
             distance_clamp_diagonals: self.distance_clamp,
@@ -375,12 +381,12 @@ impl CellProjection {
             inputs.counter,
         )
         .context("building the integration tables")?;
-        let draw = DrawSettings { interpolation: settings.interpolation, primitives: settings.primitives };
+        let draw = settings.draw();
         let projector = build(ctx, mesh, &tables, draw, inputs.counter)?;
         let pieces = projector.pieces_set().map(|s| s.desc.clone());
         let origin = render_origin(mesh);
         let relative = relative.unwrap_or_else(|| RelativeMesh::new(mesh, origin));
-        let near = super::near::NearCaps::new(ctx, relative.clone(), &tables, settings.interpolation, pieces)?;
+        let near = super::near::NearCaps::new(ctx, relative.clone(), &tables, &draw, pieces)?;
         let sorter = Sorter::new(settings.sort, mesh);
         // Cells a device sort orders are all drawn: culling is off for it.
         let culler = Culler::shared(mesh, relative.clone(), inputs.tf, LookupGrid::of(&tables), settings.cull && !projector.sorts_on_device());

@@ -215,7 +215,7 @@ fn expand_pipeline(
     desc: DescriptorSetDesc,
 ) -> VkResult<Arc<Pipeline>> {
     let chunked = cells.defines("CELL");
-    let mut defines: Vec<(&str, &str)> = draw.interpolation.defines().to_vec();
+    let mut defines: Vec<(&str, &str)> = draw.exit_defines();
     defines.extend(chunked.iter().map(|(k, v)| (k.as_str(), v.as_str())));
     if cells.buffers.len() > 1 {
         defines.push(("CELL_CHUNK_BINDING", "3"));
@@ -274,7 +274,7 @@ pub(super) fn resident_pipeline(
         draw.primitives.topology(),
         draw.primitives.primitive_restart(),
         tables,
-        draw.interpolation,
+        &draw,
         &[set_desc(cells.buffers.len())],
         &defines,
     )
