@@ -219,39 +219,73 @@ fn uses(path: &str, file: &str) -> bool {
 }
 
 /// The leaf members of a reflected struct, nested structs flattened with a
-/// dot, at their offsets from the block's start.
-fn flatten(ty: &Type, prefix: &str, base: usize, out: &mut Layout) {
-    let Type::Struct(s) = ty else { panic!("{prefix}: not a struct: {ty:?}") };
-    for m in &s.members {
-        let name = m.name.clone().unwrap_or_else(|| panic!("{prefix}: a member without a name (debug names stripped?)"));
+/// dot, at their offsets from the block's start; members are named by
+/// `names` (the same struct reflected from an unoptimised compile: the
+/// pipelines' optimised SPIR-V carries no member names), matched by index.
+fn flatten(ty: &Type, names: &Type, prefix: &str, base: usize, out: &mut Layout) {
+    let (Type::Struct(s), Type::Struct(n)) = (ty, names) else { panic!("{prefix}: not a struct: {ty:?}") };
+    assert_eq!(s.members.len(), n.members.len(), "{prefix}: the optimised and the named compile differ");
+    for (m, named) in s.members.iter().zip(&n.members) {
+        let name = named.name.clone().unwrap_or_else(|| panic!("{prefix}: a member without a name"));
         let name = if prefix.is_empty() { name } else { format!("{prefix}.{name}") };
         let offset = base + m.offset.unwrap_or_else(|| panic!("{name}: no offset"));
+        assert_eq!(m.offset, named.offset, "{name}: the optimised and the named compile differ");
         match &m.ty {
-            Type::Struct(_) => flatten(&m.ty, &name, offset, out),
+            Type::Struct(_) => flatten(&m.ty, &named.ty, &name, offset, out),
             t => {
-                out.insert(name, (offset, t.nbyte().unwrap_or_else(|| panic!("{name}: no size"))));
+                let size = t.nbyte().unwrap_or_else(|| panic!("{name}: no size"));
+                out.insert(name, (offset, size));
             }
         }
     }
 }
 
-/// The block `kind` in the SPIR-V of `shader` compiled with `defines`.
+/// `shader` compiled as `vk::compile_glsl` compiles it, but unoptimised
+/// (debug names kept).
+fn compile_named(shader: &str, stage: ShaderStage, defines: &[(&str, &str)]) -> Vec<u32> {
+    let kind = match stage {
+        ShaderStage::Vertex => shaderc::ShaderKind::Vertex,
+        ShaderStage::Fragment => shaderc::ShaderKind::Fragment,
+        ShaderStage::Geometry => shaderc::ShaderKind::Geometry,
+        ShaderStage::Compute => shaderc::ShaderKind::Compute,
+    };
+    let compiler = shaderc::Compiler::new().expect("shaderc");
+    let mut options = shaderc::CompileOptions::new().expect("shaderc options");
+    options.set_target_env(shaderc::TargetEnv::Vulkan, shaderc::EnvVersion::Vulkan1_3 as u32);
+    options.set_optimization_level(shaderc::OptimizationLevel::Zero);
+    for (k, v) in defines {
+        options.add_macro_definition(k, Some(v));
+    }
+    options.set_include_callback(|requested, _, _, _| match volbench::shaders::source(requested) {
+        Some(text) => Ok(shaderc::ResolvedInclude { resolved_name: format!("shaders/{requested}"), content: text.to_string() }),
+        None => Err(format!("shaders/{requested}: include not found")),
+    });
+    let source = volbench::shaders::source(shader).expect("the shader");
+    compiler.compile_into_spirv(source, kind, shader, "main", Some(&options)).unwrap_or_else(|e| panic!("{shader}: {e}")).as_binary().to_vec()
+}
+
+/// The type of block `kind` in SPIR-V `spv`.
+fn block_type(shader: &str, spv: Vec<u32>, kind: Kind) -> Option<Type> {
+    let entries = ReflectConfig::new().spv(spv).ref_all_rscs(true).reflect().unwrap_or_else(|e| panic!("{shader}: reflecting: {e:?}"));
+    entries.iter().flat_map(|e| &e.vars).find_map(|var| match (kind, var) {
+        (Kind::PushConstant, Variable::PushConstant { ty, .. }) => Some(ty.clone()),
+        (Kind::Buffer(set, binding), Variable::Descriptor { desc_bind, ty, .. }) if desc_bind.set() == set && desc_bind.bind() == binding => {
+            Some(ty.clone())
+        }
+        _ => None,
+    })
+}
+
+/// The block `kind` in the SPIR-V of `shader` compiled with `defines` (the
+/// pipelines' compile, `vk::compile_glsl`).
 fn reflect(shader: &str, defines: &[(&str, &str)], kind: Kind) -> Option<Layout> {
     let stage = ShaderStage::from_path(shader).unwrap_or_else(|| panic!("{shader}: unknown stage"));
     let spv = compile_glsl(shader, stage, defines, &volbench::shaders::source).unwrap_or_else(|e| panic!("{e}"));
-    let entries = ReflectConfig::new().spv(spv).ref_all_rscs(true).reflect().unwrap_or_else(|e| panic!("{shader}: reflecting: {e:?}"));
-    let mut found = None;
-    for var in entries.iter().flat_map(|e| &e.vars) {
-        let ty = match (kind, var) {
-            (Kind::PushConstant, Variable::PushConstant { ty, .. }) => ty,
-            (Kind::Buffer(set, binding), Variable::Descriptor { desc_bind, ty, .. }) if desc_bind.set() == set && desc_bind.bind() == binding => ty,
-            _ => continue,
-        };
-        let mut layout = Layout::new();
-        flatten(ty, "", 0, &mut layout);
-        found = Some(layout);
-    }
-    found
+    let ty = block_type(shader, spv, kind)?;
+    let names = block_type(shader, compile_named(shader, stage, defines), kind).expect("the block in the named compile");
+    let mut layout = Layout::new();
+    flatten(&ty, &names, "", 0, &mut layout);
+    Some(layout)
 }
 
 /// The block's size from its members (the end of the last one).
@@ -357,4 +391,21 @@ fn every_push_constant_and_uniform_block_is_checked() {
         }
     }
     assert!(unlisted.is_empty(), "blocks no Rust struct is checked against (add them to blocks()):\n{}", unlisted.join("\n"));
+}
+
+/// The check can fail: the cell-projection frame with one field moved by a
+/// float (as a struct reordered on one side only would be) and a size one
+/// float short are both reported against the compiled shader.
+#[test]
+fn a_wrong_offset_or_size_is_reported() {
+    let block = blocks().into_iter().next().expect("the cell-projection frame");
+    assert_eq!(block.file, "common/frame.glsl");
+    let glsl = reflect("cell_projection/vicp.vert", &[], block.kind).expect("the block");
+    assert!(disagreements("frame", block.rust, block.size, &block.fields, &block.padding, &glsl).is_empty());
+    let mut moved = block.fields.clone();
+    moved.get_mut("table.table_side").unwrap().0 += 4;
+    let found = disagreements("frame", block.rust, block.size, &moved, &block.padding, &glsl);
+    assert!(found.iter().any(|l| l.contains("`table.table_side` is at offset")), "{found:?}");
+    let found = disagreements("frame", block.rust, block.size - 4, &block.fields, &block.padding, &glsl);
+    assert!(found.iter().any(|l| l.contains("the block is 128 bytes")), "{found:?}");
 }
