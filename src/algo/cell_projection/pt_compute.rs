@@ -463,7 +463,7 @@ fn eye_plane_w(frame: &FrameSetup) -> f32 {
     let z = row(2);
     let (e, d) = (c.eye, c.view_dir);
     let near = -(z[0] * e[0] + z[1] * e[1] + z[2] * e[2] + z[3]) / (z[0] * d[0] + z[1] * d[1] + z[2] * d[2]);
-    0.5 * (1e-4 * d[3]).min(0.5 * near)
+    0.5 * (1e-4 * c.max_segment).min(0.5 * near)
 }
 
 pub struct PtCompute {
