@@ -45,6 +45,7 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, Context as _, Result};
 use serde::{Deserialize, Serialize};
 
+use super::child::kill_group_id;
 use super::datasets::{Dataset, DatasetData};
 use super::image::RgbaImage;
 use super::run::RunConfig;
@@ -638,13 +639,6 @@ fn timeout() -> Result<Duration> {
     Ok(Duration::from_secs(crate::switches::int(crate::switches::PEER_TIMEOUT_S)?.unwrap_or(DEFAULT_TIMEOUT_S)))
 }
 
-/// Send SIGKILL to process group `group` (the peer and all it started).
-/// Through kill(1): signals need `unsafe` outside `src/vk/`. A group
-/// already gone is not an error.
-pub(crate) fn kill_group(group: u32) {
-    let _ = Command::new("kill").arg("-KILL").arg("--").arg(format!("-{group}")).stderr(Stdio::null()).status();
-}
-
 /// Run one peer renderer on a scene written to `scene_path`; returns the
 /// checked result and the image.
 pub fn run_peer(peer: &LocatedPeer, scene: &PeerScene, scene_path: &Path) -> Result<(PeerResult, RgbaImage)> {
@@ -680,7 +674,7 @@ pub fn run_peer(peer: &LocatedPeer, scene: &PeerScene, scene_path: &Path) -> Res
             break status;
         }
         if start.elapsed() > limit {
-            kill_group(group);
+            kill_group_id(group);
             let _ = child.wait();
             bail!("{} {}: stopped after {} s (VOLBENCH_PEER_TIMEOUT_S)", peer.peer.name, scene.renderer, limit.as_secs());
         }
@@ -688,7 +682,7 @@ pub fn run_peer(peer: &LocatedPeer, scene: &PeerScene, scene_path: &Path) -> Res
     };
     // Whatever the peer left running belongs to no one: stop it, so that
     // stderr closes; the wait for it is bounded by the time-out all the same.
-    kill_group(group);
+    kill_group_id(group);
     let left = limit.saturating_sub(start.elapsed()).max(Duration::from_secs(1));
     let Ok(err) = received.recv_timeout(left) else {
         bail!("{} {}: its standard error stayed open past {} s (VOLBENCH_PEER_TIMEOUT_S)", peer.peer.name, scene.renderer, limit.as_secs());

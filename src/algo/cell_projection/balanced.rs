@@ -22,10 +22,8 @@ use rayon::prelude::*;
 
 use super::render;
 use crate::algo::method::{MethodInfo, MethodInputs, RenderMethod};
-use super::{
-    build_pipeline, render_origin, CellF32, CellProjector, DrawSettings, FrameSetup, Interpolation, PlanesTable, RelativeMesh, StaticIndices,
-    MAX_INDICES_PER_CELL,
-};
+use super::{build_pipeline, CellF32, CellProjector, DrawSettings, PlanesTable, RelativeMesh, StaticIndices, MAX_INDICES_PER_CELL};
+use crate::algo::tet_mesh::{render_origin, FrameSetup, Interpolation};
 use crate::algo::chunks::{ChunkLimits, VertexChunks};
 use crate::algo::host_memory::HostMemory;
 use crate::algo::integrate::IntegrationTables;

@@ -15,7 +15,8 @@ use std::sync::Arc;
 
 use super::balanced::{records_pipeline, FLOATS_PER_CELL, VERTICES_PER_CELL};
 use super::render;
-use super::{build_pipeline, CellF32, CellMaker, CellProjector, FrameConstants, FrameSetup, DrawSettings, Primitives, StaticIndices, MAX_INDICES_PER_CELL};
+use super::{build_pipeline, CellF32, CellMaker, CellProjector, DrawSettings, Primitives, StaticIndices, MAX_INDICES_PER_CELL};
+use crate::algo::tet_mesh::{FrameConstants, FrameSetup};
 use crate::algo::chunks::{self, ChunkLimits, TexelChunks};
 use crate::algo::host_memory::HostMemory;
 use crate::algo::integrate::IntegrationTables;

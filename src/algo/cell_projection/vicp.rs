@@ -12,7 +12,8 @@ use rayon::prelude::*;
 
 use super::render;
 use crate::algo::method::{MethodInfo, MethodInputs, RenderMethod};
-use super::{build_pipeline, cells_f32, CellProjector, FrameSetup, Interpolation, FACES};
+use super::{build_pipeline, cells_f32, CellProjector, FACES};
+use crate::algo::tet_mesh::{FrameSetup, Interpolation};
 use crate::algo::chunks::{ChunkLimits, VertexChunks};
 use crate::algo::host_memory::HostMemory;
 use crate::algo::integrate::IntegrationTables;
