@@ -87,7 +87,7 @@ pub fn comparison_table(rows: &[ComparisonRow], registry: &Registry) -> String {
         let r = match &row.outcome {
             Ok(r) => *r,
             Err(e) => {
-                let e = e.replace('|', "/").replace('\n', " ");
+                let e = md_cell(e);
                 let e = if e.starts_with("skipped") { e } else { format!("FAILED: {e}") };
                 let _ = writeln!(s, "| {} | {} | {e} |||||||||||||", row.dataset, row.label);
                 continue;
