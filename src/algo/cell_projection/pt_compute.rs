@@ -715,7 +715,7 @@ impl CellProjector for PtCompute {
         rec.uploads_to_compute();
         // Only the tiles around the covered pixels run the pass: on llvmpipe
         // a workgroup with nothing to do still runs the whole shader masked
-        // (docs/compute-speed.md, third round). The rest is cleared.
+        // (docs/compute-speed.md, "What llvmpipe does"). The rest is cleared.
         let all = [self.size[0].div_ceil(TILE[0]), self.size[1].div_ceil(TILE[1])];
         rec.storage_target(target, groups[..2] == all);
         self.timestamps.write(rec, 0, TimestampAt::Start)?;
