@@ -78,7 +78,7 @@ macro_rules! fields {
 fn blocks() -> Vec<Block> {
     use volbench::algo::adaptive::DecidePush;
     use volbench::algo::cell_projection::device_sort::{PassParams, SortCamera};
-    use volbench::algo::cell_projection::FrameConstants;
+    use volbench::algo::tet_mesh::FrameConstants;
     use volbench::algo::raycast::{AdaptiveFrame, Frame, Params};
     use volbench::algo::terrain::compute::{DrawArgs, TessPush};
     use volbench::algo::terrain::Push;
@@ -88,7 +88,7 @@ fn blocks() -> Vec<Block> {
         Block {
             file: "common/frame.glsl",
             kind: Kind::PushConstant,
-            rust: "cell_projection::FrameConstants",
+            rust: "tet_mesh::FrameConstants",
             size: size_of::<FrameConstants>(),
             fields: fields!(FrameConstants;
                 "view_proj" => view_proj, "eye" => eye, "perspective" => perspective, "view_dir" => view_dir,

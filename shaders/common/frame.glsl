@@ -1,5 +1,5 @@
 // Per-frame constants shared by every cell-projection shader (push
-// constants). Rust: algo::cell_projection::FrameConstants (the reflection
+// constants). Rust: algo::tet_mesh::FrameConstants (the reflection
 // test checks the two).
 #include "common/table_map.glsl"
 layout(push_constant) uniform Frame {

@@ -235,7 +235,7 @@ pub fn psi_quads_cached(m: usize) -> anyhow::Result<Arc<Vec<[f32; 4]>>> {
 /// How a segment's scalars and length index the tables
 /// (`shaders/common/table_map.glsl`, read by `common/integrate.glsl`): a
 /// member of the push constants of every shader that integrates cells
-/// (`cell_projection::FrameConstants`, `tet_raycast::WalkFrame`).
+/// (`tet_mesh::FrameConstants`, `tet_raycast::WalkFrame`).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct TableMap {

@@ -636,13 +636,6 @@ fn timeout() -> Result<Duration> {
     Ok(Duration::from_secs(crate::switches::int(crate::switches::PEER_TIMEOUT_S)?.unwrap_or(DEFAULT_TIMEOUT_S)))
 }
 
-/// Send SIGKILL to process group `group` (the peer and all it started).
-/// Through kill(1): signals need `unsafe` outside `src/vk/`. A group
-/// already gone is not an error.
-pub(crate) fn kill_group(group: u32) {
-    let _ = Command::new("kill").arg("-KILL").arg("--").arg(format!("-{group}")).stderr(Stdio::null()).status();
-}
-
 /// Run one peer renderer on a scene written to `scene_path`; returns the
 /// checked result and the image.
 pub fn run_peer(peer: &LocatedPeer, scene: &PeerScene, scene_path: &Path) -> Result<(PeerResult, RgbaImage)> {

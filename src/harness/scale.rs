@@ -245,7 +245,7 @@ impl Staging {
     /// temporary this process or the level's children staged.
     fn clean(&mut self) {
         if let Some(group) = self.child.take() {
-            super::peers::kill_group(group);
+            super::child::kill_group_id(group);
             wait_gone(group);
         }
         for f in self.files.drain(..) {

@@ -352,7 +352,7 @@ mod tests {
 
     #[test]
     fn the_sort_camera_is_the_frame_setup_camera() {
-        use super::super::{ExitTolerances, FrameSetup, Interpolation};
+        use crate::algo::tet_mesh::{ExitTolerances, FrameSetup, Interpolation};
         use crate::mesh::Bounds;
         use crate::scene::Projection;
         let b = Bounds { min: [0.0; 3], max: [1.0, 2.0, 3.0] };

@@ -22,7 +22,8 @@ use std::sync::Arc;
 
 use rayon::prelude::*;
 
-use super::{build_pipeline, CellProjector, DrawSettings, FrameSetup, RelativeMesh};
+use super::{build_pipeline, CellProjector, DrawSettings, RelativeMesh};
+use crate::algo::tet_mesh::FrameSetup;
 use crate::algo::integrate::IntegrationTables;
 use crate::mesh::geometry::plane_section;
 use crate::scene::Camera;

@@ -22,7 +22,8 @@ use rayon::prelude::*;
 use super::balanced::VERTICES_PER_CELL;
 use super::render;
 use super::resident::{upload_cell_chunks, FLOATS_PER_STORED_CELL};
-use super::{CellMaker, CellProjector, DrawSettings, FrameConstants, FrameSetup};
+use super::{CellMaker, CellProjector, DrawSettings};
+use crate::algo::tet_mesh::{FrameConstants, FrameSetup};
 use crate::algo::chunks::{ensure_frame_texels, frame_texels, ChunkLimits, TexelChunks};
 use crate::algo::integrate::IntegrationTables;
 use crate::algo::method::{MethodInfo, MethodInputs, RenderMethod};
@@ -711,7 +712,7 @@ impl CellProjector for PtCompute {
         rec.uploads_to_compute();
         // Only the tiles around the covered pixels run the pass: on llvmpipe
         // a workgroup with nothing to do still runs the whole shader masked
-        // (docs/compute-speed.md, third round). The rest is cleared.
+        // (docs/compute-speed.md, "What llvmpipe does"). The rest is cleared.
         let all = [self.size[0].div_ceil(TILE[0]), self.size[1].div_ceil(TILE[1])];
         rec.storage_target(target, groups[..2] == all);
         self.timestamps.write(rec, 0, TimestampAt::Start)?;

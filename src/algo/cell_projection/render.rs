@@ -16,7 +16,8 @@ use serde_json::json;
 use super::cull::{Culler, FrameCull, LookupGrid};
 use super::mpvo::MpvoSort;
 use super::sort::{CentroidSort, SortKind, Sorter};
-use super::{centroids_relative_f32, render_origin, CellProjector, RelativeMesh, DrawSettings, ExitTolerances, FrameSetup, Interpolation, MeshScale, Primitives};
+use super::{centroids_relative_f32, CellProjector, RelativeMesh, DrawSettings, Primitives};
+use crate::algo::tet_mesh::{integrator_bound, render_origin, ExitTolerances, FrameSetup, Interpolation, MeshScale, INTEGRATOR_HELP, TABLE_SIZE_HELP};
 use crate::algo::host_memory::HostMemory;
 use crate::algo::integrate::{IntegrationTables, Integrator};
 use crate::algo::settings::{check, choice, flag, float, int, pick, MethodSettings};
@@ -64,10 +65,6 @@ crate::settings! {
         }
     }
 }
-
-/// Help of the options tet-raycast shares with cell projection.
-pub const INTEGRATOR_HELP: &str = "how the fragment stage integrates a cell's segment (see README: integrators)";
-pub const TABLE_SIZE_HELP: &str = "side of the integrator's table; 0 = its default (ppi 512, preint 128 with 32 lengths)";
 
 impl Settings {
     /// The build-time choices every projector and the near caps are made
@@ -216,15 +213,6 @@ pub fn accuracy_bound(options: &Options, perspective: bool) -> Option<f64> {
     Some(integrator_bound(s.integrator))
 }
 
-/// The bound of an integrator where interpolation is exact (see
-/// `accuracy_bound`).
-pub fn integrator_bound(integrator: Integrator) -> f64 {
-    match integrator {
-        Integrator::Average => 5e-3,
-        Integrator::Preint => 2e-3,
-        Integrator::Ppi | Integrator::LinearExact => 1e-3,
-    }
-}
 
 
 /// Where Table 6.3 figures come from (one source: the report pairs figures

@@ -12,7 +12,8 @@ use rayon::prelude::*;
 
 use super::render;
 use crate::algo::method::{MethodInfo, MethodInputs, RenderMethod};
-use super::{build_pipeline, cells_f32, CellProjector, DrawSettings, FrameSetup, FACES};
+use super::{build_pipeline, cells_f32, CellProjector, DrawSettings, FACES};
+use crate::algo::tet_mesh::FrameSetup;
 use crate::algo::chunks::{ChunkLimits, VertexChunks};
 use crate::algo::host_memory::HostMemory;
 use crate::algo::integrate::IntegrationTables;

@@ -73,9 +73,8 @@ use std::sync::Arc;
 use anyhow::{bail, Context as _, Result};
 use serde_json::json;
 
-use super::cell_projection::render;
 use super::settings::{choice, float, int, MethodSettings};
-use super::cell_projection::{render_origin, scalar_map, MeshScale};
+use super::tet_mesh::{integrator_bound, render_origin, scalar_map, MeshScale, INTEGRATOR_HELP, TABLE_SIZE_HELP};
 use super::chunks::{ensure_frame_texels, frame_texels, ChunkLimits, TexelChunks};
 use tiles::{Projected, TileLists, TILE};
 use super::host_memory::HostMemory;
@@ -192,8 +191,8 @@ crate::settings! {
     /// Integrator and table size as the cell-projection methods take them,
     /// the termination threshold and the entry search.
     pub struct Settings {
-        integrator: Integrator = "ppi", choice::<Integrator>(), build, "", render::INTEGRATOR_HELP;
-        table_size: usize = "0", int(0, 4096), run, "samples per side", render::TABLE_SIZE_HELP;
+        integrator: Integrator = "ppi", choice::<Integrator>(), build, "", INTEGRATOR_HELP;
+        table_size: usize = "0", int(0, 4096), run, "samples per side", TABLE_SIZE_HELP;
         ert: f64 = "0.999", float(0.5, 1.0), run, "opacity",
             "early ray termination: stop once the ray's opacity reaches this (1 = only when fully opaque); \
              adds at most 1 - ert to a pixel's error";
@@ -260,7 +259,7 @@ pub const METHOD: MethodInfo = MethodInfo {
 /// tolerance ([`crate::algo::adaptive::bound`]).
 pub fn accuracy_bound(options: &Options, _perspective: bool) -> Option<f64> {
     let s = Settings::from_options(options).ok()?;
-    Some(render::integrator_bound(s.integrator) + (1.0 - s.ert).max(0.0) + crate::algo::adaptive::bound(s.adaptive))
+    Some(integrator_bound(s.integrator) + (1.0 - s.ert).max(0.0) + crate::algo::adaptive::bound(s.adaptive))
 }
 
 /// The pixels whose rays may meet the mesh: the box of the boundary
