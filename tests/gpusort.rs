@@ -11,7 +11,8 @@ use volbench::algo::cell_projection::device_sort::{DeviceCentroidSort, SortCamer
 use volbench::algo::cell_projection::resident::FLOATS_PER_STORED_CELL;
 use volbench::algo::cell_projection::resident_gpusort::SORT_PHASE;
 use volbench::algo::cell_projection::sort::CentroidSort;
-use volbench::algo::cell_projection::{centroids_relative_f32, render_origin, FrameConstants};
+use volbench::algo::cell_projection::centroids_relative_f32;
+use volbench::algo::tet_mesh::{render_origin, FrameConstants};
 use volbench::algo::integrate::{PSI_TABLE_SIZE, TF_TABLE_SIZE};
 use volbench::algo::registry;
 use volbench::harness::datasets;
