@@ -158,7 +158,7 @@ fn paths(code: &[u8]) -> Vec<Written> {
         let preceded_by_path = i >= 2 && &code[i - 2..i] == b"::";
         if matches!(word.as_str(), "crate" | "super" | "self") && !preceded_by_path && code[end..].starts_with(b"::") {
             let mut found = Vec::new();
-            let stop = use_tree(code, end + 2, &[word.clone()], &mut found);
+            let stop = use_tree(code, end + 2, std::slice::from_ref(&word), &mut found);
             for p in found {
                 out.push(Written { line, inline: inline.iter().map(|(n, _)| n.clone()).collect(), path: p });
             }

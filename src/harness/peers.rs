@@ -37,7 +37,7 @@
 //! what the error against the f64 reference measures.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::Command;
 use std::time::Duration;
 
 use anyhow::{bail, Context as _, Result};

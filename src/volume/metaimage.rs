@@ -161,7 +161,10 @@ pub fn parse_metaimage_bytes(
 
 /// The header's fields (value and line), up to and including
 /// ElementDataFile, and where the bytes after that line start.
-fn header_fields<'b>(name: &str, bytes: &'b [u8]) -> Result<(HashMap<&'static str, (&'b str, usize)>, usize)> {
+/// A header's fields by name: (value, header line).
+type Fields<'b> = HashMap<&'static str, (&'b str, usize)>;
+
+fn header_fields<'b>(name: &str, bytes: &'b [u8]) -> Result<(Fields<'b>, usize)> {
     let mut fields: HashMap<&'static str, (&str, usize)> = HashMap::new();
     let mut pos = if bytes.starts_with(b"\xEF\xBB\xBF") { 3 } else { 0 };
     let mut line_no = 0;
@@ -205,7 +208,7 @@ fn header_fields<'b>(name: &str, bytes: &'b [u8]) -> Result<(HashMap<&'static st
 /// A header's fields, read by name.
 struct Header<'h> {
     name: &'h str,
-    fields: HashMap<&'static str, (&'h str, usize)>,
+    fields: Fields<'h>,
 }
 
 impl<'h> Header<'h> {

@@ -171,7 +171,10 @@ pub fn parse_nrrd_bytes(name: &str, bytes: &[u8], load_data: &mut dyn FnMut(&str
 
 /// The header's fields (value and line) after the magic line, and where
 /// attached data starts (after the blank line ending the header), if any.
-fn header_fields<'b>(name: &str, bytes: &'b [u8]) -> Result<(HashMap<String, (&'b str, usize)>, Option<usize>)> {
+/// A header's fields by name: (value, header line).
+type Fields<'b> = HashMap<String, (&'b str, usize)>;
+
+fn header_fields<'b>(name: &str, bytes: &'b [u8]) -> Result<(Fields<'b>, Option<usize>)> {
     let magic_end = bytes.iter().position(|&c| c == b'\n').unwrap_or(bytes.len());
     let magic = &bytes[..magic_end];
     let magic = magic.strip_suffix(b"\r").unwrap_or(magic);
@@ -222,7 +225,7 @@ fn header_fields<'b>(name: &str, bytes: &'b [u8]) -> Result<(HashMap<String, (&'
 /// A header's fields, read by name.
 struct Header<'h> {
     name: &'h str,
-    fields: HashMap<String, (&'h str, usize)>,
+    fields: Fields<'h>,
 }
 
 impl<'h> Header<'h> {
