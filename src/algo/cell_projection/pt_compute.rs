@@ -1,14 +1,15 @@
 //! Projected tetrahedra in compute (beyond the papers; issue 24): the
-//! balanced family's visibility-sorted cells, binned on the CPU into screen
-//! tiles in sort order (each tile's list keeps the visibility order), and
-//! each tile composited by one compute workgroup, front to back, so that a
-//! pixel stops once it is opaque (early termination). Per pixel and cell the
+//! balanced family's visibility-sorted cells, listed on the CPU per pixel
+//! they cover (by the rasterizer's rule; each pixel's list keeps the
+//! visibility order), and composited by one compute invocation per pixel
+//! (workgroups of `TILE` pixels over the covered tiles), front to back, so
+//! that a pixel stops once it is opaque (early termination). Per pixel and cell the
 //! segment is balanced's: the pixel's ray is clipped by the tet's four
 //! planes, and the barycentric weights where it enters give what the
 //! rasterizer interpolates for balanced's entry face
 //! (`shaders/cell_projection/pt_composite.comp`). The cells are stored once
-//! on the device as `resident` stores them; per frame the tile lists cross
-//! (8 bytes per tile entry, 4 per tile). No triangle reaches lavapipe's
+//! on the device as `resident` stores them; per frame the pixel lists cross
+//! (4 bytes per list entry, 4 per pixel start). No triangle reaches lavapipe's
 //! serial vertex/setup/binning front end (PLATFORM.md): the compositing
 //! dispatch runs on every core. A mesh whose cells one texel buffer cannot
 //! hold has them in several (`algo::chunks`, as resident's), read through
@@ -64,7 +65,7 @@ pub const BIN_PHASE: &str = "bin";
 /// The registry entry.
 pub const METHOD: MethodInfo = render::method_info(
     "pt-compute",
-    "projected tetrahedra in compute: sorted cells binned into screen tiles, each tile composited front to back by one workgroup with early termination",
+    "projected tetrahedra in compute: sorted cells listed per pixel on the CPU, each pixel composited front to back by one invocation with early termination",
     render::KNOWN_EXITS_OPTIONS,
     &[],
     create,
