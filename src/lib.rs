@@ -15,6 +15,7 @@ macro_rules! progress {
 }
 
 pub mod algo;
+pub mod bytes;
 pub mod data_dir;
 pub mod fsio;
 pub mod harness;

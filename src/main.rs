@@ -165,6 +165,10 @@ struct AbArgs {
     /// per-run run, a binary's `--version`.
     #[arg(long, default_value_t = 600.0)]
     timeout: f64,
+    /// Seconds building a revision (`cargo build --release`, from scratch
+    /// about 10 minutes on 2 cores) may take before cargo and its jobs are killed.
+    #[arg(long, default_value_t = 3600.0)]
+    build_timeout: f64,
     /// Slowdown threshold in percent: fail where the interval lies wholly above 1 + this.
     #[arg(long, default_value_t = 3.0)]
     threshold: f64,
@@ -858,6 +862,7 @@ fn ab(registry: &Registry, args: &AbArgs) -> Result<()> {
         warmup: args.warmup,
         pairs: args.pairs.unwrap_or(if args.per_run { 10 } else { 300 }),
         timeout_s: args.timeout,
+        build_timeout_s: args.build_timeout,
         threshold: args.threshold / 100.0,
         seed,
     };
@@ -881,8 +886,9 @@ fn ab(registry: &Registry, args: &AbArgs) -> Result<()> {
     };
     let (base_env, new_env) = (env("--base-env", &args.base_env)?, env("--new-env", &args.new_env)?);
     let limit = std::time::Duration::from_secs_f64(settings.timeout_s);
-    let mut base = ab::resolve(&args.base, "BASE", &target, limit)?;
-    let mut new = ab::resolve(&args.new, "NEW", &target, limit)?;
+    let build_limit = std::time::Duration::from_secs_f64(settings.build_timeout_s);
+    let mut base = ab::resolve(&args.base, "BASE", &target, limit, build_limit)?;
+    let mut new = ab::resolve(&args.new, "NEW", &target, limit, build_limit)?;
     base.env = base_env;
     new.env = new_env;
     let _lock = args.out.as_deref().map(|dir| fsio::lock_out_dir("--out", dir)).transpose()?;

@@ -52,6 +52,7 @@ pub const DATA: &str = "VOLBENCH_DATA";
 pub const CACHE: &str = "VOLBENCH_CACHE";
 pub const VTK_VENV: &str = "VOLBENCH_VTK_VENV";
 pub const COUNT_DIR: &str = "VOLBENCH_COUNT_DIR";
+pub const COUNT_TIMEOUT_S: &str = "VOLBENCH_COUNT_TIMEOUT_S";
 pub const COUNT_KEEP_DUMPS: &str = "VOLBENCH_COUNT_KEEP_DUMPS";
 pub const TEST_DEVICE_LIMIT_BYTES: &str = "VOLBENCH_TEST_DEVICE_LIMIT_BYTES";
 pub const TEST_PACK_AHEAD_BYTES: &str = "VOLBENCH_TEST_PACK_AHEAD_BYTES";
@@ -67,7 +68,7 @@ pub const TEST_PREFIX: &str = "VOLBENCH_TEST_";
 const ANY: u64 = u64::MAX;
 
 /// Every switch.
-pub const SWITCHES: [Switch; 16] = [
+pub const SWITCHES: [Switch; 17] = [
     Switch { name: VALIDATION, kind: Kind::Flag, recorded: true, what: "turns the Vulkan validation layer on (slows every frame)" },
     Switch { name: DEVICE, kind: Kind::Text, recorded: true, what: "picks the Vulkan device by name or index" },
     Switch { name: FENCE_TIMEOUT_S, kind: Kind::Seconds { max: 86_400.0 }, recorded: false, what: "bounds every fence wait (default 60 s)" },
@@ -75,6 +76,12 @@ pub const SWITCHES: [Switch; 16] = [
     Switch { name: DATA, kind: Kind::Text, recorded: false, what: "the folder of the shipped data" },
     Switch { name: CACHE, kind: Kind::Text, recorded: false, what: "the folder of the reference-image cache" },
     Switch { name: VTK_VENV, kind: Kind::Text, recorded: false, what: "the Python environment of the VTK peer" },
+    Switch {
+        name: COUNT_TIMEOUT_S,
+        kind: Kind::Seconds { max: 604_800.0 },
+        recorded: false,
+        what: "bounds --count's run under valgrind (default 86400 s)",
+    },
     Switch { name: COUNT_DIR, kind: Kind::Text, recorded: false, what: "set by volbench for its counted child (--count)" },
     Switch { name: COUNT_KEEP_DUMPS, kind: Kind::Text, recorded: false, what: "keeps --count's callgrind dumps in this folder" },
     Switch {

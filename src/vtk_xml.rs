@@ -23,7 +23,9 @@
 
 use anyhow::{anyhow, bail, Result};
 
-use crate::volume::decode::{inflate_exact, Endian, Wrapper};
+use crate::bytes::inflate::{inflate_exact, lz4_block_exact, max_inflated_at, xz_exact, Wrapper, DEFLATE_RATIO, LZ4_RATIO, XZ_RATIO};
+use crate::bytes::stream::{Stream, CHUNK};
+use crate::bytes::Endian;
 
 fn find(hay: &[u8], needle: &[u8]) -> Option<usize> {
     hay.windows(needle.len()).position(|w| w == needle)
@@ -163,19 +165,17 @@ impl Compressor {
         }
     }
 
-    /// The most bytes `c` compressed bytes of one block can hold: deflate
-    /// expands at most ~1032:1, an LZ4 block 255:1 (a match length byte
-    /// per 255 bytes); an `.xz` stream has no such bound, so 65536:1 (VTK's
-    /// 32 KiB blocks of zeros are ~100 bytes of xz: 330:1). A header
+    /// The most bytes `c` compressed bytes of one block can hold
+    /// (`bytes::inflate::DEFLATE_RATIO` and the others). A header
     /// promising more is refused before anything is inflated.
     fn max_inflated(self, c: usize) -> usize {
         let ratio = match self {
             Compressor::None => 1,
-            Compressor::Zlib => 1032,
-            Compressor::Lz4 => 256,
-            Compressor::Lzma => 65536,
+            Compressor::Zlib => DEFLATE_RATIO,
+            Compressor::Lz4 => LZ4_RATIO,
+            Compressor::Lzma => XZ_RATIO,
         };
-        c.saturating_mul(ratio).saturating_add(64)
+        max_inflated_at(ratio, c)
     }
 }
 
@@ -233,133 +233,6 @@ pub(crate) fn numbers<T: std::str::FromStr>(name: &str, node: roxmltree::Node, a
     Ok(Some(v))
 }
 
-/// Bytes handed to a sink at a time when an uncompressed array is streamed.
-const CHUNK: usize = 1 << 16;
-
-/// An array's binary stream read front to back without holding it whole:
-/// raw bytes (borrowed), or base64 text decoded a chunk at a time. Padding
-/// may end any 4-character group, not only the last: VTK encodes a data
-/// array's header and its data as two base64 streams written back to back.
-pub(crate) struct Stream<'a> {
-    text: &'a [u8],
-    pos: usize,
-    base64: bool,
-    /// Decoded bytes not yet read (exact: counted before reading).
-    left: usize,
-    /// Base64 only: decoded bytes not yet handed out, and where they start.
-    pending: Vec<u8>,
-    at: usize,
-}
-
-impl<'a> Stream<'a> {
-    pub(crate) fn raw(bytes: &'a [u8]) -> Stream<'a> {
-        Stream { text: bytes, pos: 0, base64: false, left: bytes.len(), pending: Vec::new(), at: 0 }
-    }
-
-    /// Base64 text (ASCII whitespace ignored); its length is checked and its
-    /// decoded size counted here, its characters as they are decoded.
-    pub(crate) fn base64(name: &str, what: &str, text: &'a [u8]) -> Result<Stream<'a>> {
-        let (mut chars, mut pads) = (0usize, 0usize);
-        for &c in text {
-            if !c.is_ascii_whitespace() {
-                chars += 1;
-                pads += usize::from(c == b'=');
-            }
-        }
-        if !chars.is_multiple_of(4) {
-            bail!("{name}: base64 data in {what} has {chars} characters, not a multiple of 4");
-        }
-        let left = (chars / 4 * 3).saturating_sub(pads);
-        Ok(Stream { text, pos: 0, base64: true, left, pending: Vec::new(), at: 0 })
-    }
-
-    /// Decoded bytes not yet read.
-    pub(crate) fn left(&self) -> usize {
-        self.left
-    }
-
-    /// Decodes the next base64 groups (up to 64 KiB of text, or up to a
-    /// group ending in padding) into `pending`.
-    fn refill(&mut self, name: &str, what: &str) -> Result<()> {
-        use base64::Engine as _;
-        let mut clean: Vec<u8> = Vec::with_capacity(CHUNK.min(self.text.len() - self.pos));
-        let start = self.pos;
-        while self.pos < self.text.len() && clean.len() < CHUNK {
-            let c = self.text[self.pos];
-            self.pos += 1;
-            if c.is_ascii_whitespace() {
-                continue;
-            }
-            clean.push(c);
-            if clean.len().is_multiple_of(4) && c == b'=' {
-                break;
-            }
-        }
-        // Only whole groups: hand a partial one back (the length was checked).
-        while !clean.len().is_multiple_of(4) {
-            self.pos -= 1;
-            if !self.text[self.pos].is_ascii_whitespace() {
-                clean.pop();
-            }
-        }
-        self.pending.clear();
-        self.at = 0;
-        base64::engine::general_purpose::STANDARD
-            .decode_vec(&clean, &mut self.pending)
-            .map_err(|e| anyhow!("{name}: bad base64 data in {what} (from character {start}): {e}"))?;
-        Ok(())
-    }
-
-    /// The next `n` bytes: borrowed from raw data; decoded into `buf` from base64.
-    pub(crate) fn take<'s>(&'s mut self, name: &str, what: &str, n: usize, buf: &'s mut Vec<u8>) -> Result<&'s [u8]> {
-        if n > self.left {
-            bail!("{name}: truncated {what}: {n} more bytes needed, {} present", self.left);
-        }
-        self.left -= n;
-        if !self.base64 {
-            let s = &self.text[self.pos..self.pos + n];
-            self.pos += n;
-            return Ok(s);
-        }
-        buf.clear();
-        buf.reserve(n);
-        while buf.len() < n {
-            if self.at == self.pending.len() {
-                self.refill(name, what)?;
-                if self.pending.is_empty() {
-                    bail!("{name}: truncated {what}: its base64 text ends early");
-                }
-            }
-            let k = (n - buf.len()).min(self.pending.len() - self.at);
-            buf.extend_from_slice(&self.pending[self.at..self.at + k]);
-            self.at += k;
-        }
-        Ok(&buf[..])
-    }
-
-    /// One header word of `layout.word` bytes.
-    fn word(&mut self, name: &str, what: &str, layout: Layout) -> Result<usize> {
-        if self.left < layout.word {
-            bail!("{name}: truncated {what}: its header ends after {} bytes", self.left);
-        }
-        let mut buf = Vec::new();
-        let c = self.take(name, what, layout.word, &mut buf)?;
-        let v = match (layout.word, layout.endian) {
-            (4, Endian::Little) => u32::from_le_bytes([c[0], c[1], c[2], c[3]]) as u64,
-            (4, Endian::Big) => u32::from_be_bytes([c[0], c[1], c[2], c[3]]) as u64,
-            (_, e) => {
-                let w: [u8; 8] = std::array::from_fn(|i| c[i]);
-                if e == Endian::Little {
-                    u64::from_le_bytes(w)
-                } else {
-                    u64::from_be_bytes(w)
-                }
-            }
-        };
-        usize::try_from(v).map_err(|_| anyhow!("{name}: header value {v} in {what} is too large"))
-    }
-}
-
 /// One array's binary data, its header read and checked: the data bytes
 /// (`expected`, what its count and type need) and, compressed, each
 /// block's compressed and inflated size. Nothing is inflated yet, and
@@ -381,7 +254,7 @@ impl<'a> Payload<'a> {
     pub(crate) fn open(name: &str, what: &str, mut stream: Stream<'a>, layout: Layout, expected: usize) -> Result<Payload<'a>> {
         let compressor = layout.compressor;
         if compressor == Compressor::None {
-            let n = stream.word(name, what, layout)?;
+            let n = stream.word(name, what, layout.word, layout.endian)?;
             if n != expected {
                 bail!("{name}: header/size mismatch: {what} declares {n} bytes, its size needs {expected}");
             }
@@ -390,9 +263,9 @@ impl<'a> Payload<'a> {
             }
             return Ok(Payload { stream, compressor, blocks: Vec::new(), expected });
         }
-        let blocks = stream.word(name, what, layout)?;
-        let block = stream.word(name, what, layout)?;
-        let last = stream.word(name, what, layout)?;
+        let blocks = stream.word(name, what, layout.word, layout.endian)?;
+        let block = stream.word(name, what, layout.word, layout.endian)?;
+        let last = stream.word(name, what, layout.word, layout.endian)?;
         // The per-block sizes must fit in what remains: bounds the vector.
         if blocks > stream.left() / layout.word {
             bail!("{name}: truncated {what}: {blocks} compressed blocks declared, the header ends first");
@@ -415,7 +288,7 @@ impl<'a> Payload<'a> {
         let mut sizes = Vec::with_capacity(blocks);
         let mut present = 0usize;
         for i in 0..blocks {
-            let c = stream.word(name, what, layout)?;
+            let c = stream.word(name, what, layout.word, layout.endian)?;
             let size = if i + 1 == blocks && last != 0 { last } else { block };
             if size > compressor.max_inflated(c) {
                 bail!(
@@ -474,62 +347,17 @@ impl<'a> Payload<'a> {
     }
 }
 
-/// A writer that refuses bytes past `limit` (an `.xz` block inflating past
-/// its promised size stops there).
-struct Capped<'v> {
-    out: &'v mut Vec<u8>,
-    limit: usize,
-}
-
-impl std::io::Write for Capped<'_> {
-    fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
-        if self.out.len() + b.len() > self.limit {
-            return Err(std::io::Error::other("inflates past its promised size"));
-        }
-        self.out.extend_from_slice(b);
-        Ok(b.len())
-    }
-    fn flush(&mut self) -> std::io::Result<()> {
-        Ok(())
-    }
-}
-
-/// Inflates one compressed block into `out` (cleared first): exactly
-/// `size` bytes, or an error; never more than `size` (+1 for zlib) bytes
-/// are produced.
+/// Inflates one compressed block into `out`: exactly `size` bytes, or an
+/// error; never more than `size` (+1 for zlib) bytes are produced.
 fn inflate_block(name: &str, what: &str, compressor: Compressor, input: &[u8], size: usize, out: &mut Vec<u8>) -> Result<()> {
-    out.clear();
     match compressor {
-        Compressor::None => out.extend_from_slice(input),
+        Compressor::None => {
+            out.clear();
+            out.extend_from_slice(input);
+        }
         Compressor::Zlib => *out = inflate_exact(name, what, Wrapper::Zlib, input, size)?,
-        Compressor::Lz4 => {
-            out.resize(size, 0);
-            let n = lz4_flex::block::decompress_into(input, out).map_err(|e| match e {
-                lz4_flex::block::DecompressError::OutputTooSmall { .. } => {
-                    anyhow!("{name}: LZ4 data in {what} decompresses to more than the {size} bytes the header promises")
-                }
-                e => anyhow!("{name}: corrupt LZ4 data in {what}: {e}"),
-            })?;
-            if n != size {
-                bail!("{name}: LZ4 data in {what} decompresses to {n} bytes, {size} expected (truncated or corrupt block)");
-            }
-        }
-        Compressor::Lzma => {
-            let mut w = Capped { out, limit: size };
-            if let Err(e) = lzma_rs::xz_decompress(&mut &input[..], &mut w) {
-                let over = matches!(&e, lzma_rs::error::Error::IoError(io) if io.kind() == std::io::ErrorKind::Other);
-                if over {
-                    bail!("{name}: LZMA data in {what} decompresses to more than the {size} bytes the header promises");
-                }
-                bail!("{name}: corrupt LZMA data in {what}: {e}");
-            }
-            if out.len() != size {
-                bail!(
-                    "{name}: LZMA data in {what} decompresses to {} bytes, {size} expected (truncated or corrupt block)",
-                    out.len()
-                );
-            }
-        }
+        Compressor::Lz4 => lz4_block_exact(name, what, input, size, out)?,
+        Compressor::Lzma => xz_exact(name, what, input, size, out)?,
     }
     Ok(())
 }
@@ -717,31 +545,5 @@ mod tests {
             let e = format!("{:#}", read(c, &bomb, 1 << 30).unwrap_err());
             assert!(e.contains("cannot hold the 1073741824 bytes"), "{c:?}: {e}");
         }
-    }
-
-    /// Base64 streams back to back (VTK writes the header and the data as
-    /// two), read in pieces across the 64 KiB refills.
-    #[test]
-    fn base64_streams_back_to_back() {
-        use base64::Engine as _;
-        let mut buf = Vec::new();
-        let mut s = Stream::base64("f", "a", b" AQI=\n AwQF ").unwrap();
-        assert_eq!(s.left(), 5);
-        assert_eq!(s.take("f", "a", 5, &mut buf).unwrap(), [1, 2, 3, 4, 5]);
-        assert!(Stream::base64("f", "a", b"AQI").err().unwrap().to_string().contains("multiple of 4"));
-        let mut s = Stream::base64("f", "a", b"A*I=").unwrap();
-        assert!(s.take("f", "a", 2, &mut buf).unwrap_err().to_string().contains("bad base64"));
-        let data: Vec<u8> = (0..200_001u32).map(|i| (i % 253) as u8).collect();
-        let b64 = base64::engine::general_purpose::STANDARD;
-        let text = format!("{}\n  {}", b64.encode([9u8]), b64.encode(&data));
-        let mut s = Stream::base64("f", "a", text.as_bytes()).unwrap();
-        assert_eq!(s.left(), data.len() + 1);
-        assert_eq!(s.take("f", "a", 1, &mut buf).unwrap(), [9]);
-        let mut got = Vec::new();
-        for n in [7, 70_000, 65_536, 64_458 - 1, 1] {
-            got.extend_from_slice(s.take("f", "a", n, &mut buf).unwrap());
-        }
-        assert_eq!(got, data);
-        assert!(s.take("f", "a", 1, &mut buf).unwrap_err().to_string().contains("truncated"));
     }
 }

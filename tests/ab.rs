@@ -418,3 +418,37 @@ fn scratch_directories_ignore_links_planted_in_tmpdir() {
     // Nothing left behind either: only the planted links.
     assert_eq!(std::fs::read_dir(&tmp).unwrap().count(), before);
 }
+
+#[test]
+fn a_build_that_hangs_is_killed_with_its_jobs_at_the_build_deadline() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let fake = script(d, "fake", FAKE);
+    let pids = d.join("pids");
+    // A `cargo` that starts a job (as cargo starts rustc) and never ends.
+    let cargo = script(d, "cargo", &format!("sleep 300 & echo $! >> {0}\necho $$ >> {0}\nwait", pids.display()));
+    let target = d.join("target");
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let (code, _, stderr, took) = small_ab(
+        "HEAD",
+        &fake,
+        &["--build-timeout", "2", "--target-dir", target.to_str().unwrap()],
+        repo,
+        &[("CARGO", cargo.as_str())],
+    );
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(
+        stderr.contains("BASE HEAD: building revision")
+            && stderr.contains("cargo build --release: still running after 2 s (--build-timeout); killed it and the processes it started"),
+        "{stderr}"
+    );
+    assert!(took.as_secs() < 60, "{took:?}");
+    let pids = std::fs::read_to_string(&pids).unwrap();
+    assert_eq!(pids.split_whitespace().count(), 2, "{pids}");
+    for pid in pids.split_whitespace() {
+        assert!(gone(pid.parse().unwrap()), "process {pid} outlived the build deadline");
+    }
+    // The temporary worktree went with the build.
+    let left: Vec<_> = std::fs::read_dir(target.join("ab")).unwrap().flatten().map(|e| e.file_name()).collect();
+    assert!(left.is_empty(), "{left:?}");
+}

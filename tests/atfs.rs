@@ -7,7 +7,7 @@ mod common;
 use common::run_mesh as run;
 
 use volbench::algo::cell_projection::atfs::{Intervals, FLOATS_PER_PIECE};
-use volbench::algo::cell_projection::scalar_map;
+use volbench::algo::tet_mesh::scalar_map;
 use volbench::harness::datasets;
 use volbench::harness::image::RgbaImage;
 use volbench::harness::run::{RunConfig, RunOutput};

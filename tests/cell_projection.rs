@@ -5,7 +5,8 @@
 
 use std::sync::{Arc, Mutex, OnceLock};
 
-use volbench::algo::cell_projection::{balanced, vicp, ExitTolerances, Primitives};
+use volbench::algo::cell_projection::{balanced, vicp, Primitives};
+use volbench::algo::tet_mesh::ExitTolerances;
 use volbench::algo::integrate::{PSI_TABLE_SIZE, TF_TABLE_SIZE};
 use volbench::algo::registry;
 use volbench::harness::datasets::{self, Dataset};

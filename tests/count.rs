@@ -156,6 +156,11 @@ fn count_needs_a_warm_up_and_refuses_validation() {
 /// processes could have had: exit code, stderr, the fake's log (one line
 /// per call: its arguments), and what was left in TMPDIR and the victim.
 fn fake_valgrind(body: &str) -> (Option<i32>, String, Vec<String>, usize, usize) {
+    fake_valgrind_with(body, &[])
+}
+
+/// [`fake_valgrind`] with `env` added to volbench's environment.
+fn fake_valgrind_with(body: &str, env: &[(&str, &str)]) -> (Option<i32>, String, Vec<String>, usize, usize) {
     use std::os::unix::fs::PermissionsExt as _;
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
@@ -176,6 +181,7 @@ fn fake_valgrind(body: &str) -> (Option<i32>, String, Vec<String>, usize, usize)
         .args(["run", "--data", "post-small", "--method", "balanced", "--size", "32x32", "--frames", "1", "--warmup", "1", "--count"])
         .env("PATH", path)
         .env("TMPDIR", &tmp)
+        .envs(env.iter().copied())
         .output()
         .unwrap();
     assert!(start.elapsed().as_secs() < 60, "{:?}", start.elapsed());
@@ -210,4 +216,16 @@ fn a_valgrind_that_runs_nothing_is_an_error() {
     assert_eq!(code, Some(1), "{stderr}");
     assert!(stderr.contains("not callgrind's output of the counted run"), "{stderr}");
     assert_eq!((left, victim), (0, 0), "scratch left in TMPDIR or written through a planted link");
+}
+
+#[test]
+fn a_counted_run_that_hangs_is_killed_at_its_deadline() {
+    // A valgrind that starts a job and never ends.
+    let (code, stderr, calls, left, victim) = fake_valgrind_with("sleep 300 & wait", &[("VOLBENCH_COUNT_TIMEOUT_S", "1.5")]);
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(
+        stderr.contains("--count: valgrind: still running after 1.5 s (VOLBENCH_COUNT_TIMEOUT_S); killed it and the processes it started"),
+        "{stderr}"
+    );
+    assert_eq!((calls.len(), left, victim), (2, 0, 0));
 }

@@ -106,7 +106,8 @@ fn data_split_at_lowered_limits_draws_the_same_image() {
     // the one sorted from one buffer.
     {
         use volbench::algo::cell_projection::device_sort::{DeviceCentroidSort, SortCamera};
-        use volbench::algo::cell_projection::{centroids_relative_f32, render_origin};
+        use volbench::algo::cell_projection::centroids_relative_f32;
+        use volbench::algo::tet_mesh::render_origin;
         let origin = render_origin(&mesh);
         let centroids = centroids_relative_f32(&mesh, origin);
         let camera = volbench::scene::Camera::orbit(&mesh.bounds(), 1.0, volbench::scene::Projection::Perspective { fovy_deg: 30.0 });

@@ -11,7 +11,8 @@ use volbench::algo::cell_projection::device_sort::{DeviceCentroidSort, SortCamer
 use volbench::algo::cell_projection::resident::FLOATS_PER_STORED_CELL;
 use volbench::algo::cell_projection::resident_gpusort::SORT_PHASE;
 use volbench::algo::cell_projection::sort::CentroidSort;
-use volbench::algo::cell_projection::{centroids_relative_f32, render_origin, FrameConstants};
+use volbench::algo::cell_projection::centroids_relative_f32;
+use volbench::algo::tet_mesh::{render_origin, FrameConstants};
 use volbench::algo::integrate::{PSI_TABLE_SIZE, TF_TABLE_SIZE};
 use volbench::algo::registry;
 use volbench::harness::datasets;
@@ -146,7 +147,7 @@ fn only_the_camera_crosses_per_frame() {
     let tf = datasets::mesh_transfer_function(&mesh, Some("post-small"));
     let r = run(&mesh, &tf, "resident-gpusort", &small_config(64)).result;
     let camera_bytes = (std::mem::size_of::<FrameConstants>() + CAMERA_BYTES) as u64;
-    assert_eq!(camera_bytes, 128 + 32);
+    assert_eq!(camera_bytes, 128 + 28, "the frame constants and the sort camera (eye, perspective, direction)");
     assert_eq!(r.upload.bytes_per_frame, camera_bytes);
     assert_eq!(r.upload.constant_bytes_per_frame, camera_bytes);
     assert_eq!(r.upload.cell_bytes_per_frame, 0);
@@ -156,7 +157,8 @@ fn only_the_camera_crosses_per_frame() {
     // Static: tables, cells, strips, centroids (vec4) and 8 passes' params.
     const TABLE_BYTES: u64 = (TF_TABLE_SIZE * 16 + (PSI_TABLE_SIZE - 1) * (PSI_TABLE_SIZE - 1) * 16) as u64;
     let per_cell = FLOATS_PER_STORED_CELL as u64 * 4 + 12 * 4 + 16;
-    assert_eq!(r.upload.static_bytes, TABLE_BYTES + per_cell * n + 8 * 16);
+    let pass_params = std::mem::size_of::<volbench::algo::cell_projection::device_sort::PassParams>() as u64;
+    assert_eq!(r.upload.static_bytes, TABLE_BYTES + per_cell * n + 8 * pass_params);
     let samples = &r.time_ms.samples;
     assert_eq!(samples[SORT_PHASE].len(), r.frames, "{:?}", samples.keys());
     assert!(!samples.contains_key("sort"), "no CPU sort: {:?}", samples.keys());

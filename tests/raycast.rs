@@ -410,13 +410,15 @@ fn the_volume_crosses_once_and_frames_move_only_constants() {
         let u = &out.result.upload;
         assert_eq!(u.cell_bytes_per_frame, 0);
         assert_eq!(u.bytes_per_frame, u.constant_bytes_per_frame);
-        assert_eq!(u.constant_bytes_per_frame, 96 * passes, "{method}: push constants only");
+        let push = std::mem::size_of::<volbench::algo::raycast::Frame>() as u64;
+        assert_eq!(u.constant_bytes_per_frame, push * passes, "{method}: push constants only");
         assert!(u.static_bytes >= volume_bytes as u64, "{method}: the volume is static");
         // Volume + TF table (1024 RGBA32F) + 2x2 pre-integration placeholder
         // + brick distances (one byte per 2^3-voxel brick) + parameters: the
         // volume is counted exactly once.
         let bricks = 12 * 10 * 8;
-        assert_eq!(u.static_bytes, (volume_bytes + 1024 * 16 + 4 * 16 + bricks + 112) as u64, "{method}");
+        let params = std::mem::size_of::<volbench::algo::raycast::Params>();
+        assert_eq!(u.static_bytes, (volume_bytes + 1024 * 16 + 4 * 16 + bricks + params) as u64, "{method}");
     }
 }
 

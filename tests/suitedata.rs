@@ -77,6 +77,16 @@ fn a_users_mesh_and_volume_run_every_method_of_their_kind_with_the_report() {
     assert!(report.contains("## Datasets"), "{report}");
     assert!(report.contains(&format!("| my_mesh | {} (your file) | tet-mesh | temp | generic-ramp |", vtu.display())), "{report}");
     assert!(report.contains(&format!("| blob | {} (your file) | volume |", vti.display())), "{report}");
+    // The runs table gives each row's rate in its kind's own unit: a volume
+    // has samples, not cells (it used to read "0.000" M cells/s).
+    let rows = |d: &str| report.lines().filter(|l| l.starts_with(&format!("| {d} | ")) && l.contains(" | ok | ")).collect::<Vec<_>>();
+    assert!(!rows("blob").is_empty() && !rows("my_mesh").is_empty(), "{report}");
+    for l in rows("blob") {
+        assert!(l.contains(" M samples/s |") && !l.contains("cells/s"), "{l}");
+    }
+    for l in rows("my_mesh") {
+        assert!(l.contains(" M cells/s |"), "{l}");
+    }
     let csv = std::fs::read_to_string(out_dir.join("summary.csv")).unwrap();
     assert!(csv.lines().any(|l| l.starts_with("volbench,blob,raycast-compute,")), "{csv}");
     // The user's files are inputs, left as they were.

@@ -27,7 +27,7 @@ void main() {
     if (!exit_point(in_d, in_s, in_w, in_sf, in_g, in_rel, len, sb)) {
         return;
     }
-    vec3 dir = ray_direction(frame.eye.xyz + in_rel);
+    vec3 dir = ray_direction(frame.eye + in_rel);
     // Distance back to the near plane (the cap lies just behind it).
     float back = max(-near_distance(in_rel, dir), 0.0);
     // Extend the segment back to the near plane (the scalar is linear).

@@ -44,7 +44,7 @@ void main() {
     out_s = in_s;
     out_w = in_w;
     out_g = in_g;
-    out_rel = in_pos - frame.eye.xyz;
+    out_rel = in_pos - frame.eye;
 #ifdef CAP_PIECES
     int code = record_code(in_code);
     int flags = record_flags(code);

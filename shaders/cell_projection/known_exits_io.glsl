@@ -47,7 +47,7 @@ void emit_vertex(vec3 pos, int k, float c, float sf, float b, uint exits) {
     s[k] = b;
     v_s = s;
 #endif
-    v_rel = pos - frame.eye.xyz;
+    v_rel = pos - frame.eye;
     v_exits = exits;
     gl_Position = clip_position(pos);
     gl_ClipDistance[0] = eye_plane_distance(gl_Position);

@@ -57,13 +57,13 @@ void pixel_ray(vec2 ndc, out vec3 o, out vec3 d) {
     vec4 r0 = clip_row(0);
     vec4 r1 = clip_row(1);
     vec4 r3 = clip_row(3);
-    vec3 fwd = frame.view_dir.xyz;
-    if (frame.eye.w > 0.5) {
-        o = frame.eye.xyz;
+    vec3 fwd = frame.view_dir;
+    if (frame.perspective > 0.5) {
+        o = frame.eye;
         d = normalize(cross(r0.xyz - ndc.x * r3.xyz, r1.xyz - ndc.y * r3.xyz));
     } else {
-        vec4 e = vec4(frame.eye.xyz, 1.0);
-        o = frame.eye.xyz + (ndc.x - dot(r0, e)) * r0.xyz / dot(r0.xyz, r0.xyz) + (ndc.y - dot(r1, e)) * r1.xyz / dot(r1.xyz, r1.xyz);
+        vec4 e = vec4(frame.eye, 1.0);
+        o = frame.eye + (ndc.x - dot(r0, e)) * r0.xyz / dot(r0.xyz, r0.xyz) + (ndc.y - dot(r1, e)) * r1.xyz / dot(r1.xyz, r1.xyz);
         d = fwd;
     }
     d = dot(d, fwd) < 0.0 ? -d : d;
@@ -154,7 +154,7 @@ void main() {
 #else
         v_s = vec4(v_sf) + lambda * (bv - sv);
 #endif
-        v_rel = p - frame.eye.xyz;
+        v_rel = p - frame.eye;
         v_exits = exits;
         vec4 color = segment_color();
         integrated += 1u;

@@ -35,11 +35,13 @@
 #define RADIX (1u << RADIX_BITS)
 #define TILE (uint(WG) * uint(ITEMS))
 
+// One pass's parameters (static, one buffer per pass). Rust:
+// algo::cell_projection::device_sort::PassParams (the reflection test
+// checks the two).
 layout(std430, set = 0, binding = 0) readonly buffer Params {
-    uint n;
-    uint groups;
-    uint shift;
-    uint unused;
+    uint n;        // keys
+    uint groups;   // workgroups of TILE keys
+    uint shift;    // the pass's digit: (key >> shift) & (RADIX - 1)
 } params;
 layout(std430, set = 0, binding = 1) readonly buffer Centroids { vec4 centroids[]; };
 layout(std430, set = 0, binding = 2) buffer KeysSrc { uint keys_src[]; };

@@ -11,9 +11,12 @@
 
 layout(local_size_x = WG) in;
 
+// Rust: algo::cell_projection::device_sort::SortCamera (the reflection
+// test checks the two).
 layout(push_constant) uniform Camera {
-    vec4 eye;   // xyz: eye relative to the render origin; w: 1 perspective, 0 orthographic
-    vec4 dir;   // xyz: unit view direction
+    vec3 eye;            // eye relative to the render origin
+    float perspective;   // 1 perspective, 0 orthographic
+    vec3 dir;            // unit view direction
 } cam;
 
 // radix::float_key: ascending floats -> ascending keys.
@@ -32,7 +35,7 @@ void main() {
     precise float dy = c.y - cam.eye.y;
     precise float dz = c.z - cam.eye.z;
     precise float depth;
-    if (cam.eye.w > 0.5) {
+    if (cam.perspective > 0.5) {
         depth = dx * dx + dy * dy + dz * dz;
     } else {
         depth = dx * cam.dir.x + dy * cam.dir.y + dz * cam.dir.z;

@@ -80,7 +80,7 @@ vec3 cell_gradient(uint t) { return cell_texel(t, 8).xyz; }
 
 bool stored_exact_perspective() {
 #ifdef EXACT_PERSPECTIVE
-    return frame.eye.w > 0.5;
+    return frame.perspective > 0.5;
 #else
     return false;
 #endif
@@ -95,9 +95,9 @@ vec4 cell_view_values(uint t, out uint exits) {
     for (int j = 0; j < 4; ++j) {
         vec3 p = cell_pos(t, j).xyz;
         vec3 plane3 = cell_plane(t, j).xyz;
-        c[j] = exact ? perspective_plane_ratio(plane3, p - frame.eye.xyz) : distance_to_opposite_plane(plane3, ray_direction(p));
+        c[j] = exact ? perspective_plane_ratio(plane3, p - frame.eye) : distance_to_opposite_plane(plane3, ray_direction(p));
     }
-    float half_limit = 0.5 * (exact ? frame.limits.y : frame.limits.x);
+    float half_limit = 0.5 * (exact ? frame.plane_ratio_max : frame.distance_clamp);
     uvec4 bits = uvec4(greaterThan(c, vec4(0.0))) * uvec4(lessThan(c, vec4(half_limit))) * uvec4(1u, 2u, 4u, 8u);
     exits = bits.x | bits.y | bits.z | bits.w;
     return c;
@@ -109,7 +109,7 @@ vec4 cell_view_values(uint t, out uint exits) {
 float cell_vertex_b(vec3 g, vec3 pos, float sf, float ck) {
     vec3 dir = ray_direction(pos);
 #ifdef EXACT_PERSPECTIVE
-    return stored_exact_perspective() ? dot(g, pos - frame.eye.xyz) : dot(g, dir);
+    return stored_exact_perspective() ? dot(g, pos - frame.eye) : dot(g, dir);
 #else
     return sf + dot(dir, g) * ck;
 #endif

@@ -23,9 +23,9 @@ void main() {
     int k = int(in_index + 0.5);
     vec3 d = vec3(0.0);
     vec3 s = vec3(in_s);
-    vec3 rel = in_pos - frame.eye.xyz;
+    vec3 rel = in_pos - frame.eye;
 #ifdef EXACT_PERSPECTIVE
-    if (frame.eye.w > 0.5) {
+    if (frame.perspective > 0.5) {
         d[k] = perspective_plane_ratio(in_plane, rel);
     } else
 #endif

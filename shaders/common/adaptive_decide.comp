@@ -21,12 +21,15 @@
 #define WG_Y 8
 layout(local_size_x = WG_X, local_size_y = WG_Y) in;
 
+// Rust: algo::adaptive::DecidePush (the reflection test checks the two).
 layout(push_constant) uniform Decide {
-    uvec4 rect;    // the frame's rectangle, inclusive pixel bounds
-    uvec4 params;  // x: block size (8 or 4); y, z: rows and runs (size 8, interleaved_row);
-                   // w: first word of this size's silhouette bits (0xFFFFFFFF: none)
-    vec4 tol;      // x: tolerance per premultiplied channel; y: first word of this size's
-                   // straight-chord bits (uint bits; 0xFFFFFFFF: none)
+    uvec4 rect;          // the frame's rectangle, inclusive pixel bounds
+    uint block_size;     // 8 or 4
+    uint rows;           // size 8: rows of workgroups and the device's runs (interleaved_row)
+    uint runs;
+    uint silhouettes;    // first word of this size's silhouette bits (0xFFFFFFFF: none)
+    float tol;           // tolerance per premultiplied channel
+    uint straight;       // first word of this size's straight-chord bits (0xFFFFFFFF: none)
 } pc;
 
 #include "common/dispatch.glsl"
@@ -41,7 +44,7 @@ bool agrees(vec4 ray, vec4 interpolated, float tol) {
 }
 
 void main() {
-    uint size = pc.params.x;
+    uint size = pc.block_size;
     uvec2 nb = adaptive_blocks(pc.rect);
     uvec2 b;
     if (size == 8u) {
@@ -54,7 +57,7 @@ void main() {
             a_counters.v[A_ARGS_CAST1 + 1u] = 1u;
             a_counters.v[A_ARGS_CAST1 + 2u] = 1u;
         }
-        b = uvec2(gl_WorkGroupID.x, interleaved_row(pc.params.y, pc.params.z)) * uvec2(WG_X, WG_Y) + gl_LocalInvocationID.xy;
+        b = uvec2(gl_WorkGroupID.x, interleaved_row(pc.rows, pc.runs)) * uvec2(WG_X, WG_Y) + gl_LocalInvocationID.xy;
         if (b.x >= nb.x || b.y >= nb.y) return;
     } else {
         uint idx = gl_WorkGroupID.x * A_GROUP + gl_LocalInvocationIndex;
@@ -81,10 +84,10 @@ void main() {
         && a_keys.v[il] == k && a_keys.v[ic] == k && a_keys.v[ir] == k && a_keys.v[ib] == k;
     bool silhouette = false;
     uint bit = b.y * (nb.x << level) + b.x;
-    if (pc.params.w != 0xFFFFFFFFu) {
-        silhouette = ((a_sil.v[pc.params.w + bit / 32u] >> (bit % 32u)) & 1u) != 0u;
+    if (pc.silhouettes != 0xFFFFFFFFu) {
+        silhouette = ((a_sil.v[pc.silhouettes + bit / 32u] >> (bit % 32u)) & 1u) != 0u;
     }
-    uint straight_at = floatBitsToUint(pc.tol.y);
+    uint straight_at = pc.straight;
     if (straight_at != 0xFFFFFFFFu && ((a_sil.v[straight_at + bit / 32u] >> (bit % 32u)) & 1u) != 0u) {
         same = true;
     }
@@ -93,7 +96,7 @@ void main() {
     vec4 c10 = a_samples.v[i10];
     vec4 c01 = a_samples.v[i01];
     vec4 c11 = a_samples.v[i11];
-    float tol = pc.tol.x;
+    float tol = pc.tol;
     if (silhouette) {
         reason = A_SIL8;
     } else if (!same) {

@@ -13,7 +13,7 @@ vec4 clip_row(int r) {
 // Signed distance to the plane where dot(plane, (p, 1)) = 0, increasing
 // (plane value) along the ray: negative when the plane is behind.
 float plane_distance(vec4 plane, vec3 rel, vec3 dir) {
-    return -dot(plane, vec4(frame.eye.xyz + rel, 1.0)) / dot(plane.xyz, dir);
+    return -dot(plane, vec4(frame.eye + rel, 1.0)) / dot(plane.xyz, dir);
 }
 
 float near_distance(vec3 rel, vec3 dir) {
@@ -37,11 +37,11 @@ float far_distance(vec3 rel, vec3 dir) {
 // projection of a point near it keeps its direction. The eye's own depth
 // (row 2) is the one coordinate that does not vanish there.
 vec4 clip_position(vec3 pos) {
-    if (frame.eye.w < 0.5) {
+    if (frame.perspective < 0.5) {
         return frame.view_proj * vec4(pos, 1.0);
     }
-    vec4 c = frame.view_proj * vec4(pos - frame.eye.xyz, 0.0);
-    c.z += dot(clip_row(2), vec4(frame.eye.xyz, 1.0));
+    vec4 c = frame.view_proj * vec4(pos - frame.eye, 0.0);
+    c.z += dot(clip_row(2), vec4(frame.eye, 1.0));
     return c;
 }
 
@@ -53,11 +53,11 @@ vec4 clip_position(vec3 pos) {
 // behind the near plane is clipped. Clip w is the depth along the view
 // direction; orthographic views have no eye plane.
 float eye_plane_distance(vec4 clip_pos) {
-    if (frame.eye.w < 0.5) {
+    if (frame.perspective < 0.5) {
         return 1.0;
     }
-    float near = near_distance(vec3(0.0), frame.view_dir.xyz);
-    return clip_pos.w - min(1e-4 * frame.view_dir.w, 0.5 * near);
+    float near = near_distance(vec3(0.0), frame.view_dir);
+    return clip_pos.w - min(1e-4 * frame.max_segment, 0.5 * near);
 }
 
 // Starts the segment [0, len] from the fragment at the near plane when the
@@ -70,7 +70,7 @@ float eye_plane_distance(vec4 clip_pos) {
 // cut part left single pixels with the cell twice or never. A fragment
 // whose whole segment lies in front of the plane keeps length 0.
 void start_at_near(vec3 rel, inout float s_front, inout float len, float s_back) {
-    float t = near_distance(rel, ray_direction(frame.eye.xyz + rel));
+    float t = near_distance(rel, ray_direction(frame.eye + rel));
     if (t > 0.0) {
         float cut = min(t, len);
         s_front += (s_back - s_front) * (len > 0.0 ? cut / len : 0.0);
@@ -82,7 +82,7 @@ void start_at_near(vec3 rel, inout float s_front, inout float len, float s_back)
 // at its end moved alike (linear along the segment). A NaN distance (ray in
 // the plane) or one beyond the segment changes nothing.
 void clamp_to_far(vec3 rel, float s_front, inout float len, inout float s_back) {
-    float t = far_distance(rel, ray_direction(frame.eye.xyz + rel));
+    float t = far_distance(rel, ray_direction(frame.eye + rel));
     if (t < len) {
         float keep = max(t, 0.0);
         s_back = s_front + (s_back - s_front) * (len > 0.0 ? keep / len : 0.0);

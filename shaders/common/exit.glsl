@@ -13,7 +13,7 @@
 // from an entry plane whatever the rounding of d[k], and an exit plane's
 // distance is clamped at 0 (how t_k's sign is found where lambda_k ~ 0:
 // exit_planes below). Build with PAPER_EXIT_RULE for the paper's rule.
-// Optionally, a plane with |lambda_k| < limits.z (edge epsilon, off by
+// Optionally, a plane with |lambda_k| < frame.edge_eps (edge epsilon, off by
 // default) passes through the fragment's ray to within rounding and counts
 // as an exit at distance 0, whatever t_k's sign. Near an edge shared by two
 // entry faces that loses one cell's contribution to a pixel (at most ~1e-5 of
@@ -72,17 +72,17 @@ EXIT_VEC exit_planes(EXIT_VEC d, EXIT_VEC w, float parallel) {
 // Plane k bounds the segment: an exit plane, or with the optional edge
 // epsilon any plane through the fragment.
 bool exit_candidate(float is_exit, float w) {
-    return is_exit > 0.5 || (w != 0.0 && abs(w) < frame.limits.z);
+    return is_exit > 0.5 || (w != 0.0 && abs(w) < frame.edge_eps);
 }
 
 bool exit_point(EXIT_VEC d, EXIT_VEC s, EXIT_VEC w, float s_front, float g_rel, vec3 rel,
                 out float len, out float s_back) {
-    len = frame.limits.x;
+    len = frame.distance_clamp;
     s_back = s_front;
     bool found = false;
 #ifdef EXACT_PERSPECTIVE
-    if (frame.eye.w > 0.5) {
-        EXIT_VEC exits = exit_planes(d, w, 0.5 * frame.limits.y);
+    if (frame.perspective > 0.5) {
+        EXIT_VEC exits = exit_planes(d, w, 0.5 * frame.plane_ratio_max);
         float r = length(rel);
         for (int k = 0; k < EXIT_N; ++k) {
             bool is_exit = exit_candidate(exits[k], w[k]) && d[k] < 1.0;
@@ -95,10 +95,10 @@ bool exit_point(EXIT_VEC d, EXIT_VEC s, EXIT_VEC w, float s_front, float g_rel, 
                 found = true;
             }
         }
-        return found && len <= frame.view_dir.w;
+        return found && len <= frame.max_segment;
     }
 #endif
-    EXIT_VEC exits = exit_planes(d, w, 0.5 * frame.limits.x);
+    EXIT_VEC exits = exit_planes(d, w, 0.5 * frame.distance_clamp);
     for (int k = 0; k < EXIT_N; ++k) {
 #ifdef PAPER_EXIT_RULE
         bool is_exit = d[k] > 0.0;
@@ -113,7 +113,7 @@ bool exit_point(EXIT_VEC d, EXIT_VEC s, EXIT_VEC w, float s_front, float g_rel, 
             found = true;
         }
     }
-    return found && len <= frame.view_dir.w;
+    return found && len <= frame.max_segment;
 }
 
 #endif  // KNOWN_EXITS_ONLY
@@ -137,16 +137,16 @@ const float NO_EXIT = 3.0e38;
 // common/clip.glsl (include it first) along that unnormalised direction,
 // which needs no square root or division per fragment beyond its own.
 bool exit_point_known(vec4 d, uint exits, float s_front, float g, vec3 rel, out float len, out float s_back) {
-    bool perspective = frame.eye.w > 0.5;
+    bool perspective = frame.perspective > 0.5;
     uvec4 known = uvec4(notEqual(uvec4(exits) & uvec4(1u, 2u, 4u, 8u), uvec4(0u)));
     uvec4 ahead = uvec4(lessThan(d, vec4(perspective ? 1.0 : NO_EXIT)));
     vec4 x = mix(vec4(NO_EXIT), max(d, 0.0), bvec4(known & ahead));
     float p = min(min(x.x, x.y), min(x.z, x.w));
     float m = perspective ? p / (1.0 - p) : p;
     float r = perspective ? length(rel) : 1.0;
-    bool found = p < NO_EXIT && m * r <= frame.view_dir.w;
+    bool found = p < NO_EXIT && m * r <= frame.max_segment;
     // A NaN (ray in the far plane) or farther distance changes nothing.
-    float m_far = far_distance(rel, perspective ? rel : frame.view_dir.xyz);
+    float m_far = far_distance(rel, perspective ? rel : frame.view_dir);
     if (m_far < m) {
         m = max(m_far, 0.0);
     }
@@ -166,6 +166,6 @@ bool exit_point_known(vec4 d, uint exits, vec4 s, float s_front, out float len, 
             s_back = s[k];
         }
     }
-    return len <= frame.view_dir.w;
+    return len <= frame.max_segment;
 }
 #endif

@@ -30,8 +30,8 @@ layout(set = 0, binding = 1, rgba32f) uniform readonly imageBuffer table;
 const float DEPTH_MAX = 1e4;
 
 vec4 transfer(float s) {
-    float n = frame.tf_range.z;
-    float x = clamp((s - frame.tf_range.x) * frame.tf_range.y, 0.0, 1.0) * (n - 1.0);
+    float n = frame.table.tf_entries;
+    float x = clamp((s - frame.table.tf_lo) * frame.table.tf_inv_range, 0.0, 1.0) * (n - 1.0);
     float i = min(floor(x), n - 2.0);
     int k = int(i);
     return mix(imageLoad(tf, k), imageLoad(tf, k + 1), x - i);
@@ -67,10 +67,10 @@ vec4 preint_at(int f, int b, int d, int n) {
 }
 
 vec4 integrate_segment(float s_front, float s_back, float len) {
-    float n = frame.tf_range.w;
+    float n = frame.table.table_side;
     float nd = max(floor(n / 4.0), 2.0);
-    vec2 s = clamp((vec2(s_front, s_back) - frame.tf_range.x) * frame.tf_range.y, 0.0, 1.0) * (n - 1.0);
-    float xd = len / (len + frame.limits.w) * (nd - 1.0);
+    vec2 s = clamp((vec2(s_front, s_back) - frame.table.tf_lo) * frame.table.tf_inv_range, 0.0, 1.0) * (n - 1.0);
+    float xd = len / (len + frame.table.preint_length) * (nd - 1.0);
     vec3 x = vec3(s, xd);
     vec3 i = min(floor(x), vec3(n - 2.0, n - 2.0, nd - 2.0));
     vec3 t = x - i;
@@ -174,7 +174,7 @@ vec4 integrate_values(vec4 front, vec4 back, float len) {
 #else  // partial pre-integration
 
 float psi_lookup(float gamma_f, float gamma_b) {
-    float m = frame.tf_range.w;
+    float m = frame.table.table_side;
     vec2 x = clamp(vec2(gamma_f, gamma_b), 0.0, 1.0) * (m - 1.0);
     vec2 i = min(floor(x), vec2(m - 2.0));
     vec2 f = x - i;

@@ -19,6 +19,6 @@ const int FACES[36] = int[36](
 void main() {
     int c = FACES[gl_VertexIndex];
     vec3 corner = vec3(c & 1, (c >> 1) & 1, (c >> 2) & 1);
-    vox = corner * params.box_max.xyz;
+    vox = corner * params.box_max;
     gl_Position = frame.m * vec4(vox, 1.0);
 }

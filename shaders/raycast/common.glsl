@@ -18,15 +18,7 @@
 #define TAIL_STRIDE 4
 #define TAIL_STOP 0.01
 
-layout(std140, set = 0, binding = 0) uniform Params {
-    vec4 box_max;    // xyz: dims - 1 (the box in voxel coordinates); w: brick edge in voxels
-    vec4 inv_dims;   // xyz: 1 / dims; w: table entries
-    vec4 spacing;    // xyz: world units per voxel; w: step in voxels (option `step`)
-    vec4 tf_map;     // x, y: normalised texel -> table coordinate t = x * (v - y); z: ert threshold; w: table length (world) for PREINT
-    vec4 bricks;     // xyz: brick grid size; w: unused
-    vec4 unused;
-    vec4 material;   // x: ambient, y: diffuse, z: specular, w: shininess
-} params;
+#include "raycast/params.glsl"
 
 #ifdef VOLUME_LOADS
 // Read with imageLoad and blended here (option `reads`): on lavapipe a
@@ -45,15 +37,7 @@ layout(set = 0, binding = 3) uniform usamplerBuffer brick_distance;
 layout(std430, set = 0, binding = 4) buffer Counters { uint total_samples; uint max_samples; uint skipped_bricks; uint rays; uint leaps; } counters;
 layout(set = 0, binding = 5) uniform sampler2D preint_tex;
 
-layout(push_constant) uniform Frame {
-    mat4 m;          // box pass: voxel -> clip; march: NDC -> voxel (homogeneous)
-    uvec4 tiles;     // compute march: first workgroup (x, y), rows of workgroups, runs (common/dispatch.glsl)
-    vec4 light;      // xyz: unit direction towards the light, world axes
-#ifdef ADAPTIVE
-    uvec4 rect;      // adaptive refinement (compute): the frame's rectangle, inclusive pixel bounds
-    uvec4 adaptive;  // x: the cast pass's step (4, 2, 1; common/adaptive.glsl)
-#endif
-} frame;
+#include "raycast/frame.glsl"
 
 #ifdef ADAPTIVE
 // The last march's runs of occupied bricks entered (with SKIP: each entry
@@ -69,8 +53,8 @@ uint march_runs = 0u;
 // The trilinear field at voxel coordinate u, clamped to the box as the
 // sampler's clamp-to-edge does (every axis has at least 2 samples).
 float volume_at(vec3 u) {
-    vec3 uc = clamp(u, vec3(0.0), params.box_max.xyz);
-    vec3 i = min(floor(uc), params.box_max.xyz - 1.0);
+    vec3 uc = clamp(u, vec3(0.0), params.box_max);
+    vec3 i = min(floor(uc), params.box_max - 1.0);
     vec3 f = uc - i;
     ivec3 k = ivec3(i);
     float c000 = imageLoad(volume_img, k).r;
@@ -88,18 +72,18 @@ float volume_at(vec3 u) {
 }
 #else
 float volume_at(vec3 u) {
-    return textureLod(volume_tex, (u + 0.5) * params.inv_dims.xyz, 0.0).r;
+    return textureLod(volume_tex, (u + 0.5) * params.inv_dims, 0.0).r;
 }
 #endif
 
 float table_coord(vec3 u) {
     float v = volume_at(u);
-    return clamp(params.tf_map.x * (v - params.tf_map.y), 0.0, 1.0);
+    return clamp(params.tf_scale * (v - params.tf_offset), 0.0, 1.0);
 }
 
 // Table lookup at coordinate t in [0, 1], texel centres at the ends.
 vec4 classify(float t) {
-    float n = params.inv_dims.w;
+    float n = params.table_entries;
     return textureLod(tf_tex, (t * (n - 1.0) + 0.5) / n, 0.0);
 }
 
@@ -111,7 +95,7 @@ vec3 gradient(vec3 u) {
     // Differences over 2 voxels; per world unit along world axes (anisotropic
     // spacing), the frame the light and eye directions are given in. The
     // common factor 1/2 does not change the normal.
-    return g / params.spacing.xyz;
+    return g / params.spacing;
 }
 
 // Blinn-Phong with the central-difference gradient as normal; light and eye
@@ -119,16 +103,16 @@ vec3 gradient(vec3 u) {
 vec3 shade(vec3 color, vec3 u, vec3 to_eye) {
     vec3 g = gradient(u);
     float len = length(g);
-    if (len < 1e-6) return color * (params.material.x + params.material.y);
+    if (len < 1e-6) return color * (params.ambient + params.diffuse);
     vec3 n = -g / len;
-    vec3 l = frame.light.xyz;
+    vec3 l = frame.light;
     vec3 v = normalize(to_eye);
     // Two-sided: a surface seen from behind is lit as well.
     if (dot(n, v) < 0.0) n = -n;
     vec3 h = normalize(l + v);
     float diff = max(dot(n, l), 0.0);
-    float spec = pow(max(dot(n, h), 0.0), params.material.w);
-    return color * (params.material.x + params.material.y * diff) + vec3(params.material.z * spec);
+    float spec = pow(max(dot(n, h), 0.0), params.shininess);
+    return color * (params.ambient + params.diffuse * diff) + vec3(params.specular * spec);
 }
 
 // The segment [a, b] (voxel coordinates, a nearer the eye) marched with a step
@@ -145,14 +129,14 @@ vec4 march(vec3 a, vec3 b, out uint samples) {
     float len = length(d);
     if (!(len > 0.0)) return acc;
     vec3 dir = d / len;
-    float n = ceil(len / params.spacing.w);
+    float n = ceil(len / params.step);
     float h = len / n;
-    float world_h = h * length(dir * params.spacing.xyz);
-    vec3 to_eye_world = -dir * params.spacing.xyz;
+    float world_h = h * length(dir * params.spacing);
+    vec3 to_eye_world = -dir * params.spacing;
     int steps = int(n);
 #ifdef SKIP
-    float bsize = params.box_max.w;
-    ivec3 bgrid = ivec3(params.bricks.xyz);
+    float bsize = params.brick;
+    ivec3 bgrid = ivec3(params.brick_grid);
     // Axes the ray is parallel to never bound a leap.
     vec3 inv_dir = 1.0 / dir;
     bvec3 moving = notEqual(dir, vec3(0.0));
@@ -171,7 +155,7 @@ vec4 march(vec3 a, vec3 b, out uint samples) {
 #endif
     int k = 0;
     int stride = 1;   // steps one sample covers: 1, or the tail stride past the ert threshold
-    float tail_stop = 1.0 - (1.0 - params.tf_map.z) * TAIL_STOP;
+    float tail_stop = 1.0 - (1.0 - params.ert) * TAIL_STOP;
     while (k < steps) {
         int m = min(stride, steps - k);
 #ifdef SKIP
@@ -234,7 +218,7 @@ vec4 march(vec3 a, vec3 b, out uint samples) {
             samples += 1u;
             if (m == 1 && k >= 1) { t_prev2 = table_coord(u - dir * (h * 2.0)); samples += 1u; }
         }
-        // Table over (front, back) for a segment of params.tf_map.w world
+        // Table over (front, back) for a segment of params.preint_length world
         // units: colour premultiplied and optical depth, scaled to this step.
         vec2 fb = vec2(t_prev, t);
         // Curvature: the scalar along the ray is not linear between samples
@@ -245,10 +229,10 @@ vec4 march(vec3 a, vec3 b, out uint samples) {
         // linear segment's error (s'' h^2 / 12) is twice the midpoint rule's
         // and point sampling beats pre-integration on smooth data.
         if (t_prev2 >= 0.0) fb = clamp(fb - (t - 2.0 * t_prev + t_prev2) / 12.0, 0.0, 1.0);
-        vec4 seg = textureLod(preint_tex, fb * (params.inv_dims.w - 1.0) / params.inv_dims.w + 0.5 / params.inv_dims.w, 0.0);
+        vec4 seg = textureLod(preint_tex, fb * (params.table_entries - 1.0) / params.table_entries + 0.5 / params.table_entries, 0.0);
         t_prev2 = m == 1 ? t_prev : -1.0;
         t_prev = t;
-        float scale = seg_world / params.tf_map.w;
+        float scale = seg_world / params.preint_length;
         float alpha = 1.0 - exp(-seg.a * scale);
         // Colour per unit opacity from the table (exact when the step matches the table's length).
         float table_alpha = 1.0 - exp(-seg.a);
@@ -268,7 +252,7 @@ vec4 march(vec3 a, vec3 b, out uint samples) {
         // triggers). Past the threshold the rest of the ray is not dropped
         // but estimated: marched TAIL_STRIDE steps per sample until the
         // remaining transmittance is below 1% of 1 - ert (see the module note).
-        if (acc.a > params.tf_map.z) {
+        if (acc.a > params.ert) {
             if (acc.a > tail_stop) break;
             stride = TAIL_STRIDE;
         }

@@ -17,7 +17,7 @@ layout(local_size_x = WG_X, local_size_y = WG_Y) in;
 layout(set = 1, binding = 0, rgba32f) uniform writeonly image2D target;
 #ifdef ADAPTIVE
 // Adaptive refinement (algo/adaptive.rs): this pass casts the lattice
-// points of step frame.adaptive.x, storing each ray's colour and its
+// points of step frame.cast_step, storing each ray's colour and its
 // structural key (the runs of occupied bricks it entered; 0 for a ray that
 // missed the box or met only empty bricks, and always 0 without SKIP) for
 // the decide passes.
@@ -28,9 +28,9 @@ layout(set = 1, binding = 0, rgba32f) uniform writeonly image2D target;
 void main() {
     ivec2 size = imageSize(target);
 #ifdef ADAPTIVE
-    uint pass_step = frame.adaptive.x;
+    uint pass_step = frame.cast_step;
     uvec2 at;
-    if (!adaptive_point(pass_step, frame.rect, frame.tiles.z, frame.tiles.w, at)) return;
+    if (!adaptive_point(pass_step, frame.rect, frame.rows, frame.runs, at)) return;
     ivec2 px = ivec2(at + frame.rect.xy);
     if (!adaptive_in_rect(frame.rect, at)) {
         // Lattice padding past the rectangle: no ray meets the box there.
@@ -40,11 +40,11 @@ void main() {
 #else
     // The workgroup's tile, rows interleaved over the device's runs of
     // workgroups (common/dispatch.glsl), from the first tile over the box.
-    uint row = interleaved_row(frame.tiles.z, frame.tiles.w);
-    uvec2 tile = uvec2(gl_WorkGroupID.x, row) + frame.tiles.xy;
+    uint row = interleaved_row(frame.rows, frame.runs);
+    uvec2 tile = uvec2(gl_WorkGroupID.x, row) + frame.first_group;
     ivec2 px = ivec2(tile * uvec2(WG_X, WG_Y) + gl_LocalInvocationID.xy);
     // Padding rows (row >= rows) run nothing.
-    if (px.x >= size.x || px.y >= size.y || row >= frame.tiles.z) return;
+    if (px.x >= size.x || px.y >= size.y || row >= frame.rows) return;
 #endif
     vec2 ndc = (vec2(px) + 0.5) / vec2(size) * 2.0 - 1.0;
     vec3 a, b;

@@ -6,6 +6,7 @@
 // A cell's output range is allocated by its triangle count from the table.
 layout(local_size_x = 64) in;
 
+// Rust: algo::terrain::compute::TessPush (the reflection test checks the two).
 layout(push_constant) uniform Push {
     uint count;
     uint grid_base;

@@ -37,11 +37,11 @@ layout(std430, set = 0, binding = 3) buffer Capture {
 #endif
 
 uint tess_grid_base() {
-    return floatBitsToUint(pc.range.z);
+    return pc.grid_base;
 }
 
 uint tess_grid_width() {
-    return floatBitsToUint(pc.range.w);
+    return pc.grid_width;
 }
 
 uint tri_index;

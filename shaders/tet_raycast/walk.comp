@@ -21,25 +21,13 @@
 #endif
 layout(local_size_x = WG_X, local_size_y = WG_Y) in;
 
-layout(push_constant) uniform Frame {
-    vec4 eye;       // xyz: eye relative to the render origin; w: 1 perspective, 0 orthographic
-    vec4 forward;   // xyz: unit view direction; w: near (view depth)
-    vec4 right;     // xyz: right, scaled so that ndc x = 1 is the image's edge; w: far (view depth)
-    vec4 up;        // xyz: up, scaled alike; w: early-termination opacity (>= 1: off)
-    vec4 tf_range;  // as common/frame.glsl (read by common/integrate.glsl)
-    vec4 limits;    // x: entry tolerance (world units); y: step budget per ray (uint bits);
-                    // z: stall limit (uint bits); w: pre-integration length scale
-    uvec4 rect;     // the pixels whose rays may meet the mesh: x0, y0, x1, y1 inclusive
-                    // (tet_raycast.rs, pixel_rect); the dispatch starts at x0, y0
-    uvec4 order;    // x: rows of workgroups, y: runs (common/dispatch.glsl, interleaved_row);
-                    // z: adaptive refinement's cast step (ADAPTIVE: 4, 2 or 1)
-} frame;
+#include "tet_raycast/frame.glsl"
 
 #include "common/integrate.glsl"
 #include "common/dispatch.glsl"
 #ifdef ADAPTIVE
 // Adaptive refinement (algo/adaptive.rs): this pass casts the lattice
-// points of step order.z (4: the lattice of 4 over the rectangle; 2, 1: the
+// points of step cast_step (4: the lattice of 4 over the rectangle; 2, 1: the
 // listed blocks' centres and edge mid-points), storing each ray's colour and
 // its structural key (the boundary entries it took) for the decide passes.
 #include "common/adaptive.glsl"
@@ -531,9 +519,9 @@ const int WALK_TERMINATED = 2;
 int walk(uint face, float t_in, float s_in, float t_min, float t_max, out float t_exit) {
     uint tet = face >> 2;
     uint f_in = face & 3u;
-    uint budget = floatBitsToUint(frame.limits.y);
-    uint stall_limit = floatBitsToUint(frame.limits.z);
-    float ert = frame.up.w;
+    uint budget = frame.step_budget;
+    uint stall_limit = frame.stall_limit;
+    float ert = frame.ert;
     uint stall = 0u;
     t_exit = t_in;
     uvec4 v = tet_at(tet);
@@ -725,9 +713,9 @@ void main() {
     // (common/dispatch.glsl).
     // Padding rows (row >= rows) lie below the rectangle: the test below.
 #ifdef ADAPTIVE
-    uint pass_step = frame.order.z;
+    uint pass_step = frame.cast_step;
     uvec2 at;
-    if (!adaptive_point(pass_step, frame.rect, frame.order.x, frame.order.y, at)) return;
+    if (!adaptive_point(pass_step, frame.rect, frame.rows, frame.runs, at)) return;
     ivec2 px = ivec2(at + frame.rect.xy);
     if (!adaptive_in_rect(frame.rect, at)) {
         // Lattice padding past the rectangle: no ray meets the mesh there.
@@ -735,7 +723,7 @@ void main() {
         return;
     }
 #else
-    uvec2 at = uvec2(gl_WorkGroupID.x, interleaved_row(frame.order.x, frame.order.y)) * uvec2(WG_X, WG_Y) + gl_LocalInvocationID.xy;
+    uvec2 at = uvec2(gl_WorkGroupID.x, interleaved_row(frame.rows, frame.runs)) * uvec2(WG_X, WG_Y) + gl_LocalInvocationID.xy;
     ivec2 px = ivec2(at + frame.rect.xy);
     if (px.x >= size.x || px.y >= size.y || uint(px.x) > frame.rect.z || uint(px.y) > frame.rect.w) return;
 #endif
@@ -746,14 +734,14 @@ void main() {
     // The ray through the pixel's centre (scene::Camera::ray), relative to
     // the render origin.
     vec2 ndc = (vec2(px) + 0.5) / vec2(size) * 2.0 - 1.0;
-    vec3 fwd = frame.forward.xyz;
+    vec3 fwd = frame.forward;
     float cos_fwd;
-    if (frame.eye.w > 0.5) {
-        ray_o = frame.eye.xyz;
-        ray_d = normalize(fwd + frame.right.xyz * ndc.x - frame.up.xyz * ndc.y);
+    if (frame.perspective > 0.5) {
+        ray_o = frame.eye;
+        ray_d = normalize(fwd + frame.right * ndc.x - frame.up * ndc.y);
         cos_fwd = dot(ray_d, fwd);
     } else {
-        ray_o = frame.eye.xyz + frame.right.xyz * ndc.x - frame.up.xyz * ndc.y;
+        ray_o = frame.eye + frame.right * ndc.x - frame.up * ndc.y;
         ray_d = fwd;
         cos_fwd = 1.0;
     }
@@ -763,9 +751,9 @@ void main() {
     ray_n1 = normalize(cross(ray_d, ax));
     ray_n2 = cross(ray_d, ray_n1);
     // Segments are clipped to the view depths [near, far].
-    float t_min = frame.forward.w / cos_fwd;
-    float t_max = frame.right.w / cos_fwd;
-    float tol = frame.limits.x;
+    float t_min = frame.near / cos_fwd;
+    float t_max = frame.far / cos_fwd;
+    float tol = frame.entry_tol;
 
     bool have_prev = false;
     float t_prev = -INF;

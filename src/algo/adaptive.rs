@@ -62,8 +62,27 @@ pub const WORKGROUP: [u32; 2] = [8, 8];
 const GROUP: u64 = (WORKGROUP[0] * WORKGROUP[1]) as u64;
 /// Counter words (`A_*` in shaders/common/adaptive.glsl).
 const COUNTER_WORDS: usize = 26;
-/// Decide-pass push constants: rect, params, tolerance (3 x 16 bytes).
-const DECIDE_PUSH_BYTES: u32 = 48;
+/// The decide pass's push constants (`Decide` in
+/// `shaders/common/adaptive_decide.comp`; `tests/shader_interfaces.rs`
+/// checks the two agree).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct DecidePush {
+    /// The frame's rectangle, inclusive pixel bounds.
+    pub rect: [u32; 4],
+    /// 8 or 4.
+    pub block_size: u32,
+    /// Size 8: rows of workgroups and the device's runs (`interleaved_row`).
+    pub rows: u32,
+    pub runs: u32,
+    /// First word of this size's silhouette bits (`u32::MAX`: none).
+    pub silhouettes: u32,
+    /// Tolerance per premultiplied channel.
+    pub tol: f32,
+    /// First word of this size's straight-chord bits (`u32::MAX`: none;
+    /// [`Silhouettes::straight`]).
+    pub straight: u32,
+}
 /// Lattice points in list entries are 16-bit block coordinates.
 const MAX_BLOCKS_PER_SIDE: u64 = 1 << 16;
 
@@ -399,7 +418,7 @@ impl Adaptive {
         let target_set = TargetImageSet::new(&format!("{method} adaptive target"), compute);
         let key = PipelineKey::Compute(ComputePipelineKey {
             shader: ShaderKey::new("common/adaptive_decide.comp", ShaderStage::Compute, &[]),
-            push_constant_bytes: DECIDE_PUSH_BYTES,
+            push_constant_bytes: std::mem::size_of::<DecidePush>() as u32,
             sets: vec![desc.clone(), target_set.desc.clone()],
         });
         let decide = super::pipelines::get(ctx, &key)?;
@@ -491,15 +510,19 @@ impl Adaptive {
             (Some(s), true) => if size == 8 { 0 } else { s.offset4 },
             _ => u32::MAX,
         };
-        let push = |size: u32, rows: u32| -> Vec<u8> {
-            let r = self.rect;
-            let words: [u32; 12] = [r[0], r[1], r[2], r[3], size, rows, runs, sil_offset(size), (self.tol as f32).to_bits(), straight_offset(size), 0, 0];
-            bytemuck::cast_slice(&words).to_vec()
+        let push = |block_size: u32, rows: u32| DecidePush {
+            rect: self.rect,
+            block_size,
+            rows,
+            runs,
+            silhouettes: sil_offset(block_size),
+            tol: self.tol as f32,
+            straight: straight_offset(block_size),
         };
         let set = self.target_set.for_target(&self.ctx, target)?;
         rec.bind_compute(&self.decide, &[&self.set, set])?;
         let rows = nb[1].div_ceil(WORKGROUP[1]);
-        rec.push_constants(&self.decide, &push(8, rows), counter);
+        rec.push_constants(&self.decide, bytemuck::bytes_of(&push(8, rows)), counter);
         rec.dispatch([nb[0].div_ceil(WORKGROUP[0]), screen::interleaved_rows(rows, runs), 1])?;
         self.timestamps.write(rec, 2, TimestampAt::ComputeDone)?;
         rec.compute_to_indirect();
@@ -508,7 +531,7 @@ impl Adaptive {
         rec.compute_to_indirect();
         let set = self.target_set.for_target(&self.ctx, target)?;
         rec.bind_compute(&self.decide, &[&self.set, set])?;
-        rec.push_constants(&self.decide, &push(4, 0), counter);
+        rec.push_constants(&self.decide, bytemuck::bytes_of(&push(4, 0)), counter);
         rec.dispatch_indirect(&self.counters, 16)?;
         self.timestamps.write(rec, 4, TimestampAt::ComputeDone)?;
         rec.compute_to_indirect();

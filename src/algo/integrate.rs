@@ -232,6 +232,25 @@ pub fn psi_quads_cached(m: usize) -> anyhow::Result<Arc<Vec<[f32; 4]>>> {
     Ok(t)
 }
 
+/// How a segment's scalars and length index the tables
+/// (`shaders/common/table_map.glsl`, read by `common/integrate.glsl`): a
+/// member of the push constants of every shader that integrates cells
+/// (`tet_mesh::FrameConstants`, `tet_raycast::WalkFrame`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct TableMap {
+    /// The lowest tabulated scalar, mapped as the cells' scalars are.
+    pub tf_lo: f32,
+    /// 1 / (highest - lowest), mapped alike.
+    pub tf_inv_range: f32,
+    /// Entries of the transfer-function table.
+    pub tf_entries: f32,
+    /// Side of the integration table.
+    pub table_side: f32,
+    /// Length scale of the pre-integration table's length axis.
+    pub preint_length: f32,
+}
+
 /// The integration tables on the device and the descriptor set that binds
 /// them (binding 0: transfer function, binding 1: the integrator's table).
 pub struct IntegrationTables {
@@ -250,6 +269,19 @@ pub struct IntegrationTables {
 }
 
 impl IntegrationTables {
+    /// The tables' [`TableMap`] for scalars sent as (s - `scalar_origin`)
+    /// / `scalar_scale` (`cell_projection::scalar_map`).
+    pub fn map(&self, scalar_origin: f64, scalar_scale: f64) -> TableMap {
+        let (lo, hi) = self.tf_range;
+        TableMap {
+            tf_lo: ((lo - scalar_origin) / scalar_scale) as f32,
+            tf_inv_range: (scalar_scale / (hi - lo)) as f32,
+            tf_entries: self.tf_size as f32,
+            table_side: self.table_size as f32,
+            preint_length: self.length_scale as f32,
+        }
+    }
+
     /// `table_size` 0 picks the integrator's default; `length_scale` is a
     /// typical cell size (the pre-integration table's length axis is
     /// D / (D + length_scale)). Refuses a table larger than

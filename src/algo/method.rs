@@ -39,6 +39,19 @@ impl DataKind {
             DataKind::Terrain => "terrain",
         }
     }
+
+    /// The work count a run's rate is given in for this kind (a key of the
+    /// result's `work.per_second`): a mesh's cells, the samples a volume's
+    /// rays take, the triangles a terrain draws. Reports show the rate in
+    /// this unit (`M cells/s`, `M samples/s`, `M triangles/s`), never
+    /// another kind's.
+    pub fn rate_unit(self) -> &'static str {
+        match self {
+            DataKind::TetMesh => "cells",
+            DataKind::Volume => "samples",
+            DataKind::Terrain => "triangles",
+        }
+    }
 }
 
 /// The values an option may take.

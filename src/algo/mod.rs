@@ -15,4 +15,5 @@ pub mod screen;
 pub mod segment;
 pub mod settings;
 pub mod terrain;
+pub mod tet_mesh;
 pub mod tet_raycast;

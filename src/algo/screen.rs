@@ -2,7 +2,7 @@
 //! rectangle that holds a set of projected points (tet-raycast's boundary
 //! vertices, the ray casters' box corners). On llvmpipe an invocation with
 //! nothing to do still runs its whole shader masked (docs/compute-speed.md,
-//! third round), so passes dispatch over this rectangle only.
+//! "What llvmpipe does"), so passes dispatch over this rectangle only.
 
 /// Inclusive pixel bounds `[x0, y0, x1, y1]` of an empty rectangle.
 pub const NO_PIXELS: [u32; 4] = [1, 1, 0, 0];

@@ -104,8 +104,9 @@ pub struct Binary {
 /// the target directory (so the second build reuses the first's
 /// dependencies). Built binaries are kept as
 /// `target_dir/ab/volbench-<commit>` and reused. Every child (the binary's
-/// `--version`, git) must finish within `timeout` (`--timeout`).
-pub fn resolve(arg: &str, role: &str, target_dir: &Path, timeout: Duration) -> Result<Binary> {
+/// `--version`, git) must finish within `timeout` (`--timeout`), the build
+/// within `build_timeout` (`--build-timeout`).
+pub fn resolve(arg: &str, role: &str, target_dir: &Path, timeout: Duration, build_timeout: Duration) -> Result<Binary> {
     let path = Path::new(arg);
     if path.exists() {
         ensure!(path.is_file(), "{role} {arg}: is not a file (give a volbench binary or a git revision)");
@@ -120,7 +121,7 @@ pub fn resolve(arg: &str, role: &str, target_dir: &Path, timeout: Duration) -> R
         .ok()
         .filter(|s| !s.is_empty())
         .with_context(|| format!("{role} {arg}: neither an existing file nor a git revision of this repository"))?;
-    let binary = build_revision(&commit, target_dir, timeout).with_context(|| format!("{role} {arg}: building revision {commit}"))?;
+    let binary = build_revision(&commit, target_dir, timeout, build_timeout).with_context(|| format!("{role} {arg}: building revision {commit}"))?;
     let version = version_of(&binary, timeout).with_context(|| format!("{role} {arg}: the binary built from {commit}"))?;
     Ok(Binary { path: binary, version, revision: Some(commit), env: BTreeMap::new() })
 }
@@ -146,7 +147,7 @@ fn git(args: &[&str], timeout: Duration) -> Result<String> {
     Ok(out.stdout.text().trim().to_string())
 }
 
-fn build_revision(commit: &str, target_dir: &Path, timeout: Duration) -> Result<PathBuf> {
+fn build_revision(commit: &str, target_dir: &Path, timeout: Duration, build_timeout: Duration) -> Result<PathBuf> {
     let dir = target_dir.join("ab");
     let binary = dir.join(format!("volbench-{commit}"));
     if binary.is_file() {
@@ -165,12 +166,18 @@ fn build_revision(commit: &str, target_dir: &Path, timeout: Duration) -> Result<
     }
     git(&["worktree", "add", "--detach", &tree_s, commit], timeout)?;
     crate::progress!("volbench: ab: building {commit} (cargo build --release, target dir {})", target_dir.display());
-    let status = Command::new(std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into()))
-        .args(["build", "--release", "--locked", "--bin", "volbench"])
-        .current_dir(&tree)
-        .env("CARGO_TARGET_DIR", target_dir)
-        .status()
-        .context("running cargo");
+    // Its progress goes to the terminal; it stays in our process group
+    // (a Ctrl-C stops it too) and is killed with its rustc jobs at the deadline.
+    let status = child::run_attached(
+        Command::new(std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into()))
+            .args(["build", "--release", "--locked", "--bin", "volbench"])
+            .current_dir(&tree)
+            .env("CARGO_TARGET_DIR", target_dir)
+            .stdin(std::process::Stdio::null()),
+        "cargo build --release",
+        build_timeout,
+        "--build-timeout",
+    );
     let built = target_dir.join("release").join("volbench");
     let copied = match status {
         Ok(s) if s.success() => std::fs::copy(&built, &binary).with_context(|| format!("copying {} to {}", built.display(), binary.display())),
@@ -218,6 +225,8 @@ pub struct AbSettings {
     /// How long a serve process may take to answer (its handshake included)
     /// before it is killed.
     pub timeout_s: f64,
+    /// How long building a revision (`cargo build --release`) may take.
+    pub build_timeout_s: f64,
     /// The slowdown threshold, as a fraction (0.03: 3 %).
     pub threshold: f64,
     /// Seeds the per-pair order (recorded so a sitting can be repeated).
@@ -247,6 +256,11 @@ impl AbSettings {
             self.timeout_s.is_finite() && self.timeout_s >= 0.1 && self.timeout_s <= 86_400.0,
             "--timeout must be from 0.1 to 86400 seconds, got {}",
             self.timeout_s
+        );
+        ensure!(
+            self.build_timeout_s.is_finite() && self.build_timeout_s >= 1.0 && self.build_timeout_s <= 86_400.0,
+            "--build-timeout must be from 1 to 86400 seconds, got {}",
+            self.build_timeout_s
         );
         ensure!(
             self.threshold.is_finite() && self.threshold > 0.0 && self.threshold < 10.0,
@@ -704,7 +718,7 @@ pub fn markdown(r: &AbReport) -> String {
             (Some(e), Some(v), _) => {
                 (format!("{:.3}", e.ratio), format!("[{:.3}, {:.3}]", e.ci_low, e.ci_high), v.describe(s.threshold))
             }
-            (_, _, Some(err)) => ("-".into(), "-".into(), format!("failed: {}", err.replace('|', "/").replace('\n', " "))),
+            (_, _, Some(err)) => ("-".into(), "-".into(), format!("failed: {}", super::report::md_cell(err))),
             _ => ("-".into(), "-".into(), "-".into()),
         };
         let (batches, spread, lag) = match &row.estimate {

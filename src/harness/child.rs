@@ -6,6 +6,12 @@
 //! left running in its group is killed too. Its output is read on threads
 //! into `fsio::HeadTail`s (head and tail kept, the middle counted), so a
 //! child that prints forever costs a few kilobytes, not gigabytes.
+//!
+//! Two children write to the terminal instead ([`run_attached`]): `ab`'s
+//! `cargo build` of a revision and `--count`'s valgrind. They stay in
+//! volbench's process group, so a Ctrl-C stops them with it as before, and
+//! at their deadline they and every process they started are stopped and
+//! killed (found as descendants in `/proc`).
 
 use std::os::unix::process::CommandExt as _;
 use std::process::{Child, Command, ExitStatus, Stdio};
@@ -93,10 +99,17 @@ pub fn spawn_in_group(cmd: &mut Command, what: &str) -> Result<Child> {
     })
 }
 
+/// Send SIGKILL to process group `group` (a child and all it started).
+/// Through kill(1): signals need `unsafe` outside `src/vk/`. A group
+/// already gone is not an error.
+pub(crate) fn kill_group_id(group: u32) {
+    let _ = Command::new("kill").arg("-KILL").arg("--").arg(format!("-{group}")).stderr(Stdio::null()).status();
+}
+
 /// Kill the process group `child` leads (its leader, when still running,
 /// and whatever it started and left in the group), then reap the leader.
 pub fn kill_group(child: &mut Child) {
-    super::peers::kill_group(child.id());
+    kill_group_id(child.id());
     let _ = child.wait();
 }
 
@@ -127,8 +140,81 @@ pub fn run(cmd: &mut Command, what: &str, deadline: Duration, limit_name: &str, 
         std::thread::sleep(Duration::from_millis(5));
     };
     // What it left running (holding its output open, or just running).
-    super::peers::kill_group(child.id());
+    kill_group_id(child.id());
     Ok(Finished { status, stdout: out.finish(DRAIN_GRACE), stderr: err.finish(DRAIN_GRACE) })
+}
+
+/// Poll interval of [`run_attached`] (its children run for minutes).
+const ATTACHED_POLL: Duration = Duration::from_millis(50);
+
+/// Run `cmd` to its end within `deadline`, its standard streams the
+/// terminal's (what it prints is the user's to see). It stays in our
+/// process group; at the deadline it and its descendants are killed and
+/// the error names the limit (`limit_name`).
+pub fn run_attached(cmd: &mut Command, what: &str, deadline: Duration, limit_name: &str) -> Result<ExitStatus> {
+    let mut child = cmd.spawn().map_err(|e| match e.kind() {
+        std::io::ErrorKind::PermissionDenied => anyhow::anyhow!("{what}: not executable ({e})"),
+        _ => anyhow::anyhow!("{what}: cannot be started ({e})"),
+    })?;
+    let start = Instant::now();
+    loop {
+        if let Some(status) = child.try_wait().with_context(|| format!("{what}: waiting for it"))? {
+            return Ok(status);
+        }
+        if start.elapsed() > deadline {
+            kill_tree(&mut child);
+            bail!("{what}: still running after {} s ({limit_name}); killed it and the processes it started", deadline.as_secs_f64());
+        }
+        std::thread::sleep(ATTACHED_POLL);
+    }
+}
+
+/// The processes below `root` (children, their children, ...), from the
+/// parent ids in `/proc/<pid>/stat`.
+fn descendants(root: u32) -> Vec<u32> {
+    let mut parent_of = Vec::new();
+    if let Ok(dir) = std::fs::read_dir("/proc") {
+        for entry in dir.flatten() {
+            let Some(pid) = entry.file_name().to_str().and_then(|n| n.parse::<u32>().ok()) else { continue };
+            let Ok(stat) = std::fs::read_to_string(entry.path().join("stat")) else { continue };
+            // The fields after the parenthesised command name: state, ppid.
+            let ppid = stat.rsplit_once(") ").and_then(|(_, rest)| rest.split_whitespace().nth(1)?.parse::<u32>().ok());
+            if let Some(ppid) = ppid {
+                parent_of.push((pid, ppid));
+            }
+        }
+    }
+    let mut found = vec![root];
+    let mut i = 0;
+    while i < found.len() {
+        let p = found[i];
+        found.extend(parent_of.iter().filter(|&&(_, pp)| pp == p).map(|&(c, _)| c));
+        i += 1;
+    }
+    found.remove(0);
+    found
+}
+
+/// Kill `child` and every process below it: stopped first (so none forks
+/// or is handed to init while the tree is read), then killed, then reaped.
+fn kill_tree(child: &mut Child) {
+    use rustix::process::{kill_process, Pid, Signal};
+    let signal = |pid: u32, sig: Signal| {
+        if let Some(pid) = i32::try_from(pid).ok().and_then(Pid::from_raw) {
+            let _ = kill_process(pid, sig);
+        }
+    };
+    let mut tree = vec![child.id()];
+    for _ in 0..3 {
+        for &p in &tree {
+            signal(p, Signal::STOP);
+        }
+        tree = std::iter::once(child.id()).chain(descendants(child.id())).collect();
+    }
+    for &p in &tree {
+        signal(p, Signal::KILL);
+    }
+    let _ = child.wait();
 }
 
 #[cfg(test)]
@@ -172,6 +258,26 @@ mod tests {
         let f = run(&mut sh("sleep 300 & echo started"), "leave", Duration::from_secs(60), "--timeout", None).unwrap();
         assert!(f.status.success() && f.stdout.text() == "started\n");
         assert!(t.elapsed() < Duration::from_secs(30), "{:?}", t.elapsed());
+    }
+
+    #[test]
+    fn attached_children_and_what_they_started_are_killed_at_the_deadline() {
+        let f = run_attached(&mut sh("exit 4"), "t", Duration::from_secs(20), "--build-timeout").unwrap();
+        assert_eq!(f.code(), Some(4));
+        let d = tempfile::tempdir().unwrap();
+        let pids = d.path().join("pids");
+        // A child that starts a grandchild (as cargo starts rustc) and hangs.
+        let script = format!("sleep 300 & echo $! > {0}; sh -c 'sleep 300' & echo $! >> {0}; wait", pids.display());
+        let t = Instant::now();
+        let e = run_attached(&mut sh(&script), "build", Duration::from_millis(500), "--build-timeout").unwrap_err().to_string();
+        assert!(e.contains("build: still running after 0.5 s (--build-timeout); killed it and the processes it started"), "{e}");
+        assert!(t.elapsed() < Duration::from_secs(30), "{:?}", t.elapsed());
+        for pid in std::fs::read_to_string(&pids).unwrap().split_whitespace() {
+            // Gone, or a zombie waiting for init to reap it.
+            let state = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok();
+            let alive = state.is_some_and(|s| s.rsplit_once(") ").is_some_and(|(_, r)| !r.starts_with('Z')));
+            assert!(!alive, "process {pid} still runs");
+        }
     }
 
     #[test]

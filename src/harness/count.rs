@@ -91,6 +91,11 @@ const VALGRIND_ARGS: &[&str] = &[
 ];
 /// The fence time-out of a counted run, seconds, unless the user set one.
 const COUNTED_FENCE_TIMEOUT_S: &str = "3600";
+
+/// How long the whole counted run may take unless `VOLBENCH_COUNT_TIMEOUT_S`
+/// says otherwise: a counted suite runs for tens of minutes, a hung one
+/// (every fence wait is bounded too) is stopped within a day.
+const DEFAULT_COUNTED_TIMEOUT_S: f64 = 86_400.0;
 /// Optional: a directory the counted child copies callgrind's dumps into
 /// before reading them (to see where a count moved with
 /// `callgrind_annotate`; docs/tracking.md). Unset: the dumps are deleted.
@@ -233,7 +238,8 @@ pub fn reexec() -> Result<ExitCode> {
     if std::env::var_os(crate::vk::FENCE_TIMEOUT_VAR).is_none() {
         cmd.env(crate::vk::FENCE_TIMEOUT_VAR, COUNTED_FENCE_TIMEOUT_S);
     }
-    let status = cmd.status().context("--count: starting valgrind")?;
+    let limit = crate::switches::seconds(crate::switches::COUNT_TIMEOUT_S)?.unwrap_or(DEFAULT_COUNTED_TIMEOUT_S);
+    let status = super::child::run_attached(&mut cmd, "--count: valgrind", std::time::Duration::from_secs_f64(limit), crate::switches::COUNT_TIMEOUT_S)?;
     // A valgrind that failed with its output written: the counted process
     // said why (its exit status is ours); one that wrote nothing, or
     // claimed success without the output of the whole run, is an error here.

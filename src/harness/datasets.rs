@@ -118,7 +118,7 @@ impl Dataset {
     /// `VOLBENCH_TEST_RENUMBER=morton` its cells and points are first
     /// renumbered for locality (`mesh::reorder`). Off by default: measured
     /// no faster, and at 4.1 M tets possibly slower (docs/scaling.md,
-    /// "Locality"). The digest (the reference cache's key) is of the data
+    /// "Renumbering for locality"). The digest (the reference cache's key) is of the data
     /// as read; the renumbered mesh is the same mesh, so its reference is
     /// the same.
     pub fn from_loaded_mesh(mesh: TetMesh, named: bool, source: String) -> Self {

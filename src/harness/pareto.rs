@@ -131,7 +131,7 @@ pub fn markdown(mesh: &str, points: &[ParetoPoint]) -> String {
     }
     for p in sorted.iter().filter(|p| !p.ok()) {
         let status = if p.skipped { "SKIPPED" } else { "FAILED" };
-        let _ = writeln!(s, "| {status} | {} | | | | | | {} |", p.label, p.error.as_deref().unwrap_or("").replace('|', "/"));
+        let _ = writeln!(s, "| {status} | {} | | | | | | {} |", p.label, super::report::md_cell(p.error.as_deref().unwrap_or("")));
     }
     s
 }

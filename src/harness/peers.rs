@@ -36,11 +36,9 @@
 //! average them over a tet; its framebuffer is 8 bits per channel), which is
 //! what the error against the f64 reference measures.
 
-use std::io::Read as _;
-use std::os::unix::process::CommandExt as _;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
+use std::process::Command;
+use std::time::Duration;
 
 use anyhow::{bail, Context as _, Result};
 use serde::{Deserialize, Serialize};
@@ -638,61 +636,20 @@ fn timeout() -> Result<Duration> {
     Ok(Duration::from_secs(crate::switches::int(crate::switches::PEER_TIMEOUT_S)?.unwrap_or(DEFAULT_TIMEOUT_S)))
 }
 
-/// Send SIGKILL to process group `group` (the peer and all it started).
-/// Through kill(1): signals need `unsafe` outside `src/vk/`. A group
-/// already gone is not an error.
-pub(crate) fn kill_group(group: u32) {
-    let _ = Command::new("kill").arg("-KILL").arg("--").arg(format!("-{group}")).stderr(Stdio::null()).status();
-}
-
 /// Run one peer renderer on a scene written to `scene_path`; returns the
 /// checked result and the image.
 pub fn run_peer(peer: &LocatedPeer, scene: &PeerScene, scene_path: &Path) -> Result<(PeerResult, RgbaImage)> {
     fsio::write_output(scene_path, &serde_json::to_vec_pretty(scene)?)?;
     let limit = timeout()?;
-    // The peer runs in a process group of its own, so that what it starts
-    // (and what keeps its stderr open) is stopped with it.
-    let mut child = Command::new(&peer.python)
-        .arg(&peer.script)
-        .arg("--scene")
-        .arg(scene_path)
-        .env("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .process_group(0)
-        .spawn()
-        .with_context(|| format!("starting {} {}", peer.python.display(), peer.script.display()))?;
-    let group = child.id();
-    let mut stderr = child.stderr.take();
-    // Drain stderr on a thread so a chatty peer cannot block on a full pipe.
-    let (sent, received) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        let mut s = String::new();
-        if let Some(e) = stderr.as_mut() {
-            let _ = e.take(1 << 20).read_to_string(&mut s);
-        }
-        let _ = sent.send(s);
-    });
-    let start = Instant::now();
-    let status = loop {
-        if let Some(status) = child.try_wait().context("waiting for the peer")? {
-            break status;
-        }
-        if start.elapsed() > limit {
-            kill_group(group);
-            let _ = child.wait();
-            bail!("{} {}: stopped after {} s (VOLBENCH_PEER_TIMEOUT_S)", peer.peer.name, scene.renderer, limit.as_secs());
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    };
-    // Whatever the peer left running belongs to no one: stop it, so that
-    // stderr closes; the wait for it is bounded by the time-out all the same.
-    kill_group(group);
-    let left = limit.saturating_sub(start.elapsed()).max(Duration::from_secs(1));
-    let Ok(err) = received.recv_timeout(left) else {
-        bail!("{} {}: its standard error stayed open past {} s (VOLBENCH_PEER_TIMEOUT_S)", peer.peer.name, scene.renderer, limit.as_secs());
-    };
+    // In a process group of its own with a deadline, its output kept head
+    // and tail (`child::run`): what it starts (and what keeps its stderr
+    // open) is stopped with it, and a chatty peer costs kilobytes.
+    let what = format!("{} {}", peer.peer.name, scene.renderer);
+    let mut cmd = Command::new(&peer.python);
+    cmd.arg(&peer.script).arg("--scene").arg(scene_path).env("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow");
+    let finished = super::child::run(&mut cmd, &what, limit, crate::switches::PEER_TIMEOUT_S, None)
+        .with_context(|| format!("running {} {}", peer.python.display(), peer.script.display()))?;
+    let (status, err) = (finished.status, finished.stderr.text());
     // The last lines say why (VTK's own warnings come first).
     let tail: Vec<&str> = err.lines().filter(|l| !l.trim().is_empty()).collect();
     let tail = tail[tail.len().saturating_sub(3)..].join(" / ");

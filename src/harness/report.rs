@@ -45,6 +45,20 @@ pub fn md_cell(text: &str) -> String {
     out
 }
 
+/// A run's rate in its dataset kind's own unit (`DataKind::rate_unit`):
+/// `0.961 M cells/s` for a mesh, `25.778 M samples/s` for a volume,
+/// `3.459 M triangles/s` for a terrain; "-" when the run counted no such
+/// work. The figure is the result's `work.per_second` (the reference
+/// view's count over the median frame), unchanged.
+pub fn rate(r: &RunResult) -> String {
+    rate_of(r.dataset.kind, &r.work.per_second)
+}
+
+fn rate_of(kind: crate::algo::method::DataKind, per_second: &std::collections::BTreeMap<&'static str, f64>) -> String {
+    let unit = kind.rate_unit();
+    per_second.get(unit).map_or("-".into(), |v| format!("{:.3} M {unit}/s", v / 1e6))
+}
+
 /// One row of the comparison: a run (or its failure) and its image
 /// difference from the first run on the same dataset.
 pub struct ComparisonRow<'a> {
@@ -65,7 +79,7 @@ pub fn comparison_table(rows: &[ComparisonRow], registry: &Registry) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "| dataset | run | cells | floats/cell | MB/frame | static KB | frame ms median [min, max] | CPU prep | upload | GPU | wait | M cells/s | published M cells/s | RMSE vs first | RMSE vs f64 ref | max err |"
+        "| dataset | run | cells | floats/cell | MB/frame | static KB | frame ms median [min, max] | CPU prep | upload | GPU | wait | rate | published M cells/s | RMSE vs first | RMSE vs f64 ref | max err |"
     );
     let _ = writeln!(s, "|---|---|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     let mut own_notes = Vec::new();
@@ -73,7 +87,7 @@ pub fn comparison_table(rows: &[ComparisonRow], registry: &Registry) -> String {
         let r = match &row.outcome {
             Ok(r) => *r,
             Err(e) => {
-                let e = e.replace('|', "/").replace('\n', " ");
+                let e = md_cell(e);
                 let e = if e.starts_with("skipped") { e } else { format!("FAILED: {e}") };
                 let _ = writeln!(s, "| {} | {} | {e} |||||||||||||", row.dataset, row.label);
                 continue;
@@ -98,7 +112,7 @@ pub fn comparison_table(rows: &[ComparisonRow], registry: &Registry) -> String {
         let frame = t.phase("frame");
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {:.2} | {:.1} | {:.1} [{:.1}, {:.1}] | {:.1} | {:.1} | {:.1} | {:.1} | {:.3} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {:.2} | {:.1} | {:.1} [{:.1}, {:.1}] | {:.1} | {:.1} | {:.1} | {:.1} | {} | {} | {} | {} | {} |",
             row.dataset,
             row.label,
             r.work.counts.get("cells").map_or("-".into(), |c| c.to_string()),
@@ -112,7 +126,7 @@ pub fn comparison_table(rows: &[ComparisonRow], registry: &Registry) -> String {
             t.phase("upload").median,
             t.phase("gpu").median,
             t.phase("wait").median,
-            r.cells_per_second / 1e6,
+            rate(r),
             published,
             rmse,
             ref_rmse,
@@ -126,4 +140,25 @@ pub fn comparison_table(rows: &[ComparisonRow], registry: &Registry) -> String {
         }
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::algo::method::DataKind;
+
+    #[test]
+    fn a_rate_is_given_in_its_kinds_own_unit_or_not_at_all() {
+        let per_second = |pairs: &[(&'static str, f64)]| pairs.iter().copied().collect::<std::collections::BTreeMap<_, _>>();
+        let mesh = per_second(&[("cells", 961_234.0), ("cells_drawn", 961_234.0)]);
+        assert_eq!(rate_of(DataKind::TetMesh, &mesh), "0.961 M cells/s");
+        // A volume's rays take samples; it has no cells to give a rate of.
+        let volume = per_second(&[("samples", 25_778_121.9), ("rays", 358_087.7), ("pixels", 835_266.1)]);
+        assert_eq!(rate_of(DataKind::Volume, &volume), "25.778 M samples/s");
+        let terrain = per_second(&[("triangles", 3_459_047.2), ("nc_cells", 72_514.1)]);
+        assert_eq!(rate_of(DataKind::Terrain, &terrain), "3.459 M triangles/s");
+        // A kind's own count missing (a test method counting nothing): "-", not 0.
+        assert_eq!(rate_of(DataKind::Volume, &mesh), "-");
+        assert_eq!(rate_of(DataKind::TetMesh, &per_second(&[])), "-");
+    }
 }

@@ -109,15 +109,9 @@ pub fn run_measured(mut cmd: Command) -> Result<(std::process::ExitStatus, Strin
     staged.children.push(child.id());
     drop(staged);
     let status_path = PathBuf::from(format!("/proc/{}/status", child.id()));
-    let stderr = child.stderr.take();
-    // stderr is drained on a thread so a chatty child never blocks.
-    let reader = std::thread::spawn(move || {
-        let mut s = String::new();
-        if let Some(mut e) = stderr {
-            let _ = std::io::Read::read_to_string(&mut e, &mut s);
-        }
-        s
-    });
+    // stderr is drained on a thread (a chatty child never blocks), its
+    // head and tail kept (a child that prints without end costs kilobytes).
+    let stderr = super::child::Drain::start(child.stderr.take(), super::child::KEEP);
     let mut peak = None;
     let status = loop {
         if let Some(status) = child.try_wait().context("waiting for the run")? {
@@ -129,7 +123,7 @@ pub fn run_measured(mut cmd: Command) -> Result<(std::process::ExitStatus, Strin
         std::thread::sleep(Duration::from_millis(20));
     };
     staging().child = None;
-    let err = reader.join().unwrap_or_default();
+    let err = stderr.finish(Duration::from_secs(2)).text();
     Ok((status, err, peak))
 }
 
@@ -251,7 +245,7 @@ impl Staging {
     /// temporary this process or the level's children staged.
     fn clean(&mut self) {
         if let Some(group) = self.child.take() {
-            super::peers::kill_group(group);
+            super::child::kill_group_id(group);
             wait_gone(group);
         }
         for f in self.files.drain(..) {

@@ -16,7 +16,7 @@
 //! - Coordinates: `|x| <= MAX_COORDINATE` (1e15) on every axis.
 //! - Extent, the bounding-box diagonal `D`: `MIN_EXTENT <= D <= MAX_EXTENT`
 //!   (1e-15 to 1e15). The device computes in f32 relative to the mesh (see
-//!   `algo::cell_projection::render_origin`), where squared lengths overflow
+//!   `algo::tet_mesh::render_origin`), where squared lengths overflow
 //!   near 1.8e19 and leave the normal range below 1.1e-19. Measured on
 //!   lavapipe with a 6^3 grid (1,296 tets) scaled by 10^k: every method and
 //!   integrator matches the reference from 1e-19 to 1e18; scaled by 1e19

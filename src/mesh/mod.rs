@@ -15,7 +15,6 @@
 //!   docs, "Supported ranges").
 
 pub mod adjacency;
-pub mod byte_order;
 pub mod cell_data;
 pub mod cells;
 pub mod datasets;

@@ -244,7 +244,7 @@ enum Kind {
 /// on arrays that look little-endian (`byte_order`).
 fn read_floats(path: &str, bytes: &[u8], off: usize, n: usize, what: &str) -> Result<Vec<f64>> {
     let slice = &bytes[off..off + 4 * n];
-    if let Some(evidence) = super::byte_order::looks_little_endian(slice, 4) {
+    if let Some(evidence) = crate::bytes::byte_order::looks_little_endian(slice, 4) {
         bail!("{path}: {what} (byte offset {off}): {evidence}");
     }
     let out: Vec<f64> = slice

@@ -56,7 +56,7 @@ use anyhow::{anyhow, bail, Context, Result};
 use super::cell_data::{Association, ScalarChoice, ScalarInfo};
 use super::cells::RawCells;
 use super::{MeshStats, TetMesh};
-use crate::volume::decode::Endian;
+use crate::bytes::Endian;
 use crate::vtk_xml::{array_payload, root_layout, split_appended, visit, Appended, Layout, Payload};
 
 /// Reads a `.vtu` or `.pvtu` file (by extension) into a tet mesh, with the
@@ -289,26 +289,17 @@ enum Value {
 }
 
 fn decode(c: &[u8], t: XType, e: Endian) -> Value {
-    macro_rules! w {
-        ($ty:ty, $n:literal) => {{
-            let a: [u8; $n] = std::array::from_fn(|i| c[i]);
-            match e {
-                Endian::Little => <$ty>::from_le_bytes(a),
-                Endian::Big => <$ty>::from_be_bytes(a),
-            }
-        }};
-    }
     match t {
         XType::I8 => Value::Int(c[0] as i8 as i128),
         XType::U8 => Value::Int(c[0] as i128),
-        XType::I16 => Value::Int(w!(i16, 2) as i128),
-        XType::U16 => Value::Int(w!(u16, 2) as i128),
-        XType::I32 => Value::Int(w!(i32, 4) as i128),
-        XType::U32 => Value::Int(w!(u32, 4) as i128),
-        XType::I64 => Value::Int(w!(i64, 8) as i128),
-        XType::U64 => Value::Int(w!(u64, 8) as i128),
-        XType::F32 => Value::Float(w!(f32, 4) as f64),
-        XType::F64 => Value::Float(w!(f64, 8)),
+        XType::I16 => Value::Int(e.read::<i16>(c) as i128),
+        XType::U16 => Value::Int(e.read::<u16>(c) as i128),
+        XType::I32 => Value::Int(e.read::<i32>(c) as i128),
+        XType::U32 => Value::Int(e.read::<u32>(c) as i128),
+        XType::I64 => Value::Int(e.read::<i64>(c) as i128),
+        XType::U64 => Value::Int(e.read::<u64>(c) as i128),
+        XType::F32 => Value::Float(e.read::<f32>(c) as f64),
+        XType::F64 => Value::Float(e.read::<f64>(c)),
     }
 }
 

@@ -3,7 +3,7 @@
 //! compute per ray, with the rounding taken out, so that the stress suite
 //! can hold their rows to the integrator's bound against this model and
 //! derive how far the model itself lies from the exact reference
-//! (docs/stress.md, "The papers' interpolation: a derived bound").
+//! (docs/stress.md, "How a row is judged").
 //!
 //! Per cell and ray, as `balanced.rs` `cell_records` and
 //! `shaders/common/exit.glsl` do it: for each vertex k of the tet, t_k is the

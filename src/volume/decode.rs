@@ -1,6 +1,7 @@
-//! Decoding shared by the volume readers: the sample types files may hold,
-//! byte order, ASCII values (range-checked against the declared type),
-//! and bounded gzip/zlib decompression.
+//! Sample decoding shared by the volume readers: the sample types files may
+//! hold, binary samples in either byte order and ASCII values
+//! (range-checked against the declared type), made into [`Samples`]. The
+//! bytes themselves (byte order, decompression) are `crate::bytes`'s.
 //!
 //! Files may hold `int8`, `int32` and `uint32` too; they become a
 //! [`Samples`] type without loss (`int8` widens to `i16`; `int32` and
@@ -10,11 +11,11 @@
 //! every method renders in; a finite value beyond `f32`'s range is an error.
 
 use std::borrow::Cow;
-use std::io::Read;
 
 use anyhow::{anyhow, bail, Result};
 
 use super::Samples;
+use crate::bytes::Endian;
 
 /// A sample type as stored in a file.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -53,12 +54,6 @@ impl RawType {
     }
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Endian {
-    Little,
-    Big,
-}
-
 /// `count * ty.size()`, or an error (counts come from headers).
 pub(crate) fn byte_len(source: &str, count: usize, ty: RawType) -> Result<usize> {
     count
@@ -74,29 +69,15 @@ pub(crate) fn decode_binary(source: &str, bytes: Cow<'_, [u8]>, ty: RawType, end
     if bytes.len() != need {
         bail!("{source}: {} bytes of {} data where {count} samples need {need}", bytes.len(), ty.name());
     }
-    macro_rules! words {
-        ($t:ty, $n:literal) => {
-            bytes
-                .chunks_exact($n)
-                .map(|c| {
-                    let w: [u8; $n] = std::array::from_fn(|i| c[i]);
-                    match endian {
-                        Endian::Little => <$t>::from_le_bytes(w),
-                        Endian::Big => <$t>::from_be_bytes(w),
-                    }
-                })
-                .collect::<Vec<$t>>()
-        };
-    }
     Ok(match ty {
         RawType::U8 => Samples::U8(bytes.into_owned()),
         RawType::I8 => Samples::I16(bytes.iter().map(|&b| b as i8 as i16).collect()),
-        RawType::I16 => Samples::I16(words!(i16, 2)),
-        RawType::U16 => Samples::U16(words!(u16, 2)),
-        RawType::I32 => narrow_i32(source, words!(i32, 4))?,
-        RawType::U32 => narrow_ints(source, "uint32", words!(u32, 4))?,
-        RawType::F32 => Samples::F32(words!(f32, 4)),
-        RawType::F64 => narrow_f64(source, words!(f64, 8))?,
+        RawType::I16 => Samples::I16(endian.words::<i16>(&bytes)),
+        RawType::U16 => Samples::U16(endian.words::<u16>(&bytes)),
+        RawType::I32 => narrow_i32(source, endian.words::<i32>(&bytes))?,
+        RawType::U32 => narrow_ints(source, "uint32", endian.words::<u32>(&bytes))?,
+        RawType::F32 => Samples::F32(endian.words::<f32>(&bytes)),
+        RawType::F64 => narrow_f64(source, endian.words::<f64>(&bytes))?,
     })
 }
 
@@ -242,94 +223,9 @@ pub(crate) fn parse_ascii<'a>(
     })
 }
 
-/// Deflate never expands more than about 1032:1, so no stream of `n` bytes
-/// can need more room than this: caps what a header's promise reserves.
-fn max_inflated(n: usize) -> usize {
-    n.saturating_mul(1032).saturating_add(64)
-}
-
-/// Which wrapper a deflate stream has.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Wrapper {
-    /// gzip (RFC 1952), possibly several members back to back.
-    Gzip,
-    /// zlib (RFC 1950), one stream.
-    Zlib,
-}
-
-/// Decompresses `input` to exactly `expected` bytes (what the header
-/// promises): reading stops one byte past it, so a bomb costs at most that,
-/// and a stream that is corrupt, ends early or holds more is an error.
-pub(crate) fn inflate_exact(source: &str, what: &str, wrapper: Wrapper, input: &[u8], expected: usize) -> Result<Vec<u8>> {
-    inflate_after(source, what, wrapper, input, 0, expected)
-}
-
-/// Decompresses `input`, whose first `skip` bytes (a header offset) are
-/// read and dropped, to exactly `expected` bytes after them. Memory is
-/// bounded by `expected` alone, whatever the offset; a promise the stream
-/// cannot hold (deflate expands at most ~1032:1) is refused before any
-/// inflating.
-pub(crate) fn inflate_after(source: &str, what: &str, wrapper: Wrapper, input: &[u8], skip: usize, expected: usize) -> Result<Vec<u8>> {
-    let kind = match wrapper {
-        Wrapper::Gzip => "gzip",
-        Wrapper::Zlib => "zlib",
-    };
-    let promised = skip.saturating_add(expected);
-    if promised > max_inflated(input.len()) {
-        bail!(
-            "{source}: {kind} data in {what}: {} compressed bytes cannot hold the {promised} bytes the header promises \
-             ({skip} skipped + {expected} of data)",
-            input.len()
-        );
-    }
-    let mut reader: Box<dyn Read> = match wrapper {
-        Wrapper::Gzip => Box::new(flate2::read::MultiGzDecoder::new(input)),
-        Wrapper::Zlib => Box::new(flate2::read::ZlibDecoder::new(input)),
-    };
-    let skipped = std::io::copy(&mut (&mut reader).take(skip as u64), &mut std::io::sink());
-    let skipped = skipped.map_err(|e| anyhow!("{source}: corrupt {kind} data in {what}: {e}"))?;
-    if skipped < skip as u64 {
-        bail!("{source}: {kind} data in {what} decompresses to {skipped} bytes, shorter than the {skip}-byte offset before the data");
-    }
-    let mut out = Vec::with_capacity(expected.min(max_inflated(input.len())));
-    if let Err(e) = reader.take(expected as u64 + 1).read_to_end(&mut out) {
-        bail!("{source}: corrupt {kind} data in {what}: {e}");
-    }
-    if out.len() > expected {
-        bail!("{source}: {kind} data in {what} decompresses to more than the {promised} bytes the header promises");
-    }
-    if out.len() < expected {
-        bail!(
-            "{source}: {kind} data in {what} decompresses to {} bytes, {promised} expected (truncated or corrupt stream)",
-            out.len() + skip
-        );
-    }
-    Ok(out)
-}
-
-/// The first `n` decompressed bytes of a gzip stream (a header inside it).
-pub(crate) fn gunzip_prefix(source: &str, what: &str, input: &[u8], n: usize) -> Result<Vec<u8>> {
-    let mut out = Vec::with_capacity(n.min(max_inflated(input.len())));
-    flate2::read::MultiGzDecoder::new(input)
-        .take(n as u64)
-        .read_to_end(&mut out)
-        .map_err(|e| anyhow!("{source}: corrupt gzip data in {what}: {e}"))?;
-    if out.len() < n {
-        bail!("{source}: gzip data decompresses to only {} bytes, shorter than the {n}-byte {what}", out.len());
-    }
-    Ok(out)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::io::Write as _;
-
-    fn zlib(b: &[u8]) -> Vec<u8> {
-        let mut e = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::default());
-        e.write_all(b).unwrap();
-        e.finish().unwrap()
-    }
 
     fn b(x: &[u8]) -> Cow<'_, [u8]> {
         Cow::Borrowed(x)
@@ -370,23 +266,5 @@ mod tests {
         assert_eq!(p("1.5 -2e3", RawType::F32, 2).unwrap(), Samples::F32(vec![1.5, -2000.0]));
         // A huge count costs nothing until values arrive.
         assert!(p("1", RawType::F32, usize::MAX).is_err());
-    }
-
-    #[test]
-    fn inflate_is_exact_and_bounded() {
-        let data: Vec<u8> = (0..5000u32).map(|i| (i % 251) as u8).collect();
-        let z = zlib(&data);
-        assert_eq!(inflate_exact("f", "b", Wrapper::Zlib, &z, data.len()).unwrap(), data);
-        let e = inflate_exact("f", "b", Wrapper::Zlib, &z, 4999).unwrap_err().to_string();
-        assert!(e.contains("more than the 4999 bytes"), "{e}");
-        let e = inflate_exact("f", "b", Wrapper::Zlib, &z, 5001).unwrap_err().to_string();
-        assert!(e.contains("5000 bytes, 5001 expected"), "{e}");
-        let e = inflate_exact("f", "b", Wrapper::Zlib, &z[..z.len() / 2], data.len()).unwrap_err().to_string();
-        assert!(e.starts_with("f: ") && e.contains("zlib"), "{e}");
-        let mut bad = z.clone();
-        bad[0] ^= 0xff;
-        assert!(inflate_exact("f", "b", Wrapper::Zlib, &bad, data.len()).unwrap_err().to_string().contains("corrupt zlib"));
-        let e = inflate_exact("f", "b", Wrapper::Gzip, &z, data.len()).unwrap_err().to_string();
-        assert!(e.contains("corrupt gzip"), "{e}");
     }
 }

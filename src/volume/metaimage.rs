@@ -38,7 +38,9 @@ use std::path::Path;
 
 use anyhow::{anyhow, bail, Result};
 
-use super::decode::{byte_len, decode_binary, inflate_exact, parse_ascii, Endian, RawType, Tokens, Wrapper};
+use super::decode::{byte_len, decode_binary, parse_ascii, RawType, Tokens};
+use crate::bytes::inflate::{inflate_exact, Wrapper};
+use crate::bytes::Endian;
 use super::{check_dims, from_steps, stem_of, Samples, Volume, AXES};
 
 /// Longest header read: a MetaImage header is a few hundred bytes; one
@@ -139,11 +141,34 @@ pub fn parse_metaimage_bytes(
     bytes: &[u8],
     load_data: &mut dyn FnMut(&str) -> Result<Vec<u8>>,
 ) -> Result<Volume> {
-    // ---- header lines, up to and including ElementDataFile
+    let (fields, data_start) = header_fields(name, bytes)?;
+    let h = Header { name, fields };
+    let grid = grid(&h)?;
+    let (steps, origin) = placement(&h)?;
+    let enc = encoding(&h)?;
+    let files = data_files(name, h.need("ElementDataFile")?, &bytes[data_start..], grid.dims[2])?;
+    let samples = match &files {
+        DataFiles::Files(list) if list.len() != 1 => slice_files(&h, &grid, &enc, list, load_data)?,
+        DataFiles::Local => samples(&h, &grid, &enc, &bytes[data_start..], "the data after the header".to_string())?,
+        DataFiles::Files(list) => {
+            let f = &list[0];
+            let loaded = load_data(f).map_err(|e| anyhow!("{name}: data file '{f}': {e:#}"))?;
+            samples(&h, &grid, &enc, &loaded, format!("data file '{f}'"))?
+        }
+    };
+    from_steps(name, stem_of(name), grid.dims, steps, origin, samples)
+}
+
+/// The header's fields (value and line), up to and including
+/// ElementDataFile, and where the bytes after that line start.
+/// A header's fields by name: (value, header line).
+type Fields<'b> = HashMap<&'static str, (&'b str, usize)>;
+
+fn header_fields<'b>(name: &str, bytes: &'b [u8]) -> Result<(Fields<'b>, usize)> {
     let mut fields: HashMap<&'static str, (&str, usize)> = HashMap::new();
     let mut pos = if bytes.starts_with(b"\xEF\xBB\xBF") { 3 } else { 0 };
     let mut line_no = 0;
-    let data_start = loop {
+    loop {
         if pos >= bytes.len() {
             bail!("{name}: the header ends without an 'ElementDataFile' line (it must be the last field)");
         }
@@ -175,20 +200,37 @@ pub fn parse_metaimage_bytes(
         }
         fields.insert(field, (value, line_no));
         if field == "ElementDataFile" {
-            break pos;
+            return Ok((fields, pos));
         }
-    };
-    let get = |f: &str| fields.get(f).map(|&(v, _)| v);
-    let need = |f: &str| get(f).ok_or_else(|| anyhow!("{name}: the required field '{f}' is missing"));
-    // At most one of a group of synonyms.
-    let one_of = |group: &[&'static str]| -> Result<Option<(&'static str, &str)>> {
-        let given: Vec<_> = group.iter().filter_map(|&f| get(f).map(|v| (f, v))).collect();
+    }
+}
+
+/// A header's fields, read by name.
+struct Header<'h> {
+    name: &'h str,
+    fields: Fields<'h>,
+}
+
+impl<'h> Header<'h> {
+    fn get(&self, f: &str) -> Option<&'h str> {
+        self.fields.get(f).map(|&(v, _)| v)
+    }
+
+    fn need(&self, f: &str) -> Result<&'h str> {
+        self.get(f).ok_or_else(|| anyhow!("{}: the required field '{f}' is missing", self.name))
+    }
+
+    /// At most one of a group of synonyms.
+    fn one_of(&self, group: &[&'static str]) -> Result<Option<(&'static str, &'h str)>> {
+        let given: Vec<_> = group.iter().filter_map(|&f| self.get(f).map(|v| (f, v))).collect();
         if given.len() > 1 {
-            bail!("{name}: both '{}' and '{}' are given; they are synonyms, give one", given[0].0, given[1].0);
+            bail!("{}: both '{}' and '{}' are given; they are synonyms, give one", self.name, given[0].0, given[1].0);
         }
         Ok(given.first().copied())
-    };
-    let numbers = |field: &str, v: &str, n: usize| -> Result<Vec<f64>> {
+    }
+
+    fn numbers(&self, field: &str, v: &str, n: usize) -> Result<Vec<f64>> {
+        let name = self.name;
         let t: Vec<&str> = v.split_whitespace().take(n + 1).collect();
         if t.len() != n {
             bail!("{name}: {field} has {} values, expected {n}", if t.len() > n { "more than ".to_string() + &n.to_string() } else { t.len().to_string() });
@@ -197,27 +239,42 @@ pub fn parse_metaimage_bytes(
             .map(|s| s.parse::<f64>().ok().filter(|x| x.is_finite()))
             .collect::<Option<Vec<f64>>>()
             .ok_or_else(|| anyhow!("{name}: bad {field} '{}': expected {n} finite numbers", crate::fsio::clip_message(v)))
-    };
-    let boolean = |field: &str| -> Result<Option<bool>> {
-        match get(field).map(str::to_ascii_lowercase).as_deref() {
+    }
+
+    fn boolean(&self, field: &str) -> Result<Option<bool>> {
+        match self.get(field).map(str::to_ascii_lowercase).as_deref() {
             None => Ok(None),
             Some("true" | "1") => Ok(Some(true)),
             Some("false" | "0") => Ok(Some(false)),
-            Some(_) => bail!("{name}: bad {field} '{}': expected True or False", get(field).unwrap_or_default()),
+            Some(_) => bail!("{}: bad {field} '{}': expected True or False", self.name, self.get(field).unwrap_or_default()),
         }
-    };
+    }
+}
 
-    // ---- grid and type
-    if let Some(t) = get("ObjectType") {
+/// The grid and its samples' type, as the header declares them.
+struct Grid<'h> {
+    dims: [usize; 3],
+    count: usize,
+    ty: RawType,
+    ty_text: &'h str,
+    /// The data's byte count (`count` samples of `ty`).
+    needed: usize,
+    /// "DimSize x y z of type", for errors.
+    shape: String,
+}
+
+fn grid<'h>(h: &Header<'h>) -> Result<Grid<'h>> {
+    let name = h.name;
+    if let Some(t) = h.get("ObjectType") {
         if !t.eq_ignore_ascii_case("Image") {
             bail!("{name}: ObjectType '{t}': only Image objects are volumes");
         }
     }
-    let ndims = need("NDims")?;
+    let ndims = h.need("NDims")?;
     if ndims != "3" {
         bail!("{name}: NDims {ndims}: only 3-dimensional volumes are supported");
     }
-    let sizes: Vec<&str> = need("DimSize")?.split_whitespace().take(4).collect();
+    let sizes: Vec<&str> = h.need("DimSize")?.split_whitespace().take(4).collect();
     if sizes.len() != 3 {
         bail!("{name}: DimSize has {} values for NDims 3", if sizes.len() > 3 { "more than 3".to_string() } else { sizes.len().to_string() });
     }
@@ -227,52 +284,72 @@ pub fn parse_metaimage_bytes(
     }
     let dims = check_dims(name, d)?;
     let count = dims[0] * dims[1] * dims[2];
-    let ty_text = need("ElementType")?;
+    let ty_text = h.need("ElementType")?;
     let ty = element_type(name, ty_text)?;
     let needed = byte_len(name, count, ty)?;
-    if let Some(c) = get("ElementNumberOfChannels") {
+    if let Some(c) = h.get("ElementNumberOfChannels") {
         match c.parse::<u64>() {
             Ok(1) => {}
             Ok(n) if n > 1 => bail!("{name}: ElementNumberOfChannels {n}: a volume needs one scalar per sample"),
             _ => bail!("{name}: bad ElementNumberOfChannels '{c}'"),
         }
     }
+    let shape = format!("DimSize {} {} {} of {}", dims[0], dims[1], dims[2], ty_text);
+    Ok(Grid { dims, count, ty, ty_text, needed, shape })
+}
 
-    let spacing = match (get("ElementSpacing"), get("ElementSize")) {
-        (Some(s), _) => numbers("ElementSpacing", s, 3)?,
-        (None, Some(s)) => numbers("ElementSize", s, 3)?,
+/// The grid's steps (spacing along each direction) and origin.
+fn placement(h: &Header) -> Result<([[f64; 3]; 3], [f64; 3])> {
+    let spacing = match (h.get("ElementSpacing"), h.get("ElementSize")) {
+        (Some(s), _) => h.numbers("ElementSpacing", s, 3)?,
+        (None, Some(s)) => h.numbers("ElementSize", s, 3)?,
         (None, None) => vec![1.0; 3],
     };
     for (a, &s) in spacing.iter().enumerate() {
         if s == 0.0 {
-            bail!("{name}: element spacing 0 along {}: it must be non-zero", AXES[a]);
+            bail!("{}: element spacing 0 along {}: it must be non-zero", h.name, AXES[a]);
         }
     }
-    let origin = match one_of(&["Offset", "Position", "Origin"])? {
-        Some((f, v)) => numbers(f, v, 3)?,
+    let origin = match h.one_of(&["Offset", "Position", "Origin"])? {
+        Some((f, v)) => h.numbers(f, v, 3)?,
         None => vec![0.0; 3],
     };
-    let directions = match one_of(&["TransformMatrix", "Rotation", "Orientation"])? {
-        Some((f, v)) => numbers(f, v, 9)?,
+    let directions = match h.one_of(&["TransformMatrix", "Rotation", "Orientation"])? {
+        Some((f, v)) => h.numbers(f, v, 9)?,
         None => vec![1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
     };
     let steps: [[f64; 3]; 3] = std::array::from_fn(|a| std::array::from_fn(|b| spacing[a] * directions[3 * a + b]));
+    Ok((steps, [origin[0], origin[1], origin[2]]))
+}
 
-    // ---- encoding
-    let binary = boolean("BinaryData")?.unwrap_or(false);
-    let msb = match (boolean("BinaryDataByteOrderMSB")?, boolean("ElementByteOrderMSB")?) {
+/// How the data is stored.
+struct Encoding {
+    binary: bool,
+    endian: Endian,
+    compressed: bool,
+    compressed_size: Option<usize>,
+    /// HeaderSize: bytes to skip, or -1 (the data is the file's end).
+    header_size: i64,
+    /// `header_size`, at least 0.
+    skip: usize,
+}
+
+fn encoding(h: &Header) -> Result<Encoding> {
+    let name = h.name;
+    let binary = h.boolean("BinaryData")?.unwrap_or(false);
+    let msb = match (h.boolean("BinaryDataByteOrderMSB")?, h.boolean("ElementByteOrderMSB")?) {
         (Some(a), Some(b)) if a != b => {
             bail!("{name}: BinaryDataByteOrderMSB and ElementByteOrderMSB disagree; they are synonyms")
         }
         (a, b) => a.or(b).unwrap_or(false),
     };
     let endian = if msb { Endian::Big } else { Endian::Little };
-    let compressed = boolean("CompressedData")?.unwrap_or(false);
-    let compressed_size: Option<usize> = match get("CompressedDataSize") {
+    let compressed = h.boolean("CompressedData")?.unwrap_or(false);
+    let compressed_size: Option<usize> = match h.get("CompressedDataSize") {
         Some(v) => Some(v.parse().map_err(|_| anyhow!("{name}: bad CompressedDataSize '{v}'"))?),
         None => None,
     };
-    let header_size: i64 = match get("HeaderSize") {
+    let header_size: i64 = match h.get("HeaderSize") {
         Some(v) => v.parse().ok().filter(|&b: &i64| b >= -1).ok_or_else(|| anyhow!("{name}: bad HeaderSize '{v}'"))?,
         None => 0,
     };
@@ -283,45 +360,46 @@ pub fn parse_metaimage_bytes(
         bail!("{name}: HeaderSize -1 (data at the end of the file) needs uncompressed binary data");
     }
     let skip = usize::try_from(header_size.max(0)).map_err(|_| anyhow!("{name}: HeaderSize {header_size} is too large"))?;
+    Ok(Encoding { binary, endian, compressed, compressed_size, header_size, skip })
+}
 
-    // ---- the data files
-    let file_field = need("ElementDataFile")?;
-    let files = data_files(name, file_field, &bytes[data_start..], dims[2])?;
-    let shape = format!("DimSize {} {} {} of {}", dims[0], dims[1], dims[2], ty_text);
-    let loaded;
-    let (data, what): (&[u8], String) = match &files {
-        DataFiles::Local => (&bytes[data_start..], "the data after the header".to_string()),
-        DataFiles::Files(list) if list.len() == 1 => {
-            let f = &list[0];
-            loaded = load_data(f).map_err(|e| anyhow!("{name}: data file '{f}': {e:#}"))?;
-            (&loaded, format!("data file '{f}'"))
-        }
-        DataFiles::Files(list) => {
-            if compressed || !binary {
-                bail!("{name}: a list of slice files needs uncompressed binary data");
-            }
-            // Bounded as one input file is: a header cannot make a few
-            // small files stand for more.
-            if needed as u64 > crate::fsio::MAX_INPUT_BYTES {
-                bail!(
-                    "{name}: {shape} make {needed} bytes of slice files, more than the {} bytes an input may hold",
-                    crate::fsio::MAX_INPUT_BYTES
-                );
-            }
-            let slice = needed / dims[2];
-            // Grown by what the files really hold, not reserved from the header.
-            let mut all = Vec::new();
-            for f in list {
-                let b = load_data(f).map_err(|e| anyhow!("{name}: data file '{f}': {e:#}"))?;
-                all.extend_from_slice(raw_body(name, &b, header_size, skip, slice, &format!("data file '{f}'"), "one slice")?);
-            }
-            let samples = decode_binary(name, all.into(), ty, endian, count)?;
-            return from_steps(name, stem_of(name), dims, steps, [origin[0], origin[1], origin[2]], samples);
-        }
-    };
-    let samples = if compressed {
+/// The samples of a list of slice files (uncompressed binary, one slice each).
+fn slice_files(
+    h: &Header,
+    g: &Grid,
+    enc: &Encoding,
+    list: &[String],
+    load_data: &mut dyn FnMut(&str) -> Result<Vec<u8>>,
+) -> Result<Samples> {
+    let (name, needed, shape) = (h.name, g.needed, &g.shape);
+    if enc.compressed || !enc.binary {
+        bail!("{name}: a list of slice files needs uncompressed binary data");
+    }
+    // Bounded as one input file is: a header cannot make a few
+    // small files stand for more.
+    if needed as u64 > crate::fsio::MAX_INPUT_BYTES {
+        bail!(
+            "{name}: {shape} make {needed} bytes of slice files, more than the {} bytes an input may hold",
+            crate::fsio::MAX_INPUT_BYTES
+        );
+    }
+    let slice = needed / g.dims[2];
+    // Grown by what the files really hold, not reserved from the header.
+    let mut all = Vec::new();
+    for f in list {
+        let b = load_data(f).map_err(|e| anyhow!("{name}: data file '{f}': {e:#}"))?;
+        all.extend_from_slice(raw_body(name, &b, enc.header_size, enc.skip, slice, &format!("data file '{f}'"), "one slice")?);
+    }
+    decode_binary(name, all.into(), g.ty, enc.endian, g.count)
+}
+
+/// The samples of one body of data (`what` names it in errors): compressed,
+/// raw binary or ASCII values.
+fn samples(h: &Header, g: &Grid, enc: &Encoding, data: &[u8], what: String) -> Result<Samples> {
+    let (name, skip, count, shape) = (h.name, enc.skip, g.count, &g.shape);
+    Ok(if enc.compressed {
         let body = data.get(skip..).ok_or_else(|| anyhow!("{name}: HeaderSize {skip} runs past the end of {what}"))?;
-        let stream = match compressed_size {
+        let stream = match enc.compressed_size {
             Some(n) if n != body.len() => bail!(
                 "{name}: header/size mismatch: CompressedDataSize {n}, {what} has {} bytes{}",
                 body.len(),
@@ -330,16 +408,16 @@ pub fn parse_metaimage_bytes(
             _ => body,
         };
         let wrapper = if stream.starts_with(&[0x1f, 0x8b]) { Wrapper::Gzip } else { Wrapper::Zlib };
-        let inflated = inflate_exact(name, &what, wrapper, stream, needed)?;
-        decode_binary(name, inflated.into(), ty, endian, count)?
-    } else if binary {
-        let body = raw_body(name, data, header_size, skip, needed, &what, &shape)?;
-        decode_binary(name, body.into(), ty, endian, count)?
+        let inflated = inflate_exact(name, &what, wrapper, stream, g.needed)?;
+        decode_binary(name, inflated.into(), g.ty, enc.endian, count)?
+    } else if enc.binary {
+        let body = raw_body(name, data, enc.header_size, skip, g.needed, &what, shape)?;
+        decode_binary(name, body.into(), g.ty, enc.endian, count)?
     } else {
         let text = data.get(skip..).ok_or_else(|| anyhow!("{name}: HeaderSize {skip} runs past the end of {what}"))?;
         let mut tokens = Tokens::new(text);
-        let what = format!("{what} (ASCII values: BinaryData is {})", get("BinaryData").unwrap_or("not given, so False"));
-        let s: Samples = parse_ascii(name, &what, &mut tokens, ty, ty_text, count, skip)?;
+        let what = format!("{what} (ASCII values: BinaryData is {})", h.get("BinaryData").unwrap_or("not given, so False"));
+        let s: Samples = parse_ascii(name, &what, &mut tokens, g.ty, g.ty_text, count, skip)?;
         if let Some((t, _)) = tokens.next_token() {
             bail!(
                 "{name}: header/size mismatch: {what} holds more than the {count} values of {shape} (next: '{}')",
@@ -347,8 +425,7 @@ pub fn parse_metaimage_bytes(
             );
         }
         s
-    };
-    from_steps(name, stem_of(name), dims, steps, [origin[0], origin[1], origin[2]], samples)
+    })
 }
 
 /// The `needed` raw bytes of `data` after `skip` (`header_size` -1: its

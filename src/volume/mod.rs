@@ -510,7 +510,7 @@ pub fn sniff(bytes: &[u8]) -> Option<Format> {
 /// Whether a gzip stream starts with a NIfTI-1 header (a `.nii.gz` under
 /// another name): only the header's 348 bytes are inflated.
 fn gzip_holds_nifti(bytes: &[u8]) -> bool {
-    decode::gunzip_prefix("", "", bytes, 348).is_ok_and(|h| nifti::is_nifti(&h))
+    crate::bytes::inflate::gunzip_prefix("", "", bytes, 348).is_ok_and(|h| nifti::is_nifti(&h))
 }
 
 /// The format a file name's extension says, if any.

@@ -22,8 +22,10 @@ use std::path::Path;
 
 use anyhow::{anyhow, bail, Result};
 
-use super::decode::{byte_len, decode_binary, inflate_after, parse_ascii, Endian, RawType, Tokens, Wrapper};
-use super::{check_dims, from_steps, stem_of, Volume, AXES};
+use super::decode::{byte_len, decode_binary, parse_ascii, RawType, Tokens};
+use crate::bytes::inflate::{inflate_after, Wrapper};
+use crate::bytes::Endian;
+use super::{check_dims, from_steps, stem_of, Samples, Volume, AXES};
 
 /// Reads a NRRD file (`.nrrd` or `.nhdr`); a detached data file is read
 /// from the header's directory.
@@ -139,7 +141,40 @@ fn parse_vectors(source: &str, field: &str, v: &str) -> Result<Vec<Option<Vec<f6
 /// error, and its stem names the volume. Never panics on malformed input;
 /// sizes are checked before anything is allocated from them.
 pub fn parse_nrrd_bytes(name: &str, bytes: &[u8], load_data: &mut dyn FnMut(&str) -> Result<Vec<u8>>) -> Result<Volume> {
-    // ---- header lines
+    let (fields, data_start) = header_fields(name, bytes)?;
+    let h = Header { name, fields };
+    let ty = parse_type(name, h.need("type")?)?;
+    let dims = grid(&h)?;
+    let count = dims[0] * dims[1] * dims[2];
+    let needed = byte_len(name, count, ty)?;
+    let (steps, origin) = placement(&h)?;
+    let enc = encoding(&h, ty)?;
+    let loaded;
+    let (data, what): (&[u8], String) = match h.get("data file") {
+        Some(f) => {
+            if f.starts_with("LIST") || f.split_whitespace().count() > 1 {
+                bail!("{name}: multi-file 'data file: {f}' is not supported; give a single data file");
+            }
+            loaded = load_data(f).map_err(|e| anyhow!("{name}: data file '{f}': {e:#}"))?;
+            (&loaded, format!("data file '{f}'"))
+        }
+        None => match data_start {
+            Some(s) => (&bytes[s..], "the attached data".to_string()),
+            None => bail!("{name}: no 'data file' field and no data after the header (a blank line ends the header)"),
+        },
+    };
+    let shape = format!("sizes {} {} {} of {}", dims[0], dims[1], dims[2], ty.name());
+    let body = Body { name, what: &what, shape: &shape, ty, count, needed };
+    let samples = body.samples(&enc, data)?;
+    from_steps(name, stem_of(name), dims, steps, origin, samples)
+}
+
+/// The header's fields (value and line) after the magic line, and where
+/// attached data starts (after the blank line ending the header), if any.
+/// A header's fields by name: (value, header line).
+type Fields<'b> = HashMap<String, (&'b str, usize)>;
+
+fn header_fields<'b>(name: &str, bytes: &'b [u8]) -> Result<(Fields<'b>, Option<usize>)> {
     let magic_end = bytes.iter().position(|&c| c == b'\n').unwrap_or(bytes.len());
     let magic = &bytes[..magic_end];
     let magic = magic.strip_suffix(b"\r").unwrap_or(magic);
@@ -151,7 +186,6 @@ pub fn parse_nrrd_bytes(name: &str, bytes: &[u8], load_data: &mut dyn FnMut(&str
     }
     let mut pos = (magic_end + 1).min(bytes.len());
     let mut line_no = 1;
-    let mut data_start = None;
     let mut fields: HashMap<String, (&str, usize)> = HashMap::new();
     while pos < bytes.len() {
         line_no += 1;
@@ -160,8 +194,7 @@ pub fn parse_nrrd_bytes(name: &str, bytes: &[u8], load_data: &mut dyn FnMut(&str
         let raw = raw.strip_suffix(b"\r").unwrap_or(raw);
         pos = (end + 1).min(bytes.len());
         if raw.is_empty() {
-            data_start = Some(pos);
-            break;
+            return Ok((fields, Some(pos)));
         }
         let line = std::str::from_utf8(raw).map_err(|_| anyhow!("{name}: header line {line_no} holds non-text bytes"))?;
         if line.starts_with('#') {
@@ -186,16 +219,33 @@ pub fn parse_nrrd_bytes(name: &str, bytes: &[u8], load_data: &mut dyn FnMut(&str
         }
         fields.insert(field, (value, line_no));
     }
-    let get = |f: &str| fields.get(f).map(|&(v, _)| v);
-    let need = |f: &str| get(f).ok_or_else(|| anyhow!("{name}: the required field '{f}' is missing"));
+    Ok((fields, None))
+}
 
-    // ---- grid and type
-    let ty = parse_type(name, need("type")?)?;
-    let dim = need("dimension")?;
+/// A header's fields, read by name.
+struct Header<'h> {
+    name: &'h str,
+    fields: Fields<'h>,
+}
+
+impl<'h> Header<'h> {
+    fn get(&self, f: &str) -> Option<&'h str> {
+        self.fields.get(f).map(|&(v, _)| v)
+    }
+
+    fn need(&self, f: &str) -> Result<&'h str> {
+        self.get(f).ok_or_else(|| anyhow!("{}: the required field '{f}' is missing", self.name))
+    }
+}
+
+/// The grid's dimensions (`dimension`, `sizes`).
+fn grid(h: &Header) -> Result<[usize; 3]> {
+    let name = h.name;
+    let dim = h.need("dimension")?;
     if dim != "3" {
         bail!("{name}: dimension {dim}: only 3-dimensional volumes are supported");
     }
-    let sizes: Vec<&str> = need("sizes")?.split_whitespace().collect();
+    let sizes: Vec<&str> = h.need("sizes")?.split_whitespace().collect();
     if sizes.len() != 3 {
         bail!("{name}: sizes has {} values for dimension 3", sizes.len());
     }
@@ -203,74 +253,101 @@ pub fn parse_nrrd_bytes(name: &str, bytes: &[u8], load_data: &mut dyn FnMut(&str
     for a in 0..3 {
         d[a] = sizes[a].parse().map_err(|_| anyhow!("{name}: bad size '{}' along {}", sizes[a], AXES[a]))?;
     }
-    let dims = check_dims(name, d)?;
-    let count = dims[0] * dims[1] * dims[2];
-    let needed = byte_len(name, count, ty)?;
+    check_dims(name, d)
+}
 
-    if let Some(sd) = get("space dimension") {
+/// The grid's steps and origin (`space`, `spacings` or `space directions`,
+/// `space origin`).
+fn placement(h: &Header) -> Result<([[f64; 3]; 3], [f64; 3])> {
+    let name = h.name;
+    if let Some(sd) = h.get("space dimension") {
         if sd != "3" {
             bail!("{name}: space dimension {sd}: only 3D spaces are supported");
         }
     }
-    if let Some(space) = get("space") {
+    if let Some(space) = h.get("space") {
         let s = space.to_ascii_lowercase();
         if s.ends_with("-time") || ["rast", "last", "lpst"].contains(&s.as_str()) {
             bail!("{name}: space '{space}' has a time axis: only 3D spaces are supported");
         }
     }
-    let mut steps = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
-    match (get("spacings"), get("space directions")) {
+    let steps = match (h.get("spacings"), h.get("space directions")) {
         (Some(_), Some(_)) => bail!("{name}: both 'spacings' and 'space directions' are given; NRRD allows one"),
-        (Some(sp), None) => {
-            let v: Vec<&str> = sp.split_whitespace().collect();
-            if v.len() != 3 {
-                bail!("{name}: spacings has {} values for dimension 3", v.len());
-            }
-            for a in 0..3 {
-                let s: f64 = v[a].parse().map_err(|_| anyhow!("{name}: bad spacing '{}' along {}", v[a], AXES[a]))?;
-                if !s.is_finite() || s == 0.0 {
-                    bail!("{name}: spacing '{}' along {} must be a finite, non-zero number", v[a], AXES[a]);
-                }
-                steps[a][a] = s;
-            }
-        }
-        (None, Some(dirs)) => {
-            let v = parse_vectors(name, "space directions", dirs)?;
-            if v.len() != 3 {
-                bail!("{name}: space directions has {} entries for dimension 3", v.len());
-            }
-            for (a, dir) in v.into_iter().enumerate() {
-                match dir {
-                    None => bail!("{name}: axis {a} has no space direction ('none'); all 3 axes must be spatial"),
-                    Some(c) if c.len() == 3 => steps[a] = [c[0], c[1], c[2]],
-                    Some(c) => bail!("{name}: space direction {a} has {} components, not 3", c.len()),
-                }
-            }
-        }
-        (None, None) => {}
-    }
+        (Some(sp), None) => spacings(name, sp)?,
+        (None, Some(dirs)) => space_directions(name, dirs)?,
+        (None, None) => [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+    };
     let mut origin = [0.0; 3];
-    if let Some(o) = get("space origin") {
+    if let Some(o) = h.get("space origin") {
         match parse_vectors(name, "space origin", o)?.as_slice() {
             [Some(c)] if c.len() == 3 => origin = [c[0], c[1], c[2]],
             _ => bail!("{name}: space origin '{o}' must be one vector of 3 components"),
         }
     }
+    Ok((steps, origin))
+}
 
-    // ---- encoding
-    enum Enc {
-        Raw,
-        Gzip,
-        Ascii,
+/// Axis-aligned steps from `spacings`.
+fn spacings(name: &str, sp: &str) -> Result<[[f64; 3]; 3]> {
+    let mut steps = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+    let v: Vec<&str> = sp.split_whitespace().collect();
+    if v.len() != 3 {
+        bail!("{name}: spacings has {} values for dimension 3", v.len());
     }
-    let enc_text = need("encoding")?;
+    for a in 0..3 {
+        let s: f64 = v[a].parse().map_err(|_| anyhow!("{name}: bad spacing '{}' along {}", v[a], AXES[a]))?;
+        if !s.is_finite() || s == 0.0 {
+            bail!("{name}: spacing '{}' along {} must be a finite, non-zero number", v[a], AXES[a]);
+        }
+        steps[a][a] = s;
+    }
+    Ok(steps)
+}
+
+/// Steps from `space directions`, one vector per axis.
+fn space_directions(name: &str, dirs: &str) -> Result<[[f64; 3]; 3]> {
+    let mut steps = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+    let v = parse_vectors(name, "space directions", dirs)?;
+    if v.len() != 3 {
+        bail!("{name}: space directions has {} entries for dimension 3", v.len());
+    }
+    for (a, dir) in v.into_iter().enumerate() {
+        match dir {
+            None => bail!("{name}: axis {a} has no space direction ('none'); all 3 axes must be spatial"),
+            Some(c) if c.len() == 3 => steps[a] = [c[0], c[1], c[2]],
+            Some(c) => bail!("{name}: space direction {a} has {} components, not 3", c.len()),
+        }
+    }
+    Ok(steps)
+}
+
+/// How the data is encoded.
+#[derive(Clone, Copy)]
+enum Enc {
+    Raw,
+    Gzip,
+    Ascii,
+}
+
+/// The encoding, byte order and skips of the data.
+struct Encoding {
+    enc: Enc,
+    endian: Endian,
+    line_skip: usize,
+    /// `byte skip`: bytes to skip, or -1 (the data is the file's end).
+    byte_skip: i64,
+}
+
+fn encoding(h: &Header, ty: RawType) -> Result<Encoding> {
+    let name = h.name;
+    let enc_text = h.need("encoding")?;
     let enc = match enc_text.to_ascii_lowercase().as_str() {
         "raw" => Enc::Raw,
         "gzip" | "gz" => Enc::Gzip,
         "ascii" | "text" | "txt" => Enc::Ascii,
         _ => bail!("{name}: unsupported encoding '{enc_text}'; supported: raw, gzip (gz), ascii (text, txt)"),
     };
-    let endian = match get("endian").map(str::to_ascii_lowercase).as_deref() {
+    let endian = match h.get("endian").map(str::to_ascii_lowercase).as_deref() {
         Some("little") => Endian::Little,
         Some("big") => Endian::Big,
         Some(other) => bail!("{name}: bad endian '{other}': expected little or big"),
@@ -279,78 +356,81 @@ pub fn parse_nrrd_bytes(name: &str, bytes: &[u8], load_data: &mut dyn FnMut(&str
         }
         None => Endian::Little,
     };
-    let line_skip: usize = match get("line skip") {
+    let line_skip: usize = match h.get("line skip") {
         Some(v) => v.parse().map_err(|_| anyhow!("{name}: bad line skip '{v}'"))?,
         None => 0,
     };
-    let byte_skip: i64 = match get("byte skip") {
+    let byte_skip: i64 = match h.get("byte skip") {
         Some(v) => v.parse().ok().filter(|&b: &i64| b >= -1).ok_or_else(|| anyhow!("{name}: bad byte skip '{v}'"))?,
         None => 0,
     };
     if byte_skip == -1 && !matches!(enc, Enc::Raw) {
         bail!("{name}: byte skip -1 (data at the end of the file) needs raw encoding, not {enc_text}");
     }
+    Ok(Encoding { enc, endian, line_skip, byte_skip })
+}
 
-    // ---- the data bytes
-    let loaded;
-    let (data, what): (&[u8], String) = match get("data file") {
-        Some(f) => {
-            if f.starts_with("LIST") || f.split_whitespace().count() > 1 {
-                bail!("{name}: multi-file 'data file: {f}' is not supported; give a single data file");
-            }
-            loaded = load_data(f).map_err(|e| anyhow!("{name}: data file '{f}': {e:#}"))?;
-            (&loaded, format!("data file '{f}'"))
+/// What the data must hold, for decoding it and naming it in errors.
+struct Body<'a> {
+    name: &'a str,
+    /// The data's source ("data file 'x'", "the attached data").
+    what: &'a str,
+    /// "sizes x y z of type".
+    shape: &'a str,
+    ty: RawType,
+    count: usize,
+    needed: usize,
+}
+
+impl Body<'_> {
+    /// The samples of `data` after its skipped lines and bytes.
+    fn samples(&self, e: &Encoding, data: &[u8]) -> Result<Samples> {
+        let (name, what, shape, needed, count) = (self.name, self.what, self.shape, self.needed, self.count);
+        let mut data = data;
+        for l in 0..e.line_skip {
+            let nl = data
+                .iter()
+                .position(|&c| c == b'\n')
+                .ok_or_else(|| anyhow!("{name}: line skip {} runs past the end of {what} (at line {l})", e.line_skip))?;
+            data = &data[nl + 1..];
         }
-        None => match data_start {
-            Some(s) => (&bytes[s..], "the attached data".to_string()),
-            None => bail!("{name}: no 'data file' field and no data after the header (a blank line ends the header)"),
-        },
-    };
-    let mut data = data;
-    for l in 0..line_skip {
-        let nl = data
-            .iter()
-            .position(|&c| c == b'\n')
-            .ok_or_else(|| anyhow!("{name}: line skip {line_skip} runs past the end of {what} (at line {l})"))?;
-        data = &data[nl + 1..];
+        let byte_skip = e.byte_skip;
+        let skip = usize::try_from(byte_skip.max(0)).map_err(|_| anyhow!("{name}: byte skip {byte_skip} is too large"))?;
+        Ok(match e.enc {
+            Enc::Raw => {
+                let body = if byte_skip == -1 {
+                    if data.len() < needed {
+                        bail!("{name}: header/size mismatch: {shape} need {needed} bytes, {what} has only {}", data.len());
+                    }
+                    &data[data.len() - needed..]
+                } else {
+                    let total = skip.checked_add(needed).ok_or_else(|| anyhow!("{name}: byte skip {skip} overflows"))?;
+                    if data.len() != total {
+                        let sk = if skip > 0 { format!(" after a byte skip of {skip}") } else { String::new() };
+                        bail!("{name}: header/size mismatch: {shape} need {needed} bytes{sk}, {what} has {}", data.len());
+                    }
+                    &data[skip..]
+                };
+                decode_binary(name, body.into(), self.ty, e.endian, count)?
+            }
+            Enc::Gzip => {
+                let body = inflate_after(name, what, Wrapper::Gzip, data, skip, needed)?;
+                decode_binary(name, body.into(), self.ty, e.endian, count)?
+            }
+            Enc::Ascii => {
+                let text = data.get(skip..).ok_or_else(|| anyhow!("{name}: byte skip {skip} runs past the end of {what}"))?;
+                let mut tokens = Tokens::new(text);
+                let s = parse_ascii(name, what, &mut tokens, self.ty, self.ty.name(), count, 0)?;
+                if let Some((t, _)) = tokens.next_token() {
+                    bail!(
+                        "{name}: header/size mismatch: {what} holds more than the {count} values of {shape} (next: '{}')",
+                        String::from_utf8_lossy(&t[..t.len().min(20)])
+                    );
+                }
+                s
+            }
+        })
     }
-    let shape = format!("sizes {} {} {} of {}", dims[0], dims[1], dims[2], ty.name());
-    let skip = usize::try_from(byte_skip.max(0)).map_err(|_| anyhow!("{name}: byte skip {byte_skip} is too large"))?;
-    let samples = match enc {
-        Enc::Raw => {
-            let body = if byte_skip == -1 {
-                if data.len() < needed {
-                    bail!("{name}: header/size mismatch: {shape} need {needed} bytes, {what} has only {}", data.len());
-                }
-                &data[data.len() - needed..]
-            } else {
-                let total = skip.checked_add(needed).ok_or_else(|| anyhow!("{name}: byte skip {skip} overflows"))?;
-                if data.len() != total {
-                    let sk = if skip > 0 { format!(" after a byte skip of {skip}") } else { String::new() };
-                    bail!("{name}: header/size mismatch: {shape} need {needed} bytes{sk}, {what} has {}", data.len());
-                }
-                &data[skip..]
-            };
-            decode_binary(name, body.into(), ty, endian, count)?
-        }
-        Enc::Gzip => {
-            let body = inflate_after(name, &what, Wrapper::Gzip, data, skip, needed)?;
-            decode_binary(name, body.into(), ty, endian, count)?
-        }
-        Enc::Ascii => {
-            let text = data.get(skip..).ok_or_else(|| anyhow!("{name}: byte skip {skip} runs past the end of {what}"))?;
-            let mut tokens = Tokens::new(text);
-            let s = parse_ascii(name, &what, &mut tokens, ty, ty.name(), count, 0)?;
-            if let Some((t, _)) = tokens.next_token() {
-                bail!(
-                    "{name}: header/size mismatch: {what} holds more than the {count} values of {shape} (next: '{}')",
-                    String::from_utf8_lossy(&t[..t.len().min(20)])
-                );
-            }
-            s
-        }
-    };
-    from_steps(name, stem_of(name), dims, steps, origin, samples)
 }
 
 #[cfg(test)]

@@ -5,7 +5,7 @@
 //! `SCALARS` array (its `LOOKUP_TABLE` line optional) of type unsigned_char,
 //! short, unsigned_short or float (char and int convert, see `decode`). The
 //! first such array is the volume (BINARY samples that look little-endian,
-//! `mesh::byte_order`, are refused as such); other attribute arrays, `FIELD` blocks,
+//! `bytes::byte_order`, are refused as such); other attribute arrays, `FIELD` blocks,
 //! lookup tables, `CELL_DATA` and `METADATA` are parsed and skipped, so a
 //! file is read to its end and a malformed tail is still an error. ASCII
 //! values outside the declared type's range are errors.
@@ -18,8 +18,9 @@ use anyhow::{bail, Result};
 use std::path::Path;
 
 use crate::vtk_legacy::Lines as Reader;
-use super::decode::{decode_binary, parse_ascii, Endian, RawType, Tokens};
-use super::{check_dims, from_steps, stem_of, Volume};
+use super::decode::{decode_binary, parse_ascii, RawType, Tokens};
+use crate::bytes::Endian;
+use super::{check_dims, from_steps, stem_of, Samples, Volume};
 
 /// Reads a VTK legacy `STRUCTURED_POINTS` file.
 pub fn read_structured_points(path: impl AsRef<Path>) -> Result<Volume> {
@@ -52,8 +53,9 @@ fn type_size(t: &str) -> Option<usize> {
     })
 }
 
-#[derive(Clone, Copy, PartialEq)]
+#[derive(Clone, Copy, PartialEq, Default)]
 enum Owner {
+    #[default]
     None,
     Points,
     Cells,
@@ -114,9 +116,29 @@ impl<'a> Reader<'a> {
 /// allocated from them.
 pub fn parse_structured_points_bytes(name: &str, bytes: &[u8]) -> Result<Volume> {
     let mut r = Reader { name, b: bytes, pos: 0, binary: false };
+    header(&mut r)?;
+    let mut g = Sections::default();
+    while !r.at_end() {
+        let line = r.keyword_line("a section keyword")?;
+        g.section(&mut r, &line)?;
+    }
+    let dims = g.dims.ok_or_else(|| r.err("no DIMENSIONS line"))?;
+    let samples = g.scalars.ok_or_else(|| {
+        r.err(format!(
+            "no point scalars: need POINT_DATA with a one-component SCALARS array; found {}",
+            if g.seen.is_empty() { "none".to_string() } else { g.seen.join(", ") }
+        ))
+    })?;
+    let sp = g.spacing.unwrap_or([1.0; 3]);
+    let steps = [[sp[0], 0.0, 0.0], [0.0, sp[1], 0.0], [0.0, 0.0, sp[2]]];
+    from_steps(name, stem_of(name), dims, steps, g.origin.unwrap_or([0.0; 3]), samples)
+}
+
+/// The version line, the title, ASCII or BINARY and `DATASET STRUCTURED_POINTS`.
+fn header(r: &mut Reader) -> Result<()> {
     let first = r.raw_line("the '# vtk DataFile Version' line")?;
     if !first.starts_with("# vtk DataFile Version") {
-        bail!("{name}: not a VTK legacy file (the first line is not '# vtk DataFile Version x.y')");
+        bail!("{}: not a VTK legacy file (the first line is not '# vtk DataFile Version x.y')", r.name);
     }
     r.raw_line("the title line")?;
     let enc = r.keyword_line("ASCII or BINARY")?;
@@ -130,33 +152,36 @@ pub fn parse_structured_points_bytes(name: &str, bytes: &[u8]) -> Result<Volume>
         bail!(r.err(format!("expected DATASET, found '{}'", ds.join(" ").escape_debug())));
     }
     match ds.get(1).map(|s| s.to_ascii_uppercase()).as_deref() {
-        Some("STRUCTURED_POINTS") => {}
+        Some("STRUCTURED_POINTS") => Ok(()),
         other => bail!(r.err(format!(
             "unsupported DATASET {}: only STRUCTURED_POINTS is a regular-grid volume",
             other.unwrap_or("(missing)")
         ))),
     }
+}
 
-    let mut dims: Option<[usize; 3]> = None;
-    let mut spacing: Option<[f64; 3]> = None;
-    let mut origin: Option<[f64; 3]> = None;
-    let mut owner = Owner::None;
-    let mut owner_count = 0usize;
-    let mut scalars = None;
-    let mut seen = Vec::new();
-    while !r.at_end() {
-        let line = r.keyword_line("a section keyword")?;
+/// What the sections after the header have given so far.
+#[derive(Default)]
+struct Sections {
+    dims: Option<[usize; 3]>,
+    spacing: Option<[f64; 3]>,
+    origin: Option<[f64; 3]>,
+    /// The data the attribute arrays belong to, and its count.
+    owner: Owner,
+    owner_count: usize,
+    /// The first one-component point SCALARS.
+    scalars: Option<Samples>,
+    /// Every point SCALARS seen (for the error when none is usable).
+    seen: Vec<String>,
+}
+
+impl Sections {
+    /// One section, from its keyword line `line`.
+    fn section(&mut self, r: &mut Reader, line: &[&str]) -> Result<()> {
         let kw = line[0].to_ascii_uppercase();
-        let need_owner = |r: &Reader| -> Result<usize> {
-            if owner == Owner::None {
-                Err(r.err(format!("{kw} outside POINT_DATA / CELL_DATA")))
-            } else {
-                Ok(owner_count)
-            }
-        };
         match kw.as_str() {
             "DIMENSIONS" => {
-                if dims.is_some() {
+                if self.dims.is_some() {
                     bail!(r.err("second DIMENSIONS line"));
                 }
                 if line.len() != 4 {
@@ -166,42 +191,25 @@ pub fn parse_structured_points_bytes(name: &str, bytes: &[u8]) -> Result<Volume>
                 for a in 0..3 {
                     d[a] = line[a + 1].parse().map_err(|_| r.err(format!("bad DIMENSIONS value '{}'", line[a + 1])))?;
                 }
-                dims = Some(check_dims(name, d)?);
+                self.dims = Some(check_dims(r.name, d)?);
             }
             "SPACING" | "ASPECT_RATIO" => {
-                if spacing.is_some() {
+                if self.spacing.is_some() {
                     bail!(r.err("second SPACING line"));
                 }
-                spacing = Some(r.numbers3(&line, &kw)?);
+                self.spacing = Some(r.numbers3(line, &kw)?);
             }
             "ORIGIN" => {
-                if origin.is_some() {
+                if self.origin.is_some() {
                     bail!(r.err("second ORIGIN line"));
                 }
-                origin = Some(r.numbers3(&line, "ORIGIN")?);
+                self.origin = Some(r.numbers3(line, "ORIGIN")?);
             }
             "METADATA" => r.skip_metadata()?,
-            "FIELD" => {
-                let arrays = r.count(line.get(2), "FIELD array count")?;
-                for _ in 0..arrays {
-                    let h = r.keyword_line("a FIELD array header")?;
-                    if h[0] == "NULL_ARRAY" {
-                        continue;
-                    }
-                    let what = format!("FIELD array '{}'", h[0]);
-                    let comps = r.count(h.get(1), "FIELD array component count")?;
-                    let tuples = r.count(h.get(2), "FIELD array tuple count")?;
-                    let n = r.product(comps, tuples, &what)?;
-                    r.skip_typed(n, h.get(3), &what)?;
-                    if r.next_is("METADATA") {
-                        r.keyword_line("METADATA")?;
-                        r.skip_metadata()?;
-                    }
-                }
-            }
+            "FIELD" => skip_field(r, line)?,
             "POINT_DATA" => {
                 let n = r.count(line.get(1), "POINT_DATA count")?;
-                let d = dims.ok_or_else(|| r.err("POINT_DATA before DIMENSIONS"))?;
+                let d = self.dims.ok_or_else(|| r.err("POINT_DATA before DIMENSIONS"))?;
                 let points = d[0] * d[1] * d[2];
                 if n != points {
                     bail!(r.err(format!(
@@ -209,80 +217,26 @@ pub fn parse_structured_points_bytes(name: &str, bytes: &[u8]) -> Result<Volume>
                         d[0], d[1], d[2]
                     )));
                 }
-                owner = Owner::Points;
-                owner_count = n;
+                self.owner = Owner::Points;
+                self.owner_count = n;
             }
             "CELL_DATA" => {
-                owner = Owner::Cells;
-                owner_count = r.count(line.get(1), "CELL_DATA count")?;
+                self.owner = Owner::Cells;
+                self.owner_count = r.count(line.get(1), "CELL_DATA count")?;
             }
-            "SCALARS" => {
-                let n = need_owner(&r)?;
-                let aname = line.get(1).copied().unwrap_or("?");
-                let what = format!("SCALARS '{aname}'");
-                let tname = *line.get(2).ok_or_else(|| r.err(format!("missing data type for {what}")))?;
-                let comps = match line.get(3) {
-                    Some(s) => s
-                        .parse::<usize>()
-                        .ok()
-                        .filter(|k| (1..=4).contains(k))
-                        .ok_or_else(|| r.err(format!("bad component count '{s}' for {what}")))?,
-                    None => 1,
-                };
-                if r.next_is("LOOKUP_TABLE") {
-                    r.keyword_line("LOOKUP_TABLE")?;
-                }
-                if owner == Owner::Points {
-                    seen.push(format!("{what} ({tname}, {comps} components)"));
-                }
-                if owner == Owner::Points && comps == 1 && scalars.is_none() {
-                    let ty = volume_type(tname).ok_or_else(|| {
-                        r.err(format!(
-                            "unsupported type '{tname}' for {what}; supported: unsigned_char, short, \
-                             unsigned_short, float, char, int"
-                        ))
-                    })?;
-                    let s = if r.binary {
-                        let data = r.binary_bytes(n, ty.size(), &what)?;
-                        // BINARY is big-endian: little-endian samples are
-                        // named as such, as the mesh reader does.
-                        use crate::mesh::byte_order::{looks_little_endian, looks_little_endian_int};
-                        let evidence = match ty {
-                            RawType::F32 => looks_little_endian(data, 4),
-                            RawType::F64 => looks_little_endian(data, 8),
-                            RawType::I16 | RawType::I32 => looks_little_endian_int(data, ty.size(), true),
-                            RawType::U16 | RawType::U32 => looks_little_endian_int(data, ty.size(), false),
-                            RawType::I8 | RawType::U8 => None,
-                        };
-                        if let Some(e) = evidence {
-                            r.pos -= data.len();
-                            bail!(r.err(format!("{what}: {e}")));
-                        }
-                        decode_binary(name, data.into(), ty, Endian::Big, n)?
-                    } else {
-                        let mut t = Tokens::new(&r.b[r.pos..]);
-                        let s = parse_ascii(name, &what, &mut t, ty, tname, n, r.pos)?;
-                        r.pos += t.pos();
-                        s
-                    };
-                    scalars = Some(s);
-                } else {
-                    let k = r.product(n, comps, &what)?;
-                    r.skip_typed(k, Some(&tname), &what)?;
-                }
-            }
+            "SCALARS" => self.scalars_section(r, line, &kw)?,
             "LOOKUP_TABLE" => {
                 let size = r.count(line.get(2), "LOOKUP_TABLE size")?;
                 let n = r.product(size, 4, "LOOKUP_TABLE")?;
                 r.skip_sized(n, 1, "LOOKUP_TABLE")?;
             }
             "COLOR_SCALARS" => {
-                let n = need_owner(&r)?;
+                let n = self.need_owner(r, &kw)?;
                 let k = r.count(line.get(2), "COLOR_SCALARS component count")?;
                 r.skip_sized(r.product(n, k, "COLOR_SCALARS")?, 1, "COLOR_SCALARS")?;
             }
             "VECTORS" | "NORMALS" | "TENSORS" | "TENSORS6" | "GLOBAL_IDS" | "PEDIGREE_IDS" => {
-                let n = need_owner(&r)?;
+                let n = self.need_owner(r, &kw)?;
                 let k = match kw.as_str() {
                     "VECTORS" | "NORMALS" => 3,
                     "TENSORS" => 9,
@@ -293,22 +247,106 @@ pub fn parse_structured_points_bytes(name: &str, bytes: &[u8]) -> Result<Volume>
                 r.skip_typed(total, line.get(2), &kw)?;
             }
             "TEXTURE_COORDINATES" => {
-                let n = need_owner(&r)?;
+                let n = self.need_owner(r, &kw)?;
                 let k = r.count(line.get(2), "TEXTURE_COORDINATES dimension")?;
                 let total = r.product(n, k, &kw)?;
                 r.skip_typed(total, line.get(3), &kw)?;
             }
             _ => bail!(r.err(format!("bad keyword '{}'", line[0].escape_debug()))),
         }
+        Ok(())
     }
-    let dims = dims.ok_or_else(|| r.err("no DIMENSIONS line"))?;
-    let samples = scalars.ok_or_else(|| {
-        r.err(format!(
-            "no point scalars: need POINT_DATA with a one-component SCALARS array; found {}",
-            if seen.is_empty() { "none".to_string() } else { seen.join(", ") }
-        ))
-    })?;
-    let sp = spacing.unwrap_or([1.0; 3]);
-    let steps = [[sp[0], 0.0, 0.0], [0.0, sp[1], 0.0], [0.0, 0.0, sp[2]]];
-    from_steps(name, stem_of(name), dims, steps, origin.unwrap_or([0.0; 3]), samples)
+
+    /// The count of the data an attribute array `kw` belongs to.
+    fn need_owner(&self, r: &Reader, kw: &str) -> Result<usize> {
+        if self.owner == Owner::None {
+            Err(r.err(format!("{kw} outside POINT_DATA / CELL_DATA")))
+        } else {
+            Ok(self.owner_count)
+        }
+    }
+
+    /// A SCALARS array: the volume's samples if it is the first
+    /// one-component point array, else skipped.
+    fn scalars_section(&mut self, r: &mut Reader, line: &[&str], kw: &str) -> Result<()> {
+        let n = self.need_owner(r, kw)?;
+        let aname = line.get(1).copied().unwrap_or("?");
+        let what = format!("SCALARS '{aname}'");
+        let tname = *line.get(2).ok_or_else(|| r.err(format!("missing data type for {what}")))?;
+        let comps = match line.get(3) {
+            Some(s) => s
+                .parse::<usize>()
+                .ok()
+                .filter(|k| (1..=4).contains(k))
+                .ok_or_else(|| r.err(format!("bad component count '{s}' for {what}")))?,
+            None => 1,
+        };
+        if r.next_is("LOOKUP_TABLE") {
+            r.keyword_line("LOOKUP_TABLE")?;
+        }
+        if self.owner == Owner::Points {
+            self.seen.push(format!("{what} ({tname}, {comps} components)"));
+        }
+        if self.owner == Owner::Points && comps == 1 && self.scalars.is_none() {
+            let ty = volume_type(tname).ok_or_else(|| {
+                r.err(format!(
+                    "unsupported type '{tname}' for {what}; supported: unsigned_char, short, \
+                     unsigned_short, float, char, int"
+                ))
+            })?;
+            self.scalars = Some(if r.binary { binary_samples(r, ty, n, &what)? } else { ascii_samples(r, ty, tname, n, &what)? });
+        } else {
+            let k = r.product(n, comps, &what)?;
+            r.skip_typed(k, Some(&tname), &what)?;
+        }
+        Ok(())
+    }
+}
+
+/// A FIELD block: its arrays skipped.
+fn skip_field(r: &mut Reader, line: &[&str]) -> Result<()> {
+    let arrays = r.count(line.get(2), "FIELD array count")?;
+    for _ in 0..arrays {
+        let h = r.keyword_line("a FIELD array header")?;
+        if h[0] == "NULL_ARRAY" {
+            continue;
+        }
+        let what = format!("FIELD array '{}'", h[0]);
+        let comps = r.count(h.get(1), "FIELD array component count")?;
+        let tuples = r.count(h.get(2), "FIELD array tuple count")?;
+        let n = r.product(comps, tuples, &what)?;
+        r.skip_typed(n, h.get(3), &what)?;
+        if r.next_is("METADATA") {
+            r.keyword_line("METADATA")?;
+            r.skip_metadata()?;
+        }
+    }
+    Ok(())
+}
+
+/// `n` BINARY samples of `ty`: big-endian, as the format says; little-endian
+/// samples are named as such, as the mesh reader does.
+fn binary_samples(r: &mut Reader, ty: RawType, n: usize, what: &str) -> Result<Samples> {
+    let data = r.binary_bytes(n, ty.size(), what)?;
+    use crate::bytes::byte_order::{looks_little_endian, looks_little_endian_int};
+    let evidence = match ty {
+        RawType::F32 => looks_little_endian(data, 4),
+        RawType::F64 => looks_little_endian(data, 8),
+        RawType::I16 | RawType::I32 => looks_little_endian_int(data, ty.size(), true),
+        RawType::U16 | RawType::U32 => looks_little_endian_int(data, ty.size(), false),
+        RawType::I8 | RawType::U8 => None,
+    };
+    if let Some(e) = evidence {
+        r.pos -= data.len();
+        bail!(r.err(format!("{what}: {e}")));
+    }
+    decode_binary(r.name, data.into(), ty, Endian::Big, n)
+}
+
+/// `n` ASCII samples of `ty` (`tname` as the file names it).
+fn ascii_samples(r: &mut Reader, ty: RawType, tname: &str, n: usize, what: &str) -> Result<Samples> {
+    let mut t = Tokens::new(&r.b[r.pos..]);
+    let s = parse_ascii(r.name, what, &mut t, ty, tname, n, r.pos)?;
+    r.pos += t.pos();
+    Ok(s)
 }

@@ -34,7 +34,8 @@ use rayon::prelude::*;
 use super::balanced::{
     cell_records, CODE_FLAGS_SHIFT, CODE_MAX_PIECES, CODE_PIECE_SHIFT, FLOATS_PER_CELL, FLOATS_PER_VERTEX, VERTICES_PER_CELL};
 use super::render;
-use super::{build_pipeline, cells_f32, scalar_map, CellF32, CellProjector, FrameSetup, DrawSettings, StaticIndices, MAX_INDICES_PER_CELL};
+use super::{build_pipeline, cells_f32, CellF32, CellProjector, DrawSettings, StaticIndices, MAX_INDICES_PER_CELL};
+use crate::algo::tet_mesh::{scalar_map, FrameSetup};
 use crate::algo::chunks::VertexChunks;
 use crate::algo::host_memory::HostMemory;
 use crate::algo::integrate::IntegrationTables;
@@ -294,7 +295,7 @@ impl Atfs {
             draw.primitives.topology(),
             draw.primitives.primitive_restart(),
             tables,
-            draw.interpolation,
+            &draw,
             &[DescriptorSetDesc::storage_buffers(1, Stages::VERTEX)],
             &[],
         )?;

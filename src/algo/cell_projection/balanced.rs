@@ -22,10 +22,8 @@ use rayon::prelude::*;
 
 use super::render;
 use crate::algo::method::{MethodInfo, MethodInputs, RenderMethod};
-use super::{
-    build_pipeline, render_origin, CellF32, CellProjector, DrawSettings, FrameSetup, Interpolation, PlanesTable, RelativeMesh, StaticIndices,
-    MAX_INDICES_PER_CELL,
-};
+use super::{build_pipeline, CellF32, CellProjector, DrawSettings, PlanesTable, RelativeMesh, StaticIndices, MAX_INDICES_PER_CELL};
+use crate::algo::tet_mesh::{render_origin, FrameSetup, Interpolation};
 use crate::algo::chunks::{ChunkLimits, VertexChunks};
 use crate::algo::host_memory::HostMemory;
 use crate::algo::integrate::IntegrationTables;
@@ -45,7 +43,7 @@ pub const FLOATS_PER_CELL: usize = FLOATS_PER_VERTEX * VERTICES_PER_CELL;
 /// exact visibility order (MPVO): the centroid order's mistakes move a
 /// pixel's colour, never its opacity, and on a transfer function with
 /// control points inside cells they can cancel part of the integrator's own
-/// error (docs/compute-speed.md, fourth round), so the exactly ordered run
+/// error (docs/methods.md, "Sorting"), so the exactly ordered run
 /// is the fair yardstick for the methods that never sort.
 pub const METHOD: MethodInfo = MethodInfo { suite: &["primitives=strip", "sort=mpvo"], ..BALANCED };
 const BALANCED: MethodInfo = render::method_info(
@@ -120,7 +118,7 @@ pub(super) fn records_pipeline(ctx: &Arc<Context>, tables: &IntegrationTables, d
         draw.primitives.topology(),
         draw.primitives.primitive_restart(),
         tables,
-        draw.interpolation,
+        &draw,
         &[],
         &[],
     )

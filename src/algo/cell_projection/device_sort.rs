@@ -39,6 +39,7 @@ use std::sync::Arc;
 
 use crate::algo::chunks::{self, ChunkLimits, MAX_CHUNKS};
 use crate::scene::Camera;
+use glam::{DVec3, Vec3};
 use crate::vk::{
     upload_static, Buffer, BufferDesc, CommandRecorder, ComputePipelineKey, Context, DescriptorSetDesc,
     Pipeline, PipelineKey, ShaderKey, ShaderStage, StorageBufferSet, TimestampPool, UploadClass, UploadCounter, VkError,
@@ -61,40 +62,48 @@ pub const PASSES: u32 = 32 / RADIX_BITS;
 /// The camera as pushed per frame (`Camera` in `sort_keys.comp`).
 pub const CAMERA_BYTES: usize = std::mem::size_of::<SortCamera>();
 
-/// The sort's camera: the eye relative to the centroids' origin and the view
-/// direction, in f32 as the CPU sort uses them; w of `eye` is 1 for
-/// perspective views (depth = squared distance), 0 for orthographic ones
-/// (depth along `dir`).
+/// The sort's camera (`Camera` in `sort_keys.comp`; `tests/shader_interfaces.rs`
+/// checks the two agree): the eye relative to the centroids' origin and the
+/// view direction, in f32 as the CPU sort uses them; depth is the squared
+/// distance for perspective views, along `dir` for orthographic ones.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct SortCamera {
-    pub eye: [f32; 4],
-    pub dir: [f32; 4],
+    pub eye: Vec3,
+    /// 1 perspective, 0 orthographic.
+    pub perspective: f32,
+    pub dir: Vec3,
 }
 
 impl SortCamera {
     /// The same f64 -> f32 conversions as `CentroidSort::sort` for centroids
     /// relative to `origin` (and as `FrameSetup::new` for the eye).
     pub fn new(camera: &Camera, origin: [f64; 3]) -> Self {
-        let f = camera.forward();
-        let p = if camera.is_perspective() { 1.0 } else { 0.0 };
         SortCamera {
-            eye: [
-                (camera.eye[0] - origin[0]) as f32,
-                (camera.eye[1] - origin[1]) as f32,
-                (camera.eye[2] - origin[2]) as f32,
-                p,
-            ],
-            dir: [f.x as f32, f.y as f32, f.z as f32, 0.0],
+            eye: (DVec3::from(camera.eye) - DVec3::from(origin)).as_vec3(),
+            perspective: if camera.is_perspective() { 1.0 } else { 0.0 },
+            dir: camera.forward().as_vec3(),
         }
     }
 
     /// The same camera from a frame's setup (its eye is relative to the
     /// mesh's render origin, which the centroids must be relative to).
     pub fn from_frame(frame: &super::FrameSetup) -> Self {
-        let (e, d) = (frame.eye, frame.view_dir);
-        SortCamera { eye: [e[0], e[1], e[2], if frame.perspective { 1.0 } else { 0.0 }], dir: [d[0], d[1], d[2], 0.0] }
+        SortCamera { eye: frame.eye.into(), perspective: if frame.perspective { 1.0 } else { 0.0 }, dir: frame.view_dir.into() }
     }
+}
+
+/// One radix pass's parameters (`Params` in `radix_sort.glsl`, a static
+/// buffer per pass; `tests/shader_interfaces.rs` checks the two agree).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct PassParams {
+    /// Keys.
+    pub n: u32,
+    /// Workgroups of [`TILE`] keys.
+    pub groups: u32,
+    /// The pass's digit: `(key >> shift) & (RADIX - 1)`.
+    pub shift: u32,
 }
 
 /// How the centroids are split: buffers, and centroids per buffer.
@@ -215,9 +224,9 @@ impl DeviceCentroidSort {
         let counts = Buffer::new(ctx, BufferDesc::device_local(&format!("{name} digit counts"), count_bytes.max(4), storage))?;
         let mut params = Vec::with_capacity(PASSES as usize);
         for pass in 0..PASSES {
-            let mut b = Buffer::new(ctx, BufferDesc::upload(&format!("{name} pass {pass} params"), 16, storage))?;
-            let words = [n, groups, pass * RADIX_BITS, 0];
-            b.write(0, bytemuck::cast_slice(&words), counter, UploadClass::Static)?;
+            let pass_params = PassParams { n, groups, shift: pass * RADIX_BITS };
+            let mut b = Buffer::new(ctx, BufferDesc::upload(&format!("{name} pass {pass} params"), std::mem::size_of::<PassParams>() as u64, storage))?;
+            b.write(0, bytemuck::bytes_of(&pass_params), counter, UploadClass::Static)?;
             params.push(b);
         }
         let mut sets = Vec::with_capacity(PASSES as usize);
@@ -343,7 +352,7 @@ mod tests {
 
     #[test]
     fn the_sort_camera_is_the_frame_setup_camera() {
-        use super::super::{ExitTolerances, FrameSetup, Interpolation};
+        use crate::algo::tet_mesh::{ExitTolerances, FrameSetup, Interpolation};
         use crate::mesh::Bounds;
         use crate::scene::Projection;
         let b = Bounds { min: [0.0; 3], max: [1.0, 2.0, 3.0] };

@@ -22,7 +22,8 @@ use std::sync::Arc;
 
 use rayon::prelude::*;
 
-use super::{build_pipeline, CellProjector, FrameSetup, Interpolation, RelativeMesh};
+use super::{build_pipeline, CellProjector, DrawSettings, RelativeMesh};
+use crate::algo::tet_mesh::FrameSetup;
 use crate::algo::integrate::IntegrationTables;
 use crate::mesh::geometry::plane_section;
 use crate::scene::Camera;
@@ -85,7 +86,7 @@ impl NearCaps {
         ctx: &Arc<Context>,
         mesh: Arc<RelativeMesh>,
         tables: &IntegrationTables,
-        interpolation: Interpolation,
+        draw: &DrawSettings,
         pieces_set: Option<DescriptorSetDesc>,
     ) -> VkResult<Self> {
         let f = |location, format, floats: u32| VertexAttribute { location, format, offset: floats * 4 };
@@ -112,7 +113,7 @@ impl NearCaps {
             Topology::TriangleList,
             false,
             tables,
-            interpolation,
+            draw,
             pieces_set.as_slice(),
             &[],
         )?;

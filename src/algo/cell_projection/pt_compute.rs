@@ -1,14 +1,15 @@
 //! Projected tetrahedra in compute (beyond the papers; issue 24): the
-//! balanced family's visibility-sorted cells, binned on the CPU into screen
-//! tiles in sort order (each tile's list keeps the visibility order), and
-//! each tile composited by one compute workgroup, front to back, so that a
-//! pixel stops once it is opaque (early termination). Per pixel and cell the
+//! balanced family's visibility-sorted cells, listed on the CPU per pixel
+//! they cover (by the rasterizer's rule; each pixel's list keeps the
+//! visibility order), and composited by one compute invocation per pixel
+//! (workgroups of `TILE` pixels over the covered tiles), front to back, so
+//! that a pixel stops once it is opaque (early termination). Per pixel and cell the
 //! segment is balanced's: the pixel's ray is clipped by the tet's four
 //! planes, and the barycentric weights where it enters give what the
 //! rasterizer interpolates for balanced's entry face
 //! (`shaders/cell_projection/pt_composite.comp`). The cells are stored once
-//! on the device as `resident` stores them; per frame the tile lists cross
-//! (8 bytes per tile entry, 4 per tile). No triangle reaches lavapipe's
+//! on the device as `resident` stores them; per frame the pixel lists cross
+//! (4 bytes per list entry, 4 per pixel start). No triangle reaches lavapipe's
 //! serial vertex/setup/binning front end (PLATFORM.md): the compositing
 //! dispatch runs on every core. A mesh whose cells one texel buffer cannot
 //! hold has them in several (`algo::chunks`, as resident's), read through
@@ -22,7 +23,8 @@ use rayon::prelude::*;
 use super::balanced::VERTICES_PER_CELL;
 use super::render;
 use super::resident::{upload_cell_chunks, FLOATS_PER_STORED_CELL};
-use super::{CellMaker, CellProjector, DrawSettings, FrameConstants, FrameSetup};
+use super::{CellMaker, CellProjector, DrawSettings};
+use crate::algo::tet_mesh::{FrameConstants, FrameSetup};
 use crate::algo::chunks::{ensure_frame_texels, frame_texels, ChunkLimits, TexelChunks};
 use crate::algo::integrate::IntegrationTables;
 use crate::algo::method::{MethodInfo, MethodInputs, RenderMethod};
@@ -63,7 +65,7 @@ pub const BIN_PHASE: &str = "bin";
 /// The registry entry.
 pub const METHOD: MethodInfo = render::method_info(
     "pt-compute",
-    "projected tetrahedra in compute: sorted cells binned into screen tiles, each tile composited front to back by one workgroup with early termination",
+    "projected tetrahedra in compute: sorted cells listed per pixel on the CPU, each pixel composited front to back by one invocation with early termination",
     render::KNOWN_EXITS_OPTIONS,
     &[],
     create,
@@ -463,7 +465,7 @@ fn eye_plane_w(frame: &FrameSetup) -> f32 {
     let z = row(2);
     let (e, d) = (c.eye, c.view_dir);
     let near = -(z[0] * e[0] + z[1] * e[1] + z[2] * e[2] + z[3]) / (z[0] * d[0] + z[1] * d[1] + z[2] * d[2]);
-    0.5 * (1e-4 * d[3]).min(0.5 * near)
+    0.5 * (1e-4 * c.max_segment).min(0.5 * near)
 }
 
 pub struct PtCompute {
@@ -558,11 +560,8 @@ impl PtCompute {
         let chunked = cells.defines("CELL");
         let chunk_binding = (!chunked.is_empty()).then(|| CELL_CHUNK_BINDING.to_string());
         let defines: Vec<(&str, &str)> = draw
-            .interpolation
             .defines()
-            .iter()
-            .copied()
-            .chain(tables.integrator.define())
+            .into_iter()
             .chain([("TILE_W", tile[0].as_str()), ("TILE_H", tile[1].as_str()), ("ERT_TRANSMITTANCE", ert.as_str())])
             .chain(chunked.iter().map(|(k, v)| (k.as_str(), v.as_str())))
             .chain(chunk_binding.iter().map(|b| ("CELL_CHUNK_BINDING", b.as_str())))
@@ -714,7 +713,7 @@ impl CellProjector for PtCompute {
         rec.uploads_to_compute();
         // Only the tiles around the covered pixels run the pass: on llvmpipe
         // a workgroup with nothing to do still runs the whole shader masked
-        // (docs/compute-speed.md, third round). The rest is cleared.
+        // (docs/compute-speed.md, "What llvmpipe does"). The rest is cleared.
         let all = [self.size[0].div_ceil(TILE[0]), self.size[1].div_ceil(TILE[1])];
         rec.storage_target(target, groups[..2] == all);
         self.timestamps.write(rec, 0, TimestampAt::Start)?;

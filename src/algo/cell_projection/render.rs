@@ -16,7 +16,8 @@ use serde_json::json;
 use super::cull::{Culler, FrameCull, LookupGrid};
 use super::mpvo::MpvoSort;
 use super::sort::{CentroidSort, SortKind, Sorter};
-use super::{centroids_relative_f32, render_origin, CellProjector, RelativeMesh, DrawSettings, ExitTolerances, FrameSetup, Interpolation, MeshScale, Primitives};
+use super::{centroids_relative_f32, CellProjector, RelativeMesh, DrawSettings, Primitives};
+use crate::algo::tet_mesh::{integrator_bound, render_origin, ExitTolerances, FrameSetup, Interpolation, MeshScale, INTEGRATOR_HELP, TABLE_SIZE_HELP};
 use crate::algo::host_memory::HostMemory;
 use crate::algo::integrate::{IntegrationTables, Integrator};
 use crate::algo::settings::{check, choice, flag, float, int, pick, MethodSettings};
@@ -60,16 +61,18 @@ crate::settings! {
         }
 
         fn defines(&self) -> Vec<(&'static str, &'static str)> {
-            super::shader_defines(self.interpolation, self.integrator)
+            self.draw().defines()
         }
     }
 }
 
-/// Help of the options tet-raycast shares with cell projection.
-pub const INTEGRATOR_HELP: &str = "how the fragment stage integrates a cell's segment (see README: integrators)";
-pub const TABLE_SIZE_HELP: &str = "side of the integrator's table; 0 = its default (ppi 512, preint 128 with 32 lengths)";
-
 impl Settings {
+    /// The build-time choices every projector and the near caps are made
+    /// with: their shaders' defines and pipeline keys come from it.
+    pub fn draw(&self) -> DrawSettings {
+        DrawSettings { interpolation: self.interpolation, integrator: self.integrator, primitives: self.primitives }
+    }
+
     pub fn tolerances(&self) -> ExitTolerances {
         ExitTolerances {
             distance_clamp_diagonals: self.distance_clamp,
@@ -210,15 +213,6 @@ pub fn accuracy_bound(options: &Options, perspective: bool) -> Option<f64> {
     Some(integrator_bound(s.integrator))
 }
 
-/// The bound of an integrator where interpolation is exact (see
-/// `accuracy_bound`).
-pub fn integrator_bound(integrator: Integrator) -> f64 {
-    match integrator {
-        Integrator::Average => 5e-3,
-        Integrator::Preint => 2e-3,
-        Integrator::Ppi | Integrator::LinearExact => 1e-3,
-    }
-}
 
 
 /// Where Table 6.3 figures come from (one source: the report pairs figures
@@ -375,12 +369,12 @@ impl CellProjection {
             inputs.counter,
         )
         .context("building the integration tables")?;
-        let draw = DrawSettings { interpolation: settings.interpolation, primitives: settings.primitives };
+        let draw = settings.draw();
         let projector = build(ctx, mesh, &tables, draw, inputs.counter)?;
         let pieces = projector.pieces_set().map(|s| s.desc.clone());
         let origin = render_origin(mesh);
         let relative = relative.unwrap_or_else(|| RelativeMesh::new(mesh, origin));
-        let near = super::near::NearCaps::new(ctx, relative.clone(), &tables, settings.interpolation, pieces)?;
+        let near = super::near::NearCaps::new(ctx, relative.clone(), &tables, &draw, pieces)?;
         let sorter = Sorter::new(settings.sort, mesh);
         // Cells a device sort orders are all drawn: culling is off for it.
         let culler = Culler::shared(mesh, relative.clone(), inputs.tf, LookupGrid::of(&tables), settings.cull && !projector.sorts_on_device());

@@ -15,7 +15,8 @@ use std::sync::Arc;
 
 use super::balanced::{records_pipeline, FLOATS_PER_CELL, VERTICES_PER_CELL};
 use super::render;
-use super::{build_pipeline, CellF32, CellMaker, CellProjector, FrameConstants, FrameSetup, DrawSettings, Primitives, StaticIndices, MAX_INDICES_PER_CELL};
+use super::{build_pipeline, CellF32, CellMaker, CellProjector, DrawSettings, Primitives, StaticIndices, MAX_INDICES_PER_CELL};
+use crate::algo::tet_mesh::{FrameConstants, FrameSetup};
 use crate::algo::chunks::{self, ChunkLimits, TexelChunks};
 use crate::algo::host_memory::HostMemory;
 use crate::algo::integrate::IntegrationTables;
@@ -34,8 +35,8 @@ pub const BYTES_PER_CELL_PER_FRAME: usize = 4;
 pub const FLOATS_PER_STORED_CELL: usize = 36;
 /// Invocations per workgroup of `resident_expand.comp`.
 const EXPAND_GROUP: usize = 64;
-/// Cells expanded and drawn per batch (docs/scaling.md, "Resident against
-/// balanced"): the one records buffer holds a batch (112 MiB), whatever the
+/// Cells expanded and drawn per batch (docs/scaling.md, "Host memory";
+/// measured in results/HISTORY.md): the one records buffer holds a batch (112 MiB), whatever the
 /// mesh, instead of 112 bytes per tet. Not smaller: batches that fit the
 /// cache (32,768 cells, 3.5 MiB) measured slower, since each batch's pass
 /// ends with the rasterizer drained while the next expansion runs.
@@ -215,7 +216,7 @@ fn expand_pipeline(
     desc: DescriptorSetDesc,
 ) -> VkResult<Arc<Pipeline>> {
     let chunked = cells.defines("CELL");
-    let mut defines: Vec<(&str, &str)> = draw.interpolation.defines().to_vec();
+    let mut defines: Vec<(&str, &str)> = draw.exit_defines();
     defines.extend(chunked.iter().map(|(k, v)| (k.as_str(), v.as_str())));
     if cells.buffers.len() > 1 {
         defines.push(("CELL_CHUNK_BINDING", "3"));
@@ -274,7 +275,7 @@ pub(super) fn resident_pipeline(
         draw.primitives.topology(),
         draw.primitives.primitive_restart(),
         tables,
-        draw.interpolation,
+        &draw,
         &[set_desc(cells.buffers.len())],
         &defines,
     )

@@ -12,7 +12,8 @@ use rayon::prelude::*;
 
 use super::render;
 use crate::algo::method::{MethodInfo, MethodInputs, RenderMethod};
-use super::{build_pipeline, cells_f32, CellProjector, FrameSetup, Interpolation, FACES};
+use super::{build_pipeline, cells_f32, CellProjector, DrawSettings, FACES};
+use crate::algo::tet_mesh::FrameSetup;
 use crate::algo::chunks::{ChunkLimits, VertexChunks};
 use crate::algo::host_memory::HostMemory;
 use crate::algo::integrate::IntegrationTables;
@@ -41,7 +42,7 @@ fn create(inputs: MethodInputs) -> anyhow::Result<Box<dyn RenderMethod>> {
     // Host: the view-independent records and this frame's, packed.
     let bytes = render::DeviceBytesPerCell { frame: 0, fixed: FLOATS_PER_CELL * 4, host: 2 * FLOATS_PER_CELL * 4 };
     render::CellProjection::create(inputs, bytes, |ctx, mesh, tables, draw, _counter| {
-        Ok(Box::new(Vicp::new(ctx, mesh, tables, draw.interpolation)?))
+        Ok(Box::new(Vicp::new(ctx, mesh, tables, &draw)?))
     })
 }
 
@@ -83,7 +84,7 @@ impl Vicp {
         ctx: &Arc<Context>,
         mesh: &TetMesh,
         tables: &IntegrationTables,
-        interpolation: Interpolation,
+        draw: &DrawSettings,
     ) -> VkResult<Self> {
         let cells = cells_f32(mesh);
         let n = cells.len();
@@ -108,7 +109,7 @@ impl Vicp {
             Topology::TriangleList,
             false,
             tables,
-            interpolation,
+            draw,
             &[],
             &[],
         )?;

@@ -9,7 +9,7 @@ use serde_json::json;
 
 use crate::algo::screen;
 use crate::algo::settings::MethodSettings;
-use super::{BoxOnScreen, Settings, VolumeResources, COMPARE, OPTIONS, PUSH_BYTES, PUSH_BYTES_ADAPTIVE, STRESS_COMPUTE, SUITE_COMPUTE, SWEEP_COMPUTE};
+use super::{AdaptiveFrame, BoxOnScreen, Frame, Settings, VolumeResources, COMPARE, OPTIONS, PUSH_BYTES, PUSH_BYTES_ADAPTIVE, STRESS_COMPUTE, SUITE_COMPUTE, SWEEP_COMPUTE};
 use crate::algo::adaptive::Adaptive;
 use crate::algo::method::{DataKind, MethodInfo, MethodInputs, Phases, RenderMethod, SceneData, View, Work};
 use crate::vk::{
@@ -81,7 +81,7 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
         pipeline,
         key,
         target_set,
-        push: Vec::new(),
+        push: bytemuck::Zeroable::zeroed(),
         groups: [0, 0, 1],
         whole_image: false,
         pixels: inputs.width as u64 * inputs.height as u64,
@@ -96,7 +96,8 @@ pub struct RaycastCompute {
     key: PipelineKey,
     /// Set 1: the target as a storage image.
     target_set: TargetImageSet,
-    push: Vec<u8>,
+    /// The frame's push constants (with ADAPTIVE, its `frame`).
+    push: AdaptiveFrame,
     /// Workgroups dispatched (over the box's tiles), and whether they cover
     /// the whole image.
     groups: [u32; 3],
@@ -123,7 +124,7 @@ impl RenderMethod for RaycastCompute {
         let runs = self.ctx.info.compute_runs();
         self.groups = [groups[0], screen::interleaved_rows(groups[1], runs), 1];
         self.whole_image = groups[..2] == all;
-        self.push = self.res.push_constants(view, true, [base[0], base[1], groups[1], runs]);
+        self.push.frame = self.res.frame(view, true, [base[0], base[1]], groups[1], runs);
         if let Some((state, _)) = &mut self.adaptive {
             let (w, h) = (view.width, view.height);
             self.rect = match self.res.on_screen(view) {
@@ -133,9 +134,8 @@ impl RenderMethod for RaycastCompute {
             };
             state.frame(self.rect, [w, h])?;
             let rows = Adaptive::lattice_groups(self.rect)[1];
-            self.push = self.res.push_constants(view, true, [0, 0, rows, runs]);
-            // rect, then the step (set per pass in record).
-            self.push.extend(self.rect.iter().chain(&[0u32; 4]).flat_map(|v| v.to_ne_bytes()));
+            // The rect; the step is set per pass in record.
+            self.push = AdaptiveFrame { frame: self.res.frame(view, true, [0, 0], rows, runs), pad_to_align_rect: 0, rect: self.rect, cast_step: 0 };
         }
         Ok(())
     }
@@ -156,13 +156,11 @@ impl RenderMethod for RaycastCompute {
             rec.storage_target(target, whole);
             let lattice = Adaptive::lattice_groups(r);
             let runs = self.ctx.info.compute_runs();
-            let (set0, push, pipeline) = (&self.res.set, &self.push, &*pipeline);
+            let (set0, push, pipeline) = (&self.res.set, self.push, &*pipeline);
             state.record(rec, target, counter, |rec, state_set, step, indirect, counter| {
                 rec.bind_compute(pipeline, &[set0, set, state_set])?;
-                let mut p = push.clone();
-                let at = PUSH_BYTES as usize + 16;
-                p[at..at + 4].copy_from_slice(&step.to_ne_bytes());
-                rec.push_constants(pipeline, &p, counter);
+                let p = AdaptiveFrame { cast_step: step, ..push };
+                rec.push_constants(pipeline, bytemuck::bytes_of(&p), counter);
                 match indirect {
                     None => rec.dispatch([lattice[0], screen::interleaved_rows(lattice[1], runs), 1])?,
                     Some((args, offset)) => rec.dispatch_indirect(args, offset)?,
@@ -175,7 +173,7 @@ impl RenderMethod for RaycastCompute {
         rec.storage_target(target, self.whole_image);
         if self.groups[0] > 0 && self.groups[1] > 0 {
             rec.bind_compute(&self.pipeline, &[&self.res.set, set])?;
-            rec.push_constants(&self.pipeline, &self.push, counter);
+            rec.push_constants(&self.pipeline, bytemuck::bytes_of::<Frame>(&self.push.frame), counter);
             rec.dispatch(self.groups)?;
         }
         self.res.record_counters_to_host(rec);

@@ -11,7 +11,7 @@ use anyhow::{bail, Result};
 use serde_json::json;
 
 use crate::algo::settings::MethodSettings;
-use super::{BoxOnScreen, Settings, VolumeResources, COMPARE, OPTIONS, PUSH_BYTES, STRESS, SUITE, SWEEP};
+use super::{BoxOnScreen, Frame, Settings, VolumeResources, COMPARE, OPTIONS, PUSH_BYTES, STRESS, SUITE, SWEEP};
 use crate::algo::method::{DataKind, Feature, MethodInfo, MethodInputs, Phases, RenderMethod, SceneData, View, Work};
 use crate::vk::{
     Blend, ColorAttachment, ColorTarget, CommandRecorder, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc,
@@ -129,8 +129,8 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
         exit,
         _sampler: sampler,
         points_set,
-        box_push: Vec::new(),
-        march_push: Vec::new(),
+        box_push: bytemuck::Zeroable::zeroed(),
+        march_push: bytemuck::Zeroable::zeroed(),
         pixels: inputs.width as u64 * inputs.height as u64,
     }))
 }
@@ -148,15 +148,15 @@ pub struct RaycastFragment {
     exit: Image,
     _sampler: Sampler,
     points_set: DescriptorSet,
-    box_push: Vec<u8>,
-    march_push: Vec<u8>,
+    box_push: Frame,
+    march_push: Frame,
     pixels: u64,
 }
 
 impl RenderMethod for RaycastFragment {
     fn prepare(&mut self, view: &View, _phases: &mut Phases) -> Result<()> {
-        self.box_push = self.res.push_constants(view, false, [0; 4]);
-        self.march_push = self.res.push_constants(view, true, [0; 4]);
+        self.box_push = self.res.frame(view, false, [0; 2], 0, 0);
+        self.march_push = self.res.frame(view, true, [0; 2], 0, 0);
         self.placement = self.res.on_screen(view);
         Ok(())
     }
@@ -170,7 +170,7 @@ impl RenderMethod for RaycastFragment {
         for (image, pipeline) in [(&self.entry, &self.front), (&self.exit, &self.back)] {
             rec.begin_rendering_targets(&[ColorAttachment { image, clear: Some([0.0; 4]) }])?;
             rec.bind_graphics(pipeline, &[&self.res.set])?;
-            rec.push_constants(pipeline, &self.box_push, counter);
+            rec.push_constants(pipeline, bytemuck::bytes_of(&self.box_push), counter);
             rec.draw(36);
             rec.end_rendering();
             rec.image_barrier(image, ImageUse::Sampled);
@@ -189,7 +189,7 @@ impl RenderMethod for RaycastFragment {
         if let Some(rect) = rect {
             rec.set_scissor(rect);
             rec.bind_graphics(&self.march, &[&self.res.set, &self.points_set])?;
-            rec.push_constants(&self.march, &self.march_push, counter);
+            rec.push_constants(&self.march, bytemuck::bytes_of(&self.march_push), counter);
             rec.draw(3);
         }
         rec.end_rendering();

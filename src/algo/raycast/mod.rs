@@ -94,7 +94,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use anyhow::{bail, Context as _, Result};
-use glam::{DMat4, DVec3};
+use glam::{DMat4, DVec3, Vec3};
 use serde_json::json;
 
 use super::method::{Family, OptionSpec, Options, Published, PublishedFigure, View, Work};
@@ -419,12 +419,6 @@ pub fn set0_desc(loads: bool) -> DescriptorSetDesc {
         .with(DescriptorKind::CombinedImageSampler, st)
 }
 
-/// Push constants: mat4 + tiles (uvec4) + light.
-pub const PUSH_BYTES: u32 = 96;
-/// With adaptive refinement (raycast-compute): + rect (uvec4) + the cast
-/// step (uvec4).
-pub const PUSH_BYTES_ADAPTIVE: u32 = 128;
-
 /// Where the volume's box lies in a frame's view ([`VolumeResources::on_screen`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum BoxOnScreen {
@@ -469,38 +463,118 @@ fn f32_bytes(v: &[f32]) -> Vec<u8> {
     v.iter().flat_map(|x| x.to_ne_bytes()).collect()
 }
 
-impl VolumeResources {
-    /// `given`: the volume's samples taken from it (`Volume::take_samples`)
-    /// when nothing reads them after this set-up: they are given back to
-    /// the system slab by slab as the texture receives them. `None`: they
-    /// are read from `vol`.
-    pub fn new(
-        ctx: &Arc<Context>,
-        vol: &Volume,
-        given: Option<Samples>,
-        tf: &TransferFunction,
-        s: &Settings,
-        counter: &mut UploadCounter,
-    ) -> Result<Self> {
-        let dims = vol.dims();
-        let dims_u32: [u32; 3] = [0, 1, 2].map(|a| dims[a] as u32);
-        let max3 = ctx.info.max_image_dimension_3d as usize;
-        if dims.iter().any(|&d| d > max3) {
-            bail!("volume '{}': {:?} exceeds the device's 3D image limit {max3}", vol.name, dims);
-        }
-        if dims.iter().any(|&d| d < 2) {
-            bail!("volume '{}': {:?} has no extent along some axis (at least 2 samples per axis are needed)", vol.name, dims);
-        }
-        let mut given = given;
-        let samples: &Samples = given.as_ref().unwrap_or(vol.samples());
-        if samples.len() != vol.len() {
-            bail!("volume '{}': {} samples for its {:?} grid (its samples were taken)", vol.name, samples.len(), dims);
-        }
-        // Native formats where the device filters them; texel value v maps
-        // back to the sample as value = v * scale - bias. int16 with -32768
-        // (which snorm maps to -1 like -32767) is stored shifted by 32768 as
-        // unorm: linear filtering commutes with the shift, so the filtered
-        // values are the samples' (a float texture was twice the bytes).
+/// The samples the texture is made from (`given`, else the volume's),
+/// checked against the device's 3D image limit and the volume's grid.
+fn checked_samples<'a>(ctx: &Context, vol: &'a Volume, given: Option<&'a Samples>) -> Result<&'a Samples> {
+    let dims = vol.dims();
+    let max3 = ctx.info.max_image_dimension_3d as usize;
+    if dims.iter().any(|&d| d > max3) {
+        bail!("volume '{}': {:?} exceeds the device's 3D image limit {max3}", vol.name, dims);
+    }
+    if dims.iter().any(|&d| d < 2) {
+        bail!("volume '{}': {:?} has no extent along some axis (at least 2 samples per axis are needed)", vol.name, dims);
+    }
+    let samples = given.unwrap_or(vol.samples());
+    if samples.len() != vol.len() {
+        bail!("volume '{}': {} samples for its {:?} grid (its samples were taken)", vol.name, samples.len(), dims);
+    }
+    Ok(samples)
+}
+
+/// The ray casters' static parameters (`shaders/raycast/params.glsl`,
+/// std140, uploaded once; `tests/shader_interfaces.rs` checks the two agree).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct Params {
+    /// dims - 1: the box in voxel coordinates.
+    pub box_max: Vec3,
+    /// Brick edge in voxels (option `brick`).
+    pub brick: f32,
+    /// 1 / dims.
+    pub inv_dims: Vec3,
+    /// Entries of the table: the 1D transfer function's, or the PREINT
+    /// table's side.
+    pub table_entries: f32,
+    /// World units per voxel.
+    pub spacing: Vec3,
+    /// Largest step in voxels (option `step`).
+    pub step: f32,
+    /// Normalised texel v -> table coordinate t = tf_scale * (v - tf_offset).
+    pub tf_scale: f32,
+    pub tf_offset: f32,
+    /// Early-termination threshold (option `ert`).
+    pub ert: f32,
+    /// World length the PREINT table is built for ([`preint_length`]).
+    pub preint_length: f32,
+    /// Bricks along each axis.
+    pub brick_grid: Vec3,
+    /// Blinn-Phong (`shade=on`, module note).
+    pub ambient: f32,
+    pub diffuse: f32,
+    pub specular: f32,
+    pub shininess: f32,
+}
+
+/// The ray casters' push constants (`shaders/raycast/frame.glsl`;
+/// `tests/shader_interfaces.rs` checks the two agree).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct Frame {
+    /// Box pass: voxel -> clip; march: NDC -> voxel (homogeneous).
+    pub m: [[f32; 4]; 4],
+    /// The compute march's first workgroup (x, y), its rows of workgroups
+    /// and the device's runs (`crate::algo::screen::interleaved_rows`).
+    pub first_group: [u32; 2],
+    pub rows: u32,
+    pub runs: u32,
+    /// Unit direction towards the light, world axes.
+    pub light: Vec3,
+}
+
+/// [`Frame`] with adaptive refinement (raycast-compute, ADAPTIVE).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct AdaptiveFrame {
+    pub frame: Frame,
+    /// Layout padding: std430 aligns `rect` (a uvec4) to 16 bytes.
+    pub pad_to_align_rect: u32,
+    /// The frame's rectangle, inclusive pixel bounds.
+    pub rect: [u32; 4],
+    /// The cast pass's step (4, 2, 1; `shaders/common/adaptive.glsl`).
+    pub cast_step: u32,
+}
+
+/// The push-constant ranges of the pipelines: without and with ADAPTIVE.
+pub const PUSH_BYTES: u32 = std::mem::size_of::<Frame>() as u32;
+pub const PUSH_BYTES_ADAPTIVE: u32 = std::mem::size_of::<AdaptiveFrame>() as u32;
+
+/// How the volume's samples are stored on the device and read by the march
+/// ([`VolumeResources::new`]'s first step).
+struct TextureChoice {
+    format: Format,
+    /// Recorded in `details.texture_format`.
+    name: &'static str,
+    /// A texel's value v is the sample (v - offset) * scale... as the
+    /// params' `tf_scale` and `tf_offset` take it: t = tscale * (v - offset).
+    scale: f64,
+    offset: f64,
+    texels: Texels,
+    /// Bytes per texel.
+    texel_bytes: usize,
+    /// Read with imageLoad in this GLSL format (option `reads`), else sampled.
+    load_format: Option<&'static str>,
+    /// The samples' range (hi > lo).
+    lo: f64,
+    hi: f64,
+}
+
+impl TextureChoice {
+    /// Native formats where the device filters them; texel value v maps
+    /// back to the sample as value = v * scale - bias. int16 with -32768
+    /// (which snorm maps to -1 like -32767) is stored shifted by 32768 as
+    /// unorm: linear filtering commutes with the shift, so the filtered
+    /// values are the samples' (a float texture was twice the bytes).
+    fn of(ctx: &Context, vol: &Volume, samples: &Samples, s: &Settings) -> Result<Self> {
         let native: Option<(Format, &'static str, f64, Texels)> = match samples {
             Samples::U8(_) => Some((Format::R8Unorm, "r8-unorm", 255.0, Texels::Native)),
             Samples::U16(_) => Some((Format::R16Unorm, "r16-unorm", 65535.0, Texels::Native)),
@@ -517,7 +591,7 @@ impl VolumeResources {
         // offset's (1e6 + [0, 1] would be filtered in steps of 1/16). They
         // are converted slab by slab into the staging buffer, never held
         // whole beside the volume.
-        let (format, format_name, scale, offset, texels) = match native {
+        let (format, name, scale, offset, texels) = match native {
             Some((f, n, s, t)) if ctx.can_sample(f, Filter::Linear) => (f, n, s, (lo + t.bias()) / s, t),
             _ => (Format::R32Float, "r32-sfloat", 1.0, 0.0, Texels::Float),
         };
@@ -525,169 +599,248 @@ impl VolumeResources {
         let loads = match s.reads {
             VolumeReads::Texture => false,
             VolumeReads::Loads if !loadable => {
-                bail!("reads=loads: device '{}' cannot read {format_name} 3D images with imageLoad (use reads=texture)", ctx.info.name)
+                bail!("reads=loads: device '{}' cannot read {name} 3D images with imageLoad (use reads=texture)", ctx.info.name)
             }
             VolumeReads::Loads => true,
             VolumeReads::Auto => loadable && ctx.info.is_cpu(),
         };
         if !loads && !ctx.can_sample(format, Filter::Linear) {
-            bail!("device '{}' cannot filter {format_name} 3D textures linearly", ctx.info.name);
+            bail!("device '{}' cannot filter {name} 3D textures linearly", ctx.info.name);
         }
-        let volume_load_format = if loads { format.glsl_image_format().map(|(f, _)| f) } else { None };
-        // Brick distances (module note): 0 on a flagged brick, else the
-        // Chebyshev distance to the nearest one; for `preint` the flags are
-        // dilated by the bricks half a step may reach into.
-        let grid = bricks::grid_of(dims, s.brick);
-        let dilation = if s.preint() { (s.step / (2.0 * s.brick as f64)).ceil().max(1.0) as u8 } else { 0 };
-        // Time spent flagging bricks and computing distances (the upload's not included).
-        let mut bricks_ms = 0.0;
-        // A uniform texel buffer (a distance is one texel fetch; as a storage
-        // buffer, a per-ray index made llvmpipe loop over the SIMD lanes).
-        // On a CPU device the distances are computed in the memory the device
-        // reads, one byte a brick and no other copy (at `brick=1` the map is
-        // as large as an 8-bit volume); elsewhere in host memory and uploaded
-        // to device-local memory (host-visible memory there is uncached for
-        // the CPU's reads and crosses the bus for the shader's).
-        let layer_bricks = grid[0] * grid[1];
-        let map_bytes = layer_bricks * grid[2];
-        let new_map = || BrickMap::new(ctx, map_bytes);
-        let mut desc = TextureDesc::d3(&format!("volume '{}'", vol.name), dims_u32, format);
-        if loads {
-            desc = desc.for_loads();
-        }
-        // Texels from sample offset / texel size on.
-        let texel = texels.size(samples.sample_type());
-        let fill = |samples: &Samples, offset: usize, dst: &mut [u8]| texels.fill(samples, lo, offset / texel, dst);
-        // Memory (docs/bad-input.md, "Memory"). Samples of our own: the
-        // texture is filled from the last slab to the first, each brick
-        // layer is flagged as soon as its sample layers are filled, and the
-        // samples are given back down to what is yet to be filled or
-        // flagged. Shared samples (they stay for the next method): the
-        // flags first, then the texture. The distances follow in the map.
-        let layer = dims[0] * dims[1];
-        let (mut map, volume) = match given.take() {
-            Some(mut own) => {
-                // One bit a brick while the texture fills (samples and
-                // texture are then two copies at the first slab); the map
-                // once the samples are gone.
-                let mut flagger = bricks::LayerFlags::new(dims, tf, s.brick);
-                let mut flagged = bit_vec::BitVec::from_elem(map_bytes, false);
-                // Brick layers next.. are flagged, last first.
-                let mut next = grid[2];
-                let volume = upload_texture_with(ctx, &desc, counter, &mut |offset, dst| {
-                    fill(&own, offset, dst);
-                    let first = offset / texel / layer;
-                    let t = Instant::now();
-                    while next > 0 && (next - 1) * s.brick >= first {
-                        next -= 1;
-                        for (b, f) in flagger.flags(next, &own).into_iter().enumerate() {
-                            flagged.set(next * layer_bricks + b, f);
-                        }
-                    }
-                    bricks_ms += t.elapsed().as_secs_f64() * 1e3;
-                    let keep = if next == 0 { first } else { first.max(flagger.sample_layers(next - 1).end() + 1) };
-                    own.truncate(keep * layer);
-                });
-                drop(own);
-                let volume = volume.with_context(|| format!("uploading volume '{}'", vol.name))?;
-                let mut map = new_map()?;
-                bricks::mark(flagged.iter(), map.mapped_for_write()?);
-                (map, volume)
-            }
-            None => {
-                // The flags first, straight into the map.
+        let load_format = if loads { format.glsl_image_format().map(|(f, _)| f) } else { None };
+        Ok(TextureChoice { format, name, scale, offset, texels, texel_bytes: texels.size(samples.sample_type()), load_format, lo, hi })
+    }
+}
+
+/// The volume's texture and its brick distances, built together
+/// ([`upload_volume_and_bricks`]).
+struct BrickedVolume {
+    volume: crate::vk::Image,
+    bricks: TexelBuffer,
+    grid: [usize; 3],
+    visible: usize,
+    /// Time spent flagging bricks and computing distances (the upload's not included).
+    ms: f64,
+}
+
+/// The volume's texture and brick distances (module note): 0 on a flagged
+/// brick, else the Chebyshev distance to the nearest one; for `preint` the
+/// flags are dilated by the bricks half a step may reach into.
+///
+/// A uniform texel buffer (a distance is one texel fetch; as a storage
+/// buffer, a per-ray index made llvmpipe loop over the SIMD lanes). On a
+/// CPU device the distances are computed in the memory the device reads,
+/// one byte a brick and no other copy (at `brick=1` the map is as large as
+/// an 8-bit volume); elsewhere in host memory and uploaded to device-local
+/// memory (host-visible memory there is uncached for the CPU's reads and
+/// crosses the bus for the shader's).
+///
+/// Memory (docs/bad-input.md, "Memory"). Samples of our own (`given`): the
+/// texture is filled from the last slab to the first, each brick layer is
+/// flagged as soon as its sample layers are filled, and the samples are
+/// given back down to what is yet to be filled or flagged. Shared samples
+/// (they stay for the next method): the flags first, then the texture. The
+/// distances follow in the map.
+fn upload_volume_and_bricks(
+    ctx: &Arc<Context>,
+    vol: &Volume,
+    given: Option<Samples>,
+    tf: &TransferFunction,
+    s: &Settings,
+    choice: &TextureChoice,
+    counter: &mut UploadCounter,
+) -> Result<BrickedVolume> {
+    let dims = vol.dims();
+    let grid = bricks::grid_of(dims, s.brick);
+    let dilation = if s.preint() { (s.step / (2.0 * s.brick as f64)).ceil().max(1.0) as u8 } else { 0 };
+    let mut bricks_ms = 0.0;
+    let layer_bricks = grid[0] * grid[1];
+    let map_bytes = layer_bricks * grid[2];
+    let new_map = || BrickMap::new(ctx, map_bytes);
+    let mut desc = TextureDesc::d3(&format!("volume '{}'", vol.name), dims.map(|d| d as u32), choice.format);
+    if choice.load_format.is_some() {
+        desc = desc.for_loads();
+    }
+    // Texels from sample offset / texel size on.
+    let texels = choice.texels;
+    let lo = choice.lo;
+    let texel = choice.texel_bytes;
+    let fill = |samples: &Samples, offset: usize, dst: &mut [u8]| texels.fill(samples, lo, offset / texel, dst);
+    let layer = dims[0] * dims[1];
+    let (mut map, volume) = match given {
+        Some(mut own) => {
+            // One bit a brick while the texture fills (samples and
+            // texture are then two copies at the first slab); the map
+            // once the samples are gone.
+            let mut flagger = bricks::LayerFlags::new(dims, tf, s.brick);
+            let mut flagged = bit_vec::BitVec::from_elem(map_bytes, false);
+            // Brick layers next.. are flagged, last first.
+            let mut next = grid[2];
+            let volume = upload_texture_with(ctx, &desc, counter, &mut |offset, dst| {
+                fill(&own, offset, dst);
+                let first = offset / texel / layer;
                 let t = Instant::now();
-                let mut map = new_map()?;
-                let mut flagger = bricks::LayerFlags::new(dims, tf, s.brick);
-                for (bz, cells) in map.mapped_for_write()?.chunks_exact_mut(layer_bricks).enumerate() {
-                    bricks::mark(flagger.flags(bz, vol.samples()), cells);
+                while next > 0 && (next - 1) * s.brick >= first {
+                    next -= 1;
+                    for (b, f) in flagger.flags(next, &own).into_iter().enumerate() {
+                        flagged.set(next * layer_bricks + b, f);
+                    }
                 }
                 bricks_ms += t.elapsed().as_secs_f64() * 1e3;
-                let volume = upload_texture_with(ctx, &desc, counter, &mut |offset, dst| fill(vol.samples(), offset, dst))
-                    .with_context(|| format!("uploading volume '{}'", vol.name))?;
-                (map, volume)
-            }
-        };
-        let cells = map.mapped_for_write()?;
-        let t = Instant::now();
-        bricks::chebyshev_in_place(cells, grid);
-        for d in cells.iter_mut() {
-            *d = d.saturating_sub(dilation);
+                let keep = if next == 0 { first } else { first.max(flagger.sample_layers(next - 1).end() + 1) };
+                own.truncate(keep * layer);
+            });
+            drop(own);
+            let volume = volume.with_context(|| format!("uploading volume '{}'", vol.name))?;
+            let mut map = new_map()?;
+            bricks::mark(flagged.iter(), map.mapped_for_write()?);
+            (map, volume)
         }
-        let bricks_visible = cells.iter().filter(|&&d| d == 0).count();
-        bricks_ms += t.elapsed().as_secs_f64() * 1e3;
-        let bricks = map.into_texels(ctx, counter)?;
-
-        let t0 = Instant::now();
-        let table: Vec<f32> = tf.table(TABLE_SIZE, lo, hi).concat();
-        let tf_img = upload_texture(ctx, &TextureDesc::d1("transfer function", TABLE_SIZE as u32, Format::Rgba32Float), &f32_bytes(&table), counter)?;
-        // Pre-integration table over (front, back) in [lo, hi]^2, texel
-        // centres at the ends: premultiplied colour and optical depth of a
-        // segment of `d0` world units, exact (`algo::segment`).
-        let d0 = preint_length(vol, s.step);
-        let n = if s.preint() { PREINT_SIZE } else { 2 };
-        let mut pre = Vec::with_capacity(n * n * 4);
-        for b in 0..n {
-            for f in 0..n {
-                let sf = lo + (hi - lo) * f as f64 / (n - 1) as f64;
-                let sb = lo + (hi - lo) * b as f64 / (n - 1) as f64;
-                let seg = integrate_segment(tf, sf, sb, d0);
-                let depth = seg.optical_depth.min(1e30);
-                pre.extend([seg.color[0] as f32, seg.color[1] as f32, seg.color[2] as f32, depth as f32]);
+        None => {
+            // The flags first, straight into the map.
+            let t = Instant::now();
+            let mut map = new_map()?;
+            let mut flagger = bricks::LayerFlags::new(dims, tf, s.brick);
+            for (bz, cells) in map.mapped_for_write()?.chunks_exact_mut(layer_bricks).enumerate() {
+                bricks::mark(flagger.flags(bz, vol.samples()), cells);
             }
+            bricks_ms += t.elapsed().as_secs_f64() * 1e3;
+            let volume = upload_texture_with(ctx, &desc, counter, &mut |offset, dst| fill(vol.samples(), offset, dst))
+                .with_context(|| format!("uploading volume '{}'", vol.name))?;
+            (map, volume)
         }
-        let preint = upload_texture(ctx, &TextureDesc::d2("pre-integration table", n as u32, n as u32, Format::Rgba32Float), &f32_bytes(&pre), counter)?;
+    };
+    let cells = map.mapped_for_write()?;
+    let t = Instant::now();
+    bricks::chebyshev_in_place(cells, grid);
+    for d in cells.iter_mut() {
+        *d = d.saturating_sub(dilation);
+    }
+    let visible = cells.iter().filter(|&&d| d == 0).count();
+    bricks_ms += t.elapsed().as_secs_f64() * 1e3;
+    let bricks = map.into_texels(ctx, counter)?;
+    Ok(BrickedVolume { volume, bricks, grid, visible, ms: bricks_ms })
+}
 
-        let table_build_ms = bricks_ms + t0.elapsed().as_secs_f64() * 1e3;
+/// The transfer function's 1D table over [lo, hi] and the pre-integration
+/// table over (front, back) in [lo, hi]^2, texel centres at the ends:
+/// premultiplied colour and optical depth of a segment of
+/// [`preint_length`] world units, exact (`algo::segment`); 2x2 (unread)
+/// without `preint`. Its side is the returned count.
+fn upload_tables(
+    ctx: &Arc<Context>,
+    vol: &Volume,
+    tf: &TransferFunction,
+    s: &Settings,
+    (lo, hi): (f64, f64),
+    counter: &mut UploadCounter,
+) -> Result<(crate::vk::Image, crate::vk::Image, usize)> {
+    let table: Vec<f32> = tf.table(TABLE_SIZE, lo, hi).concat();
+    let tf_img = upload_texture(ctx, &TextureDesc::d1("transfer function", TABLE_SIZE as u32, Format::Rgba32Float), &f32_bytes(&table), counter)?;
+    let d0 = preint_length(vol, s.step);
+    let n = if s.preint() { PREINT_SIZE } else { 2 };
+    let mut pre = Vec::with_capacity(n * n * 4);
+    for b in 0..n {
+        for f in 0..n {
+            let sf = lo + (hi - lo) * f as f64 / (n - 1) as f64;
+            let sb = lo + (hi - lo) * b as f64 / (n - 1) as f64;
+            let seg = integrate_segment(tf, sf, sb, d0);
+            let depth = seg.optical_depth.min(1e30);
+            pre.extend([seg.color[0] as f32, seg.color[1] as f32, seg.color[2] as f32, depth as f32]);
+        }
+    }
+    let preint = upload_texture(ctx, &TextureDesc::d2("pre-integration table", n as u32, n as u32, Format::Rgba32Float), &f32_bytes(&pre), counter)?;
+    Ok((tf_img, preint, n))
+}
 
-        let spacing = vol.spacing();
+impl Params {
+    /// The parameters of `vol` under `s`, its samples stored as `choice`
+    /// says, its bricks in `grid`, its PREINT table `preint_side` a side.
+    fn new(vol: &Volume, s: &Settings, choice: &TextureChoice, grid: [usize; 3], preint_side: usize) -> Self {
+        let dims = vol.dims();
+        let f32s = |v: [usize; 3]| Vec3::new(v[0] as f32, v[1] as f32, v[2] as f32);
         // t = (v - offset) * scale / (hi - lo), offset lo / scale for the
         // native formats (0 for floats, stored relative to lo): the
         // subtraction first, so a small range far from zero keeps its bits.
-        let tscale = scale / (hi - lo);
-        let params: [f32; 28] = [
-            (dims[0] - 1) as f32, (dims[1] - 1) as f32, (dims[2] - 1) as f32, s.brick as f32,
-            1.0 / dims[0] as f32, 1.0 / dims[1] as f32, 1.0 / dims[2] as f32, if s.preint() { n as f32 } else { TABLE_SIZE as f32 },
-            spacing[0] as f32, spacing[1] as f32, spacing[2] as f32, s.step as f32,
-            tscale as f32, offset as f32, s.ert as f32, d0 as f32,
-            grid[0] as f32, grid[1] as f32, grid[2] as f32, 0.0,
-            0.0, 0.0, 0.0, 0.0,
-            0.3, 0.7, 0.25, 30.0,
-        ];
-        let mut params_buf = Buffer::new(ctx, BufferDesc::upload("raycast parameters", 112, BufferUsage::UNIFORM))?;
-        params_buf.write(0, &f32_bytes(&params), counter, UploadClass::Static)?;
+        let tscale = choice.scale / (choice.hi - choice.lo);
+        Params {
+            box_max: f32s(dims.map(|d| d - 1)),
+            brick: s.brick as f32,
+            inv_dims: Vec3::new(1.0 / dims[0] as f32, 1.0 / dims[1] as f32, 1.0 / dims[2] as f32),
+            table_entries: if s.preint() { preint_side as f32 } else { TABLE_SIZE as f32 },
+            spacing: DVec3::from(vol.spacing()).as_vec3(),
+            step: s.step as f32,
+            tf_scale: tscale as f32,
+            tf_offset: choice.offset as f32,
+            ert: s.ert as f32,
+            preint_length: preint_length(vol, s.step) as f32,
+            brick_grid: f32s(grid),
+            ambient: 0.3,
+            diffuse: 0.7,
+            specular: 0.25,
+            shininess: 30.0,
+        }
+    }
+}
+
+impl VolumeResources {
+    /// `given`: the volume's samples taken from it (`Volume::take_samples`)
+    /// when nothing reads them after this set-up: they are given back to
+    /// the system slab by slab as the texture receives them. `None`: they
+    /// are read from `vol`.
+    pub fn new(
+        ctx: &Arc<Context>,
+        vol: &Volume,
+        given: Option<Samples>,
+        tf: &TransferFunction,
+        s: &Settings,
+        counter: &mut UploadCounter,
+    ) -> Result<Self> {
+        let choice = {
+            let samples = checked_samples(ctx, vol, given.as_ref())?;
+            TextureChoice::of(ctx, vol, samples, s)?
+        };
+        let bricked = upload_volume_and_bricks(ctx, vol, given, tf, s, &choice, counter)?;
+        let t0 = Instant::now();
+        let (tf_img, preint, preint_side) = upload_tables(ctx, vol, tf, s, (choice.lo, choice.hi), counter)?;
+        let table_build_ms = bricked.ms + t0.elapsed().as_secs_f64() * 1e3;
+        let params = Params::new(vol, s, &choice, bricked.grid, preint_side);
+        let mut params_buf = Buffer::new(ctx, BufferDesc::upload("raycast parameters", std::mem::size_of::<Params>() as u64, BufferUsage::UNIFORM))?;
+        params_buf.write(0, bytemuck::bytes_of(&params), counter, UploadClass::Static)?;
         let counters = Buffer::new(ctx, BufferDesc::counters("raycast counters", COUNTER_WORDS))?;
         let sampler = Sampler::linear_clamp(ctx, "raycast linear")?;
+        let loads = choice.load_format.is_some();
+        let volume = &bricked.volume;
         let set = DescriptorSet::new(
             ctx,
             "raycast volume",
             &set0_desc(loads),
             &[
                 DescriptorResource::UniformBuffer(&params_buf),
-                if loads { DescriptorResource::StorageImage(&volume) } else { DescriptorResource::CombinedImageSampler(&volume, &sampler) },
+                if loads { DescriptorResource::StorageImage(volume) } else { DescriptorResource::CombinedImageSampler(volume, &sampler) },
                 DescriptorResource::CombinedImageSampler(&tf_img, &sampler),
-                DescriptorResource::UniformTexelBuffer(&bricks),
+                DescriptorResource::UniformTexelBuffer(&bricked.bricks),
                 DescriptorResource::StorageBuffer(&counters),
                 DescriptorResource::CombinedImageSampler(&preint, &sampler),
             ],
         )?;
         Ok(VolumeResources {
             set,
-            _volume: volume,
+            _volume: bricked.volume,
             _tf: tf_img,
             _preint: preint,
             _params: params_buf,
-            _bricks: bricks,
+            _bricks: bricked.bricks,
             counters,
             _sampler: sampler,
-            texture_format: format_name,
-            volume_load_format,
-            brick_grid: grid,
-            bricks_visible,
+            texture_format: choice.name,
+            volume_load_format: choice.load_format,
+            brick_grid: bricked.grid,
+            bricks_visible: bricked.visible,
             table_build_ms,
-            dims,
+            dims: vol.dims(),
             origin: vol.origin().into(),
-            spacing: spacing.into(),
+            spacing: vol.spacing().into(),
         })
     }
 
@@ -711,20 +864,18 @@ impl VolumeResources {
     }
 
     /// Push constants for the view: `m` (voxel -> clip, or NDC -> voxel),
-    /// `tiles` (the compute pass's tiles: first workgroup x, y, rows of
-    /// workgroups, the device's runs; `crate::algo::screen::interleaved_rows`) and
-    /// the light direction (world axes).
-    pub fn push_constants(&self, view: &View, ndc_to_voxel: bool, tiles: [u32; 4]) -> Vec<u8> {
+    /// the compute pass's tiles (`first_group`, `rows`: its first workgroup
+    /// and rows of workgroups; `runs`: the device's runs,
+    /// `crate::algo::screen::interleaved_rows`) and the light direction
+    /// (world axes).
+    pub fn frame(&self, view: &View, ndc_to_voxel: bool, first_group: [u32; 2], rows: u32, runs: u32) -> Frame {
         let vp = view.camera.view_proj(view.width, view.height);
         let w = self.world_from_voxel();
         let m = if ndc_to_voxel { w.inverse() * vp.inverse() } else { vp * w };
         // A headlight raised a little above the view direction.
         let fwd = view.camera.forward();
         let light = (-fwd + DVec3::from(view.camera.up) * 0.5).normalize();
-        let mut bytes = f32_bytes(&m.to_cols_array().map(|x| x as f32));
-        bytes.extend(tiles.iter().flat_map(|t| t.to_ne_bytes()));
-        bytes.extend(f32_bytes(&[light.x as f32, light.y as f32, light.z as f32, 0.0]));
-        bytes
+        Frame { m: m.to_cols_array_2d().map(|c| c.map(|x| x as f32)), first_group, rows, runs, light: light.as_vec3() }
     }
 
     /// Clear the counters before the frame's passes.

@@ -49,8 +49,36 @@ pub const METHOD: MethodInfo = MethodInfo {
 };
 
 const LOCAL_SIZE: u64 = 64;
-/// Draw arguments (VkDrawIndexedIndirectCommand) and an error count.
-const DRAW_HEADER: [u32; 6] = [0, 1, 0, 0, 0, 0];
+/// The tessellation pass's push constants (`Push` in `terrain/pc.comp`;
+/// `tests/shader_interfaces.rs` checks the two agree).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct TessPush {
+    /// Active PC cells.
+    pub count: u32,
+    /// The grid's first geometry index and row length (`terrain/tessellate.glsl`).
+    pub grid_base: u32,
+    pub grid_width: u32,
+    /// Indices the output holds.
+    pub capacity: u32,
+}
+
+/// The draw arguments the pass fills (`Draw` in `terrain/pc.comp`:
+/// VkDrawIndexedIndirectCommand) and its error count; reset every frame.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct DrawArgs {
+    pub index_count: u32,
+    pub instance_count: u32,
+    pub first_index: u32,
+    pub vertex_offset: i32,
+    pub first_instance: u32,
+    /// Cells whose triangles did not fit (never: the output holds the largest frame).
+    pub errors: u32,
+}
+
+/// No triangles yet, one instance.
+const DRAW_RESET: DrawArgs = DrawArgs { index_count: 0, instance_count: 1, first_index: 0, vertex_offset: 0, first_instance: 0, errors: 0 };
 
 fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
     let SceneData::Terrain(map) = inputs.data else { bail!("hm-compute renders terrains only") };
@@ -79,7 +107,7 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
     let capacity_indices = 3 * tables.frame_capacity(m, |k, i| tables.cells[k][i][3] as u64).max(1);
     let capacity_u32 = u32::try_from(capacity_indices).map_err(|_| anyhow::anyhow!("hm-compute: {capacity_indices} PC indices per frame"))?;
     let active = Buffer::new(ctx, BufferDesc::upload("hm-compute active PC cells", 4 * capacity_cells, storage))?;
-    let draw = Buffer::new(ctx, BufferDesc::upload("hm-compute draw arguments", 24, storage | BufferUsage::INDIRECT))?;
+    let draw = Buffer::new(ctx, BufferDesc::upload("hm-compute draw arguments", std::mem::size_of::<DrawArgs>() as u64, storage | BufferUsage::INDIRECT))?;
     let output = Buffer::new(
         ctx,
         BufferDesc::device_local("hm-compute PC triangles", 4 * capacity_indices, storage | BufferUsage::INDEX | BufferUsage::TRANSFER_SRC),
@@ -108,7 +136,7 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
     )?;
     let key = PipelineKey::Compute(ComputePipelineKey {
         shader: ShaderKey::new("terrain/pc.comp", ShaderStage::Compute, &[]),
-        push_constant_bytes: 16,
+        push_constant_bytes: std::mem::size_of::<TessPush>() as u32,
         sets: vec![desc],
     });
     let pipeline = crate::algo::pipelines::get(ctx, &key)?;
@@ -170,11 +198,10 @@ fn median(v: impl Iterator<Item = f64>) -> Option<f64> {
 }
 
 impl HmCompute {
-    fn header(&self) -> Result<[u32; 6]> {
-        let words: &[u32] = bytemuck::try_cast_slice(&self.draw.read()?[..24]).map_err(|e| anyhow::anyhow!("hm-compute draw arguments: {e}"))?;
-        let mut h = [0u32; 6];
-        h.copy_from_slice(words);
-        Ok(h)
+    /// The draw arguments the last frame's pass wrote.
+    fn draw_args(&self) -> Result<DrawArgs> {
+        let bytes = self.draw.read()?;
+        bytemuck::try_pod_read_unaligned(&bytes[..std::mem::size_of::<DrawArgs>()]).map_err(|e| anyhow::anyhow!("hm-compute draw arguments: {e}"))
     }
 }
 
@@ -205,7 +232,7 @@ impl RenderMethod for HmCompute {
         if !self.active_list.is_empty() {
             self.active.write(0, bytemuck::cast_slice(&self.active_list), counter, UploadClass::FrameCells)?;
         }
-        self.draw.write(0, bytemuck::cast_slice(&DRAW_HEADER), counter, UploadClass::FrameConstants)?;
+        self.draw.write(0, bytemuck::bytes_of(&DRAW_RESET), counter, UploadClass::FrameConstants)?;
         Ok(())
     }
 
@@ -218,8 +245,8 @@ impl RenderMethod for HmCompute {
             rec.draw_fetch_to_compute();
             rec.bind_compute(&self.pipeline, &[&self.set])?;
             let m = &self.scene.model;
-            let push = [n as u32, m.grid_base, m.domain[0] + 1, self.capacity_indices];
-            rec.push_constants(&self.pipeline, bytemuck::cast_slice(&push), counter);
+            let push = TessPush { count: n as u32, grid_base: m.grid_base, grid_width: m.domain[0] + 1, capacity: self.capacity_indices };
+            rec.push_constants(&self.pipeline, bytemuck::bytes_of(&push), counter);
             rec.dispatch([n.div_ceil(LOCAL_SIZE) as u32, 1, 1])?;
             rec.compute_to_graphics();
         }
@@ -227,7 +254,7 @@ impl RenderMethod for HmCompute {
         let pc_push = self.scene.record_static(rec, target, view, counter)?;
         if n > 0 {
             rec.bind_index_buffer_u32(&self.output);
-            rec.push_constants(&self.scene.pipeline, &pc_push, counter);
+            rec.push_constants(&self.scene.pipeline, bytemuck::bytes_of(&pc_push), counter);
             rec.draw_indexed_indirect(&self.draw, 0)?;
         }
         rec.end_rendering();
@@ -249,14 +276,14 @@ impl RenderMethod for HmCompute {
     }
 
     fn details(&self) -> serde_json::Value {
-        let h = self.header().ok();
+        let h = self.draw_args().ok();
         self.scene.details(json!({
             "name": "compute",
             "pc_upload": "the active PC list (a u32 cell index per active PC cell) and the 24-byte indirect-draw header, every frame",
             "pc_capacity_indices": self.capacity_indices,
             "largest_ring": self.tables.max_ring,
-            "last_frame_indices": h.map(|h| h[0]),
-            "tessellation_errors": h.map(|h| h[5]),
+            "last_frame_indices": h.map(|h| h.index_count),
+            "tessellation_errors": h.map(|h| h.errors),
             "compute_pipeline": { "key": self.key.id(), "name": self.key.name() },
             "device_phases_ms": {
                 "tessellate": median(self.device_ms.iter().map(|t| t.0)),
@@ -268,8 +295,8 @@ impl RenderMethod for HmCompute {
     }
 
     fn diagnostics(&mut self, _view: &View) -> Result<Option<serde_json::Value>> {
-        let h = self.header()?;
-        let count = h[0].min(self.capacity_indices) as u64;
+        let h = self.draw_args()?;
+        let count = h.index_count.min(self.capacity_indices) as u64;
         let readback = Buffer::new(&self.ctx, BufferDesc::readback("hm-compute readback", 4 * count.max(1)))?;
         let rec = CommandRecorder::new(&self.ctx, "hm-compute readback")?;
         rec.begin()?;
@@ -281,7 +308,7 @@ impl RenderMethod for HmCompute {
         rec.submit_and_wait()?;
         let words: &[u32] = bytemuck::try_cast_slice(&readback.read()?[..4 * count as usize]).map_err(|e| anyhow::anyhow!("hm-compute readback: {e}"))?;
         let (triangles, digest) = triangle_digest(words);
-        Ok(Some(json!({ "pc_triangles": triangles, "pc_digest": digest, "tessellation_errors": h[5] })))
+        Ok(Some(json!({ "pc_triangles": triangles, "pc_digest": digest, "tessellation_errors": h.errors })))
     }
 
     fn table_build_ms(&self) -> f64 {

@@ -87,7 +87,7 @@ impl RenderMethod for HmCpu {
         let pc_push = self.scene.record_static(rec, target, view, counter)?;
         if !self.indices.is_empty() {
             rec.bind_index_buffer_u32(&self.buffer);
-            rec.push_constants(&self.scene.pipeline, &pc_push, counter);
+            rec.push_constants(&self.scene.pipeline, bytemuck::bytes_of(&pc_push), counter);
             rec.draw_indexed_range(0, self.indices.len() as u32);
         }
         rec.end_rendering();

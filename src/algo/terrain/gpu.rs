@@ -261,7 +261,7 @@ impl RenderMethod for HmGpu {
             rec.bind_graphics(&self.pipeline, &[&self.set])?;
             rec.bind_vertex_buffer(&self.list);
             rec.bind_index_buffer_u32(&self.active);
-            rec.push_constants(&self.pipeline, &pc_push, counter);
+            rec.push_constants(&self.pipeline, bytemuck::bytes_of(&pc_push), counter);
             rec.draw_indexed_range(0, self.active_list.len() as u32);
         }
         rec.end_rendering();

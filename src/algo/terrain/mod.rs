@@ -34,7 +34,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use anyhow::Result;
-use glam::DVec3;
+use glam::{DVec3, Vec3};
 use serde_json::json;
 
 use crate::algo::method::{Family, OptionSpec, Options, OwnError, Phases, SceneData, View};
@@ -120,9 +120,29 @@ const TINT_NC: [f32; 3] = [0.35, 0.75, 0.3];
 const TINT_PC: [f32; 3] = [1.0, 0.55, 0.1];
 const TINT_TIN: [f32; 3] = [0.25, 0.45, 1.0];
 
-/// Push constants: mat4, tint, light, range (range.zw: the grid's first
-/// geometry index and row length, as u32 bits, for the PC tessellators).
-pub const PUSH_BYTES: u32 = 112;
+/// The push constants of every terrain draw (`shaders/terrain/common.glsl`;
+/// `tests/shader_interfaces.rs` checks the two agree).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct Push {
+    pub view_proj: [[f32; 4]; 4],
+    /// The class colour (NC / PC tessellation / TIN).
+    pub tint: Vec3,
+    /// How much of it: 0.85 with `colour=classes`, else 0 (the height colours).
+    pub tint_mix: f32,
+    /// Unit direction towards the light.
+    pub light: Vec3,
+    /// The lowest and highest height.
+    pub height_lo: f32,
+    pub height_hi: f32,
+    /// The grid's first geometry index and row length, for the PC
+    /// tessellators (`terrain/tessellate.glsl`).
+    pub grid_base: u32,
+    pub grid_width: u32,
+}
+
+/// The size of [`Push`], as the pipelines' push-constant range.
+pub const PUSH_BYTES: u32 = std::mem::size_of::<Push>() as u32;
 
 /// The camera of frame `frame` of the fly-over: once around an ellipse
 /// over the middle of the terrain every 120 frames, 0.25 of the terrain's
@@ -368,21 +388,25 @@ impl TerrainScene {
     }
 
     /// Push constants for a draw tinted `tint`.
-    fn push(&self, view: &View, tint: [f32; 3]) -> Vec<u8> {
+    fn push(&self, view: &View, tint: [f32; 3]) -> Push {
         let m = view.camera.view_proj(view.width, view.height);
         let light = (-view.camera.forward() + DVec3::new(0.3, 0.2, 1.0)).normalize();
-        let mut v: Vec<f32> = m.to_cols_array().iter().map(|&x| x as f32).collect();
-        v.extend([tint[0], tint[1], tint[2], if self.settings.classes() { 0.85 } else { 0.0 }]);
-        v.extend([light.x as f32, light.y as f32, light.z as f32, 0.0]);
-        let (base, width) = (self.model.grid_base, self.model.domain[0] + 1);
-        v.extend([self.range.0 as f32, self.range.1 as f32, f32::from_bits(base), f32::from_bits(width)]);
-        bytes_of(&v).to_vec()
+        Push {
+            view_proj: m.to_cols_array_2d().map(|c| c.map(|x| x as f32)),
+            tint: tint.into(),
+            tint_mix: if self.settings.classes() { 0.85 } else { 0.0 },
+            light: light.as_vec3(),
+            height_lo: self.range.0 as f32,
+            height_hi: self.range.1 as f32,
+            grid_base: self.model.grid_base,
+            grid_width: self.model.domain[0] + 1,
+        }
     }
 
     /// Begin the frame's rendering and draw the active NC cells and the
     /// TINs; the method then draws its PC triangles with `pc_tint`'s push
     /// constants bound (returned).
-    pub fn record_static(&self, rec: &CommandRecorder, target: &Image, view: &View, counter: &mut UploadCounter) -> Result<Vec<u8>> {
+    pub fn record_static(&self, rec: &CommandRecorder, target: &Image, view: &View, counter: &mut UploadCounter) -> Result<Push> {
         match &self.depth {
             Some(d) => rec.begin_rendering_with_depth(target, [0.0; 4], d)?,
             None => rec.begin_rendering(target, [0.0; 4]),
@@ -390,11 +414,11 @@ impl TerrainScene {
         rec.bind_graphics(&self.pipeline, &[])?;
         rec.bind_vertex_buffer(&self.geometry.buffer);
         rec.bind_index_buffer_u32(&self.static_indices);
-        rec.push_constants(&self.pipeline, &self.push(view, TINT_NC), counter);
+        rec.push_constants(&self.pipeline, bytemuck::bytes_of(&self.push(view, TINT_NC)), counter);
         for &(first, count) in self.active.nc_draws.iter().chain(&self.active.skirt_draws) {
             rec.draw_indexed_range(first, count);
         }
-        rec.push_constants(&self.pipeline, &self.push(view, TINT_TIN), counter);
+        rec.push_constants(&self.pipeline, bytemuck::bytes_of(&self.push(view, TINT_TIN)), counter);
         rec.draw_indexed_range(self.tin_first, self.model.tin_indices.len() as u32);
         Ok(self.push(view, TINT_PC))
     }

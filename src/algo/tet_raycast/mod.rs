@@ -73,16 +73,15 @@ use std::sync::Arc;
 use anyhow::{bail, Context as _, Result};
 use serde_json::json;
 
-use super::cell_projection::render;
 use super::settings::{choice, float, int, MethodSettings};
-use super::cell_projection::{render_origin, scalar_map, ExitTolerances, FrameSetup, Interpolation, MeshScale};
+use super::tet_mesh::{integrator_bound, render_origin, scalar_map, MeshScale, INTEGRATOR_HELP, TABLE_SIZE_HELP};
 use super::chunks::{ensure_frame_texels, frame_texels, ChunkLimits, TexelChunks};
 use tiles::{Projected, TileLists, TILE};
 use super::host_memory::HostMemory;
 use super::screen;
 use super::adaptive::{Adaptive, Silhouettes};
 use silhouette::BoundaryEdges;
-use super::integrate::{check_table_size, IntegrationTables, Integrator};
+use super::integrate::{check_table_size, IntegrationTables, Integrator, TableMap};
 use super::method::{DataKind, Family, MethodInfo, MethodInputs, OptionSpec, Options, Phases, RenderMethod, SceneData, View, Work};
 use crate::mesh::adjacency::FACE_VERTS;
 use crate::mesh::TetMesh;
@@ -105,8 +104,47 @@ pub const STEP_MARGIN: u64 = 1024;
 pub const STALL_LIMIT: u32 = 1024;
 /// The default early-termination opacity.
 pub const ERT_DEFAULT: f64 = 0.999;
-/// Push constants: 8 vec4.
-pub const PUSH_BYTES: u32 = 128;
+/// The walk's push constants (`shaders/tet_raycast/frame.glsl`, `Frame`;
+/// `tests/shader_interfaces.rs` checks the two agree).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct WalkFrame {
+    /// The eye, relative to the render origin.
+    pub eye: glam::Vec3,
+    /// 1 perspective, 0 orthographic.
+    pub perspective: f32,
+    /// Unit view direction.
+    pub forward: glam::Vec3,
+    /// Near plane (view depth).
+    pub near: f32,
+    /// Right, scaled so that ndc x = 1 is the image's edge (`Camera::image_axes`).
+    pub right: glam::Vec3,
+    /// Far plane (view depth).
+    pub far: f32,
+    /// Up, scaled alike.
+    pub up: glam::Vec3,
+    /// Early-termination opacity (>= 1: off).
+    pub ert: f32,
+    pub table: TableMap,
+    /// Entry tolerance (world units).
+    pub entry_tol: f32,
+    /// Cells a ray may visit ([`STEP_MARGIN`] past one pass over the mesh).
+    pub step_budget: u32,
+    /// [`STALL_LIMIT`].
+    pub stall_limit: u32,
+    /// The pixels whose rays may meet the mesh ([`pixel_rect`]): x0, y0, x1,
+    /// y1 inclusive; the dispatch starts at x0, y0.
+    pub rect: [u32; 4],
+    /// Rows of workgroups and the device's runs (`common/dispatch.glsl`,
+    /// `interleaved_row`).
+    pub rows: u32,
+    pub runs: u32,
+    /// Adaptive refinement's cast step (4, 2 or 1; 0 without).
+    pub cast_step: u32,
+}
+
+/// The size of [`WalkFrame`], as the pipelines' push-constant range.
+const PUSH_BYTES: u32 = std::mem::size_of::<WalkFrame>() as u32;
 /// Pixels added around the boundary's projected box before pixels outside
 /// it are skipped (covers the f32 rounding of the shader's rays).
 const RECT_PAD: f64 = 2.0;
@@ -154,8 +192,8 @@ crate::settings! {
     /// Integrator and table size as the cell-projection methods take them,
     /// the termination threshold and the entry search.
     pub struct Settings {
-        integrator: Integrator = "ppi", choice::<Integrator>(), build, "", render::INTEGRATOR_HELP;
-        table_size: usize = "0", int(0, 4096), run, "samples per side", render::TABLE_SIZE_HELP;
+        integrator: Integrator = "ppi", choice::<Integrator>(), build, "", INTEGRATOR_HELP;
+        table_size: usize = "0", int(0, 4096), run, "samples per side", TABLE_SIZE_HELP;
         ert: f64 = "0.999", float(0.5, 1.0), run, "opacity",
             "early ray termination: stop once the ray's opacity reaches this (1 = only when fully opaque); \
              adds at most 1 - ert to a pixel's error";
@@ -222,7 +260,7 @@ pub const METHOD: MethodInfo = MethodInfo {
 /// tolerance ([`crate::algo::adaptive::bound`]).
 pub fn accuracy_bound(options: &Options, _perspective: bool) -> Option<f64> {
     let s = Settings::from_options(options).ok()?;
-    Some(render::integrator_bound(s.integrator) + (1.0 - s.ert).max(0.0) + crate::algo::adaptive::bound(s.adaptive))
+    Some(integrator_bound(s.integrator) + (1.0 - s.ert).max(0.0) + crate::algo::adaptive::bound(s.adaptive))
 }
 
 /// The pixels whose rays may meet the mesh: the box of the boundary
@@ -448,7 +486,8 @@ pub struct TetRaycast {
     pipeline: Arc<Pipeline>,
     key: PipelineKey,
     target_set: TargetImageSet,
-    push: Vec<u8>,
+    /// The frame's push constants.
+    frame: WalkFrame,
     pixels: u64,
     cells: usize,
     boundary_faces: usize,
@@ -734,7 +773,7 @@ impl TetRaycast {
             pipeline,
             key,
             target_set,
-            push: Vec::new(),
+            frame: bytemuck::Zeroable::zeroed(),
             pixels: u64::from(width) * u64::from(height),
             cells: n,
             boundary_faces: topo.boundary.len(),
@@ -758,34 +797,36 @@ impl TetRaycast {
         })
     }
 
-    /// The frame's push constants (`Frame` in walk.comp) for its pixel
-    /// rectangle `rect`.
-    fn push_constants(&self, view: &View, rect: [u32; 4]) -> Vec<u8> {
+    /// The frame's push constants ([`WalkFrame`]) for its pixel rectangle
+    /// `rect`.
+    fn frame_constants(&self, view: &View, rect: [u32; 4]) -> WalkFrame {
         let c: &Camera = &view.camera;
-        // The table range and length scale exactly as the cell-projection
-        // methods map them.
-        let setup = FrameSetup::new(c, view.width, view.height, &self.tables, &self.scale, Interpolation::Exact, &ExitTolerances::default());
         let o = self.scale.origin;
         let eye: [f64; 3] = std::array::from_fn(|k| c.eye[k] - o[k]);
-        let fwd = c.forward();
         let (right, up) = c.image_axes(view.width, view.height);
-        let persp = if c.is_perspective() { 1.0 } else { 0.0 };
-        let budget = u32::try_from(self.step_budget).unwrap_or(u32::MAX);
-        let tol = 1e-5 * self.scale.diagonal;
-        // The rectangle's rows of workgroups, interleaved over the device's
-        // runs (algo::screen::interleaved_rows).
-        let rows = rect_groups(rect)[1];
-        let v: [f32; 32] = [
-            eye[0] as f32, eye[1] as f32, eye[2] as f32, persp,
-            fwd.x as f32, fwd.y as f32, fwd.z as f32, c.near as f32,
-            right.x as f32, right.y as f32, right.z as f32, c.far as f32,
-            up.x as f32, up.y as f32, up.z as f32, self.settings.ert as f32,
-            setup.constants.tf_range[0], setup.constants.tf_range[1], setup.constants.tf_range[2], setup.constants.tf_range[3],
-            tol as f32, f32::from_bits(budget), f32::from_bits(STALL_LIMIT), setup.constants.limits[3],
-            f32::from_bits(rect[0]), f32::from_bits(rect[1]), f32::from_bits(rect[2]), f32::from_bits(rect[3]),
-            f32::from_bits(rows), f32::from_bits(self.ctx.info.compute_runs()), 0.0, 0.0,
-        ];
-        bytemuck::cast_slice(&v).to_vec()
+        let f32s = |v: glam::DVec3| v.as_vec3();
+        WalkFrame {
+            eye: glam::DVec3::from(eye).as_vec3(),
+            perspective: if c.is_perspective() { 1.0 } else { 0.0 },
+            forward: f32s(c.forward()),
+            near: c.near as f32,
+            right: f32s(right),
+            far: c.far as f32,
+            up: f32s(up),
+            ert: self.settings.ert as f32,
+            // The table range and length scale exactly as the
+            // cell-projection methods map them.
+            table: self.tables.map(self.scale.scalar_origin, self.scale.scalar_scale),
+            entry_tol: (1e-5 * self.scale.diagonal) as f32,
+            step_budget: u32::try_from(self.step_budget).unwrap_or(u32::MAX),
+            stall_limit: STALL_LIMIT,
+            rect,
+            // The rectangle's rows of workgroups, interleaved over the
+            // device's runs (algo::screen::interleaved_rows).
+            rows: rect_groups(rect)[1],
+            runs: self.ctx.info.compute_runs(),
+            cast_step: 0,
+        }
     }
 
     /// The last frame's counters (`Counters` in walk.comp).
@@ -863,7 +904,7 @@ impl RenderMethod for TetRaycast {
         self.rect = rect_of(&projected, [w, h]).unwrap_or([0, 0, w.saturating_sub(1), h.saturating_sub(1)]);
         let [x0, y0, x1, y1] = self.rect;
         self.rect_pixels = if x0 > x1 || y0 > y1 { 0 } else { u64::from(x1 - x0 + 1) * u64::from(y1 - y0 + 1) };
-        self.push = self.push_constants(view, self.rect);
+        self.frame = self.frame_constants(view, self.rect);
         self.lists_active = self.rect_pixels > 0
             && self.settings.search == Search::Auto
             && self.lists.build(
@@ -939,7 +980,7 @@ impl RenderMethod for TetRaycast {
             let lists_active = self.lists_active;
             let (tables, mesh, lists) = (&self.tables.set, &self.mesh_set, &self.lists_set);
             let (pipeline, pipeline_lists) = (&a.pipeline, &a.pipeline_lists);
-            let base_push = &self.push;
+            let frame = self.frame;
             a.state.record(rec, target, counter, |rec, state, step, indirect, counter| {
                 let pipeline = if lists_active { pipeline_lists } else { pipeline };
                 if lists_active {
@@ -947,11 +988,9 @@ impl RenderMethod for TetRaycast {
                 } else {
                     rec.bind_compute(pipeline, &[tables, mesh, set, state])?;
                 }
-                let mut push = base_push.clone();
-                // order.x: the lattice's rows of workgroups; order.z: the step.
-                push[28 * 4..29 * 4].copy_from_slice(&lattice[1].to_le_bytes());
-                push[30 * 4..31 * 4].copy_from_slice(&step.to_le_bytes());
-                rec.push_constants(pipeline, &push, counter);
+                // The lattice's rows of workgroups, and the step.
+                let push = WalkFrame { rows: lattice[1], cast_step: step, ..frame };
+                rec.push_constants(pipeline, bytemuck::bytes_of(&push), counter);
                 match indirect {
                     None => rec.dispatch([lattice[0], screen::interleaved_rows(lattice[1], runs), 1])?,
                     Some((args, offset)) => rec.dispatch_indirect(args, offset)?,
@@ -965,10 +1004,10 @@ impl RenderMethod for TetRaycast {
         }
         if self.lists_active {
             rec.bind_compute(&self.pipeline_lists, &[&self.tables.set, &self.mesh_set, set, &self.lists_set])?;
-            rec.push_constants(&self.pipeline_lists, &self.push, counter);
+            rec.push_constants(&self.pipeline_lists, bytemuck::bytes_of(&self.frame), counter);
         } else {
             rec.bind_compute(&self.pipeline, &[&self.tables.set, &self.mesh_set, set])?;
-            rec.push_constants(&self.pipeline, &self.push, counter);
+            rec.push_constants(&self.pipeline, bytemuck::bytes_of(&self.frame), counter);
         }
         rec.dispatch(groups)?;
         rec.compute_to_host();

@@ -228,7 +228,7 @@ pub fn stress_table(rows: &[StressRow]) -> String {
             r.rmse,
             r.bound,
             match &r.error {
-                Some(e) => format!("fail: {}", e.replace('|', "/").replace('\n', " ")),
+                Some(e) => format!("fail: {}", crate::harness::report::md_cell(e)),
                 None => r.status.to_string(),
             }
         ));

@@ -44,7 +44,7 @@ pub fn report(s: &Summary, registry: &Registry) -> String {
             e.env_switches.iter().map(|(k, v)| format!("`{k}={}`", v.escape_debug())).collect::<Vec<_>>().join(", ")
         );
     }
-    t += "| dataset | method | status | frame ms median [min, max] | GPU ms | MB/frame | bytes/cell | static KB | M cells/s | error RMSE | max err |\n";
+    t += "| dataset | method | status | frame ms median [min, max] | GPU ms | MB/frame | bytes/cell | static KB | rate | error RMSE | max err |\n";
     t += "|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|\n";
     for r in &s.runs {
         match &r.result {
@@ -52,7 +52,7 @@ pub fn report(s: &Summary, registry: &Registry) -> String {
                 let f = x.time_ms.phase("frame");
                 let _ = writeln!(
                     t,
-                    "| {} | {} | ok | {:.1} [{:.1}, {:.1}] | {:.1} | {:.2} | {} | {:.1} | {:.3} | {} | {} |",
+                    "| {} | {} | ok | {:.1} [{:.1}, {:.1}] | {:.1} | {:.2} | {} | {:.1} | {} | {} | {} |",
                     r.dataset,
                     r.label,
                     f.median,
@@ -62,7 +62,7 @@ pub fn report(s: &Summary, registry: &Registry) -> String {
                     x.upload.bytes_per_frame as f64 / 1e6,
                     x.upload.bytes_per_cell.map_or("-".into(), |v| format!("{v:.0}")),
                     x.upload.static_bytes as f64 / 1e3,
-                    x.cells_per_second / 1e6,
+                    crate::harness::report::rate(x),
                     x.error.as_ref().map_or("-".into(), |e| format!("{:.2e}", e.rmse)),
                     x.error.as_ref().map_or("-".into(), |e| format!("{:.2e}", e.max_abs)),
                 );

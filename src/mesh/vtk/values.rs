@@ -52,8 +52,8 @@ impl DType {
     }
     /// Evidence that a BINARY array of this type, big-endian by the
     /// format, was written little-endian (`byte_order`).
-    fn looks_little_endian(self, bytes: &[u8]) -> Option<crate::mesh::byte_order::LittleEndianEvidence> {
-        use crate::mesh::byte_order::{looks_little_endian, looks_little_endian_int};
+    fn looks_little_endian(self, bytes: &[u8]) -> Option<crate::bytes::byte_order::LittleEndianEvidence> {
+        use crate::bytes::byte_order::{looks_little_endian, looks_little_endian_int};
         match self {
             DType::F32 | DType::F64 => looks_little_endian(bytes, self.size()),
             DType::I8 | DType::I16 | DType::I32 | DType::I64 => looks_little_endian_int(bytes, self.size(), true),

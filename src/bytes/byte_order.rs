@@ -26,6 +26,8 @@
 //! value is a multiple of 256 plus sign extension, e.g. a constant field of
 //! 256 stored as `unsigned_short`, which is no ordinary data either.
 
+use super::Endian;
+
 /// Magnitudes below this (other than 0) are implausible in a mesh file.
 const TINY: f64 = 1e-30;
 
@@ -72,11 +74,10 @@ fn implausible(v: f64) -> bool {
 }
 
 fn decode(c: &[u8], big: bool) -> f64 {
-    match (c.len(), big) {
-        (4, true) => f32::from_be_bytes([c[0], c[1], c[2], c[3]]) as f64,
-        (4, false) => f32::from_le_bytes([c[0], c[1], c[2], c[3]]) as f64,
-        (_, true) => f64::from_be_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]]),
-        (_, false) => f64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]]),
+    let e = if big { Endian::Big } else { Endian::Little };
+    match c.len() {
+        4 => e.read::<f32>(c) as f64,
+        _ => e.read::<f64>(c),
     }
 }
 
