@@ -19,7 +19,8 @@
 //!   (pre-integration, partial pre-integration's Psi) at their default sizes.
 //!
 //! Every shipped dataset (`datasets::NAMED`) is benched with every method of
-//! its kind. Frames are 256x256 so that `cargo bench` finishes in minutes.
+//! its kind, and the ray casters also with their suite's adaptive-refinement
+//! tolerances (`tet-raycast:adaptive=0.008`, ...). Frames are 256x256 so that `cargo bench` finishes in minutes.
 
 use std::hint::black_box;
 use std::time::{Duration, Instant};
@@ -45,6 +46,21 @@ fn throughput(dataset: &Dataset) -> Throughput {
     Throughput::Elements(dataset.summary().counts.get("cells").copied().unwrap_or((SIZE * SIZE) as u64))
 }
 
+/// Every method of `kind` with its defaults, and with each suite option set
+/// of adaptive refinement (`adaptive=TOL`, issue 37: the same method casting
+/// fewer rays), benched beside it as `<group>/<dataset>/<method>:adaptive=TOL`.
+fn specs(registry: &registry::Registry, kind: volbench::algo::method::DataKind) -> Vec<(&volbench::algo::method::MethodInfo, registry::MethodSpec)> {
+    let mut out = Vec::new();
+    for method in registry.for_kind(kind) {
+        let base = registry.parse_spec(method.name, &[]).expect("default spec");
+        let adaptive: Vec<registry::MethodSpec> =
+            method.suite.iter().filter(|v| v.contains("adaptive=")).map(|v| registry.variant(&base, v).expect("suite option set")).collect();
+        out.push((method, base));
+        out.extend(adaptive.into_iter().map(|s| (method, s)));
+    }
+    out
+}
+
 fn frames(c: &mut Criterion) {
     let ctx = Context::new(&ContextDesc::from_env().expect("VOLBENCH_* variables")).expect("a Vulkan device (run scripts/setup.sh)");
     let registry = registry::builtin();
@@ -52,15 +68,15 @@ fn frames(c: &mut Criterion) {
     for name in datasets::NAMED.iter().map(|d| d.name) {
         let dataset = datasets::load(name).expect("shipped dataset");
         let tf = dataset.default_transfer_function().expect("preset transfer function");
-        for method in registry.for_kind(dataset.kind()) {
-            let spec = registry.parse_spec(method.name, &[]).expect("default spec");
+        for (method, spec) in specs(&registry, dataset.kind()) {
             if let Some(why) = method.unsupported_reason(&ctx.info) {
-                eprintln!("skipping {}: {why}", method.name);
+                eprintln!("skipping {}: {why}", spec.label());
                 continue;
             }
+            let id = spec.label();
             let mut group = c.benchmark_group(format!("setup/{name}"));
             group.sample_size(10).warm_up_time(Duration::from_secs(1)).measurement_time(Duration::from_secs(5));
-            group.bench_function(BenchmarkId::from_parameter(method.name), |b| {
+            group.bench_function(BenchmarkId::from_parameter(&id), |b| {
                 b.iter(|| black_box(MethodSession::new(&ctx, &spec, &dataset, &tf, &cfg).expect("session")))
             });
             group.finish();
@@ -71,7 +87,7 @@ fn frames(c: &mut Criterion) {
                 let mut group = c.benchmark_group(format!("{group_name}/{name}"));
                 group.sample_size(10).warm_up_time(Duration::from_secs(2)).measurement_time(Duration::from_secs(8));
                 group.throughput(throughput(&dataset));
-                group.bench_function(BenchmarkId::from_parameter(method.name), |b| {
+                group.bench_function(BenchmarkId::from_parameter(&id), |b| {
                     b.iter_custom(|iters| {
                         let mut total = Duration::ZERO;
                         for _ in 0..iters {
@@ -90,7 +106,7 @@ fn frames(c: &mut Criterion) {
             group.sample_size(20);
             group.throughput(throughput(&dataset));
             let camera = orbit(&dataset, 3);
-            group.bench_function(BenchmarkId::from_parameter(method.name), |b| {
+            group.bench_function(BenchmarkId::from_parameter(&id), |b| {
                 b.iter(|| black_box(session.prepare(&camera).expect("prepare").method.0.len()))
             });
             group.finish();

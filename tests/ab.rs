@@ -233,6 +233,32 @@ fn a_per_side_environment_reaches_that_side_only() {
     }
 }
 
+/// A method spec with options, as the suite names its adaptive-refinement
+/// runs (`tet-raycast:adaptive=0.008`, issue 37), is a benchmark of its own:
+/// both ray casters with the option, each under its label.
+#[test]
+fn adaptive_refinement_specs_are_benchmarks() {
+    let exe = env!("CARGO_BIN_EXE_volbench");
+    let dir = tempfile::tempdir().unwrap();
+    let out = volbench()
+        .args(["ab", exe, exe, "--spec", "tet-raycast:adaptive=0.008", "--spec", "raycast-compute:adaptive=0.016"])
+        .args(["--filter", "post-small", "--filter", "hydrogen", "--pairs", "2", "--processes", "2", "--size", "32x32", "--frames", "1", "--warmup", "0"])
+        .arg("--out")
+        .arg(dir.path())
+        .env("VOLBENCH_VALIDATION", "1")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.path().join("ab.json")).unwrap()).unwrap();
+    let rows: Vec<(&str, &str)> = v["rows"].as_array().unwrap().iter().map(|r| (r["dataset"].as_str().unwrap(), r["label"].as_str().unwrap())).collect();
+    assert_eq!(rows, [("post-small", "tet-raycast:adaptive=0.008"), ("hydrogen", "raycast-compute:adaptive=0.016")], "{v}");
+    for r in v["rows"].as_array().unwrap() {
+        assert!(r["error"].is_null(), "{r}");
+        assert_eq!(r["samples"].as_array().unwrap().len(), 2, "{r}");
+    }
+}
+
 /// A fake volbench in sh, fast and GPU-free: `--version`; `run … --serve`
 /// speaks the serve protocol (every frame 1 ms; with `AB_TEST_PIDS` set it
 /// first starts a `sleep` that outlives it and appends its pid there);

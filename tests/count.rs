@@ -113,6 +113,28 @@ fn the_strip_variant_repeats_whatever_the_heap_history() {
     assert!((a - b).abs() <= (REL * a.max(b)).max(FLOOR), "{strip}: frame 2's device counted {a} after one warm-up frame, {b} after two");
 }
 
+/// A method spec with options (`tet-raycast:adaptive=0.008`, issue 37) is
+/// counted like any run: its five adaptive passes run in the one
+/// submission, so their instructions are the `device` phase (not split per
+/// pass: callgrind dumps at the host's phase boundaries), and the run's
+/// work counts say how many rays were cast; two runs count the same.
+#[test]
+fn an_adaptive_spec_is_counted() {
+    if valgrind_missing() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let spec = "tet-raycast:adaptive=0.008";
+    let runs = counted_runs(dir.path(), spec, 2);
+    common::assert_matches_schema("run.schema.json", &runs[0], "a counted adaptive run");
+    let device = runs[0]["count"]["phases"]["device"]["total"].as_u64().unwrap_or(0);
+    assert!(device > 0, "{}", runs[0]["count"]);
+    let rays = runs[0]["work"]["adaptive_rays_cast"].as_u64().expect("adaptive_rays_cast");
+    let rect = runs[0]["work"]["pixels_in_rect"].as_u64().unwrap();
+    assert!(rays > 0 && rays < rect, "{rays} rays for {rect} pixels");
+    assert_repeats(spec, &runs, REL);
+}
+
 #[test]
 fn count_needs_a_warm_up_and_refuses_validation() {
     let out = Command::new(env!("CARGO_BIN_EXE_volbench"))

@@ -183,7 +183,7 @@ fn blocks() -> Vec<Block> {
             size: size_of::<DecidePush>(),
             fields: fields!(DecidePush;
                 "rect" => rect, "block_size" => block_size, "rows" => rows, "runs" => runs,
-                "silhouettes" => silhouettes, "tol" => tol),
+                "silhouettes" => silhouettes, "tol" => tol, "straight" => straight),
             padding: Layout::new(),
             variants: vec![],
         },

@@ -4,10 +4,14 @@
 // 4: the listed blocks, an indirect dispatch). A block whose four corners,
 // centre and edge mid-points were cast (common/adaptive.glsl) is filled by
 // bilinear interpolation of its corners when
-//   - no boundary silhouette projects into it (the silhouette bits, when
-//     the method has them),
+//   - no boundary silhouette that could hide something between its rays
+//     projects into it (the silhouette bits, when the method has them:
+//     two lines, a bend or an end in the block; algo/adaptive.rs,
+//     Silhouettes),
 //   - the nine rays have the same structural key (tet-raycast: boundary
-//     entries taken; raycast: the occupied bricks met), and
+//     entries taken; raycast: the occupied bricks met), unless one straight
+//     silhouette chord crosses the block (the straight bits: the keys differ
+//     on its two sides, and the colour test sees what it separates), and
 //   - each test ray agrees with the interpolation at its point within the
 //     tolerance, per premultiplied RGBA channel;
 // otherwise its four sub-blocks are listed for the next cast pass.
@@ -25,6 +29,7 @@ layout(push_constant) uniform Decide {
     uint runs;
     uint silhouettes;    // first word of this size's silhouette bits (0xFFFFFFFF: none)
     float tol;           // tolerance per premultiplied channel
+    uint straight;       // first word of this size's straight-chord bits (0xFFFFFFFF: none)
 } pc;
 
 #include "common/dispatch.glsl"
@@ -78,9 +83,13 @@ void main() {
     bool same = a_keys.v[i10] == k && a_keys.v[i01] == k && a_keys.v[i11] == k && a_keys.v[it] == k
         && a_keys.v[il] == k && a_keys.v[ic] == k && a_keys.v[ir] == k && a_keys.v[ib] == k;
     bool silhouette = false;
+    uint bit = b.y * (nb.x << level) + b.x;
     if (pc.silhouettes != 0xFFFFFFFFu) {
-        uint bit = b.y * (nb.x << level) + b.x;
         silhouette = ((a_sil.v[pc.silhouettes + bit / 32u] >> (bit % 32u)) & 1u) != 0u;
+    }
+    uint straight_at = pc.straight;
+    if (straight_at != 0xFFFFFFFFu && ((a_sil.v[straight_at + bit / 32u] >> (bit % 32u)) & 1u) != 0u) {
+        same = true;
     }
     uint reason;
     vec4 c00 = a_samples.v[i00];

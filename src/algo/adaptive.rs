@@ -28,6 +28,13 @@
 //! value (never the other way). The full-resolution image is what the run
 //! measures against the f64 reference, as for every method.
 //!
+//! **Time per pass**: timestamps around the five passes give each its
+//! device time, reported as the phases [`PASS_PHASES`] (`time_ms.<name>`,
+//! part of the frame's `gpu`). Counted instructions (`--count`) are not
+//! split per pass: the passes run in one submission on lavapipe's queue
+//! thread, and callgrind's dumps are taken at the host's phase boundaries,
+//! which bracket the whole submission (`device`).
+//!
 //! **Counts** (device counters, deterministic): rays cast per pass, lattice
 //! points past the rectangle (no ray), blocks filled per level, blocks
 //! refined per level and why (silhouette, structure, colour), and the
@@ -43,7 +50,7 @@ use super::screen;
 use crate::vk::{
     Buffer, BufferDesc, BufferUsage, CommandRecorder, ComputePipelineKey, Context, DescriptorResource,
     DescriptorSet, DescriptorSetDesc, Image, MemoryKind, Pipeline, PipelineKey, ShaderKey, ShaderStage, Stages,
-    TargetImageSet, UploadClass, UploadCounter,
+    TargetImageSet, TimestampAt, TimestampPool, UploadClass, UploadCounter,
 };
 
 /// Coarsest block side (pixels).
@@ -72,9 +79,17 @@ pub struct DecidePush {
     pub silhouettes: u32,
     /// Tolerance per premultiplied channel.
     pub tol: f32,
+    /// First word of this size's straight-chord bits (`u32::MAX`: none;
+    /// [`Silhouettes::straight`]).
+    pub straight: u32,
 }
 /// Lattice points in list entries are 16-bit block coordinates.
 const MAX_BLOCKS_PER_SIDE: u64 = 1 << 16;
+
+/// The device phases of the five passes, in order (`RenderMethod::
+/// after_frame`: each pass's GPU time from the timestamps around it).
+pub const PASS_PHASES: [&str; 5] =
+    ["adaptive_cast4_gpu", "adaptive_decide8_gpu", "adaptive_cast2_gpu", "adaptive_decide4_gpu", "adaptive_cast1_gpu"];
 
 /// The help text of every ray caster's `adaptive` option.
 pub const HELP: &str = "adaptive image-space refinement: 0 = off (a ray per pixel); TOL > 0 = rays at the corners, \
@@ -108,18 +123,49 @@ fn lattice_points(size: [u32; 2]) -> u64 {
     (8 * b[0] + 1) * (8 * b[1] + 1)
 }
 
-/// Where boundary silhouettes project, per block of 8 and of 4 of the
-/// frame's rectangle: bit rows over the blocks, the blocks of 8 from word
-/// 0, those of 4 from [`Silhouettes::offset4`]. A block is marked when a
-/// silhouette segment, padded by `pad` pixels, reaches its closed square
-/// (its corner rays included).
+/// Where boundary silhouettes could hide something between a block's test
+/// rays, per block of 8 and of 4 of the frame's rectangle: bit rows over
+/// the blocks, the blocks of 8 from word 0, those of 4 from
+/// [`Silhouettes::offset4`]; then the same rows again from
+/// [`Silhouettes::straight`] for the blocks a single straight chord crosses.
+///
+/// A block is marked when the silhouette segments reaching its closed
+/// square (its corner rays included), padded by `pad` pixels, are not one
+/// straight chord across it: two lines (crossing, parallel: a thin band
+/// between them, such as a plate's rims seen edge-on), a bend, or an end
+/// inside it (a thin spike, a corner). A single straight line across a
+/// block is left to the colour test, which sees it: a line through the
+/// square's interior has corners on both sides (a half-plane holding all
+/// four holds the square), so an edge mid-point between corners of the two
+/// sides, or the centre, is interpolated half-way across whatever the line
+/// separates; where that jump exceeds 2 TOL the block refines, and where it
+/// does not, interpolation is off by at most about the jump (the bound's
+/// 2 TOL). Across a contour edge of a closed boundary the integral is even
+/// continuous (the two crossings next to the edge meet there). The rays on
+/// the chord's two sides take different numbers of boundary entries, so
+/// such a block skips the structural key's test ([`Silhouettes::straight`]);
+/// a block no silhouette reaches has one key throughout.
 #[derive(Debug, Default, Clone, PartialEq)]
 pub struct Silhouettes {
     pub words: Vec<u32>,
     pub offset4: u32,
-    /// Blocks of 8 marked.
+    /// Where the bits of the blocks crossed by one straight chord start
+    /// (blocks of 8; those of 4 from `straight + offset4`).
+    pub straight: u32,
+    /// Blocks of 8 and of 4 marked.
     pub marked8: u64,
+    pub marked4: u64,
+    /// Blocks of 8 a silhouette reaches but leaves to the colour test (one
+    /// straight line across).
+    pub straight8: u64,
+    /// Silhouette segments within the rectangle and their length (pixels).
+    pub segments: u64,
+    pub length_px: f64,
 }
+
+/// Segments this close (pixels) to one line are on it: collinear pieces of
+/// one straight contour edge, split by the mesh, differ only by rounding.
+const COLLINEAR_PX: f64 = 1e-6;
 
 impl Silhouettes {
     /// Marks `segments` (pixel coordinates, pixel x's centre at x) over the
@@ -130,65 +176,131 @@ impl Silhouettes {
         let n8 = nb[0] as usize * nb[1] as usize;
         let offset4 = n8.div_ceil(32);
         let (w4, h4) = (2 * nb[0] as usize, 2 * nb[1] as usize);
-        let mut s = Silhouettes { words: vec![0; offset4 + (w4 * h4).div_ceil(32)], offset4: offset4 as u32, marked8: 0 };
+        let half = offset4 + (w4 * h4).div_ceil(32);
+        let mut s = Silhouettes { words: vec![0; 2 * half], offset4: offset4 as u32, straight: half as u32, ..Default::default() };
         if n8 == 0 {
             return s;
         }
         let o = [f64::from(rect[0]), f64::from(rect[1])];
         // The lattice box (blocks of 4 units), padded.
         let hi = [w4 as f64 * 4.0, h4 as f64 * 4.0];
-        let mut marked4 = vec![false; w4 * h4];
-        for (a, b) in segments {
-            let a = [a[0] - o[0], a[1] - o[1]];
-            let b = [b[0] - o[0], b[1] - o[1]];
-            let Some((a, b)) = clip(a, b, [-pad, -pad], [hi[0] + pad, hi[1] + pad]) else { continue };
-            // Steps of at most one pixel; each step marks the blocks of 4
-            // its point's box (padding plus half a step) reaches.
-            let len = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt();
-            let steps = len.ceil().max(1.0) as usize;
-            let r = pad + 0.5 * len / steps as f64;
-            for k in 0..=steps {
-                let t = k as f64 / steps as f64;
-                let p = [a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t];
-                // Block i's closed square is [4 i, 4 i + 4].
-                let range = |c: f64, n: usize| {
-                    let lo = ((c - r) / 4.0).ceil() - 1.0;
-                    let hi = ((c + r) / 4.0).floor();
-                    let lo = lo.max(0.0);
-                    let hi = hi.min(n as f64 - 1.0);
-                    (lo <= hi).then_some((lo as usize, hi as usize))
-                };
-                let (Some((x0, x1)), Some((y0, y1))) = (range(p[0], w4), range(p[1], h4)) else { continue };
-                for y in y0..=y1 {
-                    for x in x0..=x1 {
-                        marked4[y * w4 + x] = true;
-                    }
+        let clipped: Vec<([f64; 2], [f64; 2])> = segments
+            .into_iter()
+            .filter_map(|(a, b)| clip([a[0] - o[0], a[1] - o[1]], [b[0] - o[0], b[1] - o[1]], [-pad, -pad], [hi[0] + pad, hi[1] + pad]))
+            .collect();
+        s.segments = clipped.len() as u64;
+        s.length_px = clipped.iter().map(|(a, b)| (b[0] - a[0]).hypot(b[1] - a[1])).sum();
+        for (size, n, offset) in [(4.0, [w4, h4], offset4), (8.0, [nb[0] as usize, nb[1] as usize], 0)] {
+            // The segments reaching each block's padded closed square.
+            let mut reach: Vec<Vec<u32>> = vec![Vec::new(); n[0] * n[1]];
+            for (i, (a, b)) in clipped.iter().enumerate() {
+                for_each_block(*a, *b, size, pad, n, |x, y| reach[y * n[0] + x].push(i as u32));
+            }
+            let mut marked = 0u64;
+            let mut straight = 0u64;
+            for (bit, list) in reach.iter().enumerate() {
+                if list.is_empty() {
+                    continue;
                 }
+                let (x, y) = ((bit % n[0]) as f64 * size, (bit / n[0]) as f64 * size);
+                if one_chord(&clipped, list, [x - pad, y - pad], [x + size + pad, y + size + pad]) {
+                    straight += 1;
+                    s.words[half + offset + bit / 32] |= 1 << (bit % 32);
+                    continue;
+                }
+                marked += 1;
+                s.words[offset + bit / 32] |= 1 << (bit % 32);
+            }
+            if size == 4.0 {
+                s.marked4 = marked;
+            } else {
+                (s.marked8, s.straight8) = (marked, straight);
             }
         }
-        for y in 0..h4 {
-            for x in 0..w4 {
-                if marked4[y * w4 + x] {
-                    let bit = y * w4 + x;
-                    s.words[offset4 + bit / 32] |= 1 << (bit % 32);
-                    // A block of 8 holds its four blocks of 4 (and their
-                    // shared edges: a mark reaching an edge marks both sides).
-                    let bit8 = (y / 2) * nb[0] as usize + x / 2;
-                    s.words[bit8 / 32] |= 1 << (bit8 % 32);
-                }
-            }
-        }
-        s.marked8 = (0..n8).filter(|&i| s.words[i / 32] >> (i % 32) & 1 == 1).count() as u64;
         s
     }
 
     /// Whether block `(x, y)` of `size` (8 or 4) is marked, for tests.
     pub fn is_marked(&self, rect: [u32; 4], size: u32, x: u32, y: u32) -> bool {
+        self.bit(rect, size, x, y, 0)
+    }
+
+    /// Whether one straight chord crosses block `(x, y)` of `size`, for tests.
+    pub fn is_straight(&self, rect: [u32; 4], size: u32, x: u32, y: u32) -> bool {
+        self.bit(rect, size, x, y, self.straight)
+    }
+
+    fn bit(&self, rect: [u32; 4], size: u32, x: u32, y: u32, base: u32) -> bool {
         let nb = blocks(rect);
         let (w, off) = if size == 8 { (nb[0], 0) } else { (2 * nb[0], self.offset4) };
         let bit = (y * w + x) as usize;
-        self.words[off as usize + bit / 32] >> (bit % 32) & 1 == 1
+        self.words[(base + off) as usize + bit / 32] >> (bit % 32) & 1 == 1
     }
+}
+
+/// Calls `f(x, y)` for every block (squares of `size` on a grid of `n`
+/// blocks from the origin) whose closed square padded by `pad` the segment
+/// a-b reaches: per column of blocks, the segment's part within the
+/// column's padded slab, and the blocks its y-range reaches.
+fn for_each_block(a: [f64; 2], b: [f64; 2], size: f64, pad: f64, n: [usize; 2], mut f: impl FnMut(usize, usize)) {
+    let first = |lo: f64| ((lo - pad) / size).ceil() - 1.0;
+    let last = |hi: f64| ((hi + pad) / size).floor();
+    let range = |lo: f64, hi: f64, count: usize| {
+        let (l, h) = (first(lo).max(0.0), last(hi).min(count as f64 - 1.0));
+        (l <= h).then_some((l as usize, h as usize))
+    };
+    let Some((x0, x1)) = range(a[0].min(b[0]), a[0].max(b[0]), n[0]) else { return };
+    for x in x0..=x1 {
+        let slab = [x as f64 * size - pad, (x + 1) as f64 * size + pad];
+        let Some((p, q)) = clip(a, b, [slab[0], f64::NEG_INFINITY], [slab[1], f64::INFINITY]) else { continue };
+        let Some((y0, y1)) = range(p[1].min(q[1]), p[1].max(q[1]), n[1]) else { continue };
+        for y in y0..=y1 {
+            f(x, y);
+        }
+    }
+}
+
+/// Whether the segments `list` of `all` lie on one line that they cover
+/// wholly across the box [lo, hi] (no end, gap or second line in it).
+fn one_chord(all: &[([f64; 2], [f64; 2])], list: &[u32], lo: [f64; 2], hi: [f64; 2]) -> bool {
+    // The line of the longest segment (the best-conditioned direction).
+    let longest = |&i: &u32| {
+        let (a, b) = all[i as usize];
+        (b[0] - a[0]).hypot(b[1] - a[1])
+    };
+    let Some(&base) = list.iter().max_by(|i, j| longest(i).total_cmp(&longest(j))) else { return false };
+    let (p, q) = all[base as usize];
+    let d = [q[0] - p[0], q[1] - p[1]];
+    let len = d[0].hypot(d[1]);
+    if !(len > COLLINEAR_PX) {
+        return false;
+    }
+    let u = [d[0] / len, d[1] / len];
+    // Signed distance from the line, and position along it (pixels).
+    let off = |r: [f64; 2]| (r[0] - p[0]) * u[1] - (r[1] - p[1]) * u[0];
+    let along = |r: [f64; 2]| (r[0] - p[0]) * u[0] + (r[1] - p[1]) * u[1];
+    let mut pieces: Vec<(f64, f64)> = Vec::with_capacity(list.len());
+    for &i in list {
+        let (a, b) = all[i as usize];
+        if off(a).abs() > COLLINEAR_PX || off(b).abs() > COLLINEAR_PX {
+            return false;
+        }
+        let (s, t) = (along(a), along(b));
+        pieces.push((s.min(t), s.max(t)));
+    }
+    // The whole line's chord across the box, in the same measure.
+    let far = 4.0 * (hi[0] - lo[0] + hi[1] - lo[1]) + p[0].abs() + p[1].abs() + q[0].abs() + q[1].abs();
+    let Some((c0, c1)) = clip([p[0] - u[0] * far, p[1] - u[1] * far], [p[0] + u[0] * far, p[1] + u[1] * far], lo, hi) else { return false };
+    let (start, end) = { let (s, t) = (along(c0), along(c1)); (s.min(t), s.max(t)) };
+    pieces.sort_by(|x, y| x.0.total_cmp(&y.0));
+    let mut covered = start;
+    for (s, t) in pieces {
+        if s > covered + COLLINEAR_PX {
+            return false;
+        }
+        covered = covered.max(t);
+    }
+    covered >= end - COLLINEAR_PX
 }
 
 /// Segment a-b clipped to the box [lo, hi] (Liang-Barsky), None when it
@@ -239,6 +351,10 @@ pub struct Adaptive {
     rect: [u32; 4],
     sil: Option<Silhouettes>,
     uses_silhouettes: bool,
+    /// Timestamps before the first pass and after each ([`PASS_PHASES`]);
+    /// `timed`: the last recorded frame wrote them all.
+    timestamps: TimestampPool,
+    timed: bool,
     ctx: Arc<Context>,
 }
 
@@ -283,7 +399,7 @@ impl Adaptive {
                 memory: MemoryKind::Readback,
             },
         )?;
-        let sil_words = if silhouettes { (n8.div_ceil(32) + (4 * n8).div_ceil(32)).max(1) } else { 1 };
+        let sil_words = if silhouettes { (2 * (n8.div_ceil(32) + (4 * n8).div_ceil(32))).max(1) } else { 1 };
         let sil_buffer = Buffer::new(ctx, BufferDesc::upload(&format!("{method} adaptive silhouettes"), sil_words * 4, storage))?;
         let compute = Stages::COMPUTE;
         let desc = DescriptorSetDesc::storage_buffers(5, compute);
@@ -321,6 +437,8 @@ impl Adaptive {
             rect: screen::NO_PIXELS,
             sil: None,
             uses_silhouettes: silhouettes,
+            timestamps: TimestampPool::new(ctx, &format!("{method} adaptive timestamps"), PASS_PHASES.len() as u32 + 1)?,
+            timed: false,
             ctx: ctx.clone(),
         })
     }
@@ -369,6 +487,8 @@ impl Adaptive {
         counter: &mut UploadCounter,
         mut cast: impl FnMut(&CommandRecorder, &DescriptorSet, u32, Option<(&Buffer, u64)>, &mut UploadCounter) -> Result<()>,
     ) -> Result<()> {
+        self.timed = false;
+        self.timestamps.reset(rec);
         rec.fill_buffer(&self.keys, 0);
         rec.fill_buffer(&self.counters, 0);
         rec.transfer_to_storage(Stages::COMPUTE);
@@ -378,29 +498,68 @@ impl Adaptive {
             return Ok(());
         }
         let runs = self.ctx.info.compute_runs();
+        self.timestamps.write(rec, 0, TimestampAt::Start)?;
         cast(rec, &self.set, 4, None, counter)?;
+        self.timestamps.write(rec, 1, TimestampAt::ComputeDone)?;
         rec.compute_to_indirect();
+        let straight_offset = |size: u32| match (&self.sil, self.uses_silhouettes) {
+            (Some(s), true) => s.straight + if size == 8 { 0 } else { s.offset4 },
+            _ => u32::MAX,
+        };
         let sil_offset = |size: u32| match (&self.sil, self.uses_silhouettes) {
             (Some(s), true) => if size == 8 { 0 } else { s.offset4 },
             _ => u32::MAX,
         };
-        let push = |block_size: u32, rows: u32| DecidePush { rect: self.rect, block_size, rows, runs, silhouettes: sil_offset(block_size), tol: self.tol as f32 };
+        let push = |block_size: u32, rows: u32| DecidePush {
+            rect: self.rect,
+            block_size,
+            rows,
+            runs,
+            silhouettes: sil_offset(block_size),
+            tol: self.tol as f32,
+            straight: straight_offset(block_size),
+        };
         let set = self.target_set.for_target(&self.ctx, target)?;
         rec.bind_compute(&self.decide, &[&self.set, set])?;
         let rows = nb[1].div_ceil(WORKGROUP[1]);
         rec.push_constants(&self.decide, bytemuck::bytes_of(&push(8, rows)), counter);
         rec.dispatch([nb[0].div_ceil(WORKGROUP[0]), screen::interleaved_rows(rows, runs), 1])?;
+        self.timestamps.write(rec, 2, TimestampAt::ComputeDone)?;
         rec.compute_to_indirect();
         cast(rec, &self.set, 2, Some((&self.counters, 0)), counter)?;
+        self.timestamps.write(rec, 3, TimestampAt::ComputeDone)?;
         rec.compute_to_indirect();
         let set = self.target_set.for_target(&self.ctx, target)?;
         rec.bind_compute(&self.decide, &[&self.set, set])?;
         rec.push_constants(&self.decide, bytemuck::bytes_of(&push(4, 0)), counter);
         rec.dispatch_indirect(&self.counters, 16)?;
+        self.timestamps.write(rec, 4, TimestampAt::ComputeDone)?;
         rec.compute_to_indirect();
         cast(rec, &self.set, 1, Some((&self.counters, 32)), counter)?;
+        self.timestamps.write(rec, 5, TimestampAt::ComputeDone)?;
         rec.compute_to_host();
+        self.timed = true;
         Ok(())
+    }
+
+    /// A frame recorded without the passes (the method cast every pixel):
+    /// no pass times for it.
+    pub fn skipped(&mut self) {
+        self.timed = false;
+    }
+
+    /// The last recorded frame's device time per pass ([`PASS_PHASES`]),
+    /// after its fence: empty when it ran no passes or the queue has no
+    /// timestamps.
+    pub fn device_phases(&self) -> Result<Vec<(&'static str, f64)>> {
+        if !self.timed || self.ctx.info.timestamp_valid_bits == 0 {
+            return Ok(Vec::new());
+        }
+        let mut out = Vec::with_capacity(PASS_PHASES.len());
+        for (i, name) in PASS_PHASES.iter().enumerate() {
+            out.push((*name, self.timestamps.elapsed_ms(i as u32, i as u32 + 1)?));
+        }
+        Ok(out)
     }
 
     /// The step-4 cast pass's grid: workgroups across, rows of workgroups
@@ -474,6 +633,12 @@ impl Adaptive {
                 "4": { "silhouette": c.silhouette[1], "structure": c.structure[1], "colour": c.colour[1] },
             },
             "blocks_listed": { "4": c.listed[0], "2": c.listed[1] },
+            "silhouette": self.sil.as_ref().map(|s| json!({
+                "segments": s.segments,
+                "length_px": s.length_px,
+                "blocks_marked": { "8": s.marked8, "4": s.marked4 },
+                "blocks8_straight": s.straight8,
+            })),
         })
     }
 }
@@ -504,38 +669,105 @@ mod tests {
         assert_eq!(Adaptive::lattice_groups(screen::NO_PIXELS), [0, 0]);
     }
 
+    /// The marked blocks of `size` as (x, y), for comparing.
+    fn marked(s: &Silhouettes, rect: [u32; 4], size: u32) -> Vec<(u32, u32)> {
+        let nb = blocks(rect);
+        let k = 8 / size;
+        let mut out = Vec::new();
+        for y in 0..nb[1] * k {
+            for x in 0..nb[0] * k {
+                if s.is_marked(rect, size, x, y) {
+                    out.push((x, y));
+                }
+            }
+        }
+        out
+    }
+
     #[test]
-    fn silhouettes_mark_the_blocks_a_segment_reaches() {
-        // At two rectangle sizes: a horizontal segment at y = 10.5 (pixel
-        // coordinates) from x = 2 to x = 18.5 in a rectangle from (1, 1).
+    fn silhouettes_mark_ends_bends_and_second_lines_not_straight_chords() {
+        // At two rectangle sizes, from (1, 1): pixel coordinates relative to
+        // the rectangle are the absolute ones minus 1.
         for rect in [[1u32, 1, 40, 30], [1, 1, 200, 100]] {
-            let s = Silhouettes::mark(rect, [([2.0, 10.5], [18.5, 10.5])], 0.5);
-            // Relative y = 9.5 (+- 1): the blocks of 4 in row 2 (8..12); x 1..17.5: columns 0..4.
-            for y in 0..2 * blocks(rect)[1] {
-                for x in 0..2 * blocks(rect)[0] {
-                    let expect = y == 2 && x <= 4;
-                    assert_eq!(s.is_marked(rect, 4, x, y), expect, "{rect:?} block4 ({x}, {y})");
-                }
-            }
-            for y in 0..blocks(rect)[1] {
-                for x in 0..blocks(rect)[0] {
-                    assert_eq!(s.is_marked(rect, 8, x, y), y == 1 && x <= 2, "{rect:?} block8 ({x}, {y})");
-                }
-            }
-            assert_eq!(s.marked8, 3);
-            // On a block edge (relative y = 8): both rows of blocks.
-            let s = Silhouettes::mark(rect, [([2.0, 9.0], [3.0, 9.0])], 0.0);
-            assert!(s.is_marked(rect, 4, 0, 1) && s.is_marked(rect, 4, 0, 2));
-            // Far outside: nothing; not finite: nothing.
-            let s = Silhouettes::mark(rect, [([-500.0, -500.0], [-400.0, -450.0]), ([f64::NAN, 0.0], [3.0, 3.0])], 0.5);
-            assert_eq!(s.marked8, 0);
-            assert!(s.words.iter().all(|&w| w == 0));
-            // A long segment across the whole rectangle and beyond: every
-            // block of 8 along the diagonal, work bounded by the clip.
-            let s = Silhouettes::mark(rect, [([-1e9, -1e9], [1e9, 1e9])], 0.5);
             let nb = blocks(rect);
-            for k in 0..nb[0].min(nb[1]) {
-                assert!(s.is_marked(rect, 8, k, k));
+            // A horizontal segment at relative y = 9.5 from x = 1 to 17.5:
+            // its ends lie in blocks of 4 (0, 2) and (4, 2), and of 8 (0, 1)
+            // and (2, 1); the blocks between are crossed by one straight
+            // chord and left to the colour test.
+            let s = Silhouettes::mark(rect, [([2.0, 10.5], [18.5, 10.5])], 0.01);
+            assert_eq!(marked(&s, rect, 4), [(0, 2), (4, 2)], "{rect:?}");
+            assert_eq!(marked(&s, rect, 8), [(0, 1), (2, 1)], "{rect:?}");
+            assert_eq!((s.marked8, s.marked4, s.straight8, s.segments), (2, 2, 1, 1));
+            assert!((1..4).all(|x| s.is_straight(rect, 4, x, 2)) && s.is_straight(rect, 8, 1, 1));
+            assert!(!s.is_straight(rect, 4, 0, 2) && !s.is_straight(rect, 8, 0, 1) && !s.is_straight(rect, 4, 1, 1));
+            assert!((s.length_px - 16.5).abs() < 1e-12);
+            // The same line split into collinear pieces at x = 6 and 13: the
+            // same marks (a split is no end).
+            let pieces = [([2.0, 10.5], [7.0, 10.5]), ([7.0, 10.5], [14.0, 10.5]), ([14.0, 10.5], [18.5, 10.5])];
+            let split = Silhouettes::mark(rect, pieces, 0.01);
+            assert_eq!((marked(&split, rect, 4), marked(&split, rect, 8)), (marked(&s, rect, 4), marked(&s, rect, 8)));
+            // A line across the whole rectangle and beyond: nothing marked,
+            // every block of 8 on its way straight; work bounded by the clip.
+            let s = Silhouettes::mark(rect, [([-1e9, 10.5], [1e9, 10.5])], 0.01);
+            assert_eq!((s.marked8, s.marked4), (0, 0));
+            assert_eq!(s.straight8, u64::from(nb[0]));
+            // Two parallel lines 1.5 pixels apart (a thin band between
+            // them): every block both reach is marked.
+            let band = [([-1e9, 10.5], [1e9, 10.5]), ([-1e9, 12.0], [1e9, 12.0])];
+            let s = Silhouettes::mark(rect, band, 0.01);
+            assert_eq!(marked(&s, rect, 4), (0..2 * nb[0]).map(|x| (x, 2)).collect::<Vec<_>>());
+            assert_eq!(s.marked8, u64::from(nb[0]));
+            // A bend: two pieces meeting at relative (9, 9.5) at an angle:
+            // marked where the vertex is (block of 4 (2, 2), both blocks of
+            // 4 and 8 whose closed squares hold x = 8 or the vertex), not
+            // along the straight parts away from it.
+            let bend = [([-1e9, 10.5], [10.0, 10.5]), ([10.0, 10.5], [1e9, 10.5 + 1e-3 * (1e9 - 10.0)])];
+            let s = Silhouettes::mark(rect, bend, 0.01);
+            assert_eq!(marked(&s, rect, 4), [(2, 2)], "{rect:?}");
+            assert_eq!(marked(&s, rect, 8), [(1, 1)], "{rect:?}");
+            // On a block edge (relative y = 8), a short segment: its ends
+            // mark the blocks of 4 on both sides.
+            let s = Silhouettes::mark(rect, [([2.0, 9.0], [3.0, 9.0])], 0.01);
+            assert!(s.is_marked(rect, 4, 0, 1) && s.is_marked(rect, 4, 0, 2));
+            // A point (an edge seen end-on) alone: marked.
+            let s = Silhouettes::mark(rect, [([5.5, 5.5], [5.5, 5.5])], 0.01);
+            assert_eq!(marked(&s, rect, 4), [(1, 1)]);
+            // Far outside: nothing; not finite: nothing.
+            let s = Silhouettes::mark(rect, [([-500.0, -500.0], [-400.0, -450.0]), ([f64::NAN, 0.0], [3.0, 3.0])], 0.01);
+            assert_eq!((s.marked8, s.segments), (0, 0));
+            assert!(s.words.iter().all(|&w| w == 0));
+            // A diagonal across everything: straight wherever it goes.
+            let s = Silhouettes::mark(rect, [([-1e9, -1e9], [1e9, 1e9])], 0.01);
+            assert_eq!(s.marked8, 0);
+            assert!(s.straight8 >= u64::from(nb[0].min(nb[1])));
+            // Two lines crossing at relative (20, 15): the blocks holding the
+            // crossing are marked.
+            let x = [([-1e9, -1e9 + 15.0 - 20.0], [1e9, 1e9 + 15.0 - 20.0]), ([20.0 - 1e9, 15.0 + 1e9], [20.0 + 1e9, 15.0 - 1e9])];
+            let s = Silhouettes::mark(rect, x.map(|(a, b)| ([a[0] + 1.0, a[1] + 1.0], [b[0] + 1.0, b[1] + 1.0])), 0.01);
+            assert!(s.is_marked(rect, 8, 2, 1) && s.is_marked(rect, 4, 5, 3) && s.is_marked(rect, 4, 4, 3));
+        }
+    }
+
+    #[test]
+    fn blocks_reached_by_a_segment_are_those_its_square_test_finds() {
+        // for_each_block against the plain test of every block (the
+        // segment clipped to each padded closed square).
+        let n = [12usize, 9];
+        for (a, b) in [([0.3, 0.2], [40.7, 33.1]), ([5.0, 30.0], [5.0, 2.0]), ([47.9, 0.0], [0.0, 35.9]), ([8.0, 8.0], [16.0, 8.0]), ([3.0, 3.0], [3.0, 3.0])] {
+            for (size, pad) in [(4.0, 0.01), (8.0, 0.5)] {
+                let mut got = Vec::new();
+                for_each_block(a, b, size, pad, n, |x, y| got.push((x, y)));
+                got.sort_unstable();
+                let mut want = Vec::new();
+                for x in 0..n[0] {
+                    for y in 0..n[1] {
+                        let lo = [x as f64 * size - pad, y as f64 * size - pad];
+                        if clip(a, b, lo, [lo[0] + size + 2.0 * pad, lo[1] + size + 2.0 * pad]).is_some() {
+                            want.push((x, y));
+                        }
+                    }
+                }
+                assert_eq!(got, want, "{a:?} {b:?} size {size}");
             }
         }
     }

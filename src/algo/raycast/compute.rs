@@ -213,4 +213,14 @@ impl RenderMethod for RaycastCompute {
     fn table_build_ms(&self) -> f64 {
         self.res.table_build_ms
     }
+
+    /// Adaptive refinement's time per pass (`algo::adaptive::PASS_PHASES`).
+    fn after_frame(&mut self, phases: &mut Phases) -> Result<()> {
+        if let Some((state, _)) = &self.adaptive {
+            for (name, ms) in state.device_phases()? {
+                phases.add(name, ms);
+            }
+        }
+        Ok(())
+    }
 }

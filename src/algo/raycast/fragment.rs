@@ -67,12 +67,15 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
     let ctx = inputs.ctx;
     let settings = Settings::from_options(inputs.options)?;
     if settings.adaptive > 0.0 {
-        // The refinement's levels cast rays at lattice points chosen on the
-        // device and fill blocks between them: compute passes, not a draw
-        // whose fragments are the pixels (docs/methods.md).
+        // Why the fragment path does not take it: docs/methods.md,
+        // "Adaptive image-space refinement".
         bail!(
-            "raycast-fragment: adaptive={} is not supported: adaptive refinement runs as compute passes; \
-             raycast-compute:adaptive={} marches the same rays",
+            "raycast-fragment: adaptive={} is not supported: this variant marches one ray per fragment of the \
+             box's rasterized faces, i.e. per covered pixel, from entry and exit points rasterized at every pixel; \
+             adaptive refinement marches only at lattice points that each level's decisions choose on the device \
+             and fills the blocks between them, which a draw could do only as indirect point draws over those lists \
+             with the entry and exit points still rasterized at full resolution (no longer this variant). \
+             raycast-compute:adaptive={} marches the same rays with the same integration",
             settings.adaptive,
             settings.adaptive
         );

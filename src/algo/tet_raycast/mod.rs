@@ -156,8 +156,9 @@ const SOLID_BIT: u32 = 1 << 31;
 /// far less (~1e-4 pixel at 512x512).
 const TILE_PAD: f64 = 0.25;
 /// Pixels a silhouette edge is padded by when adaptive refinement marks the
-/// blocks it reaches (`algo::adaptive::Silhouettes`).
-const SILHOUETTE_PAD: f64 = 0.5;
+/// blocks it reaches (`algo::adaptive::Silhouettes`): the shader's f32 rays
+/// and the f64 projection differ by ~1e-4 pixel at 512x512 (`TILE_PAD`).
+const SILHOUETTE_PAD: f64 = 0.01;
 
 /// The neighbour of a boundary face the ray may meet the mesh again after
 /// (`REENTER` in walk.comp); a boundary face on the convex hull keeps
@@ -998,6 +999,9 @@ impl RenderMethod for TetRaycast {
             })?;
             return Ok(());
         }
+        if let Some(a) = self.adaptive.as_mut() {
+            a.state.skipped();
+        }
         if self.lists_active {
             rec.bind_compute(&self.pipeline_lists, &[&self.tables.set, &self.mesh_set, set, &self.lists_set])?;
             rec.push_constants(&self.pipeline_lists, bytemuck::bytes_of(&self.frame), counter);
@@ -1085,6 +1089,17 @@ impl RenderMethod for TetRaycast {
 
     fn table_build_ms(&self) -> f64 {
         self.tables.build_ms
+    }
+
+    /// Adaptive refinement's time per pass (`algo::adaptive::PASS_PHASES`),
+    /// for a frame that refined.
+    fn after_frame(&mut self, phases: &mut Phases) -> Result<()> {
+        if let Some(a) = &self.adaptive {
+            for (name, ms) in a.state.device_phases()? {
+                phases.add(name, ms);
+            }
+        }
+        Ok(())
     }
 }
 

@@ -187,6 +187,10 @@ pub struct StressRow {
     pub integrator: String,
     pub interpolation: String,
     pub sort: String,
+    /// Adaptive image-space refinement's tolerance (`adaptive=TOL`: "0" off;
+    /// "-" for a method without the option): whether the row's image was
+    /// refined or had a ray per pixel.
+    pub adaptive: String,
     /// Why the run failed (status `fail`).
     pub error: Option<String>,
     pub nan_pixels: usize,

@@ -14,50 +14,66 @@ use crate::mesh::split::hex_grid_to_tets;
 use crate::scene::{ControlPoint, Projection, TransferFunction};
 use crate::volume::{Samples, Volume};
 
-/// Faint blue at the low end, bright opaque orange at the top.
-fn spike_tf(name: &str, lo: f64, hi: f64, top_attenuation: f64) -> TransferFunction {
-    TransferFunction {
-        name: name.into(),
-        points: vec![
-            ControlPoint { scalar: lo, color: [0.1, 0.3, 1.0], attenuation: 0.3 },
-            ControlPoint { scalar: lo + 0.5 * (hi - lo), color: [0.1, 0.3, 1.0], attenuation: 0.3 },
-            ControlPoint { scalar: hi, color: [1.0, 0.8, 0.1], attenuation: top_attenuation },
-        ],
-    }
-}
-
-/// A slab 0.003 thick of high scalars (x in [0.5, 0.503]) inside the unit
-/// cube of low ones, seen edge-on from in its plane: a bright line about a
-/// quarter of a pixel wide at 64x64 through a faint block, met only by the
-/// rays of one column of pixels.
+/// A rod 0.003 x 0.003 across (x and z in [0.5, 0.503]) of high scalars
+/// along y through the unit cube of low ones, seen from the side: a bright
+/// line a fifth of a pixel wide at 64x64 (under two pixels at 512x512, under
+/// the test rays' 4-pixel spacing at every size up to it) through a faint
+/// block, slanted (the image rolled) so that it crosses pixel-centre columns
+/// at every size. Well-posed at every size: the eye is in none of the
+/// mesh's face planes (rays cross every face at 20 degrees or more), and the
+/// transfer function is one linear piece over the scalars, so every
+/// integrator is exact but for its arithmetic and the reference and every
+/// method see the same point-sampled line; what refinement loses is the
+/// only error.
 pub(super) fn sliver() -> StressCase {
-    let mut xs = levels(8);
-    xs.extend([0.499, 0.5, 0.503, 0.504]);
-    xs.sort_by(f64::total_cmp);
+    // 0.5 is a level of 8 already; the rod's other face and the 0.001-wide
+    // cells either side of it, where the scalar falls to the cube's.
+    let mut around = levels(8);
+    around.extend([0.499, 0.503, 0.504]);
+    around.sort_by(f64::total_cmp);
+    around.dedup();
     let l = levels(8);
     let mut points = Vec::new();
-    for &z in &l {
+    for &z in &around {
         for &y in &l {
-            for &x in &xs {
+            for &x in &around {
                 points.push([x, y, z]);
             }
         }
     }
-    let scalars = points.iter().map(|&p: &[f64; 3]| if (0.5..=0.503).contains(&p[0]) { 1.0 } else { 0.3 * field(p) }).collect();
-    let mesh = validated(hex_grid_to_tets("adaptive-sliver", [xs.len(), l.len(), l.len()], points, scalars).expect("stress grid"));
+    let rod = |v: f64| (0.5..=0.503).contains(&v);
+    let scalars = points.iter().map(|&p: &[f64; 3]| if rod(p[0]) && rod(p[2]) { 1.0 } else { SLIVER_FAINT * field(p) }).collect();
+    let dims = [around.len(), l.len(), around.len()];
+    let mesh = validated(hex_grid_to_tets("adaptive-sliver", dims, points, scalars).expect("stress grid"));
     let c = 0.5015;
-    let camera = look([c, 0.45, 3.0], [c, 0.5, 0.5], [0.0, 1.0, 0.0], Projection::Perspective { fovy_deg: 30.0 }, 0.9);
+    // From the side, 21 degrees off the z axis; the image rolled by 0.06 rad
+    // so that the line is not a pixel column.
+    let roll: f64 = 0.06;
+    let camera = look([c + 0.9, 0.45, c + 2.3], [c, 0.5, c], [roll.sin(), roll.cos(), 0.0], Projection::Perspective { fovy_deg: 30.0 }, 0.9);
     StressCase {
         name: "adaptive-sliver".into(),
-        description: "a slab 0.003 thick of scalar 1 (bright, attenuation 40) in the unit cube of scalars 0..0.3 \
-                      (faint), seen edge-on from in its plane: a line under a pixel wide between coarse rays"
+        description: "a rod 0.003 x 0.003 across of scalar 1 (bright, attenuation 30) along y through the unit cube \
+                      of scalars 0..0.03 (faint), seen from the side: a slanted line 0.2 pixel wide at 64x64, \
+                      1.5 at 512x512, between coarse rays; interior (no boundary silhouette, no change in boundary \
+                      entries), so adaptive refinement does not catch it structurally: a row that loses it fails \
+                      (docs/stress.md)"
             .into(),
         data: CaseData::TetMesh(mesh),
         camera,
-        tf: spike_tf("sliver", 0.0, 1.0, 40.0),
+        tf: TransferFunction {
+            name: "sliver".into(),
+            points: vec![
+                ControlPoint { scalar: 0.0, color: [0.1, 0.3, 1.0], attenuation: 0.3 },
+                ControlPoint { scalar: 1.0, color: [1.0, 0.8, 0.1], attenuation: 30.0 },
+            ],
+        },
         allowances: Vec::new(),
     }
 }
+
+/// The cube's scalars around the rod: `field` scaled so that the one
+/// linear transfer-function piece keeps them faint (attenuation <= 1.2).
+const SLIVER_FAINT: f64 = 0.03;
 
 /// A plate 1 x 1 x 0.04 seen edge-on from in its mid-plane: its top and
 /// bottom faces' rims are silhouettes, projected along the line it makes.

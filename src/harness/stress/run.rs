@@ -129,6 +129,7 @@ pub fn run_cases_with_progress(
                 integrator: opt("integrator"),
                 interpolation: opt("interpolation"),
                 sort: opt("sort"),
+                adaptive: opt("adaptive"),
                 error: None,
                 nan_pixels: 0,
                 inf_pixels: 0,
@@ -207,17 +208,18 @@ pub fn failures(rows: &[StressRow]) -> usize {
 /// The Markdown table `volbench stress` prints: one row per render.
 pub fn stress_table(rows: &[StressRow]) -> String {
     let mut s = String::from(
-        "| case | method | integrator | interpolation | sort | NaN px | Inf px | max error | silhouette px (max error) | RMSE | bound | status |\n\
-         |---|---|---|---|---|---:|---:|---:|---:|---:|---:|---|\n",
+        "| case | method | integrator | interpolation | sort | adaptive | NaN px | Inf px | max error | silhouette px (max error) | RMSE | bound | status |\n\
+         |---|---|---|---|---|---|---:|---:|---:|---:|---:|---:|---|\n",
     );
     for r in rows {
         s.push_str(&format!(
-            "| {} | {} | {} | {} | {} | {} | {} | {:.2e} | {} ({:.2e}) | {:.2e} | {:.2e} | {} |\n",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {:.2e} | {} ({:.2e}) | {:.2e} | {:.2e} | {} |\n",
             r.case,
             r.method,
             r.integrator,
             r.interpolation,
             r.sort,
+            if r.adaptive == "0" { "off" } else { r.adaptive.as_str() },
             r.nan_pixels,
             r.inf_pixels,
             r.max_abs_error,
