@@ -555,11 +555,10 @@ impl Adaptive {
         if !self.timed || self.ctx.info.timestamp_valid_bits == 0 {
             return Ok(Vec::new());
         }
-        let mut out = Vec::with_capacity(PASS_PHASES.len());
-        for (i, name) in PASS_PHASES.iter().enumerate() {
-            out.push((*name, self.timestamps.elapsed_ms(i as u32, i as u32 + 1)?));
-        }
-        Ok(out)
+        // One read of the six timestamps (each read costs the `finish`
+        // phase's counted instructions some thousands, varying).
+        let t = self.timestamps.all_ms()?;
+        Ok(PASS_PHASES.iter().enumerate().map(|(i, name)| (*name, t[i + 1] - t[i])).collect())
     }
 
     /// The step-4 cast pass's grid: workgroups across, rows of workgroups

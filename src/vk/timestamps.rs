@@ -70,16 +70,11 @@ impl TimestampPool {
         Ok(())
     }
 
-    /// Milliseconds from timestamp `from` to timestamp `to`, after the
-    /// submission that wrote them has been waited for. Read without
-    /// VK_QUERY_RESULT_WAIT_BIT (which could block forever on a timestamp
-    /// never submitted): called too early, this is an error instead.
-    pub fn elapsed_ms(&self, from: u32, to: u32) -> VkResult<f64> {
+    /// Every timestamp's raw ticks, read without VK_QUERY_RESULT_WAIT_BIT
+    /// (see `elapsed_ms`).
+    fn ticks(&self) -> VkResult<Vec<u64>> {
         if self.ctx.info.timestamp_valid_bits == 0 {
             return Err(VkError::Unsupported { device: self.ctx.info.name.clone(), what: "timestamp queries on its queue".into() });
-        }
-        if from >= self.count || to >= self.count {
-            return Err(VkError::Invalid(format!("timestamps {from}..{to} of '{}', which holds {}", self.name, self.count)));
         }
         let mut ts = vec![0u64; self.count as usize];
         // SAFETY: the pool is live on this device and the output holds every
@@ -95,6 +90,21 @@ impl TimestampPool {
                 result => VkError::Call { what: "vkGetQueryPoolResults(method timestamps)", result },
             },
         )?;
+        Ok(ts)
+    }
+
+    /// Milliseconds from timestamp `from` to timestamp `to`, after the
+    /// submission that wrote them has been waited for. Read without
+    /// VK_QUERY_RESULT_WAIT_BIT (which could block forever on a timestamp
+    /// never submitted): called too early, this is an error instead.
+    pub fn elapsed_ms(&self, from: u32, to: u32) -> VkResult<f64> {
+        if self.ctx.info.timestamp_valid_bits == 0 {
+            return Err(VkError::Unsupported { device: self.ctx.info.name.clone(), what: "timestamp queries on its queue".into() });
+        }
+        if from >= self.count || to >= self.count {
+            return Err(VkError::Invalid(format!("timestamps {from}..{to} of '{}', which holds {}", self.name, self.count)));
+        }
+        let ts = self.ticks()?;
         let m = self.valid_mask;
         let ticks = (ts[to as usize] & m).wrapping_sub(ts[from as usize] & m) & m;
         Ok(ticks as f64 * self.period_ns * 1e-6)
@@ -102,6 +112,16 @@ impl TimestampPool {
 }
 
 impl TimestampPool {
+    /// Milliseconds from timestamp 0 to every timestamp (the first 0), all
+    /// read in one query-pool read (`elapsed_ms` reads them all for each
+    /// pair: a method timing several passes reads once).
+    pub fn all_ms(&self) -> VkResult<Vec<f64>> {
+        let ticks = self.ticks()?;
+        let m = self.valid_mask;
+        let first = ticks.first().map_or(0, |&t| t & m);
+        Ok(ticks.iter().map(|&t| ((t & m).wrapping_sub(first) & m) as f64 * self.period_ns * 1e-6).collect())
+    }
+
     /// Milliseconds from timestamp 0 to each later one, once all are
     /// available (`None` before that, or on a queue without timestamps):
     /// for a method that reads its own passes without failing the frame.
