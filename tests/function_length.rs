@@ -30,7 +30,6 @@ const NOT_YET_SPLIT: &[(&str, &str, usize)] = &[
     ("src/mesh/vtu.rs", "parse_piece", 126),
     ("src/vk/context.rs", "new", 125),
     ("src/mesh/higher_order.rs", "split", 122),
-    ("src/harness/stress/run.rs", "run_cases_with_progress", 121),
     ("src/vk/pipeline.rs", "graphics_in", 111),
     ("src/mesh/repair.rs", "split_linear", 101),
 ];

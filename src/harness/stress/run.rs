@@ -52,6 +52,59 @@ pub fn run_cases(ctx: &Arc<Context>, cases: &[StressCase], cfg: &StressConfig) -
     run_cases_with_progress(ctx, cases, cfg, |_| Ok(()))
 }
 
+/// The pixels on the case's silhouette up to rounding (left out of the
+/// max error).
+fn ambiguous_pixels(case: &StressCase, size: u32) -> Vec<bool> {
+    match &case.data {
+        CaseData::TetMesh(m) => silhouette_pixels(m, &case.camera, size, size, SILHOUETTE_TOLERANCE_PX),
+        CaseData::Volume(v) => {
+            let b = v.bounds();
+            box_silhouette_pixels(b.min, b.max, &case.camera, size, size, SILHOUETTE_TOLERANCE_PX)
+        }
+    }
+}
+
+/// The papers' model's image of the case and its own max error against
+/// the reference (over the same pixels as the rows), where a row is held
+/// against it; else none and 0.
+fn papers_model(
+    case: &StressCase,
+    specs: &[&MethodSpec],
+    cfg: &StressConfig,
+    reference: &RgbaImage,
+    ambiguous: &[bool],
+) -> Result<(Option<RgbaImage>, f64)> {
+    let CaseData::TetMesh(m) = &case.data else { return Ok((None, 0.0)) };
+    if !specs.iter().any(|s| uses_papers_model(case, s)) {
+        return Ok((None, 0.0));
+    }
+    let model = render_papers_model(m, &case.camera, &case.tf, cfg.size, cfg.size, PAPERS_DISTANCE_CLAMP_DIAGONALS)
+        .with_context(|| format!("stress case '{}': papers' model", case.name))?;
+    let pixels = model.pixels.iter().map(|p| p.map(|c| c as f32)).collect();
+    let image = RgbaImage { width: cfg.size, height: cfg.size, pixels };
+    if let Some(dir) = &cfg.images {
+        image.write_png(&dir.join(format!("{}.papers-model.png", case.name)))?;
+    }
+    let error = image.compare_excluding(reference, ambiguous)?.max_abs;
+    Ok((Some(image), error))
+}
+
+/// One frame of the case's fixed camera at `size` x `size`.
+fn run_config(case: &StressCase, size: u32) -> RunConfig {
+    RunConfig {
+        width: size,
+        height: size,
+        frames: 1,
+        warmup: 0,
+        overlap: false,
+        projection: case.camera.projection,
+        fixed_camera: Some(case.camera),
+        // Stress checks images; the fixed cost is not measured here.
+        fixed_frames: 0,
+        ..RunConfig::default()
+    }
+}
+
 /// [`run_cases`], calling `progress` with each row as soon as it is
 /// measured. A render that fails is a `fail` row with its error; the sweep
 /// goes on. An error of the reference itself, or one `progress` returns
@@ -75,53 +128,16 @@ pub fn run_cases_with_progress(
             reference.image.write_png(&dir.join(format!("{}.reference.png", case.name)))?;
         }
         // Pixels on the mesh's silhouette up to rounding: left out of the max error.
-        let ambiguous = match &case.data {
-            CaseData::TetMesh(m) => silhouette_pixels(m, &case.camera, cfg.size, cfg.size, SILHOUETTE_TOLERANCE_PX),
-            CaseData::Volume(v) => {
-                let b = v.bounds();
-                box_silhouette_pixels(b.min, b.max, &case.camera, cfg.size, cfg.size, SILHOUETTE_TOLERANCE_PX)
-            }
-        };
+        let ambiguous = ambiguous_pixels(case, cfg.size);
         let silhouette_count = ambiguous.iter().filter(|&&a| a).count();
         let not_ambiguous: Vec<bool> = ambiguous.iter().map(|a| !a).collect();
         // The papers' model's own error against the reference, where a row
         // is held against it (over the same pixels as the rows).
-        let (papers_model, papers_model_error) = match &case.data {
-            CaseData::TetMesh(m) if specs.iter().any(|s| uses_papers_model(case, s)) => {
-                let model = render_papers_model(
-                    m,
-                    &case.camera,
-                    &case.tf,
-                    cfg.size,
-                    cfg.size,
-                    PAPERS_DISTANCE_CLAMP_DIAGONALS,
-                )
-                .with_context(|| format!("stress case '{}': papers' model", case.name))?;
-                let pixels = model.pixels.iter().map(|p| p.map(|c| c as f32)).collect();
-                let image = RgbaImage { width: cfg.size, height: cfg.size, pixels };
-                if let Some(dir) = &cfg.images {
-                    image.write_png(&dir.join(format!("{}.papers-model.png", case.name)))?;
-                }
-                let error = image.compare_excluding(&reference.image, &ambiguous)?.max_abs;
-                (Some(image), error)
-            }
-            _ => (None, 0.0),
-        };
+        let (papers_model, papers_model_error) = papers_model(case, &specs, cfg, &reference.image, &ambiguous)?;
         for spec in specs {
             let opt = |k: &str| spec.options.text(k).unwrap_or_else(|_| "-".into());
             let Some((b, documented)) = bound(case, spec, papers_model_error) else { continue };
-            let rc = RunConfig {
-                width: cfg.size,
-                height: cfg.size,
-                frames: 1,
-                warmup: 0,
-                overlap: false,
-                projection: case.camera.projection,
-                fixed_camera: Some(case.camera),
-                // Stress checks images; the fixed cost is not measured here.
-                fixed_frames: 0,
-                ..RunConfig::default()
-            };
+            let rc = run_config(case, cfg.size);
             let mut row = StressRow {
                 case: case.name.clone(),
                 method: spec.info.name,
