@@ -215,6 +215,23 @@ fn kill_tree(child: &mut Child) {
         signal(p, Signal::KILL);
     }
     let _ = child.wait();
+    // A SIGKILL lands when the process next runs: on a loaded machine that
+    // is milliseconds later. Return only when none of them runs any more
+    // (what they were writing, e.g. a worktree `ab` removes next, is still).
+    let until = Instant::now() + KILL_GRACE;
+    while tree.iter().any(|&p| runs(p)) && Instant::now() < until {
+        std::thread::sleep(Duration::from_millis(5));
+    }
+}
+
+/// How long [`kill_tree`] waits for killed processes to be gone.
+const KILL_GRACE: Duration = Duration::from_secs(10);
+
+/// Whether process `pid` exists and is not a zombie (dead, waiting for its
+/// parent or init to reap it).
+fn runs(pid: u32) -> bool {
+    let Ok(stat) = std::fs::read_to_string(format!("/proc/{pid}/stat")) else { return false };
+    stat.rsplit_once(") ").is_some_and(|(_, rest)| !rest.starts_with('Z') && !rest.starts_with('X'))
 }
 
 #[cfg(test)]
@@ -273,10 +290,8 @@ mod tests {
         assert!(e.contains("build: still running after 0.5 s (--build-timeout); killed it and the processes it started"), "{e}");
         assert!(t.elapsed() < Duration::from_secs(30), "{:?}", t.elapsed());
         for pid in std::fs::read_to_string(&pids).unwrap().split_whitespace() {
-            // Gone, or a zombie waiting for init to reap it.
-            let state = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok();
-            let alive = state.is_some_and(|s| s.rsplit_once(") ").is_some_and(|(_, r)| !r.starts_with('Z')));
-            assert!(!alive, "process {pid} still runs");
+            // Gone, or a zombie waiting for init to reap it, when run_attached returns.
+            assert!(!runs(pid.parse().unwrap()), "process {pid} still runs");
         }
     }
 
