@@ -26,12 +26,8 @@ const NOT_YET_SPLIT: &[(&str, &str, usize)] = &[
     ("src/reference/raycast.rs", "walk", 144),
     ("src/scene/tf_file.rs", "parse_tf", 141),
     ("src/vk/context.rs", "create_device", 132),
-    ("src/mesh/polyhedron.rs", "split", 127),
-    ("src/mesh/vtu.rs", "parse_piece", 126),
     ("src/vk/context.rs", "new", 125),
-    ("src/mesh/higher_order.rs", "split", 122),
     ("src/vk/pipeline.rs", "graphics_in", 111),
-    ("src/mesh/repair.rs", "split_linear", 101),
 ];
 
 /// (line, name, lines) of every function of the non-test code of a file.

@@ -121,38 +121,6 @@ pub fn cell_type_name(t: i64) -> &'static str {
     }
 }
 
-/// How a cell type is treated when a volume mesh is read.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum CellKind {
-    /// A linear 3-D cell with this many vertices: split into tets.
-    Solid(usize),
-    /// A 0-, 1- or 2-D cell (vertex, line, triangle, quad, their
-    /// quadratic, Lagrange and Bezier forms, an empty cell): it has no
-    /// volume, so it contributes nothing to a volume rendering; skipped and
-    /// counted (`MeshStats::skipped_lower_dim`).
-    LowerDim,
-    /// A quadratic, Lagrange or Bezier 3-D cell (`higher_order`).
-    HigherOrder,
-    /// A polyhedron (42) or a pentagonal / hexagonal prism (`polyhedron`).
-    Polyhedron,
-    /// Anything else (convex point set, parametric and generic higher-order
-    /// cells, unknown numbers): refused.
-    Unsupported,
-}
-
-pub fn cell_kind(t: i64) -> CellKind {
-    match t {
-        10 => CellKind::Solid(4),
-        11 | 12 => CellKind::Solid(8),
-        13 => CellKind::Solid(6),
-        14 => CellKind::Solid(5),
-        15 | 16 | 42 => CellKind::Polyhedron,
-        0..=9 | 21..=23 | 28 | 30 | 34..=36 | 51..=54 | 68..=70 | 75..=77 => CellKind::LowerDim,
-        t if (0..=255).contains(&t) && super::higher_order::is_higher_order(t as u8) => CellKind::HigherOrder,
-        _ => CellKind::Unsupported,
-    }
-}
-
 /// A reference cell: integer vertex coordinates (convex, in VTK's vertex
 /// order) and its faces (quads in cyclic order).
 struct Reference {
@@ -471,7 +439,7 @@ pub struct RawCells {
     /// `types.len() + 1` rising offsets into `conn`, from 0.
     pub offsets: Vec<usize>,
     /// For polyhedra (type 42), whose `conn` holds their points, their faces.
-    pub faces: super::polyhedron::PolyFaces,
+    pub faces: PolyFaces,
     pub conn: Vec<u32>,
     /// The scalar as cell data: `scalar.components` values per cell (a
     /// vector's components, kept until the treatment: `average` averages
@@ -619,69 +587,68 @@ impl RawCells {
         stats.ghost_cells += dup;
         stats.hidden_cells += hidden;
     }
+}
 
-    /// Splits every cell into tets (`tetrahedralize`): linear 3-D cells by
-    /// [`CellSplitter`]'s rule with `repair`'s fallbacks, higher-order cells
-    /// as `higher_order`'s mode (process-wide, `--higher-order`) says,
-    /// polyhedra and prisms by `polyhedron`; lower-dimensional cells skipped
-    /// and counted, anything else refused with an error naming each
-    /// unsupported type and its count. `source` starts every error; the
-    /// mesh is validated. A cell scalar (`cell_values`) is first averaged to
-    /// the points (`average`, on the file's cells), or after the split given
-    /// to each tet from its file cell (`constant`: each tet then has its own
-    /// vertices); see `cell_data`.
-    pub fn into_tet_mesh(self, source: &str, name: String) -> anyhow::Result<super::TetMesh> {
-        self.into_tet_mesh_with(source, name, super::higher_order::mode())
+/// The polyhedra of a [`RawCells`]: for each, its cell index
+/// and its faces.
+#[derive(Debug, Clone, Default)]
+pub struct PolyFaces {
+    /// (cell index, first face, end face), cells rising.
+    pub cells: Vec<(usize, usize, usize)>,
+    /// `faces + 1` rising offsets into `conn`, from 0 (empty: no faces).
+    pub offsets: Vec<usize>,
+    pub conn: Vec<u32>,
+}
+
+impl PolyFaces {
+    /// Adds the faces of cell `cell` (after every cell added so far).
+    pub fn push_cell(&mut self, cell: usize, faces: &[Vec<u32>]) {
+        if self.offsets.is_empty() {
+            self.offsets.push(0);
+        }
+        let first = self.offsets.len() - 1;
+        for f in faces {
+            self.conn.extend_from_slice(f);
+            self.offsets.push(self.conn.len());
+        }
+        self.cells.push((cell, first, first + faces.len()));
     }
 
-    /// [`RawCells::into_tet_mesh`] with higher-order cells read as `mode` says.
-    pub fn into_tet_mesh_with(mut self, source: &str, name: String, mode: super::HigherOrder) -> anyhow::Result<super::TetMesh> {
-        use super::cell_data::{self, CellData};
-        let n = self.types.len();
-        if self.offsets.len() != n + 1 {
-            anyhow::bail!("{source}: {} cell offsets for {n} cells", self.offsets.len());
+    /// Appends another piece's polyhedra, whose cells follow `cell_base`
+    /// cells and whose points follow `point_base` points.
+    pub fn append(&mut self, other: PolyFaces, cell_base: usize, point_base: u32) {
+        for k in 0..other.cells.len() {
+            let faces = other.faces_of(k).into_iter().map(|f| f.iter().map(|v| v + point_base).collect()).collect::<Vec<Vec<u32>>>();
+            self.push_cell(other.cells[k].0 + cell_base, &faces);
         }
-        let np = self.points.len();
-        // Cell data: averaged to the points here, on the file's cells; kept
-        // per cell (its magnitude) for the constant treatment after the split.
-        let info = self.scalar.clone();
-        let mut cell_value: Option<Vec<f64>> = None;
-        if let Some(info) = info.as_ref().filter(|i| i.association == cell_data::Association::Cell) {
-            let k = info.components.max(1);
-            if self.cell_values.len() != n * k {
-                anyhow::bail!("{source}: cell array '{}' has {} values for {n} cells of {k} components", info.array, self.cell_values.len());
-            }
-            let what = format!("{source}: cell array '{}'", info.array);
-            match info.cell_data.unwrap_or_default() {
-                CellData::Average => {
-                    let v = cell_data::average_to_points(np, &self.offsets, &self.conn, &self.cell_values, k, source)?;
-                    self.scalars = cell_data::magnitudes(v, k, &format!("{what} averaged to the points"), "point")?;
-                }
-                CellData::Constant => {
-                    let v = cell_data::magnitudes(std::mem::take(&mut self.cell_values), k, &what, "cell")?;
-                    if let Some(c) = v.iter().position(|x| !x.is_finite()) {
-                        anyhow::bail!("{what}: cell {c} has a non-finite value {}", v[c]);
-                    }
-                    if let Some(c) = v.iter().position(|x| x.abs() > super::geometry::MAX_ABS_VALUE) {
-                        anyhow::bail!(
-                            "{what}: cell {c} has a value beyond the f32 range (|s| > {:e}): {}; the renderers compute in f32",
-                            super::geometry::MAX_ABS_VALUE,
-                            v[c]
-                        );
-                    }
-                    // Placeholder point scalars while splitting and validating.
-                    self.scalars = vec![0.0; np];
-                    cell_value = Some(v);
-                }
+    }
+
+    /// The faces of the `k`-th polyhedron.
+    pub fn faces_of(&self, k: usize) -> Vec<&[u32]> {
+        let (_, a, b) = self.cells[k];
+        (a..b).map(|f| &self.conn[self.offsets[f]..self.offsets[f + 1]]).collect()
+    }
+
+    /// Keeps the polyhedra of the cells `keep` says, renumbering the cells
+    /// (ghost cells dropped).
+    pub fn retain_cells(&mut self, keep: &[bool]) {
+        if self.cells.is_empty() {
+            return;
+        }
+        let mut new_index = Vec::with_capacity(keep.len());
+        let mut n = 0;
+        for &k in keep {
+            new_index.push(n);
+            n += k as usize;
+        }
+        let old = std::mem::take(self);
+        for k in 0..old.cells.len() {
+            let c = old.cells[k].0;
+            if keep.get(c).copied().unwrap_or(false) {
+                let faces: Vec<Vec<u32>> = old.faces_of(k).into_iter().map(|f| f.to_vec()).collect();
+                self.push_cell(new_index[c], &faces);
             }
         }
-        let (mut mesh, cell_of) = super::tetrahedralize::tetrahedralize(self, source, name, mode)?;
-        mesh.stats.scalar = info;
-        if let Some(v) = cell_value {
-            let per_tet: Vec<f64> = cell_of.iter().map(|&c| v[c as usize]).collect();
-            cell_data::constant_per_cell(&mut mesh, &per_tet, source)?;
-        }
-        Ok(mesh)
     }
 }
 
@@ -871,13 +838,7 @@ mod tests {
     }
 
     #[test]
-    fn kinds_and_names() {
-        assert_eq!(cell_kind(12), CellKind::Solid(8));
-        assert_eq!(cell_kind(5), CellKind::LowerDim);
-        assert_eq!(cell_kind(24), CellKind::HigherOrder);
-        assert_eq!(cell_kind(42), CellKind::Polyhedron);
-        assert_eq!(cell_kind(41), CellKind::Unsupported);
-        assert_eq!(cell_kind(22), CellKind::LowerDim);
+    fn names() {
         assert_eq!(cell_type_name(25), "quadratic hexahedron");
     }
 }

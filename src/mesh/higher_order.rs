@@ -48,7 +48,7 @@ use anyhow::{bail, Result};
 
 use super::cells::{VTK_HEXAHEDRON, VTK_PYRAMID, VTK_TETRA, VTK_WEDGE};
 use super::repair::split_linear;
-use super::tetrahedralize::Tetrahedralizer;
+use super::tet_builder::Tetrahedralizer;
 use super::HigherOrder;
 
 #[path = "higher_order_tables.rs"]
@@ -215,100 +215,127 @@ pub(crate) fn split(tz: &mut Tetrahedralizer, t: u8, v: &[u32]) -> Result<()> {
         l.set(*q, v[i]);
     }
     match s {
-        Shape::Hex => {
-            if p == 2 {
-                for f in hex_faces() {
-                    l.fill_face(tz, &f)?;
-                }
-                if l.get([1, 1, 1]).is_none() {
-                    // The serendipity body centre: -1/4 corners + 1/4 mid-edge nodes.
-                    let mut terms = Vec::new();
-                    for x in 0..3u8 {
-                        for y in 0..3u8 {
-                            for z in 0..3u8 {
-                                let ones = [x, y, z].iter().filter(|&&c| c == 1).count();
-                                let w = match ones {
-                                    0 => -0.25,
-                                    1 => 0.25,
-                                    _ => continue,
-                                };
-                                terms.push((l.need([x, y, z])?, w));
-                            }
-                        }
-                    }
-                    let (pos, val) = tz.combine(&terms);
-                    let c = tz.add_point(pos, val)?;
-                    l.set([1, 1, 1], c);
-                }
-            }
-            for i in 0..p {
-                for j in 0..p {
-                    for k in 0..p {
-                        let c = |di: usize, dj: usize, dk: usize| l.need(lp(i + di, j + dj, k + dk));
-                        let h = [c(0, 0, 0)?, c(1, 0, 0)?, c(1, 1, 0)?, c(0, 1, 0)?, c(0, 0, 1)?, c(1, 0, 1)?, c(1, 1, 1)?, c(0, 1, 1)?];
-                        split_linear(tz, VTK_HEXAHEDRON, &h)?;
-                    }
-                }
-            }
-        }
-        Shape::Wedge => {
-            // The quadratic-linear wedge has only the bottom and top layers.
-            let step = if t == 31 { 2 } else { 1 };
-            if p == 2 && t != 31 {
-                for f in wedge_quad_faces() {
-                    l.fill_face(tz, &f)?;
-                }
-            }
-            for k in (0..p).step_by(step) {
-                for i in 0..p {
-                    for j in 0..p - i {
-                        let mut tris = vec![[(i, j), (i + 1, j), (i, j + 1)]];
-                        if i + j + 2 <= p {
-                            tris.push([(i + 1, j), (i + 1, j + 1), (i, j + 1)]);
-                        }
-                        for tri in tris {
-                            let at = |n: usize, kk: usize| l.need(lp(tri[n].0, tri[n].1, kk));
-                            let w = [at(0, k)?, at(1, k)?, at(2, k)?, at(0, k + step)?, at(1, k + step)?, at(2, k + step)?];
-                            split_linear(tz, VTK_WEDGE, &w)?;
-                        }
-                    }
-                }
-            }
-        }
-        Shape::Tet => {
-            let mut local: Vec<[[usize; 3]; 4]> = Vec::new();
-            for i in 0..p {
-                for j in 0..p - i {
-                    for k in 0..p - i - j {
-                        let o = [i, j, k];
-                        let add = |d: [usize; 3]| [o[0] + d[0], o[1] + d[1], o[2] + d[2]];
-                        local.push([o, add([1, 0, 0]), add([0, 1, 0]), add([0, 0, 1])]);
-                        if i + j + k + 2 <= p {
-                            // The octahedron, cut around the diagonal e3 .. e1+e2.
-                            let (a, b, c, d, e, f) =
-                                (add([1, 0, 0]), add([0, 1, 0]), add([0, 0, 1]), add([1, 1, 0]), add([1, 0, 1]), add([0, 1, 1]));
-                            for (x, y) in [(a, b), (b, f), (f, e), (e, a)] {
-                                local.push([c, d, x, y]);
-                            }
-                        }
-                        if i + j + k + 3 <= p {
-                            local.push([add([1, 1, 0]), add([1, 0, 1]), add([0, 1, 1]), add([1, 1, 1])]);
-                        }
-                    }
-                }
-            }
-            for mut q in local {
-                let di = |a: [usize; 3]| a.map(|x| x as i64);
-                if det3(q.map(di)) < 0 {
-                    q.swap(2, 3);
-                }
-                let g = [l.need(lpa(q[0]))?, l.need(lpa(q[1]))?, l.need(lpa(q[2]))?, l.need(lpa(q[3]))?];
-                split_linear(tz, VTK_TETRA, &g)?;
-            }
-        }
+        Shape::Hex => subdivide_hex(tz, &mut l, p),
+        Shape::Wedge => subdivide_wedge(tz, &mut l, p, t),
+        Shape::Tet => subdivide_tet(tz, &l, p),
         Shape::Pyramid => bail!("no subdivision of this pyramid is built"),
     }
+}
+
+/// A hexahedron of degree `p` as its p³ sub-hexahedra (a serendipity
+/// cell's missing face and body centres added first).
+fn subdivide_hex(tz: &mut Tetrahedralizer, l: &mut Lattice, p: usize) -> Result<()> {
+    if p == 2 {
+        for f in hex_faces() {
+            l.fill_face(tz, &f)?;
+        }
+        if l.get([1, 1, 1]).is_none() {
+            add_body_centre(tz, l)?;
+        }
+    }
+    for i in 0..p {
+        for j in 0..p {
+            for k in 0..p {
+                let c = |di: usize, dj: usize, dk: usize| l.need(lp(i + di, j + dj, k + dk));
+                let h = [c(0, 0, 0)?, c(1, 0, 0)?, c(1, 1, 0)?, c(0, 1, 0)?, c(0, 0, 1)?, c(1, 0, 1)?, c(1, 1, 1)?, c(0, 1, 1)?];
+                split_linear(tz, VTK_HEXAHEDRON, &h)?;
+            }
+        }
+    }
     Ok(())
+}
+
+/// The serendipity body centre of a quadratic hexahedron, added as a
+/// point: -1/4 corners + 1/4 mid-edge nodes.
+fn add_body_centre(tz: &mut Tetrahedralizer, l: &mut Lattice) -> Result<()> {
+    let mut terms = Vec::new();
+    for x in 0..3u8 {
+        for y in 0..3u8 {
+            for z in 0..3u8 {
+                let ones = [x, y, z].iter().filter(|&&c| c == 1).count();
+                let w = match ones {
+                    0 => -0.25,
+                    1 => 0.25,
+                    _ => continue,
+                };
+                terms.push((l.need([x, y, z])?, w));
+            }
+        }
+    }
+    let (pos, val) = tz.combine(&terms);
+    let c = tz.add_point(pos, val)?;
+    l.set([1, 1, 1], c);
+    Ok(())
+}
+
+/// A wedge of degree `p` (type `t`) as its sub-wedges (a serendipity
+/// cell's missing quad-face centres added first).
+fn subdivide_wedge(tz: &mut Tetrahedralizer, l: &mut Lattice, p: usize, t: u8) -> Result<()> {
+    // The quadratic-linear wedge has only the bottom and top layers.
+    let step = if t == 31 { 2 } else { 1 };
+    if p == 2 && t != 31 {
+        for f in wedge_quad_faces() {
+            l.fill_face(tz, &f)?;
+        }
+    }
+    for k in (0..p).step_by(step) {
+        for i in 0..p {
+            for j in 0..p - i {
+                let mut tris = vec![[(i, j), (i + 1, j), (i, j + 1)]];
+                if i + j + 2 <= p {
+                    tris.push([(i + 1, j), (i + 1, j + 1), (i, j + 1)]);
+                }
+                for tri in tris {
+                    let at = |n: usize, kk: usize| l.need(lp(tri[n].0, tri[n].1, kk));
+                    let w = [at(0, k)?, at(1, k)?, at(2, k)?, at(0, k + step)?, at(1, k + step)?, at(2, k + step)?];
+                    split_linear(tz, VTK_WEDGE, &w)?;
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// A tetra of degree `p` as the p³ tets of [`tet_lattice_tets`], each
+/// positively oriented on the lattice.
+fn subdivide_tet(tz: &mut Tetrahedralizer, l: &Lattice, p: usize) -> Result<()> {
+    for mut q in tet_lattice_tets(p) {
+        let di = |a: [usize; 3]| a.map(|x| x as i64);
+        if det3(q.map(di)) < 0 {
+            q.swap(2, 3);
+        }
+        let g = [l.need(lpa(q[0]))?, l.need(lpa(q[1]))?, l.need(lpa(q[2]))?, l.need(lpa(q[3]))?];
+        split_linear(tz, VTK_TETRA, &g)?;
+    }
+    Ok(())
+}
+
+/// The tets of a degree-`p` tetra's lattice, as lattice points: each
+/// point's corner tet, the octahedron above it cut into 4 tets around its
+/// diagonal e3 .. e1+e2, and the inverted tet.
+fn tet_lattice_tets(p: usize) -> Vec<[[usize; 3]; 4]> {
+    let mut local: Vec<[[usize; 3]; 4]> = Vec::new();
+    for i in 0..p {
+        for j in 0..p - i {
+            for k in 0..p - i - j {
+                let o = [i, j, k];
+                let add = |d: [usize; 3]| [o[0] + d[0], o[1] + d[1], o[2] + d[2]];
+                local.push([o, add([1, 0, 0]), add([0, 1, 0]), add([0, 0, 1])]);
+                if i + j + k + 2 <= p {
+                    // The octahedron, cut around the diagonal e3 .. e1+e2.
+                    let (a, b, c, d, e, f) =
+                        (add([1, 0, 0]), add([0, 1, 0]), add([0, 0, 1]), add([1, 1, 0]), add([1, 0, 1]), add([0, 1, 1]));
+                    for (x, y) in [(a, b), (b, f), (f, e), (e, a)] {
+                        local.push([c, d, x, y]);
+                    }
+                }
+                if i + j + k + 3 <= p {
+                    local.push([add([1, 1, 0]), add([1, 0, 1]), add([0, 1, 1]), add([1, 1, 1])]);
+                }
+            }
+        }
+    }
+    local
 }
 
 fn lp(i: usize, j: usize, k: usize) -> [u8; 3] {

@@ -26,6 +26,7 @@ pub mod refine;
 pub mod reorder;
 pub mod repair;
 pub mod split;
+pub mod tet_builder;
 pub mod tetrahedralize;
 pub mod topology;
 pub mod vtk;

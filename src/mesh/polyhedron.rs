@@ -30,75 +30,12 @@ use anyhow::{anyhow, bail, Result};
 
 use super::cells::quad_diagonal;
 use super::geometry::tet_det;
-use super::tetrahedralize::Tetrahedralizer;
+use super::tet_builder::Tetrahedralizer;
 
 /// VTK cell types split here.
 pub const VTK_PENTAGONAL_PRISM: u8 = 15;
 pub const VTK_HEXAGONAL_PRISM: u8 = 16;
 pub const VTK_POLYHEDRON: u8 = 42;
-
-/// The polyhedra of a [`super::cells::RawCells`]: for each, its cell index
-/// and its faces.
-#[derive(Debug, Clone, Default)]
-pub struct PolyFaces {
-    /// (cell index, first face, end face), cells rising.
-    pub cells: Vec<(usize, usize, usize)>,
-    /// `faces + 1` rising offsets into `conn`, from 0 (empty: no faces).
-    pub offsets: Vec<usize>,
-    pub conn: Vec<u32>,
-}
-
-impl PolyFaces {
-    /// Adds the faces of cell `cell` (after every cell added so far).
-    pub fn push_cell(&mut self, cell: usize, faces: &[Vec<u32>]) {
-        if self.offsets.is_empty() {
-            self.offsets.push(0);
-        }
-        let first = self.offsets.len() - 1;
-        for f in faces {
-            self.conn.extend_from_slice(f);
-            self.offsets.push(self.conn.len());
-        }
-        self.cells.push((cell, first, first + faces.len()));
-    }
-
-    /// Appends another piece's polyhedra, whose cells follow `cell_base`
-    /// cells and whose points follow `point_base` points.
-    pub fn append(&mut self, other: PolyFaces, cell_base: usize, point_base: u32) {
-        for k in 0..other.cells.len() {
-            let faces = other.faces_of(k).into_iter().map(|f| f.iter().map(|v| v + point_base).collect()).collect::<Vec<Vec<u32>>>();
-            self.push_cell(other.cells[k].0 + cell_base, &faces);
-        }
-    }
-
-    /// The faces of the `k`-th polyhedron.
-    pub fn faces_of(&self, k: usize) -> Vec<&[u32]> {
-        let (_, a, b) = self.cells[k];
-        (a..b).map(|f| &self.conn[self.offsets[f]..self.offsets[f + 1]]).collect()
-    }
-
-    /// Keeps the polyhedra of the cells `keep` says, renumbering the cells
-    /// (ghost cells dropped).
-    pub fn retain_cells(&mut self, keep: &[bool]) {
-        if self.cells.is_empty() {
-            return;
-        }
-        let mut new_index = Vec::with_capacity(keep.len());
-        let mut n = 0;
-        for &k in keep {
-            new_index.push(n);
-            n += k as usize;
-        }
-        let old = std::mem::take(self);
-        for k in 0..old.cells.len() {
-            let c = old.cells[k].0;
-            if keep.get(c).copied().unwrap_or(false) {
-                let faces: Vec<Vec<u32>> = old.faces_of(k).into_iter().map(|f| f.to_vec()).collect();
-                self.push_cell(new_index[c], &faces);
-            }
-        }
-    }
-}
 
 /// Parses one cell's VTK face stream (`nfaces, n0, ids..., n1, ids...`),
 /// which must use exactly `stream`; every id below `np`.
@@ -144,32 +81,50 @@ pub(crate) fn split(tz: &mut Tetrahedralizer, faces: &[&[u32]], points: Option<&
     if faces.len() < 4 {
         bail!("has {} faces; a polyhedron has at least 4", faces.len());
     }
-    // Faces as point lists, consecutive repeats (collapsed edges) removed.
     let mut fs: Vec<Vec<u32>> = Vec::with_capacity(faces.len());
     for (i, f) in faces.iter().enumerate() {
-        let mut g: Vec<u32> = Vec::with_capacity(f.len());
-        for &v in f.iter() {
-            if g.last() != Some(&v) {
-                g.push(v);
-            }
-        }
-        while g.len() > 1 && g.first() == g.last() {
-            g.pop();
-        }
-        let mut s = g.clone();
-        s.sort_unstable();
-        s.dedup();
-        if s.len() != g.len() || g.len() < 3 {
-            bail!("face {i} {:?} does not have three or more distinct points in a simple loop", f);
-        }
-        if let Some(p) = points {
-            if let Some(v) = g.iter().find(|v| !p.contains(v)) {
-                bail!("face {i} names point {v}, which is not among the cell's {} points", p.len());
-            }
-        }
-        fs.push(g);
+        fs.push(simple_face(i, f, points)?);
     }
-    // Closed: every edge on exactly two faces.
+    let edges = closed_edges(&fs)?;
+    orient_faces(&mut fs, &edges)?;
+    let c = add_centroid(tz, &fs)?;
+    let tris = cone_triangles(tz, &fs)?;
+    let tets: Vec<[u32; 4]> = tris.iter().map(|t| [t[0], t[1], t[2], c]).collect();
+    add_cone(tz, tets)?;
+    tz.stats.polyhedra += 1;
+    Ok(())
+}
+
+/// Face `i` (`f`) as a point list, consecutive repeats (collapsed edges)
+/// removed; checked to be a simple loop of three or more points, each one
+/// of the cell's `points` when the file lists them.
+fn simple_face(i: usize, f: &[u32], points: Option<&[u32]>) -> Result<Vec<u32>> {
+    let mut g: Vec<u32> = Vec::with_capacity(f.len());
+    for &v in f.iter() {
+        if g.last() != Some(&v) {
+            g.push(v);
+        }
+    }
+    while g.len() > 1 && g.first() == g.last() {
+        g.pop();
+    }
+    let mut s = g.clone();
+    s.sort_unstable();
+    s.dedup();
+    if s.len() != g.len() || g.len() < 3 {
+        bail!("face {i} {:?} does not have three or more distinct points in a simple loop", f);
+    }
+    if let Some(p) = points {
+        if let Some(v) = g.iter().find(|v| !p.contains(v)) {
+            bail!("face {i} names point {v}, which is not among the cell's {} points", p.len());
+        }
+    }
+    Ok(g)
+}
+
+/// The faces each edge (its ids low, high) is on; an error unless the
+/// faces close (every edge on exactly two faces).
+fn closed_edges(fs: &[Vec<u32>]) -> Result<HashMap<(u32, u32), Vec<usize>>> {
     let mut edges: HashMap<(u32, u32), Vec<usize>> = HashMap::new();
     for (i, f) in fs.iter().enumerate() {
         for k in 0..f.len() {
@@ -182,10 +137,13 @@ pub(crate) fn split(tz: &mut Tetrahedralizer, faces: &[&[u32]], points: Option<&
     if let Some(((a, b), holders)) = open.first() {
         bail!("its faces do not close: the edge {a}-{b} is on {} face(s), not 2", holders.len());
     }
-    // Orient the faces consistently (a face crosses each shared edge the
-    // other way from its neighbour).
+    Ok(edges)
+}
+
+/// Orients the faces consistently (a face crosses each shared edge the
+/// other way from its neighbour), reversing those that need it.
+fn orient_faces(fs: &mut [Vec<u32>], edges: &HashMap<(u32, u32), Vec<usize>>) -> Result<()> {
     let mut flip: Vec<Option<bool>> = vec![None; fs.len()];
-    let directed = |f: &Vec<u32>, a: u32, b: u32| (0..f.len()).any(|k| f[k] == a && f[(k + 1) % f.len()] == b);
     for start in 0..fs.len() {
         if flip[start].is_some() {
             continue;
@@ -193,25 +151,7 @@ pub(crate) fn split(tz: &mut Tetrahedralizer, faces: &[&[u32]], points: Option<&
         flip[start] = Some(false);
         let mut stack = vec![start];
         while let Some(i) = stack.pop() {
-            let fi: Vec<u32> = if flip[i] == Some(true) { fs[i].iter().rev().copied().collect() } else { fs[i].clone() };
-            for k in 0..fi.len() {
-                let (a, b) = (fi[k], fi[(k + 1) % fi.len()]);
-                for &j in &edges[&(a.min(b), a.max(b))] {
-                    if j == i {
-                        continue;
-                    }
-                    // j must run b -> a.
-                    let want = !directed(&fs[j], b, a);
-                    match flip[j] {
-                        None => {
-                            flip[j] = Some(want);
-                            stack.push(j);
-                        }
-                        Some(x) if x != want => bail!("its faces cannot be oriented consistently (at the edge {a}-{b})"),
-                        _ => {}
-                    }
-                }
-            }
+            orient_neighbours(fs, edges, &mut flip, i, &mut stack)?;
         }
     }
     for (i, f) in fs.iter_mut().enumerate() {
@@ -219,16 +159,58 @@ pub(crate) fn split(tz: &mut Tetrahedralizer, faces: &[&[u32]], points: Option<&
             f.reverse();
         }
     }
-    // The centroid and the cone.
+    Ok(())
+}
+
+/// One step of [`orient_faces`]' walk: the flips of face `i`'s
+/// neighbours from its own, the newly decided ones pushed to `stack`.
+fn orient_neighbours(
+    fs: &[Vec<u32>],
+    edges: &HashMap<(u32, u32), Vec<usize>>,
+    flip: &mut [Option<bool>],
+    i: usize,
+    stack: &mut Vec<usize>,
+) -> Result<()> {
+    let directed = |f: &Vec<u32>, a: u32, b: u32| (0..f.len()).any(|k| f[k] == a && f[(k + 1) % f.len()] == b);
+    let fi: Vec<u32> = if flip[i] == Some(true) { fs[i].iter().rev().copied().collect() } else { fs[i].clone() };
+    for k in 0..fi.len() {
+        let (a, b) = (fi[k], fi[(k + 1) % fi.len()]);
+        for &j in &edges[&(a.min(b), a.max(b))] {
+            if j == i {
+                continue;
+            }
+            // j must run b -> a.
+            let want = !directed(&fs[j], b, a);
+            match flip[j] {
+                None => {
+                    flip[j] = Some(want);
+                    stack.push(j);
+                }
+                Some(x) if x != want => bail!("its faces cannot be oriented consistently (at the edge {a}-{b})"),
+                _ => {}
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Adds the cell's centroid point (the mean of its distinct points and of
+/// their values); its index.
+fn add_centroid(tz: &mut Tetrahedralizer, fs: &[Vec<u32>]) -> Result<u32> {
     let mut distinct: Vec<u32> = fs.iter().flatten().copied().collect();
     distinct.sort_unstable();
     distinct.dedup();
     let w = 1.0 / distinct.len() as f64;
     let terms: Vec<(u32, f64)> = distinct.iter().map(|&v| (v, w)).collect();
     let (pos, val) = tz.combine(&terms);
-    let c = tz.add_point(pos, val)?;
+    tz.add_point(pos, val)
+}
+
+/// The faces as triangles: a quad cut by the min-index rule, a face of
+/// five or more points fanned from its (shared) centre point.
+fn cone_triangles(tz: &mut Tetrahedralizer, fs: &[Vec<u32>]) -> Result<Vec<[u32; 3]>> {
     let mut tris: Vec<[u32; 3]> = Vec::new();
-    for f in &fs {
+    for f in fs {
         match f.len() {
             3 => tris.push([f[0], f[1], f[2]]),
             4 => {
@@ -250,7 +232,13 @@ pub(crate) fn split(tz: &mut Tetrahedralizer, faces: &[&[u32]], points: Option<&
             }
         }
     }
-    let tets: Vec<[u32; 4]> = tris.iter().map(|t| [t[0], t[1], t[2], c]).collect();
+    Ok(tris)
+}
+
+/// Adds the tets of the cone, positively oriented; an error when they do
+/// not all have one orientation (the cell is not star-shaped from its
+/// centroid) or have no volume.
+fn add_cone(tz: &mut Tetrahedralizer, tets: Vec<[u32; 4]>) -> Result<()> {
     let dets: Vec<(f64, bool)> = tets.iter().map(|t| tet_det(t.map(|v| tz.points[v as usize]))).collect();
     let net: f64 = dets.iter().map(|d| d.0).sum();
     let folds = dets.iter().any(|&(d, flat)| !flat && (d > 0.0) != (net > 0.0));
@@ -264,6 +252,5 @@ pub(crate) fn split(tz: &mut Tetrahedralizer, faces: &[&[u32]], points: Option<&
         }
         tz.tets.push(t);
     }
-    tz.stats.polyhedra += 1;
     Ok(())
 }

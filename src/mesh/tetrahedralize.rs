@@ -7,69 +7,107 @@
 //! cells of its face. Errors name the file's cell, its type and the reason;
 //! validation errors that name tets also name the file cell each came from.
 
-use std::collections::HashMap;
-
 use anyhow::{anyhow, bail, Result};
 
-use super::cells::{cell_kind, cell_type_name, CellKind, RawCells};
-use super::{higher_order, polyhedron, repair, HigherOrder, MeshStats, TetMesh};
+use super::cells::{cell_type_name, RawCells};
+use super::tet_builder::Tetrahedralizer;
+use super::{higher_order, polyhedron, repair, HigherOrder, TetMesh};
 
-/// The mesh being built: the file's points plus the added ones, the tets,
-/// and what was counted.
-pub(crate) struct Tetrahedralizer {
-    pub points: Vec<[f64; 3]>,
-    pub scalars: Vec<f64>,
-    pub tets: Vec<[u32; 4]>,
-    pub stats: MeshStats,
-    pub mode: HigherOrder,
-    /// Added (or registered) face-centre points by the face's sorted ids.
-    face_points: HashMap<Vec<u32>, u32>,
+/// How a cell type is treated when a volume mesh is read.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CellKind {
+    /// A linear 3-D cell with this many vertices: split into tets.
+    Solid(usize),
+    /// A 0-, 1- or 2-D cell (vertex, line, triangle, quad, their
+    /// quadratic, Lagrange and Bezier forms, an empty cell): it has no
+    /// volume, so it contributes nothing to a volume rendering; skipped and
+    /// counted (`MeshStats::skipped_lower_dim`).
+    LowerDim,
+    /// A quadratic, Lagrange or Bezier 3-D cell (`higher_order`).
+    HigherOrder,
+    /// A polyhedron (42) or a pentagonal / hexagonal prism (`polyhedron`).
+    Polyhedron,
+    /// Anything else (convex point set, parametric and generic higher-order
+    /// cells, unknown numbers): refused.
+    Unsupported,
 }
 
-impl Tetrahedralizer {
-    pub fn new(points: Vec<[f64; 3]>, scalars: Vec<f64>, mode: HigherOrder) -> Tetrahedralizer {
-        Tetrahedralizer { points, scalars, tets: Vec::new(), stats: MeshStats::default(), mode, face_points: HashMap::new() }
+pub fn cell_kind(t: i64) -> CellKind {
+    match t {
+        10 => CellKind::Solid(4),
+        11 | 12 => CellKind::Solid(8),
+        13 => CellKind::Solid(6),
+        14 => CellKind::Solid(5),
+        15 | 16 | 42 => CellKind::Polyhedron,
+        0..=9 | 21..=23 | 28 | 30 | 34..=36 | 51..=54 | 68..=70 | 75..=77 => CellKind::LowerDim,
+        t if (0..=255).contains(&t) && higher_order::is_higher_order(t as u8) => CellKind::HigherOrder,
+        _ => CellKind::Unsupported,
+    }
+}
+
+impl RawCells {
+    /// Splits every cell into tets (`tetrahedralize`): linear 3-D cells by
+    /// [`CellSplitter`]'s rule with `repair`'s fallbacks, higher-order cells
+    /// as `higher_order`'s mode (process-wide, `--higher-order`) says,
+    /// polyhedra and prisms by `polyhedron`; lower-dimensional cells skipped
+    /// and counted, anything else refused with an error naming each
+    /// unsupported type and its count. `source` starts every error; the
+    /// mesh is validated. A cell scalar (`cell_values`) is first averaged to
+    /// the points (`average`, on the file's cells), or after the split given
+    /// to each tet from its file cell (`constant`: each tet then has its own
+    /// vertices); see `cell_data`.
+    pub fn into_tet_mesh(self, source: &str, name: String) -> anyhow::Result<TetMesh> {
+        self.into_tet_mesh_with(source, name, higher_order::mode())
     }
 
-    /// Appends a point; its index.
-    pub fn add_point(&mut self, p: [f64; 3], s: f64) -> Result<u32> {
-        let i = u32::try_from(self.points.len()).ok().filter(|&i| i < u32::MAX).ok_or_else(|| anyhow!("too many points for 32-bit indices"))?;
-        self.points.push(p);
-        self.scalars.push(s);
-        self.stats.added_points += 1;
-        Ok(i)
-    }
-
-    /// The point and value `sum w_i x_i` of the points `terms` name.
-    pub fn combine(&self, terms: &[(u32, f64)]) -> ([f64; 3], f64) {
-        let mut p = [0.0; 3];
-        let mut s = 0.0;
-        for &(v, w) in terms {
-            let q = self.points[v as usize];
-            for (pa, qa) in p.iter_mut().zip(q) {
-                *pa += w * qa;
+    /// [`RawCells::into_tet_mesh`] with higher-order cells read as `mode` says.
+    pub fn into_tet_mesh_with(mut self, source: &str, name: String, mode: HigherOrder) -> anyhow::Result<TetMesh> {
+        use super::cell_data::{self, CellData};
+        let n = self.types.len();
+        if self.offsets.len() != n + 1 {
+            anyhow::bail!("{source}: {} cell offsets for {n} cells", self.offsets.len());
+        }
+        let np = self.points.len();
+        // Cell data: averaged to the points here, on the file's cells; kept
+        // per cell (its magnitude) for the constant treatment after the split.
+        let info = self.scalar.clone();
+        let mut cell_value: Option<Vec<f64>> = None;
+        if let Some(info) = info.as_ref().filter(|i| i.association == cell_data::Association::Cell) {
+            let k = info.components.max(1);
+            if self.cell_values.len() != n * k {
+                anyhow::bail!("{source}: cell array '{}' has {} values for {n} cells of {k} components", info.array, self.cell_values.len());
             }
-            s += w * self.scalars[v as usize];
+            let what = format!("{source}: cell array '{}'", info.array);
+            match info.cell_data.unwrap_or_default() {
+                CellData::Average => {
+                    let v = cell_data::average_to_points(np, &self.offsets, &self.conn, &self.cell_values, k, source)?;
+                    self.scalars = cell_data::magnitudes(v, k, &format!("{what} averaged to the points"), "point")?;
+                }
+                CellData::Constant => {
+                    let v = cell_data::magnitudes(std::mem::take(&mut self.cell_values), k, &what, "cell")?;
+                    if let Some(c) = v.iter().position(|x| !x.is_finite()) {
+                        anyhow::bail!("{what}: cell {c} has a non-finite value {}", v[c]);
+                    }
+                    if let Some(c) = v.iter().position(|x| x.abs() > super::geometry::MAX_ABS_VALUE) {
+                        anyhow::bail!(
+                            "{what}: cell {c} has a value beyond the f32 range (|s| > {:e}): {}; the renderers compute in f32",
+                            super::geometry::MAX_ABS_VALUE,
+                            v[c]
+                        );
+                    }
+                    // Placeholder point scalars while splitting and validating.
+                    self.scalars = vec![0.0; np];
+                    cell_value = Some(v);
+                }
+            }
         }
-        (p, s)
-    }
-
-    /// The centre point of the face `key` (its sorted point ids): the one
-    /// already made for the cell on the other side, else a new one at the
-    /// combination `terms`.
-    pub fn face_point(&mut self, key: Vec<u32>, terms: &[(u32, f64)]) -> Result<u32> {
-        if let Some(&i) = self.face_points.get(&key) {
-            return Ok(i);
+        let (mut mesh, cell_of) = tetrahedralize(self, source, name, mode)?;
+        mesh.stats.scalar = info;
+        if let Some(v) = cell_value {
+            let per_tet: Vec<f64> = cell_of.iter().map(|&c| v[c as usize]).collect();
+            cell_data::constant_per_cell(&mut mesh, &per_tet, source)?;
         }
-        let (p, s) = self.combine(terms);
-        let i = self.add_point(p, s)?;
-        self.face_points.insert(key, i);
-        Ok(i)
-    }
-
-    /// A face-centre node the file has (the first cell to name it wins).
-    pub fn register_face_point(&mut self, key: Vec<u32>, node: u32) {
-        self.face_points.entry(key).or_insert(node);
+        Ok(mesh)
     }
 }
 

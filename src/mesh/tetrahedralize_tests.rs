@@ -5,7 +5,7 @@ use std::collections::{HashMap, HashSet};
 
 use crate::mesh::adjacency::{FaceAdjacency, FACE_VERTS};
 use crate::mesh::cells::RawCells;
-use crate::mesh::polyhedron::PolyFaces;
+use crate::mesh::cells::PolyFaces;
 use crate::mesh::{HigherOrder, TetGeometry, TetMesh};
 
 /// A quadratic field: the serendipity formulas are exact for it.
@@ -766,4 +766,15 @@ fn polyhedra_in_every_layout_read_alike() {
     let bad = old.replace("<DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\">42 42", "<DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\">12 42");
     let e = format!("{:#}", parse_vtu_bytes("bad.vtu", bad.as_bytes(), None).unwrap_err());
     assert!(e.contains("cell 0 is not a polyhedron"), "{e}");
+}
+
+#[test]
+fn kinds() {
+    use super::{cell_kind, CellKind};
+    assert_eq!(cell_kind(12), CellKind::Solid(8));
+    assert_eq!(cell_kind(5), CellKind::LowerDim);
+    assert_eq!(cell_kind(24), CellKind::HigherOrder);
+    assert_eq!(cell_kind(42), CellKind::Polyhedron);
+    assert_eq!(cell_kind(41), CellKind::Unsupported);
+    assert_eq!(cell_kind(22), CellKind::LowerDim);
 }

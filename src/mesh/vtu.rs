@@ -54,7 +54,7 @@ use std::path::Path;
 use anyhow::{anyhow, bail, Context, Result};
 
 use super::cell_data::{Association, ScalarChoice, ScalarInfo};
-use super::cells::RawCells;
+use super::cells::{PolyFaces, RawCells};
 use super::{MeshStats, TetMesh};
 use crate::bytes::Endian;
 use crate::vtk_xml::{array_payload, root_layout, split_appended, visit, Appended, Layout, Payload};
@@ -566,6 +566,9 @@ fn tagged<'a, 'i>(node: Option<roxmltree::Node<'a, 'i>>, tag: &str) -> Vec<roxml
     node.map_or_else(Vec::new, |n| n.children().inspect(|_| visit()).filter(|c| c.has_tag_name(tag)).collect())
 }
 
+/// One `<Piece>`: its points, its scalar (`pick`, the array the first
+/// piece chose, else as `choice` says), its cells and their polyhedra's
+/// faces, ghosts dropped (counted in `counts`).
 fn parse_piece(
     ctx: &Ctx,
     name: &str,
@@ -577,7 +580,34 @@ fn parse_piece(
     let np = count_attr(name, piece, "NumberOfPoints")?;
     let nc = count_attr(name, piece, "NumberOfCells")?;
     let ctx = Ctx { name, ..*ctx };
+    let points = read_points(&ctx, piece, np)?;
 
+    // ---- the scalar
+    let pd = piece.children().find(|n| n.has_tag_name("PointData"));
+    let cd = piece.children().find(|n| n.has_tag_name("CellData"));
+    let (pd_arrays, cd_arrays) = (arrays(pd), arrays(cd));
+    let info = match pick {
+        None => choose(name, (pd, &pd_arrays), (cd, &cd_arrays), choice, "the piece has")?,
+        Some(p) => picked_scalar(name, p, &pd_arrays, &cd_arrays)?,
+    };
+    let (scalars, cell_values) = read_scalar(&ctx, &info, &pd_arrays, &cd_arrays, np, nc)?;
+
+    let mut raw = read_cells(&ctx, piece, nc, np)?;
+    raw.points = points;
+    raw.scalars = scalars;
+    raw.cell_values = cell_values;
+    raw.scalar = Some(info);
+
+    // Ghosts (`vtkGhostType`): cells VTK does not draw are dropped.
+    let cell_ghost = ghost_array(&ctx, &cd_arrays, "the vtkGhostType cell array", nc)?;
+    let point_ghost = ghost_array(&ctx, &pd_arrays, "the vtkGhostType point array", np)?;
+    raw.drop_ghosts(cell_ghost.as_deref(), point_ghost.as_deref(), counts);
+    Ok(raw)
+}
+
+/// The piece's `np` points (its `<Points>` array of 3 components).
+fn read_points(ctx: &Ctx, piece: roxmltree::Node, np: usize) -> Result<Vec<[f64; 3]>> {
+    let name = ctx.name;
     let points_node = child(name, piece, "Points")?;
     let pa = arrays(Some(points_node));
     let pa = pa.first().ok_or_else(|| anyhow!("{name}: <Points> has no DataArray"))?;
@@ -594,32 +624,43 @@ fn parse_piece(
         }
         Ok(())
     })?;
+    Ok(points)
+}
 
-    // ---- the scalar
-    let pd = piece.children().find(|n| n.has_tag_name("PointData"));
-    let cd = piece.children().find(|n| n.has_tag_name("CellData"));
-    let (pd_arrays, cd_arrays) = (arrays(pd), arrays(cd));
-    let info = match pick {
-        None => choose(name, (pd, &pd_arrays), (cd, &cd_arrays), choice, "the piece has")?,
-        Some(p) => {
-            let (list, whose) = match p.association {
-                Association::Point => (&pd_arrays, "point"),
-                Association::Cell => (&cd_arrays, "cell"),
-            };
-            let Some(a) = list.iter().find(|a| a.attribute("Name") == Some(p.array.as_str())) else {
-                bail!(
-                    "{name}: the piece has no {whose} array '{}', the scalar chosen for the whole file; {}",
-                    p.array,
-                    listing(&pd_arrays, &cd_arrays)
-                );
-            };
-            let k = components(name, *a)?;
-            if k != p.components {
-                bail!("{name}: the piece's {whose} array '{}' has {k} components, the file's scalar {}", p.array, p.components);
-            }
-            ScalarInfo { fallback: p.fallback, ..p.clone() }
-        }
+/// The scalar `p` the file's first piece chose, found in this piece (an
+/// error unless it has the array, with as many components).
+fn picked_scalar(name: &str, p: &ScalarInfo, pd_arrays: &[roxmltree::Node], cd_arrays: &[roxmltree::Node]) -> Result<ScalarInfo> {
+    let (list, whose) = match p.association {
+        Association::Point => (pd_arrays, "point"),
+        Association::Cell => (cd_arrays, "cell"),
     };
+    let Some(a) = list.iter().find(|a| a.attribute("Name") == Some(p.array.as_str())) else {
+        bail!(
+            "{name}: the piece has no {whose} array '{}', the scalar chosen for the whole file; {}",
+            p.array,
+            listing(pd_arrays, cd_arrays)
+        );
+    };
+    let k = components(name, *a)?;
+    if k != p.components {
+        bail!("{name}: the piece's {whose} array '{}' has {k} components, the file's scalar {}", p.array, p.components);
+    }
+    Ok(ScalarInfo { fallback: p.fallback, ..p.clone() })
+}
+
+/// The values of the scalar `info`, as (point scalars, cell values).
+/// Point data: one value per point (a vector's magnitude, taken tuple by
+/// tuple as it is decoded); cell data: every component, kept for the
+/// treatment (`--cell-data`).
+fn read_scalar(
+    ctx: &Ctx,
+    info: &ScalarInfo,
+    pd_arrays: &[roxmltree::Node],
+    cd_arrays: &[roxmltree::Node],
+    np: usize,
+    nc: usize,
+) -> Result<(Vec<f64>, Vec<f64>)> {
+    let name = ctx.name;
     let chosen = match info.association {
         Association::Point => pd_arrays.iter(),
         Association::Cell => cd_arrays.iter(),
@@ -631,9 +672,6 @@ fn parse_piece(
     let what = format!("{} array '{}'", info.association.name(), info.array);
     let tuples = if info.association == Association::Point { np } else { nc };
     let vals = ctx.open(&what, chosen, tuples.checked_mul(k).ok_or_else(|| anyhow!("{name}: {what} is too large"))?)?;
-    // Point data: one value per point (a vector's magnitude, taken tuple by
-    // tuple as it is decoded); cell data: every component, kept for the
-    // treatment (`--cell-data`).
     let point = info.association == Association::Point;
     let mut values: Vec<f64> = Vec::with_capacity(if point { vals.capacity() / k } else { vals.capacity() });
     let mut tuple: Vec<f64> = Vec::with_capacity(k);
@@ -650,17 +688,37 @@ fn parse_piece(
         }
         Ok(())
     })?;
-    let (scalars, cell_values) = if point { (values, Vec::new()) } else { (Vec::new(), values) };
+    Ok(if point { (values, Vec::new()) } else { (Vec::new(), values) })
+}
 
-    // ---- cells
+/// The piece's `nc` cells (`<Cells>`: types, offsets, connectivity, and
+/// the faces of its polyhedra), in a [`RawCells`] without points or
+/// scalar.
+fn read_cells(ctx: &Ctx, piece: roxmltree::Node, nc: usize, np: usize) -> Result<RawCells> {
+    let name = ctx.name;
     let cells = child(name, piece, "Cells")?;
     let ca = arrays(Some(cells));
     let find = |n: &str| {
         ca.iter().find(|a| a.attribute("Name") == Some(n)).copied().ok_or_else(|| anyhow!("{name}: <Cells> has no '{n}' array"))
     };
     let types: Vec<u8> = ctx.open("the cell types", find("types")?, nc)?.ints(255)?;
+    let offsets = read_offsets(ctx, find("offsets")?, nc)?;
+    let conn_len = offsets.last().copied().unwrap_or(0);
+    let conn: Vec<u32> = ctx.open("the cell connectivity", find("connectivity")?, conn_len)?.ints(u32::MAX as u64 - 1)?;
+    let faces = if types.contains(&super::polyhedron::VTK_POLYHEDRON) {
+        poly_faces(ctx, name, &ca, &types, np)?
+    } else {
+        Default::default()
+    };
+    Ok(RawCells { types, offsets, conn, faces, ..Default::default() })
+}
+
+/// The `nc` cell offsets (the `offsets` array `node`), checked to rise,
+/// after a leading 0.
+fn read_offsets(ctx: &Ctx, node: roxmltree::Node, nc: usize) -> Result<Vec<usize>> {
+    let name = ctx.name;
     let what = "the cell offsets";
-    let offs = ctx.open(what, find("offsets")?, nc)?;
+    let offs = ctx.open(what, node, nc)?;
     let mut offsets: Vec<usize> = Vec::with_capacity(offs.capacity() + 1);
     offsets.push(0);
     offs.each(|i, v| {
@@ -671,34 +729,23 @@ fn parse_piece(
         offsets.push(o);
         Ok(())
     })?;
-    let conn_len = offsets.last().copied().unwrap_or(0);
-    let conn: Vec<u32> = ctx.open("the cell connectivity", find("connectivity")?, conn_len)?.ints(u32::MAX as u64 - 1)?;
-    let faces = if types.contains(&super::polyhedron::VTK_POLYHEDRON) {
-        poly_faces(&ctx, name, &ca, &types, np)?
-    } else {
-        Default::default()
-    };
+    Ok(offsets)
+}
 
-    // Ghosts (`vtkGhostType`): cells VTK does not draw are dropped.
-    let ghosts = |list: &[roxmltree::Node], what: &str, n: usize| -> Result<Option<Vec<u8>>> {
-        match list.iter().find(|a| a.attribute("Name") == Some("vtkGhostType")) {
-            Some(g) => Ok(Some(ctx.open(what, *g, n)?.ints(255)?)),
-            None => Ok(None),
-        }
-    };
-    let cell_ghost = ghosts(&cd_arrays, "the vtkGhostType cell array", nc)?;
-    let point_ghost = ghosts(&pd_arrays, "the vtkGhostType point array", np)?;
-    let mut raw = RawCells { points, scalars, types, offsets, conn, faces, cell_values, scalar: Some(info) };
-    raw.drop_ghosts(cell_ghost.as_deref(), point_ghost.as_deref(), counts);
-    Ok(raw)
+/// The `vtkGhostType` array among `list`, `n` values, if there is one.
+fn ghost_array(ctx: &Ctx, list: &[roxmltree::Node], what: &str, n: usize) -> Result<Option<Vec<u8>>> {
+    match list.iter().find(|a| a.attribute("Name") == Some("vtkGhostType")) {
+        Some(g) => Ok(Some(ctx.open(what, *g, n)?.ints(255)?)),
+        None => Ok(None),
+    }
 }
 
 /// The faces of a piece's polyhedra (type 42), from VTK 9.4+'s
 /// `face_connectivity` / `face_offsets` / `polyhedron_to_faces` /
 /// `polyhedron_offsets` arrays or the older `faces` / `faceoffsets` (each
 /// polyhedron's face stream, `faceoffsets` its end, -1 for other cells).
-fn poly_faces(ctx: &Ctx, name: &str, ca: &[roxmltree::Node], types: &[u8], np: usize) -> Result<super::polyhedron::PolyFaces> {
-    use super::polyhedron::{parse_face_stream, PolyFaces, VTK_POLYHEDRON};
+fn poly_faces(ctx: &Ctx, name: &str, ca: &[roxmltree::Node], types: &[u8], np: usize) -> Result<PolyFaces> {
+    use super::polyhedron::{parse_face_stream, VTK_POLYHEDRON};
     let nc = types.len();
     let find = |n: &str| ca.iter().find(|a| a.attribute("Name") == Some(n)).copied();
     let signed = |what: &str, node: roxmltree::Node, count: usize| -> Result<Vec<i64>> {

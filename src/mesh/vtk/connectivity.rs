@@ -7,7 +7,8 @@
 use anyhow::{bail, Result};
 
 use super::values::{swapped_hint, DType};
-use crate::mesh::polyhedron::{parse_face_stream, PolyFaces, VTK_POLYHEDRON};
+use crate::mesh::cells::PolyFaces;
+use crate::mesh::polyhedron::{parse_face_stream, VTK_POLYHEDRON};
 use crate::vtk_legacy::Lines as Reader;
 
 /// Version 5.x: `a` offsets, then `b` connectivity entries; the offsets
