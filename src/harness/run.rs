@@ -717,54 +717,14 @@ fn check_image(image: &RgbaImage, dataset: &Dataset, tf: &TransferFunction, cfg:
 /// Run `spec` on `dataset` as `cfg` says.
 pub fn run(ctx: &Arc<Context>, spec: &MethodSpec, dataset: &Dataset, tf: &TransferFunction, cfg: &RunConfig) -> Result<RunOutput> {
     let mut session = MethodSession::new(ctx, spec, dataset, tf, cfg)?;
-    let mut counter = UploadCounter::default();
-    let mut samples = Samples::default();
-    let mut last_frame_counters = UploadCounter::default();
-    let mut counted = None;
-
     session.set_statistics(false);
     let cameras: Vec<Camera> = (0..cfg.warmup + cfg.frames).map(|f| cfg.frame_camera(dataset, &spec.info.family, f)).collect();
-    if let Some(dir) = &cfg.count_dir {
-        // Counted: the warm-up uncounted, then each timed frame's phases
-        // one after another, dumped at each boundary (`harness::count`).
-        for (f, camera) in cameras.iter().enumerate() {
-            let before = counter;
-            if f == cfg.warmup {
-                count::take_dumps(dir)?;
-                crate::vk::valgrind::start();
-            }
-            if f >= cfg.warmup {
-                count::frame_start();
-            }
-            let frame = session.frame(camera, &mut counter).with_context(|| format!("frame {f}"));
-            if f + 1 == cameras.len() || frame.is_err() {
-                crate::vk::valgrind::stop();
-            }
-            let (timing, _) = frame?;
-            if f >= cfg.warmup {
-                samples.push(&timing);
-                last_frame_counters = counter.since(&before);
-            }
-        }
-        counted = Some(count::report(&count::take_dumps(dir)?, cfg.frames)?);
+    let mut timed = if let Some(dir) = &cfg.count_dir {
+        counted_frames(&mut session, cfg, &cameras, dir)?
     } else {
-        for (f, (timing, bytes)) in session.run_frames(&cameras, cfg.overlap, &mut counter)?.into_iter().enumerate() {
-            if f >= cfg.warmup {
-                samples.push(&timing);
-                last_frame_counters = bytes;
-            }
-        }
-    }
-    // The fixed cost: the timed frames' cameras turned away from the
-    // dataset, so no cell, ray hit or terrain tile is in view and what is
-    // left is what every frame pays (clear, queries, submit, fence, the
-    // method's per-pixel and per-frame passes). Bytes are not counted.
-    // A counted run counts only the timed frames: its fixed frames are skipped.
-    let fixed_frames = if cfg.count_dir.is_some() { 0 } else { cfg.fixed_frames };
-    let empty: Vec<Camera> = cameras.iter().skip(cfg.warmup).cycle().take(fixed_frames).map(Camera::turned_away).collect();
-    for (timing, _) in session.run_frames(&empty, cfg.overlap, &mut UploadCounter::default()).context("fixed-cost frames")? {
-        samples.push_fixed(&timing);
-    }
+        timed_frames(&mut session, cfg, &cameras)?
+    };
+    fixed_cost_frames(&mut session, cfg, &cameras, &mut timed.samples)?;
     // The reference view, untimed: its image and statistics are reported.
     let reference_camera = cfg.frame_camera(dataset, &spec.info.family, 0);
     session.set_statistics(true);
@@ -774,17 +734,92 @@ pub fn run(ctx: &Arc<Context>, spec: &MethodSpec, dataset: &Dataset, tf: &Transf
     check_image(&image, dataset, tf, cfg)?;
     let reference_view = session.view(&reference_camera);
     let diagnostics = if cfg.diagnostics { session.method_mut().diagnostics(&reference_view)? } else { None };
+    let reference = ReferenceFrame { camera: reference_camera, timing: reference_timing, stats, diagnostics };
+    let result = run_result(ctx, spec, dataset, tf, cfg, &session, timed, reference, &image);
+    Ok(RunOutput { result, image })
+}
 
-    let method = session.method();
-    let work = method.work();
-    let cells = work.0.get("cells").copied();
-    let fc = last_frame_counters;
+/// What the timed frames measured: their samples, the last one's upload
+/// counters, and (`--count`) the instructions per phase.
+struct Timed {
+    samples: Samples,
+    last_frame_counters: UploadCounter,
+    counted: Option<CountReport>,
+}
+
+/// The reference view's frame, untimed: its camera, timing, statistics
+/// and the method's diagnostics.
+struct ReferenceFrame {
+    camera: Camera,
+    timing: FrameTiming,
+    stats: Option<PipelineStats>,
+    diagnostics: Option<serde_json::Value>,
+}
+
+/// The warm-up and timed frames, overlapped as `cfg` says.
+fn timed_frames(session: &mut MethodSession, cfg: &RunConfig, cameras: &[Camera]) -> Result<Timed> {
+    let mut counter = UploadCounter::default();
+    let mut timed = Timed { samples: Samples::default(), last_frame_counters: UploadCounter::default(), counted: None };
+    for (f, (timing, bytes)) in session.run_frames(cameras, cfg.overlap, &mut counter)?.into_iter().enumerate() {
+        if f >= cfg.warmup {
+            timed.samples.push(&timing);
+            timed.last_frame_counters = bytes;
+        }
+    }
+    Ok(timed)
+}
+
+/// Counted: the warm-up uncounted, then each timed frame's phases one
+/// after another, dumped at each boundary into `dir` (`harness::count`).
+fn counted_frames(session: &mut MethodSession, cfg: &RunConfig, cameras: &[Camera], dir: &std::path::Path) -> Result<Timed> {
+    let mut counter = UploadCounter::default();
+    let mut timed = Timed { samples: Samples::default(), last_frame_counters: UploadCounter::default(), counted: None };
+    for (f, camera) in cameras.iter().enumerate() {
+        let before = counter;
+        if f == cfg.warmup {
+            count::take_dumps(dir)?;
+            crate::vk::valgrind::start();
+        }
+        if f >= cfg.warmup {
+            count::frame_start();
+        }
+        let frame = session.frame(camera, &mut counter).with_context(|| format!("frame {f}"));
+        if f + 1 == cameras.len() || frame.is_err() {
+            crate::vk::valgrind::stop();
+        }
+        let (timing, _) = frame?;
+        if f >= cfg.warmup {
+            timed.samples.push(&timing);
+            timed.last_frame_counters = counter.since(&before);
+        }
+    }
+    timed.counted = Some(count::report(&count::take_dumps(dir)?, cfg.frames)?);
+    Ok(timed)
+}
+
+/// The fixed cost: the timed frames' cameras turned away from the
+/// dataset, so no cell, ray hit or terrain tile is in view and what is
+/// left is what every frame pays (clear, queries, submit, fence, the
+/// method's per-pixel and per-frame passes). Bytes are not counted.
+/// A counted run counts only the timed frames: its fixed frames are skipped.
+fn fixed_cost_frames(session: &mut MethodSession, cfg: &RunConfig, cameras: &[Camera], samples: &mut Samples) -> Result<()> {
+    let fixed_frames = if cfg.count_dir.is_some() { 0 } else { cfg.fixed_frames };
+    let empty: Vec<Camera> = cameras.iter().skip(cfg.warmup).cycle().take(fixed_frames).map(Camera::turned_away).collect();
+    for (timing, _) in session.run_frames(&empty, cfg.overlap, &mut UploadCounter::default()).context("fixed-cost frames")? {
+        samples.push_fixed(&timing);
+    }
+    Ok(())
+}
+
+/// The bytes uploaded per frame, per cell drawn (`cells_drawn` of the
+/// last timed frame, else the mesh's `cells`) and per mesh cell.
+fn upload_report(session: &MethodSession, cells: Option<u64>, samples: &Samples, fc: UploadCounter) -> UploadReport {
     let cell_bytes = fc.frame_cell_bytes();
     // The last timed frame's cells drawn (culling may skip some), else all.
     let drawn = samples.1.get("cells_drawn").and_then(|v| v.last().copied()).or(cells);
     let bytes_per_cell = drawn.filter(|&n| n > 0).map(|n| cell_bytes as f64 / n as f64);
     let bytes_per_mesh_cell = cells.filter(|&n| n > 0).map(|n| cell_bytes as f64 / n as f64);
-    let upload = UploadReport {
+    UploadReport {
         bytes_per_frame: fc.frame_bytes(),
         cell_bytes_per_frame: cell_bytes,
         constant_bytes_per_frame: fc.frame_constant_bytes(),
@@ -794,7 +829,27 @@ pub fn run(ctx: &Arc<Context>, spec: &MethodSpec, dataset: &Dataset, tf: &Transf
         static_bytes: session.setup_counter.static_bytes(),
         frame_counters: fc,
         setup_counters: session.setup_counter,
-    };
+    }
+}
+
+/// The run's result from what it measured.
+#[allow(clippy::too_many_arguments)]
+fn run_result(
+    ctx: &Arc<Context>,
+    spec: &MethodSpec,
+    dataset: &Dataset,
+    tf: &TransferFunction,
+    cfg: &RunConfig,
+    session: &MethodSession,
+    timed: Timed,
+    reference: ReferenceFrame,
+    image: &RgbaImage,
+) -> RunResult {
+    let Timed { samples, last_frame_counters, counted } = timed;
+    let ReferenceFrame { camera: reference_camera, timing: reference_timing, stats, diagnostics } = reference;
+    let method = session.method();
+    let work = method.work();
+    let upload = upload_report(session, work.0.get("cells").copied(), &samples, last_frame_counters);
     let phases: BTreeMap<String, Summary> = samples.0.iter().map(|(k, v)| (k.clone(), Summary::of(v))).collect();
     let median_s = phases.get("frame").map_or(0.0, |s| s.median * 1e-3);
     let per_second: BTreeMap<&'static str, f64> =
@@ -807,7 +862,7 @@ pub fn run(ctx: &Arc<Context>, spec: &MethodSpec, dataset: &Dataset, tf: &Transf
         .collect();
     let time_ms = TimeReport { phases, setup_ms: session.setup_ms, table_build_ms: method.table_build_ms(), samples: samples.0 };
     let summary = dataset.summary();
-    let result = RunResult {
+    RunResult {
         schema_version: SCHEMA_VERSION,
         method: spec.info.name,
         spec: spec.canonical(),
@@ -860,6 +915,5 @@ pub fn run(ctx: &Arc<Context>, spec: &MethodSpec, dataset: &Dataset, tf: &Transf
         volbench_version: env!("CARGO_PKG_VERSION"),
         git_sha: env!("VOLBENCH_GIT_SHA"),
         env_switches: crate::switches::recorded(),
-    };
-    Ok(RunOutput { result, image })
+    }
 }

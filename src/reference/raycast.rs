@@ -500,11 +500,7 @@ impl Tracer<'_> {
             let te = TetEdges::new(ray, v);
             let faces = [te.face(0), te.face(1), te.face(2), te.face(3)];
             if own_entry && !first {
-                let fv = FACE_VERTS[f_in];
-                let (_, s) = ray.crossing([te.q[fv[0]], te.q[fv[1]], te.q[fv[2]]], faces[f_in].1, [v[fv[0]], v[fv[1]], v[fv[2]]], scalars);
-                if s.is_finite() {
-                    s_in = s;
-                }
+                s_in = own_entry_value(ray, &te, v, faces[f_in].1, f_in, scalars).unwrap_or(s_in);
             }
             first = false;
             // The line crosses exactly two faces of a cell (exact arithmetic,
@@ -523,76 +519,15 @@ impl Tracer<'_> {
                 1 => -1,
                 _ => 1,
             };
-            let mut found = (usize::MAX, 0usize);
-            let mut best = (usize::MAX, f64::NEG_INFINITY);
-            for (f, &(u, bw)) in faces.iter().enumerate() {
-                if f == f_in {
-                    continue;
-                }
-                if u == target {
-                    found = (f, found.1 + 1);
-                }
-                // Fallback score: the face whose worst edge is least wrong.
-                let score = bw
-                    .iter()
-                    .fold(f64::INFINITY, |m, &w| m.min(w * target as f64));
-                if score > best.1 || best.0 == usize::MAX {
-                    best = (f, score);
-                }
-            }
-            // Exactly one candidate unless rounding made the sign pattern
-            // inconsistent (a ray within ~1 ulp of a vertex or edge).
-            let (f_out, fallback) = if found.1 == 1 {
-                (found.0, false)
-            } else {
-                (best.0, true)
-            };
+            let (f_out, fallback) = exit_face(&faces, f_in, target);
             let mut bw = faces[f_out].1;
             if fallback {
                 stats.fallback_exits += 1;
                 bw = bw.map(|w| if w * target as f64 > 0.0 { w } else { 0.0 });
             }
-            let fv = FACE_VERTS[f_out];
-            let (t_c, s_c) = ray.crossing(
-                [te.q[fv[0]], te.q[fv[1]], te.q[fv[2]]],
-                bw,
-                [v[fv[0]], v[fv[1]], v[fv[2]]],
-                scalars,
-            );
-            // Unusable crossing (edge-on face, NaN): zero-length segment.
-            let (t_out, s_out) = if t_c.is_finite() {
-                (t_c.max(t_in), s_c)
-            } else {
-                (t_in, s_in)
-            };
-            // The segment this cell contributes: exact, or the papers' from
-            // its entry point, or in the cell holding the eye (perspective:
-            // entered at or behind the eye) from its near cap.
-            let ((t_start, s_start), (t_end, s_end)) = match &self.papers {
-                Some(m) => {
-                    let q = [0, 1, 2, 3].map(|i| sub(mesh.points[v[i] as usize], self.eye));
-                    let s = [0, 1, 2, 3].map(|i| scalars[v[i] as usize]);
-                    let nothing = ((t_in, s_in), (t_in, s_in));
-                    if t_in > 0.0 {
-                        let p = std::array::from_fn(|c| ray.o[c] + t_in * ray.d[c]);
-                        m.segment(&q, &s, f_in, p, s_in).map_or(nothing, |(len, sb)| ((t_in, s_in), (t_in + len, sb)))
-                    } else if m.perspective && t_out > 0.0 {
-                        m.cap_segment(&q, &s, ray.d).unwrap_or(nothing)
-                    } else {
-                        // Behind the eye, or (orthographic) a cell the view
-                        // plane cuts: not modelled, exact.
-                        ((t_in, s_in), (t_out, s_out))
-                    }
-                }
-                None => ((t_in, s_in), (t_out, s_out)),
-            };
-            if t_end > t_start && t_end > t_min && t_start < t_max {
-                let (ta, tb) = (t_start.max(t_min), t_end.min(t_max));
-                let lerp = |t: f64| s_start + (s_end - s_start) * ((t - t_start) / (t_end - t_start));
-                let sa = if ta > t_start { lerp(ta) } else { s_start };
-                let sb = if tb < t_end { lerp(tb) } else { s_end };
-                acc.add(&integrate_segment(self.tf, sa, sb, tb - ta));
-            }
+            let (t_out, s_out) = exit_point(ray, &te, v, f_out, bw, (t_in, s_in), scalars);
+            let (start, end) = self.cell_segment(ray, v, f_in, (t_in, s_in), (t_out, s_out));
+            self.add_clipped(acc, start, end, t_min, t_max);
             if t_out > t_in {
                 stall = 0;
                 if acc.depth > DEPTH_STOP || t_out >= t_max {
@@ -614,5 +549,95 @@ impl Tracer<'_> {
             t_in = t_out;
             s_in = s_out;
         }
+    }
+
+    /// The segment (start, end as (t, scalar)) cell `v`, entered through
+    /// face `f_in` at `entry` and left at `exit`, contributes: exact, or the
+    /// papers' from its entry point, or in the cell holding the eye
+    /// (perspective: entered at or behind the eye) from its near cap.
+    #[inline(always)]
+    fn cell_segment(&self, ray: &Ray, v: &[u32; 4], f_in: usize, entry: (f64, f64), exit: (f64, f64)) -> ((f64, f64), (f64, f64)) {
+        let (t_in, s_in) = entry;
+        let Some(m) = &self.papers else {
+            return (entry, exit);
+        };
+        let scalars = &self.mesh.scalars;
+        let q = [0, 1, 2, 3].map(|i| sub(self.mesh.points[v[i] as usize], self.eye));
+        let s = [0, 1, 2, 3].map(|i| scalars[v[i] as usize]);
+        let nothing = (entry, entry);
+        if t_in > 0.0 {
+            let p = std::array::from_fn(|c| ray.o[c] + t_in * ray.d[c]);
+            m.segment(&q, &s, f_in, p, s_in).map_or(nothing, |(len, sb)| ((t_in, s_in), (t_in + len, sb)))
+        } else if m.perspective && exit.0 > 0.0 {
+            m.cap_segment(&q, &s, ray.d).unwrap_or(nothing)
+        } else {
+            // Behind the eye, or (orthographic) a cell the view plane cuts:
+            // not modelled, exact.
+            (entry, exit)
+        }
+    }
+
+    /// Adds to `acc` the part of the segment `start`..`end` (t, scalar)
+    /// within [`t_min`, `t_max`], its end values interpolated.
+    #[inline(always)]
+    fn add_clipped(&self, acc: &mut Acc, (t_start, s_start): (f64, f64), (t_end, s_end): (f64, f64), t_min: f64, t_max: f64) {
+        if t_end > t_start && t_end > t_min && t_start < t_max {
+            let (ta, tb) = (t_start.max(t_min), t_end.min(t_max));
+            let lerp = |t: f64| s_start + (s_end - s_start) * ((t - t_start) / (t_end - t_start));
+            let sa = if ta > t_start { lerp(ta) } else { s_start };
+            let sb = if tb < t_end { lerp(tb) } else { s_end };
+            acc.add(&integrate_segment(self.tf, sa, sb, tb - ta));
+        }
+    }
+}
+
+/// A constant cell's own value where the ray enters it through face
+/// `f_in` (barycentric weights `bw`), if the crossing is usable.
+#[inline(always)]
+fn own_entry_value(ray: &Ray, te: &TetEdges, v: &[u32; 4], bw: [f64; 3], f_in: usize, scalars: &[f64]) -> Option<f64> {
+    let fv = FACE_VERTS[f_in];
+    let (_, s) = ray.crossing([te.q[fv[0]], te.q[fv[1]], te.q[fv[2]]], bw, [v[fv[0]], v[fv[1]], v[fv[2]]], scalars);
+    s.is_finite().then_some(s)
+}
+
+/// The face a cell is left through: the one other than `f_in` whose sign
+/// is `target`, and whether that was not unique (rounding made the sign
+/// pattern inconsistent: a ray within ~1 ulp of a vertex or edge), in
+/// which case it is the face whose worst edge is least wrong.
+#[inline(always)]
+fn exit_face(faces: &[(i8, [f64; 3]); 4], f_in: usize, target: i8) -> (usize, bool) {
+    let mut found = (usize::MAX, 0usize);
+    let mut best = (usize::MAX, f64::NEG_INFINITY);
+    for (f, &(u, bw)) in faces.iter().enumerate() {
+        if f == f_in {
+            continue;
+        }
+        if u == target {
+            found = (f, found.1 + 1);
+        }
+        // Fallback score: the face whose worst edge is least wrong.
+        let score = bw.iter().fold(f64::INFINITY, |m, &w| m.min(w * target as f64));
+        if score > best.1 || best.0 == usize::MAX {
+            best = (f, score);
+        }
+    }
+    if found.1 == 1 {
+        (found.0, false)
+    } else {
+        (best.0, true)
+    }
+}
+
+/// Where (t, scalar) the ray leaves cell `v` through face `f_out`
+/// (barycentric weights `bw`); an unusable crossing (edge-on face, NaN)
+/// gives a zero-length segment, at `entry`.
+#[inline(always)]
+fn exit_point(ray: &Ray, te: &TetEdges, v: &[u32; 4], f_out: usize, bw: [f64; 3], entry: (f64, f64), scalars: &[f64]) -> (f64, f64) {
+    let fv = FACE_VERTS[f_out];
+    let (t_c, s_c) = ray.crossing([te.q[fv[0]], te.q[fv[1]], te.q[fv[2]]], bw, [v[fv[0]], v[fv[1]], v[fv[2]]], scalars);
+    if t_c.is_finite() {
+        (t_c.max(entry.0), s_c)
+    } else {
+        entry
     }
 }

@@ -206,6 +206,36 @@ pub fn parse_tf(
     scalar_range: (f64, f64),
     mesh_diagonal: f64,
 ) -> Result<TransferFunction> {
+    let mut spec = read_spec(text, source)?;
+    let (lo, hi) = scalar_range;
+    if spec.scalar_units == ScalarUnits::Relative && !(lo.is_finite() && hi.is_finite() && lo <= hi) {
+        bail!("{source}: relative scalars need a finite mesh scalar range, got [{lo}, {hi}]");
+    }
+    let (lo, hi) = effective_scalar_range(lo, hi);
+    let unit = length_unit(&spec, source, mesh_diagonal)?;
+    let values = std::mem::take(&mut spec.points);
+    let mut points = Vec::with_capacity(values.len());
+    let mut previous: Option<f64> = None;
+    for (i, value) in values.into_iter().enumerate() {
+        let at = || format!("{source}: point {i}");
+        let p: PointSpec = serde_json::from_value(value).map_err(|e| anyhow!("{}: {e}", at()))?;
+        check_point(&p, spec.scalar_units, previous, &at)?;
+        previous = Some(p.scalar);
+        let tau = point_attenuation(&p, &spec, unit, &at)?;
+        let scalar = match spec.scalar_units {
+            ScalarUnits::Absolute => p.scalar,
+            // As `harness::datasets::default_transfer_function` does.
+            ScalarUnits::Relative => lo + p.scalar * (hi - lo),
+        };
+        points.push(ControlPoint { scalar, color: p.color, attenuation: tau });
+    }
+    check_visible(&points, source, (lo, hi), mesh_diagonal)?;
+    Ok(TransferFunction { name: spec.name.unwrap_or_else(|| default_name.to_string()), points })
+}
+
+/// The file's JSON as a [`FileSpec`]: an object (no duplicate keys, no
+/// unknown fields) with at least one point.
+fn read_spec(text: &str, source: &str) -> Result<FileSpec> {
     if text.trim().is_empty() {
         bail!("{source}: the file is empty; expected a JSON object with \"points\" (see data/tf/README.md)");
     }
@@ -223,12 +253,12 @@ pub fn parse_tf(
     if spec.points.is_empty() {
         bail!("{source}: \"points\" is empty (at least one control point is required)");
     }
-    let (lo, hi) = scalar_range;
-    if spec.scalar_units == ScalarUnits::Relative && !(lo.is_finite() && hi.is_finite() && lo <= hi) {
-        bail!("{source}: relative scalars need a finite mesh scalar range, got [{lo}, {hi}]");
-    }
-    let (lo, hi) = effective_scalar_range(lo, hi);
-    // Lengths in the file are in `unit` world units.
+    Ok(spec)
+}
+
+/// The world length the file's lengths are in (1, or the mesh diagonal
+/// for `per_diagonal`); the top-level `unit_length` checked too.
+fn length_unit(spec: &FileSpec, source: &str, mesh_diagonal: f64) -> Result<f64> {
     let unit = match spec.attenuation_units {
         AttenuationUnits::PerWorldUnit => 1.0,
         AttenuationUnits::PerDiagonal => {
@@ -247,77 +277,83 @@ pub fn parse_tf(
             bail!("{source}: top-level \"unit_length\" must be finite and > 0, got {u}");
         }
     }
-    let mut points = Vec::with_capacity(spec.points.len());
-    let mut previous: Option<f64> = None;
-    for (i, value) in spec.points.into_iter().enumerate() {
-        let at = || format!("{source}: point {i}");
-        let p: PointSpec = serde_json::from_value(value).map_err(|e| anyhow!("{}: {e}", at()))?;
-        if !p.scalar.is_finite() {
-            bail!("{}: scalar {} is not finite", at(), p.scalar);
-        }
-        if spec.scalar_units == ScalarUnits::Relative && !(0.0..=1.0).contains(&p.scalar) {
-            bail!("{}: relative scalar {} is outside [0, 1]", at(), p.scalar);
-        }
-        if let Some(prev) = previous {
-            if p.scalar < prev {
-                bail!(
-                    "{}: scalar {} is below the previous point's {prev} (scalars must be non-decreasing)",
-                    at(),
-                    p.scalar
-                );
-            }
-        }
-        previous = Some(p.scalar);
-        for (k, &c) in p.color.iter().enumerate() {
-            if !(c.is_finite() && (0.0..=1.0).contains(&c)) {
-                bail!("{}: color component {k} is {c}, outside [0, 1]", at());
-            }
-        }
-        let tau = match (p.attenuation, p.opacity) {
-            (Some(_), Some(_)) => bail!("{}: give either \"attenuation\" or \"opacity\", not both", at()),
-            (None, None) => bail!("{}: needs \"attenuation\" or \"opacity\" (with \"unit_length\")", at()),
-            (Some(t), None) => {
-                if p.unit_length.is_some() {
-                    bail!("{}: \"unit_length\" only goes with \"opacity\"", at());
-                }
-                if !(t.is_finite() && t >= 0.0) {
-                    bail!("{}: attenuation {t} must be finite and >= 0", at());
-                }
-                t / unit
-            }
-            (None, Some(o)) => {
-                if !(o.is_finite() && (0.0..1.0).contains(&o)) {
-                    bail!("{}: opacity {o} is outside [0, 1)", at());
-                }
-                let len = p.unit_length.or(spec.unit_length).ok_or_else(|| {
-                    anyhow!("{}: \"opacity\" needs \"unit_length\" (on the point or at the top level)", at())
-                })?;
-                if !(len.is_finite() && len > 0.0) {
-                    bail!("{}: unit_length {len} must be finite and > 0", at());
-                }
-                -(-o).ln_1p() / (len * unit)
-            }
-        };
-        if !(tau.is_finite() && tau <= f32::MAX as f64) {
+    Ok(unit)
+}
+
+/// Checks a point's scalar (finite, in [0, 1] when relative, not below
+/// the `previous` point's) and colour (components in [0, 1]).
+fn check_point(p: &PointSpec, units: ScalarUnits, previous: Option<f64>, at: &dyn Fn() -> String) -> Result<()> {
+    if !p.scalar.is_finite() {
+        bail!("{}: scalar {} is not finite", at(), p.scalar);
+    }
+    if units == ScalarUnits::Relative && !(0.0..=1.0).contains(&p.scalar) {
+        bail!("{}: relative scalar {} is outside [0, 1]", at(), p.scalar);
+    }
+    if let Some(prev) = previous {
+        if p.scalar < prev {
             bail!(
-                "{}: attenuation {tau:e} per world unit (after the unit conversions) is beyond the f32 range \
-                 (at most {:e}) the renderers hold it in; check \"attenuation\", \"opacity\" and \"unit_length\"{}",
+                "{}: scalar {} is below the previous point's {prev} (scalars must be non-decreasing)",
                 at(),
-                f32::MAX,
-                if spec.attenuation_units == AttenuationUnits::PerDiagonal {
-                    format!(" (lengths in mesh diagonals of {unit:e})")
-                } else {
-                    String::new()
-                }
+                p.scalar
             );
         }
-        let scalar = match spec.scalar_units {
-            ScalarUnits::Absolute => p.scalar,
-            // As `harness::datasets::default_transfer_function` does.
-            ScalarUnits::Relative => lo + p.scalar * (hi - lo),
-        };
-        points.push(ControlPoint { scalar, color: p.color, attenuation: tau });
     }
+    for (k, &c) in p.color.iter().enumerate() {
+        if !(c.is_finite() && (0.0..=1.0).contains(&c)) {
+            bail!("{}: color component {k} is {c}, outside [0, 1]", at());
+        }
+    }
+    Ok(())
+}
+
+/// A point's attenuation per world unit, from its `attenuation` or its
+/// `opacity` over `unit_length` (lengths in `unit` world units), checked
+/// to fit in f32.
+fn point_attenuation(p: &PointSpec, spec: &FileSpec, unit: f64, at: &dyn Fn() -> String) -> Result<f64> {
+    let tau = match (p.attenuation, p.opacity) {
+        (Some(_), Some(_)) => bail!("{}: give either \"attenuation\" or \"opacity\", not both", at()),
+        (None, None) => bail!("{}: needs \"attenuation\" or \"opacity\" (with \"unit_length\")", at()),
+        (Some(t), None) => {
+            if p.unit_length.is_some() {
+                bail!("{}: \"unit_length\" only goes with \"opacity\"", at());
+            }
+            if !(t.is_finite() && t >= 0.0) {
+                bail!("{}: attenuation {t} must be finite and >= 0", at());
+            }
+            t / unit
+        }
+        (None, Some(o)) => {
+            if !(o.is_finite() && (0.0..1.0).contains(&o)) {
+                bail!("{}: opacity {o} is outside [0, 1)", at());
+            }
+            let len = p.unit_length.or(spec.unit_length).ok_or_else(|| {
+                anyhow!("{}: \"opacity\" needs \"unit_length\" (on the point or at the top level)", at())
+            })?;
+            if !(len.is_finite() && len > 0.0) {
+                bail!("{}: unit_length {len} must be finite and > 0", at());
+            }
+            -(-o).ln_1p() / (len * unit)
+        }
+    };
+    if !(tau.is_finite() && tau <= f32::MAX as f64) {
+        bail!(
+            "{}: attenuation {tau:e} per world unit (after the unit conversions) is beyond the f32 range \
+             (at most {:e}) the renderers hold it in; check \"attenuation\", \"opacity\" and \"unit_length\"{}",
+            at(),
+            f32::MAX,
+            if spec.attenuation_units == AttenuationUnits::PerDiagonal {
+                format!(" (lengths in mesh diagonals of {unit:e})")
+            } else {
+                String::new()
+            }
+        );
+    }
+    Ok(tau)
+}
+
+/// Refuses a function that would draw nothing over the data's scalars
+/// `[lo, hi]`: every attenuation 0, or all too small to show.
+fn check_visible(points: &[ControlPoint], source: &str, (lo, hi): (f64, f64), mesh_diagonal: f64) -> Result<()> {
     if points.iter().all(|p| p.attenuation == 0.0) {
         bail!(
             "{source}: every control point has attenuation 0, so nothing would be drawn (emission scales with \
@@ -329,7 +365,7 @@ pub fn parse_tf(
     // a wrong empty image from a right one).
     // Only the data's own scalars are ever looked up: a function opaque
     // only outside [lo, hi] draws a blank image just the same.
-    let probe = TransferFunction { name: String::new(), points: points.clone() };
+    let probe = TransferFunction { name: String::new(), points: points.to_vec() };
     if mesh_diagonal.is_finite() && mesh_diagonal > 0.0 && !probe.visible_over(lo, hi, mesh_diagonal) {
         let (first, last) = probe.scalar_range();
         bail!(
@@ -338,7 +374,7 @@ pub fn parse_tf(
              attenuation that small underflows what f32 opacity resolves)"
         );
     }
-    Ok(TransferFunction { name: spec.name.unwrap_or_else(|| default_name.to_string()), points })
+    Ok(())
 }
 
 /// Units [`to_json`] writes in.

@@ -47,17 +47,14 @@ pub fn run_suite(
     let cfg = settings.run_config();
     cfg.check_device(&ctx.info)?;
     let runs_dir = out.join("runs");
-    std::fs::create_dir_all(&runs_dir).with_context(|| format!("creating {}", runs_dir.display()))?;
-    let mut summary =
+    create_dir(&runs_dir)?;
+    let summary =
         Summary { environment: Environment::of(ctx), settings: settings.clone(), datasets: Vec::new(), runs: Vec::new(), peers: Vec::new(), cull_checks: Vec::new() };
-    // Every image shown, by montage group, with the run's label; and the
-    // reference image of each group.
-    let mut images: Vec<(String, String, Tile)> = Vec::new();
-    let mut references: Vec<(String, RgbaImage)> = Vec::new();
+    let mut g = Gathered { summary, images: Vec::new(), references: Vec::new(), sequence: 0 };
     let located: Vec<LocatedPeer> = settings.peers.iter().map(|p| crate::harness::peers::locate(p)).collect::<Result<_>>()?;
     let peers_dir = out.join("peers");
     if !located.is_empty() {
-        std::fs::create_dir_all(&peers_dir).with_context(|| format!("creating {}", peers_dir.display()))?;
+        create_dir(&peers_dir)?;
     }
     let mut loaded: Option<(&str, std::result::Result<Dataset, String>)> = None;
     // The current dataset's standard transfer function (`--tf`, or its own).
@@ -65,7 +62,6 @@ pub fn run_suite(
     // Peer renderers still to run on the current dataset, and its exported copy.
     let mut pending: Vec<(&LocatedPeer, &'static PeerRenderer)> = Vec::new();
     let mut export: Option<(std::path::PathBuf, crate::harness::peers::PeerDataset)> = None;
-    let mut sequence = 0usize;
     for (i, p) in plan.iter().enumerate() {
         let label = format!("{} on {}", p.label(), p.dataset.name);
         progress(i, &label);
@@ -82,19 +78,9 @@ pub fn run_suite(
             Ok(d) => d,
             Err(why) => {
                 pending.clear();
-                summary.runs.push(SuiteRow {
-                    dataset: p.dataset.name.clone(),
-                    method: p.spec.info.name.into(),
-                    label: p.label(),
-                    scene: p.scene,
-                    status: "failed",
-                    message: Some(format!("loading {}: {why}", p.dataset.source)),
-                    sequence,
-                    result: None,
-                    placement: p.spec.info.family.placement,
-                });
-                sequence += 1;
-                fsio::write_output(&out.join("summary.json"), &crate::harness::report::json_bytes(&summary)?)?;
+                let row = g.row(p, "failed", Some(format!("loading {}: {why}", p.dataset.source)));
+                g.summary.runs.push(row);
+                g.write_summary(out)?;
                 continue;
             }
         };
@@ -102,75 +88,10 @@ pub fn run_suite(
             // Popped from the end: reversed so they run in their listed order.
             pending = located.iter().flat_map(|l| l.renderers_for(dataset.kind()).map(move |r| (l, r))).collect();
             pending.reverse();
-            let tf = Scene::Standard.transfer_function(dataset, settings.tf.as_deref());
-            summary.datasets.push(SuiteDatasetRow::of(&p.dataset, dataset, tf.as_ref().ok(), settings.tf.as_deref()));
-            standard_tf = tf.ok();
+            standard_tf = dataset_row(&mut g.summary, p, dataset, settings);
         }
-        let mut row = SuiteRow {
-            dataset: p.dataset.name.clone(),
-            method: p.spec.info.name.into(),
-            label: p.label(),
-            scene: p.scene,
-            status: "ok",
-            message: None,
-            sequence,
-            result: None,
-            placement: p.spec.info.family.placement,
-        };
-        sequence += 1;
-        if let Some(why) = skip_reason(&p.spec, &ctx.info) {
-            (row.status, row.message) = ("skipped", Some(why));
-        } else {
-            let group = p.montage_group();
-            let outcome = (|| -> Result<(RunOutput, Option<RgbaImage>)> {
-                let tf = p.scene.transfer_function(dataset, settings.tf.as_deref())?;
-                let cfg = p.scene.config(&cfg);
-                let mut r = dataset.run_handing_over(|d| run(ctx, &p.spec, d, &tf, &cfg))??;
-                let stem = format!("{}-{}", p.dataset.name, p.file_stem());
-                let (json, png, dpng) = (runs_dir.join(format!("{stem}.json")), runs_dir.join(format!("{stem}.png")), runs_dir.join(format!("{stem}-diff.png")));
-                // A method with its own error (terrain) has no image reference.
-                let diff = if r.result.error.is_none() && settings.count_dir.is_none() {
-                    let reference = reference_image(dataset, &tf, &r.result.image.camera, cfg.width, cfg.height)?;
-                    if !references.iter().any(|(g, _)| *g == group) {
-                        references.push((group.clone(), reference.image.clone()));
-                    }
-                    Some(r.attach_error(&reference)?)
-                } else {
-                    None
-                };
-                let bytes = [crate::harness::report::json_bytes(&r.result)?, r.image.png_bytes()?];
-                match &diff {
-                    Some(d) => fsio::write_all(&[(&json, &bytes[0]), (&png, &bytes[1]), (&dpng, &d.png_bytes()?)])?,
-                    None => fsio::write_all(&[(&json, &bytes[0]), (&png, &bytes[1])])?,
-                }
-                Ok((r, diff))
-            })();
-            match outcome {
-                Ok((r, diff)) => {
-                    // A culling scene's pair: the culled image against the
-                    // unculled one (the unchanged-image check).
-                    if p.scene != Scene::Standard && culling(&p.spec.info, &p.spec.options) == Some(false) {
-                        let on = PlannedRun { dataset: p.dataset.clone(), spec: cull_on(registry, &p.spec)?, scene: p.scene };
-                        let on_label = format!("{} on {}", on.label(), p.dataset.name);
-                        if let Some((_, _, on)) = images.iter().find(|(_, l, _)| *l == on_label) {
-                            let e = on.image.compare(&r.image)?;
-                            summary.cull_checks.push(CullCheck {
-                                dataset: p.dataset.name.clone(),
-                                scene: p.scene,
-                                method: p.spec.info.name.into(),
-                                option: p.spec.info.culling_option().unwrap_or_default(),
-                                rmse: e.rmse,
-                                max_abs: e.max_abs,
-                            });
-                        }
-                    }
-                    images.push((group, label.clone(), Tile { label: p.label(), image: r.image, diff }));
-                    row.result = Some(r.result);
-                }
-                Err(e) => (row.status, row.message) = ("failed", Some(format!("{e:#}"))),
-            }
-        }
-        summary.runs.push(row);
+        let row = run_row(&RowJob { ctx, registry, p, settings, cfg: &cfg, runs_dir: &runs_dir }, dataset, label, &mut g)?;
+        g.summary.runs.push(row);
         // Peers alternate with volbench's runs on the same dataset (one after
         // each run; the rest after the dataset's last run), so that machine
         // noise hits both.
@@ -180,25 +101,168 @@ pub fn run_suite(
             let label = format!("peer {}/{} on {}", peer.peer.name, renderer.name, p.dataset.name);
             progress(i, &label);
             let job = PeerJob { peer, renderer, dataset, suite_dataset: &p.dataset, tf: standard_tf.as_ref(), cfg: &cfg, peers_dir: &peers_dir, runs_dir: &runs_dir };
-            let (row, shown) = run_peer_row(&job, &mut export, sequence);
-            sequence += 1;
-            if let Some((image, diff)) = shown {
-                let tile = Tile { label: format!("peer {}/{}", peer.peer.name, renderer.name), image, diff: Some(diff) };
-                images.push((p.dataset.name.clone(), label, tile));
-            }
-            summary.peers.push(row);
+            g.peer(&job, &mut export, label);
         }
         if last_of_dataset {
-            // The exported copy is only the peers' input: not a result (a
-            // user's original file is never removed).
-            if let Some((path, d)) = export.take() {
-                if !d.original {
-                    let _ = std::fs::remove_file(path);
-                }
-            }
+            remove_export(&mut export);
         }
-        fsio::write_output(&out.join("summary.json"), &crate::harness::report::json_bytes(&summary)?)?;
+        g.write_summary(out)?;
     }
+    finish(out, registry, g)
+}
+
+/// What the suite has gathered so far: the summary, every image shown (by
+/// montage group, with the run's label), the reference image of each
+/// group, and the next row's sequence number.
+struct Gathered {
+    summary: Summary,
+    images: Vec<(String, String, Tile)>,
+    references: Vec<(String, RgbaImage)>,
+    sequence: usize,
+}
+
+impl Gathered {
+    /// A new row of volbench's for the run `p`, numbered next.
+    fn row(&mut self, p: &PlannedRun, status: &'static str, message: Option<String>) -> SuiteRow {
+        let row = SuiteRow {
+            dataset: p.dataset.name.clone(),
+            method: p.spec.info.name.into(),
+            label: p.label(),
+            scene: p.scene,
+            status,
+            message,
+            sequence: self.sequence,
+            result: None,
+            placement: p.spec.info.family.placement,
+        };
+        self.sequence += 1;
+        row
+    }
+
+    /// Runs a peer's job, numbered next: its row, and its image shown.
+    fn peer(&mut self, job: &PeerJob, export: &mut Option<(std::path::PathBuf, crate::harness::peers::PeerDataset)>, label: String) {
+        let (row, shown) = run_peer_row(job, export, self.sequence);
+        self.sequence += 1;
+        if let Some((image, diff)) = shown {
+            let tile = Tile { label: format!("peer {}/{}", job.peer.peer.name, job.renderer.name), image, diff: Some(diff) };
+            self.images.push((job.suite_dataset.name.clone(), label, tile));
+        }
+        self.summary.peers.push(row);
+    }
+
+    /// Rewrites `out/summary.json`.
+    fn write_summary(&self, out: &Path) -> Result<()> {
+        fsio::write_output(&out.join("summary.json"), &crate::harness::report::json_bytes(&self.summary)?)
+    }
+}
+
+fn create_dir(dir: &Path) -> Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))
+}
+
+/// The dataset's row of the summary; its standard transfer function.
+fn dataset_row(summary: &mut Summary, p: &PlannedRun, dataset: &Dataset, settings: &SuiteSettings) -> Option<crate::scene::TransferFunction> {
+    let tf = Scene::Standard.transfer_function(dataset, settings.tf.as_deref());
+    summary.datasets.push(SuiteDatasetRow::of(&p.dataset, dataset, tf.as_ref().ok(), settings.tf.as_deref()));
+    tf.ok()
+}
+
+/// What a row of volbench's runs with: the run `p` and where it writes.
+struct RowJob<'a> {
+    ctx: &'a Arc<Context>,
+    registry: &'a Registry,
+    p: &'a PlannedRun,
+    settings: &'a SuiteSettings,
+    cfg: &'a RunConfig,
+    runs_dir: &'a Path,
+}
+
+/// The row of the run `job.p` (labelled `label`) on `dataset`: skipped on
+/// this device, failed, or run (its image shown, a culling scene's pair
+/// checked).
+fn run_row(job: &RowJob, dataset: &mut Dataset, label: String, g: &mut Gathered) -> Result<SuiteRow> {
+    let p = job.p;
+    let mut row = g.row(p, "ok", None);
+    if let Some(why) = skip_reason(&p.spec, &job.ctx.info) {
+        (row.status, row.message) = ("skipped", Some(why));
+        return Ok(row);
+    }
+    let group = p.montage_group();
+    match run_and_write(job, dataset, &group, &mut g.references) {
+        Ok((r, diff)) => {
+            check_culling(job.registry, p, &r.image, &g.images, &mut g.summary)?;
+            g.images.push((group, label, Tile { label: p.label(), image: r.image, diff }));
+            row.result = Some(r.result);
+        }
+        Err(e) => (row.status, row.message) = ("failed", Some(format!("{e:#}"))),
+    }
+    Ok(row)
+}
+
+/// Runs `job.p` on `dataset`, compares it with the reference image (kept
+/// as `group`'s if it is the first) and writes its JSON, PNG and
+/// difference PNG; the run and its difference image.
+fn run_and_write(job: &RowJob, dataset: &mut Dataset, group: &str, references: &mut Vec<(String, RgbaImage)>) -> Result<(RunOutput, Option<RgbaImage>)> {
+    let (p, settings, runs_dir) = (job.p, job.settings, job.runs_dir);
+    let tf = p.scene.transfer_function(dataset, settings.tf.as_deref())?;
+    let cfg = p.scene.config(job.cfg);
+    let mut r = dataset.run_handing_over(|d| run(job.ctx, &p.spec, d, &tf, &cfg))??;
+    let stem = format!("{}-{}", p.dataset.name, p.file_stem());
+    let (json, png, dpng) = (runs_dir.join(format!("{stem}.json")), runs_dir.join(format!("{stem}.png")), runs_dir.join(format!("{stem}-diff.png")));
+    // A method with its own error (terrain) has no image reference.
+    let diff = if r.result.error.is_none() && settings.count_dir.is_none() {
+        let reference = reference_image(dataset, &tf, &r.result.image.camera, cfg.width, cfg.height)?;
+        if !references.iter().any(|(g, _)| *g == group) {
+            references.push((group.to_string(), reference.image.clone()));
+        }
+        Some(r.attach_error(&reference)?)
+    } else {
+        None
+    };
+    let bytes = [crate::harness::report::json_bytes(&r.result)?, r.image.png_bytes()?];
+    match &diff {
+        Some(d) => fsio::write_all(&[(&json, &bytes[0]), (&png, &bytes[1]), (&dpng, &d.png_bytes()?)])?,
+        None => fsio::write_all(&[(&json, &bytes[0]), (&png, &bytes[1])])?,
+    }
+    Ok((r, diff))
+}
+
+/// A culling scene's pair: the culled image against the unculled one
+/// `image` (the unchanged-image check), once both have run.
+fn check_culling(registry: &Registry, p: &PlannedRun, image: &RgbaImage, images: &[(String, String, Tile)], summary: &mut Summary) -> Result<()> {
+    if p.scene == Scene::Standard || culling(&p.spec.info, &p.spec.options) != Some(false) {
+        return Ok(());
+    }
+    let on = PlannedRun { dataset: p.dataset.clone(), spec: cull_on(registry, &p.spec)?, scene: p.scene };
+    let on_label = format!("{} on {}", on.label(), p.dataset.name);
+    if let Some((_, _, on)) = images.iter().find(|(_, l, _)| *l == on_label) {
+        let e = on.image.compare(image)?;
+        summary.cull_checks.push(CullCheck {
+            dataset: p.dataset.name.clone(),
+            scene: p.scene,
+            method: p.spec.info.name.into(),
+            option: p.spec.info.culling_option().unwrap_or_default(),
+            rmse: e.rmse,
+            max_abs: e.max_abs,
+        });
+    }
+    Ok(())
+}
+
+/// The exported copy is only the peers' input: not a result (a user's
+/// original file is never removed).
+fn remove_export(export: &mut Option<(std::path::PathBuf, crate::harness::peers::PeerDataset)>) {
+    if let Some((path, d)) = export.take() {
+        if !d.original {
+            let _ = std::fs::remove_file(path);
+        }
+    }
+}
+
+/// The end of the suite: the peers' agreement, and the summary, the CSV,
+/// the report and the pictures written.
+fn finish(out: &Path, registry: &Registry, g: Gathered) -> Result<Summary> {
+    let Gathered { mut summary, images, references, .. } = g;
     agreement(&mut summary, &images);
     fsio::write_output(&out.join("summary.json"), &crate::harness::report::json_bytes(&summary)?)?;
     fsio::write_output(&out.join("summary.csv"), csv(&summary).as_bytes())?;
