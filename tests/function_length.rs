@@ -18,7 +18,6 @@ const MAX_LINES: usize = 100;
 const NOT_YET_SPLIT: &[(&str, &str, usize)] = &[
     // src/algo: issue 36 item 4, another change (typed shader interfaces).
     ("src/algo/tet_raycast/mod.rs", "new", 268),
-    ("src/algo/terrain/gpu.rs", "create", 101),
     // Outside src/algo: still to be split (issue 36 item 4).
     ("src/harness/suite/run.rs", "run_suite", 170),
     ("src/harness/run.rs", "run", 148),
