@@ -16,8 +16,6 @@ const MAX_LINES: usize = 100;
 /// split (or gone), fails the test until its line is changed or removed.
 /// (file, function, lines)
 const NOT_YET_SPLIT: &[(&str, &str, usize)] = &[
-    // src/algo: issue 36 item 4, another change (typed shader interfaces).
-    ("src/algo/tet_raycast/mod.rs", "new", 268),
     // Outside src/algo: still to be split (issue 36 item 4).
     ("src/harness/suite/run.rs", "run_suite", 170),
     ("src/harness/run.rs", "run", 148),
