@@ -359,6 +359,255 @@ pub fn list_devices() -> VkResult<Vec<(String, String)>> {
     out
 }
 
+/// What `Context::create_device` makes: the physical device, the logical
+/// device, its queue family and what results record about it.
+type MadeDevice = (vk::PhysicalDevice, ash::Device, u32, DeviceInfo);
+
+/// The instance-level objects a `Context` takes over once its device is made.
+struct InstanceParts {
+    entry: ash::Entry,
+    instance: ash::Instance,
+    debug: Option<(ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>,
+    validation_log: Arc<ValidationLog>,
+}
+
+/// An error unless the validation layer is installed.
+fn check_validation_layer(entry: &ash::Entry) -> VkResult<()> {
+    // SAFETY: queries of live instance/physical-device handles; output
+    // structures are owned here, and any p_next chain points at locals that
+    // outlive the call.
+    let layers = unsafe { entry.enumerate_instance_layer_properties() }.check("vkEnumerateInstanceLayerProperties")?;
+    let found = layers.iter().any(|l| l.layer_name_as_c_str().is_ok_and(|n| n == VALIDATION_LAYER));
+    if !found {
+        return Err(VkError::Unsupported {
+            device: "instance".into(),
+            what: "VK_LAYER_KHRONOS_validation (Debian: vulkan-validationlayers; run scripts/setup.sh)".into(),
+        });
+    }
+    Ok(())
+}
+
+/// A Vulkan 1.3 instance, with the validation layer and debug utils when
+/// `validation`.
+fn create_instance(entry: &ash::Entry, validation: bool) -> VkResult<ash::Instance> {
+    let app_name = CString::new("volbench").unwrap_or_default();
+    let app = vk::ApplicationInfo::default()
+        .application_name(&app_name)
+        .application_version(1)
+        .engine_name(&app_name)
+        .api_version(vk::API_VERSION_1_3);
+    let layer_ptrs = [VALIDATION_LAYER.as_ptr()];
+    let ext_ptrs = [ext::debug_utils::NAME.as_ptr()];
+    let mut ci = vk::InstanceCreateInfo::default().application_info(&app);
+    if validation {
+        ci = ci.enabled_layer_names(&layer_ptrs).enabled_extension_names(&ext_ptrs);
+    }
+    // SAFETY: the create info and the layer and extension names it points to
+    // live for the call; the instance is destroyed by `Drop for Context`, or on
+    // the error paths of `Context::new`.
+    unsafe { entry.create_instance(&ci, None) }.map_err(|result| VkError::NoDriver { what: "vkCreateInstance", result })
+}
+
+/// The messenger that hands the validation layer's warnings and errors to
+/// `log`. On failure the instance is destroyed.
+fn create_messenger(
+    entry: &ash::Entry,
+    instance: &ash::Instance,
+    log: &Arc<ValidationLog>,
+) -> VkResult<(ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)> {
+    let loader = ext::debug_utils::Instance::new(entry, instance);
+    let info = vk::DebugUtilsMessengerCreateInfoEXT::default()
+        .message_severity(vk::DebugUtilsMessageSeverityFlagsEXT::ERROR | vk::DebugUtilsMessageSeverityFlagsEXT::WARNING)
+        .message_type(
+            vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION
+                | vk::DebugUtilsMessageTypeFlagsEXT::GENERAL
+                | vk::DebugUtilsMessageTypeFlagsEXT::PERFORMANCE,
+        )
+        .pfn_user_callback(Some(debug_callback))
+        .user_data(Arc::as_ptr(log) as *mut c_void);
+    // SAFETY: `info` lives for the call; its user data is the `ValidationLog`
+    // the Context keeps (an Arc) for as long as the messenger lives, so the
+    // callback's pointer stays valid; the messenger is destroyed before the
+    // instance (Drop for Context, or the error path below).
+    let messenger = unsafe { loader.create_debug_utils_messenger(&info, None) };
+    match messenger {
+        Ok(m) => Ok((loader, m)),
+        Err(result) => {
+            // SAFETY: no child object of the instance exists (the messenger failed),
+            // and the instance is destroyed once: nothing else owns it yet.
+            unsafe { instance.destroy_instance(None) };
+            Err(VkError::Call { what: "vkCreateDebugUtilsMessengerEXT", result })
+        }
+    }
+}
+
+/// A physical device's properties, name and driver, once it is known to
+/// speak Vulkan 1.3.
+struct Identity {
+    props: vk::PhysicalDeviceProperties,
+    name: String,
+    driver_name: String,
+    driver_info: String,
+}
+
+impl Identity {
+    fn of(instance: &ash::Instance, physical: vk::PhysicalDevice) -> VkResult<Identity> {
+        // SAFETY: queries of live instance/physical-device handles; output
+        // structures are owned here, and any p_next chain points at locals that
+        // outlive the call.
+        let props = unsafe { instance.get_physical_device_properties(physical) };
+        let name = device_name(&props);
+        if props.api_version < vk::API_VERSION_1_3 {
+            return Err(VkError::Unsupported {
+                device: name,
+                what: format!("Vulkan 1.3 (it reports {})", api_version_string(props.api_version)),
+            });
+        }
+        let mut driver = vk::PhysicalDeviceDriverProperties::default();
+        let mut props2 = vk::PhysicalDeviceProperties2::default().push_next(&mut driver);
+        // SAFETY: queries of live instance/physical-device handles; output
+        // structures are owned here, and any p_next chain points at locals that
+        // outlive the call.
+        unsafe { instance.get_physical_device_properties2(physical, &mut props2) };
+        let driver_name = driver.driver_name_as_c_str().map(|c| c.to_string_lossy().into_owned()).unwrap_or_default();
+        let driver_info = driver.driver_info_as_c_str().map(|c| c.to_string_lossy().into_owned()).unwrap_or_default();
+        Ok(Identity { props, name, driver_name, driver_info })
+    }
+}
+
+/// The first queue family with graphics (it has compute and transfer too),
+/// and its timestamps' valid bits.
+fn graphics_queue_family(instance: &ash::Instance, physical: vk::PhysicalDevice, name: &str) -> VkResult<(u32, u32)> {
+    // SAFETY: queries of live instance/physical-device handles; output
+    // structures are owned here, and any p_next chain points at locals that
+    // outlive the call.
+    let families = unsafe { instance.get_physical_device_queue_family_properties(physical) };
+    let queue_family = families
+        .iter()
+        .position(|f| f.queue_flags.contains(vk::QueueFlags::GRAPHICS))
+        .ok_or_else(|| VkError::Unsupported { device: name.to_string(), what: "a graphics queue".into() })?;
+    Ok((queue_family as u32, families[queue_family].timestamp_valid_bits))
+}
+
+/// The optional features to enable (every one we know that the device has:
+/// none costs anything unless a shader uses it) and whether it has
+/// maintenance4; an error without dynamic rendering and synchronization2.
+fn features_to_enable(instance: &ash::Instance, physical: vk::PhysicalDevice, name: &str) -> VkResult<(DeviceFeatures, bool)> {
+    // SAFETY: queries of live instance/physical-device handles; output
+    // structures are owned here, and any p_next chain points at locals that
+    // outlive the call.
+    let supported = unsafe { instance.get_physical_device_features(physical) };
+    let mut f13 = vk::PhysicalDeviceVulkan13Features::default();
+    let mut f2 = vk::PhysicalDeviceFeatures2::default().push_next(&mut f13);
+    // SAFETY: queries of live instance/physical-device handles; output
+    // structures are owned here, and any p_next chain points at locals that
+    // outlive the call.
+    unsafe { instance.get_physical_device_features2(physical, &mut f2) };
+    if f13.dynamic_rendering == vk::FALSE || f13.synchronization2 == vk::FALSE {
+        return Err(VkError::Unsupported { device: name.to_string(), what: "dynamicRendering and synchronization2".into() });
+    }
+    Ok((DeviceFeatures::of(&supported), f13.maintenance4 == vk::TRUE))
+}
+
+/// The logical device: one queue of `queue_family`, the `enabled` features,
+/// dynamic rendering, synchronization2 and (when present) maintenance4.
+fn create_logical_device(
+    instance: &ash::Instance,
+    physical: vk::PhysicalDevice,
+    queue_family: u32,
+    enabled: DeviceFeatures,
+    maintenance4: bool,
+) -> VkResult<ash::Device> {
+    let features = enabled.to_vk();
+    let mut enable13 = vk::PhysicalDeviceVulkan13Features::default()
+        .dynamic_rendering(true)
+        .synchronization2(true)
+        .maintenance4(maintenance4);
+    let priorities = [1.0f32];
+    let queue_info = [vk::DeviceQueueCreateInfo::default().queue_family_index(queue_family).queue_priorities(&priorities)];
+    let dci = vk::DeviceCreateInfo::default()
+        .queue_create_infos(&queue_info)
+        .enabled_features(&features)
+        .push_next(&mut enable13);
+    // SAFETY: `dci` and what it points to (queue infos, priorities, the
+    // feature chain, extension names) are locals that live for the call;
+    // the device is destroyed once, by `Drop for Context`.
+    unsafe { instance.create_device(physical, &dci, None) }.check("vkCreateDevice")
+}
+
+/// What `device_info` records beside the device's own properties and limits.
+struct DeviceFacts {
+    index: usize,
+    identity: Identity,
+    timestamp_valid_bits: u32,
+    enabled: DeviceFeatures,
+    validation: bool,
+}
+
+/// What results record about the device: its identity, limits, memory and
+/// subgroup properties, the features enabled.
+fn device_info(instance: &ash::Instance, physical: vk::PhysicalDevice, facts: DeviceFacts) -> DeviceInfo {
+    let DeviceFacts { index, identity, timestamp_valid_bits, enabled, validation } = facts;
+    let Identity { props, name, driver_name, driver_info } = identity;
+    // SAFETY: queries of live instance/physical-device handles; output
+    // structures are owned here, and any p_next chain points at locals that
+    // outlive the call.
+    let mem = unsafe { instance.get_physical_device_memory_properties(physical) };
+    let device_local_heap_bytes = mem.memory_heaps[..mem.memory_heap_count as usize]
+        .iter()
+        .filter(|h| h.flags.contains(vk::MemoryHeapFlags::DEVICE_LOCAL))
+        .map(|h| h.size)
+        .max()
+        .unwrap_or(0);
+    let mut m3 = vk::PhysicalDeviceMaintenance3Properties::default();
+    let mut subgroup = vk::PhysicalDeviceSubgroupProperties::default();
+    let mut p2 = vk::PhysicalDeviceProperties2::default().push_next(&mut m3).push_next(&mut subgroup);
+    // SAFETY: queries of live instance/physical-device handles; output
+    // structures are owned here, and any p_next chain points at locals that
+    // outlive the call.
+    unsafe { instance.get_physical_device_properties2(physical, &mut p2) };
+
+    let limits = &props.limits;
+    DeviceInfo {
+        index,
+        name,
+        device_type: format!("{:?}", props.device_type),
+        driver_name,
+        driver_info,
+        api_version: api_version_string(props.api_version),
+        vendor_id: props.vendor_id,
+        device_id: props.device_id,
+        timestamp_period_ns: props.limits.timestamp_period,
+        timestamp_valid_bits,
+        pipeline_statistics: enabled.pipeline_statistics_query,
+        max_image_dimension_2d: props.limits.max_image_dimension2_d,
+        max_storage_buffer_range: props.limits.max_storage_buffer_range,
+        max_push_constants_size: props.limits.max_push_constants_size,
+        max_memory_allocation_size: m3.max_memory_allocation_size,
+        device_local_heap_bytes,
+        validation,
+        features: enabled,
+        max_image_dimension_1d: limits.max_image_dimension1_d,
+        max_image_dimension_3d: limits.max_image_dimension3_d,
+        max_uniform_buffer_range: limits.max_uniform_buffer_range,
+        max_texel_buffer_elements: limits.max_texel_buffer_elements,
+        max_color_attachments: limits.max_color_attachments,
+        max_bound_descriptor_sets: limits.max_bound_descriptor_sets,
+        max_compute_work_group_count: limits.max_compute_work_group_count,
+        max_compute_work_group_size: limits.max_compute_work_group_size,
+        max_compute_work_group_invocations: limits.max_compute_work_group_invocations,
+        max_geometry_output_vertices: limits.max_geometry_output_vertices,
+        max_geometry_total_output_components: limits.max_geometry_total_output_components,
+        max_per_stage_storage_images: limits.max_per_stage_descriptor_storage_images,
+        max_per_stage_sampled_images: limits.max_per_stage_descriptor_sampled_images,
+        max_per_stage_storage_buffers: limits.max_per_stage_descriptor_storage_buffers,
+        max_per_stage_uniform_buffers: limits.max_per_stage_descriptor_uniform_buffers,
+        subgroup_size: subgroup.subgroup_size,
+        compute_subgroup_arithmetic: subgroup.supported_stages.contains(vk::ShaderStageFlags::COMPUTE)
+            && subgroup.supported_operations.contains(vk::SubgroupFeatureFlags::BASIC | vk::SubgroupFeatureFlags::ARITHMETIC),
+    }
+}
+
 impl Context {
     pub fn new(desc: &ContextDesc) -> VkResult<Arc<Context>> {
         // SAFETY: loading the system loader; failure is an Err, not a crash.
@@ -367,108 +616,18 @@ impl Context {
         let fence_timeout = fence_timeout_from_env()?;
         let validation = desc.validation;
         if validation {
-            // SAFETY: queries of live instance/physical-device handles; output
-            // structures are owned here, and any p_next chain points at locals that
-            // outlive the call.
-            let layers = unsafe { entry.enumerate_instance_layer_properties() }.check("vkEnumerateInstanceLayerProperties")?;
-            let found = layers.iter().any(|l| l.layer_name_as_c_str().is_ok_and(|n| n == VALIDATION_LAYER));
-            if !found {
-                return Err(VkError::Unsupported {
-                    device: "instance".into(),
-                    what: "VK_LAYER_KHRONOS_validation (Debian: vulkan-validationlayers; run scripts/setup.sh)".into(),
-                });
-            }
+            check_validation_layer(&entry)?;
         }
-
-        let app_name = CString::new("volbench").unwrap_or_default();
-        let app = vk::ApplicationInfo::default()
-            .application_name(&app_name)
-            .application_version(1)
-            .engine_name(&app_name)
-            .api_version(vk::API_VERSION_1_3);
-        let layer_ptrs = [VALIDATION_LAYER.as_ptr()];
-        let ext_ptrs = [ext::debug_utils::NAME.as_ptr()];
-        let mut ci = vk::InstanceCreateInfo::default().application_info(&app);
-        if validation {
-            ci = ci.enabled_layer_names(&layer_ptrs).enabled_extension_names(&ext_ptrs);
-        }
-        // SAFETY: the create info and the layer and extension names it points to
-        // live for the call; the instance is destroyed by `Drop for Context`, or on
-        // the error paths below.
-        let instance = unsafe { entry.create_instance(&ci, None) }
-            .map_err(|result| VkError::NoDriver { what: "vkCreateInstance", result })?;
-
+        let instance = create_instance(&entry, validation)?;
         let validation_log = Arc::new(ValidationLog::default());
-        let debug = if validation {
-            let loader = ext::debug_utils::Instance::new(&entry, &instance);
-            let info = vk::DebugUtilsMessengerCreateInfoEXT::default()
-                .message_severity(
-                    vk::DebugUtilsMessageSeverityFlagsEXT::ERROR | vk::DebugUtilsMessageSeverityFlagsEXT::WARNING,
-                )
-                .message_type(
-                    vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION
-                        | vk::DebugUtilsMessageTypeFlagsEXT::GENERAL
-                        | vk::DebugUtilsMessageTypeFlagsEXT::PERFORMANCE,
-                )
-                .pfn_user_callback(Some(debug_callback))
-                .user_data(Arc::as_ptr(&validation_log) as *mut c_void);
-            // SAFETY: `info` lives for the call; its user data is the `ValidationLog`
-            // the Context keeps (an Arc) for as long as the messenger lives, so the
-            // callback's pointer stays valid; the messenger is destroyed before the
-            // instance (Drop for Context, or the error path below).
-            let messenger = unsafe { loader.create_debug_utils_messenger(&info, None) };
-            match messenger {
-                Ok(m) => Some((loader, m)),
-                Err(result) => {
-                    // SAFETY: no child object of the instance exists (the messenger failed),
-                    // and the instance is destroyed once: nothing else owns it yet.
-                    unsafe { instance.destroy_instance(None) };
-                    return Err(VkError::Call { what: "vkCreateDebugUtilsMessengerEXT", result });
-                }
-            }
-        } else {
-            None
-        };
+        let debug = if validation { Some(create_messenger(&entry, &instance, &validation_log)?) } else { None };
 
         // From here on, a failure must destroy what exists: build the rest in a
         // helper and clean up on error.
-        match Self::create_device(&entry, &instance, desc, validation) {
-            Ok((physical, device, queue_family, info)) => {
-                // SAFETY: the device was created with one queue of `queue_family`.
-                let queue = unsafe { device.get_device_queue(queue_family, 0) };
-                let pool_info = vk::CommandPoolCreateInfo::default()
-                    .queue_family_index(queue_family)
-                    .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER);
-                // SAFETY: `pool_info` lives for the call; the pool is destroyed by `Drop
-                // for Context` before the device. (On the error path the device and
-                // instance leak: no unsoundness, the process reports the error.)
-                let command_pool = unsafe { device.create_command_pool(&pool_info, None) }.check("vkCreateCommandPool")?;
-                let allocator = Allocator::new(&AllocatorCreateDesc {
-                    instance: instance.clone(),
-                    device: device.clone(),
-                    physical_device: physical,
-                    debug_settings: Default::default(),
-                    buffer_device_address: false,
-                    allocation_sizes: Default::default(),
-                })
-                .map_err(|source| VkError::Alloc { name: "allocator".into(), source })?;
-                let debug_device = validation.then(|| ext::debug_utils::Device::new(&instance, &device));
-                Ok(Arc::new(Context {
-                    entry,
-                    instance,
-                    debug,
-                    debug_device,
-                    physical,
-                    device,
-                    queue,
-                    queue_family,
-                    command_pool,
-                    info,
-                    fence_timeout,
-                    hung: AtomicBool::new(false),
-                    allocator: ManuallyDrop::new(Mutex::new(allocator)),
-                    validation_log,
-                }))
+        match Self::create_device(&instance, desc, validation) {
+            Ok(made) => {
+                let instance_parts = InstanceParts { entry, instance, debug, validation_log };
+                Self::with_device(instance_parts, made, fence_timeout)
             }
             Err(e) => {
                 // SAFETY: the device was not made (or was destroyed by
@@ -484,6 +643,47 @@ impl Context {
                 Err(e)
             }
         }
+    }
+
+    /// The context around a device just made: its queue, command pool and
+    /// allocator.
+    fn with_device(parts: InstanceParts, (physical, device, queue_family, info): MadeDevice, fence_timeout: Duration) -> VkResult<Arc<Context>> {
+        let InstanceParts { entry, instance, debug, validation_log } = parts;
+        // SAFETY: the device was created with one queue of `queue_family`.
+        let queue = unsafe { device.get_device_queue(queue_family, 0) };
+        let pool_info = vk::CommandPoolCreateInfo::default()
+            .queue_family_index(queue_family)
+            .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER);
+        // SAFETY: `pool_info` lives for the call; the pool is destroyed by `Drop
+        // for Context` before the device. (On the error path the device and
+        // instance leak: no unsoundness, the process reports the error.)
+        let command_pool = unsafe { device.create_command_pool(&pool_info, None) }.check("vkCreateCommandPool")?;
+        let allocator = Allocator::new(&AllocatorCreateDesc {
+            instance: instance.clone(),
+            device: device.clone(),
+            physical_device: physical,
+            debug_settings: Default::default(),
+            buffer_device_address: false,
+            allocation_sizes: Default::default(),
+        })
+        .map_err(|source| VkError::Alloc { name: "allocator".into(), source })?;
+        let debug_device = info.validation.then(|| ext::debug_utils::Device::new(&instance, &device));
+        Ok(Arc::new(Context {
+            entry,
+            instance,
+            debug,
+            debug_device,
+            physical,
+            device,
+            queue,
+            queue_family,
+            command_pool,
+            info,
+            fence_timeout,
+            hung: AtomicBool::new(false),
+            allocator: ManuallyDrop::new(Mutex::new(allocator)),
+            validation_log,
+        }))
     }
 
     fn pick_physical(instance: &ash::Instance, wanted: Option<&str>) -> VkResult<(usize, vk::PhysicalDevice)> {
@@ -525,136 +725,13 @@ impl Context {
         }
     }
 
-    fn create_device(
-        entry: &ash::Entry,
-        instance: &ash::Instance,
-        desc: &ContextDesc,
-        validation: bool,
-    ) -> VkResult<(vk::PhysicalDevice, ash::Device, u32, DeviceInfo)> {
-        let _ = entry;
+    fn create_device(instance: &ash::Instance, desc: &ContextDesc, validation: bool) -> VkResult<MadeDevice> {
         let (index, physical) = Self::pick_physical(instance, desc.device.as_deref())?;
-        // SAFETY: queries of live instance/physical-device handles; output
-        // structures are owned here, and any p_next chain points at locals that
-        // outlive the call.
-        let props = unsafe { instance.get_physical_device_properties(physical) };
-        let name = device_name(&props);
-        if props.api_version < vk::API_VERSION_1_3 {
-            return Err(VkError::Unsupported {
-                device: name,
-                what: format!("Vulkan 1.3 (it reports {})", api_version_string(props.api_version)),
-            });
-        }
-        let mut driver = vk::PhysicalDeviceDriverProperties::default();
-        let mut props2 = vk::PhysicalDeviceProperties2::default().push_next(&mut driver);
-        // SAFETY: queries of live instance/physical-device handles; output
-        // structures are owned here, and any p_next chain points at locals that
-        // outlive the call.
-        unsafe { instance.get_physical_device_properties2(physical, &mut props2) };
-        let driver_name = driver.driver_name_as_c_str().map(|c| c.to_string_lossy().into_owned()).unwrap_or_default();
-        let driver_info = driver.driver_info_as_c_str().map(|c| c.to_string_lossy().into_owned()).unwrap_or_default();
-
-        // SAFETY: queries of live instance/physical-device handles; output
-        // structures are owned here, and any p_next chain points at locals that
-        // outlive the call.
-        let families = unsafe { instance.get_physical_device_queue_family_properties(physical) };
-        let queue_family = families
-            .iter()
-            .position(|f| f.queue_flags.contains(vk::QueueFlags::GRAPHICS))
-            .ok_or_else(|| VkError::Unsupported { device: name.clone(), what: "a graphics queue".into() })?
-            as u32;
-        let timestamp_valid_bits = families[queue_family as usize].timestamp_valid_bits;
-
-        // SAFETY: queries of live instance/physical-device handles; output
-        // structures are owned here, and any p_next chain points at locals that
-        // outlive the call.
-        let supported = unsafe { instance.get_physical_device_features(physical) };
-        let mut f13 = vk::PhysicalDeviceVulkan13Features::default();
-        let mut f2 = vk::PhysicalDeviceFeatures2::default().push_next(&mut f13);
-        // SAFETY: queries of live instance/physical-device handles; output
-        // structures are owned here, and any p_next chain points at locals that
-        // outlive the call.
-        unsafe { instance.get_physical_device_features2(physical, &mut f2) };
-        if f13.dynamic_rendering == vk::FALSE || f13.synchronization2 == vk::FALSE {
-            return Err(VkError::Unsupported { device: name, what: "dynamicRendering and synchronization2".into() });
-        }
-        let maintenance4 = f13.maintenance4;
-        // Enable every optional feature we know and the device has: none of
-        // them costs anything unless a shader uses it.
-        let enabled = DeviceFeatures::of(&supported);
-        let pipeline_statistics = enabled.pipeline_statistics_query;
-        let features = enabled.to_vk();
-        let mut enable13 = vk::PhysicalDeviceVulkan13Features::default()
-            .dynamic_rendering(true)
-            .synchronization2(true)
-            .maintenance4(maintenance4 == vk::TRUE);
-        let priorities = [1.0f32];
-        let queue_info = [vk::DeviceQueueCreateInfo::default().queue_family_index(queue_family).queue_priorities(&priorities)];
-        let dci = vk::DeviceCreateInfo::default()
-            .queue_create_infos(&queue_info)
-            .enabled_features(&features)
-            .push_next(&mut enable13);
-        // SAFETY: `dci` and what it points to (queue infos, priorities, the
-        // feature chain, extension names) are locals that live for the call;
-        // the device is destroyed once, by `Drop for Context`.
-        let device = unsafe { instance.create_device(physical, &dci, None) }.check("vkCreateDevice")?;
-
-        // SAFETY: queries of live instance/physical-device handles; output
-        // structures are owned here, and any p_next chain points at locals that
-        // outlive the call.
-        let mem = unsafe { instance.get_physical_device_memory_properties(physical) };
-        let device_local_heap_bytes = mem.memory_heaps[..mem.memory_heap_count as usize]
-            .iter()
-            .filter(|h| h.flags.contains(vk::MemoryHeapFlags::DEVICE_LOCAL))
-            .map(|h| h.size)
-            .max()
-            .unwrap_or(0);
-        let mut m3 = vk::PhysicalDeviceMaintenance3Properties::default();
-        let mut subgroup = vk::PhysicalDeviceSubgroupProperties::default();
-        let mut p2 = vk::PhysicalDeviceProperties2::default().push_next(&mut m3).push_next(&mut subgroup);
-        // SAFETY: queries of live instance/physical-device handles; output
-        // structures are owned here, and any p_next chain points at locals that
-        // outlive the call.
-        unsafe { instance.get_physical_device_properties2(physical, &mut p2) };
-
-        let limits = &props.limits;
-        let info = DeviceInfo {
-            index,
-            name,
-            device_type: format!("{:?}", props.device_type),
-            driver_name,
-            driver_info,
-            api_version: api_version_string(props.api_version),
-            vendor_id: props.vendor_id,
-            device_id: props.device_id,
-            timestamp_period_ns: props.limits.timestamp_period,
-            timestamp_valid_bits,
-            pipeline_statistics,
-            max_image_dimension_2d: props.limits.max_image_dimension2_d,
-            max_storage_buffer_range: props.limits.max_storage_buffer_range,
-            max_push_constants_size: props.limits.max_push_constants_size,
-            max_memory_allocation_size: m3.max_memory_allocation_size,
-            device_local_heap_bytes,
-            validation,
-            features: enabled,
-            max_image_dimension_1d: limits.max_image_dimension1_d,
-            max_image_dimension_3d: limits.max_image_dimension3_d,
-            max_uniform_buffer_range: limits.max_uniform_buffer_range,
-            max_texel_buffer_elements: limits.max_texel_buffer_elements,
-            max_color_attachments: limits.max_color_attachments,
-            max_bound_descriptor_sets: limits.max_bound_descriptor_sets,
-            max_compute_work_group_count: limits.max_compute_work_group_count,
-            max_compute_work_group_size: limits.max_compute_work_group_size,
-            max_compute_work_group_invocations: limits.max_compute_work_group_invocations,
-            max_geometry_output_vertices: limits.max_geometry_output_vertices,
-            max_geometry_total_output_components: limits.max_geometry_total_output_components,
-            max_per_stage_storage_images: limits.max_per_stage_descriptor_storage_images,
-            max_per_stage_sampled_images: limits.max_per_stage_descriptor_sampled_images,
-            max_per_stage_storage_buffers: limits.max_per_stage_descriptor_storage_buffers,
-            max_per_stage_uniform_buffers: limits.max_per_stage_descriptor_uniform_buffers,
-            subgroup_size: subgroup.subgroup_size,
-            compute_subgroup_arithmetic: subgroup.supported_stages.contains(vk::ShaderStageFlags::COMPUTE)
-                && subgroup.supported_operations.contains(vk::SubgroupFeatureFlags::BASIC | vk::SubgroupFeatureFlags::ARITHMETIC),
-        };
+        let identity = Identity::of(instance, physical)?;
+        let (queue_family, timestamp_valid_bits) = graphics_queue_family(instance, physical, &identity.name)?;
+        let (enabled, maintenance4) = features_to_enable(instance, physical, &identity.name)?;
+        let device = create_logical_device(instance, physical, queue_family, enabled, maintenance4)?;
+        let info = device_info(instance, physical, DeviceFacts { index, identity, timestamp_valid_bits, enabled, validation });
         Ok((physical, device, queue_family, info))
     }
 

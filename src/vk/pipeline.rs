@@ -170,6 +170,122 @@ fn create_layout(
     unsafe { ctx.device.create_pipeline_layout(&layout_info, None) }.check("vkCreatePipelineLayout")
 }
 
+/// A graphics description's stages are the kinds they are given as, the
+/// device has what it asks for (geometry shaders, its colour targets).
+fn check_graphics(ctx: &Context, desc: &GraphicsPipelineDesc) -> VkResult<()> {
+    check_stage(desc.name, desc.vertex, ShaderStage::Vertex)?;
+    check_stage(desc.name, desc.fragment, ShaderStage::Fragment)?;
+    if let Some(g) = desc.geometry {
+        check_stage(desc.name, g, ShaderStage::Geometry)?;
+        if !ctx.info.features.geometry_shader {
+            return Err(VkError::Unsupported {
+                device: ctx.info.name.clone(),
+                what: format!("geometry shaders (pipeline '{}')", desc.name),
+            });
+        }
+    }
+    if desc.targets.is_empty() || desc.targets.len() > ctx.info.max_color_attachments as usize {
+        return Err(VkError::Invalid(format!(
+            "pipeline '{}': {} colour targets (1 to {})",
+            desc.name,
+            desc.targets.len(),
+            ctx.info.max_color_attachments
+        )));
+    }
+    Ok(())
+}
+
+/// The shader stages of a graphics description, in pipeline order.
+fn graphics_stages(desc: &GraphicsPipelineDesc) -> Vec<vk::PipelineShaderStageCreateInfo<'static>> {
+    let stage = |flag, module: &ShaderModule| vk::PipelineShaderStageCreateInfo::default().stage(flag).module(module.raw).name(c"main");
+    let mut stages = vec![stage(vk::ShaderStageFlags::VERTEX, desc.vertex)];
+    if let Some(g) = desc.geometry {
+        stages.push(stage(vk::ShaderStageFlags::GEOMETRY, g));
+    }
+    stages.push(stage(vk::ShaderStageFlags::FRAGMENT, desc.fragment));
+    stages
+}
+
+/// The vertex input of a graphics description: binding 0 with its
+/// attributes, none for shaders that fetch nothing (stride 0). Held here so
+/// that the create info may point into it.
+struct VertexInput {
+    bindings: [vk::VertexInputBindingDescription; 1],
+    attributes: Vec<vk::VertexInputAttributeDescription>,
+    used: bool,
+}
+
+impl VertexInput {
+    fn of(desc: &GraphicsPipelineDesc) -> VertexInput {
+        let bindings = [vk::VertexInputBindingDescription { binding: 0, stride: desc.vertex_stride, input_rate: vk::VertexInputRate::VERTEX }];
+        let attributes = desc
+            .attributes
+            .iter()
+            .map(|a| vk::VertexInputAttributeDescription { location: a.location, binding: 0, format: a.format.to_vk(), offset: a.offset })
+            .collect();
+        VertexInput { bindings, attributes, used: desc.vertex_stride > 0 }
+    }
+
+    fn info(&self) -> vk::PipelineVertexInputStateCreateInfo<'_> {
+        let info = vk::PipelineVertexInputStateCreateInfo::default();
+        if self.used {
+            info.vertex_binding_descriptions(&self.bindings).vertex_attribute_descriptions(&self.attributes)
+        } else {
+            info
+        }
+    }
+}
+
+/// The graphics pipeline of `desc` with `layout`: its fixed-function state
+/// (viewport and scissor dynamic), dynamic rendering into its targets.
+fn create_graphics_pipeline(ctx: &Context, desc: &GraphicsPipelineDesc, layout: vk::PipelineLayout, cache: vk::PipelineCache) -> VkResult<vk::Pipeline> {
+    let stages = graphics_stages(desc);
+    let vertex = VertexInput::of(desc);
+    let vertex_input = vertex.info();
+    let input_assembly = vk::PipelineInputAssemblyStateCreateInfo::default()
+        .topology(desc.topology.to_vk())
+        .primitive_restart_enable(desc.primitive_restart);
+    let viewport = vk::PipelineViewportStateCreateInfo::default().viewport_count(1).scissor_count(1);
+    let raster = vk::PipelineRasterizationStateCreateInfo::default()
+        .polygon_mode(vk::PolygonMode::FILL)
+        .cull_mode(desc.cull.to_vk())
+        .front_face(desc.front_face.to_vk())
+        .depth_clamp_enable(desc.depth_clamp)
+        .line_width(1.0);
+    let multisample = vk::PipelineMultisampleStateCreateInfo::default().rasterization_samples(vk::SampleCountFlags::TYPE_1);
+    let attachments: Vec<_> = desc.targets.iter().map(|t| t.blend.state()).collect();
+    let blend = vk::PipelineColorBlendStateCreateInfo::default().attachments(&attachments);
+    let dynamic_states = [vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR];
+    let dynamic = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic_states);
+    let formats: Vec<vk::Format> = desc.targets.iter().map(|t| t.format.to_vk()).collect();
+    let mut rendering = vk::PipelineRenderingCreateInfo::default().color_attachment_formats(&formats);
+    let mut depth = vk::PipelineDepthStencilStateCreateInfo::default();
+    if desc.depth_test {
+        rendering = rendering.depth_attachment_format(DEPTH_FORMAT.to_vk());
+        depth = depth.depth_test_enable(true).depth_write_enable(true).depth_compare_op(vk::CompareOp::LESS);
+    }
+    let info = vk::GraphicsPipelineCreateInfo::default()
+        .stages(&stages)
+        .vertex_input_state(&vertex_input)
+        .input_assembly_state(&input_assembly)
+        .viewport_state(&viewport)
+        .rasterization_state(&raster)
+        .multisample_state(&multisample)
+        .depth_stencil_state(&depth)
+        .color_blend_state(&blend)
+        .dynamic_state(&dynamic)
+        .layout(layout)
+        .push_next(&mut rendering);
+    // SAFETY: the create info and everything it points to live for the
+    // call; the device outlives the handle (the owner holds the Context in
+    // an Arc) and the handle is destroyed once, by its owner's Drop (the
+    // caller's `Pipeline` holds it and the layout).
+    match unsafe { ctx.device.create_graphics_pipelines(cache, &[info], None) } {
+        Ok(p) => Ok(p[0]),
+        Err((_, result)) => Err(VkError::Call { what: "vkCreateGraphicsPipelines", result }),
+    }
+}
+
 impl Pipeline {
     pub fn graphics(ctx: &Arc<Context>, desc: &GraphicsPipelineDesc) -> VkResult<Pipeline> {
         Self::graphics_in(ctx, desc, vk::PipelineCache::null(), Vec::new())
@@ -186,26 +302,7 @@ impl Pipeline {
         cache: vk::PipelineCache,
         owned_layouts: Vec<DescriptorSetLayout>,
     ) -> VkResult<Pipeline> {
-        let d = &ctx.device;
-        check_stage(desc.name, desc.vertex, ShaderStage::Vertex)?;
-        check_stage(desc.name, desc.fragment, ShaderStage::Fragment)?;
-        if let Some(g) = desc.geometry {
-            check_stage(desc.name, g, ShaderStage::Geometry)?;
-            if !ctx.info.features.geometry_shader {
-                return Err(VkError::Unsupported {
-                    device: ctx.info.name.clone(),
-                    what: format!("geometry shaders (pipeline '{}')", desc.name),
-                });
-            }
-        }
-        if desc.targets.is_empty() || desc.targets.len() > ctx.info.max_color_attachments as usize {
-            return Err(VkError::Invalid(format!(
-                "pipeline '{}': {} colour targets (1 to {})",
-                desc.name,
-                desc.targets.len(),
-                ctx.info.max_color_attachments
-            )));
-        }
+        check_graphics(ctx, desc)?;
         let mut push_stages = Stages::VERTEX | Stages::FRAGMENT;
         if desc.geometry.is_some() {
             push_stages |= Stages::GEOMETRY;
@@ -222,72 +319,7 @@ impl Pipeline {
             owned_layouts,
             ctx: ctx.clone(),
         };
-
-        let stage = |flag, module: &ShaderModule| {
-            vk::PipelineShaderStageCreateInfo::default().stage(flag).module(module.raw).name(c"main")
-        };
-        let mut stages = vec![stage(vk::ShaderStageFlags::VERTEX, desc.vertex)];
-        if let Some(g) = desc.geometry {
-            stages.push(stage(vk::ShaderStageFlags::GEOMETRY, g));
-        }
-        stages.push(stage(vk::ShaderStageFlags::FRAGMENT, desc.fragment));
-        let bindings = [vk::VertexInputBindingDescription {
-            binding: 0,
-            stride: desc.vertex_stride,
-            input_rate: vk::VertexInputRate::VERTEX,
-        }];
-        let attributes: Vec<vk::VertexInputAttributeDescription> = desc
-            .attributes
-            .iter()
-            .map(|a| vk::VertexInputAttributeDescription { location: a.location, binding: 0, format: a.format.to_vk(), offset: a.offset })
-            .collect();
-        let mut vertex_input = vk::PipelineVertexInputStateCreateInfo::default();
-        if desc.vertex_stride > 0 {
-            vertex_input = vertex_input.vertex_binding_descriptions(&bindings).vertex_attribute_descriptions(&attributes);
-        }
-        let input_assembly = vk::PipelineInputAssemblyStateCreateInfo::default()
-            .topology(desc.topology.to_vk())
-            .primitive_restart_enable(desc.primitive_restart);
-        let viewport = vk::PipelineViewportStateCreateInfo::default().viewport_count(1).scissor_count(1);
-        let raster = vk::PipelineRasterizationStateCreateInfo::default()
-            .polygon_mode(vk::PolygonMode::FILL)
-            .cull_mode(desc.cull.to_vk())
-            .front_face(desc.front_face.to_vk())
-            .depth_clamp_enable(desc.depth_clamp)
-            .line_width(1.0);
-        let multisample =
-            vk::PipelineMultisampleStateCreateInfo::default().rasterization_samples(vk::SampleCountFlags::TYPE_1);
-        let attachments: Vec<_> = desc.targets.iter().map(|t| t.blend.state()).collect();
-        let blend = vk::PipelineColorBlendStateCreateInfo::default().attachments(&attachments);
-        let dynamic_states = [vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR];
-        let dynamic = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic_states);
-        let formats: Vec<vk::Format> = desc.targets.iter().map(|t| t.format.to_vk()).collect();
-        let mut rendering = vk::PipelineRenderingCreateInfo::default().color_attachment_formats(&formats);
-        let mut depth = vk::PipelineDepthStencilStateCreateInfo::default();
-        if desc.depth_test {
-            rendering = rendering.depth_attachment_format(DEPTH_FORMAT.to_vk());
-            depth = depth.depth_test_enable(true).depth_write_enable(true).depth_compare_op(vk::CompareOp::LESS);
-        }
-        let info = vk::GraphicsPipelineCreateInfo::default()
-            .stages(&stages)
-            .vertex_input_state(&vertex_input)
-            .input_assembly_state(&input_assembly)
-            .viewport_state(&viewport)
-            .rasterization_state(&raster)
-            .multisample_state(&multisample)
-            .depth_stencil_state(&depth)
-            .color_blend_state(&blend)
-            .dynamic_state(&dynamic)
-            .layout(layout)
-            .push_next(&mut rendering);
-        // SAFETY: the create info and everything it points to live for the
-        // call; the device outlives the handle (the owner holds the Context in
-        // an Arc) and the handle is destroyed once, by its owner's Drop or the
-        // error path below.
-        pipeline.raw = match unsafe { d.create_graphics_pipelines(cache, &[info], None) } {
-            Ok(p) => p[0],
-            Err((_, result)) => return Err(VkError::Call { what: "vkCreateGraphicsPipelines", result }),
-        };
+        pipeline.raw = create_graphics_pipeline(ctx, desc, layout, cache)?;
         ctx.set_name(pipeline.raw, desc.name);
         Ok(pipeline)
     }

@@ -237,91 +237,16 @@ impl MpvoSort {
             welded_faces: adj.welded_pairs,
             ..Default::default()
         };
-        // `partner[slot]`: the neighbour's face slot, `NONE` on the boundary.
-        let mut partner = adj.partner;
-        for holders in &adj.shared {
-            // Only possible through welding (degenerate cells at collapsed
-            // points) or invalid input. If exactly two of the holders are
-            // solid cells they are the real neighbours (the others are flat
-            // and draw nothing).
-            let m = holders.len();
-            let solid: Vec<u32> =
-                holders.iter().copied().filter(|&s| !geometry.cells[s as usize / 4].degenerate).collect();
-            if let [a, b] = solid[..] {
-                partner[a as usize] = b;
-                partner[b as usize] = a;
-                build.interior_faces += 1;
-                build.welded_faces += 1;
-                build.boundary_faces += m - 2;
-            } else {
-                if solid.len() > 2 {
-                    build.non_manifold_faces += m;
-                } else {
-                    build.flat_shared_faces += m;
-                }
-                build.boundary_faces += m;
-            }
-        }
-
+        let partner = resolve_shared_faces(adj, geometry, &mut build);
         let origin = super::render_origin(mesh);
         let links = seam_links(mesh, geometry, &weld, &partner, origin);
         build.seam_links = links.len();
-        let mut link_start = vec![0u32; n + 1];
-        for l in &links {
-            link_start[l.a as usize + 1] += 1;
-            link_start[l.b as usize + 1] += 1;
-        }
-        for c in 0..n {
-            link_start[c + 1] += link_start[c];
-        }
-        let mut fill = link_start.clone();
-        let mut link_list = vec![0u32; 2 * links.len()];
-        for (k, l) in links.iter().enumerate() {
-            for c in [l.a, l.b] {
-                link_list[fill[c as usize] as usize] = k as u32;
-                fill[c as usize] += 1;
-            }
-        }
-
-        // One plane per interior face, the other side its exact negation.
-        let cells = &geometry.cells;
-        let partner_ref = &partner;
-        let planes: Vec<[f64; 4]> = (0..4 * n)
-            .into_par_iter()
-            .map(|slot| {
-                let other_slot = partner_ref[slot];
-                if other_slot == NONE {
-                    return [0.0; 4];
-                }
-                let (c, d) = (slot / 4, other_slot as usize / 4);
-                let own = !cells[c].degenerate;
-                let other = !cells[d].degenerate;
-                // The owner: the solid side, the lower slot if both are solid.
-                if own && (!other || slot < other_slot as usize) {
-                    cells[c].plane_relative(slot % 4, mesh.tet_points(c), origin)
-                } else if other {
-                    cells[d].plane_relative(other_slot as usize % 4, mesh.tet_points(d), origin).map(|x| -x)
-                } else {
-                    [0.0; 4]
-                }
-            })
-            .collect();
+        let (link_start, link_list) = links_per_cell(&links, n);
+        let planes = face_planes(mesh, geometry, &partner, origin);
         let neighbor: Vec<u32> = partner.par_iter().map(|&p| if p == NONE { NONE } else { p / 4 }).collect();
         drop(partner);
-        build.degenerate_cells = cells.iter().filter(|c| c.degenerate).count();
-        build.unconstrained_faces = (0..n)
-            .into_par_iter()
-            .map(|c| {
-                (0..4)
-                    .filter(|&f| {
-                        let d = neighbor[4 * c + f];
-                        d != NONE && (c as u32) < d && planes[4 * c + f] == [0.0; 4]
-                    })
-                    .count()
-            })
-            .sum();
-
-        let link_start_ref = &link_start;
+        build.degenerate_cells = geometry.cells.iter().filter(|c| c.degenerate).count();
+        build.unconstrained_faces = unconstrained_faces(&neighbor, &planes);
         let nodes = (0..n)
             .into_par_iter()
             .map(|c| Node {
@@ -329,7 +254,7 @@ impl MpvoSort {
                 rank: 0,
                 mask: 0,
                 remaining: 0,
-                linked: link_start_ref[c + 1] > link_start_ref[c],
+                linked: link_start[c + 1] > link_start[c],
             })
             .collect();
         MpvoSort {
@@ -639,6 +564,99 @@ impl LinkView<'_> {
             }
         }
     }
+}
+
+/// `partner[slot]`, the neighbour's face slot (`NONE` on the boundary),
+/// after MPVO's policy for faces of three or more holders, which `build`
+/// counts.
+fn resolve_shared_faces(adj: FaceAdjacency, geometry: &TetGeometry, build: &mut MpvoBuildStats) -> Vec<u32> {
+    let mut partner = adj.partner;
+    for holders in &adj.shared {
+        // Only possible through welding (degenerate cells at collapsed
+        // points) or invalid input. If exactly two of the holders are
+        // solid cells they are the real neighbours (the others are flat
+        // and draw nothing).
+        let m = holders.len();
+        let solid: Vec<u32> = holders.iter().copied().filter(|&s| !geometry.cells[s as usize / 4].degenerate).collect();
+        if let [a, b] = solid[..] {
+            partner[a as usize] = b;
+            partner[b as usize] = a;
+            build.interior_faces += 1;
+            build.welded_faces += 1;
+            build.boundary_faces += m - 2;
+        } else {
+            if solid.len() > 2 {
+                build.non_manifold_faces += m;
+            } else {
+                build.flat_shared_faces += m;
+            }
+            build.boundary_faces += m;
+        }
+    }
+    partner
+}
+
+/// Per cell of `n`, the seam links it takes part in, as CSR: (start per
+/// cell and one past the last, the links' indices).
+fn links_per_cell(links: &[Link], n: usize) -> (Vec<u32>, Vec<u32>) {
+    let mut link_start = vec![0u32; n + 1];
+    for l in links {
+        link_start[l.a as usize + 1] += 1;
+        link_start[l.b as usize + 1] += 1;
+    }
+    for c in 0..n {
+        link_start[c + 1] += link_start[c];
+    }
+    let mut fill = link_start.clone();
+    let mut link_list = vec![0u32; 2 * links.len()];
+    for (k, l) in links.iter().enumerate() {
+        for c in [l.a, l.b] {
+            link_list[fill[c as usize] as usize] = k as u32;
+            fill[c as usize] += 1;
+        }
+    }
+    (link_start, link_list)
+}
+
+/// One plane per interior face (relative to `origin`), the other side its
+/// exact negation; zero on the boundary and between two flat cells.
+fn face_planes(mesh: &TetMesh, geometry: &TetGeometry, partner: &[u32], origin: [f64; 3]) -> Vec<[f64; 4]> {
+    let cells = &geometry.cells;
+    (0..4 * mesh.tets.len())
+        .into_par_iter()
+        .map(|slot| {
+            let other_slot = partner[slot];
+            if other_slot == NONE {
+                return [0.0; 4];
+            }
+            let (c, d) = (slot / 4, other_slot as usize / 4);
+            let own = !cells[c].degenerate;
+            let other = !cells[d].degenerate;
+            // The owner: the solid side, the lower slot if both are solid.
+            if own && (!other || slot < other_slot as usize) {
+                cells[c].plane_relative(slot % 4, mesh.tet_points(c), origin)
+            } else if other {
+                cells[d].plane_relative(other_slot as usize % 4, mesh.tet_points(d), origin).map(|x| -x)
+            } else {
+                [0.0; 4]
+            }
+        })
+        .collect()
+}
+
+/// Interior faces (counted once) whose plane is zero: they constrain nothing.
+fn unconstrained_faces(neighbor: &[u32], planes: &[[f64; 4]]) -> usize {
+    (0..neighbor.len() / 4)
+        .into_par_iter()
+        .map(|c| {
+            (0..4)
+                .filter(|&f| {
+                    let d = neighbor[4 * c + f];
+                    d != NONE && (c as u32) < d && planes[4 * c + f] == [0.0; 4]
+                })
+                .count()
+        })
+        .sum()
 }
 
 /// Finds the seam links (see `MpvoBuildStats::seam_links`): boundary faces

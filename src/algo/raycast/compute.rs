@@ -9,17 +9,14 @@ use serde_json::json;
 
 use crate::algo::screen;
 use crate::algo::settings::MethodSettings;
-use super::{AdaptiveFrame, BoxOnScreen, Frame, Settings, VolumeResources, COMPARE, OPTIONS, PUSH_BYTES, PUSH_BYTES_ADAPTIVE, STRESS_COMPUTE, SUITE_COMPUTE, SWEEP_COMPUTE};
+use super::{AdaptiveFrame, BoxOnScreen, Frame, Settings, VolumeResources, COMPARE, OPTIONS, STRESS_COMPUTE, SUITE_COMPUTE, SWEEP_COMPUTE};
 use crate::algo::adaptive::Adaptive;
 use crate::algo::method::{DataKind, MethodInfo, MethodInputs, Phases, RenderMethod, SceneData, View, Work};
-use crate::vk::{
-    CommandRecorder, ComputePipelineKey, Image, Pipeline, PipelineKey, ShaderKey, ShaderStage, TargetImageSet,
-    UploadCounter,
-};
+use crate::vk::{CommandRecorder, Image, Pipeline, PipelineKey, TargetImageSet, UploadCounter};
 use crate::vk::Stages;
 
 /// Workgroup shape (pixels).
-pub const WORKGROUP: [u32; 2] = [8, 8];
+pub const WORKGROUP: [u32; 2] = super::COMPUTE_WORKGROUP;
 
 pub const METHOD: MethodInfo = MethodInfo {
     name: "raycast-compute",
@@ -40,35 +37,16 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
     let SceneData::Volume(vol) = inputs.data else { bail!("raycast-compute renders volumes only") };
     let settings = Settings::from_options(inputs.options)?;
     let res = VolumeResources::new(inputs.ctx, vol, inputs.samples, inputs.tf, &settings, inputs.counter)?;
-    let defines = res.defines(&settings);
-    let wg = [WORKGROUP[0].to_string(), WORKGROUP[1].to_string()];
-    let mut all: Vec<(&str, &str)> = defines.clone();
-    // The march's counters reduced per subgroup (common.glsl) where the
-    // device can.
-    if inputs.ctx.info.compute_subgroup_arithmetic {
-        all.push(("SUBGROUP_COUNTERS", "1"));
-    }
-    all.push(("WG_X", &wg[0]));
-    all.push(("WG_Y", &wg[1]));
+    let facts = res.shader_facts(inputs.ctx);
     let target_set = TargetImageSet::new("raycast target", Stages::COMPUTE);
-    let key = PipelineKey::Compute(ComputePipelineKey {
-        shader: ShaderKey::new("raycast/march.comp", ShaderStage::Compute, &all),
-        push_constant_bytes: PUSH_BYTES,
-        sets: vec![res.set0_desc(), target_set.desc.clone()],
-    });
+    let key = settings.compute_key(facts, &target_set.desc, None);
     let pipeline = crate::algo::pipelines::get(inputs.ctx, &key)?;
     // Adaptive refinement: the march compiled with ADAPTIVE (set 2: the
     // refinement's state), no silhouettes (the box's outline is where the
     // key's "met the box" changes).
     let adaptive = if settings.adaptive > 0.0 {
         let state = Adaptive::new(inputs.ctx, "raycast-compute", settings.adaptive, inputs.width, inputs.height, false)?;
-        let mut d = all.clone();
-        d.push(("ADAPTIVE", "1"));
-        let key = PipelineKey::Compute(ComputePipelineKey {
-            shader: ShaderKey::new("raycast/march.comp", ShaderStage::Compute, &d),
-            push_constant_bytes: PUSH_BYTES_ADAPTIVE,
-            sets: vec![res.set0_desc(), target_set.desc.clone(), state.desc.clone()],
-        });
+        let key = settings.compute_key(facts, &target_set.desc, Some(&state.desc));
         Some((state, crate::algo::pipelines::get(inputs.ctx, &key)?))
     } else {
         None

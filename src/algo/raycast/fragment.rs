@@ -11,13 +11,13 @@ use anyhow::{bail, Result};
 use serde_json::json;
 
 use crate::algo::settings::MethodSettings;
-use super::{BoxOnScreen, Frame, Settings, VolumeResources, COMPARE, OPTIONS, PUSH_BYTES, STRESS, SUITE, SWEEP};
+use super::{BoxOnScreen, Frame, Settings, VolumeResources, COMPARE, OPTIONS, STRESS, SUITE, SWEEP};
 use crate::algo::method::{DataKind, Feature, MethodInfo, MethodInputs, Phases, RenderMethod, SceneData, View, Work};
 use crate::vk::{
-    Blend, ColorAttachment, ColorTarget, CommandRecorder, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc,
-    GraphicsPipelineKey, GraphicsState, Image, ImageUse, Pipeline, PipelineKey, Sampler, ShaderKey, ShaderStage, UploadCounter,
+    ColorAttachment, CommandRecorder, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc, Image, ImageUse, Pipeline, PipelineKey,
+    Sampler, UploadCounter,
 };
-use crate::vk::{Cull, Stages, Topology, Winding};
+use crate::vk::{Cull, Stages};
 
 pub const METHOD: MethodInfo = MethodInfo {
     name: "raycast-fragment",
@@ -34,33 +34,6 @@ pub const METHOD: MethodInfo = MethodInfo {
     family: super::FAMILY,
     create,
 };
-
-/// The box's triangles have outward right-handed normals: faces towards the
-/// eye appear counter-clockwise on screen (Vulkan's y-down framebuffer).
-const FRONT: Winding = Winding::CounterClockwise;
-
-/// The box pass (its vertex stage includes raycast/common.glsl, so it
-/// takes set 0's layout and defines).
-fn box_key(cull: Cull, res: &VolumeResources, defines: &[(&str, &str)]) -> PipelineKey {
-    PipelineKey::Graphics(GraphicsPipelineKey {
-        vertex: ShaderKey::new("raycast/box.vert", ShaderStage::Vertex, defines),
-        geometry: None,
-        fragment: ShaderKey::new("raycast/box.frag", ShaderStage::Fragment, &[]),
-        state: GraphicsState {
-            vertex_stride: 0,
-            attributes: vec![],
-            topology: Topology::TriangleList,
-            primitive_restart: false,
-            cull,
-            front_face: FRONT,
-            targets: vec![ColorTarget::rgba32f(Blend::None)],
-            depth_test: false,
-            depth_clamp: false,
-        },
-        push_constant_bytes: PUSH_BYTES,
-        sets: vec![res.set0_desc()],
-    })
-}
 
 fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
     let SceneData::Volume(vol) = inputs.data else { bail!("raycast-fragment renders volumes only") };
@@ -95,27 +68,10 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
         &points_desc,
         &[DescriptorResource::CombinedImageSampler(&entry, &sampler), DescriptorResource::CombinedImageSampler(&exit, &sampler)],
     )?;
-    let defines = res.defines(&settings);
-    let front_key = box_key(Cull::Back, &res, &defines);
-    let back_key = box_key(Cull::Front, &res, &defines);
-    let march_key = PipelineKey::Graphics(GraphicsPipelineKey {
-        vertex: ShaderKey::new("raycast/fullscreen.vert", ShaderStage::Vertex, &[]),
-        geometry: None,
-        fragment: ShaderKey::new("raycast/march.frag", ShaderStage::Fragment, &defines),
-        state: GraphicsState {
-            vertex_stride: 0,
-            attributes: vec![],
-            topology: Topology::TriangleList,
-            primitive_restart: false,
-            cull: Cull::None,
-            front_face: FRONT,
-            targets: vec![ColorTarget::rgba32f(Blend::None)],
-            depth_test: false,
-            depth_clamp: false,
-        },
-        push_constant_bytes: PUSH_BYTES,
-        sets: vec![res.set0_desc(), points_desc],
-    });
+    let facts = res.shader_facts(ctx);
+    let front_key = settings.box_key(facts, Cull::Back);
+    let back_key = settings.box_key(facts, Cull::Front);
+    let march_key = settings.fragment_march_key(facts, &points_desc);
     let get = |k: &PipelineKey| crate::algo::pipelines::get(ctx, k);
     Ok(Box::new(RaycastFragment {
         front: get(&front_key)?,

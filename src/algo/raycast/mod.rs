@@ -103,10 +103,11 @@ use super::settings::{choice, flag, float, int, MethodSettings};
 use crate::scene::TransferFunction;
 use crate::volume::{Samples, Volume};
 use crate::vk::{
-    upload_static_texels, upload_texture, upload_texture_with, Buffer, BufferDesc, CommandRecorder, Context, DescriptorKind, DescriptorResource, DescriptorSet,
-    DescriptorSetDesc, Sampler, TexelBuffer, TextureDesc, UploadClass, UploadCounter,
+    upload_static_texels, upload_texture, upload_texture_with, Blend, Buffer, BufferDesc, ColorTarget, CommandRecorder, ComputePipelineKey, Context,
+    DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc, GraphicsPipelineKey, GraphicsState, PipelineKey, Sampler, ShaderKey, ShaderStage,
+    TexelBuffer, TextureDesc, UploadClass, UploadCounter,
 };
-use crate::vk::{BufferUsage, Format, Stages, Filter};
+use crate::vk::{BufferUsage, Cull, Filter, Format, Stages, Topology, Winding};
 
 /// Transfer-function table entries (1D) and pre-integration table side (2D).
 pub const TABLE_SIZE: usize = 1024;
@@ -278,6 +279,112 @@ impl Settings {
     /// Pre-integrated segments (`integrator=preint`).
     pub fn preint(&self) -> bool {
         self.integrator == RayIntegrator::Preint
+    }
+}
+
+/// What the family's shaders are compiled for beside the settings: how
+/// the volume is read ([`VolumeResources::shader_facts`]; set 0's layout
+/// follows from it) and whether the compute march may reduce its counters
+/// per subgroup (a device fact).
+#[derive(Debug, Clone, Copy)]
+pub struct ShaderFacts {
+    /// The GLSL format the volume is read in with imageLoad (option
+    /// `reads`); `None`: sampled.
+    pub volume_load_format: Option<&'static str>,
+    /// The device has compute subgroup arithmetic.
+    pub subgroup_counters: bool,
+}
+
+/// `raycast-compute`'s workgroup shape (pixels).
+pub const COMPUTE_WORKGROUP: [u32; 2] = [8, 8];
+
+/// The box's triangles have outward right-handed normals: faces towards the
+/// eye appear counter-clockwise on screen (Vulkan's y-down framebuffer).
+const FRONT: Winding = Winding::CounterClockwise;
+
+/// A pass of `raycast-fragment`: no vertex input, one RGBA32F target
+/// overwritten, faces culled by `cull`.
+fn fragment_pass_key(vertex: ShaderKey, fragment: ShaderKey, cull: Cull, sets: Vec<DescriptorSetDesc>) -> PipelineKey {
+    PipelineKey::Graphics(GraphicsPipelineKey {
+        vertex,
+        geometry: None,
+        fragment,
+        state: GraphicsState {
+            vertex_stride: 0,
+            attributes: vec![],
+            topology: Topology::TriangleList,
+            primitive_restart: false,
+            cull,
+            front_face: FRONT,
+            targets: vec![ColorTarget::rgba32f(Blend::None)],
+            depth_test: false,
+            depth_clamp: false,
+        },
+        push_constant_bytes: PUSH_BYTES,
+        sets,
+    })
+}
+
+/// The family's shader defines and pipeline keys, all made here from the
+/// settings and the [`ShaderFacts`].
+impl Settings {
+    /// The defines of every shader that includes the march
+    /// (raycast/common.glsl): the build-time options and how the volume is
+    /// read.
+    fn march_defines(&self, facts: ShaderFacts) -> Vec<(&'static str, &'static str)> {
+        let mut d = self.defines();
+        if let Some(format) = facts.volume_load_format {
+            d.push(("VOLUME_LOADS", "1"));
+            d.push(("VOLUME_FORMAT", format));
+        }
+        d
+    }
+
+    /// `raycast-compute`'s march into the target (set 1), with adaptive
+    /// refinement's state at set 2 when given.
+    pub fn compute_key(&self, facts: ShaderFacts, target: &DescriptorSetDesc, adaptive: Option<&DescriptorSetDesc>) -> PipelineKey {
+        let wg = COMPUTE_WORKGROUP.map(|v| v.to_string());
+        let mut d = self.march_defines(facts);
+        // The march's counters reduced per subgroup (common.glsl) where the
+        // device can.
+        if facts.subgroup_counters {
+            d.push(("SUBGROUP_COUNTERS", "1"));
+        }
+        d.push(("WG_X", &wg[0]));
+        d.push(("WG_Y", &wg[1]));
+        let mut sets = vec![set0_desc(facts.volume_load_format.is_some()), target.clone()];
+        if let Some(state) = adaptive {
+            d.push(("ADAPTIVE", "1"));
+            sets.push(state.clone());
+        }
+        PipelineKey::Compute(ComputePipelineKey {
+            shader: ShaderKey::new("raycast/march.comp", ShaderStage::Compute, &d),
+            push_constant_bytes: if adaptive.is_some() { PUSH_BYTES_ADAPTIVE } else { PUSH_BYTES },
+            sets,
+        })
+    }
+
+    /// `raycast-fragment`'s box pass (front faces: `Cull::Back`, back faces:
+    /// `Cull::Front`); its vertex stage includes raycast/common.glsl, so it
+    /// takes set 0's layout and the march's defines.
+    pub fn box_key(&self, facts: ShaderFacts, cull: Cull) -> PipelineKey {
+        fragment_pass_key(
+            ShaderKey::new("raycast/box.vert", ShaderStage::Vertex, &self.march_defines(facts)),
+            ShaderKey::new("raycast/box.frag", ShaderStage::Fragment, &[]),
+            cull,
+            vec![set0_desc(facts.volume_load_format.is_some())],
+        )
+    }
+
+    /// `raycast-fragment`'s full-screen march, the entry and exit points
+    /// at set 1.
+    pub fn fragment_march_key(&self, facts: ShaderFacts, points: &DescriptorSetDesc) -> PipelineKey {
+        fragment_pass_key(
+            ShaderKey::new("raycast/fullscreen.vert", ShaderStage::Vertex, &[]),
+            ShaderKey::new("raycast/march.frag", ShaderStage::Fragment, &self.march_defines(facts)),
+            Cull::None,
+            vec![set0_desc(facts.volume_load_format.is_some()), points.clone()],
+        )
     }
 }
 
@@ -910,19 +1017,10 @@ impl VolumeResources {
         self.volume_load_format.is_some()
     }
 
-    /// Set 0's layout for these resources.
-    pub fn set0_desc(&self) -> DescriptorSetDesc {
-        set0_desc(self.loads())
-    }
-
-    /// The shader defines: the build-time options and how the volume is read.
-    pub fn defines(&self, s: &Settings) -> Vec<(&'static str, &'static str)> {
-        let mut d = s.defines();
-        if let Some(format) = self.volume_load_format {
-            d.push(("VOLUME_LOADS", "1"));
-            d.push(("VOLUME_FORMAT", format));
-        }
-        d
+    /// What the family's shaders are compiled for on this device, for
+    /// this volume ([`Settings::compute_key`] and the others).
+    pub fn shader_facts(&self, ctx: &Context) -> ShaderFacts {
+        ShaderFacts { volume_load_format: self.volume_load_format, subgroup_counters: ctx.info.compute_subgroup_arithmetic }
     }
 
     pub fn details(&self, s: &Settings, variant: serde_json::Value) -> serde_json::Value {

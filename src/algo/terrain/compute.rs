@@ -25,11 +25,11 @@ use serde_json::json;
 
 use super::gpu::texel;
 use super::tables::{triangle_digest, PcTables};
-use super::{TerrainScene, COMPARE, OPTIONS, SWEEP};
+use super::{pc_compute_key, TerrainScene, COMPARE, OPTIONS, SWEEP};
 use crate::algo::method::{DataKind, MethodInfo, MethodInputs, Phases, RenderMethod, SceneData, View, Work};
 use crate::vk::{
-    Buffer, BufferDesc, CommandRecorder, ComputePipelineKey, DescriptorKind, DescriptorResource, DescriptorSet,
-    DescriptorSetDesc, Image, Pipeline, PipelineKey, ShaderKey, ShaderStage, TexelBuffer, TimestampPool, UploadClass, UploadCounter,
+    Buffer, BufferDesc, CommandRecorder, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc, Image, Pipeline,
+    PipelineKey, TexelBuffer, TimestampPool, UploadClass, UploadCounter,
 };
 use crate::vk::{BufferUsage, Format, Stages, TimestampAt};
 
@@ -134,11 +134,7 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
             DescriptorResource::StorageBuffer(&output),
         ],
     )?;
-    let key = PipelineKey::Compute(ComputePipelineKey {
-        shader: ShaderKey::new("terrain/pc.comp", ShaderStage::Compute, &[]),
-        push_constant_bytes: std::mem::size_of::<TessPush>() as u32,
-        sets: vec![desc],
-    });
+    let key = pc_compute_key(desc, std::mem::size_of::<TessPush>() as u32);
     let pipeline = crate::algo::pipelines::get(ctx, &key)?;
     Ok(Box::new(HmCompute {
         scene,

@@ -27,34 +27,21 @@ use anyhow::{bail, Result};
 use serde_json::json;
 
 use super::tables::{triangle_digest, PcTables};
-use super::{mesh_key, TerrainScene, COMPARE, OPTIONS as SHARED, SWEEP};
-use crate::algo::method::{
-    DataKind, Feature, MethodInfo, MethodInputs, OptionSpec, OptionValues, Phases, RenderMethod, SceneData, View, Work,
-};
+use super::{Settings, TerrainScene, COMPARE, SWEEP};
+use crate::algo::method::{DataKind, Feature, MethodInfo, MethodInputs, OptionSpec, Phases, RenderMethod, SceneData, View, Work};
+use crate::algo::settings::MethodSettings;
 use crate::vk::{
     Buffer, BufferDesc, CommandRecorder, DescriptorKind, DescriptorResource, DescriptorSet, DescriptorSetDesc, Image,
-    Pipeline, PipelineKey, ShaderKey, ShaderStage, TexelBuffer, UploadClass, UploadCounter, VertexAttribute,
+    Pipeline, PipelineKey, TexelBuffer, UploadClass, UploadCounter,
 };
-use crate::vk::{BufferUsage, Format, Stages, Topology};
+use crate::vk::{BufferUsage, Format, Stages};
 
 /// Output components per emitted vertex as the validation layer counts
 /// them: gl_Position (4) and `world` (4).
 const COMPONENTS_PER_VERTEX: u32 = 8;
 
-const OPTIONS: &[OptionSpec] = &[
-    SHARED[0],
-    SHARED[1],
-    SHARED[2],
-    SHARED[3],
-    OptionSpec {
-        name: "capture",
-        default: "off",
-        unit: "",
-        values: OptionValues::Bool,
-        build_time: true,
-        help: "also append every emitted PC triangle to a storage buffer (tests: compared with the CPU's)",
-    },
-];
+/// The family's options, `capture` (a test option) among them.
+const OPTIONS: &[OptionSpec] = Settings::OPTIONS;
 
 pub const METHOD: MethodInfo = MethodInfo {
     name: "hm-gpu",
@@ -80,82 +67,24 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
     let SceneData::Terrain(map) = inputs.data else { bail!("hm-gpu renders terrains only") };
     let ctx = inputs.ctx;
     let info = &ctx.info;
-    if !info.features.geometry_shader {
-        bail!("hm-gpu: device '{}' has no geometry shaders", info.name);
-    }
-    let max_tris = max_triangles(info);
-    if max_tris == 0 {
-        bail!(
-            "hm-gpu: device '{}' lets a geometry shader emit {} vertices / {} components, not one triangle",
-            info.name,
-            info.max_geometry_output_vertices,
-            info.max_geometry_total_output_components
-        );
-    }
-    let capture = inputs.options.flag("capture")?;
-    if capture && !info.features.vertex_pipeline_stores_and_atomics {
-        bail!("hm-gpu: capture=on needs vertexPipelineStoresAndAtomics, which device '{}' lacks", info.name);
-    }
+    let max_tris = check_device(info, &Settings::from_options(inputs.options)?)?;
     let scene = TerrainScene::new(ctx, map, inputs.options, inputs.width, inputs.height, inputs.counter)?;
     let tables = PcTables::build(&scene.model)?;
     let counter = inputs.counter;
-    // The PC list: per level, per cell, one entry per slice of max_tris.
-    let (mut entries, mut entry_first) = (Vec::new(), Vec::new());
-    for cells in &tables.cells {
-        let mut first = Vec::with_capacity(cells.len() + 1);
-        for e in cells {
-            first.push(entries.len() as u32);
-            for part in 0..e[3].div_ceil(max_tris).max(1) {
-                entries.push([e[0], e[1], e[2] | part << 8, e[3]]);
-            }
-        }
-        first.push(entries.len() as u32);
-        entry_first.push(first);
-    }
-    let bytes: &[u8] = bytemuck::cast_slice(&entries);
+    let pc_list = PcList::of(&tables, max_tris);
+    let bytes: &[u8] = bytemuck::cast_slice(&pc_list.entries);
     let mut list = Buffer::new(ctx, BufferDesc::upload("hm-gpu PC list", bytes.len() as u64, BufferUsage::VERTEX))?;
     list.write(0, bytes, counter, UploadClass::Static)?;
     let tb = texel(ctx, "hm-gpu TB coordinates", bytemuck::cast_slice(&tables.tb_xy), Format::Rg32Float, counter)?;
     let chains = texel(ctx, "hm-gpu chain list", bytemuck::cast_slice(&tables.chains), Format::Rgba32Uint, counter)?;
     let m = &scene.model;
+    let entry_first = pc_list.entry_first;
     let capacity = tables.frame_capacity(m, |k, i| (entry_first[k][i + 1] - entry_first[k][i]) as u64) as usize;
     let active = Buffer::new(ctx, BufferDesc::upload("hm-gpu active PC list", (capacity.max(1) * 4) as u64, BufferUsage::INDEX))?;
-    let stages = Stages::GEOMETRY;
-    let mut desc = DescriptorSetDesc::new(&[
-        (DescriptorKind::UniformTexelBuffer, stages),
-        (DescriptorKind::UniformTexelBuffer, stages),
-        (DescriptorKind::UniformTexelBuffer, stages),
-    ]);
     let max_pc_tris = tables.frame_capacity(m, |k, i| tables.cells[k][i][3] as u64);
-    let capture_buffer = if capture {
-        desc = desc.with(DescriptorKind::StorageBuffer, stages);
-        let size = (16 + 12 * max_pc_tris.max(1)) as usize;
-        let mut b = Buffer::new(ctx, BufferDesc::upload("hm-gpu capture", size as u64, BufferUsage::STORAGE))?;
-        // Header: count, errors, capacity (indices); set per frame.
-        b.write_staging(0, bytemuck::cast_slice(&[0u32, 0, (3 * max_pc_tris) as u32, 0]))?;
-        Some(b)
-    } else {
-        None
-    };
-    let mut resources =
-        vec![DescriptorResource::UniformTexelBuffer(&scene.geometry), DescriptorResource::UniformTexelBuffer(&tb), DescriptorResource::UniformTexelBuffer(&chains)];
-    if let Some(b) = &capture_buffer {
-        resources.push(DescriptorResource::StorageBuffer(b));
-    }
-    let set = DescriptorSet::new(ctx, "hm-gpu tables", &desc, &resources)?;
-    let max_tris_text = max_tris.to_string();
-    let mut defines = vec![("MAX_TRIS", max_tris_text.as_str())];
-    if capture {
-        defines.push(("CAPTURE", "1"));
-    }
-    let key = mesh_key(
-        &scene.settings,
-        ShaderKey::new("terrain/pc.vert", ShaderStage::Vertex, &[]),
-        Some(ShaderKey::new("terrain/pc.geom", ShaderStage::Geometry, &defines)),
-        VertexAttribute { location: 0, format: Format::Rgba32Uint, offset: 0 },
-        Topology::PointList,
-        vec![desc],
-    );
+    let capture = if scene.settings.capture { Some(capture_buffer(ctx, max_pc_tris)?) } else { None };
+    let (set, desc) = tables_set(ctx, [&scene.geometry, &tb, &chains], capture.as_ref())?;
+    let key = scene.settings.pc_geometry_key(max_tris, desc);
     let pipeline = crate::algo::pipelines::get(ctx, &key)?;
     Ok(Box::new(HmGpu {
         scene,
@@ -170,12 +99,82 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
         set,
         pipeline,
         key,
-        capture: capture_buffer,
+        capture,
         max_tris,
         max_pc_tris,
         gs_limits: (info.max_geometry_output_vertices, info.max_geometry_total_output_components),
         frame: FrameCounts::default(),
     }))
+}
+
+/// The triangles one invocation may emit on this device, after checking
+/// that it has geometry shaders emitting at least one, and the stores
+/// `capture=on` needs.
+fn check_device(info: &crate::vk::DeviceInfo, settings: &Settings) -> Result<u32> {
+    if !info.features.geometry_shader {
+        bail!("hm-gpu: device '{}' has no geometry shaders", info.name);
+    }
+    let max_tris = max_triangles(info);
+    if max_tris == 0 {
+        bail!(
+            "hm-gpu: device '{}' lets a geometry shader emit {} vertices / {} components, not one triangle",
+            info.name,
+            info.max_geometry_output_vertices,
+            info.max_geometry_total_output_components
+        );
+    }
+    if settings.capture && !info.features.vertex_pipeline_stores_and_atomics {
+        bail!("hm-gpu: capture=on needs vertexPipelineStoresAndAtomics, which device '{}' lacks", info.name);
+    }
+    Ok(max_tris)
+}
+
+/// The PC list: per level, per cell, one entry per slice of `max_tris`
+/// triangles (its part in bits 8 on of the third word).
+struct PcList {
+    entries: Vec<[u32; 4]>,
+    /// Per level, per PC cell: its first entry (and one past the last).
+    entry_first: Vec<Vec<u32>>,
+}
+
+impl PcList {
+    fn of(tables: &PcTables, max_tris: u32) -> PcList {
+        let (mut entries, mut entry_first) = (Vec::new(), Vec::new());
+        for cells in &tables.cells {
+            let mut first = Vec::with_capacity(cells.len() + 1);
+            for e in cells {
+                first.push(entries.len() as u32);
+                for part in 0..e[3].div_ceil(max_tris).max(1) {
+                    entries.push([e[0], e[1], e[2] | part << 8, e[3]]);
+                }
+            }
+            first.push(entries.len() as u32);
+            entry_first.push(first);
+        }
+        PcList { entries, entry_first }
+    }
+}
+
+/// `capture=on`'s buffer: a header (count, errors, capacity in indices,
+/// set per frame) and room for the largest frame's PC triangles.
+fn capture_buffer(ctx: &Arc<crate::vk::Context>, max_pc_tris: u64) -> Result<Buffer> {
+    let size = (16 + 12 * max_pc_tris.max(1)) as usize;
+    let mut b = Buffer::new(ctx, BufferDesc::upload("hm-gpu capture", size as u64, BufferUsage::STORAGE))?;
+    b.write_staging(0, bytemuck::cast_slice(&[0u32, 0, (3 * max_pc_tris) as u32, 0]))?;
+    Ok(b)
+}
+
+/// The geometry stage's set: the geometry, TB coordinates and chain list
+/// (the paper's TBOs), and the capture buffer when there is one.
+fn tables_set(ctx: &Arc<crate::vk::Context>, texels: [&TexelBuffer; 3], capture: Option<&Buffer>) -> Result<(DescriptorSet, DescriptorSetDesc)> {
+    let stages = Stages::GEOMETRY;
+    let mut desc = DescriptorSetDesc::new(&[(DescriptorKind::UniformTexelBuffer, stages); 3]);
+    let mut resources: Vec<DescriptorResource> = texels.into_iter().map(DescriptorResource::UniformTexelBuffer).collect();
+    if let Some(b) = capture {
+        desc = desc.with(DescriptorKind::StorageBuffer, stages);
+        resources.push(DescriptorResource::StorageBuffer(b));
+    }
+    Ok((DescriptorSet::new(ctx, "hm-gpu tables", &desc, &resources)?, desc))
 }
 
 /// A static texel buffer holding `bytes` (counted as static upload).

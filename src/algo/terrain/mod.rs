@@ -38,12 +38,12 @@ use glam::{DVec3, Vec3};
 use serde_json::json;
 
 use crate::algo::method::{Family, OptionSpec, Options, OwnError, Phases, SceneData, View};
-use crate::algo::settings::{choice, flag, float, int, MethodSettings};
+use crate::algo::settings::{choice, flag, float, int, pick, MethodSettings};
 use crate::scene::{Camera, Projection};
 use crate::terrain::hybrid::HybridModel;
 use crate::terrain::Heightmap;
 use crate::vk::{
-    Blend, Buffer, BufferDesc, ColorTarget, CommandRecorder, Context, DescriptorSetDesc, GraphicsPipelineKey, GraphicsState,
+    Blend, Buffer, BufferDesc, ColorTarget, CommandRecorder, ComputePipelineKey, Context, DescriptorSetDesc, GraphicsPipelineKey, GraphicsState,
     Image, Pipeline, PipelineKey, ShaderKey, ShaderStage, TexelBuffer, UploadClass, UploadCounter, VertexAttribute,
 };
 use crate::vk::{BufferUsage, Cull, Format, Topology, Winding};
@@ -68,6 +68,8 @@ crate::settings! {
             "shaded by height, or tinted by class (NC grid green, PC tessellation orange, TIN blue)";
         coverage: bool = "off", flag(), build, "",
             "count covering triangles per pixel (additive, no depth test): the coverage test's target";
+        capture: bool = "off", flag(), build, "",
+            "also append every emitted PC triangle to a storage buffer (tests: compared with the CPU's)";
     }
     impl {
         fn defines(&self) -> Vec<(&'static str, &'static str)> {
@@ -80,7 +82,8 @@ crate::settings! {
     }
 }
 
-pub const OPTIONS: &[OptionSpec] = Settings::OPTIONS;
+/// The options of `hm-cpu` and `hm-compute`; `hm-gpu` offers `capture` too.
+pub const OPTIONS: &[OptionSpec] = &pick(Settings::OPTIONS, ["lod_error", "level", "colour", "coverage"]);
 
 /// What the terrain methods register once: no image reference (they measure
 /// their own height error), and one tessellation placed three ways.
@@ -182,35 +185,65 @@ pub fn top_down(model: &HybridModel, lo: f64, hi: f64) -> Camera {
     }
 }
 
-/// A terrain pipeline's key: the shared fragment stage (shaded, or the
-/// coverage count), blend and depth by `settings`; the vertex input is one
-/// 16-byte attribute (a position, or a PC-list entry).
-pub fn mesh_key(
-    settings: &Settings,
-    vertex: ShaderKey,
-    geometry: Option<ShaderKey>,
-    attribute: VertexAttribute,
-    topology: Topology,
-    sets: Vec<DescriptorSetDesc>,
-) -> PipelineKey {
-    PipelineKey::Graphics(GraphicsPipelineKey {
-        vertex,
-        geometry,
-        fragment: ShaderKey::new("terrain/mesh.frag", ShaderStage::Fragment, &settings.defines()),
-        state: GraphicsState {
-            vertex_stride: 16,
-            attributes: vec![attribute],
-            topology,
-            primitive_restart: false,
-            cull: Cull::None,
-            front_face: Winding::CounterClockwise,
-            targets: vec![ColorTarget::rgba32f(if settings.coverage { Blend::Additive } else { Blend::None })],
-            depth_test: !settings.coverage,
-            depth_clamp: false,
-        },
-        push_constant_bytes: PUSH_BYTES,
-        sets,
-    })
+/// The family's pipeline keys, all made here from the settings (and the
+/// device's facts hm-gpu's geometry stage is compiled for).
+impl Settings {
+    /// A drawing pipeline's key: the shared fragment stage (shaded, or the
+    /// coverage count), blend and depth by the settings; the vertex input is
+    /// one 16-byte attribute (a position, or a PC-list entry).
+    fn draw_key(&self, vertex: ShaderKey, geometry: Option<ShaderKey>, attribute: VertexAttribute, topology: Topology, sets: Vec<DescriptorSetDesc>) -> PipelineKey {
+        PipelineKey::Graphics(GraphicsPipelineKey {
+            vertex,
+            geometry,
+            fragment: ShaderKey::new("terrain/mesh.frag", ShaderStage::Fragment, &self.defines()),
+            state: GraphicsState {
+                vertex_stride: 16,
+                attributes: vec![attribute],
+                topology,
+                primitive_restart: false,
+                cull: Cull::None,
+                front_face: Winding::CounterClockwise,
+                targets: vec![ColorTarget::rgba32f(if self.coverage { Blend::Additive } else { Blend::None })],
+                depth_test: !self.coverage,
+                depth_clamp: false,
+            },
+            push_constant_bytes: PUSH_BYTES,
+            sets,
+        })
+    }
+
+    /// The triangles every method draws from the geometry buffer (NC cells,
+    /// TINs, skirts, and hm-cpu's and hm-compute's PC triangles).
+    pub fn mesh_key(&self) -> PipelineKey {
+        let position = VertexAttribute { location: 0, format: Format::Rgba32Float, offset: 0 };
+        self.draw_key(ShaderKey::new("terrain/mesh.vert", ShaderStage::Vertex, &[]), None, position, Topology::TriangleList, vec![])
+    }
+
+    /// hm-gpu's PC cells: a point per PC-list entry, tessellated by the
+    /// geometry stage, which emits at most `max_tris` triangles (the
+    /// device's bound) and, with `capture`, appends them to a buffer; its
+    /// tables at set 0.
+    pub fn pc_geometry_key(&self, max_tris: u32, tables: DescriptorSetDesc) -> PipelineKey {
+        let max_tris = max_tris.to_string();
+        let mut defines = vec![("MAX_TRIS", max_tris.as_str())];
+        if self.capture {
+            defines.push(("CAPTURE", "1"));
+        }
+        let entry = VertexAttribute { location: 0, format: Format::Rgba32Uint, offset: 0 };
+        self.draw_key(
+            ShaderKey::new("terrain/pc.vert", ShaderStage::Vertex, &[]),
+            Some(ShaderKey::new("terrain/pc.geom", ShaderStage::Geometry, &defines)),
+            entry,
+            Topology::PointList,
+            vec![tables],
+        )
+    }
+}
+
+/// hm-compute's tessellation pass (no option changes it): its tables at
+/// set 0, `push_bytes` of push constants (`compute::TessPush`).
+pub fn pc_compute_key(tables: DescriptorSetDesc, push_bytes: u32) -> PipelineKey {
+    PipelineKey::Compute(ComputePipelineKey { shader: ShaderKey::new("terrain/pc.comp", ShaderStage::Compute, &[]), push_constant_bytes: push_bytes, sets: vec![tables] })
 }
 
 /// What a frame draws, chosen on the CPU.
@@ -285,14 +318,7 @@ impl TerrainScene {
         let idx = bytes_of(&all);
         let mut static_indices = Buffer::new(ctx, BufferDesc::upload("terrain static indices", idx.len() as u64, BufferUsage::INDEX))?;
         static_indices.write(0, idx, counter, UploadClass::Static)?;
-        let key = mesh_key(
-            &settings,
-            ShaderKey::new("terrain/mesh.vert", ShaderStage::Vertex, &[]),
-            None,
-            VertexAttribute { location: 0, format: Format::Rgba32Float, offset: 0 },
-            Topology::TriangleList,
-            vec![],
-        );
+        let key = settings.mesh_key();
         let pipeline = crate::algo::pipelines::get(ctx, &key)?;
         let depth = if settings.coverage { None } else { Some(Image::depth_target(ctx, "terrain depth", width, height)?) };
         let range = map.range();

@@ -216,6 +216,69 @@ crate::settings! {
 
 pub const OPTIONS: &[OptionSpec] = Settings::OPTIONS;
 
+/// What the walk is compiled for beside the settings: facts of the mesh
+/// and of how it lies on the device.
+struct WalkFacts {
+    /// Constant cells (`mesh::cell_data`): each tet has its own copies of
+    /// the points; the walk renames the carried face to the next cell's
+    /// copies and takes that cell's value (walk.comp, CELL_CONSTANT).
+    cell_constant: bool,
+    /// How the points and per-cell arrays are split (`algo::chunks`).
+    chunks: Vec<(String, String)>,
+}
+
+/// The descriptor-set layouts the walk binds, in set order: the tables,
+/// the mesh, the target, and the tile lists when it searches them.
+struct WalkSets {
+    tables: DescriptorSetDesc,
+    mesh: DescriptorSetDesc,
+    target: DescriptorSetDesc,
+    lists: DescriptorSetDesc,
+}
+
+impl Settings {
+    /// The walk's shader defines, the one place they are made: the
+    /// build-time options, the workgroup, the mesh's facts, then the
+    /// variant's: the per-tile face lists (`lists`) and adaptive refinement
+    /// (its set's index).
+    fn walk_defines(&self, facts: &WalkFacts, lists: bool, adaptive_set: Option<usize>) -> Vec<(String, String)> {
+        let owned = |(k, v): (&str, &str)| (k.to_string(), v.to_string());
+        let mut d: Vec<(String, String)> = self.defines().into_iter().map(owned).collect();
+        d.push(("WG_X".into(), WORKGROUP[0].to_string()));
+        d.push(("WG_Y".into(), WORKGROUP[1].to_string()));
+        if facts.cell_constant {
+            d.push(owned(("CELL_CONSTANT", "1")));
+        }
+        d.extend(facts.chunks.iter().cloned());
+        if lists {
+            d.extend([owned(("TILE_LISTS", "1")), ("TILE_W".into(), TILE[0].to_string()), ("TILE_H".into(), TILE[1].to_string())]);
+        }
+        if let Some(set) = adaptive_set {
+            d.extend([owned(("ADAPTIVE", "1")), ("ADAPTIVE_SET".into(), set.to_string())]);
+        }
+        d
+    }
+
+    /// The key of the walk's variant: searching the tile lists (set 3) or
+    /// the BVH, and with adaptive refinement's set (`adaptive`) after the
+    /// others.
+    fn walk_key(&self, facts: &WalkFacts, sets: &WalkSets, lists: bool, adaptive: Option<&DescriptorSetDesc>) -> PipelineKey {
+        let mut descs = vec![sets.tables.clone(), sets.mesh.clone(), sets.target.clone()];
+        if lists {
+            descs.push(sets.lists.clone());
+        }
+        let adaptive_set = adaptive.map(|_| descs.len());
+        descs.extend(adaptive.cloned());
+        let defines = self.walk_defines(facts, lists, adaptive_set);
+        let defines: Vec<(&str, &str)> = defines.iter().map(|(k, v)| (k.as_str(), v.as_str())).collect();
+        PipelineKey::Compute(ComputePipelineKey {
+            shader: ShaderKey::new("tet_raycast/walk.comp", ShaderStage::Compute, &defines),
+            push_constant_bytes: PUSH_BYTES,
+            sets: descs,
+        })
+    }
+}
+
 pub const METHOD: MethodInfo = MethodInfo {
     name: "tet-raycast",
     data: DataKind::TetMesh,
@@ -538,227 +601,21 @@ impl TetRaycast {
         counter: &mut UploadCounter,
     ) -> Result<Self> {
         let n = mesh.tets.len();
-        // Face slots 4 c + f and vertex indices leave the top bit free for
-        // the solid flag (SOLID_BIT in walk.comp).
-        if (n as u64) * 4 > u64::from(!SOLID_BIT) {
-            bail!("mesh '{}': {n} cells are too many for 31-bit face slots", mesh.name);
-        }
-        if mesh.points.len() as u64 > u64::from(!SOLID_BIT) {
-            bail!("mesh '{}': {} points are too many for 31-bit vertex indices", mesh.name, mesh.points.len());
-        }
-        // The per-point and per-cell arrays are split at the device's
-        // limits (`algo::chunks`); their total is checked against its memory.
-        let info = &ctx.info;
-        let (memory, what) = crate::algo::chunks::device_memory_bound(info);
-        crate::mesh::check_fits(n, 16 + 16 + 4 + 4 * 4 + 32, memory)
-            .with_context(|| format!("mesh '{}' on {}: device memory ({what})", mesh.name, info.name))?;
-        let limits = ChunkLimits::of(ctx)?;
-        let length_scale = mesh.bounds().diagonal() / (n.max(1) as f64).cbrt();
-        let tables = IntegrationTables::for_stages(
-            ctx,
-            tf,
-            mesh.scalar_range(),
-            settings.integrator,
-            settings.table_size,
-            length_scale,
-            Stages::COMPUTE,
-            counter,
-        )
-        .context("building the integration tables")?;
+        check_mesh_fits(ctx, mesh)?;
+        let tables = integration_tables(ctx, mesh, tf, &settings, counter)?;
         let mut topo = Topology::build(mesh);
-
-        // Points relative to the render origin and scalars mapped, in f64
-        // before the f32 conversion (as every tetrahedral method sends them).
-        let origin = render_origin(mesh);
-        let (so, ss) = scalar_map(mesh);
-        let points: Vec<[f32; 4]> = mesh
-            .points
-            .iter()
-            .zip(&mesh.scalars)
-            .map(|(p, s)| [(p[0] - origin[0]) as f32, (p[1] - origin[1]) as f32, (p[2] - origin[2]) as f32, ((s - so) / ss) as f32])
-            .collect();
-        let solid_bit = |c: usize| if topo.solid[c] { SOLID_BIT } else { 0 };
-        let cells: Vec<[u32; 4]> = mesh.tets.iter().enumerate().map(|(c, t)| [t[0], t[1], t[2], t[3] | solid_bit(c)]).collect();
-        // A point's position as the shader holds it.
-        let xyz = |i: u32| {
-            let p = points[i as usize];
-            [p[0], p[1], p[2]]
-        };
-        // A boundary face's corners and its cell's fourth vertex.
-        let corners = |slot: u32| face_corners(&mesh.tets, slot, xyz);
-        let faces: Vec<(u32, [[f32; 3]; 3])> = topo.boundary.iter().map(|&slot| (slot, corners(slot).0)).collect();
-        let mut boundary_vertices: Vec<u32> = topo.boundary.iter().flat_map(|&slot| face_vertices(&mesh.tets, slot)).collect();
-        boundary_vertices.sort_unstable();
-        boundary_vertices.dedup();
-        let boundary_points: Vec<[f64; 3]> = boundary_vertices.iter().map(|&i| mesh.points[i as usize]).collect();
-        let boundary_points_shader: Vec<[f32; 3]> = boundary_vertices.iter().map(|&i| xyz(i)).collect();
-        let diag = mesh.bounds().diagonal();
-        let pad = (1e-5 * diag) as f32;
-        let bvh = build_face_bvh(&faces, pad);
-        if bvh.depth > MAX_BVH_DEPTH {
-            bail!("mesh '{}': boundary-face BVH {} levels deep, more than the shader's {MAX_BVH_DEPTH}", mesh.name, bvh.depth);
-        }
-        // The traversal stack holds a node's link and count in one word.
-        if bvh.nodes.len().max(bvh.prims.len()) as u64 >= 1u64 << (32 - LINK_SHIFT) {
-            bail!("mesh '{}': boundary-face BVH of {} nodes over {} faces is too large for the shader's node links", mesh.name, bvh.nodes.len(), bvh.prims.len());
-        }
-
-        // Everything the shader reads per ray (points, cells with their
-        // solid flags, neighbours, the BVH and its face list) is in storage
-        // texel buffers: one inlined imageLoad per lookup, where a
-        // storage-buffer load with a per-ray index is, on llvmpipe, a loop
-        // over the SIMD lanes per component, and a texelFetch a call
-        // (integrate.rs). The BVH nodes are uint texels (their float boxes
-        // pass as bits).
-        // Each array in texel buffers within the device's limits; the two
-        // per-cell arrays share one chunk length (the shader's CELL_PER_CHUNK),
-        // that of the 16-byte texels.
-        let per_point = limits.texel_chunk(16, 1);
-        let per_cell = limits.texel_chunk(16, 1);
-        // A boundary face on the convex hull keeps NONE (the walk ends there);
-        // the others become REENTER (the ray may meet the mesh again).
-        let on_hull = hull_faces(&topo.boundary, corners, &bvh, pad, 1e-6 * diag);
-        let hull_faces_count = on_hull.iter().filter(|&&h| h).count();
-        for (&slot, hull) in topo.boundary.iter().zip(on_hull) {
-            if !hull {
-                topo.neighbor[slot as usize] = REENTER;
-            }
-        }
-        let neighbours: &[[u32; 4]] = bytemuck::cast_slice(&topo.neighbor);
-        let chunked = [
-            TexelChunks::upload_slice(ctx, "tet-raycast points", &points, Format::Rgba32Float, per_point, counter)?,
-            TexelChunks::upload_slice(ctx, "tet-raycast cells", &cells, Format::Rgba32Uint, per_cell, counter)?,
-            TexelChunks::upload_slice(ctx, "tet-raycast neighbours", neighbours, Format::Rgba32Uint, per_cell, counter)?,
-        ];
-        let device_chunks = json!({
-            "point_buffers": chunked[0].buffers.len(),
-            "points_per_buffer": chunked[0].per_chunk,
-            "buffers_per_cell_array": chunked[1].buffers.len(),
-            "cells_per_buffer": chunked[1].per_chunk,
-        });
-        let chunk_defines: Vec<(String, String)> = chunked[0].defines("POINT").into_iter().chain(chunked[1].defines("CELL")).collect();
-        // Chunk 0 of each array at bindings 0-2, the others from binding 6
-        // on (walk.comp).
-        let (firsts, rests): (Vec<TexelBuffer>, Vec<Vec<TexelBuffer>>) = chunked
-            .into_iter()
-            .map(|c| {
-                let mut buffers = c.buffers;
-                let first = buffers.remove(0);
-                (first, buffers)
-            })
-            .unzip();
-        let extra: Vec<TexelBuffer> = rests.into_iter().flatten().collect();
-        // The BVH and its face list in one texel buffer each (the shader
-        // declares no chunks for them: a BVH that large would need more
-        // boundary faces than any mesh that fits the device).
-        let node_texels: &[[u32; 4]] = bytemuck::cast_slice(&bvh.nodes);
-        let face_texels: Vec<[u32; 4]> = bvh
-            .prims
-            .iter()
-            .map(|&slot| {
-                let [a, b, d] = face_vertices(&mesh.tets, slot);
-                [slot | solid_bit((slot >> 2) as usize), a, b, d]
-            })
-            .collect();
-        let bvh_buffers = [
-            TexelChunks::upload_slice(ctx, "tet-raycast boundary BVH", node_texels, Format::Rgba32Uint, limits.texel_chunk(16, 1), counter)?,
-            TexelChunks::upload_slice(ctx, "tet-raycast boundary faces", &face_texels, Format::Rgba32Uint, limits.texel_chunk(16, 1), counter)?,
-        ];
-        let mut bvh_texel_buffers = Vec::with_capacity(2);
-        for chunks in bvh_buffers {
-            if chunks.buffers.len() > 1 {
-                bail!(
-                    "mesh '{}': the boundary-face BVH ({} nodes, {} faces) is larger than one texel buffer of the device ({} elements)",
-                    mesh.name,
-                    bvh.nodes.len(),
-                    bvh.prims.len(),
-                    chunks.per_chunk
-                );
-            }
-            bvh_texel_buffers.extend(chunks.buffers);
-        }
-        let counters = Buffer::new(ctx, BufferDesc::counters("tet-raycast counters", COUNTER_WORDS))?;
-        let compute = Stages::COMPUTE;
-        let mut mesh_desc = DescriptorSetDesc::new(&[(DescriptorKind::StorageTexelBuffer, compute); 5]).with(DescriptorKind::StorageBuffer, compute);
-        for _ in &extra {
-            mesh_desc = mesh_desc.with(DescriptorKind::StorageTexelBuffer, compute);
-        }
-        let resources: Vec<DescriptorResource> = firsts
-            .iter()
-            .chain(&bvh_texel_buffers)
-            .map(DescriptorResource::StorageTexelBuffer)
-            .chain(std::iter::once(DescriptorResource::StorageBuffer(&counters)))
-            .chain(extra.iter().map(DescriptorResource::StorageTexelBuffer))
-            .collect();
-        let mesh_set = DescriptorSet::new(ctx, "tet-raycast mesh", &mesh_desc, &resources)?;
+        let shader_mesh = ShaderMesh::of(mesh, &topo);
+        let boundary = Boundary::build(mesh, &shader_mesh, &mut topo)?;
+        let mesh_set = MeshSet::upload(ctx, mesh, &shader_mesh, &topo, &boundary.bvh, counter)?;
         let target_set = TargetImageSet::new("tet-raycast target", Stages::COMPUTE);
-        let wg = WORKGROUP.map(|v| v.to_string());
-        let mut defines: Vec<(&str, &str)> = settings.defines();
-        defines.push(("WG_X", &wg[0]));
-        defines.push(("WG_Y", &wg[1]));
-        // Constant cells (`mesh::cell_data`): each tet has its own copies of
-        // the points; the walk renames the carried face to the next cell's
-        // copies and takes that cell's value (walk.comp, CELL_CONSTANT).
-        if !mesh.stats.vertex_origin.is_empty() {
-            defines.push(("CELL_CONSTANT", "1"));
-        }
-        defines.extend(chunk_defines.iter().map(|(k, v)| (k.as_str(), v.as_str())));
-        let key = PipelineKey::Compute(ComputePipelineKey {
-            shader: ShaderKey::new("tet_raycast/walk.comp", ShaderStage::Compute, &defines),
-            push_constant_bytes: PUSH_BYTES,
-            sets: vec![tables.set.desc.clone(), mesh_desc.clone(), target_set.desc.clone()],
-        });
-        let mesh_desc_lists = mesh_desc.clone();
-        let mesh_desc_adaptive = mesh_desc;
+        let facts = WalkFacts { cell_constant: !mesh.stats.vertex_origin.is_empty(), chunks: mesh_set.chunk_defines.clone() };
+        let lists = TileListSet::new(ctx)?;
+        let sets = WalkSets { tables: tables.set.desc.clone(), mesh: mesh_set.desc.clone(), target: target_set.desc.clone(), lists: lists.desc.clone() };
+        let key = settings.walk_key(&facts, &sets, false, None);
         let pipeline = crate::algo::pipelines::get(ctx, &key)?;
-        // The same shader searching per-tile face lists (set 3).
-        let tile_w = TILE[0].to_string();
-        let tile_h = TILE[1].to_string();
-        let mut list_defines = defines.clone();
-        list_defines.extend([("TILE_LISTS", "1"), ("TILE_W", tile_w.as_str()), ("TILE_H", tile_h.as_str())]);
-        let lists_desc = DescriptorSetDesc::new(&[(DescriptorKind::StorageTexelBuffer, compute); 2]);
-        let key_lists = PipelineKey::Compute(ComputePipelineKey {
-            shader: ShaderKey::new("tet_raycast/walk.comp", ShaderStage::Compute, &list_defines),
-            push_constant_bytes: PUSH_BYTES,
-            sets: vec![tables.set.desc.clone(), mesh_desc_lists, target_set.desc.clone(), lists_desc.clone()],
-        });
-        let pipeline_lists = crate::algo::pipelines::get(ctx, &key_lists)?;
-        let tile_first = frame_texels(ctx, "tet-raycast tile starts", 1, 4, Format::R32Uint)?;
-        let tile_entries = frame_texels(ctx, "tet-raycast tile faces", 1, 4, Format::R32Uint)?;
-        let lists_set = DescriptorSet::new(ctx, "tet-raycast tile lists", &lists_desc, &[DescriptorResource::StorageTexelBuffer(&tile_first), DescriptorResource::StorageTexelBuffer(&tile_entries)])?;
-        // Per face of the shader's face list: its corners among the boundary
-        // points and its cell's solidity.
-        let boundary_index = |v: u32| boundary_vertices.binary_search(&v).map(|i| i as u32).map_err(|_| anyhow::anyhow!("boundary vertex {v} not indexed"));
-        let mut tile_faces = tiles::Faces { corners: Vec::with_capacity(bvh.prims.len()), solid: Vec::with_capacity(bvh.prims.len()) };
-        for &slot in &bvh.prims {
-            let [a, b, d] = face_vertices(&mesh.tets, slot);
-            tile_faces.corners.push([boundary_index(a)?, boundary_index(b)?, boundary_index(d)?]);
-            tile_faces.solid.push(topo.solid[(slot >> 2) as usize]);
-        }
-        let adaptive = if settings.adaptive > 0.0 {
-            let state = Adaptive::new(ctx, "tet-raycast", settings.adaptive, width, height, true)?;
-            let mut pipes = Vec::with_capacity(2);
-            for (defs, mut sets) in [
-                (&defines, vec![tables.set.desc.clone(), mesh_desc_adaptive.clone(), target_set.desc.clone()]),
-                (&list_defines, vec![tables.set.desc.clone(), mesh_desc_adaptive.clone(), target_set.desc.clone(), lists_desc.clone()]),
-            ] {
-                let set_index = sets.len().to_string();
-                sets.push(state.desc.clone());
-                let mut d = defs.clone();
-                d.extend([("ADAPTIVE", "1"), ("ADAPTIVE_SET", set_index.as_str())]);
-                let key = PipelineKey::Compute(ComputePipelineKey {
-                    shader: ShaderKey::new("tet_raycast/walk.comp", ShaderStage::Compute, &d),
-                    push_constant_bytes: PUSH_BYTES,
-                    sets,
-                });
-                pipes.push(crate::algo::pipelines::get(ctx, &key)?);
-            }
-            let pipeline_lists = pipes.pop().expect("two pipelines");
-            let pipeline = pipes.pop().expect("two pipelines");
-            Some(AdaptiveWalk { state, pipeline, pipeline_lists, edges: BoundaryEdges::new(&tile_faces), active: false })
-        } else {
-            None
-        };
+        let pipeline_lists = crate::algo::pipelines::get(ctx, &settings.walk_key(&facts, &sets, true, None))?;
+        let tile_faces = tile_faces(mesh, &topo, &boundary)?;
+        let adaptive = AdaptiveWalk::new(ctx, &settings, &facts, &sets, [width, height], &tile_faces)?;
         let mut scene_memory = HostMemory::default();
         scene_memory.scene_mesh(mesh);
         Ok(TetRaycast {
@@ -767,9 +624,9 @@ impl TetRaycast {
             tables,
             scale: MeshScale::of(mesh),
             settings,
-            mesh_set,
-            _texel_buffers: firsts.into_iter().chain(bvh_texel_buffers).chain(extra).collect(),
-            counters,
+            mesh_set: mesh_set.set,
+            _texel_buffers: mesh_set.buffers,
+            counters: mesh_set.counters,
             pipeline,
             key,
             target_set,
@@ -777,21 +634,21 @@ impl TetRaycast {
             pixels: u64::from(width) * u64::from(height),
             cells: n,
             boundary_faces: topo.boundary.len(),
-            hull_faces: hull_faces_count,
-            boundary_points,
-            boundary_points_shader,
+            hull_faces: boundary.hull_faces,
+            boundary_points: boundary.points,
+            boundary_points_shader: boundary.points_shader,
             rect: crate::algo::screen::NO_PIXELS,
             rect_pixels: 0,
             tile_faces,
             lists: TileLists::default(),
             lists_active: false,
             pipeline_lists,
-            lists_set,
-            tile_first,
-            tile_entries,
-            bvh_nodes: bvh.nodes.len(),
-            bvh_depth: bvh.depth,
-            device_chunks,
+            lists_set: lists.set,
+            tile_first: lists.first,
+            tile_entries: lists.entries,
+            bvh_nodes: boundary.bvh.nodes.len(),
+            bvh_depth: boundary.bvh.depth,
+            device_chunks: mesh_set.chunks,
             step_budget: n as u64 + STEP_MARGIN,
             ctx: ctx.clone(),
         })
@@ -835,6 +692,268 @@ impl TetRaycast {
     }
 }
 
+/// Refuses a mesh whose face slots or vertex indices would reach the solid
+/// flag's bit, or whose arrays exceed the device's memory.
+fn check_mesh_fits(ctx: &Context, mesh: &TetMesh) -> Result<()> {
+    let n = mesh.tets.len();
+    // Face slots 4 c + f and vertex indices leave the top bit free for
+    // the solid flag (SOLID_BIT in walk.comp).
+    if (n as u64) * 4 > u64::from(!SOLID_BIT) {
+        bail!("mesh '{}': {n} cells are too many for 31-bit face slots", mesh.name);
+    }
+    if mesh.points.len() as u64 > u64::from(!SOLID_BIT) {
+        bail!("mesh '{}': {} points are too many for 31-bit vertex indices", mesh.name, mesh.points.len());
+    }
+    // The per-point and per-cell arrays are split at the device's
+    // limits (`algo::chunks`); their total is checked against its memory.
+    let info = &ctx.info;
+    let (memory, what) = crate::algo::chunks::device_memory_bound(info);
+    crate::mesh::check_fits(n, 16 + 16 + 4 + 4 * 4 + 32, memory)
+        .with_context(|| format!("mesh '{}' on {}: device memory ({what})", mesh.name, info.name))?;
+    Ok(())
+}
+
+/// The integration tables, for the compute stage, at the mesh's length scale.
+fn integration_tables(
+    ctx: &Arc<Context>,
+    mesh: &TetMesh,
+    tf: &crate::scene::TransferFunction,
+    settings: &Settings,
+    counter: &mut UploadCounter,
+) -> Result<IntegrationTables> {
+    let length_scale = mesh.bounds().diagonal() / (mesh.tets.len().max(1) as f64).cbrt();
+    IntegrationTables::for_stages(ctx, tf, mesh.scalar_range(), settings.integrator, settings.table_size, length_scale, Stages::COMPUTE, counter)
+        .context("building the integration tables")
+}
+
+/// The top bit of cell `c`'s fourth vertex: [`SOLID_BIT`] when it is solid.
+fn solid_bit(topo: &Topology, c: usize) -> u32 {
+    if topo.solid[c] {
+        SOLID_BIT
+    } else {
+        0
+    }
+}
+
+/// The mesh's points and cells as the walk reads them.
+struct ShaderMesh {
+    /// Relative to the render origin, the scalar mapped, in f64 before the
+    /// f32 conversion (as every tetrahedral method sends them).
+    points: Vec<[f32; 4]>,
+    /// The vertex indices, the fourth with the cell's solid flag.
+    cells: Vec<[u32; 4]>,
+}
+
+impl ShaderMesh {
+    fn of(mesh: &TetMesh, topo: &Topology) -> ShaderMesh {
+        let origin = render_origin(mesh);
+        let (so, ss) = scalar_map(mesh);
+        let points = mesh
+            .points
+            .iter()
+            .zip(&mesh.scalars)
+            .map(|(p, s)| [(p[0] - origin[0]) as f32, (p[1] - origin[1]) as f32, (p[2] - origin[2]) as f32, ((s - so) / ss) as f32])
+            .collect();
+        let cells = mesh.tets.iter().enumerate().map(|(c, t)| [t[0], t[1], t[2], t[3] | solid_bit(topo, c)]).collect();
+        ShaderMesh { points, cells }
+    }
+
+    /// Point `i`'s position as the shader holds it.
+    fn xyz(&self, i: u32) -> [f32; 3] {
+        let p = self.points[i as usize];
+        [p[0], p[1], p[2]]
+    }
+}
+
+/// The boundary as the entry search and the per-frame projection see it.
+struct Boundary {
+    /// The boundary faces' vertices, ascending.
+    vertices: Vec<u32>,
+    /// Their positions: world coordinates, and as the shader holds them.
+    points: Vec<[f64; 3]>,
+    points_shader: Vec<[f32; 3]>,
+    bvh: FaceBvh,
+    /// Boundary faces on the convex hull ([`hull_faces`]).
+    hull_faces: usize,
+}
+
+impl Boundary {
+    /// The boundary of `topo`'s mesh, its BVH checked against the shader's
+    /// bounds; marks in `topo` the boundary faces off the convex hull as
+    /// ones the ray may re-enter after ([`REENTER`]).
+    fn build(mesh: &TetMesh, shader: &ShaderMesh, topo: &mut Topology) -> Result<Boundary> {
+        // A boundary face's corners and its cell's fourth vertex.
+        let corners = |slot: u32| face_corners(&mesh.tets, slot, |i| shader.xyz(i));
+        let faces: Vec<(u32, [[f32; 3]; 3])> = topo.boundary.iter().map(|&slot| (slot, corners(slot).0)).collect();
+        let mut vertices: Vec<u32> = topo.boundary.iter().flat_map(|&slot| face_vertices(&mesh.tets, slot)).collect();
+        vertices.sort_unstable();
+        vertices.dedup();
+        let points = vertices.iter().map(|&i| mesh.points[i as usize]).collect();
+        let points_shader = vertices.iter().map(|&i| shader.xyz(i)).collect();
+        let diag = mesh.bounds().diagonal();
+        let pad = (1e-5 * diag) as f32;
+        let bvh = build_face_bvh(&faces, pad);
+        if bvh.depth > MAX_BVH_DEPTH {
+            bail!("mesh '{}': boundary-face BVH {} levels deep, more than the shader's {MAX_BVH_DEPTH}", mesh.name, bvh.depth);
+        }
+        // The traversal stack holds a node's link and count in one word.
+        if bvh.nodes.len().max(bvh.prims.len()) as u64 >= 1u64 << (32 - LINK_SHIFT) {
+            bail!("mesh '{}': boundary-face BVH of {} nodes over {} faces is too large for the shader's node links", mesh.name, bvh.nodes.len(), bvh.prims.len());
+        }
+        // A boundary face on the convex hull keeps NONE (the walk ends there);
+        // the others become REENTER (the ray may meet the mesh again).
+        let on_hull = hull_faces(&topo.boundary, corners, &bvh, pad, 1e-6 * diag);
+        let hull_count = on_hull.iter().filter(|&&h| h).count();
+        for (&slot, hull) in topo.boundary.iter().zip(on_hull) {
+            if !hull {
+                topo.neighbor[slot as usize] = REENTER;
+            }
+        }
+        Ok(Boundary { vertices, points, points_shader, bvh, hull_faces: hull_count })
+    }
+}
+
+/// The mesh on the device: its arrays in texel buffers, the counters, the
+/// descriptor set holding them, and how the arrays were split.
+struct MeshSet {
+    set: DescriptorSet,
+    desc: DescriptorSetDesc,
+    /// Chunk 0 of each array, the BVH's two, then the other chunks.
+    buffers: Vec<TexelBuffer>,
+    counters: Buffer,
+    /// `details.device_chunks`.
+    chunks: serde_json::Value,
+    /// The chunking's shader defines (`POINT_*`, `CELL_*`).
+    chunk_defines: Vec<(String, String)>,
+}
+
+impl MeshSet {
+    // Everything the shader reads per ray (points, cells with their solid
+    // flags, neighbours, the BVH and its face list) is in storage texel
+    // buffers: one inlined imageLoad per lookup, where a storage-buffer load
+    // with a per-ray index is, on llvmpipe, a loop over the SIMD lanes per
+    // component, and a texelFetch a call (integrate.rs). The BVH nodes are
+    // uint texels (their float boxes pass as bits).
+    fn upload(ctx: &Arc<Context>, mesh: &TetMesh, shader: &ShaderMesh, topo: &Topology, bvh: &FaceBvh, counter: &mut UploadCounter) -> Result<MeshSet> {
+        let limits = ChunkLimits::of(ctx)?;
+        // Each array in texel buffers within the device's limits; the two
+        // per-cell arrays share one chunk length (the shader's CELL_PER_CHUNK),
+        // that of the 16-byte texels.
+        let per_point = limits.texel_chunk(16, 1);
+        let per_cell = limits.texel_chunk(16, 1);
+        let neighbours: &[[u32; 4]] = bytemuck::cast_slice(&topo.neighbor);
+        let chunked = [
+            TexelChunks::upload_slice(ctx, "tet-raycast points", &shader.points, Format::Rgba32Float, per_point, counter)?,
+            TexelChunks::upload_slice(ctx, "tet-raycast cells", &shader.cells, Format::Rgba32Uint, per_cell, counter)?,
+            TexelChunks::upload_slice(ctx, "tet-raycast neighbours", neighbours, Format::Rgba32Uint, per_cell, counter)?,
+        ];
+        let chunks = json!({
+            "point_buffers": chunked[0].buffers.len(),
+            "points_per_buffer": chunked[0].per_chunk,
+            "buffers_per_cell_array": chunked[1].buffers.len(),
+            "cells_per_buffer": chunked[1].per_chunk,
+        });
+        let chunk_defines = chunked[0].defines("POINT").into_iter().chain(chunked[1].defines("CELL")).collect();
+        // Chunk 0 of each array at bindings 0-2, the others from binding 6
+        // on (walk.comp).
+        let (firsts, rests): (Vec<TexelBuffer>, Vec<Vec<TexelBuffer>>) = chunked
+            .into_iter()
+            .map(|c| {
+                let mut buffers = c.buffers;
+                let first = buffers.remove(0);
+                (first, buffers)
+            })
+            .unzip();
+        let extra: Vec<TexelBuffer> = rests.into_iter().flatten().collect();
+        let bvh_buffers = upload_bvh(ctx, mesh, topo, bvh, &limits, counter)?;
+        let counters = Buffer::new(ctx, BufferDesc::counters("tet-raycast counters", COUNTER_WORDS))?;
+        let compute = Stages::COMPUTE;
+        let mut desc = DescriptorSetDesc::new(&[(DescriptorKind::StorageTexelBuffer, compute); 5]).with(DescriptorKind::StorageBuffer, compute);
+        for _ in &extra {
+            desc = desc.with(DescriptorKind::StorageTexelBuffer, compute);
+        }
+        let resources: Vec<DescriptorResource> = firsts
+            .iter()
+            .chain(&bvh_buffers)
+            .map(DescriptorResource::StorageTexelBuffer)
+            .chain(std::iter::once(DescriptorResource::StorageBuffer(&counters)))
+            .chain(extra.iter().map(DescriptorResource::StorageTexelBuffer))
+            .collect();
+        let set = DescriptorSet::new(ctx, "tet-raycast mesh", &desc, &resources)?;
+        let buffers = firsts.into_iter().chain(bvh_buffers).chain(extra).collect();
+        Ok(MeshSet { set, desc, buffers, counters, chunks, chunk_defines })
+    }
+}
+
+/// The BVH and its face list (slot with the solid flag, three vertex
+/// indices) in one texel buffer each: the shader declares no chunks for
+/// them (a BVH that large would need more boundary faces than any mesh
+/// that fits the device).
+fn upload_bvh(ctx: &Arc<Context>, mesh: &TetMesh, topo: &Topology, bvh: &FaceBvh, limits: &ChunkLimits, counter: &mut UploadCounter) -> Result<Vec<TexelBuffer>> {
+    let node_texels: &[[u32; 4]] = bytemuck::cast_slice(&bvh.nodes);
+    let face_texels: Vec<[u32; 4]> = bvh
+        .prims
+        .iter()
+        .map(|&slot| {
+            let [a, b, d] = face_vertices(&mesh.tets, slot);
+            [slot | solid_bit(topo, (slot >> 2) as usize), a, b, d]
+        })
+        .collect();
+    let uploads = [
+        TexelChunks::upload_slice(ctx, "tet-raycast boundary BVH", node_texels, Format::Rgba32Uint, limits.texel_chunk(16, 1), counter)?,
+        TexelChunks::upload_slice(ctx, "tet-raycast boundary faces", &face_texels, Format::Rgba32Uint, limits.texel_chunk(16, 1), counter)?,
+    ];
+    let mut buffers = Vec::with_capacity(2);
+    for chunks in uploads {
+        if chunks.buffers.len() > 1 {
+            bail!(
+                "mesh '{}': the boundary-face BVH ({} nodes, {} faces) is larger than one texel buffer of the device ({} elements)",
+                mesh.name,
+                bvh.nodes.len(),
+                bvh.prims.len(),
+                chunks.per_chunk
+            );
+        }
+        buffers.extend(chunks.buffers);
+    }
+    Ok(buffers)
+}
+
+/// The per-frame tile lists' buffers (grown as a frame needs) and their
+/// set (set 3 of the walk that searches them).
+struct TileListSet {
+    first: TexelBuffer,
+    entries: TexelBuffer,
+    desc: DescriptorSetDesc,
+    set: DescriptorSet,
+}
+
+impl TileListSet {
+    fn new(ctx: &Arc<Context>) -> Result<TileListSet> {
+        let desc = DescriptorSetDesc::new(&[(DescriptorKind::StorageTexelBuffer, Stages::COMPUTE); 2]);
+        let first = frame_texels(ctx, "tet-raycast tile starts", 1, 4, Format::R32Uint)?;
+        let entries = frame_texels(ctx, "tet-raycast tile faces", 1, 4, Format::R32Uint)?;
+        let resources = [DescriptorResource::StorageTexelBuffer(&first), DescriptorResource::StorageTexelBuffer(&entries)];
+        let set = DescriptorSet::new(ctx, "tet-raycast tile lists", &desc, &resources)?;
+        Ok(TileListSet { first, entries, desc, set })
+    }
+}
+
+/// Per face of the shader's face list (the BVH's order): its corners among
+/// the boundary points and its cell's solidity, what the tile lists and
+/// the silhouettes are made from.
+fn tile_faces(mesh: &TetMesh, topo: &Topology, boundary: &Boundary) -> Result<tiles::Faces> {
+    let index = |v: u32| boundary.vertices.binary_search(&v).map(|i| i as u32).map_err(|_| anyhow::anyhow!("boundary vertex {v} not indexed"));
+    let prims = &boundary.bvh.prims;
+    let mut faces = tiles::Faces { corners: Vec::with_capacity(prims.len()), solid: Vec::with_capacity(prims.len()) };
+    for &slot in prims {
+        let [a, b, d] = face_vertices(&mesh.tets, slot);
+        faces.corners.push([index(a)?, index(b)?, index(d)?]);
+        faces.solid.push(topo.solid[(slot >> 2) as usize]);
+    }
+    Ok(faces)
+}
+
 /// `adaptive=TOL`: the shared refinement state ([`Adaptive`]), the walk
 /// compiled with ADAPTIVE (its set after the others), the boundary's edges
 /// for the silhouettes, and whether this frame refines (the boundary
@@ -846,6 +965,20 @@ struct AdaptiveWalk {
     pipeline_lists: Arc<Pipeline>,
     edges: BoundaryEdges,
     active: bool,
+}
+
+impl AdaptiveWalk {
+    /// With `adaptive=TOL`: the refinement's state and the walk's two
+    /// variants compiled with ADAPTIVE; `None` without.
+    fn new(ctx: &Arc<Context>, settings: &Settings, facts: &WalkFacts, sets: &WalkSets, [width, height]: [u32; 2], faces: &tiles::Faces) -> Result<Option<AdaptiveWalk>> {
+        if settings.adaptive <= 0.0 {
+            return Ok(None);
+        }
+        let state = Adaptive::new(ctx, "tet-raycast", settings.adaptive, width, height, true)?;
+        let pipeline = crate::algo::pipelines::get(ctx, &settings.walk_key(facts, sets, false, Some(&state.desc)))?;
+        let pipeline_lists = crate::algo::pipelines::get(ctx, &settings.walk_key(facts, sets, true, Some(&state.desc)))?;
+        Ok(Some(AdaptiveWalk { state, pipeline, pipeline_lists, edges: BoundaryEdges::new(faces), active: false }))
+    }
 }
 
 /// The counters by name.
