@@ -4,9 +4,10 @@
 //! (field, type, default, allowed values, build or run time, unit, help).
 //! From that one declaration come the option table `volbench list` prints
 //! and specs are parsed against (`OPTIONS`), and the typed struct the
-//! family's methods read ([`MethodSettings::from_options`]); the family says
-//! which options change shader code ([`MethodSettings::defines`], and so the
-//! pipeline key). Closed sets of words are enums declared with
+//! family's methods read ([`MethodSettings::from_options`]); `build` marks
+//! the options that change shader code, whose defines (and so pipeline
+//! keys) the family derives in one place of its own (docs/architecture.md,
+//! "One source of defines and pipeline keys per family"). Closed sets of words are enums declared with
 //! [`choices!`]: the words exist once, in the enum, and the option table
 //! reads them from there ([`choice`]).
 
@@ -111,10 +112,6 @@ pub trait MethodSettings: Sized {
     /// table limit); run on every spec when it is parsed.
     fn check(&self) -> Result<()> {
         Ok(())
-    }
-    /// The shader defines the build-time options make (so the pipeline key).
-    fn defines(&self) -> Vec<(&'static str, &'static str)> {
-        Vec::new()
     }
 }
 
@@ -238,7 +235,7 @@ macro_rules! choices {
 ///
 /// `build` marks an option that changes shader code, `run` a run-time
 /// parameter. An optional `impl { ... }` block after the fields holds the
-/// family's `check` and `defines` (placed in the `MethodSettings` impl).
+/// family's `check` (placed in the `MethodSettings` impl).
 #[macro_export]
 macro_rules! settings {
     (@when build) => { true };

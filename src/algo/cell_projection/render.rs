@@ -59,10 +59,6 @@ crate::settings! {
         fn check(&self) -> Result<()> {
             crate::algo::integrate::check_table_size(self.integrator, self.table_size)
         }
-
-        fn defines(&self) -> Vec<(&'static str, &'static str)> {
-            self.draw().defines()
-        }
     }
 }
 

@@ -154,22 +154,6 @@ crate::settings! {
              auto (loads on a CPU device, texture elsewhere); the same field either way";
         adaptive: f64 = "0", float(0.0, 0.25), build, "TOL", crate::algo::adaptive::HELP;
     }
-    impl {
-        /// The build-time options as shader defines.
-        fn defines(&self) -> Vec<(&'static str, &'static str)> {
-            let mut d = Vec::new();
-            if self.shade {
-                d.push(("SHADE", "1"));
-            }
-            if self.preint() {
-                d.push(("PREINT", "1"));
-            }
-            if self.skip {
-                d.push(("SKIP", "1"));
-            }
-            d
-        }
-    }
 }
 
 /// Both variants' options.
@@ -328,6 +312,22 @@ fn fragment_pass_key(vertex: ShaderKey, fragment: ShaderKey, cull: Cull, sets: V
 /// The family's shader defines and pipeline keys, all made here from the
 /// settings and the [`ShaderFacts`].
 impl Settings {
+    /// The build-time options as shader defines (the keys below add the
+    /// volume's and the device's facts).
+    fn defines(&self) -> Vec<(&'static str, &'static str)> {
+        let mut d = Vec::new();
+        if self.shade {
+            d.push(("SHADE", "1"));
+        }
+        if self.preint() {
+            d.push(("PREINT", "1"));
+        }
+        if self.skip {
+            d.push(("SKIP", "1"));
+        }
+        d
+    }
+
     /// The defines of every shader that includes the march
     /// (raycast/common.glsl): the build-time options and how the volume is
     /// read.

@@ -71,15 +71,6 @@ crate::settings! {
         capture: bool = "off", flag(), build, "",
             "also append every emitted PC triangle to a storage buffer (tests: compared with the CPU's)";
     }
-    impl {
-        fn defines(&self) -> Vec<(&'static str, &'static str)> {
-            if self.coverage {
-                vec![("COVERAGE", "1")]
-            } else {
-                Vec::new()
-            }
-        }
-    }
 }
 
 /// The options of `hm-cpu` and `hm-compute`; `hm-gpu` offers `capture` too.
@@ -188,6 +179,15 @@ pub fn top_down(model: &HybridModel, lo: f64, hi: f64) -> Camera {
 /// The family's pipeline keys, all made here from the settings (and the
 /// device's facts hm-gpu's geometry stage is compiled for).
 impl Settings {
+    /// The build-time options as the mesh shaders' defines.
+    fn defines(&self) -> Vec<(&'static str, &'static str)> {
+        if self.coverage {
+            vec![("COVERAGE", "1")]
+        } else {
+            Vec::new()
+        }
+    }
+
     /// A drawing pipeline's key: the shared fragment stage (shaded, or the
     /// coverage count), blend and depth by the settings; the vertex input is
     /// one 16-byte attribute (a position, or a PC-list entry).

@@ -207,10 +207,6 @@ crate::settings! {
         fn check(&self) -> Result<()> {
             check_table_size(self.integrator, self.table_size)
         }
-
-        fn defines(&self) -> Vec<(&'static str, &'static str)> {
-            self.integrator.define().into_iter().collect()
-        }
     }
 }
 
@@ -237,6 +233,12 @@ struct WalkSets {
 }
 
 impl Settings {
+    /// The build-time options as the walk's defines (`walk_defines` adds
+    /// the mesh's facts and the variant's).
+    fn defines(&self) -> Vec<(&'static str, &'static str)> {
+        self.integrator.define().into_iter().collect()
+    }
+
     /// The walk's shader defines, the one place they are made: the
     /// build-time options, the workgroup, the mesh's facts, then the
     /// variant's: the per-tile face lists (`lists`) and adaptive refinement
