@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 
 #[path = "common/source.rs"]
 mod source;
+use source::{is_ident, skip_ws};
 
 /// The most lines a function of `src/` may take.
 const MAX_LINES: usize = 100;
@@ -37,17 +38,6 @@ fn functions(text: &str) -> Vec<(usize, String, usize)> {
         out.push((line_at(at), name, line_at(close) - line_at(at) + 1));
     }
     out
-}
-
-fn skip_ws(b: &[u8], mut i: usize) -> usize {
-    while i < b.len() && b[i].is_ascii_whitespace() {
-        i += 1;
-    }
-    i
-}
-
-fn is_ident(c: u8) -> bool {
-    c.is_ascii_alphanumeric() || c == b'_'
 }
 
 /// The next `word` standing alone at or after `from`.

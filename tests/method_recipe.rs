@@ -14,9 +14,13 @@ use std::path::{Path, PathBuf};
 
 #[path = "common/source.rs"]
 mod source;
+#[path = "common/imports.rs"]
+mod imports;
+use imports::{imports, name, Edge};
 
-/// The files that may name every family.
-const REGISTRATION: &[&str] = &["src/algo/mod.rs", "src/algo/registry.rs"];
+/// The modules that may name every family: `src/algo/mod.rs` (its `mod`
+/// line) and `src/algo/registry.rs` (its `METHOD` lines).
+const REGISTRATION: &[&[&str]] = &[&["algo"], &["algo", "registry"]];
 
 /// A source file: its path relative to the repository (`/`-separated) and text.
 struct File {
@@ -62,25 +66,6 @@ fn families(files: &[File]) -> BTreeSet<String> {
         .collect()
 }
 
-/// Whether `code` names module `family` of `src/algo` by path: through
-/// `algo::` from anywhere, through `super::` from a file directly under
-/// `src/algo/`, or `super::super::` from one a level down.
-fn names_module(path: &str, code: &str, family: &str) -> bool {
-    let depth = path.strip_prefix("src/algo/").map(|r| r.matches('/').count());
-    let mut prefixes = vec![format!("algo::{family}")];
-    match depth {
-        Some(0) => prefixes.push(format!("super::{family}")),
-        Some(1) => prefixes.push(format!("super::super::{family}")),
-        _ => {}
-    }
-    prefixes.iter().any(|p| {
-        code.match_indices(p.as_str()).any(|(i, _)| {
-            let after = code[i + p.len()..].chars().next();
-            !after.is_some_and(|c| c.is_alphanumeric() || c == '_')
-        })
-    })
-}
-
 /// Whether a line of Rust holds a string literal that is the path of a
 /// shader under `shaders/<family>/` (not a data file of the same folder
 /// name, e.g. `"terrain/….npz"`).
@@ -96,25 +81,41 @@ fn names_shader(line: &str, family: &str) -> bool {
 /// What the files under `shaders/` end in.
 const SHADER_EXTENSIONS: &[&str] = &[".vert", ".frag", ".geom", ".comp", ".tesc", ".tese", ".glsl"];
 
-/// Every place where code outside a family names it.
-fn problems(files: &[File]) -> Vec<String> {
-    let families = families(files);
+/// Whether `module` is one of [`REGISTRATION`].
+fn registers(module: &[String]) -> bool {
+    REGISTRATION.iter().any(|r| r.iter().eq(module.iter()))
+}
+
+/// The module a `src/` file is (`src/algo/mod.rs`: `algo`).
+fn module_of(path: &str) -> Vec<String> {
+    let rel = path.strip_prefix("src/").unwrap_or(path).strip_suffix(".rs").unwrap_or(path);
+    rel.split('/').filter(|c| *c != "mod").map(String::from).collect()
+}
+
+/// Every place where code outside a family names it, in the tree at `root`
+/// (its `src/` and `shaders/`). Module paths are read as tests/layering.rs
+/// reads them (common/imports.rs: `use` trees with braces, `super::`,
+/// `crate::` anywhere), test code left out; shader paths as string literals.
+fn problems(root: &Path) -> Vec<String> {
+    let mut files = Vec::new();
+    read_tree(root, "src", &mut files);
+    read_tree(root, "shaders", &mut files);
+    let families = families(&files);
     let mut out = Vec::new();
     if families.is_empty() {
         out.push("no family of methods found under src/algo/".to_string());
     }
-    for f in files {
-        let own = family_of(&f.path);
-        for family in families.iter().filter(|fam| own != Some(fam.as_str())) {
-            if f.path.ends_with(".rs") && !REGISTRATION.contains(&f.path.as_str()) {
-                let code = source::code_only(&f.text);
-                let code = String::from_utf8_lossy(&source::without_test_items(&code)).into_owned();
-                if names_module(&f.path, &code, family) {
-                    out.push(format!("{} names the module of family `{family}` (only its own files and {REGISTRATION:?} may)", f.path));
-                }
-                if f.text.lines().any(|l| names_shader(l.split("//").next().unwrap_or(""), family)) {
-                    out.push(format!("{} names a shader of family `{family}`", f.path));
-                }
+    let (_, edges) = imports(&root.join("src"));
+    for family in &families {
+        let module = ["algo".to_string(), family.clone()];
+        for Edge { from, to, at, test } in &edges {
+            if !test && to.starts_with(&module) && !from.starts_with(&module) && !registers(from) {
+                out.push(format!("{at}: {} names the module of family `{family}` (only its own files, src/algo/mod.rs and registry.rs may)", name(from)));
+            }
+        }
+        for f in files.iter().filter(|f| family_of(&f.path) != Some(family.as_str())) {
+            if f.path.ends_with(".rs") && !registers(&module_of(&f.path)) && f.text.lines().any(|l| names_shader(l.split("//").next().unwrap_or(""), family)) {
+                out.push(format!("{} names a shader of family `{family}`", f.path));
             }
             if f.path.starts_with("shaders/") && f.text.lines().any(|l| l.trim_start().starts_with("#include") && l.contains(&format!("\"{family}/"))) {
                 out.push(format!("{} includes a shader of family `{family}`", f.path));
@@ -129,38 +130,47 @@ fn a_family_of_methods_is_named_only_by_its_own_files_and_its_registration() {
     let root = repo();
     let mut files = Vec::new();
     read_tree(&root, "src", &mut files);
-    read_tree(&root, "shaders", &mut files);
     let families = families(&files);
     // The families today (a new one joins this list by its METHOD alone).
     for f in ["cell_projection", "raycast", "terrain", "tet_raycast"] {
         assert!(families.contains(f), "family {f} not found: {families:?}");
     }
-    let found = problems(&files);
+    let found = problems(&root);
     assert!(found.is_empty(), "a family of methods is named outside its own files:\n  {}", found.join("\n  "));
 }
 
 #[test]
 fn the_check_finds_a_family_named_by_the_harness_another_family_or_a_kit() {
-    let file = |path: &str, text: &str| File { path: path.to_string(), text: text.to_string() };
+    let dir = tempfile::tempdir().unwrap();
     let tree = [
-        file("src/algo/registry.rs", "use super::fam_a; fn m() { super::fam_a::METHOD; }"),
-        file("src/algo/fam_a/mod.rs", "pub const METHOD: MethodInfo = X; fn k() { key(\"fam_a/x.comp\"); }"),
-        file("src/algo/fam_b.rs", "pub const METHOD: MethodInfo = X;\n// super::fam_a in a comment is fine\nuse super::fam_a::Kit;"),
-        file("src/algo/kit/mod.rs", "fn f() { super::super::fam_b::g(); }"),
-        file("src/harness/run.rs", "fn f() { let k = \"fam_a/x.comp\"; let d = \"fam_b/data.npz\"; crate::algo::fam_b::h(); }\n#[cfg(test)]\nmod t { use crate::algo::fam_a; }"),
-        file("shaders/fam_b/y.comp", "#include \"fam_a/shared.glsl\"\n#include \"common/z.glsl\""),
-        file("shaders/fam_a/x.comp", "#include \"fam_a/shared.glsl\""),
+        ("src/algo/mod.rs", "pub mod fam_a; pub mod fam_b; pub mod kit; pub mod registry;"),
+        ("src/algo/registry.rs", "use super::fam_a; fn m() { super::fam_a::METHOD; }"),
+        ("src/algo/fam_a/mod.rs", "pub const METHOD: MethodInfo = X; fn k() { key(\"fam_a/x.comp\"); }"),
+        ("src/algo/fam_b.rs", "pub const METHOD: MethodInfo = X;\n// super::fam_a in a comment is fine\nuse super::fam_a::Kit;"),
+        ("src/algo/kit/mod.rs", "pub mod deep; fn f() { super::fam_b::g(); }"),
+        ("src/algo/kit/deep.rs", "fn f() { super::super::fam_b::g(); }"),
+        ("src/harness/run.rs", "fn f() { let k = \"fam_a/x.comp\"; let d = \"fam_b/data.npz\"; crate::algo::fam_b::h(); }\n#[cfg(test)]\nmod t { use crate::algo::fam_a; }"),
+        ("src/harness/suite.rs", "use crate::algo::{kit, fam_a::{Thing}};"),
+        ("shaders/fam_b/y.comp", "#include \"fam_a/shared.glsl\"\n#include \"common/z.glsl\""),
+        ("shaders/fam_a/x.comp", "#include \"fam_a/shared.glsl\""),
     ];
-    let found = problems(&tree);
+    for (path, text) in tree {
+        let p = dir.path().join(path);
+        std::fs::create_dir_all(p.parent().unwrap()).unwrap();
+        std::fs::write(p, text).unwrap();
+    }
+    let found = problems(dir.path());
     let expect = [
-        "src/algo/fam_b.rs names the module of family `fam_a`",
-        "src/algo/kit/mod.rs names the module of family `fam_b`",
+        "crate::algo::fam_b names the module of family `fam_a`",
+        "crate::algo::kit names the module of family `fam_b`",
+        "crate::algo::kit::deep names the module of family `fam_b`",
+        "crate::harness::run names the module of family `fam_b`",
+        "crate::harness::suite names the module of family `fam_a`",
         "src/harness/run.rs names a shader of family `fam_a`",
-        "src/harness/run.rs names the module of family `fam_b`",
         "shaders/fam_b/y.comp includes a shader of family `fam_a`",
     ];
     for e in expect {
-        assert!(found.iter().any(|p| p.starts_with(e)), "not found: {e}\nfound: {found:#?}");
+        assert!(found.iter().any(|p| p.contains(e)), "not found: {e}\nfound: {found:#?}");
     }
     assert_eq!(found.len(), expect.len(), "{found:#?}");
 }

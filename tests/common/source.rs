@@ -1,4 +1,5 @@
-//! Reading Rust source as code (tests/layering.rs, tests/function_length.rs):
+//! Reading Rust source as code (tests/layering.rs, tests/function_length.rs,
+//! tests/method_recipe.rs):
 //! comments and the insides of string and char literals blanked, lines
 //! kept.
 
@@ -135,4 +136,17 @@ pub fn without_test_items(code: &[u8]) -> Vec<u8> {
         i = end.min(code.len() - 1) + 1;
     }
     out
+}
+
+/// Whether `c` may be part of an identifier.
+pub fn is_ident(c: u8) -> bool {
+    c.is_ascii_alphanumeric() || c == b'_'
+}
+
+/// The first position at or after `i` that is not whitespace.
+pub fn skip_ws(b: &[u8], mut i: usize) -> usize {
+    while i < b.len() && b[i].is_ascii_whitespace() {
+        i += 1;
+    }
+    i
 }
