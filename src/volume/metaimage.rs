@@ -205,21 +205,10 @@ fn header_fields<'b>(name: &str, bytes: &'b [u8]) -> Result<(Fields<'b>, usize)>
     }
 }
 
-/// A header's fields, read by name.
-struct Header<'h> {
-    name: &'h str,
-    fields: Fields<'h>,
-}
+/// A header's fields, read by name (`get`, `need`: `super::Header`).
+type Header<'h> = super::Header<'h, &'static str>;
 
 impl<'h> Header<'h> {
-    fn get(&self, f: &str) -> Option<&'h str> {
-        self.fields.get(f).map(|&(v, _)| v)
-    }
-
-    fn need(&self, f: &str) -> Result<&'h str> {
-        self.get(f).ok_or_else(|| anyhow!("{}: the required field '{f}' is missing", self.name))
-    }
-
     /// At most one of a group of synonyms.
     fn one_of(&self, group: &[&'static str]) -> Result<Option<(&'static str, &'h str)>> {
         let given: Vec<_> = group.iter().filter_map(|&f| self.get(f).map(|v| (f, v))).collect();

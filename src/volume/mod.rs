@@ -347,6 +347,24 @@ const AXES: [&str; 3] = ["x", "y", "z"];
 
 /// Checks header dims before anything is allocated from them: each at least
 /// 1 and at most [`MAX_AXIS`], and their product at most [`MAX_VOXELS`].
+/// The fields of a text header (MetaImage, NRRD), each with its value and
+/// header line, keyed by the format's field name; `name` is the file's, for
+/// errors.
+pub(crate) struct Header<'h, K> {
+    pub name: &'h str,
+    pub fields: std::collections::HashMap<K, (&'h str, usize)>,
+}
+
+impl<'h, K: std::borrow::Borrow<str> + std::hash::Hash + Eq> Header<'h, K> {
+    pub fn get(&self, f: &str) -> Option<&'h str> {
+        self.fields.get(f).map(|&(v, _)| v)
+    }
+
+    pub fn need(&self, f: &str) -> Result<&'h str> {
+        self.get(f).ok_or_else(|| anyhow!("{}: the required field '{f}' is missing", self.name))
+    }
+}
+
 pub fn check_dims(source: &str, dims: [u64; 3]) -> Result<[usize; 3]> {
     for (a, &d) in dims.iter().enumerate() {
         if d == 0 {

@@ -222,21 +222,9 @@ fn header_fields<'b>(name: &str, bytes: &'b [u8]) -> Result<(Fields<'b>, Option<
     Ok((fields, None))
 }
 
-/// A header's fields, read by name.
-struct Header<'h> {
-    name: &'h str,
-    fields: Fields<'h>,
-}
-
-impl<'h> Header<'h> {
-    fn get(&self, f: &str) -> Option<&'h str> {
-        self.fields.get(f).map(|&(v, _)| v)
-    }
-
-    fn need(&self, f: &str) -> Result<&'h str> {
-        self.get(f).ok_or_else(|| anyhow!("{}: the required field '{f}' is missing", self.name))
-    }
-}
+/// A header's fields, read by name (keys in their canonical spelling:
+/// `canonical`).
+type Header<'h> = super::Header<'h, String>;
 
 /// The grid's dimensions (`dimension`, `sizes`).
 fn grid(h: &Header) -> Result<[usize; 3]> {
