@@ -14,7 +14,8 @@
 //     on its two sides, and the colour test sees what it separates), and
 //   - each test ray agrees with the interpolation at its point within the
 //     tolerance, per premultiplied RGBA channel;
-// otherwise its four sub-blocks are listed for the next cast pass.
+// otherwise the centres and edge mid-points of its four sub-blocks are
+// listed for the next cast pass (each point once: the first block to claim it).
 // A block owns its pixels [0, size)^2 from its corner; the ones on the
 // lattice of size / 2 were cast and are not overwritten.
 #define WG_X 8
@@ -25,7 +26,7 @@ layout(local_size_x = WG_X, local_size_y = WG_Y) in;
 layout(push_constant) uniform Decide {
     uvec4 rect;          // the frame's rectangle, inclusive pixel bounds
     uint block_size;     // 8 or 4
-    uint rows;           // size 8: rows of workgroups and the device's runs (interleaved_row)
+    uint rows;           // size 8: rows of workgroups (interleaved_row); both: the device's runs
     uint runs;
     uint silhouettes;    // first word of this size's silhouette bits (0xFFFFFFFF: none)
     float tol;           // tolerance per premultiplied channel
@@ -49,12 +50,12 @@ void main() {
     uvec2 b;
     if (size == 8u) {
         if (gl_WorkGroupID.x == 0u && gl_WorkGroupID.y == 0u && gl_LocalInvocationIndex == 0u) {
-            // The indirect arguments' y and z (x grows with the lists).
-            a_counters.v[A_ARGS_CAST2 + 1u] = 1u;
-            a_counters.v[A_ARGS_CAST2 + 2u] = 1u;
+            // The indirect arguments that do not grow with the lists.
             a_counters.v[A_ARGS_DECIDE4 + 1u] = 1u;
             a_counters.v[A_ARGS_DECIDE4 + 2u] = 1u;
-            a_counters.v[A_ARGS_CAST1 + 1u] = 1u;
+            a_counters.v[A_ARGS_CAST2] = 1u;
+            a_counters.v[A_ARGS_CAST2 + 2u] = 1u;
+            a_counters.v[A_ARGS_CAST1] = 1u;
             a_counters.v[A_ARGS_CAST1 + 2u] = 1u;
         }
         b = uvec2(gl_WorkGroupID.x, interleaved_row(pc.rows, pc.runs)) * uvec2(WG_X, WG_Y) + gl_LocalInvocationID.xy;
@@ -127,30 +128,51 @@ void main() {
         if (covered > 0u) atomicAdd(a_counters.v[A_COVERED_FILLED], covered);
         return;
     }
-    // Refine: the sub-blocks with a pixel in the rectangle, listed for the
-    // next cast pass (and, from size 8, the next decide pass).
+    // Refine: the sub-blocks with a pixel in the rectangle have their
+    // centres and edge mid-points listed for the next cast pass (a point
+    // two of them share, by whichever claims it first) and, from size 8,
+    // are listed for the next decide pass.
     uvec2 s0 = b * 2u;
+    uint q = size / 4u;
     uint n = 0u;
     uint subs[4];
+    uint np = 0u;
+    uint points[20];
     for (uint j = 0u; j < 2u; ++j) {
         for (uint i = 0u; i < 2u; ++i) {
             uvec2 sb = s0 + uvec2(i, j);
             uvec2 px = pc.rect.xy + sb * h;
             if (px.x <= pc.rect.z && px.y <= pc.rect.w) {
+                uint c = (sb.y * h + q) * lw + sb.x * h + q;
+                uint five[5] = uint[5](c - q * lw, c - q, c, c + q, c + q * lw);
+                for (uint m = 0u; m < 5u; ++m) {
+                    if (atomicCompSwap(a_keys.v[five[m]], 0u, A_LISTED) == 0u) {
+                        points[np] = five[m];
+                        np += 1u;
+                    }
+                }
                 subs[n] = sb.x | (sb.y << 16);
                 n += 1u;
             }
         }
     }
-    uint count_word = size == 8u ? A_COUNT4 : A_COUNT2;
-    uint base = size == 8u ? 0u : 4u * nb.x * nb.y;
-    uint first = atomicAdd(a_counters.v[count_word], n);
-    for (uint j = 0u; j < n; ++j) {
-        a_lists.v[base + first + j] = subs[j];
+    uint first = atomicAdd(a_counters.v[size == 8u ? A_COUNT4 : A_COUNT2], n);
+    if (size == 8u) {
+        for (uint j = 0u; j < n; ++j) {
+            a_lists.v[first + j] = subs[j];
+        }
+        // The next decide pass's workgroups: one invocation per block.
+        atomicMax(a_counters.v[A_ARGS_DECIDE4], (first + n + A_GROUP - 1u) / A_GROUP);
     }
-    uint total = first + n;
-    // The next passes' workgroups: five cast invocations per block, one
-    // decide invocation per block.
-    atomicMax(a_counters.v[size == 8u ? A_ARGS_CAST2 : A_ARGS_CAST1], (5u * total + A_GROUP - 1u) / A_GROUP);
-    if (size == 8u) atomicMax(a_counters.v[A_ARGS_DECIDE4], (total + A_GROUP - 1u) / A_GROUP);
+    uint pass_step = size / 4u;
+    uint at = atomicAdd(a_counters.v[size == 8u ? A_POINTS2 : A_POINTS1], np);
+    uint list = adaptive_points_at(pc.rect, pass_step);
+    for (uint j = 0u; j < np; ++j) {
+        a_lists.v[list + at + j] = points[j];
+    }
+    // The cast pass's rows of workgroups: the list's workgroups, rounded
+    // up to the device's runs (algo::screen::interleaved_rows).
+    uint runs = max(pc.runs, 1u);
+    uint groups = (at + np + A_GROUP - 1u) / A_GROUP;
+    atomicMax(a_counters.v[(size == 8u ? A_ARGS_CAST2 : A_ARGS_CAST1) + 1u], (groups + runs - 1u) / runs * runs);
 }

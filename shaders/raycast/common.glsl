@@ -40,9 +40,14 @@ layout(set = 0, binding = 5) uniform sampler2D preint_tex;
 #include "raycast/frame.glsl"
 
 #ifdef ADAPTIVE
-// The last march's runs of occupied bricks entered (with SKIP: each entry
-// into a brick with visible samples after the box's face or after a leap
-// over empty ones): adaptive refinement's structural key.
+// Adaptive refinement's structural key: the last march's runs through
+// bricks within ADAPTIVE_NEAR bricks of one with visible samples (with
+// SKIP; 0 without). A small feature counts as a region of 2 * 8 + 1 bricks
+// across, so some of a block's test rays pass through it where its own
+// footprint would fall between them, and clutter closer than that is one
+// run, not a key that differs between neighbouring rays almost everywhere
+// (as the occupied bricks' own runs did on the chest CT).
+#define ADAPTIVE_NEAR 8u
 uint march_runs = 0u;
 #endif
 
@@ -170,7 +175,18 @@ vec4 march(vec3 a, vec3 b, out uint samples) {
             vec3 um = a + dir * (h * (float(k) + 0.5));
             ivec3 bc = clamp(ivec3(floor(um / bsize)), ivec3(0), bgrid - 1);
             uint dist = texelFetch(brick_distance, bc.x + bgrid.x * (bc.y + bgrid.y * bc.z)).r;
+#ifdef ADAPTIVE
+            // The key's runs: entries into bricks within ADAPTIVE_NEAR of
+            // an occupied one. A leap from outside them is shortened so its
+            // cube holds none of them (each brick of it is at least
+            // dist - reach bricks from an occupied one).
+            bool near = dist <= ADAPTIVE_NEAR;
+            if (near && !in_run) march_runs += 1u;
+            in_run = near;
+            float reach = float(near ? max(dist, 1u) - 1u : dist - 1u - ADAPTIVE_NEAR) * bsize;
+#else
             float reach = float(max(dist, 1u) - 1u) * bsize;
+#endif
             vec3 lo = vec3(bc) * bsize - reach;
             vec3 far_face = mix(lo, lo + bsize + 2.0 * reach, greaterThan(dir, vec3(0.0)));
             vec3 s_axis = mix(vec3(1e30), (far_face - a) * inv_dir, moving);
@@ -184,9 +200,6 @@ vec4 march(vec3 a, vec3 b, out uint samples) {
                 ivec3 crossed = abs(b_last - ivec3(floor(um / bsize)));
                 skipped += uint(1 + crossed.x + crossed.y + crossed.z);
                 leaps += 1u;
-#ifdef ADAPTIVE
-                in_run = false;
-#endif
 #ifdef PREINT
                 t_prev = -1.0;
                 t_prev2 = -1.0;
@@ -195,10 +208,6 @@ vec4 march(vec3 a, vec3 b, out uint samples) {
                 continue;
             }
             check_at = max(next, k + 1);
-#ifdef ADAPTIVE
-            if (!in_run) march_runs += 1u;
-            in_run = true;
-#endif
         }
 #endif
         float seg_world = world_h * float(m);

@@ -16,12 +16,17 @@
 //!    casters: the occupied bricks met) and, where the method projects one,
 //!    no boundary silhouette edge reaches the block ([`Silhouettes`]);
 //!    otherwise its four blocks of 4 are listed;
-//! 3. **cast, step 2**: the listed blocks' centres and edge mid-points
-//!    (an indirect dispatch; a point two blocks share is cast once, by
-//!    whichever claims it);
-//! 4. **decide, blocks of 4**: the same rule; failing blocks list their
-//!    blocks of 2;
-//! 5. **cast, step 1**: every remaining pixel of the listed blocks of 2.
+//! 3. **cast, step 2**: the points the decide pass listed (the centres and
+//!    edge mid-points of the refined blocks' blocks of 4, each once, a
+//!    block's together), an indirect dispatch over the list whose
+//!    workgroups are interleaved over the device's threads like rows. Not a
+//!    2D dispatch over the lattice: on llvmpipe an invocation that returns
+//!    at once still runs the whole shader masked (docs/compute-speed.md),
+//!    and not invocations per listed block: a point two blocks share would
+//!    leave lanes idle;
+//! 4. **decide, blocks of 4**: the same rule over the listed blocks of 4
+//!    (an indirect dispatch); failing blocks list their blocks of 2's points;
+//! 5. **cast, step 1**: the listed pixels, as step 2.
 //!
 //! Rays already cast are reused as the next level's corners; a pixel is
 //! either cast or filled, and a ray cast later overwrites an interpolated
@@ -58,10 +63,8 @@ pub const BLOCK: u32 = 8;
 /// Workgroup shape of every adaptive pass (the list passes run it as 64
 /// invocations in a row).
 pub const WORKGROUP: [u32; 2] = [8, 8];
-/// Invocations per workgroup of the list passes.
-const GROUP: u64 = (WORKGROUP[0] * WORKGROUP[1]) as u64;
 /// Counter words (`A_*` in shaders/common/adaptive.glsl).
-const COUNTER_WORDS: usize = 26;
+const COUNTER_WORDS: usize = 27;
 /// The decide pass's push constants (`Decide` in
 /// `shaders/common/adaptive_decide.comp`; `tests/shader_interfaces.rs`
 /// checks the two agree).
@@ -72,7 +75,8 @@ pub struct DecidePush {
     pub rect: [u32; 4],
     /// 8 or 4.
     pub block_size: u32,
-    /// Size 8: rows of workgroups and the device's runs (`interleaved_row`).
+    /// Size 8: rows of workgroups (`interleaved_row`); both sizes: the
+    /// device's runs (`rows` of the cast passes' indirect dispatches).
     pub rows: u32,
     pub runs: u32,
     /// First word of this size's silhouette bits (`u32::MAX`: none).
@@ -83,7 +87,7 @@ pub struct DecidePush {
     /// [`Silhouettes::straight`]).
     pub straight: u32,
 }
-/// Lattice points in list entries are 16-bit block coordinates.
+/// List entries are 16-bit coordinates of blocks of 4.
 const MAX_BLOCKS_PER_SIDE: u64 = 1 << 16;
 
 /// The device phases of the five passes, in order (`RenderMethod::
@@ -367,21 +371,25 @@ impl Adaptive {
         }
         let size = [width, height];
         let nb = [u64::from(width.div_ceil(BLOCK)), u64::from(height.div_ceil(BLOCK))];
-        // Blocks of 2 are listed by 16-bit coordinates: 4 per block of 8.
-        if nb[0] * 4 > MAX_BLOCKS_PER_SIDE || nb[1] * 4 > MAX_BLOCKS_PER_SIDE {
-            bail!("{method}: adaptive refinement takes images up to {} pixels a side, not {width}x{height}", MAX_BLOCKS_PER_SIDE * 2);
+        // Blocks of 4 are listed by 16-bit coordinates: 2 per block of 8.
+        if nb[0] * 2 > MAX_BLOCKS_PER_SIDE || nb[1] * 2 > MAX_BLOCKS_PER_SIDE {
+            bail!("{method}: adaptive refinement takes images up to {} pixels a side, not {width}x{height}", MAX_BLOCKS_PER_SIDE * 4);
         }
         let points = lattice_points(size);
         let n8 = nb[0] * nb[1];
-        // Most blocks of 2 listed: 16 per block of 8; the cast pass over
-        // them runs 5 invocations each in one row of workgroups.
-        let most_groups = (5 * 16 * n8).div_ceil(GROUP);
-        let max_x = u64::from(ctx.info.max_compute_work_group_count[0]);
+        // The longest dispatches: the blocks of 4, one invocation each in
+        // a row of workgroups; a point list, rows of workgroups (padded to
+        // the device's runs).
+        let group = u64::from(WORKGROUP[0] * WORKGROUP[1]);
+        let runs = u64::from(ctx.info.compute_runs());
+        let most_groups = (4 * n8).div_ceil(group).max(points.div_ceil(group).div_ceil(runs) * runs);
+        let max_xy = u64::from(ctx.info.max_compute_work_group_count[0].min(ctx.info.max_compute_work_group_count[1]));
         let range = u64::from(ctx.info.max_storage_buffer_range);
-        if most_groups > max_x || points * 16 > range || 20 * n8 * 4 > range {
+        let list_words = 4 * n8 + 2 * points;
+        if most_groups > max_xy || points * 16 > range || list_words * 4 > range {
             bail!(
                 "{method}: adaptive refinement of a {width}x{height} image needs {most_groups} workgroups in a row and {} bytes of samples; \
-                 {} allows {max_x} and {range}",
+                 {} allows {max_xy} and {range}",
                 points * 16,
                 ctx.info.name
             );
@@ -389,7 +397,7 @@ impl Adaptive {
         let storage = BufferUsage::STORAGE;
         let samples = Buffer::new(ctx, BufferDesc::device_local(&format!("{method} adaptive samples"), points * 16, storage))?;
         let keys = Buffer::new(ctx, BufferDesc::device_local(&format!("{method} adaptive keys"), points * 4, storage))?;
-        let lists = Buffer::new(ctx, BufferDesc::device_local(&format!("{method} adaptive lists"), 20 * n8.max(1) * 4, storage))?;
+        let lists = Buffer::new(ctx, BufferDesc::device_local(&format!("{method} adaptive lists"), list_words.max(1) * 4, storage))?;
         let counters = Buffer::new(
             ctx,
             BufferDesc {
@@ -474,18 +482,18 @@ impl Adaptive {
         Ok(())
     }
 
-    /// Records the five passes. `cast(rec, set, step, indirect, counter)`
-    /// records one cast pass: its pipeline bound with `set` (this state's) at
-    /// its `ADAPTIVE_SET`, its push constants
-    /// naming `step` (4, 2 or 1), then `dispatch` of the step-4 grid
-    /// ([`Adaptive::lattice_groups`] rows interleaved) when `indirect` is
-    /// None, else `dispatch_indirect(buffer, offset)`.
+    /// Records the five passes. `bind(rec, set, step, rows, counter)`
+    /// readies one cast pass: its pipeline bound with `set` (this state's)
+    /// at its `ADAPTIVE_SET`, its push constants naming `step` (4, 2 or 1)
+    /// and, for step 4, `rows`: the rows of workgroups over the 4-lattice
+    /// ([`Adaptive::lattice_groups`], before interleaving); the dispatch is
+    /// recorded here.
     pub fn record(
         &mut self,
         rec: &CommandRecorder,
         target: &Image,
         counter: &mut UploadCounter,
-        mut cast: impl FnMut(&CommandRecorder, &DescriptorSet, u32, Option<(&Buffer, u64)>, &mut UploadCounter) -> Result<()>,
+        mut bind: impl FnMut(&CommandRecorder, &DescriptorSet, u32, u32, &mut UploadCounter) -> Result<()>,
     ) -> Result<()> {
         self.timed = false;
         self.timestamps.reset(rec);
@@ -498,8 +506,10 @@ impl Adaptive {
             return Ok(());
         }
         let runs = self.ctx.info.compute_runs();
+        let lattice = Adaptive::lattice_groups(self.rect);
         self.timestamps.write(rec, 0, TimestampAt::Start)?;
-        cast(rec, &self.set, 4, None, counter)?;
+        bind(rec, &self.set, 4, lattice[1], counter)?;
+        rec.dispatch([lattice[0], screen::interleaved_rows(lattice[1], runs), 1])?;
         self.timestamps.write(rec, 1, TimestampAt::ComputeDone)?;
         rec.compute_to_indirect();
         let straight_offset = |size: u32| match (&self.sil, self.uses_silhouettes) {
@@ -526,16 +536,18 @@ impl Adaptive {
         rec.dispatch([nb[0].div_ceil(WORKGROUP[0]), screen::interleaved_rows(rows, runs), 1])?;
         self.timestamps.write(rec, 2, TimestampAt::ComputeDone)?;
         rec.compute_to_indirect();
-        cast(rec, &self.set, 2, Some((&self.counters, 0)), counter)?;
+        bind(rec, &self.set, 2, 0, counter)?;
+        rec.dispatch_indirect(&self.counters, 12)?;
         self.timestamps.write(rec, 3, TimestampAt::ComputeDone)?;
         rec.compute_to_indirect();
         let set = self.target_set.for_target(&self.ctx, target)?;
         rec.bind_compute(&self.decide, &[&self.set, set])?;
         rec.push_constants(&self.decide, bytemuck::bytes_of(&push(4, 0)), counter);
-        rec.dispatch_indirect(&self.counters, 16)?;
+        rec.dispatch_indirect(&self.counters, 0)?;
         self.timestamps.write(rec, 4, TimestampAt::ComputeDone)?;
         rec.compute_to_indirect();
-        cast(rec, &self.set, 1, Some((&self.counters, 32)), counter)?;
+        bind(rec, &self.set, 1, 0, counter)?;
+        rec.dispatch_indirect(&self.counters, 24)?;
         self.timestamps.write(rec, 5, TimestampAt::ComputeDone)?;
         rec.compute_to_host();
         self.timed = true;
@@ -574,14 +586,14 @@ impl Adaptive {
     fn counts(&self) -> Counts {
         let c: [u64; COUNTER_WORDS] = self.counters.read_counters();
         Counts {
-            rays: [c[12], c[13], c[14]],
-            filled: [c[15], c[16]],
-            silhouette: [c[17], c[18]],
-            structure: [c[19], c[20]],
-            colour: [c[21], c[22]],
-            covered: c[23] + c[24],
-            padding: c[25],
-            listed: [c[3], c[11]],
+            rays: [c[13], c[14], c[15]],
+            filled: [c[16], c[17]],
+            silhouette: [c[18], c[19]],
+            structure: [c[20], c[21]],
+            colour: [c[22], c[23]],
+            covered: c[24] + c[25],
+            padding: c[26],
+            listed: [c[9], c[10]],
         }
     }
 

@@ -111,9 +111,8 @@ impl RenderMethod for RaycastCompute {
                 BoxOnScreen::Cut => [0, 0, w.saturating_sub(1), h.saturating_sub(1)],
             };
             state.frame(self.rect, [w, h])?;
-            let rows = Adaptive::lattice_groups(self.rect)[1];
-            // The rect; the step is set per pass in record.
-            self.push = AdaptiveFrame { frame: self.res.frame(view, true, [0, 0], rows, runs), pad_to_align_rect: 0, rect: self.rect, cast_step: 0 };
+            // The rect; the step and its lattice's rows are set per pass in record.
+            self.push = AdaptiveFrame { frame: self.res.frame(view, true, [0, 0], 0, runs), pad_to_align_rect: 0, rect: self.rect, cast_step: 0 };
         }
         Ok(())
     }
@@ -132,17 +131,11 @@ impl RenderMethod for RaycastCompute {
             let r = self.rect;
             let whole = r[0] == 0 && r[1] == 0 && u64::from(r[2] + 1) * u64::from(r[3] + 1) == self.pixels && r[0] <= r[2];
             rec.storage_target(target, whole);
-            let lattice = Adaptive::lattice_groups(r);
-            let runs = self.ctx.info.compute_runs();
             let (set0, push, pipeline) = (&self.res.set, self.push, &*pipeline);
-            state.record(rec, target, counter, |rec, state_set, step, indirect, counter| {
+            state.record(rec, target, counter, |rec, state_set, step, rows, counter| {
                 rec.bind_compute(pipeline, &[set0, set, state_set])?;
-                let p = AdaptiveFrame { cast_step: step, ..push };
+                let p = AdaptiveFrame { cast_step: step, frame: Frame { rows, ..push.frame }, ..push };
                 rec.push_constants(pipeline, bytemuck::bytes_of(&p), counter);
-                match indirect {
-                    None => rec.dispatch([lattice[0], screen::interleaved_rows(lattice[1], runs), 1])?,
-                    Some((args, offset)) => rec.dispatch_indirect(args, offset)?,
-                }
                 Ok(())
             })?;
             self.res.record_counters_to_host(rec);

@@ -1110,26 +1110,20 @@ impl RenderMethod for TetRaycast {
         if let Some(a) = self.adaptive.as_mut().filter(|a| a.active) {
             // Adaptive refinement: the lattice of 4, then the listed blocks
             // (algo::adaptive), each cast pass this walk with its step.
-            let lattice = Adaptive::lattice_groups(self.rect);
-            let runs = self.ctx.info.compute_runs();
             let lists_active = self.lists_active;
             let (tables, mesh, lists) = (&self.tables.set, &self.mesh_set, &self.lists_set);
             let (pipeline, pipeline_lists) = (&a.pipeline, &a.pipeline_lists);
             let frame = self.frame;
-            a.state.record(rec, target, counter, |rec, state, step, indirect, counter| {
+            a.state.record(rec, target, counter, |rec, state, step, rows, counter| {
                 let pipeline = if lists_active { pipeline_lists } else { pipeline };
                 if lists_active {
                     rec.bind_compute(pipeline, &[tables, mesh, set, lists, state])?;
                 } else {
                     rec.bind_compute(pipeline, &[tables, mesh, set, state])?;
                 }
-                // The lattice's rows of workgroups, and the step.
-                let push = WalkFrame { rows: lattice[1], cast_step: step, ..frame };
+                // The step and its lattice's rows of workgroups.
+                let push = WalkFrame { rows, cast_step: step, ..frame };
                 rec.push_constants(pipeline, bytemuck::bytes_of(&push), counter);
-                match indirect {
-                    None => rec.dispatch([lattice[0], screen::interleaved_rows(lattice[1], runs), 1])?,
-                    Some((args, offset)) => rec.dispatch_indirect(args, offset)?,
-                }
                 Ok(())
             })?;
             return Ok(());
