@@ -141,8 +141,8 @@ fn blocks() -> Vec<Block> {
                 size: size_of::<AdaptiveFrame>(),
                 fields: fields!(AdaptiveFrame;
                     "m" => frame.m, "first_group" => frame.first_group, "rows" => frame.rows, "runs" => frame.runs,
-                    "light" => frame.light, "rect" => rect, "cast_step" => cast_step),
-                padding: fields!(AdaptiveFrame; "pad_to_align_rect" => pad_to_align_rect),
+                    "light" => frame.light, "close" => close, "rect" => rect, "cast_step" => cast_step),
+                padding: Layout::new(),
             }],
         },
         Block {

@@ -40,15 +40,18 @@ layout(set = 0, binding = 5) uniform sampler2D preint_tex;
 #include "raycast/frame.glsl"
 
 #ifdef ADAPTIVE
-// Adaptive refinement's structural key: the last march's runs through
-// bricks within ADAPTIVE_NEAR bricks of one with visible samples (with
-// SKIP; 0 without). A small feature counts as a region of 2 * 8 + 1 bricks
-// across, so some of a block's test rays pass through it where its own
-// footprint would fall between them, and clutter closer than that is one
-// run, not a key that differs between neighbouring rays almost everywhere
-// (as the occupied bricks' own runs did on the chest CT).
-#define ADAPTIVE_NEAR 8u
+// Adaptive refinement's structural key (algo/raycast/mod.rs, KEY_NEAR;
+// docs/methods.md, "Structural keys"): the runs the last march made through
+// bricks within ADAPTIVE_NEAR bricks of one with visible samples (0
+// without SKIP), and the nearest such brick's distance it saw, up to
+// frame.close (the bricks the coarse test rays' spacing spans). Dilated,
+// structure closer together than 2 * ADAPTIVE_NEAR + 1 bricks is one run,
+// not a key that differs between neighbouring rays almost everywhere (as
+// the occupied bricks' own runs did on the chest CT); the distance tells
+// apart rays that pass a small feature at different distances, so the
+// blocks around a speck their rays straddle refine.
 uint march_runs = 0u;
+uint march_closest = 0xFFu;
 #endif
 
 // Samples are taken with an explicit level (single-level textures): the
@@ -151,6 +154,7 @@ vec4 march(vec3 a, vec3 b, out uint samples) {
 #ifdef ADAPTIVE
     bool in_run = false;
     march_runs = 0u;
+    march_closest = 0xFFu;
 #endif
 #endif
 #ifdef PREINT
@@ -182,6 +186,7 @@ vec4 march(vec3 a, vec3 b, out uint samples) {
             // dist - reach bricks from an occupied one).
             bool near = dist <= ADAPTIVE_NEAR;
             if (near && !in_run) march_runs += 1u;
+            march_closest = min(march_closest, dist);
             in_run = near;
             float reach = float(near ? max(dist, 1u) - 1u : dist - 1u - ADAPTIVE_NEAR) * bsize;
 #else

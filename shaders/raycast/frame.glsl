@@ -8,6 +8,7 @@ layout(push_constant) uniform Frame {
     uint runs;           // the device's runs of workgroups
     vec3 light;          // unit direction towards the light, world axes
 #ifdef ADAPTIVE
+    uint close;          // adaptive refinement's key: the brick distances it tells apart (raycast/common.glsl)
     uvec4 rect;          // adaptive refinement (compute): the frame's rectangle, inclusive pixel bounds
     uint cast_step;      // the cast pass's step (4, 2, 1; common/adaptive.glsl)
 #endif

@@ -18,9 +18,9 @@ layout(set = 1, binding = 0, rgba32f) uniform writeonly image2D target;
 #ifdef ADAPTIVE
 // Adaptive refinement (algo/adaptive.rs): this pass casts the lattice
 // points of step frame.cast_step, storing each ray's colour and its
-// structural key (the runs of occupied bricks it entered; 0 for a ray that
-// missed the box or met only empty bricks, and always 0 without SKIP) for
-// the decide passes.
+// structural key (raycast/common.glsl: its runs near visible bricks and
+// the nearest one's distance up to frame.close; 0 for a ray that missed the
+// box, and always 0 without SKIP) for the decide passes.
 #define ADAPTIVE_SET 2
 #include "common/adaptive.glsl"
 #endif
@@ -55,7 +55,7 @@ void main() {
         uint samples;
         color = march(a, b, samples);
 #ifdef ADAPTIVE
-        key = march_runs;
+        key = march_runs * 256u + min(march_closest, frame.close);
 #endif
     }
 #ifdef ADAPTIVE

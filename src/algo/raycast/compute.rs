@@ -54,6 +54,7 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
     Ok(Box::new(RaycastCompute {
         adaptive,
         rect: screen::NO_PIXELS,
+        close: super::KEY_NEAR,
         res,
         settings,
         pipeline,
@@ -85,6 +86,8 @@ pub struct RaycastCompute {
     /// lattice points; the frame's rectangle (the box's pixels).
     adaptive: Option<(Adaptive, Arc<Pipeline>)>,
     rect: [u32; 4],
+    /// The frame's [`super::key_close`].
+    close: u32,
     ctx: Arc<crate::vk::Context>,
 }
 
@@ -111,8 +114,9 @@ impl RenderMethod for RaycastCompute {
                 BoxOnScreen::Cut => [0, 0, w.saturating_sub(1), h.saturating_sub(1)],
             };
             state.frame(self.rect, [w, h])?;
-            // The rect; the step and its lattice's rows are set per pass in record.
-            self.push = AdaptiveFrame { frame: self.res.frame(view, true, [0, 0], 0, runs), pad_to_align_rect: 0, rect: self.rect, cast_step: 0 };
+            self.close = super::key_close(self.res.brick_pixels(view, self.settings.brick as f64));
+            // The rect; the step (and for step 4 its lattice's rows) are set per pass in record.
+            self.push = AdaptiveFrame { frame: self.res.frame(view, true, [0, 0], 0, runs), close: self.close, rect: self.rect, cast_step: 0 };
         }
         Ok(())
     }
@@ -177,6 +181,7 @@ impl RenderMethod for RaycastCompute {
             let [x0, y0, x1, y1] = self.rect;
             let rect_pixels = if x0 > x1 || y0 > y1 { 0 } else { u64::from(x1 - x0 + 1) * u64::from(y1 - y0 + 1) };
             d["adaptive"] = state.details(rect_pixels);
+            d["adaptive"]["key"] = json!({ "near_bricks": super::KEY_NEAR, "close_bricks": self.close });
         }
         d
     }

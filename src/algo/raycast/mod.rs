@@ -282,6 +282,24 @@ pub struct ShaderFacts {
 /// `raycast-compute`'s workgroup shape (pixels).
 pub const COMPUTE_WORKGROUP: [u32; 2] = [8, 8];
 
+/// Adaptive refinement's structural key (shaders/raycast/common.glsl):
+/// runs through the bricks within this many bricks (Chebyshev) of one with
+/// visible samples, and the upper limit of the distances it tells apart.
+pub const KEY_NEAR: u32 = 8;
+
+/// The brick distances the key tells apart in a frame whose bricks cover
+/// at least `brick_pixels` pixels (None: no corner of the box is in front
+/// of the eye): enough that a feature between two test rays of a block of
+/// 8 ([`crate::algo::adaptive::BLOCK`] / 2 pixels apart) is nearer one of
+/// them than the other by a brick, at most [`KEY_NEAR`].
+pub fn key_close(brick_pixels: Option<f64>) -> u32 {
+    let spacing = f64::from(crate::algo::adaptive::BLOCK / 2);
+    match brick_pixels {
+        Some(px) if px > 0.0 => ((spacing / px).ceil().min(f64::from(KEY_NEAR)) as u32).max(1),
+        _ => KEY_NEAR,
+    }
+}
+
 /// The box's triangles have outward right-handed normals: faces towards the
 /// eye appear counter-clockwise on screen (Vulkan's y-down framebuffer).
 const FRONT: Winding = Winding::CounterClockwise;
@@ -344,6 +362,7 @@ impl Settings {
     /// refinement's state at set 2 when given.
     pub fn compute_key(&self, facts: ShaderFacts, target: &DescriptorSetDesc, adaptive: Option<&DescriptorSetDesc>) -> PipelineKey {
         let wg = COMPUTE_WORKGROUP.map(|v| v.to_string());
+        let near = format!("{KEY_NEAR}u");
         let mut d = self.march_defines(facts);
         // The march's counters reduced per subgroup (common.glsl) where the
         // device can.
@@ -355,6 +374,7 @@ impl Settings {
         let mut sets = vec![set0_desc(facts.volume_load_format.is_some()), target.clone()];
         if let Some(state) = adaptive {
             d.push(("ADAPTIVE", "1"));
+            d.push(("ADAPTIVE_NEAR", &near));
             sets.push(state.clone());
         }
         PipelineKey::Compute(ComputePipelineKey {
@@ -643,8 +663,8 @@ pub struct Frame {
 #[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct AdaptiveFrame {
     pub frame: Frame,
-    /// Layout padding: std430 aligns `rect` (a uvec4) to 16 bytes.
-    pub pad_to_align_rect: u32,
+    /// The brick distances the structural key tells apart ([`key_close`]).
+    pub close: u32,
     /// The frame's rectangle, inclusive pixel bounds.
     pub rect: [u32; 4],
     /// The cast pass's step (4, 2, 1; `shaders/common/adaptive.glsl`).
@@ -968,6 +988,26 @@ impl VolumeResources {
             })
             .collect();
         box_on_screen(&clip, [view.width, view.height])
+    }
+
+    /// The fewest pixels a brick's edge (`brick` voxels of the smallest
+    /// spacing) covers at any corner of the box in front of the eye under
+    /// `view`, across the view direction; None when no corner is.
+    pub fn brick_pixels(&self, view: &View, brick: f64) -> Option<f64> {
+        let vp = view.camera.view_proj(view.width, view.height);
+        let w = self.world_from_voxel();
+        let right = view.camera.forward().cross(DVec3::from(view.camera.up)).normalize();
+        let edge = right * (brick * self.spacing.min_element());
+        let half = glam::DVec2::new(f64::from(view.width), f64::from(view.height)) * 0.5;
+        let hi = DVec3::new((self.dims[0] - 1) as f64, (self.dims[1] - 1) as f64, (self.dims[2] - 1) as f64);
+        (0..8)
+            .filter_map(|c| {
+                let u = DVec3::new(if c & 1 != 0 { hi.x } else { 0.0 }, if c & 2 != 0 { hi.y } else { 0.0 }, if c & 4 != 0 { hi.z } else { 0.0 });
+                let p = w.transform_point3(u);
+                let (a, b) = (vp * p.extend(1.0), vp * (p + edge).extend(1.0));
+                (a.w > 0.0 && b.w > 0.0).then(|| ((a.truncate().truncate() / a.w - b.truncate().truncate() / b.w) * half).length())
+            })
+            .reduce(f64::min)
     }
 
     /// Push constants for the view: `m` (voxel -> clip, or NDC -> voxel),

@@ -256,6 +256,7 @@ pub fn stress_cases(size: u32) -> Vec<StressCase> {
     }
     cases.extend(volumes::volume_cases(size));
     cases.push(refinement::speck());
+    cases.push(refinement::far_speck());
     cases
 }
 
