@@ -65,6 +65,11 @@ pub const BLOCK: u32 = 8;
 pub const WORKGROUP: [u32; 2] = [8, 8];
 /// Counter words (`A_*` in shaders/common/adaptive.glsl).
 const COUNTER_WORDS: usize = 27;
+/// Where the indirect arguments of the decide pass over the blocks of 4
+/// and of the two list casts begin (bytes; `A_ARGS_*`).
+const ARGS_DECIDE4: u64 = 0;
+const ARGS_CAST2: u64 = 3 * 4;
+const ARGS_CAST1: u64 = 6 * 4;
 /// The decide pass's push constants (`Decide` in
 /// `shaders/common/adaptive_decide.comp`; `tests/shader_interfaces.rs`
 /// checks the two agree).
@@ -537,17 +542,17 @@ impl Adaptive {
         self.timestamps.write(rec, 2, TimestampAt::ComputeDone)?;
         rec.compute_to_indirect();
         bind(rec, &self.set, 2, 0, counter)?;
-        rec.dispatch_indirect(&self.counters, 12)?;
+        rec.dispatch_indirect(&self.counters, ARGS_CAST2)?;
         self.timestamps.write(rec, 3, TimestampAt::ComputeDone)?;
         rec.compute_to_indirect();
         let set = self.target_set.for_target(&self.ctx, target)?;
         rec.bind_compute(&self.decide, &[&self.set, set])?;
         rec.push_constants(&self.decide, bytemuck::bytes_of(&push(4, 0)), counter);
-        rec.dispatch_indirect(&self.counters, 0)?;
+        rec.dispatch_indirect(&self.counters, ARGS_DECIDE4)?;
         self.timestamps.write(rec, 4, TimestampAt::ComputeDone)?;
         rec.compute_to_indirect();
         bind(rec, &self.set, 1, 0, counter)?;
-        rec.dispatch_indirect(&self.counters, 24)?;
+        rec.dispatch_indirect(&self.counters, ARGS_CAST1)?;
         self.timestamps.write(rec, 5, TimestampAt::ComputeDone)?;
         rec.compute_to_host();
         self.timed = true;

@@ -54,7 +54,6 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
     Ok(Box::new(RaycastCompute {
         adaptive,
         rect: screen::NO_PIXELS,
-        close: super::KEY_NEAR,
         res,
         settings,
         pipeline,
@@ -86,8 +85,6 @@ pub struct RaycastCompute {
     /// lattice points; the frame's rectangle (the box's pixels).
     adaptive: Option<(Adaptive, Arc<Pipeline>)>,
     rect: [u32; 4],
-    /// The frame's [`super::key_close`].
-    close: u32,
     ctx: Arc<crate::vk::Context>,
 }
 
@@ -114,9 +111,9 @@ impl RenderMethod for RaycastCompute {
                 BoxOnScreen::Cut => [0, 0, w.saturating_sub(1), h.saturating_sub(1)],
             };
             state.frame(self.rect, [w, h])?;
-            self.close = super::key_close(self.res.brick_pixels(view, self.settings.brick as f64));
+            let close = super::key_close(self.res.brick_pixels(view, self.settings.brick as f64));
             // The rect; the step (and for step 4 its lattice's rows) are set per pass in record.
-            self.push = AdaptiveFrame { frame: self.res.frame(view, true, [0, 0], 0, runs), close: self.close, rect: self.rect, cast_step: 0 };
+            self.push = AdaptiveFrame { frame: self.res.frame(view, true, [0, 0], 0, runs), close, rect: self.rect, cast_step: 0 };
         }
         Ok(())
     }
@@ -181,7 +178,7 @@ impl RenderMethod for RaycastCompute {
             let [x0, y0, x1, y1] = self.rect;
             let rect_pixels = if x0 > x1 || y0 > y1 { 0 } else { u64::from(x1 - x0 + 1) * u64::from(y1 - y0 + 1) };
             d["adaptive"] = state.details(rect_pixels);
-            d["adaptive"]["key"] = json!({ "near_bricks": super::KEY_NEAR, "close_bricks": self.close });
+            d["adaptive"]["key"] = json!({ "near_bricks": super::KEY_NEAR, "close_bricks": self.push.close });
         }
         d
     }

@@ -980,14 +980,14 @@ impl VolumeResources {
     /// voxel -> clip matrix the box pass draws with).
     pub fn on_screen(&self, view: &View) -> BoxOnScreen {
         let m = view.camera.view_proj(view.width, view.height) * self.world_from_voxel();
-        let hi = DVec3::new((self.dims[0] - 1) as f64, (self.dims[1] - 1) as f64, (self.dims[2] - 1) as f64);
-        let clip: Vec<glam::DVec4> = (0..8)
-            .map(|c| {
-                let u = DVec3::new(if c & 1 != 0 { hi.x } else { 0.0 }, if c & 2 != 0 { hi.y } else { 0.0 }, if c & 4 != 0 { hi.z } else { 0.0 });
-                m * u.extend(1.0)
-            })
-            .collect();
+        let clip: Vec<glam::DVec4> = self.box_corners().map(|u| m * u.extend(1.0)).collect();
         box_on_screen(&clip, [view.width, view.height])
+    }
+
+    /// The box's eight corners in voxel coordinates.
+    fn box_corners(&self) -> impl Iterator<Item = DVec3> {
+        let hi = DVec3::new((self.dims[0] - 1) as f64, (self.dims[1] - 1) as f64, (self.dims[2] - 1) as f64);
+        (0..8).map(move |c| DVec3::new(if c & 1 != 0 { hi.x } else { 0.0 }, if c & 2 != 0 { hi.y } else { 0.0 }, if c & 4 != 0 { hi.z } else { 0.0 }))
     }
 
     /// The fewest pixels a brick's edge (`brick` voxels of the smallest
@@ -999,10 +999,8 @@ impl VolumeResources {
         let right = view.camera.forward().cross(DVec3::from(view.camera.up)).normalize();
         let edge = right * (brick * self.spacing.min_element());
         let half = glam::DVec2::new(f64::from(view.width), f64::from(view.height)) * 0.5;
-        let hi = DVec3::new((self.dims[0] - 1) as f64, (self.dims[1] - 1) as f64, (self.dims[2] - 1) as f64);
-        (0..8)
-            .filter_map(|c| {
-                let u = DVec3::new(if c & 1 != 0 { hi.x } else { 0.0 }, if c & 2 != 0 { hi.y } else { 0.0 }, if c & 4 != 0 { hi.z } else { 0.0 });
+        self.box_corners()
+            .filter_map(|u| {
                 let p = w.transform_point3(u);
                 let (a, b) = (vp * p.extend(1.0), vp * (p + edge).extend(1.0));
                 (a.w > 0.0 && b.w > 0.0).then(|| ((a.truncate().truncate() / a.w - b.truncate().truncate() / b.w) * half).length())
