@@ -148,6 +148,21 @@ fn brick_1_holds_the_texture_and_one_map() {
     }
 }
 
+/// `reads=quads`, the other documented exception: four samples a texel,
+/// so the texture is four times the samples, allocated whole beside the
+/// samples still to be filled: at most five times them, and above the
+/// bound of two once the volume outgrows the fixed overhead (160³).
+#[test]
+fn quads_hold_at_most_five_times_the_samples() {
+    for (kind, n) in [("u8", 64), ("u8", 160), ("f32", 64)] {
+        let (held, bytes) = peak("raycast-compute:reads=quads", kind, n, true);
+        assert!(held <= 5 * bytes + FIXED, "quads {kind} {n}³: {held} bytes, more than 5 × {bytes} + {FIXED}");
+        if n == 160 {
+            assert!(held > 2 * bytes + FIXED, "quads {kind} {n}³: {held} bytes, within 2 × {bytes} + {FIXED}");
+        }
+    }
+}
+
 /// int16 holding -32768 has a 16-bit texture (shifted into unorm), not a
 /// float one twice its bytes: with the samples shared the run holds them,
 /// the texture and the map (the float texture made it three times the

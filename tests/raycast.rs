@@ -470,7 +470,8 @@ fn blob_as(kind: &str, dims: [usize; 3]) -> (Volume, f64, f64) {
 /// every texture format, at two image sizes: both within the reference
 /// bound, the same samples taken, and loads never further from the f64
 /// reference (lavapipe filters 8-bit textures with 8-bit weights: there
-/// loads is closer).
+/// loads is closer). `reads=quads` (two loads of four samples) is the
+/// loads' image bit for bit, with the same samples.
 #[test]
 fn texel_loads_and_the_sampler_read_the_same_field() {
     for kind in ["u8", "u16", "i16", "f32"] {
@@ -489,8 +490,12 @@ fn texel_loads_and_the_sampler_read_the_same_field() {
             for method in ["raycast-compute", "raycast-fragment"] {
                 let tex = render_sized(&format!("{method}:reads=texture"), &d, &tf, cam, size);
                 let loads = render_sized(&format!("{method}:reads=loads"), &d, &tf, cam, size);
+                let quads = render_sized(&format!("{method}:reads=quads"), &d, &tf, cam, size);
                 assert_eq!(tex.result.details["volume_reads"], "texture");
                 assert_eq!(loads.result.details["volume_reads"], "loads");
+                assert_eq!(quads.result.details["volume_reads"], "quads");
+                assert!(quads.image.pixels == loads.image.pixels, "{kind} {size} {method}: quads and loads differ");
+                assert_eq!(samples(&quads), samples(&loads), "{kind} {size} {method}");
                 let (et, el) = (rmse(&tex.image, &want), rmse(&loads.image, &want));
                 let between = rmse(&tex.image, &loads.image);
                 eprintln!("{kind} {size} {method}: texture {et:.3e}, loads {el:.3e}, between {between:.3e}");
@@ -509,7 +514,8 @@ fn texel_loads_and_the_sampler_read_the_same_field() {
             }
         }
     }
-    // auto: loads on a CPU device (lavapipe), the texture unit elsewhere.
+    // auto: loads on a CPU device (lavapipe), the texture unit elsewhere
+    // (quads only when asked for: 4x the texture's bytes).
     let d = dataset(blob([24, 20, 16], [1.0, 1.0, 1.0]));
     let tf = tf(d.bounds().diagonal());
     let auto = render("raycast-compute", &d, &tf, orbit(&d));

@@ -337,7 +337,7 @@ fn the_suite_runs_the_option_sets_published_figures_name_and_reports_the_ratios(
     for m in ["raycast-fragment", "raycast-compute"] {
         assert!(ct.contains(&m.to_string()) && ct.contains(&format!("{m}:ert=1,skip=off")), "{ct:?}");
         // The method's own suite set (the cheap end of its trade-off), for comparisons at matched error.
-        assert!(ct.contains(&format!("{m}:step=1")), "{ct:?}");
+        assert!(ct.contains(&format!("{m}:step=1,reads=quads")), "{ct:?}");
     }
     let settings = SuiteSettings { width: 32, height: 32, frames: 1, warmup: 0, ..SuiteSettings::standard(true, vec!["bluntfin".into()]) };
     let planned = plan(&registry, &settings).unwrap();

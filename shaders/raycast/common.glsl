@@ -65,6 +65,14 @@ float volume_at(vec3 u) {
     vec3 i = min(floor(uc), params.box_max - 1.0);
     vec3 f = uc - i;
     ivec3 k = ivec3(i);
+#ifdef VOLUME_QUADS
+    // Each texel holds its sample and the +x, +y, +x+y neighbours
+    // (reads=quads): two loads, the same blend as the eight below.
+    vec4 q0 = imageLoad(volume_img, k);
+    vec4 q1 = imageLoad(volume_img, k + ivec3(0, 0, 1));
+    vec2 y0 = mix(vec2(q0.x, q1.x), vec2(q0.y, q1.y), f.x);
+    vec2 y1 = mix(vec2(q0.z, q1.z), vec2(q0.w, q1.w), f.x);
+#else
     float c000 = imageLoad(volume_img, k).r;
     float c100 = imageLoad(volume_img, k + ivec3(1, 0, 0)).r;
     float c010 = imageLoad(volume_img, k + ivec3(0, 1, 0)).r;
@@ -75,6 +83,7 @@ float volume_at(vec3 u) {
     float c111 = imageLoad(volume_img, k + ivec3(1, 1, 1)).r;
     vec2 y0 = mix(vec2(c000, c001), vec2(c100, c101), f.x);
     vec2 y1 = mix(vec2(c010, c011), vec2(c110, c111), f.x);
+#endif
     vec2 z = mix(y0, y1, f.y);
     return mix(z.x, z.y, f.z);
 }

@@ -20,6 +20,11 @@ pub enum Format {
     R16Unorm,
     R16Snorm,
     R16Sint,
+    /// Four channels of the single-channel formats above (a volume's
+    /// sample with its neighbours: raycast's `reads=quads`).
+    Rgba8Unorm,
+    Rgba16Unorm,
+    Rgba16Snorm,
     R32Float,
     R32Uint,
     Rg32Float,
@@ -38,6 +43,9 @@ impl Format {
             Format::R16Unorm => vk::Format::R16_UNORM,
             Format::R16Snorm => vk::Format::R16_SNORM,
             Format::R16Sint => vk::Format::R16_SINT,
+            Format::Rgba8Unorm => vk::Format::R8G8B8A8_UNORM,
+            Format::Rgba16Unorm => vk::Format::R16G16B16A16_UNORM,
+            Format::Rgba16Snorm => vk::Format::R16G16B16A16_SNORM,
             Format::R32Float => vk::Format::R32_SFLOAT,
             Format::R32Uint => vk::Format::R32_UINT,
             Format::Rg32Float => vk::Format::R32G32_SFLOAT,
@@ -59,6 +67,9 @@ impl Format {
             Format::R16Unorm => ("r16", true),
             Format::R16Snorm => ("r16_snorm", true),
             Format::R16Sint => ("r16i", true),
+            Format::Rgba8Unorm => ("rgba8", false),
+            Format::Rgba16Unorm => ("rgba16", true),
+            Format::Rgba16Snorm => ("rgba16_snorm", true),
             Format::R32Float => ("r32f", false),
             Format::R32Uint => ("r32ui", false),
             Format::Rg32Float => ("rg32f", false),
@@ -73,8 +84,8 @@ impl Format {
         match self {
             Format::R8Unorm | Format::R8Uint => 1,
             Format::R16Unorm | Format::R16Snorm | Format::R16Sint => 2,
-            Format::R32Float | Format::R32Uint | Format::Depth32Float => 4,
-            Format::Rg32Float => 8,
+            Format::R32Float | Format::R32Uint | Format::Depth32Float | Format::Rgba8Unorm => 4,
+            Format::Rg32Float | Format::Rgba16Unorm | Format::Rgba16Snorm => 8,
             Format::Rgb32Float => 12,
             Format::Rgba32Float | Format::Rgba32Uint => 16,
         }

@@ -133,8 +133,12 @@ crate::choices! {
         Texture = "texture",
         /// Eight `imageLoad`s blended in f32 in the shader.
         Loads = "loads",
+        /// Two `imageLoad`s of four samples each (every texel holds its
+        /// sample and the +x, +y and +x+y neighbours), blended as `loads`.
+        Quads = "quads",
     }
 }
+
 
 crate::settings! {
     /// The options both variants share, as typed values.
@@ -151,7 +155,9 @@ crate::settings! {
         reads: VolumeReads = "auto", choice::<VolumeReads>(), build, "",
             "how a sample reads the volume: texture (the sampler's trilinear filter), loads (eight texel loads \
              blended in f32 in the shader: on lavapipe the sampler is an out-of-line call with 8-bit weights), \
-             auto (loads on a CPU device, texture elsewhere); the same field either way";
+             quads (two loads of four samples each, blended as loads: the texture holds each sample with its +x, +y \
+             and +x+y neighbours, 4x the bytes, beyond the memory bound of twice the samples), auto (loads on a CPU \
+             device, texture elsewhere); the same field every way";
         adaptive: f64 = "0", float(0.0, 0.25), build, "TOL", crate::algo::adaptive::HELP;
     }
 }
@@ -186,8 +192,10 @@ pub const COMPARE: &[&str] = &["", "shade=on", "integrator=preint,step=1"];
 /// three quarters of the error of VTK's CPU fixed-point ray caster at its
 /// half-spacing step (README, "Peers"): the report compares speed at
 /// matched error with it, and two points near its error sample the
-/// time-error front where the comparison is made.
-pub const SUITE: &[&str] = &["step=1", "step=1.25"];
+/// time-error front where the comparison is made. These fast points read
+/// the volume as quads (`reads=quads`: two loads a sample for 4x the
+/// texture's bytes, a user's trade of memory for speed; the same image).
+pub const SUITE: &[&str] = &["step=1,reads=quads", "step=1.25,reads=quads"];
 /// Stress: the defaults, pre-integration, and skipping and termination off
 /// (lighting is not compared: the reference does not shade).
 pub const STRESS: &[&str] = &["", "integrator=preint", "skip=off,ert=1"];
@@ -209,8 +217,9 @@ const fn joined<const N: usize>(a: &[&'static str], b: &[&'static str]) -> [&'st
 }
 
 /// Adaptive refinement's tolerances in the suite (about 2/255 and 4/255,
-/// the same on every volume) and in the sweep (`pareto`).
-const ADAPTIVE_SUITE: &[&str] = &["adaptive=0.008", "adaptive=0.016"];
+/// the same on every volume, and about 8/255 over steps of 1.25 voxels)
+/// and in the sweep (`pareto`).
+const ADAPTIVE_SUITE: &[&str] = &["adaptive=0.008,reads=quads", "adaptive=0.016,reads=quads", "step=1.25,adaptive=0.032,reads=quads"];
 const ADAPTIVE_SWEEP: &[&str] = &["adaptive=0.004", "adaptive=0.008", "adaptive=0.016", "adaptive=0.032"];
 const SUITE_COMPUTE_LIST: [&str; SUITE.len() + ADAPTIVE_SUITE.len()] = joined(SUITE, ADAPTIVE_SUITE);
 const STRESS_COMPUTE_LIST: [&str; STRESS.len() + 1] = joined(STRESS, &["adaptive=0.008"]);
@@ -275,6 +284,8 @@ pub struct ShaderFacts {
     /// The GLSL format the volume is read in with imageLoad (option
     /// `reads`); `None`: sampled.
     pub volume_load_format: Option<&'static str>,
+    /// The loads are of four-sample quads (`reads=quads`).
+    pub volume_quads: bool,
     /// The device has compute subgroup arithmetic.
     pub subgroup_counters: bool,
 }
@@ -354,6 +365,9 @@ impl Settings {
         if let Some(format) = facts.volume_load_format {
             d.push(("VOLUME_LOADS", "1"));
             d.push(("VOLUME_FORMAT", format));
+            if facts.volume_quads {
+                d.push(("VOLUME_QUADS", "1"));
+            }
         }
         d
     }
@@ -445,8 +459,25 @@ impl Texels {
     }
 
     /// Fills `dst` with the texels of samples `first..` (`lo`: the
-    /// smallest sample, subtracted from floats).
-    fn fill(self, samples: &Samples, lo: f64, first: usize, dst: &mut [u8]) {
+    /// smallest sample, subtracted from floats); with `quads` (the volume's
+    /// first two dimensions) each texel is four: its sample and the +x, +y
+    /// and +x+y neighbours, clamped to the layer (a layer's texels need
+    /// only its own samples).
+    fn fill(self, samples: &Samples, lo: f64, first: usize, dst: &mut [u8], quads: Option<[usize; 2]>) {
+        let Some([nx, ny]) = quads else { return self.fill_plain(samples, lo, first, dst) };
+        let one = self.size(samples.sample_type());
+        for (k, quad) in dst.chunks_exact_mut(4 * one).enumerate() {
+            let t = first + k;
+            let (i, j) = (t % nx, t / nx % ny);
+            let dx = usize::from(i + 1 < nx);
+            let dy = if j + 1 < ny { nx } else { 0 };
+            for (c, n) in quad.chunks_exact_mut(one).zip([t, t + dx, t + dy, t + dx + dy]) {
+                self.fill_plain(samples, lo, n, c);
+            }
+        }
+    }
+
+    fn fill_plain(self, samples: &Samples, lo: f64, first: usize, dst: &mut [u8]) {
         match (self, samples) {
             (Texels::ShiftedI16, Samples::I16(v)) => {
                 for (t, &x) in dst.chunks_exact_mut(2).zip(&v[first..]) {
@@ -521,8 +552,9 @@ pub struct VolumeResources {
     _sampler: Sampler,
     pub texture_format: &'static str,
     /// The volume is read with imageLoad in this GLSL format (option
-    /// `reads`), else sampled.
+    /// `reads`), else sampled; `volume_quads`: four samples a texel.
     volume_load_format: Option<&'static str>,
+    volume_quads: bool,
     pub brick_grid: [usize; 3],
     pub bricks_visible: usize,
     pub table_build_ms: f64,
@@ -690,6 +722,8 @@ struct TextureChoice {
     texel_bytes: usize,
     /// Read with imageLoad in this GLSL format (option `reads`), else sampled.
     load_format: Option<&'static str>,
+    /// Each texel four samples (`reads=quads`; `format` the four-channel one).
+    quads: bool,
     /// The samples' range (hi > lo).
     lo: f64,
     hi: f64,
@@ -723,20 +757,40 @@ impl TextureChoice {
             _ => (Format::R32Float, "r32-sfloat", 1.0, 0.0, Texels::Float),
         };
         let loadable = ctx.can_load(format);
-        let loads = match s.reads {
-            VolumeReads::Texture => false,
-            VolumeReads::Loads if !loadable => {
-                bail!("reads=loads: device '{}' cannot read {name} 3D images with imageLoad (use reads=texture)", ctx.info.name)
-            }
-            VolumeReads::Loads => true,
-            VolumeReads::Auto => loadable && ctx.info.is_cpu(),
+        let quad = quad_format(format).filter(|&q| ctx.can_load(q));
+        let texel_bytes = texels.size(samples.sample_type());
+        let cannot = |reads: &str| {
+            anyhow::anyhow!("reads={reads}: device '{}' cannot read {name} 3D images with imageLoad (use reads=texture)", ctx.info.name)
+        };
+        let (loads, quads) = match s.reads {
+            VolumeReads::Texture => (false, false),
+            VolumeReads::Loads if !loadable => return Err(cannot("loads")),
+            VolumeReads::Loads => (true, false),
+            VolumeReads::Quads if quad.is_none() => return Err(cannot("quads")),
+            VolumeReads::Quads => (true, true),
+            VolumeReads::Auto => (loadable && ctx.info.is_cpu(), false),
         };
         if !loads && !ctx.can_sample(format, Filter::Linear) {
             bail!("device '{}' cannot filter {name} 3D textures linearly", ctx.info.name);
         }
+        let (format, texel_bytes) = match quad {
+            Some(q) if quads => (q, 4 * texel_bytes),
+            _ => (format, texel_bytes),
+        };
         let load_format = if loads { format.glsl_image_format().map(|(f, _)| f) } else { None };
-        Ok(TextureChoice { format, name, scale, offset, texels, texel_bytes: texels.size(samples.sample_type()), load_format, lo, hi })
+        Ok(TextureChoice { format, name, scale, offset, texels, texel_bytes, load_format, quads, lo, hi })
     }
+}
+
+/// The four-channel format of a single-channel volume format (`reads=quads`).
+fn quad_format(f: Format) -> Option<Format> {
+    Some(match f {
+        Format::R8Unorm => Format::Rgba8Unorm,
+        Format::R16Unorm => Format::Rgba16Unorm,
+        Format::R16Snorm => Format::Rgba16Snorm,
+        Format::R32Float => Format::Rgba32Float,
+        _ => return None,
+    })
 }
 
 /// The volume's texture and its brick distances, built together
@@ -792,7 +846,8 @@ fn upload_volume_and_bricks(
     let texels = choice.texels;
     let lo = choice.lo;
     let texel = choice.texel_bytes;
-    let fill = |samples: &Samples, offset: usize, dst: &mut [u8]| texels.fill(samples, lo, offset / texel, dst);
+    let quads = choice.quads.then_some([dims[0], dims[1]]);
+    let fill = |samples: &Samples, offset: usize, dst: &mut [u8]| texels.fill(samples, lo, offset / texel, dst, quads);
     let layer = dims[0] * dims[1];
     let (mut map, volume) = match given {
         Some(mut own) => {
@@ -962,6 +1017,7 @@ impl VolumeResources {
             _sampler: sampler,
             texture_format: choice.name,
             volume_load_format: choice.load_format,
+            volume_quads: choice.quads,
             brick_grid: bricked.grid,
             bricks_visible: bricked.visible,
             table_build_ms,
@@ -1058,7 +1114,11 @@ impl VolumeResources {
     /// What the family's shaders are compiled for on this device, for
     /// this volume ([`Settings::compute_key`] and the others).
     pub fn shader_facts(&self, ctx: &Context) -> ShaderFacts {
-        ShaderFacts { volume_load_format: self.volume_load_format, subgroup_counters: ctx.info.compute_subgroup_arithmetic }
+        ShaderFacts {
+            volume_load_format: self.volume_load_format,
+            volume_quads: self.volume_quads,
+            subgroup_counters: ctx.info.compute_subgroup_arithmetic,
+        }
     }
 
     pub fn details(&self, s: &Settings, variant: serde_json::Value) -> serde_json::Value {
@@ -1067,7 +1127,11 @@ impl VolumeResources {
             "family": "raycast",
             "variant": variant,
             "texture_format": self.texture_format,
-            "volume_reads": if self.loads() { "loads" } else { "texture" },
+            "volume_reads": match (self.loads(), self.volume_quads) {
+                (true, true) => "quads",
+                (true, false) => "loads",
+                _ => "texture",
+            },
             "dims": self.dims,
             "step_voxels": s.step,
             "ert": s.ert,

@@ -304,9 +304,9 @@ pub const METHOD: MethodInfo = MethodInfo {
     ],
     compare: &["", "ert=1"],
     stress: &["integrator=average", "integrator=preint", "integrator=ppi", "integrator=linear-exact", "integrator=ppi,adaptive=0.008"],
-    // Adaptive refinement at three tolerances (about 2/255, 4/255 and
-    // 8/255), the same on every mesh: a front against time, not one point.
-    suite: &["adaptive=0.008", "adaptive=0.016", "adaptive=0.032"],
+    // Adaptive refinement at four tolerances (about 2/255, 4/255, 8/255
+    // and 12/255), the same on every mesh: a front against time, not one point.
+    suite: &["adaptive=0.008", "adaptive=0.016", "adaptive=0.032", "adaptive=0.048"],
     published: &[],
     family: Family {
         name: "tet-raycast",
