@@ -1036,3 +1036,39 @@ fn buffer_copies_check_their_sizes() {
     assert_eq!(small.read().unwrap()[..16], [7u8; 16]);
     assert_no_validation(&ctx);
 }
+
+/// `storage_target` knows where its target may be nonzero only while every
+/// write to it went through it: the rectangle it was given (the whole
+/// image when that covers it), forgotten by any barrier into a state that
+/// may write the image (a render pass, a compute write, a discard), kept
+/// across read-only uses (a readback).
+#[test]
+fn storage_target_tracks_where_the_image_may_be_nonzero() {
+    let ctx = context();
+    let target = Image::render_target(&ctx, "tracked target", 40, 30).unwrap();
+    assert_eq!(target.zero_outside(), None);
+    let rec = CommandRecorder::new(&ctx, "storage target").unwrap();
+    rec.begin().unwrap();
+    rec.storage_target(&target, [3, 4, 20, 10]);
+    assert_eq!(target.zero_outside(), Some([3, 4, 20, 10]));
+    rec.image_barrier(&target, ImageUse::TransferSrc);
+    assert_eq!(target.zero_outside(), Some([3, 4, 20, 10]), "a read keeps it");
+    rec.storage_target(&target, [1, 1, 0, 0]);
+    assert_eq!(target.zero_outside(), Some([1, 1, 0, 0]), "an empty rectangle: all zero");
+    rec.storage_target(&target, [0, 0, 39, 29]);
+    assert_eq!(target.zero_outside(), Some([0, 0, 39, 29]), "the whole image");
+    for write in [ImageUse::ColorAttachment, ImageUse::ComputeStorage] {
+        rec.storage_target(&target, [2, 2, 5, 5]);
+        rec.image_barrier(&target, write);
+        assert_eq!(target.zero_outside(), None, "{write:?}");
+    }
+    rec.storage_target(&target, [2, 2, 5, 5]);
+    rec.begin_rendering(&target, [0.0; 4]);
+    rec.end_rendering();
+    assert_eq!(target.zero_outside(), None, "a render pass");
+    rec.storage_target(&target, [2, 2, 5, 5]);
+    rec.image_barrier_discard(&target, ImageUse::TransferSrc);
+    assert_eq!(target.zero_outside(), None, "a discard");
+    rec.submit_and_wait().unwrap();
+    assert!(ctx.validation_messages().is_empty(), "{:?}", ctx.validation_messages());
+}

@@ -42,6 +42,21 @@ pub fn groups_over(rect: [u32; 4], group: [u32; 2]) -> ([u32; 3], [u32; 3]) {
     ([base[0], base[1], 0], [end[0] - base[0], end[1] - base[1], 1])
 }
 
+/// The pixels (inclusive bounds, clamped to an image of `size`) of the
+/// workgroups `groups` from `base`, each `group` pixels: what a pass over
+/// them may write; [`NO_PIXELS`] when there are none.
+pub fn pixels_of_groups(base: [u32; 3], groups: [u32; 3], group: [u32; 2], size: [u32; 2]) -> [u32; 4] {
+    if groups[0] == 0 || groups[1] == 0 || size[0] == 0 || size[1] == 0 {
+        return NO_PIXELS;
+    }
+    let end = |k: usize| (u64::from(base[k] + groups[k]) * u64::from(group[k])).min(u64::from(size[k])) as u32;
+    let (x0, y0) = (base[0] * group[0], base[1] * group[1]);
+    if x0 >= size[0] || y0 >= size[1] {
+        return NO_PIXELS;
+    }
+    [x0, y0, end(0) - 1, end(1) - 1]
+}
+
 /// The rows of workgroups a pass over `rows` rows dispatches when its
 /// device shares the workgroups out in `runs` contiguous runs
 /// (`DeviceInfo::compute_runs`): rows enough for `runs` runs of

@@ -525,10 +525,21 @@ impl CommandRecorder {
     }
 
     fn record_begin_rendering_depth(&self, targets: &[ColorAttachment], depth: Option<&vk::RenderingAttachmentInfo>) {
+        let (width, height) = targets.first().map(|t| (t.image.width, t.image.height)).unwrap_or((0, 0));
+        let area = vk::Rect2D { offset: vk::Offset2D { x: 0, y: 0 }, extent: vk::Extent2D { width, height } };
+        self.record_begin_rendering_area(targets, depth, area);
+    }
+
+    /// Begins rendering over `area` only: a cleared attachment is cleared
+    /// there, and where `area` is not the whole target its contents outside
+    /// are kept (the barrier keeps them).
+    fn record_begin_rendering_area(&self, targets: &[ColorAttachment], depth: Option<&vk::RenderingAttachmentInfo>, area: vk::Rect2D) {
+        let (width, height) = targets.first().map(|t| (t.image.width, t.image.height)).unwrap_or((0, 0));
+        let whole = area.offset.x == 0 && area.offset.y == 0 && area.extent.width == width && area.extent.height == height;
         let attachments: Vec<vk::RenderingAttachmentInfo> = targets
             .iter()
             .map(|t| {
-                t.image.barrier(self.raw, ImageUse::ColorAttachment, t.clear.is_none());
+                t.image.barrier(self.raw, ImageUse::ColorAttachment, t.clear.is_none() || !whole);
                 let info = vk::RenderingAttachmentInfo::default()
                     .image_view(t.image.view)
                     .image_layout(vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL)
@@ -541,8 +552,6 @@ impl CommandRecorder {
                 }
             })
             .collect();
-        let (width, height) = targets.first().map(|t| (t.image.width, t.image.height)).unwrap_or((0, 0));
-        let area = vk::Rect2D { offset: vk::Offset2D { x: 0, y: 0 }, extent: vk::Extent2D { width, height } };
         let mut info = vk::RenderingInfo::default().render_area(area).layer_count(1).color_attachments(&attachments);
         if let Some(d) = depth {
             info = info.depth_attachment(d);
@@ -989,18 +998,35 @@ impl CommandRecorder {
         image.barrier(self.raw, to, false);
     }
 
-    /// Make `target` ready for a compute pass's image stores: when the pass
-    /// writes only part of it (`whole` false), the rest is cleared to zero
-    /// first by an empty rendering pass; when it writes every texel, the old
-    /// contents are discarded.
-    pub fn storage_target(&self, target: &Image, whole: bool) {
-        if whole {
+    /// Make `target` ready for a compute pass's image stores into the
+    /// pixels `written` (inclusive bounds `[x0, y0, x1, y1]`, empty when
+    /// x0 > x1 or y0 > y1): the pass may write fewer, never others. Once it
+    /// has run, every pixel outside `written` is zero. When `written` is
+    /// the whole image the old contents are discarded; otherwise an empty
+    /// rendering pass clears what may be nonzero: the rectangle the last
+    /// call gave for this image when nothing has written it since
+    /// ([`Image::zero_outside`]: a frame's clear then covers the last
+    /// frame's pixels, not the image), else the whole image.
+    pub fn storage_target(&self, target: &Image, written: [u32; 4]) {
+        let (w, h) = (target.width, target.height);
+        let full = [0, 0, w.saturating_sub(1), h.saturating_sub(1)];
+        if written[0] == 0 && written[1] == 0 && written[2] >= full[2] && written[3] >= full[3] {
             self.image_barrier_discard(target, ImageUse::ComputeStorage);
-        } else {
-            self.begin_rendering(target, [0.0; 4]);
-            self.end_rendering();
-            self.image_barrier(target, ImageUse::ComputeStorage);
+            target.set_zero_outside(Some(full));
+            return;
         }
+        let [x0, y0, x1, y1] = target.zero_outside().unwrap_or(full);
+        let (x1, y1) = (x1.min(full[2]), y1.min(full[3]));
+        if x0 <= x1 && y0 <= y1 {
+            let area = vk::Rect2D {
+                offset: vk::Offset2D { x: x0 as i32, y: y0 as i32 },
+                extent: vk::Extent2D { width: x1 - x0 + 1, height: y1 - y0 + 1 },
+            };
+            self.record_begin_rendering_area(&[ColorAttachment { image: target, clear: Some([0.0; 4]) }], None, area);
+            self.end_rendering();
+        }
+        self.image_barrier(target, ImageUse::ComputeStorage);
+        target.set_zero_outside(Some(written));
     }
 }
 

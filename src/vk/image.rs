@@ -178,6 +178,11 @@ pub struct Image {
     pub(crate) usage: vk::ImageUsageFlags,
     name: String,
     state: Mutex<ImageState>,
+    /// `Some(r)`: as recorded so far, every pixel outside the inclusive
+    /// bounds `r` is zero (`r` may be empty: x0 > x1), established only by
+    /// `CommandRecorder::storage_target`; `None`: unknown. Any barrier or
+    /// transition into a state that may write the image resets it.
+    zero_outside: Mutex<Option<[u32; 4]>>,
     allocation: Option<Allocation>,
     ctx: Arc<Context>,
 }
@@ -300,6 +305,7 @@ impl Image {
             usage,
             name: name.to_string(),
             state: Mutex::new(UNDEFINED_STATE),
+            zero_outside: Mutex::new(None),
             allocation: None,
             ctx: ctx.clone(),
         };
@@ -373,6 +379,9 @@ impl Image {
     /// false the old contents are discarded (layout UNDEFINED as source),
     /// which is what a pass that overwrites every texel wants.
     pub fn barrier(&self, cmd: vk::CommandBuffer, to: ImageUse, keep: bool) {
+        if !keep || !matches!(to, ImageUse::Sampled | ImageUse::ShaderLoad | ImageUse::TransferSrc) {
+            self.set_zero_outside(None);
+        }
         let mut state = self.state.lock().unwrap_or_else(|p| p.into_inner());
         let mut from = *state;
         if !keep {
@@ -392,8 +401,19 @@ impl Image {
         to: (vk::ImageLayout, vk::PipelineStageFlags2, vk::AccessFlags2),
     ) {
         let to = ImageState { layout: to.0, stages: to.1, access: to.2 };
+        self.set_zero_outside(None);
         self.record_barrier(cmd, ImageState { layout: from.0, stages: from.1, access: from.2 }, to);
         *self.state.lock().unwrap_or_else(|p| p.into_inner()) = to;
+    }
+
+    /// The rectangle outside which the image is known to be zero, as
+    /// recorded so far (`None`: unknown; the field's note says when).
+    pub fn zero_outside(&self) -> Option<[u32; 4]> {
+        *self.zero_outside.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    pub(crate) fn set_zero_outside(&self, rect: Option<[u32; 4]>) {
+        *self.zero_outside.lock().unwrap_or_else(|p| p.into_inner()) = rect;
     }
 
     fn record_barrier(&self, cmd: vk::CommandBuffer, from: ImageState, to: ImageState) {

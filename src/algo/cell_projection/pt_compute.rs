@@ -714,8 +714,7 @@ impl CellProjector for PtCompute {
         // Only the tiles around the covered pixels run the pass: on llvmpipe
         // a workgroup with nothing to do still runs the whole shader masked
         // (docs/compute-speed.md, "What llvmpipe does"). The rest is cleared.
-        let all = [self.size[0].div_ceil(TILE[0]), self.size[1].div_ceil(TILE[1])];
-        rec.storage_target(target, groups[..2] == all);
+        rec.storage_target(target, crate::algo::screen::pixels_of_groups(base, groups, TILE, self.size));
         self.timestamps.write(rec, 0, TimestampAt::Start)?;
         rec.bind_compute(&self.pipeline, &[&tables.set, &self.set, target_set])?;
         rec.push_constants(&self.pipeline, bytemuck::bytes_of(&self.constants), counter);

@@ -61,7 +61,7 @@ fn create(inputs: MethodInputs) -> Result<Box<dyn RenderMethod>> {
         target_set,
         push: bytemuck::Zeroable::zeroed(),
         groups: [0, 0, 1],
-        whole_image: false,
+        written: screen::NO_PIXELS,
         pixels: inputs.width as u64 * inputs.height as u64,
         ctx: inputs.ctx.clone(),
     }))
@@ -76,10 +76,10 @@ pub struct RaycastCompute {
     target_set: TargetImageSet,
     /// The frame's push constants (with ADAPTIVE, its `frame`).
     push: AdaptiveFrame,
-    /// Workgroups dispatched (over the box's tiles), and whether they cover
-    /// the whole image.
+    /// Workgroups dispatched (over the box's tiles).
     groups: [u32; 3],
-    whole_image: bool,
+    /// The pixels the plain march's workgroups write (`storage_target`).
+    written: [u32; 4],
     pixels: u64,
     /// `adaptive=TOL`: the refinement's state and the march casting its
     /// lattice points; the frame's rectangle (the box's pixels).
@@ -101,7 +101,7 @@ impl RenderMethod for RaycastCompute {
         // (algo::screen::interleaved_rows).
         let runs = self.ctx.info.compute_runs();
         self.groups = [groups[0], screen::interleaved_rows(groups[1], runs), 1];
-        self.whole_image = groups[..2] == all;
+        self.written = screen::pixels_of_groups(base, groups, WORKGROUP, [view.width, view.height]);
         self.push.frame = self.res.frame(view, true, [base[0], base[1]], groups[1], runs);
         if let Some((state, _)) = &mut self.adaptive {
             let (w, h) = (view.width, view.height);
@@ -129,9 +129,7 @@ impl RenderMethod for RaycastCompute {
         // invocation whose ray misses still runs the whole shader masked:
         // crate::algo::screen); the rest of the target is cleared.
         if let Some((state, pipeline)) = &mut self.adaptive {
-            let r = self.rect;
-            let whole = r[0] == 0 && r[1] == 0 && u64::from(r[2] + 1) * u64::from(r[3] + 1) == self.pixels && r[0] <= r[2];
-            rec.storage_target(target, whole);
+            rec.storage_target(target, self.rect);
             let (set0, push, pipeline) = (&self.res.set, self.push, &*pipeline);
             state.record(rec, target, counter, |rec, state_set, step, rows, counter| {
                 rec.bind_compute(pipeline, &[set0, set, state_set])?;
@@ -142,7 +140,7 @@ impl RenderMethod for RaycastCompute {
             self.res.record_counters_to_host(rec);
             return Ok(());
         }
-        rec.storage_target(target, self.whole_image);
+        rec.storage_target(target, self.written);
         if self.groups[0] > 0 && self.groups[1] > 0 {
             rec.bind_compute(&self.pipeline, &[&self.res.set, set])?;
             rec.push_constants(&self.pipeline, bytemuck::bytes_of::<Frame>(&self.push.frame), counter);

@@ -1096,7 +1096,7 @@ impl RenderMethod for TetRaycast {
         Ok(())
     }
 
-    fn record(&mut self, rec: &CommandRecorder, target: &Image, view: &View, counter: &mut UploadCounter) -> Result<()> {
+    fn record(&mut self, rec: &CommandRecorder, target: &Image, _view: &View, counter: &mut UploadCounter) -> Result<()> {
         let set = self.target_set.for_target(&self.ctx, target)?;
         rec.fill_buffer(&self.counters, 0);
         rec.transfer_to_storage(Stages::COMPUTE);
@@ -1106,7 +1106,7 @@ impl RenderMethod for TetRaycast {
         // at 512x512 (docs/compute-speed.md). The rest is cleared.
         let [gx, gy, _] = rect_groups(self.rect);
         let groups = [gx, screen::interleaved_rows(gy, self.ctx.info.compute_runs()), 1];
-        rec.storage_target(target, self.rect_pixels == u64::from(view.width) * u64::from(view.height));
+        rec.storage_target(target, self.rect);
         if let Some(a) = self.adaptive.as_mut().filter(|a| a.active) {
             // Adaptive refinement: the lattice of 4, then the listed blocks
             // (algo::adaptive), each cast pass this walk with its step.
