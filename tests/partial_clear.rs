@@ -11,10 +11,8 @@ use volbench::harness::run::{run, RunConfig};
 use volbench::mesh::split::hex_grid_to_tets;
 use volbench::volume::{Samples, Volume};
 
-/// A bar along x (`along_x`) or z, 4 times as long as it is wide: seen
-/// lengthwise from one side of the orbit and end-on a quarter turn on.
-fn bar_mesh(along_x: bool) -> Dataset {
-    let dims = if along_x { [13, 4, 4] } else { [4, 4, 13] };
+/// The points of a `dims` grid of unit spacing, x fastest.
+fn grid(dims: [usize; 3]) -> Vec<[f64; 3]> {
     let mut points = Vec::new();
     for k in 0..dims[2] {
         for j in 0..dims[1] {
@@ -23,20 +21,21 @@ fn bar_mesh(along_x: bool) -> Dataset {
             }
         }
     }
+    points
+}
+
+/// A bar along x (`along_x`) or z, 4 times as long as it is wide: seen
+/// lengthwise from one side of the orbit and end-on a quarter turn on.
+fn bar_mesh(along_x: bool) -> Dataset {
+    let dims = if along_x { [13, 4, 4] } else { [4, 4, 13] };
+    let points = grid(dims);
     let scalars = points.iter().map(|p| (0.7 * p[0] + 0.5 * p[1] + 0.3 * p[2]).sin()).collect();
     Dataset::from_mesh(hex_grid_to_tets("bar", dims, points, scalars).unwrap(), false, "bar".into())
 }
 
 fn bar_volume(along_x: bool) -> Dataset {
     let dims = if along_x { [40, 10, 10] } else { [10, 10, 40] };
-    let mut s = Vec::new();
-    for k in 0..dims[2] {
-        for j in 0..dims[1] {
-            for i in 0..dims[0] {
-                s.push((0.3 * i as f32 + 0.5 * j as f32 + 0.2 * k as f32).sin().abs());
-            }
-        }
-    }
+    let s = grid(dims).iter().map(|p| ((0.3 * p[0] + 0.5 * p[1] + 0.2 * p[2]) as f32).sin().abs()).collect();
     let v = Volume::new("bar", "bar", dims, [1.0; 3], [0.0; 3], Samples::F32(s)).unwrap();
     Dataset::from_volume(v, false, "bar".into())
 }

@@ -90,26 +90,23 @@ pub struct RaycastCompute {
 
 impl RenderMethod for RaycastCompute {
     fn prepare(&mut self, view: &View, _phases: &mut Phases) -> Result<()> {
-        let all = [view.width.div_ceil(WORKGROUP[0]), view.height.div_ceil(WORKGROUP[1])];
-        // Only the tiles over the box's pixels (its place in the view).
-        let (base, groups) = match self.res.on_screen(view) {
-            BoxOnScreen::Hidden => ([0; 3], [0, 0, 1]),
-            BoxOnScreen::Whole { rect } => screen::groups_over(rect, WORKGROUP),
-            BoxOnScreen::Cut => ([0; 3], [all[0], all[1], 1]),
+        let (w, h) = (view.width, view.height);
+        // The box's pixels (its place in the view; the whole image when the
+        // box is cut by the eye plane), and only the tiles over them.
+        let box_rect = match self.res.on_screen(view) {
+            BoxOnScreen::Hidden => screen::NO_PIXELS,
+            BoxOnScreen::Whole { rect } => rect,
+            BoxOnScreen::Cut => [0, 0, w.saturating_sub(1), h.saturating_sub(1)],
         };
+        let (base, groups) = screen::groups_over(box_rect, WORKGROUP);
         // Rows interleaved over the device's runs of workgroups
         // (algo::screen::interleaved_rows).
         let runs = self.ctx.info.compute_runs();
         self.groups = [groups[0], screen::interleaved_rows(groups[1], runs), 1];
-        self.written = screen::pixels_of_groups(base, groups, WORKGROUP, [view.width, view.height]);
+        self.written = screen::pixels_of_groups(base, groups, WORKGROUP, [w, h]);
         self.push.frame = self.res.frame(view, true, [base[0], base[1]], groups[1], runs);
         if let Some((state, _)) = &mut self.adaptive {
-            let (w, h) = (view.width, view.height);
-            self.rect = match self.res.on_screen(view) {
-                BoxOnScreen::Hidden => screen::NO_PIXELS,
-                BoxOnScreen::Whole { rect } => rect,
-                BoxOnScreen::Cut => [0, 0, w.saturating_sub(1), h.saturating_sub(1)],
-            };
+            self.rect = box_rect;
             state.frame(self.rect, [w, h])?;
             let close = super::key_close(self.res.brick_pixels(view, self.settings.brick as f64));
             // The rect; the step (and for step 4 its lattice's rows) are set per pass in record.

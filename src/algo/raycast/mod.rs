@@ -139,7 +139,6 @@ crate::choices! {
     }
 }
 
-
 crate::settings! {
     /// The options both variants share, as typed values.
     pub struct Settings {
