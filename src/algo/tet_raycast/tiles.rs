@@ -79,6 +79,9 @@ pub struct TileLists {
     pub faces: Vec<u32>,
     /// Tiles across and down the rectangle.
     pub tiles: [u32; 2],
+    /// The visit's (tile, face) pairs, kept between frames for their
+    /// allocation.
+    pairs: Vec<(u32, u32)>,
 }
 
 /// The camera as the lists see it: the eye, the view direction and the
@@ -241,30 +244,29 @@ impl TileLists {
                 }
             }
         };
-        // Count, check the total against the limit, then fill: the same
-        // visit both times.
-        let mut count = vec![0u32; n_tiles + 1];
-        let mut total = 0u64;
+        // One visit lists (tile, face) pairs, checking the total against
+        // the limit as it goes; a counting sort by tile then keeps each
+        // tile's faces in face order.
+        let pairs = &mut self.pairs;
+        pairs.clear();
         for i in 0..faces.corners.len() {
-            visit(i, &mut |t| {
-                count[t + 1] += 1;
-                total += 1;
-            });
-            if total > max_texels {
+            visit(i, &mut |t| pairs.push((t as u32, i as u32)));
+            if pairs.len() as u64 > max_texels {
                 return false;
             }
+        }
+        let mut count = vec![0u32; n_tiles + 1];
+        for &(t, _) in pairs.iter() {
+            count[t as usize + 1] += 1;
         }
         for t in 0..n_tiles {
             count[t + 1] += count[t];
         }
         let mut next = count.clone();
-        self.faces.resize(total as usize, 0);
-        let out = &mut self.faces;
-        for i in 0..faces.corners.len() {
-            visit(i, &mut |t| {
-                out[next[t] as usize] = i as u32;
-                next[t] += 1;
-            });
+        self.faces.resize(pairs.len(), 0);
+        for &(t, i) in pairs.iter() {
+            self.faces[next[t as usize] as usize] = i;
+            next[t as usize] += 1;
         }
         self.first = count;
         true
