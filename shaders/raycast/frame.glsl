@@ -10,6 +10,6 @@ layout(push_constant) uniform Frame {
 #ifdef ADAPTIVE
     uint close;          // adaptive refinement's key: the brick distances it tells apart (raycast/common.glsl)
     uvec4 rect;          // adaptive refinement (compute): the frame's rectangle, inclusive pixel bounds
-    uint cast_step;      // the cast pass's step (4, 2, 1; common/adaptive.glsl)
+    uint cast_step;      // the cast pass's step (8, 4, 2, 1; common/adaptive.glsl)
 #endif
 } frame;

@@ -60,6 +60,8 @@ void main() {
     }
 #ifdef ADAPTIVE
     adaptive_store(pass_step, frame.rect, at, color, key, true);
-#endif
+    adaptive_pixel(frame.rect, at, color);
+#else
     imageStore(target, px, color);
+#endif
 }

@@ -18,5 +18,5 @@ layout(push_constant) uniform Frame {
                          // (tet_raycast.rs, pixel_rect); the dispatch starts at x0, y0
     uint rows;           // rows of workgroups (common/dispatch.glsl, interleaved_row)
     uint runs;           // the device's runs of workgroups (idem)
-    uint cast_step;      // adaptive refinement's cast step (ADAPTIVE: 4, 2 or 1)
+    uint cast_step;      // adaptive refinement's cast step (ADAPTIVE: 8, 4, 2 or 1)
 } frame;

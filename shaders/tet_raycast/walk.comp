@@ -27,8 +27,8 @@ layout(local_size_x = WG_X, local_size_y = WG_Y) in;
 #include "common/dispatch.glsl"
 #ifdef ADAPTIVE
 // Adaptive refinement (algo/adaptive.rs): this pass casts the lattice
-// points of step cast_step (4: the lattice of 4 over the rectangle; 2, 1: the
-// listed blocks' centres and edge mid-points), storing each ray's colour and
+// points of step cast_step (8: the lattice of 8 over the rectangle; 4, 2, 1:
+// the listed blocks' centres and edge mid-points), storing each ray's colour and
 // its structural key (the boundary entries it took) for the decide passes.
 #include "common/adaptive.glsl"
 #endif
@@ -796,8 +796,10 @@ void main() {
     vec4 colour = vec4(acc_c, 1.0 - acc_t);
 #ifdef ADAPTIVE
     adaptive_store(pass_step, frame.rect, at, colour, walks, true);
-#endif
+    adaptive_pixel(frame.rect, at, colour);
+#else
     imageStore(target, px, colour);
+#endif
 
     if (n_cells > 0u) {
         uint old = atomicAdd(counters.cells_lo, n_cells);

@@ -1,39 +1,53 @@
 //! Adaptive image-space refinement (issue 37; Levoy, "Volume rendering by
 //! adaptive refinement", 1990), shared by the ray casters' `adaptive=TOL`
 //! option: fewer rays than pixels where the image is smooth, every pixel
-//! where it is not. All on the device, in five compute passes
+//! where it is not. All on the device, in seven compute passes
 //! (shaders/common/adaptive.glsl, adaptive_decide.comp):
 //!
-//! 1. **cast, step 4**: a ray at every point of the 4-pixel lattice over
-//!    the frame's rectangle (blocks of [`BLOCK`] = 8 pixels: their corners,
+//! 1. **cast, step 8**: a ray at every point of the 8-pixel lattice over
+//!    the frame's rectangle (blocks of [`BLOCK`] = 16 pixels: their corners,
 //!    centres and edge mid-points), rows of workgroups interleaved over the
 //!    device's threads (`screen::interleaved_rows`);
-//! 2. **decide, blocks of 8**: a block is filled by bilinear interpolation
-//!    of its corners when its centre and four edge mid-points agree with
-//!    that interpolation within TOL per premultiplied RGBA channel *and* the
-//!    conservative structural test passes: the nine rays carry the same
+//! 2. **decide, blocks of 16**: a block is filled, by the biquadratic
+//!    through its nine rays, when its centre and four edge mid-points agree
+//!    with the bilinear interpolation of its corners within TOL per
+//!    premultiplied RGBA channel *and* the conservative structural test
+//!    passes: the nine rays carry the same
 //!    structural key (tet-raycast: boundary entries taken; the volume
 //!    casters: the occupied bricks met) and, where the method projects one,
 //!    no boundary silhouette edge reaches the block ([`Silhouettes`]);
-//!    otherwise its four blocks of 4 are listed;
-//! 3. **cast, step 2**: the points the decide pass listed (the centres and
-//!    edge mid-points of the refined blocks' blocks of 4, each once, a
+//!    otherwise its four blocks of 8 are listed;
+//! 3. **cast, step 4**: the points the decide pass listed (the centres and
+//!    edge mid-points of the refined blocks' blocks of 8, each once, a
 //!    block's together), an indirect dispatch over the list whose
 //!    workgroups are interleaved over the device's threads like rows. Not a
 //!    2D dispatch over the lattice: on llvmpipe an invocation that returns
 //!    at once still runs the whole shader masked (docs/compute-speed.md),
 //!    and not invocations per listed block: a point two blocks share would
 //!    leave lanes idle;
-//! 4. **decide, blocks of 4**: the same rule over the listed blocks of 4
-//!    (an indirect dispatch); failing blocks list their blocks of 2's points;
-//! 5. **cast, step 1**: the listed pixels, as step 2.
+//! 4. **decide, blocks of 8**, 5. **cast, step 2**, 6. **decide, blocks
+//!    of 4**, 7. **cast, step 1**: the same rule over the listed blocks
+//!    (indirect dispatches), each failing block listing its sub-blocks'
+//!    points for the next cast, down to single pixels.
+//!
+//! The coarsest level is 16 pixels, not 8, and the fill biquadratic, not
+//! bilinear: with bilinear fills blocks of 16 missed the image's curvature
+//! (twice the error of blocks of 8 at the same TOL on post-small, more rays
+//! at equal error); the biquadratic through the nine rays the test cast
+//! anyway takes it, and on smooth images most blocks of 16 pass, so their
+//! 4-lattice points are never cast (docs/methods.md has the figures).
+//!
+//! The passes write pixels (rays cast, blocks filled) to a buffer, rows of
+//! the rectangle's width, copied into the target's rectangle after the last
+//! pass ([`CommandRecorder::copy_rect_to_image`]): on llvmpipe an image
+//! store costs a call per SIMD vector, and the fills are most pixels.
 //!
 //! Rays already cast are reused as the next level's corners; a pixel is
 //! either cast or filled, and a ray cast later overwrites an interpolated
 //! value (never the other way). The full-resolution image is what the run
 //! measures against the f64 reference, as for every method.
 //!
-//! **Time per pass**: timestamps around the five passes give each its
+//! **Time per pass**: timestamps around the seven passes give each its
 //! device time, reported as the phases [`PASS_PHASES`] (`time_ms.<name>`,
 //! part of the frame's `gpu`). Counted instructions (`--count`) are not
 //! split per pass: the passes run in one submission on lavapipe's queue
@@ -55,21 +69,25 @@ use super::screen;
 use crate::vk::{
     Buffer, BufferDesc, BufferUsage, CommandRecorder, ComputePipelineKey, Context, DescriptorResource,
     DescriptorSet, DescriptorSetDesc, Image, MemoryKind, Pipeline, PipelineKey, ShaderKey, ShaderStage, Stages,
-    TargetImageSet, TimestampAt, TimestampPool, UploadClass, UploadCounter,
+    TimestampAt, TimestampPool, UploadClass, UploadCounter,
 };
 
 /// Coarsest block side (pixels).
-pub const BLOCK: u32 = 8;
+pub const BLOCK: u32 = 16;
+/// The block sizes decided, coarsest first (a size's level is its index).
+const SIZES: [u32; 3] = [16, 8, 4];
+/// The first cast pass's step: the lattice of the coarsest blocks' corners,
+/// centres and edge mid-points.
+const LATTICE_STEP: u32 = BLOCK / 2;
 /// Workgroup shape of every adaptive pass (the list passes run it as 64
 /// invocations in a row).
 pub const WORKGROUP: [u32; 2] = [8, 8];
 /// Counter words (`A_*` in shaders/common/adaptive.glsl).
-const COUNTER_WORDS: usize = 27;
-/// Where the indirect arguments of the decide pass over the blocks of 4
-/// and of the two list casts begin (bytes; `A_ARGS_*`).
-const ARGS_DECIDE4: u64 = 0;
-const ARGS_CAST2: u64 = 3 * 4;
-const ARGS_CAST1: u64 = 6 * 4;
+const COUNTER_WORDS: usize = 40;
+/// Where the indirect arguments of the decide passes over the listed
+/// blocks of 8 and 4 and of the three list casts begin (bytes; `A_ARGS_*`).
+const ARGS_DECIDE: [u64; 2] = [0, 3 * 4];
+const ARGS_CAST: [u64; 3] = [6 * 4, 9 * 4, 12 * 4];
 /// The decide pass's push constants (`Decide` in
 /// `shaders/common/adaptive_decide.comp`; `tests/shader_interfaces.rs`
 /// checks the two agree).
@@ -78,9 +96,9 @@ const ARGS_CAST1: u64 = 6 * 4;
 pub struct DecidePush {
     /// The frame's rectangle, inclusive pixel bounds.
     pub rect: [u32; 4],
-    /// 8 or 4.
+    /// 16, 8 or 4.
     pub block_size: u32,
-    /// Size 8: rows of workgroups (`interleaved_row`); both sizes: the
+    /// Size 16: rows of workgroups (`interleaved_row`); every size: the
     /// device's runs (`rows` of the cast passes' indirect dispatches).
     pub rows: u32,
     pub runs: u32,
@@ -95,30 +113,38 @@ pub struct DecidePush {
 /// List entries are 16-bit coordinates of blocks of 4.
 const MAX_BLOCKS_PER_SIDE: u64 = 1 << 16;
 
-/// The device phases of the five passes, in order (`RenderMethod::
+/// The device phases of the seven passes, in order (`RenderMethod::
 /// after_frame`: each pass's GPU time from the timestamps around it).
-pub const PASS_PHASES: [&str; 5] =
-    ["adaptive_cast4_gpu", "adaptive_decide8_gpu", "adaptive_cast2_gpu", "adaptive_decide4_gpu", "adaptive_cast1_gpu"];
+pub const PASS_PHASES: [&str; 7] = [
+    "adaptive_cast8_gpu",
+    "adaptive_decide16_gpu",
+    "adaptive_cast4_gpu",
+    "adaptive_decide8_gpu",
+    "adaptive_cast2_gpu",
+    "adaptive_decide4_gpu",
+    "adaptive_cast1_gpu",
+];
 
 /// The help text of every ray caster's `adaptive` option.
 pub const HELP: &str = "adaptive image-space refinement: 0 = off (a ray per pixel); TOL > 0 = rays at the corners, \
-    centres and edge mid-points of 8x8 blocks, a block filled by bilinear interpolation of its corners when those rays \
-    agree with it within TOL per premultiplied RGBA channel and a structural test passes, else refined to 4x4, 2x2 and \
-    single pixels (docs/methods.md, adaptive refinement)";
+    centres and edge mid-points of 16x16 blocks, a block filled (by the biquadratic through those nine rays) when they \
+    agree with its corners' bilinear interpolation within TOL per premultiplied RGBA channel and a structural test passes, else refined to 8x8, 4x4, 2x2 \
+    and single pixels (docs/methods.md, adaptive refinement)";
 
 /// What adaptive refinement at `tol` (0: off) adds to a method's bound on
 /// max |error| (the stress suite's): twice the tolerance. The test rays
-/// agree with the interpolation within `tol` at the centre and edge
-/// mid-points, where a block's bilinear error from smooth (quadratic)
-/// variation is largest; twice leaves room for the rest. A feature that
+/// agree with the bilinear interpolation within `tol` at the centre and
+/// edge mid-points, where a block's bilinear error from smooth (quadratic)
+/// variation is largest, and the biquadratic fill passes through them;
+/// twice leaves room for the rest. A feature that
 /// lies between the test rays of a block the structural test passes is not
 /// bounded by this: such a case fails the stress suite (docs/stress.md).
 pub fn bound(tol: f64) -> f64 {
     2.0 * tol.max(0.0)
 }
 
-/// Blocks of 8 across and down the inclusive pixel bounds `rect` (zero for
-/// an empty one).
+/// Blocks of 16 across and down the inclusive pixel bounds `rect` (zero
+/// for an empty one).
 pub fn blocks(rect: [u32; 4]) -> [u32; 2] {
     if rect[0] > rect[2] || rect[1] > rect[3] {
         return [0, 0];
@@ -129,14 +155,23 @@ pub fn blocks(rect: [u32; 4]) -> [u32; 2] {
 /// Lattice points (samples) over an image of `size` at most.
 fn lattice_points(size: [u32; 2]) -> u64 {
     let b = [u64::from(size[0].div_ceil(BLOCK)), u64::from(size[1].div_ceil(BLOCK))];
-    (8 * b[0] + 1) * (8 * b[1] + 1)
+    (u64::from(BLOCK) * b[0] + 1) * (u64::from(BLOCK) * b[1] + 1)
+}
+
+/// A block size's level, its index in [`SIZES`] (16: 0, 8: 1, 4: 2).
+fn level(size: u32) -> usize {
+    match size {
+        16 => 0,
+        8 => 1,
+        _ => 2,
+    }
 }
 
 /// Where boundary silhouettes could hide something between a block's test
-/// rays, per block of 8 and of 4 of the frame's rectangle: bit rows over
-/// the blocks, the blocks of 8 from word 0, those of 4 from
-/// [`Silhouettes::offset4`]; then the same rows again from
-/// [`Silhouettes::straight`] for the blocks a single straight chord crosses.
+/// rays, per block of 16, 8 and 4 of the frame's rectangle: bit rows over
+/// each size's blocks, from [`Silhouettes::offsets`]; then the same rows
+/// again from [`Silhouettes::straight`] for the blocks a single straight
+/// chord crosses.
 ///
 /// A block is marked when the silhouette segments reaching its closed
 /// square (its corner rays included), padded by `pad` pixels, are not one
@@ -157,16 +192,16 @@ fn lattice_points(size: [u32; 2]) -> u64 {
 #[derive(Debug, Default, Clone, PartialEq)]
 pub struct Silhouettes {
     pub words: Vec<u32>,
-    pub offset4: u32,
+    /// The first word of each size's bits (16, 8, 4: [`SIZES`]).
+    pub offsets: [u32; 3],
     /// Where the bits of the blocks crossed by one straight chord start
-    /// (blocks of 8; those of 4 from `straight + offset4`).
+    /// (each size's from `straight + offsets[level]`).
     pub straight: u32,
-    /// Blocks of 8 and of 4 marked.
-    pub marked8: u64,
-    pub marked4: u64,
-    /// Blocks of 8 a silhouette reaches but leaves to the colour test (one
+    /// Blocks of 16, 8 and 4 marked.
+    pub marked: [u64; 3],
+    /// Blocks of 16 a silhouette reaches but leaves to the colour test (one
     /// straight line across).
-    pub straight8: u64,
+    pub straight16: u64,
     /// Silhouette segments within the rectangle and their length (pixels).
     pub segments: u64,
     pub length_px: f64,
@@ -182,24 +217,32 @@ impl Silhouettes {
     /// is clipped away first, so the work is bounded by the rectangle.
     pub fn mark(rect: [u32; 4], segments: impl IntoIterator<Item = ([f64; 2], [f64; 2])>, pad: f64) -> Self {
         let nb = blocks(rect);
-        let n8 = nb[0] as usize * nb[1] as usize;
-        let offset4 = n8.div_ceil(32);
-        let (w4, h4) = (2 * nb[0] as usize, 2 * nb[1] as usize);
-        let half = offset4 + (w4 * h4).div_ceil(32);
-        let mut s = Silhouettes { words: vec![0; 2 * half], offset4: offset4 as u32, straight: half as u32, ..Default::default() };
-        if n8 == 0 {
+        let n16 = nb[0] as usize * nb[1] as usize;
+        let mut offsets = [0u32; 3];
+        let mut half = 0usize;
+        for (l, size) in SIZES.iter().enumerate() {
+            let k = (BLOCK / size) as usize;
+            offsets[l] = half as u32;
+            half += (n16 * k * k).div_ceil(32);
+        }
+        let mut s = Silhouettes { words: vec![0; 2 * half], offsets, straight: half as u32, ..Default::default() };
+        if n16 == 0 {
             return s;
         }
         let o = [f64::from(rect[0]), f64::from(rect[1])];
-        // The lattice box (blocks of 4 units), padded.
-        let hi = [w4 as f64 * 4.0, h4 as f64 * 4.0];
+        // The lattice box (blocks of 16 units), padded.
+        let b = f64::from(BLOCK);
+        let hi = [f64::from(nb[0]) * b, f64::from(nb[1]) * b];
         let clipped: Vec<([f64; 2], [f64; 2])> = segments
             .into_iter()
             .filter_map(|(a, b)| clip([a[0] - o[0], a[1] - o[1]], [b[0] - o[0], b[1] - o[1]], [-pad, -pad], [hi[0] + pad, hi[1] + pad]))
             .collect();
         s.segments = clipped.len() as u64;
         s.length_px = clipped.iter().map(|(a, b)| (b[0] - a[0]).hypot(b[1] - a[1])).sum();
-        for (size, n, offset) in [(4.0, [w4, h4], offset4), (8.0, [nb[0] as usize, nb[1] as usize], 0)] {
+        for (l, &size) in SIZES.iter().enumerate() {
+            let k = (BLOCK / size) as usize;
+            let n = [nb[0] as usize * k, nb[1] as usize * k];
+            let (offset, size) = (offsets[l] as usize, f64::from(size));
             // The segments reaching each block's padded closed square.
             let mut reach: Vec<Vec<u32>> = vec![Vec::new(); n[0] * n[1]];
             for (i, (a, b)) in clipped.iter().enumerate() {
@@ -220,16 +263,15 @@ impl Silhouettes {
                 marked += 1;
                 s.words[offset + bit / 32] |= 1 << (bit % 32);
             }
-            if size == 4.0 {
-                s.marked4 = marked;
-            } else {
-                (s.marked8, s.straight8) = (marked, straight);
+            s.marked[l] = marked;
+            if l == 0 {
+                s.straight16 = straight;
             }
         }
         s
     }
 
-    /// Whether block `(x, y)` of `size` (8 or 4) is marked, for tests.
+    /// Whether block `(x, y)` of `size` (16, 8 or 4) is marked, for tests.
     pub fn is_marked(&self, rect: [u32; 4], size: u32, x: u32, y: u32) -> bool {
         self.bit(rect, size, x, y, 0)
     }
@@ -241,7 +283,7 @@ impl Silhouettes {
 
     fn bit(&self, rect: [u32; 4], size: u32, x: u32, y: u32, base: u32) -> bool {
         let nb = blocks(rect);
-        let (w, off) = if size == 8 { (nb[0], 0) } else { (2 * nb[0], self.offset4) };
+        let (w, off) = (nb[0] * (BLOCK / size), self.offsets[level(size)]);
         let bit = (y * w + x) as usize;
         self.words[(base + off) as usize + bit / 32] >> (bit % 32) & 1 == 1
     }
@@ -354,7 +396,9 @@ pub struct Adaptive {
     _samples: Buffer,
     _lists: Buffer,
     decide: Arc<Pipeline>,
-    target_set: TargetImageSet,
+    /// The frame's pixels (binding 5), copied into the target's rectangle
+    /// after the passes.
+    pixels: Buffer,
     size: [u32; 2],
     /// The frame's rectangle and silhouettes (None: the method projects none).
     rect: [u32; 4],
@@ -376,21 +420,23 @@ impl Adaptive {
         }
         let size = [width, height];
         let nb = [u64::from(width.div_ceil(BLOCK)), u64::from(height.div_ceil(BLOCK))];
-        // Blocks of 4 are listed by 16-bit coordinates: 2 per block of 8.
-        if nb[0] * 2 > MAX_BLOCKS_PER_SIDE || nb[1] * 2 > MAX_BLOCKS_PER_SIDE {
+        // Blocks of 4 are listed by 16-bit coordinates: 4 per block of 16.
+        if nb[0] * 4 > MAX_BLOCKS_PER_SIDE || nb[1] * 4 > MAX_BLOCKS_PER_SIDE {
             bail!("{method}: adaptive refinement takes images up to {} pixels a side, not {width}x{height}", MAX_BLOCKS_PER_SIDE * 4);
         }
         let points = lattice_points(size);
-        let n8 = nb[0] * nb[1];
+        let n16 = nb[0] * nb[1];
         // The longest dispatches: the blocks of 4, one invocation each in
         // a row of workgroups; a point list, rows of workgroups (padded to
         // the device's runs).
         let group = u64::from(WORKGROUP[0] * WORKGROUP[1]);
         let runs = u64::from(ctx.info.compute_runs());
-        let most_groups = (4 * n8).div_ceil(group).max(points.div_ceil(group).div_ceil(runs) * runs);
+        let most_groups = (16 * n16).div_ceil(group).max(points.div_ceil(group).div_ceil(runs) * runs);
         let max_xy = u64::from(ctx.info.max_compute_work_group_count[0].min(ctx.info.max_compute_work_group_count[1]));
         let range = u64::from(ctx.info.max_storage_buffer_range);
-        let list_words = 4 * n8 + 2 * points;
+        // The blocks of 8 and of 4 (4 and 16 per block of 16), then three
+        // point lists (adaptive_blocks_at, adaptive_points_at).
+        let list_words = 20 * n16 + 3 * points;
         if most_groups > max_xy || points * 16 > range || list_words * 4 > range {
             bail!(
                 "{method}: adaptive refinement of a {width}x{height} image needs {most_groups} workgroups in a row and {} bytes of samples; \
@@ -412,10 +458,14 @@ impl Adaptive {
                 memory: MemoryKind::Readback,
             },
         )?;
-        let sil_words = if silhouettes { (2 * (n8.div_ceil(32) + (4 * n8).div_ceil(32))).max(1) } else { 1 };
+        let sil_words = if silhouettes { (2 * [1, 4, 16].iter().map(|k| (k * n16).div_ceil(32)).sum::<u64>()).max(1) } else { 1 };
         let sil_buffer = Buffer::new(ctx, BufferDesc::upload(&format!("{method} adaptive silhouettes"), sil_words * 4, storage))?;
         let compute = Stages::COMPUTE;
-        let desc = DescriptorSetDesc::storage_buffers(5, compute);
+        let pixels = Buffer::new(
+            ctx,
+            BufferDesc::device_local(&format!("{method} adaptive pixels"), u64::from(width) * u64::from(height) * 16, storage | BufferUsage::TRANSFER_SRC),
+        )?;
+        let desc = DescriptorSetDesc::storage_buffers(6, compute);
         let set = DescriptorSet::new(
             ctx,
             &format!("{method} adaptive"),
@@ -426,13 +476,13 @@ impl Adaptive {
                 DescriptorResource::StorageBuffer(&lists),
                 DescriptorResource::StorageBuffer(&counters),
                 DescriptorResource::StorageBuffer(&sil_buffer),
+                DescriptorResource::StorageBuffer(&pixels),
             ],
         )?;
-        let target_set = TargetImageSet::new(&format!("{method} adaptive target"), compute);
         let key = PipelineKey::Compute(ComputePipelineKey {
             shader: ShaderKey::new("common/adaptive_decide.comp", ShaderStage::Compute, &[]),
             push_constant_bytes: std::mem::size_of::<DecidePush>() as u32,
-            sets: vec![desc.clone(), target_set.desc.clone()],
+            sets: vec![desc.clone()],
         });
         let decide = super::pipelines::get(ctx, &key)?;
         Ok(Adaptive {
@@ -445,7 +495,7 @@ impl Adaptive {
             _samples: samples,
             _lists: lists,
             decide,
-            target_set,
+            pixels,
             size,
             rect: screen::NO_PIXELS,
             sil: None,
@@ -487,12 +537,12 @@ impl Adaptive {
         Ok(())
     }
 
-    /// Records the five passes. `bind(rec, set, step, rows, counter)`
+    /// Records the seven passes. `bind(rec, set, step, rows, counter)`
     /// readies one cast pass: its pipeline bound with `set` (this state's)
-    /// at its `ADAPTIVE_SET`, its push constants naming `step` (4, 2 or 1)
-    /// and, for step 4, `rows`: the rows of workgroups over the 4-lattice
-    /// ([`Adaptive::lattice_groups`], before interleaving); the dispatch is
-    /// recorded here.
+    /// at its `ADAPTIVE_SET`, its push constants naming `step` (8, 4, 2,
+    /// or 1) and, for step 8, `rows`: the rows of workgroups over the
+    /// 8-lattice ([`Adaptive::lattice_groups`], before interleaving); the
+    /// dispatch is recorded here.
     pub fn record(
         &mut self,
         rec: &CommandRecorder,
@@ -513,47 +563,42 @@ impl Adaptive {
         let runs = self.ctx.info.compute_runs();
         let lattice = Adaptive::lattice_groups(self.rect);
         self.timestamps.write(rec, 0, TimestampAt::Start)?;
-        bind(rec, &self.set, 4, lattice[1], counter)?;
+        bind(rec, &self.set, LATTICE_STEP, lattice[1], counter)?;
         rec.dispatch([lattice[0], screen::interleaved_rows(lattice[1], runs), 1])?;
         self.timestamps.write(rec, 1, TimestampAt::ComputeDone)?;
         rec.compute_to_indirect();
-        let straight_offset = |size: u32| match (&self.sil, self.uses_silhouettes) {
-            (Some(s), true) => s.straight + if size == 8 { 0 } else { s.offset4 },
-            _ => u32::MAX,
+        let push = |block_size: u32, rows: u32| {
+            let (sil, straight) = match (&self.sil, self.uses_silhouettes) {
+                (Some(s), true) => (s.offsets[level(block_size)], s.straight + s.offsets[level(block_size)]),
+                _ => (u32::MAX, u32::MAX),
+            };
+            DecidePush { rect: self.rect, block_size, rows, runs, silhouettes: sil, tol: self.tol as f32, straight }
         };
-        let sil_offset = |size: u32| match (&self.sil, self.uses_silhouettes) {
-            (Some(s), true) => if size == 8 { 0 } else { s.offset4 },
-            _ => u32::MAX,
-        };
-        let push = |block_size: u32, rows: u32| DecidePush {
-            rect: self.rect,
-            block_size,
-            rows,
-            runs,
-            silhouettes: sil_offset(block_size),
-            tol: self.tol as f32,
-            straight: straight_offset(block_size),
-        };
-        let set = self.target_set.for_target(&self.ctx, target)?;
-        rec.bind_compute(&self.decide, &[&self.set, set])?;
-        let rows = nb[1].div_ceil(WORKGROUP[1]);
-        rec.push_constants(&self.decide, bytemuck::bytes_of(&push(8, rows)), counter);
-        rec.dispatch([nb[0].div_ceil(WORKGROUP[0]), screen::interleaved_rows(rows, runs), 1])?;
-        self.timestamps.write(rec, 2, TimestampAt::ComputeDone)?;
-        rec.compute_to_indirect();
-        bind(rec, &self.set, 2, 0, counter)?;
-        rec.dispatch_indirect(&self.counters, ARGS_CAST2)?;
-        self.timestamps.write(rec, 3, TimestampAt::ComputeDone)?;
-        rec.compute_to_indirect();
-        let set = self.target_set.for_target(&self.ctx, target)?;
-        rec.bind_compute(&self.decide, &[&self.set, set])?;
-        rec.push_constants(&self.decide, bytemuck::bytes_of(&push(4, 0)), counter);
-        rec.dispatch_indirect(&self.counters, ARGS_DECIDE4)?;
-        self.timestamps.write(rec, 4, TimestampAt::ComputeDone)?;
-        rec.compute_to_indirect();
-        bind(rec, &self.set, 1, 0, counter)?;
-        rec.dispatch_indirect(&self.counters, ARGS_CAST1)?;
-        self.timestamps.write(rec, 5, TimestampAt::ComputeDone)?;
+        let mut stamp = 2;
+        for (l, &size) in SIZES.iter().enumerate() {
+            // Decide the blocks of `size` (the coarsest: all of them, a 2D
+            // dispatch; the others: the listed ones), then cast the points
+            // they listed, at a step of a quarter of the size.
+            rec.bind_compute(&self.decide, &[&self.set])?;
+            if l == 0 {
+                let rows = nb[1].div_ceil(WORKGROUP[1]);
+                rec.push_constants(&self.decide, bytemuck::bytes_of(&push(size, rows)), counter);
+                rec.dispatch([nb[0].div_ceil(WORKGROUP[0]), screen::interleaved_rows(rows, runs), 1])?;
+            } else {
+                rec.push_constants(&self.decide, bytemuck::bytes_of(&push(size, 0)), counter);
+                rec.dispatch_indirect(&self.counters, ARGS_DECIDE[l - 1])?;
+            }
+            self.timestamps.write(rec, stamp, TimestampAt::ComputeDone)?;
+            rec.compute_to_indirect();
+            bind(rec, &self.set, size / 4, 0, counter)?;
+            rec.dispatch_indirect(&self.counters, ARGS_CAST[l])?;
+            self.timestamps.write(rec, stamp + 1, TimestampAt::ComputeDone)?;
+            stamp += 2;
+            if l + 1 < SIZES.len() {
+                rec.compute_to_indirect();
+            }
+        }
+        rec.copy_rect_to_image(&self.pixels, target, self.rect)?;
         rec.compute_to_host();
         self.timed = true;
         Ok(())
@@ -572,14 +617,14 @@ impl Adaptive {
         if !self.timed || self.ctx.info.timestamp_valid_bits == 0 {
             return Ok(Vec::new());
         }
-        // One read of the six timestamps (each read costs the `finish`
+        // One read of the eight timestamps (each read costs the `finish`
         // phase's counted instructions some thousands, varying).
         let t = self.timestamps.all_ms()?;
         Ok(PASS_PHASES.iter().enumerate().map(|(i, name)| (*name, t[i + 1] - t[i])).collect())
     }
 
-    /// The step-4 cast pass's grid: workgroups across, rows of workgroups
-    /// (before interleaving) over the 4-lattice of `rect`.
+    /// The step-8 cast pass's grid: workgroups across, rows of workgroups
+    /// (before interleaving) over the 8-lattice of `rect`.
     pub fn lattice_groups(rect: [u32; 4]) -> [u32; 2] {
         let nb = blocks(rect);
         if nb[0] == 0 || nb[1] == 0 {
@@ -590,15 +635,16 @@ impl Adaptive {
 
     fn counts(&self) -> Counts {
         let c: [u64; COUNTER_WORDS] = self.counters.read_counters();
+        let three = |at: usize| [c[at], c[at + 1], c[at + 2]];
         Counts {
-            rays: [c[13], c[14], c[15]],
-            filled: [c[16], c[17]],
-            silhouette: [c[18], c[19]],
-            structure: [c[20], c[21]],
-            colour: [c[22], c[23]],
-            covered: c[24] + c[25],
-            padding: c[26],
-            listed: [c[9], c[10]],
+            rays: [c[21], c[22], c[23], c[24]],
+            filled: three(25),
+            silhouette: three(28),
+            structure: three(31),
+            colour: three(34),
+            covered: c[37] + c[38],
+            padding: c[39],
+            listed: three(15),
         }
     }
 
@@ -610,22 +656,18 @@ impl Adaptive {
     /// The frame's counts added to a method's.
     pub fn work(&self, w: Work) -> Work {
         let c = self.counts();
-        let sil = self.sil.as_ref().map_or(0, |s| s.marked8);
-        w.with("adaptive_rays_cast", c.rays.iter().sum())
-            .with("adaptive_rays_step4", c.rays[0])
-            .with("adaptive_rays_step2", c.rays[1])
-            .with("adaptive_rays_step1", c.rays[2])
-            .with("adaptive_covered_pixels", c.covered)
-            .with("adaptive_blocks8_filled", c.filled[0])
-            .with("adaptive_blocks4_filled", c.filled[1])
-            .with("adaptive_blocks8_refined_silhouette", c.silhouette[0])
-            .with("adaptive_blocks4_refined_silhouette", c.silhouette[1])
-            .with("adaptive_blocks8_refined_structure", c.structure[0])
-            .with("adaptive_blocks4_refined_structure", c.structure[1])
-            .with("adaptive_blocks8_refined_colour", c.colour[0])
-            .with("adaptive_blocks4_refined_colour", c.colour[1])
-            .with("adaptive_blocks2_cast", c.listed[1])
-            .with("adaptive_blocks8_silhouette_marked", sil)
+        let sil = self.sil.as_ref().map_or(0, |s| s.marked[0]);
+        let mut w = w
+            .with("adaptive_rays_cast", c.rays.iter().sum())
+            .with("adaptive_rays_step8", c.rays[0])
+            .with("adaptive_rays_step4", c.rays[1])
+            .with("adaptive_rays_step2", c.rays[2])
+            .with("adaptive_rays_step1", c.rays[3])
+            .with("adaptive_covered_pixels", c.covered);
+        for (l, [filled, silhouette, structure, colour]) in BLOCK_COUNTS.into_iter().enumerate() {
+            w = w.with(filled, c.filled[l]).with(silhouette, c.silhouette[l]).with(structure, c.structure[l]).with(colour, c.colour[l]);
+        }
+        w.with("adaptive_blocks2_cast", c.listed[2]).with("adaptive_blocks16_silhouette_marked", sil)
     }
 
     /// The frame's figures for a method's details.
@@ -633,41 +675,51 @@ impl Adaptive {
         let c = self.counts();
         let rays: u64 = c.rays.iter().sum();
         let per = |n: u64, of: u64| if of > 0 { n as f64 / of as f64 } else { 0.0 };
+        let per_size = |v: [u64; 3]| json!({ "16": v[0], "8": v[1], "4": v[2] });
+        let refined = |l: usize| json!({ "silhouette": c.silhouette[l], "structure": c.structure[l], "colour": c.colour[l] });
         json!({
             "tolerance": self.tol,
             "block": BLOCK,
             "silhouettes": self.uses_silhouettes,
             "rays_cast": rays,
-            "rays_per_pass": { "step4": c.rays[0], "step2": c.rays[1], "step1": c.rays[2] },
+            "rays_per_pass": { "step8": c.rays[0], "step4": c.rays[1], "step2": c.rays[2], "step1": c.rays[3] },
             "rays_per_rect_pixel": per(rays, rect_pixels),
             "covered_pixels": c.covered,
             "rays_per_covered_pixel": per(rays, c.covered),
             "lattice_padding_points": c.padding,
-            "blocks_filled": { "8": c.filled[0], "4": c.filled[1] },
-            "blocks_refined": {
-                "8": { "silhouette": c.silhouette[0], "structure": c.structure[0], "colour": c.colour[0] },
-                "4": { "silhouette": c.silhouette[1], "structure": c.structure[1], "colour": c.colour[1] },
-            },
-            "blocks_listed": { "4": c.listed[0], "2": c.listed[1] },
+            "blocks_filled": per_size(c.filled),
+            "blocks_refined": { "16": refined(0), "8": refined(1), "4": refined(2) },
+            "blocks_listed": { "8": c.listed[0], "4": c.listed[1], "2": c.listed[2] },
             "silhouette": self.sil.as_ref().map(|s| json!({
                 "segments": s.segments,
                 "length_px": s.length_px,
-                "blocks_marked": { "8": s.marked8, "4": s.marked4 },
-                "blocks8_straight": s.straight8,
+                "blocks_marked": per_size(s.marked),
+                "blocks16_straight": s.straight16,
             })),
         })
     }
 }
 
+/// The work counts of each block size ([`SIZES`]): filled, refined for a
+/// silhouette, for the structure, for the colour.
+const BLOCK_COUNTS: [[&str; 4]; 3] = [
+    ["adaptive_blocks16_filled", "adaptive_blocks16_refined_silhouette", "adaptive_blocks16_refined_structure", "adaptive_blocks16_refined_colour"],
+    ["adaptive_blocks8_filled", "adaptive_blocks8_refined_silhouette", "adaptive_blocks8_refined_structure", "adaptive_blocks8_refined_colour"],
+    ["adaptive_blocks4_filled", "adaptive_blocks4_refined_silhouette", "adaptive_blocks4_refined_structure", "adaptive_blocks4_refined_colour"],
+];
+
+/// The counter words read back, per level (blocks of 16, 8, 4; rays per
+/// cast step 8, 4, 2, 1).
 struct Counts {
-    rays: [u64; 3],
-    filled: [u64; 2],
-    silhouette: [u64; 2],
-    structure: [u64; 2],
-    colour: [u64; 2],
+    rays: [u64; 4],
+    filled: [u64; 3],
+    silhouette: [u64; 3],
+    structure: [u64; 3],
+    colour: [u64; 3],
     covered: u64,
     padding: u64,
-    listed: [u64; 2],
+    /// Blocks listed: of 8, of 4, and blocks of 2 cast.
+    listed: [u64; 3],
 }
 
 #[cfg(test)]
@@ -676,19 +728,19 @@ mod tests {
 
     #[test]
     fn blocks_cover_the_rectangle() {
-        assert_eq!(blocks([0, 0, 63, 31]), [8, 4]);
+        assert_eq!(blocks([0, 0, 63, 31]), [4, 2]);
         assert_eq!(blocks([3, 5, 3, 5]), [1, 1]);
-        assert_eq!(blocks([10, 0, 27, 8]), [3, 2]);
+        assert_eq!(blocks([10, 0, 27, 16]), [2, 2]);
         assert_eq!(blocks(screen::NO_PIXELS), [0, 0]);
-        assert_eq!(Adaptive::lattice_groups([0, 0, 63, 31]), [3, 2]);
-        assert_eq!(Adaptive::lattice_groups([0, 0, 511, 511]), [17, 17]);
+        assert_eq!(Adaptive::lattice_groups([0, 0, 63, 31]), [2, 1]);
+        assert_eq!(Adaptive::lattice_groups([0, 0, 511, 511]), [9, 9]);
         assert_eq!(Adaptive::lattice_groups(screen::NO_PIXELS), [0, 0]);
     }
 
     /// The marked blocks of `size` as (x, y), for comparing.
     fn marked(s: &Silhouettes, rect: [u32; 4], size: u32) -> Vec<(u32, u32)> {
         let nb = blocks(rect);
-        let k = 8 / size;
+        let k = BLOCK / size;
         let mut out = Vec::new();
         for y in 0..nb[1] * k {
             for x in 0..nb[0] * k {
@@ -707,13 +759,14 @@ mod tests {
         for rect in [[1u32, 1, 40, 30], [1, 1, 200, 100]] {
             let nb = blocks(rect);
             // A horizontal segment at relative y = 9.5 from x = 1 to 17.5:
-            // its ends lie in blocks of 4 (0, 2) and (4, 2), and of 8 (0, 1)
-            // and (2, 1); the blocks between are crossed by one straight
-            // chord and left to the colour test.
+            // its ends lie in blocks of 4 (0, 2) and (4, 2), of 8 (0, 1)
+            // and (2, 1), and of 16 (0, 0) and (1, 0); the blocks between
+            // are crossed by one straight chord and left to the colour test.
             let s = Silhouettes::mark(rect, [([2.0, 10.5], [18.5, 10.5])], 0.01);
             assert_eq!(marked(&s, rect, 4), [(0, 2), (4, 2)], "{rect:?}");
             assert_eq!(marked(&s, rect, 8), [(0, 1), (2, 1)], "{rect:?}");
-            assert_eq!((s.marked8, s.marked4, s.straight8, s.segments), (2, 2, 1, 1));
+            assert_eq!(marked(&s, rect, 16), [(0, 0), (1, 0)], "{rect:?}");
+            assert_eq!((s.marked, s.straight16, s.segments), ([2, 2, 2], 0, 1));
             assert!((1..4).all(|x| s.is_straight(rect, 4, x, 2)) && s.is_straight(rect, 8, 1, 1));
             assert!(!s.is_straight(rect, 4, 0, 2) && !s.is_straight(rect, 8, 0, 1) && !s.is_straight(rect, 4, 1, 1));
             assert!((s.length_px - 16.5).abs() < 1e-12);
@@ -725,14 +778,14 @@ mod tests {
             // A line across the whole rectangle and beyond: nothing marked,
             // every block of 8 on its way straight; work bounded by the clip.
             let s = Silhouettes::mark(rect, [([-1e9, 10.5], [1e9, 10.5])], 0.01);
-            assert_eq!((s.marked8, s.marked4), (0, 0));
-            assert_eq!(s.straight8, u64::from(nb[0]));
+            assert_eq!(s.marked, [0, 0, 0]);
+            assert_eq!(s.straight16, u64::from(nb[0]));
             // Two parallel lines 1.5 pixels apart (a thin band between
             // them): every block both reach is marked.
             let band = [([-1e9, 10.5], [1e9, 10.5]), ([-1e9, 12.0], [1e9, 12.0])];
             let s = Silhouettes::mark(rect, band, 0.01);
-            assert_eq!(marked(&s, rect, 4), (0..2 * nb[0]).map(|x| (x, 2)).collect::<Vec<_>>());
-            assert_eq!(s.marked8, u64::from(nb[0]));
+            assert_eq!(marked(&s, rect, 4), (0..4 * nb[0]).map(|x| (x, 2)).collect::<Vec<_>>());
+            assert_eq!(s.marked, [1, 2, 4].map(|k| k * u64::from(nb[0])));
             // A bend: two pieces meeting at relative (9, 9.5) at an angle:
             // marked where the vertex is (block of 4 (2, 2), both blocks of
             // 4 and 8 whose closed squares hold x = 8 or the vertex), not
@@ -741,6 +794,7 @@ mod tests {
             let s = Silhouettes::mark(rect, bend, 0.01);
             assert_eq!(marked(&s, rect, 4), [(2, 2)], "{rect:?}");
             assert_eq!(marked(&s, rect, 8), [(1, 1)], "{rect:?}");
+            assert_eq!(marked(&s, rect, 16), [(0, 0)], "{rect:?}");
             // On a block edge (relative y = 8), a short segment: its ends
             // mark the blocks of 4 on both sides.
             let s = Silhouettes::mark(rect, [([2.0, 9.0], [3.0, 9.0])], 0.01);
@@ -750,12 +804,12 @@ mod tests {
             assert_eq!(marked(&s, rect, 4), [(1, 1)]);
             // Far outside: nothing; not finite: nothing.
             let s = Silhouettes::mark(rect, [([-500.0, -500.0], [-400.0, -450.0]), ([f64::NAN, 0.0], [3.0, 3.0])], 0.01);
-            assert_eq!((s.marked8, s.segments), (0, 0));
+            assert_eq!((s.marked, s.segments), ([0, 0, 0], 0));
             assert!(s.words.iter().all(|&w| w == 0));
             // A diagonal across everything: straight wherever it goes.
             let s = Silhouettes::mark(rect, [([-1e9, -1e9], [1e9, 1e9])], 0.01);
-            assert_eq!(s.marked8, 0);
-            assert!(s.straight8 >= u64::from(nb[0].min(nb[1])));
+            assert_eq!(s.marked, [0, 0, 0]);
+            assert!(s.straight16 >= u64::from(nb[0].min(nb[1])));
             // Two lines crossing at relative (20, 15): the blocks holding the
             // crossing are marked.
             let x = [([-1e9, -1e9 + 15.0 - 20.0], [1e9, 1e9 + 15.0 - 20.0]), ([20.0 - 1e9, 15.0 + 1e9], [20.0 + 1e9, 15.0 - 1e9])];

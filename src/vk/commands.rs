@@ -998,6 +998,49 @@ impl CommandRecorder {
         image.barrier(self.raw, to, false);
     }
 
+    /// Copy the pixels `rect` (inclusive bounds, non-empty, within the
+    /// image) of the 2D image `dst` from `src`, which holds them row after
+    /// row (rows of the rectangle's width, texels of `dst`'s format) from
+    /// its start, after the compute writes that filled it. What the image
+    /// knows of where it may be nonzero ([`Image::zero_outside`]) grows by
+    /// `rect` instead of being forgotten: a frame whose passes write their
+    /// pixels to a buffer keeps [`CommandRecorder::storage_target`]'s
+    /// partial clear.
+    pub fn copy_rect_to_image(&self, src: &Buffer, dst: &Image, rect: [u32; 4]) -> VkResult<()> {
+        let [x0, y0, x1, y1] = rect;
+        let fits = dst.dim == ImageDim::D2 && x0 <= x1 && y0 <= y1 && x1 < dst.width && y1 < dst.height;
+        let (w, h) = (x1.wrapping_sub(x0).wrapping_add(1), y1.wrapping_sub(y0).wrapping_add(1));
+        let bytes = u64::from(w) * u64::from(h) * dst.format.texel_bytes();
+        if !fits || src.size() < bytes {
+            return Err(VkError::Invalid(format!(
+                "copy of pixels {rect:?} into image '{}' ({}x{}) from buffer '{}' of {} bytes",
+                dst.name(),
+                dst.width,
+                dst.height,
+                src.desc.name,
+                src.size()
+            )));
+        }
+        self.compute_to_transfer();
+        let known = dst.zero_outside();
+        dst.barrier(self.raw, ImageUse::TransferDst, true);
+        dst.set_zero_outside(known.map(|k| [k[0].min(x0), k[1].min(y0), k[2].max(x1), k[3].max(y1)]));
+        let region = [vk::BufferImageCopy::default()
+            .buffer_row_length(w)
+            .buffer_image_height(h)
+            .image_subresource(color_layers())
+            .image_offset(vk::Offset3D { x: x0 as i32, y: y0 as i32, z: 0 })
+            .image_extent(vk::Extent3D { width: w, height: h, depth: 1 })];
+        // SAFETY: the command buffer is a recorder's own, recording between its
+        // `begin` and submit; both handles are live and kept alive by their
+        // owners until the submission is waited for; the region lies inside
+        // the image and the buffer holds its bytes (checked above).
+        unsafe {
+            self.ctx.device.cmd_copy_buffer_to_image(self.raw, src.raw, dst.raw, vk::ImageLayout::TRANSFER_DST_OPTIMAL, &region)
+        };
+        Ok(())
+    }
+
     /// Make `target` ready for a compute pass's image stores into the
     /// pixels `written` (inclusive bounds `[x0, y0, x1, y1]`, empty when
     /// x0 > x1 or y0 > y1): the pass may write fewer, never others. Once it

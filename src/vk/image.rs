@@ -188,9 +188,10 @@ pub struct Image {
 }
 
 impl Image {
-    /// The RGBA32F target: colour attachment, copy source for readback and,
-    /// where the device allows it for the format, storage image (a compute
-    /// pass writes the final image) and sampled image (a later pass reads it).
+    /// The RGBA32F target: colour attachment, copy source for readback, copy
+    /// destination (passes that write their pixels to a buffer) and, where
+    /// the device allows it for the format, storage image (a compute pass
+    /// writes the final image) and sampled image (a later pass reads it).
     pub fn render_target(ctx: &Arc<Context>, name: &str, width: u32, height: u32) -> VkResult<Image> {
         let max = ctx.info.max_image_dimension_2d;
         if width == 0 || height == 0 || width > max || height > max {
@@ -199,7 +200,7 @@ impl Image {
                 what: format!("a {width}x{height} render target (maxImageDimension2D is {max})"),
             });
         }
-        let mut usage = vk::ImageUsageFlags::COLOR_ATTACHMENT | vk::ImageUsageFlags::TRANSFER_SRC;
+        let mut usage = vk::ImageUsageFlags::COLOR_ATTACHMENT | vk::ImageUsageFlags::TRANSFER_SRC | vk::ImageUsageFlags::TRANSFER_DST;
         if ctx.format_supports(TARGET_FORMAT, vk::FormatFeatureFlags::STORAGE_IMAGE) {
             usage |= vk::ImageUsageFlags::STORAGE;
         }

@@ -109,7 +109,7 @@ impl RenderMethod for RaycastCompute {
             self.rect = box_rect;
             state.frame(self.rect, [w, h])?;
             let close = super::key_close(self.res.brick_pixels(view, self.settings.brick as f64));
-            // The rect; the step (and for step 4 its lattice's rows) are set per pass in record.
+            // The rect; the step (and for step 8 its lattice's rows) are set per pass in record.
             self.push = AdaptiveFrame { frame: self.res.frame(view, true, [0, 0], 0, runs), close, rect: self.rect, cast_step: 0 };
         }
         Ok(())

@@ -215,11 +215,11 @@ const fn joined<const N: usize>(a: &[&'static str], b: &[&'static str]) -> [&'st
     out
 }
 
-/// Adaptive refinement's tolerances in the suite (about 2/255 and 4/255,
+/// Adaptive refinement's tolerances in the suite (about 4/255 and 12/255,
 /// the same on every volume, and about 8/255 over steps of 1.25 voxels)
 /// and in the sweep (`pareto`).
-const ADAPTIVE_SUITE: &[&str] = &["adaptive=0.008,reads=quads", "adaptive=0.016,reads=quads", "step=1.25,adaptive=0.032,reads=quads"];
-const ADAPTIVE_SWEEP: &[&str] = &["adaptive=0.004", "adaptive=0.008", "adaptive=0.016", "adaptive=0.032"];
+const ADAPTIVE_SUITE: &[&str] = &["adaptive=0.016,reads=quads", "adaptive=0.048,reads=quads", "step=1.25,adaptive=0.032,reads=quads"];
+const ADAPTIVE_SWEEP: &[&str] = &["adaptive=0.008", "adaptive=0.016", "adaptive=0.032", "adaptive=0.064"];
 const SUITE_COMPUTE_LIST: [&str; SUITE.len() + ADAPTIVE_SUITE.len()] = joined(SUITE, ADAPTIVE_SUITE);
 const STRESS_COMPUTE_LIST: [&str; STRESS.len() + 1] = joined(STRESS, &["adaptive=0.008"]);
 const SWEEP_COMPUTE_LIST: [&str; SWEEP.len() + ADAPTIVE_SWEEP.len()] = joined(SWEEP, ADAPTIVE_SWEEP);
@@ -698,7 +698,7 @@ pub struct AdaptiveFrame {
     pub close: u32,
     /// The frame's rectangle, inclusive pixel bounds.
     pub rect: [u32; 4],
-    /// The cast pass's step (4, 2, 1; `shaders/common/adaptive.glsl`).
+    /// The cast pass's step (8, 4, 2, 1; `shaders/common/adaptive.glsl`).
     pub cast_step: u32,
 }
 
