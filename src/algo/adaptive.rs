@@ -435,7 +435,9 @@ impl Adaptive {
         let max_xy = u64::from(ctx.info.max_compute_work_group_count[0].min(ctx.info.max_compute_work_group_count[1]));
         let range = u64::from(ctx.info.max_storage_buffer_range);
         // The blocks of 8 and of 4 (4 and 16 per block of 16), then three
-        // point lists (adaptive_blocks_at, adaptive_points_at).
+        // point lists (adaptive_blocks_at, adaptive_points_at). The pixel
+        // buffer (16 bytes a pixel) is no larger than the samples: the
+        // lattice covers the image.
         let list_words = 20 * n16 + 3 * points;
         if most_groups > max_xy || points * 16 > range || list_words * 4 > range {
             bail!(
