@@ -158,6 +158,20 @@ fn lattice_points(size: [u32; 2]) -> u64 {
     (u64::from(BLOCK) * b[0] + 1) * (u64::from(BLOCK) * b[1] + 1)
 }
 
+/// The silhouette bits' layout over `n16` blocks of 16: the first word of
+/// each size's bit rows ([`SIZES`] order), and the words of those rows (the
+/// straight-chord rows follow them, as many again).
+fn silhouette_layout(n16: u64) -> ([u32; 3], u64) {
+    let mut offsets = [0u32; 3];
+    let mut words = 0u64;
+    for (l, size) in SIZES.iter().enumerate() {
+        let k = u64::from(BLOCK / size);
+        offsets[l] = words as u32;
+        words += (n16 * k * k).div_ceil(32);
+    }
+    (offsets, words)
+}
+
 /// A block size's level, its index in [`SIZES`] (16: 0, 8: 1, 4: 2).
 fn level(size: u32) -> usize {
     match size {
@@ -218,13 +232,8 @@ impl Silhouettes {
     pub fn mark(rect: [u32; 4], segments: impl IntoIterator<Item = ([f64; 2], [f64; 2])>, pad: f64) -> Self {
         let nb = blocks(rect);
         let n16 = nb[0] as usize * nb[1] as usize;
-        let mut offsets = [0u32; 3];
-        let mut half = 0usize;
-        for (l, size) in SIZES.iter().enumerate() {
-            let k = (BLOCK / size) as usize;
-            offsets[l] = half as u32;
-            half += (n16 * k * k).div_ceil(32);
-        }
+        let (offsets, half) = silhouette_layout(n16 as u64);
+        let half = half as usize;
         let mut s = Silhouettes { words: vec![0; 2 * half], offsets, straight: half as u32, ..Default::default() };
         if n16 == 0 {
             return s;
@@ -460,7 +469,7 @@ impl Adaptive {
                 memory: MemoryKind::Readback,
             },
         )?;
-        let sil_words = if silhouettes { (2 * [1, 4, 16].iter().map(|k| (k * n16).div_ceil(32)).sum::<u64>()).max(1) } else { 1 };
+        let sil_words = if silhouettes { (2 * silhouette_layout(n16).1).max(1) } else { 1 };
         let sil_buffer = Buffer::new(ctx, BufferDesc::upload(&format!("{method} adaptive silhouettes"), sil_words * 4, storage))?;
         let compute = Stages::COMPUTE;
         let pixels = Buffer::new(

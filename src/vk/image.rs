@@ -180,8 +180,10 @@ pub struct Image {
     state: Mutex<ImageState>,
     /// `Some(r)`: as recorded so far, every pixel outside the inclusive
     /// bounds `r` is zero (`r` may be empty: x0 > x1), established only by
-    /// `CommandRecorder::storage_target`; `None`: unknown. Any barrier or
-    /// transition into a state that may write the image resets it.
+    /// `CommandRecorder::storage_target` (and kept, grown by the rectangle
+    /// copied, by `CommandRecorder::copy_rect_to_image`); `None`: unknown.
+    /// Any other barrier or transition into a state that may write the
+    /// image resets it.
     zero_outside: Mutex<Option<[u32; 4]>>,
     allocation: Option<Allocation>,
     ctx: Arc<Context>,
