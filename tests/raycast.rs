@@ -251,6 +251,46 @@ fn error_falls_monotonically_with_the_step() {
     }
 }
 
+/// `coarse=A`: the transfer function below is thin on the blob's flanks
+/// (attenuation 1 per diagonal on scalars 0.1 to 0.45) and dense on its
+/// cores (40 to 200). With coarse=0.1 the cubes free of dense bricks are
+/// marched one sample per 3 steps and the cores at every step: fewer
+/// samples, and at two sizes, with the map read as words (quads) and as RG8
+/// texels (texture), the image within 1e-2 of coarse=0 on every pixel and
+/// 1e-3 RMSE (measured 2.2x and 4x less at 64x64 and 160x160; the
+/// family's documented bound adds the option's value, 0.1).
+/// Samples: 39,005 -> 17,974 at 64x64.
+#[test]
+fn coarse_steps_in_thin_matter_save_samples_within_their_bound() {
+    let d = dataset(blob([48, 40, 40], [1.0, 1.0, 1.0]));
+    let diag = d.bounds().diagonal();
+    let pt = |scalar: f64, color: [f64; 3], depth: f64| ControlPoint { scalar, color, attenuation: depth / diag };
+    let tf = TransferFunction {
+        name: "thin flanks".into(),
+        points: vec![
+            pt(0.05, [0.2, 0.4, 0.9], 0.0),
+            pt(0.1, [0.2, 0.4, 0.9], 1.0),
+            pt(0.45, [0.3, 0.9, 0.4], 1.0),
+            pt(0.6, [1.0, 0.8, 0.2], 40.0),
+            pt(1.1, [1.0, 0.2, 0.1], 200.0),
+        ],
+    };
+    let cam = orbit(&d);
+    for method in ["raycast-compute:reads=quads", "raycast-fragment:reads=texture"] {
+        for size in [64, 160] {
+            let fine = render_sized(&format!("{method},step=1"), &d, &tf, cam, size);
+            let coarse = render_sized(&format!("{method},step=1,coarse=0.1"), &d, &tf, cam, size);
+            let e = coarse.image.compare(&fine.image).unwrap();
+            let (sf, sc) = (samples(&fine), samples(&coarse));
+            let dense = &coarse.result.details["coarse"]["bricks_dense"];
+            eprintln!("{method} {size}: samples {sf} -> {sc}, dense bricks {dense}, max {:.2e} rmse {:.2e}", e.max_abs, e.rmse);
+            assert!(sc * 10 < sf * 8, "{method} {size}: {sf} -> {sc}");
+            assert!(e.max_abs <= 1e-2 && e.rmse <= 1e-3, "{method} {size}: {e:?}");
+            assert!(dense.as_u64().is_some_and(|n| n > 0), "{dense}");
+        }
+    }
+}
+
 /// Spacing (1, 1, 2) renders like the same field resampled at spacing 1
 /// (layers in between are the linear interpolation, which is what trilinear
 /// interpolation of the coarse volume gives there).

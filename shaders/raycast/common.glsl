@@ -28,10 +28,35 @@ layout(set = 0, binding = 1, VOLUME_FORMAT) uniform readonly image3D volume_img;
 #else
 layout(set = 0, binding = 1) uniform sampler3D volume_tex;
 #endif
+// The brick map: per brick 0 when some sample in it may have attenuation
+// > 0, else the Chebyshev distance in bricks to the nearest such brick (at
+// most 255); with COARSE_STRIDE a second byte, the distance to the nearest
+// dense brick (option `coarse`). With VOLUME_LOADS the table and the map are
+// read with loads too (the map's bytes as words): on lavapipe a texture
+// lookup is an out-of-line call, around which the march spills its SIMD
+// registers.
+#ifdef VOLUME_LOADS
+layout(set = 0, binding = 2, rgba32f) uniform readonly imageBuffer tf_table;
+layout(set = 0, binding = 3, r32ui) uniform readonly uimageBuffer brick_words;
+#else
 layout(set = 0, binding = 2) uniform sampler1D tf_tex;
-// Per brick: 0 when some sample in it may have attenuation > 0, else the
-// Chebyshev distance in bricks to the nearest such brick (at most 255).
-layout(set = 0, binding = 3) uniform usamplerBuffer brick_distance;
+layout(set = 0, binding = 3) uniform usamplerBuffer brick_map;
+#endif
+
+// Brick i's entry: its distance in bits 0..7, with COARSE_STRIDE the
+// distance to a dense brick in bits 8..15.
+uint brick_entry(int i) {
+#if defined(VOLUME_LOADS) && defined(COARSE_STRIDE)
+    return (imageLoad(brick_words, i >> 1).r >> (16 * (i & 1))) & 0xFFFFu;
+#elif defined(VOLUME_LOADS)
+    return (imageLoad(brick_words, i >> 2).r >> (8 * (i & 3))) & 0xFFu;
+#elif defined(COARSE_STRIDE)
+    uvec2 e = texelFetch(brick_map, i).rg;
+    return e.x | (e.y << 8);
+#else
+    return texelFetch(brick_map, i).r;
+#endif
+}
 // Counters, cleared every frame: samples taken, largest per ray, bricks
 // stepped over, rays, leaps.
 layout(std430, set = 0, binding = 4) buffer Counters { uint total_samples; uint max_samples; uint skipped_bricks; uint rays; uint leaps; } counters;
@@ -101,7 +126,14 @@ float table_coord(vec3 u) {
 // Table lookup at coordinate t in [0, 1], texel centres at the ends.
 vec4 classify(float t) {
     float n = params.table_entries;
+#ifdef VOLUME_LOADS
+    float x = t * (n - 1.0);
+    float i = min(floor(x), n - 2.0);
+    int k = int(i);
+    return mix(imageLoad(tf_table, k), imageLoad(tf_table, k + 1), x - i);
+#else
     return textureLod(tf_tex, (t * (n - 1.0) + 0.5) / n, 0.0);
+#endif
 }
 
 vec3 gradient(vec3 u) {
@@ -160,6 +192,9 @@ vec4 march(vec3 a, vec3 b, out uint samples) {
     uint skipped = 0u;
     uint leaps = 0u;
     int check_at = 0;   // the next step whose brick must be looked up
+#ifdef COARSE_STRIDE
+    bool coarse = false;   // the steps up to check_at lie in a thin cube
+#endif
 #ifdef ADAPTIVE
     bool in_run = false;
     march_runs = 0u;
@@ -187,7 +222,8 @@ vec4 march(vec3 a, vec3 b, out uint samples) {
         if (k >= check_at) {
             vec3 um = a + dir * (h * (float(k) + 0.5));
             ivec3 bc = clamp(ivec3(floor(um / bsize)), ivec3(0), bgrid - 1);
-            uint dist = texelFetch(brick_distance, bc.x + bgrid.x * (bc.y + bgrid.y * bc.z)).r;
+            uint entry = brick_entry(bc.x + bgrid.x * (bc.y + bgrid.y * bc.z));
+            uint dist = entry & 0xFFu;
 #ifdef ADAPTIVE
             // The key's runs: entries into bricks within ADAPTIVE_NEAR of
             // an occupied one. A leap from outside them is shortened so its
@@ -198,6 +234,14 @@ vec4 march(vec3 a, vec3 b, out uint samples) {
             march_closest = min(march_closest, dist);
             in_run = near;
             float reach = float(near ? max(dist, 1u) - 1u : dist - 1u - ADAPTIVE_NEAR) * bsize;
+#elif defined(COARSE_STRIDE)
+            // A visible brick at distance d >= 1 from a dense one is the
+            // centre of a cube of 2d - 1 bricks with no dense brick: its
+            // steps up to the cube's exit are marched coarse (option
+            // `coarse`), without looking their bricks up.
+            uint to_dense = entry >> 8;
+            coarse = dist == 0u && to_dense >= 1u;
+            float reach = float(max(dist == 0u ? to_dense : dist, 1u) - 1u) * bsize;
 #else
             float reach = float(max(dist, 1u) - 1u) * bsize;
 #endif
@@ -223,6 +267,11 @@ vec4 march(vec3 a, vec3 b, out uint samples) {
             }
             check_at = max(next, k + 1);
         }
+#endif
+#ifdef COARSE_STRIDE
+        // One sample for up to COARSE_STRIDE steps, every step's middle in
+        // the thin cube (check_at <= steps).
+        if (coarse) m = min(max(stride, COARSE_STRIDE), check_at - k);
 #endif
         float seg_world = world_h * float(m);
 #ifdef PREINT

@@ -17,6 +17,8 @@ pub const DEPTH_FORMAT: Format = Format::Depth32Float;
 pub enum Format {
     R8Unorm,
     R8Uint,
+    /// Two bytes a texel (raycast's brick map with `coarse`).
+    Rg8Uint,
     R16Unorm,
     R16Snorm,
     R16Sint,
@@ -40,6 +42,7 @@ impl Format {
         match self {
             Format::R8Unorm => vk::Format::R8_UNORM,
             Format::R8Uint => vk::Format::R8_UINT,
+            Format::Rg8Uint => vk::Format::R8G8_UINT,
             Format::R16Unorm => vk::Format::R16_UNORM,
             Format::R16Snorm => vk::Format::R16_SNORM,
             Format::R16Sint => vk::Format::R16_SINT,
@@ -64,6 +67,7 @@ impl Format {
         Some(match self {
             Format::R8Unorm => ("r8", true),
             Format::R8Uint => ("r8ui", true),
+            Format::Rg8Uint => ("rg8ui", true),
             Format::R16Unorm => ("r16", true),
             Format::R16Snorm => ("r16_snorm", true),
             Format::R16Sint => ("r16i", true),
@@ -83,7 +87,7 @@ impl Format {
     pub fn texel_bytes(self) -> u64 {
         match self {
             Format::R8Unorm | Format::R8Uint => 1,
-            Format::R16Unorm | Format::R16Snorm | Format::R16Sint => 2,
+            Format::R16Unorm | Format::R16Snorm | Format::R16Sint | Format::Rg8Uint => 2,
             Format::R32Float | Format::R32Uint | Format::Depth32Float | Format::Rgba8Unorm => 4,
             Format::Rg32Float | Format::Rgba16Unorm | Format::Rgba16Snorm => 8,
             Format::Rgb32Float => 12,

@@ -95,6 +95,13 @@ impl<'t> LayerFlags<'t> {
         }
         self.range.iter().map(|&(lo, hi)| attenuates_over(self.tf, lo, hi)).collect()
     }
+
+    /// After [`LayerFlags::flags`]: which bricks of that layer are dense,
+    /// the transfer function's attenuation over their range above
+    /// `tau_limit` somewhere (`coarse`, module note of `super`).
+    pub fn dense(&self, tau_limit: f64) -> Vec<bool> {
+        self.range.iter().map(|&(lo, hi)| max_attenuation_over(self.tf, lo, hi) > tau_limit).collect()
+    }
 }
 
 /// Whether τ > 0 somewhere on scalars [lo, hi]: τ is piecewise linear, so
@@ -103,6 +110,13 @@ fn attenuates_over(tf: &TransferFunction, lo: f64, hi: f64) -> bool {
     transfer_at(tf, lo).1 > 0.0
         || transfer_at(tf, hi).1 > 0.0
         || tf.points.iter().any(|p| p.scalar >= lo && p.scalar <= hi && p.attenuation > 0.0)
+}
+
+/// The largest τ on scalars [lo, hi]: τ is piecewise linear, so at an end
+/// or at a control point between them.
+fn max_attenuation_over(tf: &TransferFunction, lo: f64, hi: f64) -> f64 {
+    let inner = tf.points.iter().filter(|p| p.scalar >= lo && p.scalar <= hi).map(|p| p.attenuation);
+    inner.fold(transfer_at(tf, lo).1.max(transfer_at(tf, hi).1), f64::max)
 }
 
 /// Largest distance stored (one byte per brick); farther bricks store this
@@ -114,6 +128,18 @@ pub const MAX_DISTANCE: u8 = 255;
 pub fn mark(flags: impl IntoIterator<Item = bool>, map: &mut [u8]) {
     for (m, f) in map.iter_mut().zip(flags) {
         *m = if f { 0 } else { MAX_DISTANCE };
+    }
+}
+
+/// Turns `map`'s first n bytes (a brick's distance, n = `second.len()`)
+/// into n pairs in place, brick b's bytes at 2b and 2b + 1, the second
+/// from `second` (`coarse`: the distance to a dense brick). From the last
+/// brick back, each first byte is read before anything overwrites it.
+pub fn interleave_pairs(map: &mut [u8], second: &[u8]) {
+    assert!(map.len() >= 2 * second.len(), "room for the pairs");
+    for (b, &s) in second.iter().enumerate().rev() {
+        map[2 * b] = map[b];
+        map[2 * b + 1] = s;
     }
 }
 
@@ -214,6 +240,24 @@ mod tests {
             }).collect();
             prop_assert_eq!(distances(&flags, grid), brute_force(&flags, grid));
         }
+    }
+
+    #[test]
+    fn the_largest_attenuation_over_a_range_finds_inner_control_points() {
+        use crate::scene::{ControlPoint, TransferFunction};
+        let pt = |scalar: f64, attenuation: f64| ControlPoint { scalar, color: [1.0; 3], attenuation };
+        let tf = TransferFunction { name: "t".into(), points: vec![pt(0.0, 0.0), pt(0.5, 8.0), pt(1.0, 2.0)] };
+        assert_eq!(max_attenuation_over(&tf, 0.1, 0.2), 3.2);
+        assert_eq!(max_attenuation_over(&tf, 0.4, 0.9), 8.0);
+        assert_eq!(max_attenuation_over(&tf, 0.75, 1.5), 5.0);
+        assert_eq!(max_attenuation_over(&tf, -1.0, 0.0), 0.0);
+    }
+
+    #[test]
+    fn pairs_interleave_two_planes_in_place() {
+        let mut map = vec![1, 2, 3, 4, 0, 0, 0, 0, 9];
+        interleave_pairs(&mut map, &[10, 20, 30, 40]);
+        assert_eq!(map, vec![1, 10, 2, 20, 3, 30, 4, 40, 9]);
     }
 
     #[test]

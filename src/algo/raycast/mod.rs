@@ -26,7 +26,10 @@
 //! (so no step exceeds `step` and the last one ends exactly at the exit),
 //! sampled at their middles (`integrator=point`), classified through a 1D
 //! table of colour and attenuation τ (f32, [`TABLE_SIZE`] entries over the
-//! volume's value range), with opacity 1 − exp(−τ·Δs_world): the lab's
+//! volume's value range; with `reads=loads|quads` read with two loads and
+//! blended in f32, as the volume, and the brick map read as words: on
+//! lavapipe a texture lookup is an out-of-line call around which the march
+//! spills every live SIMD register), with opacity 1 − exp(−τ·Δs_world): the lab's
 //! α' = 1 − (1 − α)^{Δs/Δs0} with α given per unit length. Front to back,
 //! premultiplied. `integrator=preint` looks segments up in a 2D
 //! pre-integration table over (front, back) scalar (Engel, Kraus, Ertl 2001)
@@ -71,6 +74,25 @@
 //! per frame where 8³ bricks, one by one, took 14.0 M and 1.7 M. The grid is
 //! rebuilt whenever the transfer function changes (a method is built per
 //! transfer function).
+//!
+//! **Coarse steps in thin matter** (`coarse=A`, off by default; needs
+//! `skip=on`, not with `adaptive`). A brick is dense when the transfer
+//! function's attenuation over its sample range exceeds the τ at which
+//! [`COARSE_STRIDE`] steps of `step` voxels along the axis of largest
+//! spacing reach optical depth A ([`bricks::LayerFlags::dense`]). Each
+//! brick's map entry gains a second byte, its Chebyshev distance to the
+//! nearest dense brick (the map is then two bytes a brick). A visible
+//! brick at distance d ≥ 1 from a dense one is the centre of a cube of
+//! 2d − 1 bricks with none: the march takes the steps up to the cube's
+//! exit [`COARSE_STRIDE`] at a time, one sample at their middle, without
+//! looking their bricks up (empty bricks inside are sampled, not leapt).
+//! So no coarse segment has a step middle in a dense brick: thin matter
+//! (the chest CT's soft tissue) is sampled a third as often, opaque
+//! structure (bone, vessels) at every step. A coarse segment's optical
+//! depth is at most A, so its opacity is less; the family's error bound
+//! adds A (measured: 4.4e-3 at A = 0.1, `tests/raycast.rs`). It is the
+//! homogeneity idea of Danskin & Hanrahan (1992), "Fast algorithms for
+//! volume ray tracing", with the bound taken from the transfer function.
 //!
 //! **Lighting** (`shade=on`, lab 6): Blinn-Phong with the central-difference
 //! gradient (±1 voxel) as normal, ambient 0.3, diffuse 0.7, specular 0.25,
@@ -156,10 +178,33 @@ crate::settings! {
              blended in f32 in the shader: on lavapipe the sampler is an out-of-line call with 8-bit weights), \
              quads (two loads of four samples each, blended as loads: the texture holds each sample with its +x, +y \
              and +x+y neighbours, 4x the bytes, beyond the memory bound of twice the samples), auto (loads on a CPU \
-             device, texture elsewhere); the same field every way";
+             device, texture elsewhere); the same field every way. With loads and quads the transfer-function table \
+             and the brick map are read with loads too (the table blended in f32)";
         adaptive: f64 = "0", float(0.0, 0.25), build, "TOL", crate::algo::adaptive::HELP;
+        coarse: f64 = "0", float(0.0, 1.0), build, "optical depth",
+            "coarse steps where the matter is thin (0 = off; needs skip=on, not with adaptive): around a visible \
+             brick, the cube of bricks on which the transfer function's attenuation keeps a segment of 3 steps' \
+             world length below this optical depth is marched with one sample per 3 steps (module note)";
+    }
+    impl {
+        fn check(&self) -> Result<()> {
+            if self.coarse > 0.0 {
+                anyhow::ensure!(self.skip, "coarse={}: needs skip=on (the thin cubes are found in the skipping bricks' map)", self.coarse);
+                anyhow::ensure!(
+                    self.adaptive == 0.0,
+                    "coarse={} with adaptive={}: not combined (the refinement's structural key is read at every brick the march \
+                     looks up, and a coarse cube is passed without looking its bricks up)",
+                    self.coarse,
+                    self.adaptive
+                );
+            }
+            Ok(())
+        }
     }
 }
+
+/// Steps one coarse sample covers (option `coarse`).
+pub const COARSE_STRIDE: usize = 3;
 
 /// Both variants' options.
 pub const OPTIONS: &[OptionSpec] = Settings::OPTIONS;
@@ -194,7 +239,10 @@ pub const COMPARE: &[&str] = &["", "shade=on", "integrator=preint,step=1"];
 /// time-error front where the comparison is made. These fast points read
 /// the volume as quads (`reads=quads`: two loads a sample for 4x the
 /// texture's bytes, a user's trade of memory for speed; the same image).
-pub const SUITE: &[&str] = &["step=1,reads=quads", "step=1.25,reads=quads"];
+/// The last marches thin matter coarse (`coarse=0.1`): on a volume with
+/// much of it (the chest CT's soft tissue) a third fewer samples for a
+/// quarter more error, elsewhere about the row before it.
+pub const SUITE: &[&str] = &["step=1,reads=quads", "step=1.25,reads=quads", "step=1.25,reads=quads,coarse=0.1"];
 /// Stress: the defaults, pre-integration, and skipping and termination off
 /// (lighting is not compared: the reference does not shade).
 pub const STRESS: &[&str] = &["", "integrator=preint", "skip=off,ert=1"];
@@ -244,10 +292,12 @@ pub const FAMILY: Family = Family {
 /// view, both integrators) where a case documents no limitation, at the
 /// default step (0.5 voxel): measured on the "vol-baseline" case at 64x64,
 /// 3.2e-4 (point) and 1.6e-4 (preint); 1e-3 is 3x the larger.
-/// With `adaptive=TOL`, plus twice the tolerance ([`crate::algo::adaptive::bound`]).
+/// With `adaptive=TOL`, plus twice the tolerance ([`crate::algo::adaptive::bound`]);
+/// with `coarse=A`, plus A (a coarse segment's optical depth is at most A,
+/// so its opacity less; `tests/raycast.rs` measures 4.4e-3 at A = 0.1).
 pub fn accuracy_bound(options: &Options, _perspective: bool) -> Option<f64> {
-    let adaptive = Settings::from_options(options).map_or(0.0, |s| s.adaptive);
-    Some(1e-3 + crate::algo::adaptive::bound(adaptive))
+    let (adaptive, coarse) = Settings::from_options(options).map_or((0.0, 0.0), |s| (s.adaptive, s.coarse));
+    Some(1e-3 + crate::algo::adaptive::bound(adaptive) + coarse)
 }
 
 /// Krüger & Westermann (Vis 2003): early ray termination and empty-space
@@ -353,7 +403,19 @@ impl Settings {
         if self.skip {
             d.push(("SKIP", "1"));
         }
+        if self.coarse > 0.0 {
+            d.push(("COARSE_STRIDE", "3"));
+        }
         d
+    }
+
+    /// `coarse`: the attenuation (per world unit) above which a brick is
+    /// dense: a coarse segment, [`COARSE_STRIDE`] steps of at most `step`
+    /// voxels along the axis of largest spacing, keeps optical depth at
+    /// most `coarse` below it. None when off.
+    fn dense_above(&self, vol: &Volume) -> Option<f64> {
+        let longest = vol.spacing().into_iter().fold(0.0, f64::max);
+        (self.coarse > 0.0).then(|| self.coarse / (COARSE_STRIDE as f64 * self.step * longest))
     }
 
     /// The defines of every shader that includes the march
@@ -501,8 +563,35 @@ impl Texels {
 /// buffer the device reads on a CPU device (its memory is the process's:
 /// no second copy), in host memory elsewhere, uploaded when done.
 enum BrickMap {
-    InPlace(Buffer),
-    Host(Vec<u8>),
+    InPlace(Buffer, MapTexels),
+    Host(Vec<u8>, MapTexels),
+}
+
+/// How the shader reads the brick map: bytes through a uniform texel
+/// buffer, or with `reads=loads|quads` four bytes a word through a storage
+/// one (brick i is bits 8·(i mod 4).. of word i / 4: the words are the
+/// bytes in little-endian order, checked below), so that no lookup of the
+/// march is an out-of-line call on lavapipe (module note). With `coarse`
+/// a brick has two bytes (RG8, or two bricks a word).
+#[derive(Clone, Copy)]
+struct MapTexels {
+    format: Format,
+    usage: BufferUsage,
+    /// Bytes a brick.
+    entry: usize,
+}
+
+const _: () = assert!(cfg!(target_endian = "little"), "the brick map's words are read as little-endian bytes");
+
+impl MapTexels {
+    fn of(loads: bool, pairs: bool) -> Self {
+        let entry = if pairs { 2 } else { 1 };
+        match (loads, pairs) {
+            (true, _) => MapTexels { format: Format::R32Uint, usage: BufferUsage::STORAGE_TEXEL, entry },
+            (false, false) => MapTexels { format: Format::R8Uint, usage: BufferUsage::UNIFORM_TEXEL, entry },
+            (false, true) => MapTexels { format: Format::Rg8Uint, usage: BufferUsage::UNIFORM_TEXEL, entry },
+        }
+    }
 }
 
 /// Test knob: `VOLBENCH_TEST_BRICK_MAP_HOST=1` takes the other devices' way
@@ -511,29 +600,31 @@ enum BrickMap {
 pub const BRICK_MAP_HOST_VAR: &str = crate::switches::TEST_BRICK_MAP_HOST;
 
 impl BrickMap {
-    fn new(ctx: &Arc<Context>, bytes: usize) -> Result<Self> {
+    /// A map of `bricks` bricks.
+    fn new(ctx: &Arc<Context>, bricks: usize, texels: MapTexels) -> Result<Self> {
+        let padded = (bricks * texels.entry).next_multiple_of(texels.format.texel_bytes() as usize);
         Ok(if ctx.info.is_cpu() && !crate::switches::flag(BRICK_MAP_HOST_VAR).map_err(crate::vk::VkError::from)? {
-            BrickMap::InPlace(Buffer::new(ctx, BufferDesc::upload("brick distances", bytes as u64, BufferUsage::UNIFORM_TEXEL))?)
+            BrickMap::InPlace(Buffer::new(ctx, BufferDesc::upload("brick distances", padded as u64, texels.usage))?, texels)
         } else {
-            BrickMap::Host(vec![0; bytes])
+            BrickMap::Host(vec![0; padded], texels)
         })
     }
 
     fn mapped_for_write(&mut self) -> Result<&mut [u8]> {
         Ok(match self {
-            BrickMap::InPlace(b) => b.mapped_for_write()?,
-            BrickMap::Host(v) => v,
+            BrickMap::InPlace(b, _) => b.mapped_for_write()?,
+            BrickMap::Host(v, _) => v,
         })
     }
 
     /// The map as the shader's texel buffer, its bytes counted as uploaded.
     fn into_texels(self, ctx: &Arc<Context>, counter: &mut UploadCounter) -> Result<TexelBuffer> {
         Ok(match self {
-            BrickMap::InPlace(b) => {
+            BrickMap::InPlace(b, t) => {
                 counter.add_direct(UploadClass::Static, b.size());
-                TexelBuffer::over(ctx, b, Format::R8Uint)?
+                TexelBuffer::over(ctx, b, t.format)?
             }
-            BrickMap::Host(v) => upload_static_texels(ctx, "brick distances", &v, Format::R8Uint, BufferUsage::UNIFORM_TEXEL, counter)?,
+            BrickMap::Host(v, t) => upload_static_texels(ctx, "brick distances", &v, t.format, t.usage, counter)?,
         })
     }
 }
@@ -543,7 +634,7 @@ impl BrickMap {
 pub struct VolumeResources {
     pub set: DescriptorSet,
     _volume: crate::vk::Image,
-    _tf: crate::vk::Image,
+    _tf: TfTable,
     _preint: crate::vk::Image,
     _params: Buffer,
     _bricks: TexelBuffer,
@@ -556,6 +647,8 @@ pub struct VolumeResources {
     volume_quads: bool,
     pub brick_grid: [usize; 3],
     pub bricks_visible: usize,
+    /// `coarse`: the bricks on which a coarse sample would be too thick.
+    pub bricks_dense: Option<usize>,
     pub table_build_ms: f64,
     pub dims: [usize; 3],
     origin: DVec3,
@@ -571,8 +664,8 @@ pub fn set0_desc(loads: bool) -> DescriptorSetDesc {
     DescriptorSetDesc::default()
         .with(DescriptorKind::UniformBuffer, st)
         .with(volume, st)
-        .with(DescriptorKind::CombinedImageSampler, st)
-        .with(DescriptorKind::UniformTexelBuffer, st)
+        .with(if loads { DescriptorKind::StorageTexelBuffer } else { DescriptorKind::CombinedImageSampler }, st)
+        .with(if loads { DescriptorKind::StorageTexelBuffer } else { DescriptorKind::UniformTexelBuffer }, st)
         .with(DescriptorKind::StorageBuffer, st)
         .with(DescriptorKind::CombinedImageSampler, st)
 }
@@ -792,6 +885,14 @@ fn quad_format(f: Format) -> Option<Format> {
     })
 }
 
+/// The transfer function's 1D table: a texture sampled with its linear
+/// filter, or a storage texel buffer blended in the shader
+/// (`reads=loads|quads`: on lavapipe a texture lookup is an out-of-line call).
+enum TfTable {
+    Image(crate::vk::Image),
+    Texels(TexelBuffer),
+}
+
 /// The volume's texture and its brick distances, built together
 /// ([`upload_volume_and_bricks`]).
 struct BrickedVolume {
@@ -799,6 +900,8 @@ struct BrickedVolume {
     bricks: TexelBuffer,
     grid: [usize; 3],
     visible: usize,
+    /// `coarse`: the dense bricks.
+    dense: Option<usize>,
     /// Time spent flagging bricks and computing distances (the upload's not included).
     ms: f64,
 }
@@ -836,7 +939,10 @@ fn upload_volume_and_bricks(
     let mut bricks_ms = 0.0;
     let layer_bricks = grid[0] * grid[1];
     let map_bytes = layer_bricks * grid[2];
-    let new_map = || BrickMap::new(ctx, map_bytes);
+    let dense_above = s.dense_above(vol);
+    let new_map = || BrickMap::new(ctx, map_bytes, MapTexels::of(choice.load_format.is_some(), dense_above.is_some()));
+    // `coarse`: one bit a brick, set on dense ones, while the map fills.
+    let mut dense = bit_vec::BitVec::from_elem(if dense_above.is_some() { map_bytes } else { 0 }, false);
     let mut desc = TextureDesc::d3(&format!("volume '{}'", vol.name), dims.map(|d| d as u32), choice.format);
     if choice.load_format.is_some() {
         desc = desc.for_loads();
@@ -866,6 +972,11 @@ fn upload_volume_and_bricks(
                     for (b, f) in flagger.flags(next, &own).into_iter().enumerate() {
                         flagged.set(next * layer_bricks + b, f);
                     }
+                    if let Some(tau) = dense_above {
+                        for (b, f) in flagger.dense(tau).into_iter().enumerate() {
+                            dense.set(next * layer_bricks + b, f);
+                        }
+                    }
                 }
                 bricks_ms += t.elapsed().as_secs_f64() * 1e3;
                 let keep = if next == 0 { first } else { first.max(flagger.sample_layers(next - 1).end() + 1) };
@@ -874,7 +985,7 @@ fn upload_volume_and_bricks(
             drop(own);
             let volume = volume.with_context(|| format!("uploading volume '{}'", vol.name))?;
             let mut map = new_map()?;
-            bricks::mark(flagged.iter(), map.mapped_for_write()?);
+            bricks::mark(flagged.iter(), &mut map.mapped_for_write()?[..map_bytes]);
             (map, volume)
         }
         None => {
@@ -882,8 +993,13 @@ fn upload_volume_and_bricks(
             let t = Instant::now();
             let mut map = new_map()?;
             let mut flagger = bricks::LayerFlags::new(dims, tf, s.brick);
-            for (bz, cells) in map.mapped_for_write()?.chunks_exact_mut(layer_bricks).enumerate() {
+            for (bz, cells) in map.mapped_for_write()?[..map_bytes].chunks_exact_mut(layer_bricks).enumerate() {
                 bricks::mark(flagger.flags(bz, vol.samples()), cells);
+                if let Some(tau) = dense_above {
+                    for (b, f) in flagger.dense(tau).into_iter().enumerate() {
+                        dense.set(bz * layer_bricks + b, f);
+                    }
+                }
             }
             bricks_ms += t.elapsed().as_secs_f64() * 1e3;
             let volume = upload_texture_with(ctx, &desc, counter, &mut |offset, dst| fill(vol.samples(), offset, dst))
@@ -891,16 +1007,26 @@ fn upload_volume_and_bricks(
             (map, volume)
         }
     };
-    let cells = map.mapped_for_write()?;
+    let cells = &mut map.mapped_for_write()?[..map_bytes];
     let t = Instant::now();
     bricks::chebyshev_in_place(cells, grid);
     for d in cells.iter_mut() {
         *d = d.saturating_sub(dilation);
     }
     let visible = cells.iter().filter(|&&d| d == 0).count();
+    // `coarse`: each brick's distance to the nearest dense one beside its
+    // own (one more byte a brick while the pairs are made).
+    let mut dense_bricks = None;
+    if dense_above.is_some() {
+        let mut second = vec![0u8; map_bytes];
+        bricks::mark(dense.iter(), &mut second);
+        bricks::chebyshev_in_place(&mut second, grid);
+        dense_bricks = Some(second.iter().filter(|&&d| d == 0).count());
+        bricks::interleave_pairs(map.mapped_for_write()?, &second);
+    }
     bricks_ms += t.elapsed().as_secs_f64() * 1e3;
     let bricks = map.into_texels(ctx, counter)?;
-    Ok(BrickedVolume { volume, bricks, grid, visible, ms: bricks_ms })
+    Ok(BrickedVolume { volume, bricks, grid, visible, dense: dense_bricks, ms: bricks_ms })
 }
 
 /// The transfer function's 1D table over [lo, hi] and the pre-integration
@@ -914,10 +1040,15 @@ fn upload_tables(
     tf: &TransferFunction,
     s: &Settings,
     (lo, hi): (f64, f64),
+    loads: bool,
     counter: &mut UploadCounter,
-) -> Result<(crate::vk::Image, crate::vk::Image, usize)> {
+) -> Result<(TfTable, crate::vk::Image, usize)> {
     let table: Vec<f32> = tf.table(TABLE_SIZE, lo, hi).concat();
-    let tf_img = upload_texture(ctx, &TextureDesc::d1("transfer function", TABLE_SIZE as u32, Format::Rgba32Float), &f32_bytes(&table), counter)?;
+    let tf_img = if loads {
+        TfTable::Texels(upload_static_texels(ctx, "transfer function", &f32_bytes(&table), Format::Rgba32Float, BufferUsage::STORAGE_TEXEL, counter)?)
+    } else {
+        TfTable::Image(upload_texture(ctx, &TextureDesc::d1("transfer function", TABLE_SIZE as u32, Format::Rgba32Float), &f32_bytes(&table), counter)?)
+    };
     let d0 = preint_length(vol, s.step);
     let n = if s.preint() { PREINT_SIZE } else { 2 };
     let mut pre = Vec::with_capacity(n * n * 4);
@@ -983,7 +1114,7 @@ impl VolumeResources {
         };
         let bricked = upload_volume_and_bricks(ctx, vol, given, tf, s, &choice, counter)?;
         let t0 = Instant::now();
-        let (tf_img, preint, preint_side) = upload_tables(ctx, vol, tf, s, (choice.lo, choice.hi), counter)?;
+        let (tf_img, preint, preint_side) = upload_tables(ctx, vol, tf, s, (choice.lo, choice.hi), choice.load_format.is_some(), counter)?;
         let table_build_ms = bricked.ms + t0.elapsed().as_secs_f64() * 1e3;
         let params = Params::new(vol, s, &choice, bricked.grid, preint_side);
         let mut params_buf = Buffer::new(ctx, BufferDesc::upload("raycast parameters", std::mem::size_of::<Params>() as u64, BufferUsage::UNIFORM))?;
@@ -999,8 +1130,11 @@ impl VolumeResources {
             &[
                 DescriptorResource::UniformBuffer(&params_buf),
                 if loads { DescriptorResource::StorageImage(volume) } else { DescriptorResource::CombinedImageSampler(volume, &sampler) },
-                DescriptorResource::CombinedImageSampler(&tf_img, &sampler),
-                DescriptorResource::UniformTexelBuffer(&bricked.bricks),
+                match &tf_img {
+                    TfTable::Texels(t) => DescriptorResource::StorageTexelBuffer(t),
+                    TfTable::Image(i) => DescriptorResource::CombinedImageSampler(i, &sampler),
+                },
+                if loads { DescriptorResource::StorageTexelBuffer(&bricked.bricks) } else { DescriptorResource::UniformTexelBuffer(&bricked.bricks) },
                 DescriptorResource::StorageBuffer(&counters),
                 DescriptorResource::CombinedImageSampler(&preint, &sampler),
             ],
@@ -1019,6 +1153,7 @@ impl VolumeResources {
             volume_quads: choice.quads,
             brick_grid: bricked.grid,
             bricks_visible: bricked.visible,
+            bricks_dense: bricked.dense,
             table_build_ms,
             dims: vol.dims(),
             origin: vol.origin().into(),
@@ -1138,6 +1273,11 @@ impl VolumeResources {
             "brick": s.brick,
             "brick_grid": self.brick_grid,
             "bricks_visible": self.bricks_visible,
+            "coarse": if s.coarse > 0.0 {
+                json!({ "optical_depth": s.coarse, "stride": COARSE_STRIDE, "bricks_dense": self.bricks_dense })
+            } else {
+                serde_json::Value::Null
+            },
             "samples_per_ray_mean": if rays > 0 { total as f64 / rays as f64 } else { 0.0 },
             "samples_per_ray_max": max,
             "bricks_skipped": skipped,
