@@ -468,7 +468,8 @@ fn the_volume_crosses_once_and_frames_move_only_constants() {
 #[test]
 fn brick_map_uploaded_from_host_memory_is_the_in_place_map() {
     let (d, tf, cam) = cores_scene();
-    for spec in ["raycast-compute:ert=1,brick=1", "raycast-fragment:ert=1,brick=2"] {
+    // The last: two bytes a brick (`coarse`) in RG8 texels (`reads=texture`).
+    for spec in ["raycast-compute:ert=1,brick=1", "raycast-fragment:ert=1,brick=2", "raycast-fragment:ert=1,brick=2,coarse=0.5,reads=texture"] {
         std::env::remove_var(volbench::algo::raycast::BRICK_MAP_HOST_VAR);
         let in_place = render(spec, &d, &tf, cam);
         std::env::set_var(volbench::algo::raycast::BRICK_MAP_HOST_VAR, "1");
