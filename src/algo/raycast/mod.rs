@@ -972,11 +972,7 @@ fn upload_volume_and_bricks(
                     for (b, f) in flagger.flags(next, &own).into_iter().enumerate() {
                         flagged.set(next * layer_bricks + b, f);
                     }
-                    if let Some(tau) = dense_above {
-                        for (b, f) in flagger.dense(tau).into_iter().enumerate() {
-                            dense.set(next * layer_bricks + b, f);
-                        }
-                    }
+                    mark_dense(&mut dense, &flagger, dense_above, next * layer_bricks);
                 }
                 bricks_ms += t.elapsed().as_secs_f64() * 1e3;
                 let keep = if next == 0 { first } else { first.max(flagger.sample_layers(next - 1).end() + 1) };
@@ -995,11 +991,7 @@ fn upload_volume_and_bricks(
             let mut flagger = bricks::LayerFlags::new(dims, tf, s.brick);
             for (bz, cells) in map.mapped_for_write()?[..map_bytes].chunks_exact_mut(layer_bricks).enumerate() {
                 bricks::mark(flagger.flags(bz, vol.samples()), cells);
-                if let Some(tau) = dense_above {
-                    for (b, f) in flagger.dense(tau).into_iter().enumerate() {
-                        dense.set(bz * layer_bricks + b, f);
-                    }
-                }
+                mark_dense(&mut dense, &flagger, dense_above, bz * layer_bricks);
             }
             bricks_ms += t.elapsed().as_secs_f64() * 1e3;
             let volume = upload_texture_with(ctx, &desc, counter, &mut |offset, dst| fill(vol.samples(), offset, dst))
@@ -1007,26 +999,43 @@ fn upload_volume_and_bricks(
             (map, volume)
         }
     };
-    let cells = &mut map.mapped_for_write()?[..map_bytes];
     let t = Instant::now();
+    let (visible, dense_bricks) = map_distances(&mut map, grid, dilation, dense_above.map(|_| &dense))?;
+    bricks_ms += t.elapsed().as_secs_f64() * 1e3;
+    let bricks = map.into_texels(ctx, counter)?;
+    Ok(BrickedVolume { volume, bricks, grid, visible, dense: dense_bricks, ms: bricks_ms })
+}
+
+/// `coarse`: sets the dense bricks of the layer [`bricks::LayerFlags`]
+/// flagged last, from brick `first` of the map on (none when off).
+fn mark_dense(dense: &mut bit_vec::BitVec, flagger: &bricks::LayerFlags, dense_above: Option<f64>, first: usize) {
+    if let Some(tau) = dense_above {
+        for (b, f) in flagger.dense(tau).into_iter().enumerate() {
+            dense.set(first + b, f);
+        }
+    }
+}
+
+/// Turns the marked map of `grid` into distances (flags dilated by
+/// `dilation` bricks), and with `dense` (`coarse`: one bit a brick) gives
+/// each brick its second byte, the distance to the nearest dense one (one
+/// more byte a brick while the pairs are made). The visible bricks, and
+/// the dense ones.
+fn map_distances(map: &mut BrickMap, grid: [usize; 3], dilation: u8, dense: Option<&bit_vec::BitVec>) -> Result<(usize, Option<usize>)> {
+    let n = grid[0] * grid[1] * grid[2];
+    let cells = &mut map.mapped_for_write()?[..n];
     bricks::chebyshev_in_place(cells, grid);
     for d in cells.iter_mut() {
         *d = d.saturating_sub(dilation);
     }
     let visible = cells.iter().filter(|&&d| d == 0).count();
-    // `coarse`: each brick's distance to the nearest dense one beside its
-    // own (one more byte a brick while the pairs are made).
-    let mut dense_bricks = None;
-    if dense_above.is_some() {
-        let mut second = vec![0u8; map_bytes];
-        bricks::mark(dense.iter(), &mut second);
-        bricks::chebyshev_in_place(&mut second, grid);
-        dense_bricks = Some(second.iter().filter(|&&d| d == 0).count());
-        bricks::interleave_pairs(map.mapped_for_write()?, &second);
-    }
-    bricks_ms += t.elapsed().as_secs_f64() * 1e3;
-    let bricks = map.into_texels(ctx, counter)?;
-    Ok(BrickedVolume { volume, bricks, grid, visible, dense: dense_bricks, ms: bricks_ms })
+    let Some(dense) = dense else { return Ok((visible, None)) };
+    let mut second = vec![0u8; n];
+    bricks::mark(dense.iter(), &mut second);
+    bricks::chebyshev_in_place(&mut second, grid);
+    let dense_bricks = second.iter().filter(|&&d| d == 0).count();
+    bricks::interleave_pairs(map.mapped_for_write()?, &second);
+    Ok((visible, Some(dense_bricks)))
 }
 
 /// The transfer function's 1D table over [lo, hi] and the pre-integration
