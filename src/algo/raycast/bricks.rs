@@ -107,9 +107,7 @@ impl<'t> LayerFlags<'t> {
 /// Whether τ > 0 somewhere on scalars [lo, hi]: τ is piecewise linear, so
 /// at an end or at a control point between them.
 fn attenuates_over(tf: &TransferFunction, lo: f64, hi: f64) -> bool {
-    transfer_at(tf, lo).1 > 0.0
-        || transfer_at(tf, hi).1 > 0.0
-        || tf.points.iter().any(|p| p.scalar >= lo && p.scalar <= hi && p.attenuation > 0.0)
+    max_attenuation_over(tf, lo, hi) > 0.0
 }
 
 /// The largest τ on scalars [lo, hi]: τ is piecewise linear, so at an end

@@ -205,6 +205,9 @@ crate::settings! {
 
 /// Steps one coarse sample covers (option `coarse`).
 pub const COARSE_STRIDE: usize = 3;
+/// [`COARSE_STRIDE`] as the shader's define.
+const COARSE_STRIDE_DEFINE: &str = "3";
+const _: () = assert!(COARSE_STRIDE_DEFINE.len() == 1 && COARSE_STRIDE_DEFINE.as_bytes()[0] == b'0' + COARSE_STRIDE as u8);
 
 /// Both variants' options.
 pub const OPTIONS: &[OptionSpec] = Settings::OPTIONS;
@@ -408,7 +411,7 @@ impl Settings {
             d.push(("SKIP", "1"));
         }
         if self.coarse > 0.0 {
-            d.push(("COARSE_STRIDE", "3"));
+            d.push(("COARSE_STRIDE", COARSE_STRIDE_DEFINE));
         }
         d
     }
