@@ -10,8 +10,9 @@ use std::process::Command;
 use serde_json::Value;
 
 /// Counted runs of each case; each takes some 10 s of CPU under callgrind,
-/// and two run at a time (the machine's two cores).
-const RUNS: usize = 5;
+/// and two run at a time (the machine's two cores): two rounds (a fifth
+/// run was a third round, some 30 s of CI's time per case).
+const RUNS: usize = 4;
 /// The repeatability every phase must hold.
 const REL: f64 = 1e-3;
 /// ...or this many instructions.
