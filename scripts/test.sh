@@ -15,12 +15,6 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
-# A fresh clone (CI) builds without incremental compilation: its caches
-# cost a fifth of a full build's time and are never read again there. A
-# work tree that has them keeps them.
-if [ ! -d target/debug/incremental ]; then
-    export CARGO_INCREMENTAL=0
-fi
 export VOLBENCH_VALIDATION=1
 export VK_LAYER_ENABLES=VK_VALIDATION_FEATURE_ENABLE_SYNCHRONIZATION_VALIDATION_EXT
 # Lints first: clippy on every target, any warning an error (the toolchain's
