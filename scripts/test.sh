@@ -27,10 +27,13 @@ if [ $# -eq 0 ]; then
     # cargo test built target/debug/volbench for the CLI tests: the same binary.
     out="$(mktemp -d)"
     # The counted suite runs beside the quick one: valgrind runs a process
-    # on one core, and neither suite's compared figures depend on time.
-    ./target/debug/volbench suite --quick --count $(cat results/baseline/count/filter) --out "$out/count" > "$out/count.log" 2>&1 &
+    # on one core, and neither suite's compared figures depend on time. It
+    # runs in a process group of its own (setsid: no job control here, so
+    # it is not a group leader and keeps its pid), killed whole on exit:
+    # its valgrind children stay in its group (harness/child.rs).
+    setsid ./target/debug/volbench suite --quick --count $(cat results/baseline/count/filter) --out "$out/count" > "$out/count.log" 2>&1 &
     counting=$!
-    trap 'kill $counting 2>/dev/null || true' EXIT
+    trap 'kill -- -$counting 2>/dev/null || true' EXIT
     ./target/debug/volbench suite --quick --out "$out/quick"
     ./target/debug/volbench compare results/baseline/quick/summary.json "$out/quick/summary.json" --no-times
     status=0

@@ -76,7 +76,7 @@ impl Format {
             Format::Rgba16Snorm => ("rgba16_snorm", true),
             Format::R32Float => ("r32f", false),
             Format::R32Uint => ("r32ui", false),
-            Format::Rg32Float => ("rg32f", false),
+            Format::Rg32Float => ("rg32f", true),
             Format::Rgb32Float | Format::Depth32Float => return None,
             Format::Rgba32Float => ("rgba32f", false),
             Format::Rgba32Uint => ("rgba32ui", false),
@@ -96,3 +96,27 @@ impl Format {
     }
 }
 
+#[cfg(test)]
+mod tests {
+    use super::Format;
+
+    /// The storage image formats every device supports: SPIR-V's `Shader`
+    /// capability's (the spec's Image Format table); every other
+    /// qualifier needs StorageImageExtendedFormats.
+    const BASE: [&str; 13] =
+        ["rgba32f", "rgba16f", "r32f", "rgba8", "rgba8_snorm", "rgba32i", "rgba16i", "rgba8i", "r32i", "rgba32ui", "rgba16ui", "rgba8ui", "r32ui"];
+
+    #[test]
+    fn extended_storage_formats_are_spirvs() {
+        use Format::*;
+        let all = [
+            R8Unorm, R8Uint, Rg8Uint, R16Unorm, R16Snorm, R16Sint, Rgba8Unorm, Rgba16Unorm, Rgba16Snorm, R32Float, R32Uint, Rg32Float,
+            Rgb32Float, Rgba32Float, Rgba32Uint, Depth32Float,
+        ];
+        for f in all {
+            if let Some((name, extended)) = f.glsl_image_format() {
+                assert_eq!(extended, !BASE.contains(&name), "{f:?} ({name})");
+            }
+        }
+    }
+}
