@@ -171,6 +171,12 @@ fn skipping_and_early_termination_keep_the_image_and_save_samples() {
         assert!(s_skip < s_full && s_ert < s_full && s_both < s_skip.min(s_ert), "{s_full} {s_skip} {s_ert} {s_both}");
         assert!(both.result.work.counts["bricks_skipped"] > 0);
         assert_eq!(full.result.work.counts["bricks_skipped"], 0);
+        // The rays from the orbit start and end in air: their ends are
+        // leapt over in the loops before the march (trim_empty_ends), and
+        // the image is still the one without skipping (below).
+        let (l, ends) = (skip.result.work.counts["leaps"], skip.result.work.counts["leaps_at_ends"]);
+        assert!(ends > 0 && ends <= l, "{ends} of {l} leaps at the ends");
+        assert_eq!(full.result.work.counts["leaps_at_ends"], 0);
         // Skipping is exact by construction (dilated flags): only rounding.
         assert!(rmse(&skip.image, &full.image) <= 1e-6);
         // Past the threshold the rest of the ray is estimated by a coarser

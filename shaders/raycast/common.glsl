@@ -58,8 +58,9 @@ uint brick_entry(int i) {
 #endif
 }
 // Counters, cleared every frame: samples taken, largest per ray, bricks
-// stepped over, rays, leaps.
-layout(std430, set = 0, binding = 4) buffer Counters { uint total_samples; uint max_samples; uint skipped_bricks; uint rays; uint leaps; } counters;
+// stepped over, rays, leaps, and of them the leaps over the ray's empty ends
+// (trim_empty_ends).
+layout(std430, set = 0, binding = 4) buffer Counters { uint total_samples; uint max_samples; uint skipped_bricks; uint rays; uint leaps; uint end_leaps; } counters;
 layout(set = 0, binding = 5) uniform sampler2D preint_tex;
 
 #include "raycast/frame.glsl"
@@ -164,6 +165,93 @@ vec3 shade(vec3 color, vec3 u, vec3 to_eye) {
     return color * (params.ambient + params.diffuse * diff) + vec3(params.specular * spec);
 }
 
+#ifdef SKIP
+// A ray a + s * dir (voxel coordinates, |dir| = 1) cut into steps of h
+// voxels, step k's middle at s = (k + 0.5) h, as the brick map is looked
+// up. Axes the ray is parallel to never bound a leap (`moving`). The brick
+// grid is converted once here: per lookup it cost 5 % of the frame's
+// instructions (chest CT, counted).
+struct MarchRay { vec3 a; vec3 dir; vec3 inv_dir; bvec3 moving; float h; ivec3 bgrid; };
+
+vec3 step_middle(MarchRay r, int k) {
+    return r.a + r.dir * (r.h * (float(k) + 0.5));
+}
+
+// The map entry of the brick holding u (clamped to the grid), and the brick.
+uint brick_at(MarchRay r, vec3 u, out ivec3 bc) {
+    bc = clamp(ivec3(floor(u / params.brick)), ivec3(0), r.bgrid - 1);
+    return brick_entry(bc.x + r.bgrid.x * (bc.y + r.bgrid.y * bc.z));
+}
+
+// The cube of bricks within `reach` voxels of brick bc: [lo, lo + edge]
+// on every axis. A brick's flag covers its samples and the next layer, so
+// a middle on the far face of an unflagged cube is empty too.
+vec3 cube_low(ivec3 bc, float reach) {
+    return vec3(bc) * params.brick - reach;
+}
+
+// The first step whose middle lies past the ray's exit from the cube
+// (a middle at or before it inside the cube), at most `steps`.
+int step_past_cube(MarchRay r, vec3 lo, float edge, int steps) {
+    vec3 far_face = mix(lo, lo + edge, greaterThan(r.dir, vec3(0.0)));
+    vec3 s_axis = mix(vec3(1e30), (far_face - r.a) * r.inv_dir, r.moving);
+    float s_exit = min(min(s_axis.x, s_axis.y), s_axis.z);
+    return min(int(floor(s_exit / r.h - 0.5)) + 1, steps);
+}
+
+// The first step whose middle lies at or past the ray's entry into the
+// cube (a middle after it inside the cube), at least `k`.
+int step_into_cube(MarchRay r, vec3 lo, float edge, int k) {
+    vec3 near_face = mix(lo + edge, lo, greaterThan(r.dir, vec3(0.0)));
+    vec3 s_axis = mix(vec3(-1e30), (near_face - r.a) * r.inv_dir, r.moving);
+    float s_in = max(max(s_axis.x, s_axis.y), s_axis.z);
+    return max(int(ceil(s_in / r.h - 0.5)), k);
+}
+
+// The bricks a run of skipped steps passes through: one plus the brick
+// faces crossed between its first and last middles.
+uint bricks_between(vec3 first, vec3 last) {
+    ivec3 crossed = abs(ivec3(floor(last / params.brick)) - ivec3(floor(first / params.brick)));
+    return uint(1 + crossed.x + crossed.y + crossed.z);
+}
+
+#ifndef ADAPTIVE
+// The empty ends of the ray, in loops of their own before the march: leaps
+// from the first step over empty cubes up to the first visible brick, and
+// from the last step back to the last one. In the march's loop a leap costs
+// an iteration as dear as a sample (llvmpipe runs the sample code masked),
+// here only the lookup. Steps in empty bricks add nothing, so the image is
+// the march's over all steps: the march's segments keep their lengths
+// (a tail or coarse segment begun before `end` still runs past it) and
+// only the loop stops at `end`. Not with ADAPTIVE: its key records the
+// bricks the march passes.
+void trim_empty_ends(MarchRay r, int steps, inout int k, inout int end, inout uint skipped, inout uint leaps) {
+    while (k < end) {
+        ivec3 bc;
+        vec3 um = step_middle(r, k);
+        uint dist = brick_at(r, um, bc) & 0xFFu;
+        if (dist == 0u) break;
+        float reach = float(dist - 1u) * params.brick;
+        int last = max(k + 1, step_past_cube(r, cube_low(bc, reach), params.brick + 2.0 * reach, end));
+        skipped += bricks_between(um, step_middle(r, last - 1));
+        leaps += 1u;
+        k = last;
+    }
+    while (end > k) {
+        ivec3 bc;
+        vec3 um = step_middle(r, end - 1);
+        uint dist = brick_at(r, um, bc) & 0xFFu;
+        if (dist == 0u) break;
+        float reach = float(dist - 1u) * params.brick;
+        int first = min(end - 1, step_into_cube(r, cube_low(bc, reach), params.brick + 2.0 * reach, k));
+        skipped += bricks_between(step_middle(r, first), um);
+        leaps += 1u;
+        end = first;
+    }
+}
+#endif
+#endif
+
 // The segment [a, b] (voxel coordinates, a nearer the eye) marched with a step
 // of at most `step` voxels: n = ceil(L / step) equal steps, one sample at the
 // middle of each, opacity 1 - exp(-tau * world length of the step), i.e. the
@@ -183,14 +271,14 @@ vec4 march(vec3 a, vec3 b, out uint samples) {
     float world_h = h * length(dir * params.spacing);
     vec3 to_eye_world = -dir * params.spacing;
     int steps = int(n);
+    int k = 0;
+    int end = steps;   // the loop's last step + 1 (trim_empty_ends)
 #ifdef SKIP
     float bsize = params.brick;
-    ivec3 bgrid = ivec3(params.brick_grid);
-    // Axes the ray is parallel to never bound a leap.
-    vec3 inv_dir = 1.0 / dir;
-    bvec3 moving = notEqual(dir, vec3(0.0));
+    MarchRay ray = MarchRay(a, dir, 1.0 / dir, notEqual(dir, vec3(0.0)), h, ivec3(params.brick_grid));
     uint skipped = 0u;
     uint leaps = 0u;
+    uint end_leaps = 0u;
     int check_at = 0;   // the next step whose brick must be looked up
 #ifdef COARSE_STRIDE
     bool coarse = false;   // the steps up to check_at lie in a thin cube
@@ -199,17 +287,23 @@ vec4 march(vec3 a, vec3 b, out uint samples) {
     bool in_run = false;
     march_runs = 0u;
     march_closest = 0xFFu;
+#else
+    trim_empty_ends(ray, steps, k, end, skipped, end_leaps);
+    leaps = end_leaps;
 #endif
 #endif
 #ifdef PREINT
-    float t_prev = table_coord(a);
+    // The first segment's front (after a trimmed start, read as after a leap).
+    float t_prev = -1.0;
     float t_prev2 = -1.0;
-    samples += 1u;
+    if (k == 0) {
+        t_prev = table_coord(a);
+        samples += 1u;
+    }
 #endif
-    int k = 0;
     int stride = 1;   // steps one sample covers: 1, or the tail stride past the ert threshold
     float tail_stop = 1.0 - (1.0 - params.ert) * TAIL_STOP;
-    while (k < steps) {
+    while (k < end) {
         int m = min(stride, steps - k);
 #ifdef SKIP
         // The brick holding the step's middle, looked up once per brick. At
@@ -220,9 +314,9 @@ vec4 march(vec3 a, vec3 b, out uint samples) {
         // in one iteration, the same steps as one by one; a flagged brick's
         // are sampled without further lookups.
         if (k >= check_at) {
-            vec3 um = a + dir * (h * (float(k) + 0.5));
-            ivec3 bc = clamp(ivec3(floor(um / bsize)), ivec3(0), bgrid - 1);
-            uint entry = brick_entry(bc.x + bgrid.x * (bc.y + bgrid.y * bc.z));
+            ivec3 bc;
+            vec3 um = step_middle(ray, k);
+            uint entry = brick_at(ray, um, bc);
             uint dist = entry & 0xFFu;
 #ifdef ADAPTIVE
             // The key's runs: entries into bricks within ADAPTIVE_NEAR of
@@ -245,18 +339,10 @@ vec4 march(vec3 a, vec3 b, out uint samples) {
 #else
             float reach = float(max(dist, 1u) - 1u) * bsize;
 #endif
-            vec3 lo = vec3(bc) * bsize - reach;
-            vec3 far_face = mix(lo, lo + bsize + 2.0 * reach, greaterThan(dir, vec3(0.0)));
-            vec3 s_axis = mix(vec3(1e30), (far_face - a) * inv_dir, moving);
-            float s_exit = min(min(s_axis.x, s_axis.y), s_axis.z);
-            int next = min(int(floor(s_exit / h - 0.5)) + 1, steps);
+            int next = step_past_cube(ray, cube_low(bc, reach), bsize + 2.0 * reach, steps);
             if (dist != 0u) {
                 int last = max(k + 1, next);
-                // Bricks passed through between the first and the last
-                // skipped middles: one plus the brick faces crossed.
-                ivec3 b_last = ivec3(floor((a + dir * (h * (float(last) - 0.5))) / bsize));
-                ivec3 crossed = abs(b_last - ivec3(floor(um / bsize)));
-                skipped += uint(1 + crossed.x + crossed.y + crossed.z);
+                skipped += bricks_between(um, step_middle(ray, last - 1));
                 leaps += 1u;
 #ifdef PREINT
                 t_prev = -1.0;
@@ -333,6 +419,7 @@ vec4 march(vec3 a, vec3 b, out uint samples) {
 #ifdef SKIP
     uint n_skipped = skipped;
     uint n_leaps = leaps;
+    uint n_end_leaps = end_leaps;
 #endif
     uint n_samples = samples;
     uint n_max = samples;
@@ -346,6 +433,7 @@ vec4 march(vec3 a, vec3 b, out uint samples) {
 #ifdef SKIP
     n_skipped = subgroupAdd(n_skipped);
     n_leaps = subgroupAdd(n_leaps);
+    n_end_leaps = subgroupAdd(n_end_leaps);
 #endif
     n_samples = subgroupAdd(n_samples);
     n_max = subgroupMax(n_max);
@@ -356,6 +444,7 @@ vec4 march(vec3 a, vec3 b, out uint samples) {
 #ifdef SKIP
         atomicAdd(counters.skipped_bricks, n_skipped);
         atomicAdd(counters.leaps, n_leaps);
+        atomicAdd(counters.end_leaps, n_end_leaps);
 #endif
         atomicAdd(counters.total_samples, n_samples);
         atomicMax(counters.max_samples, n_max);

@@ -73,7 +73,13 @@
 //! chest CT (README) 2³ bricks with leaps take 8.1 M samples and 2.2 M leaps
 //! per frame where 8³ bricks, one by one, took 14.0 M and 1.7 M. The grid is
 //! rebuilt whenever the transfer function changes (a method is built per
-//! transfer function).
+//! transfer function). The ray's empty ends are leapt over in two loops of
+//! their own before the march (`trim_empty_ends` in common.glsl; not with
+//! `adaptive`, whose key records every brick the march looks up): forward
+//! from the first step to the first visible brick, backward from the last
+//! step to the last one. In the march's loop a leap costs an iteration as
+//! dear as a sample; in those loops only the lookup. The segments keep the
+//! lengths the whole ray gives them, so the image is unchanged.
 //!
 //! **Coarse steps in thin matter** (`coarse=A`, off by default; needs
 //! `skip=on`, not with `adaptive`). A brick is dense when the transfer
@@ -104,9 +110,11 @@
 //! opacity is not.
 //!
 //! **Counts.** Every ray adds its samples to a device counter (atomics; also
-//! the largest per ray, bricks stepped over, leaps and rays), read back after
-//! the frame: `work` reports them. Bricks stepped over by a leap are counted
-//! as the bricks the skipped stretch of the ray passes through.
+//! the largest per ray, bricks stepped over, leaps and of them those over
+//! the ray's empty ends, and rays), read back after the frame: `work`
+//! reports them. Bricks stepped over by a leap are counted as the bricks the
+//! skipped stretch of the ray passes through. The march's loop runs about
+//! samples + leaps − leaps_at_ends iterations a ray.
 
 pub mod bricks;
 pub mod compute;
@@ -718,7 +726,7 @@ pub fn box_on_screen(clip: &[glam::DVec4], size: [u32; 2]) -> BoxOnScreen {
 }
 
 /// Counter words read back after every frame.
-const COUNTER_WORDS: usize = 5;
+const COUNTER_WORDS: usize = 6;
 
 fn f32_bytes(v: &[f32]) -> Vec<u8> {
     v.iter().flat_map(|x| x.to_ne_bytes()).collect()
@@ -1243,13 +1251,13 @@ impl VolumeResources {
         rec.storage_to_host(Stages::COMPUTE | Stages::FRAGMENT);
     }
 
-    /// The last frame's counters: (total samples, max per ray, bricks skipped, rays, leaps).
+    /// The last frame's counters: (total samples, max per ray, bricks skipped, rays, leaps, of them leaps over the ray's empty ends).
     pub fn counters(&self) -> [u64; COUNTER_WORDS] {
         self.counters.read_counters()
     }
 
     pub fn work(&self, pixels: u64) -> Work {
-        let [total, max, skipped, rays, leaps] = self.counters();
+        let [total, max, skipped, rays, leaps, end_leaps] = self.counters();
         Work::default()
             .with("pixels", pixels)
             .with("rays", rays)
@@ -1257,6 +1265,7 @@ impl VolumeResources {
             .with("max_samples_per_ray", max)
             .with("bricks_skipped", skipped)
             .with("leaps", leaps)
+            .with("leaps_at_ends", end_leaps)
     }
 
     /// Whether the volume is read with imageLoad (set 0's binding 1 a storage image).
@@ -1275,7 +1284,7 @@ impl VolumeResources {
     }
 
     pub fn details(&self, s: &Settings, variant: serde_json::Value) -> serde_json::Value {
-        let [total, max, skipped, rays, leaps] = self.counters();
+        let [total, max, skipped, rays, leaps, end_leaps] = self.counters();
         json!({
             "family": "raycast",
             "variant": variant,
@@ -1301,6 +1310,7 @@ impl VolumeResources {
             "samples_per_ray_max": max,
             "bricks_skipped": skipped,
             "leaps": leaps,
+            "leaps_at_ends": end_leaps,
         })
     }
 }
