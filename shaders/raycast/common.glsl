@@ -80,9 +80,6 @@ uint march_runs = 0u;
 uint march_closest = 0xFFu;
 #endif
 
-// Samples are taken with an explicit level (single-level textures): the
-// march loop is non-uniform control flow, where implicit derivatives are
-// undefined, and the explicit level spares llvmpipe computing them.
 // The parameters the march reads in its loops, copied once per ray
 // (load_march_constants, first thing in march): read from the uniform
 // block inside the loop, llvmpipe loaded and converted them again every
@@ -107,6 +104,9 @@ void load_march_constants() {
                         ivec3(params.brick_grid), params.ert, params.inv_dims, params.preint_length);
 }
 
+// Samples are taken with an explicit level (single-level textures): the
+// march loop is non-uniform control flow, where implicit derivatives are
+// undefined, and the explicit level spares llvmpipe computing them.
 #ifdef VOLUME_LOADS
 // The trilinear field at voxel coordinate u, clamped to the box as the
 // sampler's clamp-to-edge does (every axis has at least 2 samples).
