@@ -78,6 +78,7 @@ layout(set = 0, binding = 5) uniform sampler2D preint_tex;
 // blocks around a speck their rays straddle refine.
 uint march_runs = 0u;
 uint march_closest = 0xFFu;
+bool march_in_run = false;   // the last brick looked up was within ADAPTIVE_NEAR
 #endif
 
 // The parameters the march reads in its loops, copied once per ray
@@ -238,7 +239,21 @@ uint bricks_between(vec3 first, vec3 last) {
     return uint(1 + crossed.x + crossed.y + crossed.z);
 }
 
-#ifndef ADAPTIVE
+#ifdef ADAPTIVE
+// The key's bookkeeping at a lookup of a brick at distance `dist`: its
+// runs are entries into bricks within ADAPTIVE_NEAR of an occupied one. A
+// leap from outside them is shortened so its cube holds none of them (each
+// brick of it is at least dist - reach bricks from an occupied one): the
+// reach (voxels) of the leap's cube.
+float adaptive_reach(uint dist) {
+    bool near = dist <= ADAPTIVE_NEAR;
+    if (near && !march_in_run) march_runs += 1u;
+    march_closest = min(march_closest, dist);
+    march_in_run = near;
+    return float(near ? max(dist, 1u) - 1u : dist - 1u - ADAPTIVE_NEAR) * mc.brick;
+}
+#endif
+
 // The empty ends of the ray, in loops of their own before the march: leaps
 // from the first step over empty cubes up to the first visible brick, and
 // from the last step back to the last one. In the march's loop a leap costs
@@ -246,20 +261,27 @@ uint bricks_between(vec3 first, vec3 last) {
 // here only the lookup. Steps in empty bricks add nothing, so the image is
 // the march's over all steps: the march's segments keep their lengths
 // (a tail or coarse segment begun before `end` still runs past it) and
-// only the loop stops at `end`. Not with ADAPTIVE: its key records the
-// bricks the march passes.
+// only the loop stops at `end`. With ADAPTIVE the forward loop takes the
+// march's own leaps with the key's bookkeeping (the same lookups, so the
+// same key); the backward one is left out, as the key counts runs in the
+// march's order.
 void trim_empty_ends(MarchRay r, int steps, inout int k, inout int end, inout uint skipped, inout uint leaps) {
     while (k < end) {
         ivec3 bc;
         vec3 um = step_middle(r, k);
         uint dist = brick_at(um, bc) & 0xFFu;
         if (dist == 0u) break;
+#ifdef ADAPTIVE
+        float reach = adaptive_reach(dist);
+#else
         float reach = float(dist - 1u) * mc.brick;
+#endif
         int last = max(k + 1, step_past_cube(r, cube_low(bc, reach), mc.brick + 2.0 * reach, end));
         skipped += bricks_between(um, step_middle(r, last - 1));
         leaps += 1u;
         k = last;
     }
+#ifndef ADAPTIVE
     while (end > k) {
         ivec3 bc;
         vec3 um = step_middle(r, end - 1);
@@ -271,8 +293,8 @@ void trim_empty_ends(MarchRay r, int steps, inout int k, inout int end, inout ui
         leaps += 1u;
         end = first;
     }
-}
 #endif
+}
 #endif
 
 // The segment [a, b] (voxel coordinates, a nearer the eye) marched with a step
@@ -308,13 +330,12 @@ vec4 march(vec3 a, vec3 b, out uint samples) {
     bool coarse = false;   // the steps up to check_at lie in a thin cube
 #endif
 #ifdef ADAPTIVE
-    bool in_run = false;
+    march_in_run = false;
     march_runs = 0u;
     march_closest = 0xFFu;
-#else
+#endif
     trim_empty_ends(ray, steps, k, end, skipped, end_leaps);
     leaps = end_leaps;
-#endif
 #endif
 #ifdef PREINT
     // The first segment's front (after a trimmed start, read as after a leap).
@@ -343,15 +364,7 @@ vec4 march(vec3 a, vec3 b, out uint samples) {
             uint entry = brick_at(um, bc);
             uint dist = entry & 0xFFu;
 #ifdef ADAPTIVE
-            // The key's runs: entries into bricks within ADAPTIVE_NEAR of
-            // an occupied one. A leap from outside them is shortened so its
-            // cube holds none of them (each brick of it is at least
-            // dist - reach bricks from an occupied one).
-            bool near = dist <= ADAPTIVE_NEAR;
-            if (near && !in_run) march_runs += 1u;
-            march_closest = min(march_closest, dist);
-            in_run = near;
-            float reach = float(near ? max(dist, 1u) - 1u : dist - 1u - ADAPTIVE_NEAR) * bsize;
+            float reach = adaptive_reach(dist);
 #elif defined(COARSE_STRIDE)
             // A visible brick at distance d >= 1 from a dense one is the
             // centre of a cube of 2d - 1 bricks with no dense brick: its

@@ -74,10 +74,11 @@
 //! per frame where 8³ bricks, one by one, took 14.0 M and 1.7 M. The grid is
 //! rebuilt whenever the transfer function changes (a method is built per
 //! transfer function). The ray's empty ends are leapt over in two loops of
-//! their own before the march (`trim_empty_ends` in common.glsl; not with
-//! `adaptive`, whose key records every brick the march looks up): forward
+//! their own before the march (`trim_empty_ends` in common.glsl): forward
 //! from the first step to the first visible brick, backward from the last
-//! step to the last one. In the march's loop a leap costs an iteration as
+//! step to the last one (not with `adaptive`, whose key counts the runs
+//! near visible bricks in the march's order; its forward loop keeps the
+//! key's bookkeeping). In the march's loop a leap costs an iteration as
 //! dear as a sample; in those loops only the lookup. The segments keep the
 //! lengths the whole ray gives them, so the image is unchanged.
 //!
