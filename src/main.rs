@@ -116,6 +116,12 @@ struct ScaleArgs {
     /// Also run these peers on every level (`vtk`: its projected tetrahedra).
     #[arg(long, value_name = "PEER", value_delimiter = ',')]
     peers: Vec<String>,
+    /// With --peers: after each dataset, run each peer renderer and its
+    /// matched volbench run (the fastest at no more error) again, one after
+    /// the other, this many times; the report's matched-error ratio is their
+    /// median (default 3, --quick 1; 0: none).
+    #[arg(long, value_name = "N", requires = "peers", value_parser = clap::value_parser!(u16).range(0..=20))]
+    rounds: Option<u16>,
     /// Output directory (default results/scale-<dataset>).
     #[arg(long)]
     out: Option<PathBuf>,
@@ -207,6 +213,12 @@ struct SuiteArgs {
     /// runs (`vtk`: VTK's Python wheel, installed by scripts/install-vtk.sh).
     #[arg(long, value_name = "PEER", value_delimiter = ',')]
     peers: Vec<String>,
+    /// With --peers: after each dataset, run each peer renderer and its
+    /// matched volbench run (the fastest at no more error) again, one after
+    /// the other, this many times; the report's matched-error ratio is their
+    /// median (default 3, --quick 1; 0: none).
+    #[arg(long, value_name = "N", requires = "peers", value_parser = clap::value_parser!(u16).range(0..=20))]
+    rounds: Option<u16>,
     /// Count instead of timing: run under valgrind (callgrind) and report
     /// each timed frame's instructions per phase (`count` in each result;
     /// docs/tracking.md). No peers, no CPU reference.
@@ -802,12 +814,14 @@ fn stress(cli: &Cli, registry: &Registry, args: &StressArgs) -> Result<()> {
 
 fn suite(cli: &Cli, registry: &Registry, args: &SuiteArgs) -> Result<()> {
     use volbench::harness::suite::{plan, run_suite, utc_now, SuiteSettings};
+    let standard = SuiteSettings::standard(args.quick, args.filter.clone());
     let settings = SuiteSettings {
         peers: args.peers.clone(),
+        rounds: args.rounds.map_or(standard.rounds, usize::from),
         data: args.data.clone(),
         tf: args.tf.clone(),
         cell_data: args.cell_data,
-        ..SuiteSettings::standard(args.quick, args.filter.clone())
+        ..standard
     }
         .counted(count::child_dir(args.count)?);
     let plan = plan(registry, &settings)?;

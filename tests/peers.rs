@@ -248,6 +248,13 @@ fn a_missing_environment_or_unknown_peer_is_a_clear_error_before_anything_runs()
     assert!(!err.contains("suite: ["), "nothing ran: {err}");
     let e = peers::locate("paraview").unwrap_err().to_string();
     assert!(e.contains("paraview") && e.contains("vtk"), "{e}");
+    // `--rounds` needs peers and is bounded.
+    for (args, needle) in [(&["--rounds", "2"][..], "--peers"), (&["--peers", "vtk", "--rounds", "21"][..], "--rounds")] {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_volbench")).args(["suite", "--quick"]).args(args).output().unwrap();
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(needle) && !err.contains("suite: ["), "{args:?}: {err}");
+    }
 }
 
 /// VTK itself, when installed: both mesh renderers on the small post, in a
@@ -287,6 +294,19 @@ fn vtk_renders_the_small_post_in_the_suite() {
     let report = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
     assert!(report.contains("Peers measured in the same run") && report.contains("| post-small | balanced | vtk/projected-tetrahedra |"), "{report}");
     assert!(report.contains("At matched error") && report.contains("| post-small | vtk/projected-tetrahedra |"), "{report}");
+    // Each peer against its matched run again, in the quick suite's one round.
+    assert_eq!(settings.rounds, 1);
+    assert_eq!(summary.matched.len(), 2, "{:?}", summary.matched);
+    for m in &summary.matched {
+        assert!(m.message.is_none(), "{m:?}");
+        assert_eq!(m.rounds.len(), 1);
+        let r = &m.rounds[0];
+        assert!(r.volbench_ms > 0.0 && r.peer_ms > 0.0 && !r.peer_first);
+        assert_eq!(m.ratio.unwrap().median, r.peer_ms / r.volbench_ms);
+        assert!(summary.runs.iter().any(|x| x.label == m.label && x.dataset == m.dataset));
+        assert!(dir.path().join(format!("peers/post-small-peer-vtk-{}-round1.json", m.renderer)).is_file());
+    }
+    assert!(report.contains("alternating rounds") && report.contains("(1) |"), "{report}");
     let csv = std::fs::read_to_string(dir.path().join("summary.csv")).unwrap();
     assert!(csv.starts_with("source,dataset,method,"), "{csv}");
     assert!(csv.lines().any(|l| l.starts_with("volbench,post-small,balanced,")), "{csv}");

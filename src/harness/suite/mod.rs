@@ -9,15 +9,18 @@
 //! registry crossed with the datasets.
 //!
 //! One job per file: `plan.rs` (what to run), `run.rs` (running it),
-//! `summary.rs` (what `summary.json` and `summary.csv` hold), `report.rs`
-//! (`report.md` and the pictures).
+//! `rounds.rs` (each peer against its matched run, alternating), `summary.rs`
+//! (what `summary.json` and `summary.csv` hold), `report.rs` (`report.md` and
+//! the pictures).
 
 mod plan;
 mod report;
+mod rounds;
 mod run;
 mod summary;
 
 pub use plan::{plan, PlannedRun, Scene, SuiteDataset, SuiteSettings, CULL_SCENE_DATASETS, ZOOM};
 pub use report::{cull_report, peer_report, report};
+pub use rounds::{MatchedRounds, Round};
 pub use run::run_suite;
 pub use summary::{csv, machine_boot_id, parse_utc, utc_now, CullCheck, Environment, SuiteDatasetRow, SuiteRow, Summary};

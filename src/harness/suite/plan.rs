@@ -26,6 +26,9 @@ pub struct SuiteSettings {
     /// Peers (`--peers`, see `harness::peers`) run on the same datasets,
     /// alternating with volbench's runs.
     pub peers: Vec<String>,
+    /// With peers: after each dataset, this many rounds of each peer
+    /// renderer against its matched run, alternating (`suite::rounds`).
+    pub rounds: usize,
     /// Counted (`--count`): each run counts its timed frames' instructions
     /// (`harness::count`); no CPU reference, no diagnostics.
     pub counted: bool,
@@ -56,6 +59,7 @@ impl SuiteSettings {
             quick,
             filter,
             peers: Vec::new(),
+            rounds: if quick { 1 } else { 3 },
             counted: false,
             count_dir: None,
             data: Vec::new(),

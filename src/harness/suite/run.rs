@@ -10,6 +10,7 @@ use anyhow::{Context as _, Result};
 
 use super::plan::{PlannedRun, Scene, SuiteDataset, SuiteSettings};
 use super::report::{figures, report};
+use super::rounds::{run_rounds, RoundsJob};
 use super::summary::{csv, CullCheck, Environment, SuiteDatasetRow, SuiteRow, Summary};
 use crate::algo::registry::{MethodSpec, Registry};
 use crate::fsio;
@@ -49,7 +50,7 @@ pub fn run_suite(
     let runs_dir = out.join("runs");
     create_dir(&runs_dir)?;
     let summary =
-        Summary { environment: Environment::of(ctx), settings: settings.clone(), datasets: Vec::new(), runs: Vec::new(), peers: Vec::new(), cull_checks: Vec::new() };
+        Summary { environment: Environment::of(ctx), settings: settings.clone(), datasets: Vec::new(), runs: Vec::new(), peers: Vec::new(), cull_checks: Vec::new(), matched: Vec::new() };
     let mut g = Gathered { summary, images: Vec::new(), references: Vec::new(), sequence: 0 };
     let located: Vec<LocatedPeer> = settings.peers.iter().map(|p| crate::harness::peers::locate(p)).collect::<Result<_>>()?;
     let peers_dir = out.join("peers");
@@ -104,6 +105,17 @@ pub fn run_suite(
             g.peer(&job, &mut export, label);
         }
         if last_of_dataset {
+            let job = RoundsJob {
+                ctx,
+                plan,
+                cfg: &cfg,
+                rounds: if settings.counted { 0 } else { settings.rounds },
+                peers_dir: &peers_dir,
+                located: &located,
+                tf: standard_tf.as_ref(),
+                exported: export.as_ref().map(|(_, d)| d),
+            };
+            run_rounds(&job, dataset, &p.dataset.name, &mut g.summary, &mut |label| progress(i, label));
             remove_export(&mut export);
         }
         g.write_summary(out)?;

@@ -179,6 +179,31 @@ pub struct Summary {
     pub peers: Vec<PeerRow>,
     /// Each culling scene's culled image against the unculled one.
     pub cull_checks: Vec<CullCheck>,
+    /// Each peer renderer against its matched run, in alternating rounds
+    /// (`--rounds`, `suite::rounds`).
+    pub matched: Vec<super::rounds::MatchedRounds>,
+}
+
+impl Summary {
+    /// The run a peer row is matched with: the fastest volbench run of the
+    /// standard scene on its dataset whose image error against the f64
+    /// reference is no larger than the peer's (a faster but less accurate
+    /// run would not be a like-for-like comparison); with its median frame
+    /// time and RMSE.
+    pub fn matched_run(&self, p: &crate::harness::peers::PeerRow) -> Option<(&SuiteRow, f64, f64)> {
+        use crate::harness::run::ErrorKind;
+        let pe = p.error.as_ref()?;
+        self.runs
+            .iter()
+            .filter(|r| r.dataset == p.dataset && r.scene == super::plan::Scene::Standard)
+            .filter_map(|r| {
+                let x = r.result.as_ref()?;
+                let e = x.error.as_ref().filter(|e| e.compared == ErrorKind::Image && e.rmse <= pe.rmse)?;
+                Some((r, x.time_ms.phase("frame").median, e.rmse))
+            })
+            .filter(|(_, ms, _)| *ms > 0.0)
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+    }
 }
 
 /// The unchanged-image check of one culling scene: the reference-view image
