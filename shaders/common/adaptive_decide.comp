@@ -123,18 +123,22 @@ void main() {
         uint covered = 0u;
         float inv = 1.0 / float(size);
         vec4 ct = a_samples.v[it], cl = a_samples.v[il], cc = a_samples.v[ic], cr = a_samples.v[ir], cb = a_samples.v[ib];
-        for (uint v = 0u; v < size; ++v) {
-            for (uint u = 0u; u < size; ++u) {
-                uvec2 px = pc.rect.xy + o + uvec2(u, v);
-                if ((u % h == 0u && v % h == 0u) || px.x > pc.rect.z || px.y > pc.rect.w) continue;
-                vec2 f = vec2(u, v) * inv;
-                // The biquadratic through the nine rays (Lagrange weights
-                // on the nodes 0, 1/2, 1 per axis), clamped to [0, 1].
-                vec3 lx = vec3((2.0 * f.x - 1.0) * (f.x - 1.0), 4.0 * f.x * (1.0 - f.x), f.x * (2.0 * f.x - 1.0));
-                vec3 ly = vec3((2.0 * f.y - 1.0) * (f.y - 1.0), 4.0 * f.y * (1.0 - f.y), f.y * (2.0 * f.y - 1.0));
-                vec4 r0 = lx.x * c00 + lx.y * ct + lx.z * c10;
-                vec4 r1 = lx.x * cl + lx.y * cc + lx.z * cr;
-                vec4 r2 = lx.x * c01 + lx.y * cb + lx.z * c11;
+        // Column by column: the biquadratic through the nine rays (Lagrange
+        // weights on the nodes 0, 1/2, 1 per axis), its three rows' values
+        // at the column once, then each pixel's, clamped to [0, 1]. The
+        // block's pixels on the lattice of h (a power of two) were cast.
+        uvec2 last = min(o + uvec2(size - 1u), pc.rect.zw - pc.rect.xy);
+        for (uint u = 0u; u <= last.x - o.x; ++u) {
+            float fx = float(u) * inv;
+            vec3 lx = vec3((2.0 * fx - 1.0) * (fx - 1.0), 4.0 * fx * (1.0 - fx), fx * (2.0 * fx - 1.0));
+            vec4 r0 = lx.x * c00 + lx.y * ct + lx.z * c10;
+            vec4 r1 = lx.x * cl + lx.y * cc + lx.z * cr;
+            vec4 r2 = lx.x * c01 + lx.y * cb + lx.z * c11;
+            bool on_column = (u & (h - 1u)) == 0u;
+            for (uint v = 0u; v <= last.y - o.y; ++v) {
+                if (on_column && (v & (h - 1u)) == 0u) continue;
+                float fy = float(v) * inv;
+                vec3 ly = vec3((2.0 * fy - 1.0) * (fy - 1.0), 4.0 * fy * (1.0 - fy), fy * (2.0 * fy - 1.0));
                 vec4 c = clamp(ly.x * r0 + ly.y * r1 + ly.z * r2, vec4(0.0), vec4(1.0));
                 adaptive_pixel(pc.rect, o + uvec2(u, v), c);
                 covered += c.a > 0.0 ? 1u : 0u;
