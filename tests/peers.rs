@@ -294,16 +294,23 @@ fn vtk_renders_the_small_post_in_the_suite() {
     let report = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
     assert!(report.contains("Peers measured in the same run") && report.contains("| post-small | balanced | vtk/projected-tetrahedra |"), "{report}");
     assert!(report.contains("At matched error") && report.contains("| post-small | vtk/projected-tetrahedra |"), "{report}");
-    // Each peer against its matched run again, in the quick suite's one round.
+    // Each peer against its two fastest matched runs again, in the quick
+    // suite's one round: the first run, the peer, the second.
     assert_eq!(settings.rounds, 1);
     assert_eq!(summary.matched.len(), 2, "{:?}", summary.matched);
     for m in &summary.matched {
         assert!(m.message.is_none(), "{m:?}");
+        assert_eq!(m.labels.len(), 2, "{m:?}");
         assert_eq!(m.rounds.len(), 1);
         let r = &m.rounds[0];
-        assert!(r.volbench_ms > 0.0 && r.peer_ms > 0.0 && !r.peer_first);
-        assert_eq!(m.ratio.unwrap().median, r.peer_ms / r.volbench_ms);
-        assert!(summary.runs.iter().any(|x| x.label == m.label && x.dataset == m.dataset));
+        assert!(r.peer_ms > 0.0 && r.volbench_ms.len() == 2 && r.volbench_ms.iter().all(|&x| x > 0.0) && !r.reversed);
+        let (label, ratio) = m.quoted().unwrap();
+        let i = m.labels.iter().position(|l| l == label).unwrap();
+        assert_eq!(ratio.median, r.peer_ms / r.volbench_ms[i]);
+        assert!(r.volbench_ms[i] <= r.volbench_ms[1 - i]);
+        let peer = summary.peers.iter().find(|p| p.renderer == m.renderer).unwrap();
+        let candidates: Vec<&str> = summary.matched_runs(peer).iter().take(2).map(|(x, _, _)| x.label.as_str()).collect();
+        assert_eq!(candidates, m.labels.iter().map(String::as_str).collect::<Vec<_>>());
         assert!(dir.path().join(format!("peers/post-small-peer-vtk-{}-round1.json", m.renderer)).is_file());
     }
     assert!(report.contains("alternating rounds") && report.contains("(1) |"), "{report}");

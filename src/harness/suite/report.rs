@@ -470,8 +470,9 @@ fn agreement_report(s: &Summary) -> String {
 
 /// Speed at matched error: per peer renderer, the fastest volbench run on
 /// the same dataset whose image error is no larger than the peer's
-/// (`Summary::matched_run`), its ratio in the first pass and, the headline,
-/// the median of the alternating rounds (`suite::rounds`) with their spread.
+/// (`Summary::matched_run`) and its ratio in the first pass; then, the
+/// headline, the alternating rounds (`suite::rounds`): the better of the
+/// two fastest runs, its rounds' median ratio and spread.
 fn matched_error(s: &Summary) -> String {
     let mut rows = String::new();
     for p in &s.peers {
@@ -483,16 +484,14 @@ fn matched_error(s: &Summary) -> String {
         };
         let first = fastest.map_or("-".into(), |(_, ms, _)| format!("{:.2}", f.median / ms));
         let rounds = s.matched.iter().find(|m| m.dataset == p.dataset && m.peer == p.peer && m.renderer == p.renderer);
-        let alternating = match rounds {
-            Some(m) => match &m.ratio {
-                Some(r) => format!("**{:.2}** [{:.2}, {:.2}] ({})", r.median, r.min, r.max, m.rounds.len()),
-                None => format!("failed: {}", m.message.as_deref().unwrap_or("no round").replace('|', "/")),
-            },
-            None => "-".into(),
+        let (quoted, alternating) = match rounds.map(|m| (m, m.quoted())) {
+            Some((m, Some((l, r)))) => (l.to_string(), format!("**{:.2}** [{:.2}, {:.2}] ({})", r.median, r.min, r.max, m.rounds.len())),
+            Some((m, None)) => ("-".into(), format!("failed: {}", m.message.as_deref().unwrap_or("no round").replace('|', "/"))),
+            None => ("-".into(), "-".into()),
         };
         let _ = writeln!(
             rows,
-            "| {} | {}/{} | {:.1} | {:.2e} | {label} | {ms} | {rmse} | {first} | {alternating} |",
+            "| {} | {}/{} | {:.1} | {:.2e} | {label} | {ms} | {rmse} | {first} | {quoted} | {alternating} |",
             p.dataset, p.peer, p.renderer, f.median, pe.rmse
         );
     }
@@ -502,12 +501,13 @@ fn matched_error(s: &Summary) -> String {
     let n = s.settings.rounds;
     format!(
         "\nAt matched error: the fastest volbench run of this suite on the dataset whose RMSE against the f64 reference is \
-         no larger than the peer's, and the speed ratio (peer ms / volbench ms): in the first pass (the times before it), and \
-         in {n} rounds after the dataset's runs in which that run and the peer ran again one after the other (alternating \
-         which goes first, so a slow phase of the machine hits both): the rounds' median [min, max] (rounds completed), \
-         the ratio to quote.\n\n\
-         | dataset | peer | peer ms | peer RMSE | fastest volbench run at most as far from the reference | volbench ms | volbench RMSE | first pass | alternating rounds |\n\
-         |---|---|---:|---:|---|---:|---:|---:|---:|\n{rows}"
+         no larger than the peer's, and the speed ratio (peer ms / volbench ms) in the first pass (the times before it). \
+         Then the ratio to quote: after the dataset's runs, the two fastest such runs and the peer ran again in {n} rounds, \
+         the peer between the two, the order reversed every other round (a slow phase of the machine hits all three); \
+         for the run with the higher median ratio, the rounds' median [min, max] (rounds completed). All rounds' times: \
+         `summary.json`, `matched`.\n\n\
+         | dataset | peer | peer ms | peer RMSE | fastest volbench run at most as far from the reference | volbench ms | volbench RMSE | first pass | run quoted from the rounds | alternating rounds |\n\
+         |---|---|---:|---:|---|---:|---:|---:|---|---:|\n{rows}"
     )
 }
 

@@ -185,15 +185,16 @@ pub struct Summary {
 }
 
 impl Summary {
-    /// The run a peer row is matched with: the fastest volbench run of the
-    /// standard scene on its dataset whose image error against the f64
-    /// reference is no larger than the peer's (a faster but less accurate
-    /// run would not be a like-for-like comparison); with its median frame
-    /// time and RMSE.
-    pub fn matched_run(&self, p: &crate::harness::peers::PeerRow) -> Option<(&SuiteRow, f64, f64)> {
+    /// The runs a peer row may be matched with, fastest first: volbench's
+    /// runs of the standard scene on its dataset whose image error against
+    /// the f64 reference is no larger than the peer's (a faster but less
+    /// accurate run would not be a like-for-like comparison); each with its
+    /// median frame time and RMSE.
+    pub fn matched_runs(&self, p: &crate::harness::peers::PeerRow) -> Vec<(&SuiteRow, f64, f64)> {
         use crate::harness::run::ErrorKind;
-        let pe = p.error.as_ref()?;
-        self.runs
+        let Some(pe) = p.error.as_ref() else { return Vec::new() };
+        let mut runs: Vec<_> = self
+            .runs
             .iter()
             .filter(|r| r.dataset == p.dataset && r.scene == super::plan::Scene::Standard)
             .filter_map(|r| {
@@ -202,7 +203,15 @@ impl Summary {
                 Some((r, x.time_ms.phase("frame").median, e.rmse))
             })
             .filter(|(_, ms, _)| *ms > 0.0)
-            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .collect();
+        runs.sort_by(|a, b| a.1.total_cmp(&b.1));
+        runs
+    }
+
+    /// The run a peer row is matched with in the first pass: the fastest
+    /// of `matched_runs`.
+    pub fn matched_run(&self, p: &crate::harness::peers::PeerRow) -> Option<(&SuiteRow, f64, f64)> {
+        self.matched_runs(p).into_iter().next()
     }
 }
 
