@@ -5,9 +5,10 @@
 # VTK's renderers measured in the same run, alternating with volbench's
 # (scripts/install-vtk.sh; if VTK cannot be installed the suite runs without
 # peers and the report says so), then after each dataset each peer renderer
-# and its two fastest runs at no more error again in three alternating
-# rounds, whose median ratio the report quotes. It writes summary.json,
-# summary.csv, report.md, plots, the montage and every run's images.
+# again with the two fastest runs at no more error in three alternating
+# rounds (`--rounds`), the report quoting the better run's median ratio.
+# It writes summary.json, summary.csv, report.md, plots, the montage and
+# every run's images.
 # Extra arguments go to `volbench suite` (e.g. --filter oxygenpost).
 # The longer sweeps (run time against error per mesh, VICP vs balanced
 # tables) are scripts/sweeps.sh; criterion benches are `cargo bench`.

@@ -116,12 +116,6 @@ struct ScaleArgs {
     /// Also run these peers on every level (`vtk`: its projected tetrahedra).
     #[arg(long, value_name = "PEER", value_delimiter = ',')]
     peers: Vec<String>,
-    /// With --peers: after each dataset, run each peer renderer and its
-    /// matched volbench run (the fastest at no more error) again, one after
-    /// the other, this many times; the report's matched-error ratio is their
-    /// median (default 3, --quick 1; 0: none).
-    #[arg(long, value_name = "N", requires = "peers", value_parser = clap::value_parser!(u16).range(0..=20))]
-    rounds: Option<u16>,
     /// Output directory (default results/scale-<dataset>).
     #[arg(long)]
     out: Option<PathBuf>,
@@ -213,10 +207,11 @@ struct SuiteArgs {
     /// runs (`vtk`: VTK's Python wheel, installed by scripts/install-vtk.sh).
     #[arg(long, value_name = "PEER", value_delimiter = ',')]
     peers: Vec<String>,
-    /// With --peers: after each dataset, run each peer renderer and its
-    /// matched volbench run (the fastest at no more error) again, one after
-    /// the other, this many times; the report's matched-error ratio is their
-    /// median (default 3, --quick 1; 0: none).
+    /// With --peers: after each dataset, run each peer renderer again with
+    /// the two fastest volbench runs at no more error, in this many rounds
+    /// (one run, the peer, the other; reversed every other round); the
+    /// report quotes the better run's median ratio (default 3, --quick 1;
+    /// 0: none).
     #[arg(long, value_name = "N", requires = "peers", value_parser = clap::value_parser!(u16).range(0..=20))]
     rounds: Option<u16>,
     /// Count instead of timing: run under valgrind (callgrind) and report
@@ -817,7 +812,7 @@ fn suite(cli: &Cli, registry: &Registry, args: &SuiteArgs) -> Result<()> {
     let standard = SuiteSettings::standard(args.quick, args.filter.clone());
     let settings = SuiteSettings {
         peers: args.peers.clone(),
-        rounds: args.rounds.map_or(standard.rounds, usize::from),
+        rounds: if args.peers.is_empty() { 0 } else { args.rounds.map_or(SuiteSettings::default_rounds(args.quick), usize::from) },
         data: args.data.clone(),
         tf: args.tf.clone(),
         cell_data: args.cell_data,
@@ -856,6 +851,10 @@ fn suite(cli: &Cli, registry: &Registry, args: &SuiteArgs) -> Result<()> {
     }
     if peers_failed > 0 {
         bail!("{peers_failed} of {} peer runs failed (see report.md)", summary.peers.len());
+    }
+    let rounds_failed = summary.matched.iter().filter(|m| m.message.is_some()).count();
+    if rounds_failed > 0 {
+        bail!("the rounds of {rounds_failed} of {} peer renderers failed (see report.md)", summary.matched.len());
     }
     Ok(())
 }

@@ -271,6 +271,7 @@ fn vtk_renders_the_small_post_in_the_suite() {
         frames: 2,
         warmup: 1,
         peers: vec!["vtk".into()],
+        rounds: 2,
         ..SuiteSettings::standard(true, vec!["post-small".into()])
     };
     let planned = plan(&registry, &settings).unwrap();
@@ -294,26 +295,33 @@ fn vtk_renders_the_small_post_in_the_suite() {
     let report = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
     assert!(report.contains("Peers measured in the same run") && report.contains("| post-small | balanced | vtk/projected-tetrahedra |"), "{report}");
     assert!(report.contains("At matched error") && report.contains("| post-small | vtk/projected-tetrahedra |"), "{report}");
-    // Each peer against its two fastest matched runs again, in the quick
-    // suite's one round: the first run, the peer, the second.
-    assert_eq!(settings.rounds, 1);
+    // Each peer again with its two fastest matched runs, in two rounds:
+    // the first run, the peer, the second; then the other way round.
     assert_eq!(summary.matched.len(), 2, "{:?}", summary.matched);
     for m in &summary.matched {
         assert!(m.message.is_none(), "{m:?}");
         assert_eq!(m.labels.len(), 2, "{m:?}");
-        assert_eq!(m.rounds.len(), 1);
-        let r = &m.rounds[0];
-        assert!(r.peer_ms > 0.0 && r.volbench_ms.len() == 2 && r.volbench_ms.iter().all(|&x| x > 0.0) && !r.reversed);
+        assert_eq!(m.rounds.iter().map(|r| r.reversed).collect::<Vec<_>>(), [false, true]);
+        for r in &m.rounds {
+            assert!(r.peer_ms > 0.0 && r.volbench_ms.len() == 2 && r.volbench_ms.iter().all(|&x| x > 0.0));
+        }
         let (label, ratio) = m.quoted().unwrap();
+        let (other_label, other) = m.other().unwrap();
         let i = m.labels.iter().position(|l| l == label).unwrap();
-        assert_eq!(ratio.median, r.peer_ms / r.volbench_ms[i]);
-        assert!(r.volbench_ms[i] <= r.volbench_ms[1 - i]);
+        assert_eq!(m.labels[1 - i], other_label);
+        let ratios = |j: usize| m.rounds.iter().map(|r| r.peer_ms / r.volbench_ms[j]).collect::<Vec<_>>();
+        assert_eq!(ratio.median, volbench::harness::stats::Summary::of(&ratios(i)).median);
+        assert_eq!(other.median, volbench::harness::stats::Summary::of(&ratios(1 - i)).median);
+        assert!(ratio.median >= other.median);
         let peer = summary.peers.iter().find(|p| p.renderer == m.renderer).unwrap();
         let candidates: Vec<&str> = summary.matched_runs(peer).iter().take(2).map(|(x, _, _)| x.label.as_str()).collect();
         assert_eq!(candidates, m.labels.iter().map(String::as_str).collect::<Vec<_>>());
-        assert!(dir.path().join(format!("peers/post-small-peer-vtk-{}-round1.json", m.renderer)).is_file());
+        for k in 1..=2 {
+            assert!(dir.path().join(format!("peers/post-small-peer-vtk-{}-round{k}.json", m.renderer)).is_file());
+            assert!(!dir.path().join(format!("peers/post-small-peer-vtk-{}-round{k}.scene.json", m.renderer)).exists());
+        }
     }
-    assert!(report.contains("alternating rounds") && report.contains("(1) |"), "{report}");
+    assert!(report.contains("alternating rounds") && report.contains("(2) |"), "{report}");
     let csv = std::fs::read_to_string(dir.path().join("summary.csv")).unwrap();
     assert!(csv.starts_with("source,dataset,method,"), "{csv}");
     assert!(csv.lines().any(|l| l.starts_with("volbench,post-small,balanced,")), "{csv}");

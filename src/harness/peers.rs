@@ -357,6 +357,16 @@ pub struct PeerOutput {
     pub image: String,
 }
 
+impl PeerOutput {
+    /// The result (`<stem>.json`) and image (`<stem>.rgba`) files in `dir`.
+    pub fn in_dir(dir: &Path, stem: &str) -> Self {
+        PeerOutput {
+            result: dir.join(format!("{stem}.json")).to_string_lossy().into_owned(),
+            image: dir.join(format!("{stem}.rgba")).to_string_lossy().into_owned(),
+        }
+    }
+}
+
 /// Everything a peer renderer is given (the scene file).
 #[derive(Debug, Clone, Serialize)]
 pub struct PeerScene {
@@ -384,7 +394,7 @@ pub struct PeerScene {
 impl PeerScene {
     /// File stem of everything this scene writes: `<dataset>-peer-<peer>-<renderer>`.
     pub fn stem(&self) -> String {
-        format!("{}-peer-{}-{}", self.dataset.name, self.peer, self.renderer)
+        scene_stem(&self.dataset.name, self.peer, self.renderer)
     }
 }
 
@@ -410,7 +420,7 @@ pub fn scene(
         dataset.name,
         dataset.kind().name()
     );
-    let stem = format!("{}-peer-{}-{}", exported.name, peer.name, renderer.name);
+    let stem = scene_stem(&exported.name, peer.name, renderer.name);
     Ok(PeerScene {
         format: SCENE_FORMAT,
         version: FORMAT_VERSION,
@@ -425,11 +435,13 @@ pub fn scene(
         reference_camera: cfg.camera(dataset, 0),
         transfer_function: encode_transfer_function(tf, renderer.opacity)?,
         sample_distance: sample_distance(dataset),
-        output: PeerOutput {
-            result: dir.join(format!("{stem}.json")).to_string_lossy().into_owned(),
-            image: dir.join(format!("{stem}.rgba")).to_string_lossy().into_owned(),
-        },
+        output: PeerOutput::in_dir(dir, &stem),
     })
+}
+
+/// File stem of everything a scene writes: `<dataset>-peer-<peer>-<renderer>`.
+fn scene_stem(dataset: &str, peer: &str, renderer: &str) -> String {
+    format!("{dataset}-peer-{peer}-{renderer}")
 }
 
 /// Write the dataset as a binary legacy VTK file the peer reads: an

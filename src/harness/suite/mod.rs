@@ -9,7 +9,7 @@
 //! registry crossed with the datasets.
 //!
 //! One job per file: `plan.rs` (what to run), `run.rs` (running it),
-//! `rounds.rs` (each peer against its matched run, alternating), `summary.rs`
+//! `rounds.rs` (each peer again with the runs it may be matched with), `summary.rs`
 //! (what `summary.json` and `summary.csv` hold), `report.rs` (`report.md` and
 //! the pictures).
 
@@ -21,6 +21,5 @@ mod summary;
 
 pub use plan::{plan, PlannedRun, Scene, SuiteDataset, SuiteSettings, CULL_SCENE_DATASETS, ZOOM};
 pub use report::{cull_report, peer_report, report};
-pub use rounds::{MatchedRounds, Round};
 pub use run::run_suite;
-pub use summary::{csv, machine_boot_id, parse_utc, utc_now, CullCheck, Environment, SuiteDatasetRow, SuiteRow, Summary};
+pub use summary::{csv, machine_boot_id, parse_utc, utc_now, CullCheck, Environment, MatchedRounds, Round, SuiteDatasetRow, SuiteRow, Summary};

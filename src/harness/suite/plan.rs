@@ -27,7 +27,8 @@ pub struct SuiteSettings {
     /// alternating with volbench's runs.
     pub peers: Vec<String>,
     /// With peers: after each dataset, this many rounds of each peer
-    /// renderer against its matched run, alternating (`suite::rounds`).
+    /// renderer against the two fastest runs at no more error
+    /// (`suite::rounds`); 0 without peers.
     pub rounds: usize,
     /// Counted (`--count`): each run counts its timed frames' instructions
     /// (`harness::count`); no CPU reference, no diagnostics.
@@ -59,12 +60,21 @@ impl SuiteSettings {
             quick,
             filter,
             peers: Vec::new(),
-            rounds: if quick { 1 } else { 3 },
+            rounds: 0,
             counted: false,
             count_dir: None,
             data: Vec::new(),
             tf: None,
             cell_data: Default::default(),
+        }
+    }
+
+    /// The rounds against the peers when `--rounds` is not given.
+    pub fn default_rounds(quick: bool) -> usize {
+        if quick {
+            1
+        } else {
+            3
         }
     }
 

@@ -484,14 +484,23 @@ fn matched_error(s: &Summary) -> String {
         };
         let first = fastest.map_or("-".into(), |(_, ms, _)| format!("{:.2}", f.median / ms));
         let rounds = s.matched.iter().find(|m| m.dataset == p.dataset && m.peer == p.peer && m.renderer == p.renderer);
-        let (quoted, alternating) = match rounds.map(|m| (m, m.quoted())) {
-            Some((m, Some((l, r)))) => (l.to_string(), format!("**{:.2}** [{:.2}, {:.2}] ({})", r.median, r.min, r.max, m.rounds.len())),
-            Some((m, None)) => ("-".into(), format!("failed: {}", m.message.as_deref().unwrap_or("no round").replace('|', "/"))),
-            None => ("-".into(), "-".into()),
-        };
+        let spread = |r: &crate::harness::stats::Summary| format!("{:.2} [{:.2}, {:.2}]", r.median, r.min, r.max);
+        let (mut quoted, mut alternating, mut other) = ("-".to_string(), "-".to_string(), "-".to_string());
+        if let Some(m) = rounds {
+            if let Some((l, r)) = m.quoted() {
+                (quoted, alternating) = (l.to_string(), format!("**{}** ({})", spread(r), m.rounds.len()));
+            }
+            if let Some((l, r)) = m.other() {
+                other = format!("{l}: {}", spread(r));
+            }
+            if let Some(why) = &m.message {
+                let sep = if m.rounds.is_empty() { "" } else { "; " };
+                alternating = format!("{}{sep}failed: {}", if m.rounds.is_empty() { "" } else { alternating.as_str() }, why.replace('|', "/"));
+            }
+        }
         let _ = writeln!(
             rows,
-            "| {} | {}/{} | {:.1} | {:.2e} | {label} | {ms} | {rmse} | {first} | {quoted} | {alternating} |",
+            "| {} | {}/{} | {:.1} | {:.2e} | {label} | {ms} | {rmse} | {first} | {quoted} | {alternating} | {other} |",
             p.dataset, p.peer, p.renderer, f.median, pe.rmse
         );
     }
@@ -499,15 +508,23 @@ fn matched_error(s: &Summary) -> String {
         return rows;
     }
     let n = s.settings.rounds;
+    let rounds = if n == 0 {
+        "No rounds were run (`--rounds 0`).".to_string()
+    } else {
+        format!(
+            "Then the ratio to quote: after the dataset's runs, the peer ran again with the two fastest such runs (or the one) \
+             in {n} rounds, the peer between the two and the order reversed every other round, so that a slow phase of the \
+             machine meets every side; each run's rounds' median [min, max] (rounds completed), the higher median quoted and \
+             the other run's beside it (the higher of two medians leans high when the two are close). All rounds' times: \
+             `summary.json`, `matched`."
+        )
+    };
     format!(
         "\nAt matched error: the fastest volbench run of this suite on the dataset whose RMSE against the f64 reference is \
          no larger than the peer's, and the speed ratio (peer ms / volbench ms) in the first pass (the times before it). \
-         Then the ratio to quote: after the dataset's runs, the two fastest such runs and the peer ran again in {n} rounds, \
-         the peer between the two, the order reversed every other round (a slow phase of the machine hits all three); \
-         for the run with the higher median ratio, the rounds' median [min, max] (rounds completed). All rounds' times: \
-         `summary.json`, `matched`.\n\n\
-         | dataset | peer | peer ms | peer RMSE | fastest volbench run at most as far from the reference | volbench ms | volbench RMSE | first pass | run quoted from the rounds | alternating rounds |\n\
-         |---|---|---:|---:|---|---:|---:|---:|---|---:|\n{rows}"
+         {rounds}\n\n\
+         | dataset | peer | peer ms | peer RMSE | fastest volbench run at most as far from the reference | volbench ms | volbench RMSE | first pass | run quoted from the rounds | alternating rounds | the other run |\n\
+         |---|---|---:|---:|---|---:|---:|---:|---|---:|---|\n{rows}"
     )
 }
 

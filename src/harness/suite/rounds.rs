@@ -1,25 +1,23 @@
 //! Matched-error rounds: after a dataset's rows and peers, each peer
-//! renderer and the volbench runs it may be matched with (the two fastest of
-//! the first pass at no more error, `Summary::matched_runs`) run again, one
-//! after the other, in `--rounds` rounds; each run's speed ratio is its
-//! rounds' median, and the report quotes the better of the two with its
-//! spread.
+//! renderer runs again with the volbench runs it may be matched with (the
+//! two fastest of the first pass at no more error, `Summary::matched_runs`)
+//! in `--rounds` rounds: the first run, the peer, the second, the order
+//! reversed every other round (so with three rounds the first run precedes
+//! the peer twice). Each run's ratio is its rounds' median; the report
+//! quotes the better run's and gives the other beside it.
 //!
 //! Why: the first pass runs a dataset's rows in a minute or more and each
 //! peer once, so a slow phase of a shared machine can hit one side only,
-//! and the fastest run of one noisy pass is not reliably the fastest one.
-//! Within a round the runs are seconds apart, the peer between the two
-//! volbench runs, and the rounds alternate their order, as `volbench ab`
-//! does for two builds.
+//! and the fastest run of one noisy pass is not reliably the fastest one;
+//! within a round the runs are seconds apart.
 
 use std::path::Path;
 use std::sync::Arc;
 
 use anyhow::{Context as _, Result};
-use serde::Serialize;
 
 use super::plan::{PlannedRun, Scene};
-use super::summary::Summary;
+use super::summary::{MatchedRounds, Round, Summary};
 use crate::harness::datasets::Dataset;
 use crate::harness::peers::{self as pe, LocatedPeer, PeerDataset, PeerRow};
 use crate::harness::run::{run, RunConfig};
@@ -28,44 +26,6 @@ use crate::vk::Context;
 
 /// The volbench runs measured against one peer renderer per round.
 const CANDIDATES: usize = 2;
-
-/// One peer renderer against its candidate runs, in rounds.
-#[derive(Debug, Clone, Serialize)]
-pub struct MatchedRounds {
-    pub dataset: String,
-    pub peer: String,
-    pub renderer: String,
-    /// The volbench runs (`PlannedRun::label`): the fastest of the first
-    /// pass whose RMSE against the f64 reference is no larger than the
-    /// peer's, fastest first (at most two).
-    pub labels: Vec<String>,
-    pub rounds: Vec<Round>,
-    /// Per label, its rounds' speed ratios (peer ms / its ms): median, min,
-    /// max.
-    pub ratios: Vec<stats::Summary>,
-    /// The label whose median ratio is highest: the one quoted.
-    pub best: Option<usize>,
-    /// Why a round did not complete (the rounds before it are kept).
-    pub message: Option<String>,
-}
-
-impl MatchedRounds {
-    /// The quoted run and its ratios.
-    pub fn quoted(&self) -> Option<(&str, &stats::Summary)> {
-        let b = self.best?;
-        Some((self.labels.get(b)?.as_str(), self.ratios.get(b)?))
-    }
-}
-
-/// One round: the peer's median frame time and each label's, and the
-/// order they ran in (even rounds: the first label, the peer, the second;
-/// odd rounds the reverse).
-#[derive(Debug, Clone, Serialize)]
-pub struct Round {
-    pub peer_ms: f64,
-    pub volbench_ms: Vec<f64>,
-    pub reversed: bool,
-}
 
 /// What the rounds of one dataset need: where the runs and the peers run,
 /// the dataset's standard transfer function and its copy for the peers
@@ -102,7 +62,6 @@ pub(super) fn run_rounds(job: &RoundsJob, dataset: &mut Dataset, dataset_name: &
             .collect();
         let peer = job.located.iter().find(|l| l.peer.name == p.peer);
         let renderer = peer.and_then(|l| l.peer.renderers.iter().find(|r| r.name == p.renderer));
-        let (Some(planned), Some(peer), Some(renderer)) = (planned, peer, renderer) else { continue };
         let mut m = MatchedRounds {
             dataset: p.dataset.clone(),
             peer: p.peer.clone(),
@@ -112,6 +71,11 @@ pub(super) fn run_rounds(job: &RoundsJob, dataset: &mut Dataset, dataset_name: &
             ratios: Vec::new(),
             best: None,
             message: None,
+        };
+        let (Some(planned), Some(peer), Some(renderer)) = (planned, peer, renderer) else {
+            m.message = Some("internal: a matched run or the peer renderer was not found in the plan".into());
+            summary.matched.push(m);
+            continue;
         };
         for k in 0..job.rounds {
             progress(&format!("round {}/{}: {} against peer {}/{} on {dataset_name}", k + 1, job.rounds, m.labels.join(" and "), p.peer, p.renderer));
@@ -176,20 +140,23 @@ impl Sides<'_, '_> {
         Ok(r.result.time_ms.phase("frame").median)
     }
 
-    /// The peer's median frame time; its files are named for the round and
-    /// its image (only the transport) removed.
+    /// The peer's median frame time. Its files are named for the round (a
+    /// result left by an earlier suite in the same folder removed first);
+    /// its image (only the transport) is removed, and its scene too unless
+    /// the round failed (the first pass's scene is the record: this one
+    /// differs only in its output names).
     fn peer_ms(&self, k: usize) -> Result<f64> {
-        let mut scene = pe::scene(self.peer.peer, self.renderer, self.dataset, self.tf, self.job.cfg, self.exported, self.job.peers_dir)?;
-        let stem = format!("{}-round{}", scene.stem(), k + 1);
         let dir = self.job.peers_dir;
-        scene.output.result = dir.join(format!("{stem}.json")).to_string_lossy().into_owned();
-        scene.output.image = dir.join(format!("{stem}.rgba")).to_string_lossy().into_owned();
+        let mut scene = pe::scene(self.peer.peer, self.renderer, self.dataset, self.tf, self.job.cfg, self.exported, dir)?;
+        let stem = format!("{}-round{}", scene.stem(), k + 1);
+        scene.output = pe::PeerOutput::in_dir(dir, &stem);
         let scene_path = dir.join(format!("{stem}.scene.json"));
+        let _ = std::fs::remove_file(&scene.output.result);
         let outcome = pe::run_peer(self.peer, &scene, &scene_path);
-        // The first pass's scene is the record (this one differs only in
-        // its output names); the result file stays.
         let _ = std::fs::remove_file(&scene.output.image);
-        let _ = std::fs::remove_file(&scene_path);
+        if outcome.is_ok() {
+            let _ = std::fs::remove_file(&scene_path);
+        }
         let (result, _) = outcome.with_context(|| format!("peer {}/{}", self.peer.peer.name, self.renderer.name))?;
         Ok(stats::Summary::of(&result.frame_ms).median)
     }

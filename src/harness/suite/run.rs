@@ -109,7 +109,7 @@ pub fn run_suite(
                 ctx,
                 plan,
                 cfg: &cfg,
-                rounds: if settings.counted { 0 } else { settings.rounds },
+                rounds: settings.rounds,
                 peers_dir: &peers_dir,
                 located: &located,
                 tf: standard_tf.as_ref(),

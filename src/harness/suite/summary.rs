@@ -181,7 +181,7 @@ pub struct Summary {
     pub cull_checks: Vec<CullCheck>,
     /// Each peer renderer against its matched run, in alternating rounds
     /// (`--rounds`, `suite::rounds`).
-    pub matched: Vec<super::rounds::MatchedRounds>,
+    pub matched: Vec<MatchedRounds>,
 }
 
 impl Summary {
@@ -213,6 +213,52 @@ impl Summary {
     pub fn matched_run(&self, p: &crate::harness::peers::PeerRow) -> Option<(&SuiteRow, f64, f64)> {
         self.matched_runs(p).into_iter().next()
     }
+}
+
+/// One peer renderer run again with the volbench runs it may be matched
+/// with, in alternating rounds (`suite::rounds`).
+#[derive(Debug, Clone, Serialize)]
+pub struct MatchedRounds {
+    pub dataset: String,
+    pub peer: String,
+    pub renderer: String,
+    /// The volbench runs (`PlannedRun::label`): the fastest of the first
+    /// pass whose RMSE against the f64 reference is no larger than the
+    /// peer's (`Summary::matched_runs`), fastest first, at most two.
+    pub labels: Vec<String>,
+    pub rounds: Vec<Round>,
+    /// Per label, its rounds' speed ratios (peer ms / its ms): median, min,
+    /// max.
+    pub ratios: Vec<crate::harness::stats::Summary>,
+    /// The label whose median ratio is higher: the one quoted (a maximum of
+    /// two estimates, so the report gives the other beside it).
+    pub best: Option<usize>,
+    /// Why the rounds did not all complete (those before are kept).
+    pub message: Option<String>,
+}
+
+impl MatchedRounds {
+    /// The quoted run and its ratios.
+    pub fn quoted(&self) -> Option<(&str, &crate::harness::stats::Summary)> {
+        let b = self.best?;
+        Some((self.labels.get(b)?.as_str(), self.ratios.get(b)?))
+    }
+
+    /// The other run and its ratios, when there are two.
+    pub fn other(&self) -> Option<(&str, &crate::harness::stats::Summary)> {
+        let o = 1 - self.best.filter(|&b| b < 2)?;
+        Some((self.labels.get(o)?.as_str(), self.ratios.get(o)?))
+    }
+}
+
+/// One round: the peer's median frame time and each label's, in the order
+/// they ran (the first label, the peer, the second; `reversed`: the other
+/// way round).
+#[derive(Debug, Clone, Serialize)]
+pub struct Round {
+    pub peer_ms: f64,
+    pub volbench_ms: Vec<f64>,
+    pub reversed: bool,
 }
 
 /// The unchanged-image check of one culling scene: the reference-view image
