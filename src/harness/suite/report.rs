@@ -488,7 +488,7 @@ fn matched_error(s: &Summary) -> String {
         let (mut quoted, mut alternating, mut other) = ("-".to_string(), "-".to_string(), "-".to_string());
         if let Some(m) = rounds {
             if let Some((l, r)) = m.quoted() {
-                (quoted, alternating) = (l.to_string(), format!("**{}** ({})", spread(r), m.rounds.len()));
+                (quoted, alternating) = (l.to_string(), format!("**{:.2}** [{:.2}, {:.2}] ({})", r.median, r.min, r.max, m.rounds.len()));
             }
             if let Some((l, r)) = m.other() {
                 other = format!("{l}: {}", spread(r));
