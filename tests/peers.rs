@@ -257,6 +257,82 @@ fn a_missing_environment_or_unknown_peer_is_a_clear_error_before_anything_runs()
     }
 }
 
+/// A stand-in for VTK's peer (`VOLBENCH_VTK_VENV` pointing at it): called
+/// as `python SCRIPT --scene FILE`, it writes a result with the scene's
+/// frame counts and a white image, and fails on one call.
+const FAKE_PEER: &str = r#"#!/bin/sh
+# A stand-in for VTK's peer in volbench's tests: called as
+# `python SCRIPT --scene FILE`, it writes a result with the scene's frame
+# counts and a white image, and fails (exit 3) on call number $FAKE_PEER_FAIL_AT.
+scene="$3"
+n=$(( $(cat "$FAKE_PEER_CALLS" 2>/dev/null || echo 0) + 1 ))
+echo "$n" > "$FAKE_PEER_CALLS"
+if [ "$n" = "${FAKE_PEER_FAIL_AT:-0}" ]; then echo "fake peer: call $n fails" >&2; exit 3; fi
+top() { grep -m1 "^  \"$1\": " "$scene" | sed 's/^[^:]*: //; s/[",]//g'; }
+out() { grep -m1 "^    \"$1\": " "$scene" | sed 's/^[^:]*: //; s/[",]//g'; }
+w=$(top width); h=$(top height); frames=$(top frames); warmup=$(top warmup)
+renderer=$(top renderer); result=$(out result); image=$(out image)
+ms_list() { i=0; s=""; while [ $i -lt "$1" ]; do s="$s${s:+, }2.5"; i=$((i + 1)); done; echo "[$s]"; }
+head -c $((w * h * 4)) /dev/zero | tr '\000' '\377' > "$image"
+cat > "$result" <<JSON
+{"format": "volbench-peer-result", "version": 2, "peer": "vtk", "renderer": "$renderer",
+ "class": "fake", "library_version": "0", "window": "none", "gl_renderer": "none",
+ "load_ms": 1.0, "setup_ms": 1.0, "warmup_ms": $(ms_list "$warmup"), "frame_ms": $(ms_list "$frames"),
+ "image": {"file": "$(basename "$image")", "width": $w, "height": $h, "format": "rgba8", "rows": "top-down"}}
+JSON
+"#;
+
+/// The rounds against a peer in CI, where VTK is not installed: a peer
+/// that fails in the second round of its first renderer. That renderer
+/// keeps its first round and says why the second failed (its scene kept
+/// for a rerun), the other renderer completes both rounds, and the suite's
+/// exit status says a round failed.
+#[test]
+fn a_failed_round_is_reported_and_fails_the_suite() {
+    use std::os::unix::fs::PermissionsExt as _;
+    let dir = tempfile::tempdir().unwrap();
+    let python = dir.path().join("venv/bin/python");
+    std::fs::create_dir_all(python.parent().unwrap()).unwrap();
+    std::fs::write(&python, FAKE_PEER).unwrap();
+    std::fs::set_permissions(&python, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let out = dir.path().join("out");
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_volbench"))
+        .args(["suite", "--quick", "--peers", "vtk", "--rounds", "2", "--filter", "post-small", "--out"])
+        .arg(&out)
+        .env("VOLBENCH_VTK_VENV", dir.path().join("venv"))
+        .env("FAKE_PEER_CALLS", dir.path().join("calls"))
+        // Two first-pass runs, then projected tetrahedra's rounds 1 and 2.
+        .env("FAKE_PEER_FAIL_AT", "4")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(1), "{err}");
+    assert!(err.contains("the rounds of 1 of 2 peer renderers failed"), "{err}");
+    assert_eq!(std::fs::read_to_string(dir.path().join("calls")).unwrap().trim(), "6");
+    let summary: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("summary.json")).unwrap()).unwrap();
+    let matched = summary["matched"].as_array().unwrap();
+    assert_eq!(matched.len(), 2);
+    let (failed, complete) = (&matched[0], &matched[1]);
+    assert_eq!(failed["renderer"], "projected-tetrahedra");
+    assert_eq!(failed["rounds"].as_array().unwrap().len(), 1);
+    let why = failed["message"].as_str().unwrap();
+    assert!(why.starts_with("round 2:") && why.contains("call 4 fails"), "{why}");
+    assert_eq!(complete["rounds"].as_array().unwrap().len(), 2);
+    assert!(complete["message"].is_null());
+    assert_eq!(complete["rounds"][1]["reversed"], true);
+    for m in matched {
+        assert_eq!(m["labels"].as_array().unwrap().len(), 2);
+        assert_eq!(m["ratios"].as_array().unwrap().len(), 2);
+    }
+    let peers = out.join("peers");
+    assert!(peers.join("post-small-peer-vtk-projected-tetrahedra-round1.json").is_file());
+    assert!(!peers.join("post-small-peer-vtk-projected-tetrahedra-round2.json").exists());
+    assert!(peers.join("post-small-peer-vtk-projected-tetrahedra-round2.scene.json").is_file(), "a failed round's scene is kept");
+    assert!(!peers.join("post-small-peer-vtk-unstructured-raycast-round2.scene.json").exists());
+    let report = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(report.contains("(1); failed: round 2:") && report.contains("(2) |"), "{report}");
+}
+
 /// VTK itself, when installed: both mesh renderers on the small post, in a
 /// real suite run; their images must match volbench's reference closely.
 #[test]
