@@ -809,14 +809,13 @@ fn stress(cli: &Cli, registry: &Registry, args: &StressArgs) -> Result<()> {
 
 fn suite(cli: &Cli, registry: &Registry, args: &SuiteArgs) -> Result<()> {
     use volbench::harness::suite::{plan, run_suite, utc_now, SuiteSettings};
-    let standard = SuiteSettings::standard(args.quick, args.filter.clone());
     let settings = SuiteSettings {
         peers: args.peers.clone(),
         rounds: if args.peers.is_empty() { 0 } else { args.rounds.map_or(SuiteSettings::default_rounds(args.quick), usize::from) },
         data: args.data.clone(),
         tf: args.tf.clone(),
         cell_data: args.cell_data,
-        ..standard
+        ..SuiteSettings::standard(args.quick, args.filter.clone())
     }
         .counted(count::child_dir(args.count)?);
     let plan = plan(registry, &settings)?;

@@ -494,8 +494,8 @@ fn matched_error(s: &Summary) -> String {
                 other = format!("{l}: {}", spread(r));
             }
             if let Some(why) = &m.message {
-                let sep = if m.rounds.is_empty() { "" } else { "; " };
-                alternating = format!("{}{sep}failed: {}", if m.rounds.is_empty() { "" } else { alternating.as_str() }, why.replace('|', "/"));
+                let failed = format!("failed: {}", why.replace('|', "/"));
+                alternating = if m.rounds.is_empty() { failed } else { format!("{alternating}; {failed}") };
             }
         }
         let _ = writeln!(
